@@ -1,0 +1,72 @@
+#!/bin/bash
+# Loopback Modbus/TCP throughput: `loopwire simulate` against libmodbus's own slave, measured in
+# the same run by the same libmodbus client (read 10 holding registers, one request at a time).
+#
+# Usage: bench/tcp_throughput.sh BUILD_DIR [REQUESTS]    (REQUESTS defaults to 20000)
+# Builds nothing: BUILD_DIR must hold loopwire, bench/tcp_throughput_client and
+# bench/libmodbus_tcp_server (cmake --build BUILD_DIR).
+#
+# Server and client are both pinned to CPU 0 (taskset -c 0). On small VMs cross-CPU wake-ups
+# dominate a request/response loop (PEERS.md: ~6,000 requests/s spread over two CPUs, ~30,000
+# pinned), which would drown the difference between the two servers.
+set -euo pipefail
+
+if [[ $# -lt 1 || $# -gt 2 ]]; then
+    echo "usage: $0 BUILD_DIR [REQUESTS]" >&2
+    exit 2
+fi
+readonly BUILD_DIR=$1 REQUESTS=${2:-20000}
+readonly LOOPWIRE=$BUILD_DIR/loopwire
+readonly CLIENT=$BUILD_DIR/bench/tcp_throughput_client
+readonly LIBMODBUS_SERVER=$BUILD_DIR/bench/libmodbus_tcp_server
+for program in "$LOOPWIRE" "$CLIENT" "$LIBMODBUS_SERVER"; do
+    [[ -x $program ]] || { echo "$0: $program is missing: build it first (cmake --build $BUILD_DIR)" >&2; exit 2; }
+done
+[[ $REQUESTS =~ ^[1-9][0-9]*$ ]] || { echo "$0: REQUESTS must be a positive number, not '$REQUESTS'" >&2; exit 2; }
+
+WORK_DIR=$(mktemp -d "${TMPDIR:-/tmp}/loopwire-bench.XXXXXX")
+SERVER_PID=
+cleanup() {
+    local status=$?
+    [[ -n $SERVER_PID ]] && { kill "$SERVER_PID" 2>/dev/null || true; wait "$SERVER_PID" 2>/dev/null || true; }
+    rm -rf "$WORK_DIR"
+    exit "$status"
+}
+trap cleanup EXIT
+trap 'exit 143' TERM INT HUP
+
+# measure NAME SERVER_COMMAND... : starts the server pinned to CPU 0 on a kernel-chosen port,
+# runs the pinned client against it, stops the server, leaves the requests per second in RATE.
+# (Not called as $(measure ...): a subshell would hide SERVER_PID from the cleanup trap.)
+measure() {
+    local name=$1 port= deadline=$((SECONDS + 10))
+    shift
+    taskset -c 0 "$@" >"$WORK_DIR/$name.log" 2>&1 &
+    SERVER_PID=$!
+    # Both servers name their port: "listening on port N" (loopwire on stderr, libmodbus's on stdout).
+    until [[ -n $port ]]; do
+        port=$(sed -nE 's/.*listening on port ([0-9]+).*/\1/p' "$WORK_DIR/$name.log" | head -n 1)
+        if [[ -z $port ]]; then
+            kill -0 "$SERVER_PID" 2>/dev/null || { echo "$0: the $name server exited: $(cat "$WORK_DIR/$name.log")" >&2; exit 1; }
+            ((SECONDS <= deadline)) || { echo "$0: the $name server named no port within 10 s" >&2; exit 1; }
+            sleep 0.02
+        fi
+    done
+    # The client's limit grows with the request count; even 1,000 requests/s stays inside it.
+    timeout $((30 + REQUESTS / 1000)) taskset -c 0 "$CLIENT" 127.0.0.1 "$port" "$REQUESTS" 1 \
+        >"$WORK_DIR/$name.client" 2>&1 ||
+        { echo "$0: the client failed against $name: $(cat "$WORK_DIR/$name.client")" >&2; exit 1; }
+    kill "$SERVER_PID" 2>/dev/null || true
+    wait "$SERVER_PID" 2>/dev/null || true
+    SERVER_PID=
+    RATE=$(sed -nE 's/^requests\/s: ([0-9.]+)$/\1/p' "$WORK_DIR/$name.client")
+    [[ -n $RATE ]] || { echo "$0: the client printed no rate against $name: $(cat "$WORK_DIR/$name.client")" >&2; exit 1; }
+}
+
+measure loopwire "$LOOPWIRE" simulate --link tcp://127.0.0.1:0 --unit 1 --duration 10m
+loopwire_rate=$RATE
+measure libmodbus "$LIBMODBUS_SERVER" 0 600
+libmodbus_rate=$RATE
+ratio=$(awk -v a="$loopwire_rate" -v b="$libmodbus_rate" 'BEGIN { printf "%.2f", a / b }')
+echo "$REQUESTS requests of 10 holding registers each, server and client pinned to CPU 0"
+echo "loopwire: $loopwire_rate req/s, libmodbus: $libmodbus_rate req/s, ratio: $ratio"

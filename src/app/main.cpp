@@ -1,0 +1,26 @@
+// loopwire: read, write, simulate and explain Modbus traffic of process controllers.
+#include <CLI/CLI.hpp>
+
+#include "app/commands.hpp"
+#include "app/exit_codes.hpp"
+
+int main(int argc, char** argv) {
+    using namespace loopwire::app;
+    CLI::App app{"loopwire: talk to, simulate and bridge process controllers over Modbus RTU, ASCII, TCP and Linking"};
+    app.set_version_flag("--version", "loopwire 0.1.0");
+    app.require_subcommand(1);
+    app.footer(exit_code_help);
+    int exit_code = exit_ok;
+    add_read_command(app, exit_code);
+    add_write_command(app, exit_code);
+    add_simulate_command(app, exit_code);
+    add_decode_command(app, exit_code);
+    add_demo_command(app, exit_code);
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& error) {
+        const int printed = app.exit(error);
+        return printed == 0 ? exit_ok : exit_usage;
+    }
+    return exit_code;
+}

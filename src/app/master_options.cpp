@@ -1,0 +1,29 @@
+#include "app/master_options.hpp"
+
+#include "app/command_line.hpp"
+
+namespace loopwire::app {
+
+void MasterCommandOptions::add_to(CLI::App& command) {
+    command.add_option("--link", link, "Link URL: rtu:/dev/ttyUSB0?baud=19200&parity=even, ascii:..., linking:..., tcp://host:502, rtu+tcp://host:4001")
+        ->required();
+    command.add_option("--unit", unit, "Unit (slave) id; 0 broadcasts writes")->check(CLI::Range(0, 255))->capture_default_str();
+    command.add_option("--timeout", timeout, "Time to wait for each reply: 500ms, 2s, ...")->capture_default_str();
+    command.add_option("--retries", retries, "Extra tries after a timeout")->capture_default_str();
+    command.add_flag("-v,--verbose", verbose, "Print every frame sent and received, with timestamps, on stderr");
+    command.add_flag("--json", json, "Print the result as JSON");
+}
+
+Result<std::unique_ptr<session::Master>> MasterCommandOptions::open() const {
+    auto url = transport::parse_link_url(link);
+    if (!url) return url.error();
+    auto wait = parse_duration(timeout);
+    if (!wait) return wait.error();
+    session::MasterOptions options;
+    options.timeout = std::max(std::chrono::milliseconds(1), std::chrono::duration_cast<std::chrono::milliseconds>(*wait));
+    options.retries = retries;
+    if (verbose) options.trace = stderr_trace();
+    return session::open_master(*url, std::move(options));
+}
+
+}  // namespace loopwire::app

@@ -1,0 +1,26 @@
+#pragma once
+// The options every master-side subcommand takes: --link, --unit, --timeout, --retries, -v.
+#include <memory>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "common/result.hpp"
+#include "session/master.hpp"
+
+namespace loopwire::app {
+
+struct MasterCommandOptions {
+    std::string link;
+    int unit = 1;
+    std::string timeout = "1s";
+    unsigned retries = 0;
+    bool verbose = false;
+    bool json = false;
+
+    void add_to(CLI::App& command);
+    // Parses the link URL and the durations, opens the link and builds the master.
+    Result<std::unique_ptr<session::Master>> open() const;
+};
+
+}  // namespace loopwire::app

@@ -1,0 +1,99 @@
+// loopwire simulate --link URL --unit N [--unit M ...] [--pty PATH] [--duration S] [-v]
+// Until device profiles exist, every unit is a plain register bank (all four tables, 65536
+// entries, zero, writable).
+#include <fmt/format.h>
+
+#include "app/command_line.hpp"
+#include "app/commands.hpp"
+#include "app/exit_codes.hpp"
+#include "app/stop_signal.hpp"
+#include "session/register_bank.hpp"
+#include "session/slave.hpp"
+#include "transport/pseudo_terminal.hpp"
+#include "transport/serial_port.hpp"
+
+namespace loopwire::app {
+namespace {
+
+struct SimulateOptions {
+    std::string link;
+    std::vector<int> units;
+    std::string pty;
+    std::string duration;
+    bool verbose = false;
+};
+
+Result<transport::LinkUrl> simulated_link(const SimulateOptions& options) {
+    if (options.link.empty() && options.pty.empty()) {
+        return make_error(ErrorKind::usage, "say where to serve: --link URL (serial port or tcp://host:port) or --pty PATH");
+    }
+    auto url = transport::parse_link_url(options.link.empty() ? "rtu:" + options.pty : options.link);
+    if (!url) return url.error();
+    if (!options.pty.empty() && !url->is_serial()) {
+        return make_error(ErrorKind::usage, "--pty makes a pseudo-terminal, which carries serial framings (rtu, ascii, linking), not " + transport::framing_name(url->framing));
+    }
+    return url;
+}
+
+Result<std::unique_ptr<transport::ByteStream>> open_serial_side(const SimulateOptions& options, const transport::LinkUrl& url) {
+    if (!options.pty.empty()) return transport::create_pseudo_terminal(options.pty, url.serial);
+    if (url.path == "virtual") {
+        return make_error(ErrorKind::usage, "a virtual bus exists only inside one process; use --pty PATH to let other programs reach the simulator");
+    }
+    return transport::open_serial_port(url.path, url.serial);
+}
+
+std::string unit_list(const std::vector<int>& units) {
+    return fmt::format("{}", fmt::join(units, ", "));
+}
+
+int run_simulate(SimulateOptions options) {
+    auto url = simulated_link(options);
+    if (!url) return report_error(url.error());
+    std::optional<std::chrono::microseconds> limit;
+    if (!options.duration.empty()) {
+        auto parsed = parse_duration(options.duration);
+        if (!parsed) return report_error(parsed.error());
+        limit = *parsed;
+    }
+    if (options.units.empty()) options.units.push_back(1);
+    session::UnitMap units;
+    for (int unit : options.units) units[static_cast<std::uint8_t>(unit)] = std::make_shared<session::RegisterBank>();
+    StopSignal stop(limit);
+    session::SlaveOptions slave_options;
+    if (options.verbose) slave_options.trace = stderr_trace();
+    session::Slave slave(*url, std::move(units), slave_options);
+    Result<void> served;
+    if (url->is_serial()) {
+        auto stream = open_serial_side(options, *url);
+        if (!stream) return report_error(stream.error());
+        fmt::print(stderr, "loopwire: simulating unit(s) {} on {} ({}); Ctrl-C to stop\n", unit_list(options.units),
+                   url->to_string(), (*stream)->describe());
+        served = slave.serve_stream(**stream, stop.token());
+    } else {
+        auto listener = transport::TcpListener::listen(url->host, url->port);
+        if (!listener) return report_error(listener.error());
+        fmt::print(stderr, "loopwire: simulating unit(s) {} on {} (listening on port {}); Ctrl-C to stop\n",
+                   unit_list(options.units), url->to_string(), (*listener)->port());
+        served = slave.serve_listener(**listener, stop.token());
+    }
+    if (!served) return report_error(served.error());
+    fmt::print(stderr, "loopwire: stopped after serving {} request(s)\n", slave.requests_served());
+    return exit_ok;
+}
+
+}  // namespace
+
+void add_simulate_command(CLI::App& app, int& exit_code) {
+    auto options = std::make_shared<SimulateOptions>();
+    auto* command = app.add_subcommand("simulate", "Serve simulated units on a link (plain register banks for now)");
+    command->add_option("--link", options->link, "Link URL to serve on: rtu:/dev/ttyUSB0?baud=19200, tcp://127.0.0.1:1502, rtu+tcp://0.0.0.0:4001");
+    command->add_option("--unit", options->units, "Unit id to serve (repeat for several; default 1)")->check(CLI::Range(1, 247));
+    command->add_option("--pty", options->pty, "Create a pseudo-terminal with a link at PATH and serve there (open PATH like a serial port)");
+    command->add_option("--duration", options->duration, "Stop by itself after this long (e.g. 30s)");
+    command->add_flag("-v,--verbose", options->verbose, "Print every frame received and sent, with timestamps, on stderr");
+    command->footer(exit_code_help);
+    command->callback([options, &exit_code] { exit_code = run_simulate(*options); });
+}
+
+}  // namespace loopwire::app

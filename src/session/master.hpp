@@ -1,0 +1,65 @@
+#pragma once
+// The master side: sends requests, waits for the matching reply, retries, and keeps the line
+// discipline of its framing (DESIGN.md, session layer).
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "codec/pdu.hpp"
+#include "common/result.hpp"
+#include "session/trace.hpp"
+#include "transport/byte_stream.hpp"
+#include "transport/link_url.hpp"
+
+namespace loopwire::session {
+
+using std::chrono::milliseconds;
+
+struct MasterOptions {
+    milliseconds timeout{1000};   // per try
+    unsigned retries = 0;         // extra tries after a timeout (never after an exception reply)
+    // Silence after a broadcast before the next request, so slaves can execute it
+    // (Modbus over serial line V1.02, 2.4.1: "turnaround delay", typically 100 to 200 ms).
+    milliseconds turnaround{100};
+    bool linking_ram_only = false;  // Linking: single writes as M (RAM only) instead of W
+    TraceSink trace;                // -v: every frame sent, received or discarded
+};
+
+class Master {
+public:
+    using Completion = std::function<void(Result<codec::Reply>)>;
+
+    virtual ~Master() = default;
+    Master() = default;
+    Master(const Master&) = delete;
+    Master& operator=(const Master&) = delete;
+
+    // Sends `request` to `unit` and returns the reply that answers it. Unit 0 broadcasts: no
+    // reply is awaited, the turnaround delay is kept, and an empty normal reply is returned.
+    // An exception reply is ErrorKind::exception with the code. Safe to call from several
+    // threads: a serial line carries one request at a time, TCP pipelines them.
+    virtual Result<codec::Reply> execute(std::uint8_t unit, const codec::Request& request) = 0;
+
+    // The same without blocking, for event loops: `done` runs on a thread of the master's.
+    virtual void execute_async(std::uint8_t unit, codec::Request request, Completion done) = 0;
+
+    virtual std::string describe() const = 0;
+};
+
+// RTU, ASCII and Linking on a serial line, pseudo-terminal or virtual bus port, and RTU frames
+// through a serial device server (rtu+tcp). One outstanding request; at least 3.5 character
+// times of silence kept before every frame.
+std::unique_ptr<Master> make_serial_master(std::unique_ptr<transport::ByteStream> stream,
+                                           const transport::LinkUrl& link, MasterOptions options);
+
+// Modbus TCP: transaction ids, several requests in flight, reconnects after a lost connection.
+std::unique_ptr<Master> make_tcp_master(std::unique_ptr<transport::ByteStream> stream,
+                                        const transport::LinkUrl& link, MasterOptions options);
+
+// Opens the link a URL names (serial port or TCP connection) and the matching master.
+// `rtu:virtual` links exist only inside one process: the caller wires those itself.
+Result<std::unique_ptr<Master>> open_master(const transport::LinkUrl& link, MasterOptions options);
+
+}  // namespace loopwire::session

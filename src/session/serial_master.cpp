@@ -1,0 +1,206 @@
+// The master on a serial line (RTU, ASCII, Linking) or behind a serial device server (rtu+tcp).
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+#include <thread>
+
+#include "codec/rtu.hpp"
+#include "session/frame_codec.hpp"
+#include "session/master.hpp"
+#include "session/transaction_text.hpp"
+
+namespace loopwire::session {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Runs queued jobs on one thread, for execute_async. Started on first use.
+class JobQueue {
+public:
+    ~JobQueue() {
+        {
+            std::lock_guard lock(mutex_);
+            stopping_ = true;
+        }
+        ready_.notify_all();
+        if (worker_.joinable()) worker_.join();
+    }
+
+    void push(std::function<void()> job) {
+        std::lock_guard lock(mutex_);
+        if (!worker_.joinable()) worker_ = std::thread([this] { run(); });
+        jobs_.push_back(std::move(job));
+        ready_.notify_one();
+    }
+
+private:
+    void run() {
+        std::unique_lock lock(mutex_);
+        for (;;) {
+            ready_.wait(lock, [this] { return stopping_ || !jobs_.empty(); });
+            if (jobs_.empty()) return;  // stopping, nothing left
+            auto job = std::move(jobs_.front());
+            jobs_.pop_front();
+            lock.unlock();
+            job();
+            lock.lock();
+        }
+    }
+
+    std::mutex mutex_;
+    std::condition_variable ready_;
+    std::deque<std::function<void()>> jobs_;
+    bool stopping_ = false;
+    std::thread worker_;
+};
+
+class SerialMaster final : public Master {
+public:
+    SerialMaster(std::unique_ptr<transport::ByteStream> stream, const transport::LinkUrl& link,
+                 MasterOptions options)
+        : stream_(std::move(stream)),
+          codec_(make_frame_codec(link, codec::Direction::reply, options.linking_ram_only)),
+          options_(std::move(options)),
+          inter_frame_gap_(gap_for(link)),
+          name_(link.to_string()) {}
+
+    Result<codec::Reply> execute(std::uint8_t unit, const codec::Request& request) override {
+        auto pdu = codec::encode_request(request);
+        if (!pdu) return pdu.error();
+        std::lock_guard lock(line_);  // one outstanding request per serial line
+        TimeoutContext context{name_, options_.timeout.count(), 0, 0};
+        for (unsigned attempt = 0; attempt <= options_.retries; ++attempt) {
+            ++context.tries;
+            auto reply = attempt_once(unit, request, *pdu, context);
+            if (reply.ok() || reply.error().kind != ErrorKind::timeout) return reply;
+        }
+        return timeout_error(unit, request, context);
+    }
+
+    void execute_async(std::uint8_t unit, codec::Request request, Completion done) override {
+        jobs_.push([this, unit, request = std::move(request), done = std::move(done)] {
+            done(execute(unit, request));
+        });
+    }
+
+    std::string describe() const override { return name_; }
+
+private:
+    // RTU needs 3.5 characters of silence between frames (Modbus over serial line V1.02,
+    // 2.5.1.1); libmodbus does not keep it, and multi-drop lines with several slaves break on
+    // that. Through a device server the server times the line. ASCII needs no gap (2.5.2.1),
+    // Linking documents none; loopwire keeps the RTU gap on both: it costs little and never
+    // hurts a slave.
+    static Clock::duration gap_for(const transport::LinkUrl& link) {
+        if (!link.is_serial()) return Clock::duration::zero();
+        return codec::CharacterTiming{link.serial.baud, link.serial.bits_per_character()}.t3_5();
+    }
+
+    void trace(TraceDirection direction, ByteView bytes, std::string note) const {
+        if (options_.trace) options_.trace({Clock::now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
+    }
+
+    Result<codec::Reply> attempt_once(std::uint8_t unit, const codec::Request& request,
+                                      const Bytes& pdu, TimeoutContext& context) {
+        auto frame = codec_->encode(unit, pdu, 0);
+        if (!frame) return frame.error();
+        std::this_thread::sleep_until(line_quiet_since_ + inter_frame_gap_);
+        stream_->discard_input();  // a late reply to an earlier try must not answer this one
+        codec_->reset();
+        trace(TraceDirection::sent, *frame, describe_transaction(unit, request));
+        auto written = stream_->write(*frame);
+        line_quiet_since_ = Clock::now();
+        if (!written) return written.error();
+        if (unit == 0) {
+            // Broadcast: nobody answers; give every slave the turnaround delay to execute it.
+            std::this_thread::sleep_for(options_.turnaround);
+            line_quiet_since_ = Clock::now();
+            return codec::Reply{request.function, codec::ReplyKind::normal, 0, request.address, request.count, {}};
+        }
+        auto reply = await_reply(unit, request, Clock::now() + options_.timeout, context);
+        line_quiet_since_ = Clock::now();
+        return reply;
+    }
+
+    Result<codec::Reply> await_reply(std::uint8_t unit, const codec::Request& request,
+                                      Clock::time_point deadline, TimeoutContext& context) {
+        std::array<std::uint8_t, 512> buffer{};
+        for (;;) {
+            const auto now = Clock::now();
+            if (now >= deadline) return make_error(ErrorKind::timeout, "no reply");
+            auto wait = deadline - now;
+            if (auto flush_at = codec_->flush_deadline()) {
+                wait = std::min<Clock::duration>(wait, std::max<Clock::duration>(*flush_at - now, Clock::duration::zero()));
+            }
+            const auto wait_ms = std::chrono::ceil<milliseconds>(wait);
+            auto got = stream_->read_some(buffer, wait_ms);
+            if (!got) return got.error();
+            codec::FrameEvents events;
+            if (*got > 0) {
+                auto fed = codec_->feed(ByteView(buffer.data(), *got), Clock::now());
+                if (!fed) return fed.error();
+                events = std::move(*fed);
+            } else {
+                events = codec_->flush(Clock::now());
+            }
+            for (auto& event : events) {
+                if (auto answer = consider(unit, request, event, context)) return std::move(*answer);
+            }
+        }
+    }
+
+    // A frame that answers the request ends the wait; anything else is traced and skipped.
+    std::optional<Result<codec::Reply>> consider(std::uint8_t unit, const codec::Request& request,
+                                                 const codec::FrameEvent& event,
+                                                 TimeoutContext& context) {
+        if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
+            ++context.discarded_runs;
+            trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
+            return std::nullopt;
+        }
+        const auto& frame = std::get<codec::Frame>(event);
+        if (frame.unit != unit) {
+            trace(TraceDirection::received, frame.raw, fmt_unit_skip(frame.unit, unit));
+            return std::nullopt;
+        }
+        auto reply = codec::decode_reply(frame.pdu);
+        if (!reply) {
+            ++context.discarded_runs;
+            trace(TraceDirection::discarded, frame.raw, reply.error().message);
+            return std::nullopt;
+        }
+        auto matched = codec::match_reply(request, std::move(*reply));
+        if (!matched) {
+            trace(TraceDirection::discarded, frame.raw, matched.error().message);
+            return std::nullopt;  // a stale or foreign reply; the right one may still come
+        }
+        if (matched->kind == codec::ReplyKind::exception) {
+            trace(TraceDirection::received, frame.raw, "exception " + codec::describe_exception(matched->exception_code));
+            return Result<codec::Reply>(exception_error(unit, request, matched->exception_code));
+        }
+        trace(TraceDirection::received, frame.raw, "reply from unit " + std::to_string(unit));
+        return Result<codec::Reply>(std::move(*matched));
+    }
+
+    static std::string fmt_unit_skip(std::uint8_t got, std::uint8_t wanted) {
+        return "frame from unit " + std::to_string(got) + " while waiting for unit " + std::to_string(wanted);
+    }
+
+    std::unique_ptr<transport::ByteStream> stream_;
+    std::unique_ptr<FrameCodec> codec_;
+    MasterOptions options_;
+    Clock::duration inter_frame_gap_;
+    std::string name_;
+    std::mutex line_;
+    Clock::time_point line_quiet_since_{};
+    JobQueue jobs_;  // last member: its thread stops before the rest is destroyed
+};
+
+}  // namespace
+
+std::unique_ptr<Master> make_serial_master(std::unique_ptr<transport::ByteStream> stream,
+                                           const transport::LinkUrl& link, MasterOptions options) {
+    return std::make_unique<SerialMaster>(std::move(stream), link, std::move(options));
+}
+
+}  // namespace loopwire::session

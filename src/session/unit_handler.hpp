@@ -1,0 +1,32 @@
+#pragma once
+// What a slave session dispatches to: one handler per unit id. The handler decides what the
+// device answers, and when it stays silent.
+#include <optional>
+
+#include "codec/pdu.hpp"
+#include "common/bytes.hpp"
+
+namespace loopwire::session {
+
+class UnitHandler {
+public:
+    virtual ~UnitHandler() = default;
+    // The reply PDU for a request PDU, or nullopt for no reply at all (some devices stay silent
+    // on requests they cannot serve, e.g. the AC20 on an unimplemented function code).
+    // `broadcast`: the request came to unit 0; it is executed and any reply is dropped.
+    virtual std::optional<Bytes> handle(ByteView request_pdu, bool broadcast) = 0;
+};
+
+// A handler that works on decoded requests. Requests that do not decode are answered the way
+// the Modbus application protocol (V1.1b3, 7) says: exception 1 for a function code the
+// handler does not serve, 3 for a malformed quantity or byte count, 2 for a range past FFFFh.
+class RequestHandler : public UnitHandler {
+public:
+    std::optional<Bytes> handle(ByteView request_pdu, bool broadcast) override;
+
+protected:
+    // A normal or exception reply to a request that decoded cleanly.
+    virtual codec::Reply serve(const codec::Request& request) = 0;
+};
+
+}  // namespace loopwire::session

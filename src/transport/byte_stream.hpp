@@ -1,0 +1,53 @@
+#pragma once
+// A byte pipe: serial port, pseudo-terminal, TCP connection or a port on the virtual bus.
+// Transports know nothing of frames.
+#include <chrono>
+#include <cstdint>
+#include <span>
+#include <string>
+
+#include "common/bytes.hpp"
+#include "common/result.hpp"
+
+namespace loopwire::transport {
+
+using std::chrono::milliseconds;
+
+enum class Parity { none, even, odd };
+
+// Character format and speed of a serial line (also stored on pseudo-terminals, which ignore it).
+struct SerialSettings {
+    std::uint32_t baud = 19200;
+    unsigned data_bits = 8;
+    Parity parity = Parity::even;
+    unsigned stop_bits = 1;
+    bool rs485 = false;  // ask the kernel to drive the RS-485 transmitter (TIOCSRS485)
+
+    // 1 start bit + data + parity + stop: what one character costs on the wire.
+    unsigned bits_per_character() const {
+        return 1 + data_bits + (parity == Parity::none ? 0 : 1) + stop_bits;
+    }
+};
+
+class ByteStream {
+public:
+    virtual ~ByteStream() = default;
+    ByteStream() = default;
+    ByteStream(const ByteStream&) = delete;
+    ByteStream& operator=(const ByteStream&) = delete;
+
+    // Writes every byte (blocking until the kernel took them all) or fails with ErrorKind::link.
+    virtual Result<void> write(ByteView bytes) = 0;
+    // Waits up to `timeout` for bytes; returns how many were stored in `buffer` (0 = timeout).
+    // A closed peer is ErrorKind::link ("connection closed by peer").
+    virtual Result<std::size_t> read_some(std::span<std::uint8_t> buffer, milliseconds timeout) = 0;
+    // Discards whatever is waiting to be read (stale replies before a new request).
+    virtual void discard_input() = 0;
+    // A file descriptor that becomes readable when read_some would not block (for poll()-based
+    // event loops); -1 where there is none.
+    virtual int poll_handle() const = 0;
+    // "rtu:/dev/ttyUSB0", "tcp 127.0.0.1:502" — for messages.
+    virtual std::string describe() const = 0;
+};
+
+}  // namespace loopwire::transport

@@ -1,0 +1,36 @@
+#pragma once
+// One string names a link everywhere (DESIGN.md, "Links"):
+//   rtu:/dev/ttyUSB0?baud=19200&parity=even&stop=1&data=8&rs485=1
+//   ascii:/dev/ttyS1?baud=9600&parity=even&data=7
+//   linking:/dev/ttyS1?baud=9600
+//   tcp://127.0.0.1:502
+//   rtu+tcp://serial-server.local:4001
+//   rtu:virtual            (an in-process virtual bus, for demos and tests)
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+#include "common/result.hpp"
+#include "transport/byte_stream.hpp"
+
+namespace loopwire::transport {
+
+enum class Framing { rtu, ascii, linking, tcp, rtu_over_tcp };
+std::string framing_name(Framing framing);  // "rtu", "ascii", "linking", "tcp", "rtu+tcp"
+
+struct LinkUrl {
+    Framing framing = Framing::rtu;
+    std::string path;        // serial device path (serial framings)
+    std::string host;        // tcp framings
+    std::uint16_t port = 0;  // tcp framings
+    SerialSettings serial;   // serial framings; defaults 19200 8E1 (Modbus serial-line default)
+
+    bool is_serial() const { return framing != Framing::tcp && framing != Framing::rtu_over_tcp; }
+    std::string to_string() const;
+};
+
+// Errors are ErrorKind::usage and name the bad part: "link URL 'rtu:/dev/x?baud=12345': baud
+// 12345 is not a supported rate (600, 1200, ... 115200)".
+Result<LinkUrl> parse_link_url(std::string_view text);
+
+}  // namespace loopwire::transport

@@ -1,0 +1,55 @@
+#pragma once
+// An in-memory multi-drop serial line. Every byte written by one port reaches every other port
+// after the time it takes on the wire at the bus's baud rate and character size, so timing
+// behaviour (3.5-character gaps, turnaround delays) can be tested without hardware. Tests can
+// inject faults on the bytes in flight.
+//
+// Choices made where real lines differ (details in virtual_bus.cpp):
+// - The wire is shared and half-duplex; a write that starts while another is on the wire waits
+//   for it (serialised) rather than colliding. write() returns once its last byte has left.
+// - A port never hears its own writes.
+// - A dropped write still occupies the wire; noise_before takes wire time before the write;
+//   extra_delay is latency only (the sender and the wire do not wait for it).
+// - poll_handle() is a timerfd that is readable exactly while read_some() has bytes to return.
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "transport/byte_stream.hpp"
+
+namespace loopwire::transport {
+
+// What happens to one write on its way across the bus. Faults apply to a whole write (a frame,
+// as sessions write them) and are decided by the test's own function, so runs are deterministic.
+struct BusFault {
+    bool drop = false;                        // the write never arrives
+    std::vector<std::size_t> corrupt_bytes;   // indexes whose bits are inverted
+    std::chrono::microseconds extra_delay{0}; // arrives this much later
+    Bytes noise_before;                       // bytes that appear on the line before the write
+};
+
+// Decides the fault for a write: (sending port name, bytes written) -> fault.
+using FaultInjector = std::function<BusFault(const std::string& from, ByteView bytes)>;
+
+class VirtualBus : public std::enable_shared_from_this<VirtualBus> {
+public:
+    static std::shared_ptr<VirtualBus> create(std::uint32_t baud, unsigned bits_per_character);
+
+    // A new station on the bus. The port keeps the bus alive.
+    std::unique_ptr<ByteStream> attach(const std::string& name);
+    void set_fault_injector(FaultInjector injector);
+    std::chrono::microseconds character_time() const;
+
+    struct Impl;
+    explicit VirtualBus(std::unique_ptr<Impl> impl);
+    ~VirtualBus();
+
+private:
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace loopwire::transport

@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# The loopwire binary as a user meets it: exit codes, error messages, JSON, -v traces, and a
+# simulator on a pseudo-terminal and on loopback TCP driven by loopwire's own read/write.
+set -u
+loopwire=${1:?usage: cli_behaviour_test.sh path/to/loopwire}
+work=$(mktemp -d)
+pids=()
+cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; wait 2>/dev/null; rm -rf "$work"; }
+trap cleanup EXIT
+failures=0
+passes=0
+
+check() {  # name, expected-status, expected-substring (stdout+stderr), command...
+  local name=$1 want=$2 text=$3; shift 3
+  local out status
+  out=$(timeout 20 "$@" 2>&1); status=$?
+  if [ "$status" -ne "$want" ] || [[ "$out" != *"$text"* ]]; then
+    echo "FAIL $name: status $status (want $want), output:"; echo "$out" | sed 's/^/    /'
+    echo "    (wanted text: $text)"
+    failures=$((failures + 1))
+  else
+    passes=$((passes + 1))
+  fi
+}
+
+wait_for_path() { for _ in $(seq 100); do [ -e "$1" ] && return 0; sleep 0.05; done; return 1; }
+
+# Usage errors: exit 2, naming the bad part.
+check no-subcommand 2 "subcommand" "$loopwire"
+check bad-baud 2 "12345" "$loopwire" read --link 'rtu:/dev/ttyUSB9?baud=12345' --unit 1 holding 0 1
+check bad-scheme 2 "modbus" "$loopwire" read --link 'modbus://x' --unit 1 holding 0 1
+check bad-table 2 "unknown table 'holdings'" "$loopwire" read --link "rtu:$work/none" --unit 1 holdings 0 1
+check bad-address 2 "address 70000 is out of range" "$loopwire" read --link "rtu:$work/none" --unit 1 holding 70000 1
+check bad-timeout 2 "not a duration" "$loopwire" read --link "rtu:$work/none" --timeout soon --unit 1 holding 0 1
+check read-broadcast 2 "unit 0 is broadcast" "$loopwire" read --link "rtu:$work/none" --unit 0 holding 0 1
+check bad-coil 2 "coil value 'maybe'" "$loopwire" write --link "rtu:$work/none" --unit 1 coils 0 maybe
+check help-lists-exit-codes 0 "4  timeout" "$loopwire" read --help
+
+# Link errors: exit 3, naming the port.
+check missing-port 3 "$work/none" "$loopwire" read --link "rtu:$work/none" --unit 1 holding 0 1
+
+# decode: 0 for a valid frame, 1 for an invalid one with the reason.
+check decode-ac20-fc1 0 '{"protocol":"rtu","unit":100,"function":1,"kind":"request","address":201,"count":14,"values":[],"exception":null,"check_ok":true' \
+  "$loopwire" decode --protocol rtu --json 64 01 00 C9 00 0E 64 05
+check decode-misprinted-crc 1 "computed CD C1" "$loopwire" decode --protocol rtu 01 90 02 C0 01
+check decode-ascii-text 0 '"values":[1000]' "$loopwire" decode --protocol ascii --json ':01030203E80F'
+check decode-not-hex 2 "not a frame in hex" "$loopwire" decode --protocol rtu 01 0G
+
+# A simulator on a pseudo-terminal, read and written by loopwire.
+pty="$work/ttyV0"
+"$loopwire" simulate --pty "$pty" --unit 1 --unit 2 --duration 60s 2>"$work/sim.log" &
+pids+=($!)
+wait_for_path "$pty" || { echo "FAIL simulator pty never appeared"; cat "$work/sim.log"; exit 1; }
+link="rtu:$pty?baud=19200&parity=even"
+check write-registers 0 "wrote 3 register(s)" "$loopwire" write --link "$link" --unit 1 holding 100 1250 -100 0x8000
+check read-registers-json 0 '{"unit":1,"table":"holding","address":100,"values":[1250,65436,32768]}' \
+  "$loopwire" read --link "$link" --unit 1 holding 100 3 --json
+check write-coils 0 "wrote 3 coil(s)" "$loopwire" write --link "$link" --unit 2 coils 7 on 0 1
+check read-coils-json 0 '"values":[1,0,1]' "$loopwire" read --link "$link" --unit 2 coils 7 3 --json
+check read-many-splits 0 '"address":0' "$loopwire" read --link "$link" --unit 1 holding 0 300 --json
+check broadcast-write 0 "broadcast" "$loopwire" write --link "$link" --unit 0 holding 5 77
+check broadcast-reached-unit-2 0 '"values":[77]' "$loopwire" read --link "$link" --unit 2 holding 5 1 --json
+check unserved-unit-times-out 4 "no reply from unit 9" "$loopwire" read --link "$link" --unit 9 --timeout 200ms --retries 1 holding 0 1
+check verbose-trace 0 "TX 01 03 00 64 00 01" "$loopwire" read -v --link "$link" --unit 1 holding 100 1
+
+# The same over loopback TCP.
+port=$(/usr/bin/python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+"$loopwire" simulate --link "tcp://127.0.0.1:$port" --unit 1 --duration 60s 2>"$work/tcp.log" &
+pids+=($!)
+for _ in $(seq 100); do grep -q listening "$work/tcp.log" && break; sleep 0.05; done
+check tcp-write 0 "wrote 2" "$loopwire" write --link "tcp://127.0.0.1:$port" --unit 1 holding 10 11 22
+check tcp-read 0 '"values":[11,22]' "$loopwire" read --link "tcp://127.0.0.1:$port" --unit 1 holding 10 2 --json
+check tcp-unserved-unit 5 "exception 11" "$loopwire" read --link "tcp://127.0.0.1:$port" --unit 3 holding 0 1
+check tcp-refused 3 "127.0.0.1" "$loopwire" read --link "tcp://127.0.0.1:1" --unit 1 holding 0 1
+
+echo "$passes passed, $failures failed"
+[ "$failures" -eq 0 ]

@@ -1,0 +1,90 @@
+#pragma once
+// A fake byte pipe that plays a script: it asserts the exact bytes the master writes and answers
+// each write with scripted bytes. The manuals' example exchanges are ready-made scripts.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <deque>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include "common/bytes.hpp"
+#include "transport/byte_stream.hpp"
+
+namespace loopwire::testing {
+
+struct ScriptStep {
+    Bytes expect;                        // what the master must write
+    std::optional<Bytes> answer;         // what the line carries back (nullopt: silence)
+    std::chrono::milliseconds delay{0};  // how long after the write the answer arrives
+};
+
+class ScriptedStream final : public transport::ByteStream {
+public:
+    using Clock = std::chrono::steady_clock;
+
+    explicit ScriptedStream(std::deque<ScriptStep> script) : script_(std::move(script)) {}
+
+    Result<void> write(ByteView bytes) override {
+        std::lock_guard lock(mutex_);
+        writes_.push_back({Clock::now(), Bytes(bytes.begin(), bytes.end())});
+        if (script_.empty()) {
+            ADD_FAILURE() << "unexpected write " << to_hex(bytes);
+            return {};
+        }
+        ScriptStep step = std::move(script_.front());
+        script_.pop_front();
+        EXPECT_EQ(to_hex(bytes), to_hex(step.expect));
+        if (step.answer) {
+            pending_ = *step.answer;
+            due_ = Clock::now() + step.delay;
+        }
+        return {};
+    }
+
+    Result<std::size_t> read_some(std::span<std::uint8_t> buffer, std::chrono::milliseconds timeout) override {
+        const auto until = Clock::now() + timeout;
+        for (;;) {
+            {
+                std::lock_guard lock(mutex_);
+                if (!pending_.empty() && Clock::now() >= due_) {
+                    const std::size_t n = std::min(buffer.size(), pending_.size());
+                    std::copy_n(pending_.begin(), n, buffer.begin());
+                    pending_.erase(pending_.begin(), pending_.begin() + static_cast<long>(n));
+                    return n;
+                }
+            }
+            if (Clock::now() >= until) return std::size_t{0};
+            std::this_thread::sleep_for(std::chrono::microseconds(200));
+        }
+    }
+
+    void discard_input() override {}
+    int poll_handle() const override { return -1; }
+    std::string describe() const override { return "scripted stream"; }
+
+    struct Write {
+        Clock::time_point at;
+        Bytes bytes;
+    };
+    std::vector<Write> writes() const {
+        std::lock_guard lock(mutex_);
+        return writes_;
+    }
+    bool script_done() const {
+        std::lock_guard lock(mutex_);
+        return script_.empty();
+    }
+
+private:
+    mutable std::mutex mutex_;
+    std::deque<ScriptStep> script_;
+    Bytes pending_;
+    Clock::time_point due_{};
+    std::vector<Write> writes_;
+};
+
+inline Bytes hex(const char* text) { return *parse_hex(text); }
+
+}  // namespace loopwire::testing

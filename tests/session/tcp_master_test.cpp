@@ -1,0 +1,138 @@
+// The Modbus TCP master: transaction ids, several requests in flight, replies out of order.
+#include <gtest/gtest.h>
+
+#include <future>
+#include <thread>
+
+#include "codec/tcp.hpp"
+#include "session/master.hpp"
+#include "session/register_bank.hpp"
+#include "session/slave.hpp"
+#include "transport/tcp.hpp"
+
+namespace loopwire::session {
+namespace {
+
+using namespace std::chrono_literals;
+
+struct Loopback {
+    std::unique_ptr<transport::TcpListener> listener;
+    transport::LinkUrl link;
+};
+
+Loopback listen_on_loopback() {
+    auto listener = transport::TcpListener::listen("127.0.0.1", 0);
+    EXPECT_TRUE(listener.ok());
+    auto link = *transport::parse_link_url("tcp://127.0.0.1:" + std::to_string((*listener)->port()));
+    return {std::move(*listener), link};
+}
+
+// Reads `count` requests, then answers them in reverse order: each reply carries its request's
+// start address as the register value, so a mix-up shows.
+void answer_in_reverse(transport::TcpListener& listener, std::size_t count) {
+    auto client = listener.accept(2s);
+    ASSERT_TRUE(client.ok() && *client);
+    codec::MbapDecoder decoder;
+    std::vector<codec::Frame> requests;
+    std::array<std::uint8_t, 512> buffer{};
+    while (requests.size() < count) {
+        auto n = (*client)->read_some(buffer, 2s);
+        ASSERT_TRUE(n.ok() && *n > 0);
+        auto frames = decoder.feed(ByteView(buffer.data(), *n));
+        ASSERT_TRUE(frames.ok());
+        requests.insert(requests.end(), frames->begin(), frames->end());
+    }
+    for (auto it = requests.rbegin(); it != requests.rend(); ++it) {
+        auto request = codec::decode_request(it->pdu);
+        ASSERT_TRUE(request.ok());
+        codec::Reply reply{3, codec::ReplyKind::normal, 0, request->address, 1, {request->address}};
+        auto pdu = codec::encode_reply(reply);
+        ASSERT_TRUE(pdu.ok());
+        ASSERT_TRUE((*client)->write(codec::mbap_encode(it->transaction, it->unit, *pdu)).ok());
+    }
+    std::this_thread::sleep_for(200ms);  // keep the connection until the master has read
+}
+
+TEST(TcpMaster, MatchesOutOfOrderRepliesByTransactionId) {
+    auto [listener, link] = listen_on_loopback();
+    std::thread server([&, l = listener.get()] { answer_in_reverse(*l, 3); });
+    auto master = open_master(link, MasterOptions{});
+    ASSERT_TRUE(master.ok()) << master.error().message;
+    std::vector<std::future<Result<codec::Reply>>> replies;
+    for (std::uint16_t address : {10, 20, 30}) {
+        auto promise = std::make_shared<std::promise<Result<codec::Reply>>>();
+        replies.push_back(promise->get_future());
+        (*master)->execute_async(1, codec::read_request(codec::FunctionCode::read_holding_registers, address, 1),
+                                 [promise](Result<codec::Reply> r) { promise->set_value(std::move(r)); });
+    }
+    std::uint16_t expected = 10;
+    for (auto& reply : replies) {
+        auto r = reply.get();
+        ASSERT_TRUE(r.ok()) << r.error().message;
+        EXPECT_EQ(r->values.at(0), expected);
+        expected += 10;
+    }
+    server.join();
+}
+
+TEST(TcpMaster, TimesOutWhenTheServerStaysSilent) {
+    auto [listener, link] = listen_on_loopback();
+    MasterOptions options;
+    options.timeout = 100ms;
+    options.retries = 1;
+    auto master = open_master(link, options);
+    ASSERT_TRUE(master.ok());
+    auto accepted = listener->accept(1s);  // accepted, never answered
+    const auto start = std::chrono::steady_clock::now();
+    auto reply = (*master)->execute(1, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1));
+    ASSERT_FALSE(reply.ok());
+    EXPECT_EQ(reply.error().kind, ErrorKind::timeout);
+    EXPECT_NE(reply.error().message.find("2 tries"), std::string::npos) << reply.error().message;
+    EXPECT_GE(std::chrono::steady_clock::now() - start, 200ms);
+}
+
+TEST(TcpMaster, RefusedConnectionIsALinkError) {
+    auto [listener, link] = listen_on_loopback();
+    listener.reset();  // nobody listens there any more
+    auto master = open_master(link, MasterOptions{});
+    ASSERT_FALSE(master.ok());
+    EXPECT_EQ(master.error().kind, ErrorKind::link);
+}
+
+TEST(TcpMaster, TalksToTheTcpSlaveFromManyThreads) {
+    auto [listener, link] = listen_on_loopback();
+    auto bank = std::make_shared<RegisterBank>();
+    Slave slave(link, {{1, bank}});
+    std::jthread server([&, l = listener.get()](std::stop_token stop) { (void)slave.serve_listener(*l, stop); });
+    auto master = open_master(link, MasterOptions{});
+    ASSERT_TRUE(master.ok());
+    std::vector<std::thread> threads;
+    std::atomic<int> good{0};
+    for (std::uint16_t t = 0; t < 4; ++t) {
+        threads.emplace_back([&, t] {
+            for (std::uint16_t i = 0; i < 25; ++i) {
+                const auto address = static_cast<std::uint16_t>(t * 100 + i);
+                if (!(*master)->execute(1, codec::write_single_register(address, address)).ok()) continue;
+                auto back = (*master)->execute(1, codec::read_request(codec::FunctionCode::read_holding_registers, address, 1));
+                if (back.ok() && back->values.at(0) == address) ++good;
+            }
+        });
+    }
+    for (auto& t : threads) t.join();
+    EXPECT_EQ(good.load(), 100);
+}
+
+TEST(TcpMaster, UnservedUnitGetsGatewayTargetException) {
+    auto [listener, link] = listen_on_loopback();
+    Slave slave(link, {{1, std::make_shared<RegisterBank>()}});
+    std::jthread server([&, l = listener.get()](std::stop_token stop) { (void)slave.serve_listener(*l, stop); });
+    auto master = open_master(link, MasterOptions{});
+    ASSERT_TRUE(master.ok());
+    auto reply = (*master)->execute(9, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1));
+    ASSERT_FALSE(reply.ok());
+    EXPECT_EQ(reply.error().kind, ErrorKind::exception);
+    EXPECT_EQ(reply.error().code, 0x0B);
+}
+
+}  // namespace
+}  // namespace loopwire::session
