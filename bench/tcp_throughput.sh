@@ -39,7 +39,7 @@ trap 'exit 143' TERM INT HUP
 # runs the pinned client against it, stops the server, leaves the requests per second in RATE.
 # (Not called as $(measure ...): a subshell would hide SERVER_PID from the cleanup trap.)
 measure() {
-    local name=$1 port= deadline=$((SECONDS + 10))
+    local name=$1 port='' deadline=$((SECONDS + 10))
     shift
     taskset -c 0 "$@" >"$WORK_DIR/$name.log" 2>&1 &
     SERVER_PID=$!

@@ -300,10 +300,22 @@ RtuDecoder::RtuDecoder(Direction direction, CharacterTiming timing)
 // than 1.5 characters inside it incomplete, but operating systems and USB adapters hand bytes
 // over in batches with timestamps jittered by more than a character time, so that rule would
 // reject good frames; the CRC catches what it would have caught.
+// Arrival times are taken when a reader gets the bytes, not when they crossed the wire: a reader
+// scheduled late sees a "gap" inside a frame that had none. So a gap does not end the pending
+// bytes when, together with the new ones, they complete a frame of the implied length whose CRC
+// checks: the CRC is the stronger evidence (as with the 1.5-character rule above).
+bool RtuDecoder::completes_pending_frame(ByteView bytes) const {
+    Bytes joined(buffer_);
+    joined.insert(joined.end(), bytes.begin(), bytes.end());
+    const auto length = implied_frame_length(direction_, joined);
+    return length && *length > buffer_.size() && *length <= joined.size() &&
+           crc_matches(ByteView(joined).first(*length));
+}
+
 FrameEvents RtuDecoder::feed(ByteView bytes, Instant arrival) {
     if (bytes.empty()) return flush(arrival);
     // A gap before these bytes ends whatever was pending: judge it before appending.
-    FrameEvents events = flush(arrival);
+    FrameEvents events = completes_pending_frame(bytes) ? FrameEvents{} : flush(arrival);
     buffer_.insert(buffer_.end(), bytes.begin(), bytes.end());
     last_arrival_ = arrival;
     FrameEvents more = drain(false);

@@ -19,6 +19,9 @@ using std::chrono::milliseconds;
 // V1.1b3, 7). On TCP a client addressing a unit nobody serves learns so at once instead of
 // waiting for a timeout; on a serial line other units may share the wire, so silence is the rule.
 constexpr std::uint8_t gateway_target_failed = 0x0B;
+// Modbus Messaging on TCP/IP Implementation Guide V1.0b, 4.4.2: a server that is not a gateway
+// should accept unit FFh as "this server". With one unit served, FFh reaches it.
+constexpr std::uint8_t tcp_direct_unit = 0xFF;
 
 milliseconds until(std::optional<Instant> deadline, milliseconds longest) {
     if (!deadline) return longest;
@@ -44,6 +47,9 @@ std::optional<Bytes> Slave::answer(const codec::Frame& frame, FrameCodec& codec)
         return std::nullopt;
     }
     auto it = units_.find(frame.unit);
+    if (it == units_.end() && frame.unit == tcp_direct_unit && link_.framing == transport::Framing::tcp && units_.size() == 1) {
+        it = units_.begin();
+    }
     if (it == units_.end()) {
         trace(TraceDirection::received, frame.raw, fmt::format("unit {} is not served here", frame.unit));
         if (link_.framing != transport::Framing::tcp) return std::nullopt;

@@ -248,20 +248,32 @@ TEST(RtuDecoder, DiscardReasonNamesComputedAndReceivedCrc) {
     EXPECT_TRUE(frames_in(events).empty());
 }
 
+// A reader scheduled late sees a "gap" the wire never had; when the bytes on both sides complete
+// a frame whose CRC checks, the frame is kept.
+TEST(RtuDecoder, GapInsideAFrameWhoseCrcChecksIsTakenForReaderLatency) {
+    RtuDecoder decoder(Direction::request, timing_9600());
+    EXPECT_TRUE(decoder.feed(ByteView(read_pv_request).first(4), t0).empty());
+    const auto events = decoder.feed(ByteView(read_pv_request).subspan(4), t0 + 10ms);
+    ASSERT_EQ(events.size(), 1u);
+    EXPECT_EQ(std::get<Frame>(events[0]).raw, read_pv_request);
+    EXPECT_EQ(decoder.buffered(), 0u);
+}
+
 TEST(RtuDecoder, FrameSplitByALongGapIsDiscarded) {
+    const Bytes second_half = hex("00 02 A5 E0");  // does not complete a frame whose CRC checks
     RtuDecoder decoder(Direction::request, timing_9600());
     EXPECT_TRUE(decoder.feed(ByteView(read_pv_request).first(4), t0).empty());
     // 10 ms > t3.5: the first half is judged on its own and cannot be a frame.
-    const auto at_second_half = decoder.feed(ByteView(read_pv_request).subspan(4), t0 + 10ms);
+    const auto at_second_half = decoder.feed(second_half, t0 + 10ms);
     ASSERT_EQ(at_second_half.size(), 1u);
     const auto& first_half = std::get<DiscardedBytes>(at_second_half[0]);
     EXPECT_EQ(first_half.bytes, hex("01 03 00 8A"));
     EXPECT_EQ(first_half.reason, "gap inside frame: silence after 4 of 8 bytes");
-    // The second half (00 01 A5 E0) waits for more, then is judged at the next silence.
+    // The second half waits for more, then is judged at the next silence.
     EXPECT_EQ(decoder.buffered(), 4u);
     const auto at_flush = decoder.flush(t0 + 20ms);
     ASSERT_EQ(at_flush.size(), 1u);
-    EXPECT_EQ(std::get<DiscardedBytes>(at_flush[0]).bytes, hex("00 01 A5 E0"));
+    EXPECT_EQ(std::get<DiscardedBytes>(at_flush[0]).bytes, second_half);
     EXPECT_EQ(decoder.buffered(), 0u);
 }
 

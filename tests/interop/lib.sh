@@ -1,3 +1,4 @@
+# shellcheck shell=bash
 # Shared by the bash interop scripts (sourced, not run). Provides a temporary directory, cleanup
 # of background processes on every way out, and waiting / checking helpers.
 #
@@ -88,10 +89,4 @@ socat_pair() {
 expect_equal() {
     [[ $1 == "$2" ]] || fail "$3: expected '$2', got '$1'"
     if ((${#1} > 160)); then echo "ok: $3 = ${1:0:140} ..."; else echo "ok: $3 = $1"; fi
-}
-
-# free_tcp_port : a port that was free a moment ago (the kernel picks it; racy only if another
-# program grabs the same port in between, which the ephemeral range makes unlikely).
-free_tcp_port() {
-    /usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'
 }

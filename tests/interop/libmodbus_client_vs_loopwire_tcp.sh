@@ -6,6 +6,7 @@
 # the first mismatch); afterwards loopwire's own master reads the same values over a second
 # connection, which shows the simulator keeps state across connections.
 
+# shellcheck source=tests/interop/lib.sh
 source "$(dirname "$0")/lib.sh"
 
 readonly LOOPWIRE=$1 CLIENT=$2

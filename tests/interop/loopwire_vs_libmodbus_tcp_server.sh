@@ -5,6 +5,7 @@
 # Reads compare loopwire's --json output exactly; writes are read back by loopwire and by the
 # libmodbus client, so a mistake loopwire makes the same way in both directions cannot hide.
 
+# shellcheck source=tests/interop/lib.sh
 source "$(dirname "$0")/lib.sh"
 
 readonly LOOPWIRE=$1 SERVER=$2 CLIENT=$3

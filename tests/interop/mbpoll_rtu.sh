@@ -9,6 +9,7 @@
 # mbpoll: `-0` for 0-based (wire) addresses, `-1` to poll once, and always inside `timeout`
 # (see /work/shared/PEERS.md).
 
+# shellcheck source=tests/interop/lib.sh
 source "$(dirname "$0")/lib.sh"
 
 readonly LOOPWIRE=$1 MODE=$2

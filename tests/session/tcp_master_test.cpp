@@ -122,6 +122,19 @@ TEST(TcpMaster, TalksToTheTcpSlaveFromManyThreads) {
     EXPECT_EQ(good.load(), 100);
 }
 
+TEST(TcpMaster, UnitFFReachesTheOnlyServedUnit) {
+    auto [listener, link] = listen_on_loopback();
+    auto bank = std::make_shared<RegisterBank>();
+    bank->set(Table::holding_registers, 4, 44);
+    Slave slave(link, {{1, bank}});
+    std::jthread server([&, l = listener.get()](std::stop_token stop) { (void)slave.serve_listener(*l, stop); });
+    auto master = open_master(link, MasterOptions{});
+    ASSERT_TRUE(master.ok());
+    auto reply = (*master)->execute(0xFF, codec::read_request(codec::FunctionCode::read_holding_registers, 4, 1));
+    ASSERT_TRUE(reply.ok()) << reply.error().message;
+    EXPECT_EQ(reply->values.at(0), 44);
+}
+
 TEST(TcpMaster, UnservedUnitGetsGatewayTargetException) {
     auto [listener, link] = listen_on_loopback();
     Slave slave(link, {{1, std::make_shared<RegisterBank>()}});

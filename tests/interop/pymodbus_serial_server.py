@@ -1,10 +1,11 @@
 #!/usr/bin/python3
-"""A pymodbus RTU slave with known contents, for loopwire's master side to talk to.
+"""A pymodbus serial slave with known contents, for loopwire's master side to talk to.
 
-Usage: pymodbus_rtu_server.py SERIAL_PATH UNIT
+Usage: pymodbus_serial_server.py SERIAL_PATH UNIT rtu|ascii
 
-Serves one unit on SERIAL_PATH (8N1, 19200: see pymodbus_rtu_client.py for why not 8E1) and
-stays silent for every other unit (single=False). Each table holds TABLE_SIZE entries from
+Serves one unit on SERIAL_PATH with RTU or ASCII framing, as 19200 8N1 whatever loopwire's
+link says (pseudo-terminals keep 8N1 anyway: see pymodbus_rtu_client.py), and stays silent for
+every other unit (single=False). Each table holds TABLE_SIZE entries from
 address 0, so reading past them draws exception 2 (illegal data address). The expected
 contents are importable, so the test compares against the same definition.
 """
@@ -30,8 +31,9 @@ def discrete_preset(address):
     return address % 2 == 1
 
 
-def serve(path, unit):
+def serve(path, unit, framing):
     from pymodbus.datastore import ModbusSequentialDataBlock, ModbusServerContext, ModbusSlaveContext
+    from pymodbus.framer.ascii_framer import ModbusAsciiFramer
     from pymodbus.framer.rtu_framer import ModbusRtuFramer
     from pymodbus.server import StartSerialServer
 
@@ -44,10 +46,11 @@ def serve(path, unit):
         di=ModbusSequentialDataBlock(0, [discrete_preset(a) for a in addresses]),
         zero_mode=True)
     context = ModbusServerContext(slaves={unit: slave}, single=False)
-    print(f"pymodbus RTU server: unit {unit} on {path}", flush=True)
-    StartSerialServer(context=context, framer=ModbusRtuFramer, port=path, baudrate=19200, bytesize=8,
-                      parity="N", stopbits=1)
+    # framer= always: without it pymodbus's serial server speaks ASCII (PEERS.md).
+    framer = {"rtu": ModbusRtuFramer, "ascii": ModbusAsciiFramer}[framing]
+    print(f"pymodbus {framing} server: unit {unit} on {path}", flush=True)
+    StartSerialServer(context=context, framer=framer, port=path, baudrate=19200, bytesize=8, parity="N", stopbits=1)
 
 
 if __name__ == "__main__":
-    serve(sys.argv[1], int(sys.argv[2]))
+    serve(sys.argv[1], int(sys.argv[2]), sys.argv[3])

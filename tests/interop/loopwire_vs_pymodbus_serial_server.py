@@ -1,7 +1,10 @@
 #!/usr/bin/python3
-"""`loopwire read` / `loopwire write` against a pymodbus RTU slave across a socat pty pair.
+"""`loopwire read` / `loopwire write` against a pymodbus serial slave across a socat pty pair.
 
-Usage: loopwire_vs_pymodbus_rtu_server.py LOOPWIRE
+Usage: loopwire_vs_pymodbus_serial_server.py LOOPWIRE rtu|ascii
+
+RTU runs as 19200 8N1; ASCII as its usual 7E1 on loopwire's side (pymodbus opens its end 8N1:
+see pymodbus_ascii_client.py for why; the pty carries bytes either way).
 
 Reads compare loopwire's --json output with the slave's known contents; writes are read back
 by loopwire and, independently, by a pymodbus client, so a mistake that loopwire makes the
@@ -10,15 +13,17 @@ same way in both directions cannot hide. Also: an exception reply (exit 5) and a
 """
 
 import os
+import subprocess
 import sys
 import time
 
 from pymodbus.client import ModbusSerialClient
+from pymodbus.framer.ascii_framer import ModbusAsciiFramer
 from pymodbus.framer.rtu_framer import ModbusRtuFramer
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import interop_support as support  # noqa: E402  pylint: disable=wrong-import-position
-import pymodbus_rtu_server as server  # noqa: E402  pylint: disable=wrong-import-position
+import pymodbus_serial_server as server  # noqa: E402  pylint: disable=wrong-import-position
 
 UNIT = 5
 
@@ -28,13 +33,14 @@ def expected(preset, address, count):
 
 
 def test():
-    loopwire = sys.argv[1]
+    loopwire, framing = sys.argv[1], sys.argv[2]
+    settings = {"rtu": "baud=19200&parity=none", "ascii": "baud=19200&parity=even&data=7"}[framing]
     with support.Processes() as processes:
         slave_side, master_side = processes.socat_pair()
         processes.start(["timeout", str(support.PEER_LIFETIME_S), "/usr/bin/python3",
-                         os.path.join(os.path.dirname(os.path.abspath(__file__)), "pymodbus_rtu_server.py"),
-                         slave_side, str(UNIT)], "pymodbus-server.log")
-        link = f"rtu:{master_side}?baud=19200&parity=none"
+                         os.path.join(os.path.dirname(os.path.abspath(__file__)), "pymodbus_serial_server.py"),
+                         slave_side, str(UNIT), framing], "pymodbus-server.log")
+        link = f"{framing}:{master_side}?{settings}"
         master = ["--link", link, "--unit", str(UNIT), "--timeout", "300ms", "--retries", "0"]
 
         def read(table, address, count, expect_exit=0):
@@ -48,8 +54,8 @@ def test():
         # The server needs a moment to import pymodbus and open its port; ask until it answers.
         deadline = time.monotonic() + 10
         while True:
-            probe = support.subprocess.run([loopwire, "read", *master, "holding", "0", "1"],
-                                           capture_output=True, text=True, timeout=10, check=False)
+            probe = subprocess.run([loopwire, "read", *master, "holding", "0", "1"],
+                                   capture_output=True, text=True, timeout=10, check=False)
             if probe.returncode == 0:
                 break
             if time.monotonic() > deadline:
@@ -102,7 +108,8 @@ def test():
 
         # An independent reader: pymodbus itself sees what loopwire wrote (timeout in whole
         # seconds: pymodbus 3.0.0rc1 truncates it to an int).
-        client = ModbusSerialClient(port=master_side, framer=ModbusRtuFramer, baudrate=19200, parity="N",
+        framer = {"rtu": ModbusRtuFramer, "ascii": ModbusAsciiFramer}[framing]
+        client = ModbusSerialClient(port=master_side, framer=framer, baudrate=19200, parity="N",
                                     bytesize=8, stopbits=1, timeout=1, retries=0)
         if not client.connect():
             raise support.TestFailure(f"pymodbus cannot open {master_side}")
