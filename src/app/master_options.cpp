@@ -4,10 +4,15 @@
 
 namespace loopwire::app {
 
-void MasterCommandOptions::add_to(CLI::App& command) {
+void MasterCommandOptions::add_to(CLI::App& command, bool with_device) {
     command.add_option("--link", link, "Link URL: rtu:/dev/ttyUSB0?baud=19200&parity=even, ascii:..., linking:..., tcp://host:502, rtu+tcp://host:4001")
         ->required();
-    command.add_option("--unit", unit, "Unit (slave) id; 0 broadcasts writes")->check(CLI::Range(0, 255))->capture_default_str();
+    auto* unit_option = command.add_option("--unit", unit, "Unit (slave) id; 0 broadcasts writes")->check(CLI::Range(0, 255))->capture_default_str();
+    if (with_device) {
+        command.add_option("--device", device, "DEVICE@UNIT (e.g. tc10@3): name parameters instead of addresses (see `loopwire devices`)")
+            ->excludes(unit_option);
+        command.add_option("--numbering", numbering, "The device's alternative numbering in use (ac20: jbus, when its word 526 says so)");
+    }
     command.add_option("--timeout", timeout, "Time to wait for each reply: 500ms, 2s, ...")->capture_default_str();
     command.add_option("--retries", retries, "Extra tries after a timeout")->capture_default_str();
     command.add_flag("-v,--verbose", verbose, "Print every frame sent and received, with timestamps, on stderr");

@@ -13,12 +13,15 @@ namespace loopwire::app {
 struct MasterCommandOptions {
     std::string link;
     int unit = 1;
+    std::string device;     // DEVICE@UNIT: talk by parameter name through a profile
+    std::string numbering;  // a profile's alternative numbering (AC20: jbus)
     std::string timeout = "1s";
     unsigned retries = 0;
     bool verbose = false;
     bool json = false;
 
-    void add_to(CLI::App& command);
+    // `with_device`: also --device DEVICE@UNIT and --numbering (named read/write).
+    void add_to(CLI::App& command, bool with_device = false);
     // Parses the link URL and the durations, opens the link and builds the master.
     Result<std::unique_ptr<session::Master>> open() const;
 };

@@ -1,4 +1,5 @@
 // loopwire read --link URL --unit N holding|input|coils|discrete ADDRESS COUNT [--json]
+//               --link URL --device DEVICE@UNIT NAME... [--json]
 #include <fmt/format.h>
 
 #include <nlohmann/json.hpp>
@@ -6,6 +7,7 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "app/device_read_write.hpp"
 #include "app/master_options.hpp"
 
 namespace loopwire::app {
@@ -34,6 +36,7 @@ const ReadTable* find_table(const std::string& name) {
 
 struct ReadOptions {
     MasterCommandOptions master;
+    std::vector<std::string> arguments;  // TABLE ADDRESS [COUNT], or names with --device
     std::string table;
     std::string address;
     std::string count = "1";
@@ -71,7 +74,7 @@ void print_values(const ReadOptions& options, const ReadTable& table, std::uint1
     }
 }
 
-int run_read(const ReadOptions& options) {
+int run_raw_read(const ReadOptions& options) {
     const ReadTable* table = find_table(options.table);
     if (!table) {
         return report_error(make_error(ErrorKind::usage, fmt::format("unknown table '{}': choose holding, input, coils or discrete", options.table)));
@@ -95,15 +98,26 @@ int run_read(const ReadOptions& options) {
     return exit_ok;
 }
 
+int run_read(ReadOptions options) {
+    if (!options.master.device.empty()) return run_device_read(options.master, options.arguments);
+    if (options.arguments.size() < 2 || options.arguments.size() > 3) {
+        return report_error(make_error(ErrorKind::usage, "read takes TABLE ADDRESS [COUNT] (or --device DEVICE@UNIT and parameter names)"));
+    }
+    options.table = options.arguments[0];
+    options.address = options.arguments[1];
+    if (options.arguments.size() == 3) options.count = options.arguments[2];
+    return run_raw_read(options);
+}
+
 }  // namespace
 
 void add_read_command(CLI::App& app, int& exit_code) {
     auto options = std::make_shared<ReadOptions>();
     auto* command = app.add_subcommand("read", "Read registers, coils or discrete inputs from a device");
-    options->master.add_to(*command);
-    command->add_option("table", options->table, "holding, input, coils or discrete")->required();
-    command->add_option("address", options->address, "First address (0-based wire address; decimal, 0x.. or ..h)")->required();
-    command->add_option("count", options->count, "How many (split into several requests where needed)");
+    options->master.add_to(*command, true);
+    command->add_option("arguments", options->arguments,
+                        "TABLE ADDRESS [COUNT]: holding|input|coils|discrete, first 0-based wire address (decimal, 0x.. or ..h), "
+                        "how many (split into several requests where needed). With --device: parameter names, mnemonics, groups or all");
     command->footer(exit_code_help);
     command->callback([options, &exit_code] { exit_code = run_read(*options); });
 }

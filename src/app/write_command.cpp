@@ -1,4 +1,5 @@
 // loopwire write --link URL --unit N holding|coils ADDRESS VALUE... [--multiple] [--json]
+//                --link URL --device DEVICE@UNIT NAME=VALUE... [--json]
 #include <algorithm>
 
 #include <fmt/format.h>
@@ -8,6 +9,7 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "app/device_read_write.hpp"
 #include "app/master_options.hpp"
 
 namespace loopwire::app {
@@ -15,6 +17,7 @@ namespace {
 
 struct WriteOptions {
     MasterCommandOptions master;
+    std::vector<std::string> arguments;  // TABLE ADDRESS VALUE..., or NAME=VALUE... with --device
     std::string table;
     std::string address;
     std::vector<std::string> values;
@@ -66,7 +69,7 @@ Result<void> write_range(session::Master& master, std::uint8_t unit, bool coils,
     return {};
 }
 
-int run_write(const WriteOptions& options) {
+int run_raw_write(const WriteOptions& options) {
     const bool coils = options.table == "coils";
     if (!coils && options.table != "holding") {
         return report_error(make_error(ErrorKind::usage, fmt::format("cannot write table '{}': choose holding or coils", options.table)));
@@ -98,17 +101,26 @@ int run_write(const WriteOptions& options) {
     return exit_ok;
 }
 
+int run_write(WriteOptions options) {
+    if (!options.master.device.empty()) return run_device_write(options.master, options.arguments);
+    if (options.arguments.size() < 3) {
+        return report_error(make_error(ErrorKind::usage, "write takes TABLE ADDRESS VALUE... (or --device DEVICE@UNIT and NAME=VALUE pairs)"));
+    }
+    options.table = options.arguments[0];
+    options.address = options.arguments[1];
+    options.values.assign(options.arguments.begin() + 2, options.arguments.end());
+    return run_raw_write(options);
+}
+
 }  // namespace
 
 void add_write_command(CLI::App& app, int& exit_code) {
     auto options = std::make_shared<WriteOptions>();
     auto* command = app.add_subcommand("write", "Write holding registers or coils");
-    options->master.add_to(*command);
-    command->add_option("table", options->table, "holding or coils")->required();
-    command->add_option("address", options->address, "First address (0-based wire address)")->required();
-    command->add_option("values", options->values, "Values: registers 0..65535 or -32768..-1 (decimal, 0x.., ..h); coils 0/1/on/off")
-        ->required()
-        ->allow_extra_args();
+    options->master.add_to(*command, true);
+    command->add_option("arguments", options->arguments,
+                        "TABLE ADDRESS VALUE...: holding|coils, first 0-based wire address, values (registers 0..65535 or "
+                        "-32768..-1, decimal, 0x.. or ..h; coils 0/1/on/off). With --device: NAME=VALUE in engineering units or enum labels");
     command->add_flag("--multiple", options->multiple, "Use function 16/15 even for a single value");
     command->footer(exit_code_help);
     command->callback([options, &exit_code] { exit_code = run_write(*options); });

@@ -46,6 +46,19 @@ check decode-misprinted-crc 1 "computed CD C1" "$loopwire" decode --protocol rtu
 check decode-ascii-text 0 '"values":[1000]' "$loopwire" decode --protocol ascii --json ':01030203E80F'
 check decode-not-hex 2 "not a frame in hex" "$loopwire" decode --protocol rtu 01 0G
 
+# Device profiles: listing, describing, and named access refused before the link is opened.
+check devices-lists-three 0 "tc10" "$loopwire" devices
+check devices-json 0 '"id":"rampsoak"' "$loopwire" devices --json
+check describe-group 0 "SP.HL" "$loopwire" describe tc10 --group SP
+check describe-unknown-group 2 "has no group 'nope'" "$loopwire" describe tc10 --group nope
+check describe-unknown-device 2 "known profiles: ac20, rampsoak, tc10" "$loopwire" describe tc99
+check device-bad-unit 2 "must be 1..247" "$loopwire" read --link "rtu:$work/none" --device tc10@300 SP
+check device-unknown-name 2 '"nosuch"' "$loopwire" read --link "rtu:$work/none" --device tc10@3 nosuch
+check device-read-only 2 "measured_value (rV) is read-only" "$loopwire" write --link "rtu:$work/none" --device tc10@3 measured_value=3
+check device-not-an-assignment 2 "'SP' is not NAME=VALUE" "$loopwire" write --link "rtu:$work/none" --device tc10@3 SP
+check device-and-unit-exclusive 2 "excludes" "$loopwire" read --link "rtu:$work/none" --device tc10@3 --unit 3 SP
+check device-unknown-numbering 2 "choices: jbus" "$loopwire" read --link "rtu:$work/none" --device ac20@3 --numbering modbus2 SP
+
 # A simulator on a pseudo-terminal, read and written by loopwire.
 pty="$work/ttyV0"
 "$loopwire" simulate --pty "$pty" --unit 1 --unit 2 --duration 60s 2>"$work/sim.log" &

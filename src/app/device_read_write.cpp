@@ -1,0 +1,109 @@
+#include "app/device_read_write.hpp"
+
+#include <algorithm>
+
+#include <fmt/format.h>
+
+#include "app/command_line.hpp"
+#include "app/exit_codes.hpp"
+#include "app/value_format.hpp"
+#include "device/device_client.hpp"
+
+namespace loopwire::app {
+namespace {
+
+struct Connected {
+    device::DeviceAddress device;
+    std::unique_ptr<session::Master> master;
+};
+
+Result<Connected> connect(const MasterCommandOptions& options) {
+    auto device = device::parse_device_address(options.device, options.numbering);
+    if (!device) return device.error();
+    auto master = options.open();
+    if (!master) return master.error();
+    return Connected{std::move(*device), std::move(*master)};
+}
+
+void print_readings(const MasterCommandOptions& options, const device::DeviceAddress& device, const device::ReadReport& report) {
+    if (options.json) {
+        nlohmann::ordered_json values = nlohmann::ordered_json::object();
+        for (const auto& reading : report.readings) {
+            values[reading.parameter->name] = reading.value ? value_json(*reading.parameter, *reading.value)
+                                                            : nlohmann::ordered_json{{"value", nullptr}, {"raw", nullptr}, {"unit", reading.parameter->unit}, {"status", "error"}, {"error", reading.error}};
+        }
+        nlohmann::ordered_json out{{"unit", device.unit}, {"device", device.profile->id}, {"values", values}};
+        fmt::print("{}\n", out.dump());
+        return;
+    }
+    for (const auto& reading : report.readings) {
+        const auto& p = *reading.parameter;
+        if (!reading.value) {
+            fmt::print("{:<34} {:<8} error: {}\n", p.name, p.mnemonic, reading.error);
+            continue;
+        }
+        const auto& v = *reading.value;
+        fmt::print("{:<34} {:<8} {:>12} {:<6} {}{}\n", p.name, p.mnemonic, value_text(p, v), p.unit,
+                   v.status == "ok" ? "" : v.status + " ", fmt::format("(raw {})", v.raw));
+    }
+}
+
+}  // namespace
+
+int run_device_read(const MasterCommandOptions& options, const std::vector<std::string>& names) {
+    if (names.empty()) return report_error(make_error(ErrorKind::usage, "name the parameters to read (names, mnemonics, a group, or all); `loopwire describe DEVICE` lists them"));
+    auto device = device::parse_device_address(options.device, options.numbering);
+    if (!device) return report_error(device.error());
+    auto parameters = device::resolve_parameters(*device->profile, names);
+    if (!parameters) return report_error(parameters.error());
+    auto connected = connect(options);
+    if (!connected) return report_error(connected.error());
+    device::DeviceClient client(*connected->master, connected->device);
+    const auto report = client.read(*parameters);
+    print_readings(options, connected->device, report);
+    if (report.first_error) return report_error(*report.first_error);
+    return exit_ok;
+}
+
+int run_device_write(const MasterCommandOptions& options, const std::vector<std::string>& assignments) {
+    if (assignments.empty()) return report_error(make_error(ErrorKind::usage, "give NAME=VALUE pairs to write"));
+    auto device = device::parse_device_address(options.device, options.numbering);
+    if (!device) return report_error(device.error());
+    std::vector<std::pair<const device::Parameter*, std::string>> resolved;
+    for (const auto& assignment : assignments) {
+        const auto equals = assignment.find('=');
+        if (equals == std::string::npos || equals == 0) {
+            return report_error(make_error(ErrorKind::usage, fmt::format("'{}' is not NAME=VALUE", assignment)));
+        }
+        auto found = device::resolve_parameters(*device->profile, {assignment.substr(0, equals)});
+        if (!found) return report_error(found.error());
+        if (found->size() != 1) {
+            return report_error(make_error(ErrorKind::usage, fmt::format("'{}' names a group: write parameters one by one", assignment.substr(0, equals))));
+        }
+        const device::Parameter* parameter = found->front();
+        // Checked before the link is opened: a read-only name is a mistake whatever the device says.
+        if (!parameter->writable) {
+            return report_error(make_error(ErrorKind::usage, fmt::format("{} ({}) is read-only", parameter->name, parameter->mnemonic)));
+        }
+        resolved.emplace_back(parameter, assignment.substr(equals + 1));
+    }
+    auto connected = connect(options);
+    if (!connected) return report_error(connected.error());
+    device::DeviceClient client(*connected->master, connected->device);
+    auto written = client.write(resolved);
+    if (!written) return report_error(written.error());
+    if (options.json) {
+        nlohmann::ordered_json values = nlohmann::ordered_json::object();
+        for (const auto& [p, raw] : written->written) values[p->name] = {{"raw", raw}};
+        fmt::print("{}\n", nlohmann::ordered_json{{"unit", connected->device.unit}, {"device", connected->device.profile->id}, {"written", values}, {"requests", written->requests}}.dump());
+    } else {
+        for (const auto& [p, raw] : written->written) {
+            auto given = std::find_if(resolved.begin(), resolved.end(), [p = p](const auto& r) { return r.first == p; });
+            fmt::print("wrote {} = {} {}(raw {})\n", p->name, given->second, p->unit.empty() ? "" : p->unit + " ", raw);
+        }
+        fmt::print("{} parameter(s) in {} request(s)\n", written->written.size(), written->requests);
+    }
+    return exit_ok;
+}
+
+}  // namespace loopwire::app

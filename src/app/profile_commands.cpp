@@ -1,0 +1,112 @@
+// loopwire devices [--json] and loopwire describe DEVICE [--group G] [--json]: what loopwire
+// knows about each device, straight from its profile.
+#include <fmt/format.h>
+
+#include <nlohmann/json.hpp>
+
+#include "app/command_line.hpp"
+#include "app/commands.hpp"
+#include "app/exit_codes.hpp"
+#include "app/value_format.hpp"
+#include "device/profile.hpp"
+
+namespace loopwire::app {
+namespace {
+
+int run_devices(bool json) {
+    nlohmann::ordered_json list = nlohmann::ordered_json::array();
+    for (const auto& id : device::builtin_profile_ids()) {
+        auto profile = device::builtin_profile(id);
+        if (!profile) return report_error(profile.error());
+        const auto& p = **profile;
+        if (json) {
+            list.push_back({{"id", p.id}, {"title", p.title}, {"protocols", p.protocols}, {"manual", p.manual_document}, {"parameters", p.parameters.size()}});
+        } else {
+            fmt::print("{:<10} {} ({}; {} parameters)\n", p.id, p.title, fmt::join(p.protocols, ", "), p.parameters.size());
+        }
+    }
+    if (json) fmt::print("{}\n", list.dump());
+    return exit_ok;
+}
+
+std::string bound_text(const std::optional<device::Bound>& bound) {
+    if (!bound) return "";
+    if (const auto* number = std::get_if<double>(&*bound)) return fmt::format("{}", *number);
+    return std::get<std::string>(*bound);
+}
+
+nlohmann::ordered_json bound_json(const std::optional<device::Bound>& bound) {
+    if (!bound) return nullptr;
+    if (const auto* number = std::get_if<double>(&*bound)) return *number;
+    return {{"parameter", std::get<std::string>(*bound)}};
+}
+
+nlohmann::ordered_json parameter_json(const device::Parameter& p) {
+    nlohmann::ordered_json out{{"name", p.name}, {"mnemonic", p.mnemonic}, {"group", p.group}, {"table", device::table_name(p.table)},
+                               {"address", p.address}, {"access", access_text(p)}, {"unit", p.unit},
+                               {"min", bound_json(p.min)}, {"max", bound_json(p.max)}, {"description", p.description}, {"source", p.source}};
+    if (const auto* fixed = std::get_if<int>(&p.decimals)) out["decimals"] = *fixed;
+    else out["decimals"] = {{"parameter", std::get<std::string>(p.decimals)}};
+    if (!p.enum_labels.empty()) {
+        nlohmann::ordered_json labels = nlohmann::ordered_json::object();
+        for (const auto& [raw, label] : p.enum_labels) labels[std::to_string(raw)] = label;
+        out["enum"] = labels;
+    }
+    if (!p.write_modes.empty()) out["write_modes"] = p.write_modes;
+    if (p.ram_only) out["storage"] = "ram";
+    if (!p.note.empty()) out["note"] = p.note;
+    return out;
+}
+
+bool in_group(const device::Parameter& p, const std::string& group) {
+    if (group.empty()) return true;
+    return std::equal(p.group.begin(), p.group.end(), group.begin(), group.end(),
+                      [](char a, char b) { return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b)); });
+}
+
+int run_describe(const std::string& id, const std::string& group, bool json) {
+    auto profile = device::builtin_profile(id);
+    if (!profile) return report_error(profile.error());
+    const auto& p = **profile;
+    std::vector<const device::Parameter*> shown;
+    for (const auto& parameter : p.parameters) {
+        if (in_group(parameter, group)) shown.push_back(&parameter);
+    }
+    if (shown.empty()) return report_error(make_error(ErrorKind::usage, fmt::format("{} has no group '{}'", id, group)));
+    if (json) {
+        nlohmann::ordered_json list = nlohmann::ordered_json::array();
+        for (const auto* parameter : shown) list.push_back(parameter_json(*parameter));
+        fmt::print("{}\n", nlohmann::ordered_json{{"id", p.id}, {"title", p.title}, {"parameters", list}}.dump());
+        return exit_ok;
+    }
+    fmt::print("{} — {}\n{:<34} {:<8} {:<8} {:>5} {:<3} {:<6} {:<24} {}\n", p.id, p.title, "name", "mnemonic", "table", "addr", "acc", "unit", "range", "meaning");
+    for (const auto* q : shown) {
+        const std::string range = (q->min || q->max) ? bound_text(q->min) + ".." + bound_text(q->max) : "";
+        fmt::print("{:<34} {:<8} {:<8} {:>5} {:<3} {:<6} {:<24} {}\n", q->name, q->mnemonic, device::table_name(q->table), q->address,
+                   access_text(*q), q->unit, range, q->description.substr(0, 60));
+    }
+    return exit_ok;
+}
+
+}  // namespace
+
+void add_profile_commands(CLI::App& app, int& exit_code) {
+    auto json = std::make_shared<bool>(false);
+    auto* devices = app.add_subcommand("devices", "List the device profiles loopwire knows");
+    devices->add_flag("--json", *json, "Print the list as JSON");
+    devices->callback([json, &exit_code] { exit_code = run_devices(*json); });
+
+    struct DescribeOptions {
+        std::string id;
+        std::string group;
+        bool json = false;
+    };
+    auto options = std::make_shared<DescribeOptions>();
+    auto* describe = app.add_subcommand("describe", "Print a device's register map: names, mnemonics, addresses, access, units, ranges");
+    describe->add_option("device", options->id, "Profile id (see `loopwire devices`)")->required();
+    describe->add_option("--group", options->group, "Only this group or menu");
+    describe->add_flag("--json", options->json, "Print the map as JSON");
+    describe->callback([options, &exit_code] { exit_code = run_describe(options->id, options->group, options->json); });
+}
+
+}  // namespace loopwire::app
