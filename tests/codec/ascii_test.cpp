@@ -5,22 +5,20 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "support/test_bytes.hpp"
+
 #include <string>
 #include <string_view>
 
 namespace loopwire::codec {
 namespace {
 
+using loopwire::testing::hex;
+
 using ::testing::HasSubstr;
 using namespace std::string_view_literals;
 
 Bytes chars(std::string_view text) { return Bytes(text.begin(), text.end()); }
-
-Bytes hex(std::string_view text) {
-    auto bytes = parse_hex(text);
-    EXPECT_TRUE(bytes.has_value()) << text;
-    return bytes.value_or(Bytes{});
-}
 
 // One decode of `wire` that must yield exactly one event.
 FrameEvent decode_one(std::string_view wire, unsigned data_bits = 8) {

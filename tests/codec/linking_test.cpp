@@ -5,24 +5,17 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "support/test_bytes.hpp"
+
 #include <string_view>
 
 namespace loopwire::codec {
 namespace {
 
+using loopwire::testing::hex;
+using loopwire::testing::concat;
+
 using ::testing::HasSubstr;
-
-Bytes hex(std::string_view text) {
-    auto bytes = parse_hex(text);
-    EXPECT_TRUE(bytes.has_value()) << text;
-    return bytes.value_or(Bytes{});
-}
-
-Bytes concat(std::initializer_list<Bytes> parts) {
-    Bytes out;
-    for (const Bytes& part : parts) out.insert(out.end(), part.begin(), part.end());
-    return out;
-}
 
 std::string request_error(std::string_view frame_hex) {
     const auto result = decode_linking_request(hex(frame_hex));

@@ -7,19 +7,17 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "support/test_bytes.hpp"
+
 #include <string_view>
 
 namespace loopwire::codec {
 namespace {
 
+using loopwire::testing::hex;
+
 using ::testing::ElementsAre;
 using ::testing::HasSubstr;
-
-Bytes hex(std::string_view text) {
-    auto bytes = parse_hex(text);
-    EXPECT_TRUE(bytes.has_value()) << "bad hex in test: " << text;
-    return bytes.value_or(Bytes{});
-}
 
 std::vector<std::uint16_t> repeated(std::size_t count, std::uint16_t value) {
     return std::vector<std::uint16_t>(count, value);

@@ -6,6 +6,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "support/test_bytes.hpp"
+
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string_view>
@@ -13,23 +15,14 @@
 namespace loopwire::codec {
 namespace {
 
+using loopwire::testing::hex;
+using loopwire::testing::concat;
+
 using ::testing::ElementsAre;
 using ::testing::HasSubstr;
 using namespace std::chrono_literals;
 
 const Instant t0{};  // the decoder only compares instants, any origin will do
-
-Bytes hex(std::string_view text) {
-    auto bytes = parse_hex(text);
-    EXPECT_TRUE(bytes.has_value()) << "bad hex in test: " << text;
-    return bytes.value_or(Bytes{});
-}
-
-Bytes concat(std::initializer_list<Bytes> parts) {
-    Bytes out;
-    for (const Bytes& part : parts) out.insert(out.end(), part.begin(), part.end());
-    return out;
-}
 
 std::vector<Frame> frames_in(const FrameEvents& events) {
     std::vector<Frame> frames;

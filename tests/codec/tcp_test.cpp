@@ -5,24 +5,17 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "support/test_bytes.hpp"
+
 #include <string_view>
 
 namespace loopwire::codec {
 namespace {
 
+using loopwire::testing::hex;
+using loopwire::testing::concat;
+
 using ::testing::HasSubstr;
-
-Bytes hex(std::string_view text) {
-    auto bytes = parse_hex(text);
-    EXPECT_TRUE(bytes.has_value()) << text;
-    return bytes.value_or(Bytes{});
-}
-
-Bytes concat(std::initializer_list<Bytes> parts) {
-    Bytes out;
-    for (const Bytes& part : parts) out.insert(out.end(), part.begin(), part.end());
-    return out;
-}
 
 // The ramp/soak manual's FC3 exchange (§4.7.1) carried over TCP instead of RTU.
 const Bytes read_pv_pdu = hex("03 00 8A 00 01");

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "common/bytes.hpp"
+#include "support/test_bytes.hpp"
 #include "transport/byte_stream.hpp"
 
 namespace loopwire::testing {
@@ -85,6 +86,5 @@ private:
     std::vector<Write> writes_;
 };
 
-inline Bytes hex(const char* text) { return *parse_hex(text); }
 
 }  // namespace loopwire::testing
