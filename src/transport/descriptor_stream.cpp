@@ -70,6 +70,13 @@ Result<std::size_t> DescriptorStream::receive_ready(std::span<std::uint8_t> buff
 
 Result<std::size_t> DescriptorStream::read_some(std::span<std::uint8_t> buffer, milliseconds timeout) {
     if (buffer.empty()) return std::size_t{0};
+    // Bytes already waiting on a socket (the usual case for a server woken by its own poll)
+    // cost one read() and no poll().
+    if (reads_without_waiting()) {
+        bool retry = false;
+        auto got = receive_ready(buffer, retry);
+        if (!retry) return got;
+    }
     const Instant deadline = deadline_after(timeout);
     for (;;) {
         auto ready = wait_for_events(fd(), POLLIN, deadline);

@@ -39,6 +39,10 @@ protected:
     virtual Result<void> after_write() { return {}; }
     // The error for end-of-file (err = 0) or a hang-up / reset reported as errno `err`.
     virtual Error closed_error(int err) const;
+    // Whether a read with nothing waiting says so with EAGAIN, so read_some may try read()
+    // before poll(). Sockets do; raw terminals (VMIN = VTIME = 0) return 0, which would look
+    // like end-of-file, so they poll first.
+    virtual bool reads_without_waiting() const { return false; }
 
 private:
     Result<void> wait_writable(Instant stall_deadline);

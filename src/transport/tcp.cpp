@@ -52,6 +52,8 @@ protected:
         return ::send(fd(), bytes.data(), bytes.size(), MSG_NOSIGNAL);
     }
 
+    bool reads_without_waiting() const override { return true; }
+
     Error closed_error(int err) const override {
         const char* what = err == ECONNRESET ? "connection reset by peer" : "connection closed by peer";
         return make_error(ErrorKind::link, describe() + ": " + what);
