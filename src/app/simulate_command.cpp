@@ -1,13 +1,13 @@
-// loopwire simulate --link URL --unit N [--unit M ...] [--pty PATH] [--duration S] [-v]
-// Until device profiles exist, every unit is a plain register bank (all four tables, 65536
-// entries, zero, writable).
+// loopwire simulate --link URL [--device DEVICE@UNIT ...] [--unit N ...] [--pty PATH] [--duration S] [-v]
+// --device serves a simulated controller from its profile (device/simulated_device.hpp);
+// --unit a plain register bank (all four tables, 65536 entries, zero, writable).
 #include <fmt/format.h>
 
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
 #include "app/stop_signal.hpp"
-#include "session/register_bank.hpp"
+#include "app/simulated_units.hpp"
 #include "session/slave.hpp"
 #include "transport/pseudo_terminal.hpp"
 #include "transport/serial_port.hpp"
@@ -18,6 +18,7 @@ namespace {
 struct SimulateOptions {
     std::string link;
     std::vector<int> units;
+    std::vector<std::string> devices;
     std::string pty;
     std::string duration;
     bool verbose = false;
@@ -43,8 +44,15 @@ Result<std::unique_ptr<transport::ByteStream>> open_serial_side(const SimulateOp
     return transport::open_serial_port(url.path, url.serial);
 }
 
-std::string unit_list(const std::vector<int>& units) {
-    return fmt::format("{}", fmt::join(units, ", "));
+void announce(const SimulatedUnits& served) {
+    for (const std::string& warning : served.warnings) fmt::print(stderr, "loopwire: warning: {}\n", warning);
+    for (const std::string& line : served.descriptions) fmt::print(stderr, "loopwire: unit {}\n", line);
+}
+
+std::string unit_list(const session::UnitMap& units) {
+    std::vector<int> ids;
+    for (const auto& [unit, handler] : units) ids.push_back(unit);
+    return fmt::format("{}", fmt::join(ids, ", "));
 }
 
 int run_simulate(SimulateOptions options) {
@@ -56,25 +64,26 @@ int run_simulate(SimulateOptions options) {
         if (!parsed) return report_error(parsed.error());
         limit = *parsed;
     }
-    if (options.units.empty()) options.units.push_back(1);
-    session::UnitMap units;
-    for (int unit : options.units) units[static_cast<std::uint8_t>(unit)] = std::make_shared<session::RegisterBank>();
+    auto served_units = build_simulated_units(options.units, options.devices, *url);
+    if (!served_units) return report_error(served_units.error());
+    announce(*served_units);
+    const std::string units_text = unit_list(served_units->units);
     StopSignal stop(limit);
     session::SlaveOptions slave_options;
     if (options.verbose) slave_options.trace = stderr_trace();
-    session::Slave slave(*url, std::move(units), slave_options);
+    session::Slave slave(*url, std::move(served_units->units), slave_options);
     Result<void> served;
     if (url->is_serial()) {
         auto stream = open_serial_side(options, *url);
         if (!stream) return report_error(stream.error());
-        fmt::print(stderr, "loopwire: simulating unit(s) {} on {} ({}); Ctrl-C to stop\n", unit_list(options.units),
+        fmt::print(stderr, "loopwire: simulating unit(s) {} on {} ({}); Ctrl-C to stop\n", units_text,
                    url->to_string(), (*stream)->describe());
         served = slave.serve_stream(**stream, stop.token());
     } else {
         auto listener = transport::TcpListener::listen(url->host, url->port);
         if (!listener) return report_error(listener.error());
         fmt::print(stderr, "loopwire: simulating unit(s) {} on {} (listening on port {}); Ctrl-C to stop\n",
-                   unit_list(options.units), url->to_string(), (*listener)->port());
+                   units_text, url->to_string(), (*listener)->port());
         served = slave.serve_listener(**listener, stop.token());
     }
     if (!served) return report_error(served.error());
@@ -86,9 +95,10 @@ int run_simulate(SimulateOptions options) {
 
 void add_simulate_command(CLI::App& app, int& exit_code) {
     auto options = std::make_shared<SimulateOptions>();
-    auto* command = app.add_subcommand("simulate", "Serve simulated units on a link (plain register banks for now)");
+    auto* command = app.add_subcommand("simulate", "Serve simulated devices and plain register banks on a link");
     command->add_option("--link", options->link, "Link URL to serve on: rtu:/dev/ttyUSB0?baud=19200, tcp://127.0.0.1:1502, rtu+tcp://0.0.0.0:4001");
-    command->add_option("--unit", options->units, "Unit id to serve (repeat for several; default 1)")->check(CLI::Range(1, 247));
+    command->add_option("--device", options->devices, "Simulated device to serve, DEVICE@UNIT (ac20@1, tc10@3, rampsoak@5; repeat for several)");
+    command->add_option("--unit", options->units, "Unit id to serve as a plain register bank (repeat for several; default 1 when no --device)")->check(CLI::Range(1, 247));
     command->add_option("--pty", options->pty, "Create a pseudo-terminal with a link at PATH and serve there (open PATH like a serial port)");
     command->add_option("--duration", options->duration, "Stop by itself after this long (e.g. 30s)");
     command->add_flag("-v,--verbose", options->verbose, "Print every frame received and sent, with timestamps, on stderr");

@@ -302,14 +302,21 @@ RtuDecoder::RtuDecoder(Direction direction, CharacterTiming timing)
 // reject good frames; the CRC catches what it would have caught.
 // Arrival times are taken when a reader gets the bytes, not when they crossed the wire: a reader
 // scheduled late sees a "gap" inside a frame that had none. So a gap does not end the pending
-// bytes when, together with the new ones, they complete a frame of the implied length whose CRC
-// checks: the CRC is the stronger evidence (as with the 1.5-character rule above).
+// bytes when a frame that starts among them (after noise, perhaps) runs on into the new bytes
+// with the implied length and a CRC that checks: the CRC is the stronger evidence (as with the
+// 1.5-character rule above). The next silence then sorts noise from frame as usual.
 bool RtuDecoder::completes_pending_frame(ByteView bytes) const {
     Bytes joined(buffer_);
     joined.insert(joined.end(), bytes.begin(), bytes.end());
-    const auto length = implied_frame_length(direction_, joined);
-    return length && *length > buffer_.size() && *length <= joined.size() &&
-           crc_matches(ByteView(joined).first(*length));
+    for (std::size_t start = 0; start < buffer_.size(); ++start) {
+        const ByteView window = ByteView(joined).subspan(start);
+        const auto length = implied_frame_length(direction_, window);
+        if (length && *length > buffer_.size() - start && *length <= window.size() &&
+            crc_matches(window.first(*length))) {
+            return true;
+        }
+    }
+    return false;
 }
 
 FrameEvents RtuDecoder::feed(ByteView bytes, Instant arrival) {

@@ -101,7 +101,15 @@ struct Profile {
     unsigned default_stop_bits = 1;
     std::vector<std::uint8_t> function_codes;
     Limits limits;
+    std::vector<std::string> parities;     // serial_defaults.parities: what the device can be set to
+    bool broadcast = false;                // unit 0 writes are executed
     bool unmapped_reads_answered = false;  // the AC20 answers 8000h for unmapped words
+    std::uint16_t unmapped_value = 0x8000; // what an unmapped word reads as, when answered
+    // How the device answers what it cannot serve (NOTES.md, "Slave behaviour on errors").
+    bool silent_on_unsupported_function = false;  // AC20: no reply instead of exception 1
+    std::uint8_t limit_exception = 3;             // over the per-request limits (AC20: 9)
+    bool read_only_writes_ignored = false;        // AC20: skipped; others: exception 2
+    bool block_writes_in_order = false;           // AC20: abort at the first error; others: all or nothing
     std::map<std::uint8_t, std::string> exception_names;
     std::vector<NumberingAlternative> numberings;
     std::vector<AddressMirror> mirrors;

@@ -105,7 +105,14 @@ void read_line(const Json& document, Profile& profile) {
     profile.default_stop_bits = serial.at("stop_bits").get<unsigned>();
     profile.function_codes = document.at("function_codes").get<std::vector<std::uint8_t>>();
     profile.limits = limits_from(document.at("limits"));
+    profile.parities = serial.value("parities", std::vector<std::string>{profile.default_parity});
+    profile.broadcast = document.value("broadcast", false);
     profile.unmapped_reads_answered = document.at("unmapped_reads") == "answered";
+    profile.unmapped_value = document.value("unmapped_value", profile.unmapped_value);
+    profile.silent_on_unsupported_function = document.value("silent_on_unsupported_function", false);
+    profile.limit_exception = document.value("limit_exception", profile.limit_exception);
+    profile.read_only_writes_ignored = document.value("read_only_writes", std::string()) == "ignored";
+    profile.block_writes_in_order = document.value("block_writes", std::string()) == "in-order";
     for (const auto& [code, meaning] : object_member(document, "exceptions").items()) {
         profile.exception_names.emplace(static_cast<std::uint8_t>(std::stoi(code)), meaning.get<std::string>());
     }

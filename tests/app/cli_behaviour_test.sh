@@ -36,6 +36,9 @@ check read-broadcast 2 "unit 0 is broadcast" "$loopwire" read --link "rtu:$work/
 check bad-coil 2 "coil value 'maybe'" "$loopwire" write --link "rtu:$work/none" --unit 1 coils 0 maybe
 check help-lists-exit-codes 0 "4  timeout" "$loopwire" read --help
 
+# The README's first command ends in `loopwire demo`: it must work on a bare machine.
+check demo 0 "0x8000  -32768" "$loopwire" demo
+
 # Link errors: exit 3, naming the port.
 check missing-port 3 "$work/none" "$loopwire" read --link "rtu:$work/none" --unit 1 holding 0 1
 
@@ -85,6 +88,19 @@ check tcp-write 0 "wrote 2" "$loopwire" write --link "tcp://127.0.0.1:$port" --u
 check tcp-read 0 '"values":[11,22]' "$loopwire" read --link "tcp://127.0.0.1:$port" --unit 1 holding 10 2 --json
 check tcp-unserved-unit 5 "exception 11" "$loopwire" read --link "tcp://127.0.0.1:$port" --unit 3 holding 0 1
 check tcp-refused 3 "127.0.0.1" "$loopwire" read --link "tcp://127.0.0.1:1" --unit 1 holding 0 1
+
+# A profile-driven simulated TC10 at unit 3 (device/simulated_device.hpp): scan identifies it
+# (word 21 = 20), named reads work, and a set point above SP.HL is refused (TC10 §4.4 B).
+tc10_pty="$work/ttyV1"
+"$loopwire" simulate --pty "$tc10_pty" --device tc10@3 --duration 60s 2>"$work/sim-tc10.log" &
+pids+=($!)
+wait_for_path "$tc10_pty" || { echo "FAIL tc10 simulator pty never appeared"; cat "$work/sim-tc10.log"; exit 1; }
+check simulate-names-device 0 "unit 3: tc10" cat "$work/sim-tc10.log"
+check scan-finds-simulated-tc10 0 '{"unit":3,"device":"tc10"' "$loopwire" scan --link "rtu:$tc10_pty" --units 1-4 --timeout 200ms --json
+check read-simulated-tc10-sp 0 "SP" "$loopwire" read --link "rtu:$tc10_pty" --device tc10@3 SP
+check write-above-sp-hl-refused 5 "exception 3" "$loopwire" write --link "rtu:$tc10_pty" --unit 3 holding 717 30000
+check simulate-parity-warning 0 "cannot be set to parity none" \
+  "$loopwire" simulate --pty "$work/ttyV2" --link "rtu:$work/ttyV2?parity=none" --device rampsoak@1 --duration 300ms
 
 echo "$passes passed, $failures failed"
 [ "$failures" -eq 0 ]

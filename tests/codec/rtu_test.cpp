@@ -252,6 +252,20 @@ TEST(RtuDecoder, GapInsideAFrameWhoseCrcChecksIsTakenForReaderLatency) {
     EXPECT_EQ(decoder.buffered(), 0u);
 }
 
+// The same after noise: the frame that starts after the noise straddles the late read.
+TEST(RtuDecoder, NoiseThenAFrameStraddlingAReaderLatencyGapKeepsTheFrame) {
+    RtuDecoder decoder(Direction::request, timing_9600());
+    const Bytes noisy = concat({hex("FF 00 13"), read_pv_request});
+    EXPECT_TRUE(decoder.feed(ByteView(noisy).first(6), t0).empty());
+    const auto at_rest = decoder.feed(ByteView(noisy).subspan(6), t0 + 10ms);
+    const auto at_silence = decoder.flush(t0 + 20ms);
+    FrameEvents events = at_rest;
+    events.insert(events.end(), at_silence.begin(), at_silence.end());
+    ASSERT_EQ(events.size(), 2u);
+    EXPECT_EQ(std::get<DiscardedBytes>(events[0]).bytes, hex("FF 00 13"));
+    EXPECT_EQ(std::get<Frame>(events[1]).raw, read_pv_request);
+}
+
 TEST(RtuDecoder, FrameSplitByALongGapIsDiscarded) {
     const Bytes second_half = hex("00 02 A5 E0");  // does not complete a frame whose CRC checks
     RtuDecoder decoder(Direction::request, timing_9600());
