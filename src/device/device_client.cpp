@@ -129,11 +129,58 @@ ReadReport DeviceClient::read(const std::vector<const Parameter*>& parameters) {
     return report;
 }
 
+namespace {
+
+// The parameters whose values tell whether one of `parameter`'s write modes holds; empty when
+// some write mode has no requirement a master can check (it may hold: the device decides).
+std::vector<std::string> mode_indicators(const Profile& profile, const Parameter& parameter) {
+    std::vector<std::string> names;
+    for (const auto& mode : parameter.write_modes) {
+        auto requirement = profile.mode_requirements.find(mode);
+        if (requirement == profile.mode_requirements.end()) return {};
+        for (const auto& check : requirement->second) names.push_back(check.parameter);
+    }
+    return names;
+}
+
+bool requirements_hold(const std::vector<IdentificationCheck>& checks, const RawValues& known) {
+    return std::all_of(checks.begin(), checks.end(), [&](const IdentificationCheck& check) {
+        auto raw = known.find(check.parameter);
+        return raw != known.end() && static_cast<std::int32_t>(raw->second) == check.equals;
+    });
+}
+
+// A write the device would refuse in its present mode (AC20 in local: Note 5), said before
+// anything is sent, with what to do about it.
+Result<void> check_write_mode(const Profile& profile, const Parameter& parameter, const RawValues& known) {
+    if (mode_indicators(profile, parameter).empty()) return {};
+    std::vector<std::string> unmet;
+    for (const auto& mode : parameter.write_modes) {
+        const auto& checks = profile.mode_requirements.at(mode);
+        if (requirements_hold(checks, known)) return {};
+        for (const auto& check : checks) {
+            const Parameter* indicator = profile.find(check.parameter);
+            auto label = indicator ? indicator->enum_labels.find(check.equals) : std::map<std::int32_t, std::string>::const_iterator{};
+            const std::string wanted = indicator && label != indicator->enum_labels.end() ? label->second : std::to_string(check.equals);
+            unmet.push_back(fmt::format("{} needs {}={}", mode, check.parameter, wanted));
+        }
+    }
+    return make_error(ErrorKind::usage, fmt::format("{} can be written only in {} mode, which {} is not in now ({}); set that first",
+                                                    parameter.name, fmt::join(parameter.write_modes, " or "), profile.id,
+                                                    fmt::join(unmet, "; ")));
+}
+
+}  // namespace
+
 Result<WriteReport> DeviceClient::write(const std::vector<std::pair<const Parameter*, std::string>>& assignments) {
-    // What the new values are checked against: decimals and range bounds held by other words.
+    // What the new values are checked against: decimals and range bounds held by other words,
+    // and the words that tell the device's mode.
     std::vector<const Parameter*> needed;
     for (const auto& [parameter, text] : assignments) {
-        for (const auto& name : dependencies_of(*parameter)) {
+        auto names = dependencies_of(*parameter);
+        const auto indicators = mode_indicators(*device_.profile, *parameter);
+        names.insert(names.end(), indicators.begin(), indicators.end());
+        for (const auto& name : names) {
             if (const Parameter* dependency = device_.profile->find(name); dependency && dependency->readable) needed.push_back(dependency);
         }
     }
@@ -142,6 +189,9 @@ Result<WriteReport> DeviceClient::write(const std::vector<std::pair<const Parame
         auto current = read(needed);
         if (current.first_error) return *current.first_error;
         known = std::move(current.raw);
+    }
+    for (const auto& [parameter, text] : assignments) {
+        if (auto allowed = check_write_mode(*device_.profile, *parameter, known); !allowed) return allowed.error();
     }
     std::vector<PlannedWrite> planned;
     for (const auto& [parameter, text] : assignments) {

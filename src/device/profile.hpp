@@ -114,6 +114,8 @@ struct Profile {
     std::vector<NumberingAlternative> numberings;
     std::vector<AddressMirror> mirrors;
     std::vector<IdentificationCheck> identification;
+    // Per mode, what a master can read to tell that it holds (AC20: bit 218 = remote).
+    std::map<std::string, std::vector<IdentificationCheck>> mode_requirements;
     std::vector<std::string> identification_report;
     std::vector<Parameter> parameters;
 

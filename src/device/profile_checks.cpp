@@ -111,6 +111,15 @@ void check_top_level_references(const Json& document, ReferenceCheck& references
             references.check((*report)[k], fmt::format("/identification/report/{}", k));
         }
     }
+    if (const auto requirements = document.find("mode_requirements"); requirements != document.end()) {
+        for (const auto& [mode, checks] : requirements->items()) {
+            for (std::size_t k = 0; k < checks.size(); ++k) {
+                const std::string pointer = fmt::format("/mode_requirements/{}/{}", mode, k);
+                references.check(checks[k].at("parameter"), pointer + "/parameter");
+                if (!checks[k].contains("equals")) problems.push_back({pointer, "a mode requirement needs \"equals\""});
+            }
+        }
+    }
     const Json& addressing = document.at("addressing");
     if (const auto alternatives = addressing.find("alternatives"); alternatives != addressing.end()) {
         for (std::size_t k = 0; k < alternatives->size(); ++k) {
@@ -134,6 +143,10 @@ void check_write_modes(const Json& document, std::vector<DocumentProblem>& probl
                                     fmt::format("no mode named \"{}\" in /modes", mode)});
             }
         }
+    }
+    const Json requirements = document.value("mode_requirements", Json::object());
+    for (const auto& [mode, checks] : requirements.items()) {
+        if (!modes.contains(mode)) problems.push_back({"/mode_requirements/" + mode, fmt::format("no mode named \"{}\" in /modes", mode)});
     }
 }
 

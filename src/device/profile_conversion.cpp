@@ -138,6 +138,16 @@ void read_identification(const Json& identification, Profile& profile) {
     profile.identification_report = identification.value("report", std::vector<std::string>());
 }
 
+void read_mode_requirements(const Json& document, Profile& profile) {
+    const auto requirements = document.find("mode_requirements");
+    if (requirements == document.end()) return;
+    for (const auto& [mode, checks] : requirements->items()) {
+        for (const Json& check : checks) {
+            profile.mode_requirements[mode].push_back({check.at("parameter").get<std::string>(), check.at("equals").get<std::int32_t>()});
+        }
+    }
+}
+
 // The checks guarantee every named bound exists.
 void describe_bound_sources(const Profile& profile, Parameter& parameter) {
     for (const auto& bound : {parameter.min, parameter.max}) {
@@ -160,6 +170,7 @@ Profile profile_from_document(const Json& document) {
     read_line(document, profile);
     read_addressing(document.at("addressing"), profile);
     read_identification(document.at("identification"), profile);
+    read_mode_requirements(document, profile);
     const auto word_specials = specials_from(document.value("word_specials", Json::array()));
     for (const Json& entry : document.at("parameters")) profile.parameters.push_back(parameter_from(entry, word_specials));
     for (Parameter& parameter : profile.parameters) describe_bound_sources(profile, parameter);

@@ -24,12 +24,12 @@ struct BusCase {
     std::string value;
 };
 
-class SimulatedDeviceOnBus : public ::testing::TestWithParam<BusCase> {
-protected:
-    void SetUp() override {
-        link = *transport::parse_link_url(GetParam().link);
-        auto profile = testing::builtin(GetParam().id);
-        ASSERT_TRUE(profile);
+// A simulated device on a virtual bus and a DeviceClient talking to it through a master.
+struct BusRig {
+    explicit BusRig(const BusCase& bus_case) {
+        link = *transport::parse_link_url(bus_case.link);
+        auto profile = testing::builtin(bus_case.id);
+        EXPECT_TRUE(profile);
         bus = transport::VirtualBus::create(link.serial.baud, 10);
         slave_port = bus->attach("slave");
         slave = std::make_unique<session::Slave>(link, session::UnitMap{{5, std::make_shared<SimulatedDevice>(profile)}});
@@ -38,13 +38,11 @@ protected:
         options.timeout = 2s;
         options.retries = 2;  // a loaded, sanitised test machine can stretch a frame past its gaps
         master = session::make_serial_master(bus->attach("master"), link, options);
-        client = std::make_unique<DeviceClient>(*master, *parse_device_address(GetParam().id + "@5"));
+        client = std::make_unique<DeviceClient>(*master, *parse_device_address(bus_case.id + "@5"));
     }
-    void TearDown() override {
-        if (server.joinable()) {
-            server.request_stop();
-            server.join();
-        }
+    ~BusRig() {
+        server.request_stop();
+        server.join();
     }
 
     transport::LinkUrl link;
@@ -54,6 +52,18 @@ protected:
     std::jthread server;
     std::unique_ptr<session::Master> master;
     std::unique_ptr<DeviceClient> client;
+};
+
+class SimulatedDeviceOnBus : public ::testing::TestWithParam<BusCase> {
+protected:
+    void SetUp() override {
+        rig = std::make_unique<BusRig>(GetParam());
+        client = rig->client.get();
+    }
+    void TearDown() override { rig.reset(); }
+
+    std::unique_ptr<BusRig> rig;
+    DeviceClient* client = nullptr;
 };
 
 // Every value decodes: status ok, or a special state the profile names (never an unlisted enum
@@ -76,6 +86,10 @@ TEST_P(SimulatedDeviceOnBus, ReadsAllAndEveryValueDecodes) {
 TEST_P(SimulatedDeviceOnBus, NamedWriteReadsBack) {
     const Parameter* parameter = client->device().profile->find(GetParam().parameter);
     ASSERT_NE(parameter, nullptr);
+    // AC20 Note 5: a master writes only in remote; the client checks bit 218 first.
+    if (const Parameter* remote = client->device().profile->find("local_remote")) {
+        ASSERT_TRUE(client->write({{remote, "remote"}}).ok());
+    }
     auto written = client->write({{parameter, GetParam().value}});
     ASSERT_TRUE(written.ok()) << written.error().message;
     const ReadReport back = client->read({parameter});
@@ -83,6 +97,21 @@ TEST_P(SimulatedDeviceOnBus, NamedWriteReadsBack) {
     auto text = format_value(*parameter, *back.readings[0].value, back.raw);
     ASSERT_TRUE(text.ok());
     EXPECT_EQ(*text, GetParam().value);
+}
+
+// AC20 Note 5: in local the master can only read (bit 218 aside). The client reads bit 218 and
+// refuses the write before sending it, saying what to do.
+TEST(SimulatedAc20, WriteInLocalIsRefusedBeforeSendingWithTheRemedy) {
+    const BusCase ac20{"ac20", "rtu:virtual?baud=9600&parity=even", "auxiliary_set_point_2", "250"};
+    BusRig rig(ac20);
+    const Profile& profile = *rig.client->device().profile;
+    auto refused = rig.client->write({{profile.find("auxiliary_set_point_2"), "250"}});
+    ASSERT_FALSE(refused.ok());
+    EXPECT_EQ(refused.error().kind, ErrorKind::usage);
+    EXPECT_NE(refused.error().message.find("control needs local_remote=remote"), std::string::npos) << refused.error().message;
+    const ReadReport after = rig.client->read({profile.find("auxiliary_set_point_2")});
+    ASSERT_TRUE(after.readings.at(0).value);
+    EXPECT_NE(after.readings[0].value->raw, 250);
 }
 
 INSTANTIATE_TEST_SUITE_P(
