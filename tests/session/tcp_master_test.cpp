@@ -149,3 +149,41 @@ TEST(TcpMaster, UnservedUnitGetsGatewayTargetException) {
 
 }  // namespace
 }  // namespace loopwire::session
+
+namespace loopwire::session {
+namespace {
+
+// A server that restarts: the master reports the lost connection, then connects again on the
+// next request instead of staying broken.
+TEST(TcpMaster, ReconnectsAfterTheServerRestarts) {
+    auto [listener, link] = listen_on_loopback();
+    const auto read = codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1);
+    MasterOptions options;
+    options.timeout = 500ms;
+    auto master = open_master(link, options);
+    ASSERT_TRUE(master.ok());
+    {
+        Slave slave(link, {{1, std::make_shared<RegisterBank>()}});
+        std::jthread server([&, l = listener.get()](std::stop_token stop) { (void)slave.serve_listener(*l, stop); });
+        ASSERT_TRUE((*master)->execute(1, read).ok());
+    }  // the server stops and its connections close
+    listener.reset();
+    auto again = transport::TcpListener::listen("127.0.0.1", link.port);
+    ASSERT_TRUE(again.ok()) << again.error().message;
+    auto bank = std::make_shared<RegisterBank>();
+    bank->set(Table::holding_registers, 0, 7);
+    Slave slave(link, {{1, bank}});
+    std::jthread server([&, l = again->get()](std::stop_token stop) { (void)slave.serve_listener(*l, stop); });
+    Result<codec::Reply> reply = make_error(ErrorKind::link, "not tried");
+    for (int attempt = 0; attempt < 3 && !reply.ok(); ++attempt) {
+        reply = (*master)->execute(1, read);
+        if (!reply.ok()) {
+            EXPECT_EQ(reply.error().kind, ErrorKind::link) << reply.error().message;
+        }
+    }
+    ASSERT_TRUE(reply.ok()) << reply.error().message;
+    EXPECT_EQ(reply->values.at(0), 7);
+}
+
+}  // namespace
+}  // namespace loopwire::session
