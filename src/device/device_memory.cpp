@@ -1,6 +1,8 @@
 #include "device/device_memory.hpp"
 
 #include <algorithm>
+#include <string>
+#include <vector>
 
 namespace loopwire::device {
 namespace {
@@ -69,8 +71,12 @@ DeviceMemory::DeviceMemory(std::shared_ptr<const Profile> profile) : profile_(st
     // Two entries may share an address only with a note explaining the manual's glitch
     // (profile_checks.hpp); the first listed one owns the cell.
     for (const Parameter& parameter : profile_->parameters) {
-        cells_.emplace(Key{parameter.table, parameter.address}, MemoryCell{&parameter, 0});
+        cells_.emplace(Key{parameter.table, parameter.address}, MemoryCell{&parameter, 0, 0});
     }
+    reset_to_defaults();
+}
+
+void DeviceMemory::reset_to_defaults() {
     const auto starts = limit_word_starts(*profile_);
     for (auto& [key, cell] : cells_) {
         const auto start = starts.find(cell.parameter->name);
@@ -78,6 +84,47 @@ DeviceMemory::DeviceMemory(std::shared_ptr<const Profile> profile) : profile_(st
                                known_for(*cell.parameter, {}));
     }
     set_identification();
+    for (auto& [key, cell] : cells_) cell.saved = cell.raw;
+    ++saved_generation_;
+}
+
+MemoryCell* DeviceMemory::cell(std::string_view name) {
+    const Parameter* parameter = profile_->find(name);
+    return parameter == nullptr ? nullptr : &cells_.at(Key{parameter->table, parameter->address});
+}
+
+const MemoryCell* DeviceMemory::cell(std::string_view name) const {
+    const Parameter* parameter = profile_->find(name);
+    return parameter == nullptr ? nullptr : &cells_.at(Key{parameter->table, parameter->address});
+}
+
+void DeviceMemory::store(MemoryCell& cell, std::uint16_t raw, Persistence persistence) {
+    cell.raw = raw;
+    if (persistence == Persistence::ram_only || cell.parameter->ram_only || cell.saved == raw) return;
+    cell.saved = raw;
+    ++saved_generation_;
+}
+
+RawValues DeviceMemory::saved_values() const {
+    RawValues saved;
+    for (const auto& [key, cell] : cells_) {
+        if (!cell.parameter->ram_only && cell.parameter->writable) saved.emplace(cell.parameter->name, cell.saved);
+    }
+    return saved;
+}
+
+std::vector<std::string> DeviceMemory::load_saved(const RawValues& saved) {
+    std::vector<std::string> unknown;
+    for (const auto& [name, raw] : saved) {
+        MemoryCell* target = cell(name);
+        if (target == nullptr || target->parameter->ram_only || !target->parameter->writable) {
+            unknown.push_back(name);
+            continue;
+        }
+        target->raw = target->saved = static_cast<std::uint16_t>(raw);
+    }
+    ++saved_generation_;
+    return unknown;
 }
 
 // profile.identification 'equals': AC20 word 120 = 50, TC10 word 21 = 20, ramp/soak VER = 104.

@@ -1,6 +1,11 @@
 #include "device/simulated_device.hpp"
 
 #include <algorithm>
+#include <cassert>
+#include <cmath>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <vector>
 
 namespace loopwire::device {
@@ -57,8 +62,94 @@ struct StagedWrite {
 
 }  // namespace
 
-SimulatedDevice::SimulatedDevice(std::shared_ptr<const Profile> profile)
-    : profile_(std::move(profile)), memory_(profile_) {}
+SimulatedDevice::SimulatedDevice(std::shared_ptr<const Profile> profile, SimulationEnvironment environment)
+    : profile_(std::move(profile)),
+      environment_(std::move(environment)),
+      memory_(profile_),
+      random_(environment_.seed),
+      last_advance_(environment_.now()) {}
+
+void SimulatedDevice::advance() {
+    std::lock_guard lock(mutex_);
+    advance_locked();
+}
+
+// The process catches up with the clock lazily, on each request: deterministic for a test
+// that moves its clock by hand, and free while nobody asks. A long pause at a high --speed is
+// walked in at most max_steps steps (each then longer than max_process_step) so a request
+// never waits on the catch-up.
+void SimulatedDevice::advance_locked() {
+    constexpr int max_steps = 20000;
+    const auto now = environment_.now();
+    const double real = std::chrono::duration<double>(now - last_advance_).count();
+    last_advance_ = now;
+    if (real <= 0) return;
+    const double process = real * environment_.speed;
+    const int steps = std::min(max_steps, std::max(1, static_cast<int>(std::ceil(process / max_process_step))));
+    for (int i = 0; i < steps; ++i) step_process(process / steps);
+    process_time_ += process;
+}
+
+Result<void> SimulatedDevice::inject_fault(const std::string& fault) {
+    const auto known = fault_names();
+    if (fault != "none" && std::find(known.begin(), known.end(), fault) == known.end()) {
+        return make_error(ErrorKind::usage,
+                          known.empty() ? fmt::format("{} simulates no faults (asked for '{}')", profile_->id, fault)
+                                        : fmt::format("{} knows no fault '{}'; it knows: {} (or none)", profile_->id,
+                                                      fault, fmt::join(known, ", ")));
+    }
+    std::lock_guard lock(mutex_);
+    advance_locked();
+    apply_fault(fault);
+    return {};
+}
+
+RawValues SimulatedDevice::saved_values() const {
+    std::lock_guard lock(mutex_);
+    return memory_.saved_values();
+}
+
+std::vector<std::string> SimulatedDevice::load_saved(const RawValues& saved) {
+    std::lock_guard lock(mutex_);
+    return memory_.load_saved(saved);
+}
+
+std::uint64_t SimulatedDevice::saved_generation() const {
+    std::lock_guard lock(mutex_);
+    return memory_.saved_generation();
+}
+
+std::uint16_t SimulatedDevice::value(std::string_view name) const {
+    const MemoryCell* cell = memory_.cell(name);
+    assert(cell != nullptr && "model names a parameter its profile lacks");
+    return cell == nullptr ? 0 : cell->raw;
+}
+
+void SimulatedDevice::set_value(std::string_view name, std::uint16_t raw, Persistence persistence) {
+    MemoryCell* cell = memory_.cell(name);
+    assert(cell != nullptr && "model names a parameter its profile lacks");
+    if (cell != nullptr) memory_.store(*cell, raw, persistence);
+}
+
+// profile.numberings: an alternative numbering (AC20 J-BUS, +1) is in force while its selecting
+// parameter holds the selecting value (AC20 word 526). The word is read per request, so a
+// switch takes effect with the request after the one that wrote it (AC20 "serial settings
+// ... take effect after the reply").
+std::uint16_t SimulatedDevice::numbering_offset() const {
+    for (const NumberingAlternative& numbering : profile_->numberings) {
+        const MemoryCell* selector = memory_.cell(numbering.selected_by_parameter);
+        if (selector != nullptr && static_cast<std::int32_t>(selector->raw) == numbering.selected_by_value) {
+            return static_cast<std::uint16_t>(numbering.offset);
+        }
+    }
+    return 0;
+}
+
+MemoryCell* SimulatedDevice::find(Table table, std::uint16_t wire_address) {
+    const std::uint16_t offset = numbering_offset();
+    if (wire_address < offset) return nullptr;
+    return memory_.find(table, static_cast<std::uint16_t>(wire_address - offset));
+}
 
 std::optional<Bytes> SimulatedDevice::refuse(std::uint8_t function, std::uint8_t code) const {
     return Bytes{static_cast<std::uint8_t>((function & 0x7F) | 0x80), code};
@@ -78,6 +169,8 @@ std::optional<Bytes> SimulatedDevice::handle(ByteView request_pdu, bool broadcas
     // the ramp/soak manual describes none), only for writes, and never answered.
     if (broadcast && (!profile_->broadcast || !is_write(function))) return std::nullopt;
     std::lock_guard lock(mutex_);
+    advance_locked();
+    if (auto decided = intercept(request_pdu, broadcast)) return broadcast ? std::nullopt : *decided;
     if (!supports(*profile_, function)) {
         // AC20 "Error reply": no reply for an unimplemented function code; others: exception 1.
         if (profile_->silent_on_unsupported_function || broadcast) return std::nullopt;
@@ -108,7 +201,7 @@ codec::Reply SimulatedDevice::read(const codec::Request& request) {
     const bool bits = is_bit_function(request.function);
     codec::Reply reply{request.function, codec::ReplyKind::normal, 0, request.address, request.count, {}};
     for (unsigned i = 0; i < request.count; ++i) {
-        const MemoryCell* cell = memory_.find(table, static_cast<std::uint16_t>(request.address + i));
+        const MemoryCell* cell = find(table, static_cast<std::uint16_t>(request.address + i));
         if (cell == nullptr || !cell->parameter->readable) {
             // unmapped_reads "answered": the AC20 reads unmapped words as 8000h (FC3/4); its manual
             // leaves unmapped bits undefined, read here as 0. "exception": code 2 for the range.
@@ -132,7 +225,7 @@ codec::Reply SimulatedDevice::write(const codec::Request& request) {
     RawValues pending;
     std::optional<std::uint8_t> failure;
     for (std::size_t i = 0; i < request.values.size() && !failure; ++i) {
-        MemoryCell* cell = memory_.find(table, static_cast<std::uint16_t>(request.address + i));
+        MemoryCell* cell = find(table, static_cast<std::uint16_t>(request.address + i));
         const std::uint16_t raw = request.values[i];
         if (cell == nullptr) {
             failure = illegal_data_address;  // not a word or bit of the device
@@ -152,7 +245,7 @@ codec::Reply SimulatedDevice::write(const codec::Request& request) {
     }
     if (!failure || profile_->block_writes_in_order) {
         for (const StagedWrite& write : staged) {
-            write.cell->raw = write.raw;
+            memory_.store(*write.cell, write.raw, persistence_of(request.function));
             after_write(*write.cell->parameter, write.raw);
         }
     }
@@ -170,5 +263,13 @@ std::optional<std::uint8_t> SimulatedDevice::accept_write(const Parameter&, std:
 std::uint16_t SimulatedDevice::on_read(const Parameter&, std::uint16_t stored) { return stored; }
 
 void SimulatedDevice::after_write(const Parameter&, std::uint16_t) {}
+
+std::optional<std::optional<Bytes>> SimulatedDevice::intercept(ByteView, bool) { return std::nullopt; }
+
+Persistence SimulatedDevice::persistence_of(std::uint8_t) const { return Persistence::saved; }
+
+void SimulatedDevice::step_process(double) {}
+
+void SimulatedDevice::apply_fault(const std::string&) {}
 
 }  // namespace loopwire::device

@@ -5,84 +5,43 @@
 
 #include "codec/pdu.hpp"
 #include "device/simulated_device.hpp"
-#include "test_support.hpp"
+#include "simulator_harness.hpp"
 
 namespace loopwire::device {
 namespace {
 
 using codec::FunctionCode;
-using testing::builtin;
-using Words = std::vector<std::uint16_t>;
-
-class Simulated {
-public:
-    explicit Simulated(const std::string& id) : device_(builtin(id)) {}
-
-    // The reply PDU's bytes as hex ("86 03"), or "silence".
-    std::string send(const codec::Request& request, bool broadcast = false) {
-        auto pdu = codec::encode_request(request);
-        EXPECT_TRUE(pdu.ok());
-        return send_pdu(*pdu, broadcast);
-    }
-    std::string send_pdu(const Bytes& pdu, bool broadcast = false) {
-        auto reply = device_.handle(pdu, broadcast);
-        return reply ? to_hex(*reply) : "silence";
-    }
-    Words read(std::uint16_t address, std::uint16_t count, FunctionCode function = FunctionCode::read_holding_registers) {
-        auto pdu = device_.handle(*codec::encode_request(codec::read_request(function, address, count)), false);
-        if (!pdu) return {};
-        auto reply = codec::decode_reply(*pdu);
-        EXPECT_TRUE(reply.ok() && reply->kind == codec::ReplyKind::normal) << to_hex(*pdu);
-        if (!reply.ok() || reply->kind != codec::ReplyKind::normal) return {};
-        reply->values.resize(count);
-        return reply->values;
-    }
-    std::uint16_t word(std::uint16_t address) {
-        auto words = read(address, 1);
-        return words.empty() ? 0xDEAD : words[0];
-    }
-
-private:
-    SimulatedDevice device_;
-};
-
-std::string echo_of(const codec::Request& request) {
-    codec::Reply reply{request.function, codec::ReplyKind::normal, 0, request.address, request.count, {}};
-    if (request.function == 5 || request.function == 6) reply.values = request.values;
-    return to_hex(*codec::encode_reply(reply));
-}
-
-std::uint16_t raw(int value) { return static_cast<std::uint16_t>(static_cast<std::int16_t>(value)); }
+using namespace testing;
 
 // --- TC10 (tc10-modbus-im05c01e81-03.ru.txt) ---------------------------------------------
 
 TEST(SimulatedTc10, Word21ReadsTwentySoScanIdentifiesIt_Section5_1_21A) {
-    Simulated tc10("tc10");
+    Simulated tc10("tc10", Model::profile_only);
     EXPECT_EQ(tc10.word(21), 20);
 }
 
 TEST(SimulatedTc10, FunctionOutsideThreeSixSixteenGetsException1_Section3_4) {
-    Simulated tc10("tc10");
+    Simulated tc10("tc10", Model::profile_only);
     EXPECT_EQ(tc10.send(codec::read_request(FunctionCode::read_input_registers, 1, 1)), "84 01");
     EXPECT_EQ(tc10.send_pdu({0x2B, 0x0E, 0x01, 0x00}), "AB 01");
 }
 
 TEST(SimulatedTc10, MoreThanSixteenRegistersGetsException3_Sections3_1And3_3) {
-    Simulated tc10("tc10");
+    Simulated tc10("tc10", Model::profile_only);
     EXPECT_EQ(tc10.read(640, 16).size(), 16U);
     EXPECT_EQ(tc10.send(codec::read_request(FunctionCode::read_holding_registers, 640, 17)), "83 03");
     EXPECT_EQ(tc10.send(codec::write_multiple_registers(640, Words(17, 0))), "90 03");
 }
 
 TEST(SimulatedTc10, RangeTouchingAnUnlistedAddressGetsException2_Section3_4) {
-    Simulated tc10("tc10");
+    Simulated tc10("tc10", Model::profile_only);
     EXPECT_EQ(tc10.send(codec::read_request(FunctionCode::read_holding_registers, 30, 1)), "83 02");
     EXPECT_EQ(tc10.send(codec::read_request(FunctionCode::read_holding_registers, 28, 3)), "83 02");
     EXPECT_EQ(tc10.send(codec::write_single_register(30, 1)), "86 02");
 }
 
 TEST(SimulatedTc10, SettingParametersAnswerAtBothRanges_Section5AreaTable) {
-    Simulated tc10("tc10");
+    Simulated tc10("tc10", Model::profile_only);
     const auto write = codec::write_single_register(717 + 9600, 123);  // SP at 10317 (2CD / 284D)
     EXPECT_EQ(tc10.send(write), echo_of(write));
     EXPECT_EQ(tc10.word(717), 123);
@@ -90,13 +49,13 @@ TEST(SimulatedTc10, SettingParametersAnswerAtBothRanges_Section5AreaTable) {
 }
 
 TEST(SimulatedTc10, ReadOnlyWordWriteGetsException2AndIsNotStored_Section3_4) {
-    Simulated tc10("tc10");
+    Simulated tc10("tc10", Model::profile_only);
     EXPECT_EQ(tc10.send(codec::write_single_register(21, 7)), "86 02");
     EXPECT_EQ(tc10.word(21), 20);
 }
 
 TEST(SimulatedTc10, SetPointAboveSpHlIsRefusedWithException3_Section4_4B) {
-    Simulated tc10("tc10");
+    Simulated tc10("tc10", Model::profile_only);
     EXPECT_EQ(tc10.send(codec::write_single_register(716, 100)), echo_of(codec::write_single_register(716, 100)));
     EXPECT_EQ(tc10.send(codec::write_single_register(717, 50)), echo_of(codec::write_single_register(717, 50)));
     EXPECT_EQ(tc10.send(codec::write_single_register(717, 150)), "86 03");
@@ -106,7 +65,7 @@ TEST(SimulatedTc10, SetPointAboveSpHlIsRefusedWithException3_Section4_4B) {
 }
 
 TEST(SimulatedTc10, Fc16BoundsUseValuesEarlierInTheSameRequest_Section4_4B) {
-    Simulated tc10("tc10");
+    Simulated tc10("tc10", Model::profile_only);
     // SP.LL, SP.HL, SP at 715-717 in one request: SP is checked against the new limits.
     const auto ok = codec::write_multiple_registers(715, {raw(-10), 500, 400});
     EXPECT_EQ(tc10.send(ok), echo_of(ok));
@@ -114,14 +73,14 @@ TEST(SimulatedTc10, Fc16BoundsUseValuesEarlierInTheSameRequest_Section4_4B) {
 }
 
 TEST(SimulatedTc10, Fc16WithOneBadValueLeavesMemoryUnchanged_Section4_4B) {
-    Simulated tc10("tc10");
+    Simulated tc10("tc10", Model::profile_only);
     const Words before = tc10.read(715, 3);
     EXPECT_EQ(tc10.send(codec::write_multiple_registers(715, {0, 100, 200})), "90 03");
     EXPECT_EQ(tc10.read(715, 3), before);
 }
 
 TEST(SimulatedTc10, BroadcastWriteIsExecutedAndNotAnswered_Section3) {
-    Simulated tc10("tc10");
+    Simulated tc10("tc10", Model::profile_only);
     EXPECT_EQ(tc10.send(codec::write_single_register(717, 42), true), "silence");
     EXPECT_EQ(tc10.word(717), 42);
 }
@@ -129,50 +88,50 @@ TEST(SimulatedTc10, BroadcastWriteIsExecutedAndNotAnswered_Section3) {
 // --- Ramp/soak controller (rampsoak-pid-rtu-ascii-linking.en.txt) ------------------------
 
 TEST(SimulatedRampSoak, VerReads104SoScanIdentifiesIt_Section7) {
-    Simulated rampsoak("rampsoak");
+    Simulated rampsoak("rampsoak", Model::profile_only);
     EXPECT_EQ(rampsoak.word(0x86), 104);
 }
 
 TEST(SimulatedRampSoak, ManualFc16ExampleIsEchoed_Section4_7_3) {
-    Simulated rampsoak("rampsoak");
+    Simulated rampsoak("rampsoak", Model::profile_only);
     // §4.7.3: 01 10 00 00 00 02 04 00 64 03 E8 -> 01 10 00 00 00 02 (SV = 100, OUTL = 1000).
     EXPECT_EQ(rampsoak.send_pdu({0x10, 0x00, 0x00, 0x00, 0x02, 0x04, 0x00, 0x64, 0x03, 0xE8}), "10 00 00 00 02");
     EXPECT_EQ(rampsoak.read(0, 2), (Words{100, 1000}));
 }
 
 TEST(SimulatedRampSoak, UnsupportedFunctionGetsException1_Section4_6) {
-    Simulated rampsoak("rampsoak");
+    Simulated rampsoak("rampsoak", Model::profile_only);
     EXPECT_EQ(rampsoak.send(codec::read_request(FunctionCode::read_coils, 0, 1)), "81 01");
 }
 
 TEST(SimulatedRampSoak, MoreThanEightRegistersGetsException3_Section4) {
-    Simulated rampsoak("rampsoak");
+    Simulated rampsoak("rampsoak", Model::profile_only);
     EXPECT_EQ(rampsoak.read(0, 8).size(), 8U);
     EXPECT_EQ(rampsoak.send(codec::read_request(FunctionCode::read_holding_registers, 0, 9)), "83 03");
     EXPECT_EQ(rampsoak.send(codec::write_multiple_registers(0, Words(9, 0))), "90 03");
 }
 
 TEST(SimulatedRampSoak, UndefinedGapGetsException2_Sections4_6And7) {
-    Simulated rampsoak("rampsoak");
+    Simulated rampsoak("rampsoak", Model::profile_only);
     EXPECT_EQ(rampsoak.send(codec::read_request(FunctionCode::read_holding_registers, 0x78, 1)), "83 02");
     EXPECT_EQ(rampsoak.send(codec::read_request(FunctionCode::read_holding_registers, 0x75, 4)), "83 02");
 }
 
 TEST(SimulatedRampSoak, ReadOnlyRegisterWriteGetsException2_Section7) {
-    Simulated rampsoak("rampsoak");
+    Simulated rampsoak("rampsoak", Model::profile_only);
     EXPECT_EQ(rampsoak.send(codec::write_single_register(0x86, 1)), "86 02");
     EXPECT_EQ(rampsoak.word(0x86), 104);
 }
 
 TEST(SimulatedRampSoak, OutlAboveHundredPercentGetsException3_Section7) {
-    Simulated rampsoak("rampsoak");
+    Simulated rampsoak("rampsoak", Model::profile_only);
     EXPECT_EQ(rampsoak.send(codec::write_single_register(1, 1001)), "86 03");
     EXPECT_EQ(rampsoak.send(codec::write_multiple_registers(0, {5, 1001})), "90 03");
     EXPECT_EQ(rampsoak.read(0, 2), (Words{0, 0}));  // all or nothing
 }
 
 TEST(SimulatedRampSoak, BroadcastIsNotExecuted_ProfileBroadcastFalse) {
-    Simulated rampsoak("rampsoak");
+    Simulated rampsoak("rampsoak", Model::profile_only);
     EXPECT_EQ(rampsoak.send(codec::write_single_register(0, 77), true), "silence");
     EXPECT_EQ(rampsoak.word(0), 0);
 }
@@ -180,18 +139,18 @@ TEST(SimulatedRampSoak, BroadcastIsNotExecuted_ProfileBroadcastFalse) {
 // --- AC20 (ac20-modbus-jbus-eng824e.en.txt) ----------------------------------------------
 
 TEST(SimulatedAc20, Word120ReadsFiftySoScanIdentifiesIt_Word120) {
-    Simulated ac20("ac20");
+    Simulated ac20("ac20", Model::profile_only);
     EXPECT_EQ(ac20.word(120), 50);
 }
 
 TEST(SimulatedAc20, UnimplementedFunctionGetsNoReplyAtAll_ErrorReply) {
-    Simulated ac20("ac20");
+    Simulated ac20("ac20", Model::profile_only);
     EXPECT_EQ(ac20.send_pdu({0x2B, 0x0E, 0x01, 0x00}), "silence");
     EXPECT_EQ(ac20.send_pdu({0x07}), "silence");
 }
 
 TEST(SimulatedAc20, OverTwentyWordsOrTwentyFourBitsGetsError9_FunctionCodes1To16) {
-    Simulated ac20("ac20");
+    Simulated ac20("ac20", Model::profile_only);
     EXPECT_EQ(ac20.read(120, 20).size(), 20U);
     EXPECT_EQ(ac20.send(codec::read_request(FunctionCode::read_holding_registers, 120, 21)), "83 09");
     EXPECT_EQ(ac20.send(codec::read_request(FunctionCode::read_input_registers, 120, 21)), "84 09");
@@ -201,7 +160,7 @@ TEST(SimulatedAc20, OverTwentyWordsOrTwentyFourBitsGetsError9_FunctionCodes1To16
 }
 
 TEST(SimulatedAc20, UnimplementedWordsReadAs8000h_Fc3And4) {
-    Simulated ac20("ac20");
+    Simulated ac20("ac20", Model::profile_only);
     const Words words = ac20.read(115, 6);  // 116-118 are holes
     ASSERT_EQ(words.size(), 6U);
     EXPECT_EQ(words[1], 0x8000);
@@ -211,7 +170,7 @@ TEST(SimulatedAc20, UnimplementedWordsReadAs8000h_Fc3And4) {
 }
 
 TEST(SimulatedAc20, Written8000hIsDontCare_Fc6AndFc16) {
-    Simulated ac20("ac20");
+    Simulated ac20("ac20", Model::profile_only);
     EXPECT_EQ(ac20.send(codec::write_multiple_registers(139, {10, 20, 30})), echo_of(codec::write_multiple_registers(139, {10, 20, 30})));
     const auto block = codec::write_multiple_registers(139, {0x8000, 21, 0x8000});
     EXPECT_EQ(ac20.send(block), echo_of(block));
@@ -221,7 +180,7 @@ TEST(SimulatedAc20, Written8000hIsDontCare_Fc6AndFc16) {
 }
 
 TEST(SimulatedAc20, ReadOnlyDataIsIgnoredInWrites_Fc15AndFc16) {
-    Simulated ac20("ac20");
+    Simulated ac20("ac20", Model::profile_only);
     const auto write = codec::write_single_register(120, 7);
     EXPECT_EQ(ac20.send(write), echo_of(write));
     EXPECT_EQ(ac20.word(120), 50);
@@ -231,7 +190,7 @@ TEST(SimulatedAc20, ReadOnlyDataIsIgnoredInWrites_Fc15AndFc16) {
 }
 
 TEST(SimulatedAc20, Fc16AbortsAtTheFirstErrorKeepingEarlierWords_Fc16) {
-    Simulated ac20("ac20");
+    Simulated ac20("ac20", Model::profile_only);
     ASSERT_EQ(ac20.send(codec::write_multiple_registers(1011, {0, 100})), echo_of(codec::write_multiple_registers(1011, {0, 100})));
     // SP2 = 50 is in rL..rH and written; SP3 = 500 is above rH: error 3, SP4 not reached.
     EXPECT_EQ(ac20.send(codec::write_multiple_registers(139, {50, 500, 60})), "90 03");
@@ -239,12 +198,12 @@ TEST(SimulatedAc20, Fc16AbortsAtTheFirstErrorKeepingEarlierWords_Fc16) {
 }
 
 TEST(SimulatedAc20, WriteToAnUnlistedWordGetsError2_ErrorReply) {
-    Simulated ac20("ac20");
+    Simulated ac20("ac20", Model::profile_only);
     EXPECT_EQ(ac20.send(codec::write_single_register(116, 1)), "86 02");
 }
 
 TEST(SimulatedAc20, BroadcastWritesAreExecutedReadsIgnored_Note1) {
-    Simulated ac20("ac20");
+    Simulated ac20("ac20", Model::profile_only);
     EXPECT_EQ(ac20.send(codec::write_single_coil(218, true), true), "silence");
     EXPECT_EQ(ac20.read(218, 1, FunctionCode::read_coils), Words{1});
     EXPECT_EQ(ac20.send(codec::read_request(FunctionCode::read_holding_registers, 120, 1), true), "silence");

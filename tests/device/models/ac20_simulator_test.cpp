@@ -1,0 +1,2 @@
+// The ac20 behaviour model through the wire.
+#include <gtest/gtest.h>

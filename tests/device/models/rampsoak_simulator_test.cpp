@@ -1,0 +1,2 @@
+// The rampsoak behaviour model through the wire.
+#include <gtest/gtest.h>

@@ -1,0 +1,2 @@
+// The tc10 behaviour model through the wire.
+#include <gtest/gtest.h>
