@@ -1,6 +1,11 @@
-// loopwire simulate --link URL [--device DEVICE@UNIT ...] [--unit N ...] [--pty PATH] [--duration S] [-v]
-// --device serves a simulated controller from its profile (device/simulated_device.hpp);
-// --unit a plain register bank (all four tables, 65536 entries, zero, writable).
+// loopwire simulate --link URL [--device DEVICE@UNIT ...] [--unit N ...] [--pty PATH] [--state FILE]
+//                   [--seed N] [--speed X] [--fault DEVICE@UNIT:FAULT ...] [--duration S] [-v]
+// --device serves a simulated controller: its behaviour model (device/models/) over its
+// profile; --unit a plain register bank (all four tables, 65536 entries, zero, writable).
+#include <condition_variable>
+#include <mutex>
+#include <optional>
+
 #include <fmt/format.h>
 
 #include "app/command_line.hpp"
@@ -8,6 +13,7 @@
 #include "app/exit_codes.hpp"
 #include "app/stop_signal.hpp"
 #include "app/simulated_units.hpp"
+#include "app/simulator_state_file.hpp"
 #include "session/slave.hpp"
 #include "transport/pseudo_terminal.hpp"
 #include "transport/serial_port.hpp"
@@ -21,7 +27,46 @@ struct SimulateOptions {
     std::vector<std::string> devices;
     std::string pty;
     std::string duration;
+    std::string state;
+    std::uint64_t seed = 1;
+    double speed = 1.0;
+    std::vector<std::string> faults;
     bool verbose = false;
+};
+
+// Saves the state file while the simulator runs, a quarter second after a change at most, so
+// a crash or kill loses no more than that; a save that fails stops the simulator (a state
+// file that silently stopped following the device would be worse than none).
+class StateSaver {
+public:
+    StateSaver(SimulatorStateFile& file, StopSignal& stop)
+        : file_(file), thread_([this, &stop](std::stop_token own) { run(own, stop); }) {}
+    ~StateSaver() { thread_.request_stop(); }
+    Result<void> finish() {
+        thread_.request_stop();
+        if (thread_.joinable()) thread_.join();
+        if (!failure_.message.empty()) return failure_;
+        return file_.save_if_changed();
+    }
+
+private:
+    void run(std::stop_token own, StopSignal& stop) {
+        std::mutex mutex;
+        std::condition_variable_any wake;
+        std::unique_lock lock(mutex);
+        while (!own.stop_requested()) {
+            wake.wait_for(lock, own, std::chrono::milliseconds(250), [] { return false; });
+            if (auto saved = file_.save_if_changed(); !saved) {
+                failure_ = saved.error();
+                stop.request_stop();
+                return;
+            }
+        }
+    }
+
+    SimulatorStateFile& file_;
+    Error failure_{ErrorKind::usage, ""};
+    std::jthread thread_;
 };
 
 Result<transport::LinkUrl> simulated_link(const SimulateOptions& options) {
@@ -64,14 +109,29 @@ int run_simulate(SimulateOptions options) {
         if (!parsed) return report_error(parsed.error());
         limit = *parsed;
     }
-    auto served_units = build_simulated_units(options.units, options.devices, *url);
+    device::SimulationEnvironment environment;
+    environment.speed = options.speed;
+    environment.seed = options.seed;
+    auto served_units = build_simulated_units(options.units, options.devices, *url, environment);
     if (!served_units) return report_error(served_units.error());
+    for (const std::string& fault : options.faults) {
+        if (auto applied = apply_fault_option(*served_units, fault); !applied) return report_error(applied.error());
+    }
+    std::optional<SimulatorStateFile> state;
+    if (!options.state.empty()) {
+        auto opened = SimulatorStateFile::open(options.state, served_units->devices);
+        if (!opened) return report_error(opened.error());
+        state.emplace(std::move(*opened));
+        served_units->warnings.insert(served_units->warnings.end(), state->warnings().begin(), state->warnings().end());
+    }
     announce(*served_units);
     const std::string units_text = unit_list(served_units->units);
     StopSignal stop(limit);
     session::SlaveOptions slave_options;
     if (options.verbose) slave_options.trace = stderr_trace();
     session::Slave slave(*url, std::move(served_units->units), slave_options);
+    std::optional<StateSaver> saver;
+    if (state) saver.emplace(*state, stop);
     Result<void> served;
     if (url->is_serial()) {
         auto stream = open_serial_side(options, *url);
@@ -85,6 +145,9 @@ int run_simulate(SimulateOptions options) {
         fmt::print(stderr, "loopwire: simulating unit(s) {} on {} (listening on port {}); Ctrl-C to stop\n",
                    units_text, url->to_string(), (*listener)->port());
         served = slave.serve_listener(**listener, stop.token());
+    }
+    if (saver) {
+        if (auto saved = saver->finish(); !saved) return report_error(saved.error());
     }
     if (!served) return report_error(served.error());
     fmt::print(stderr, "loopwire: stopped after serving {} request(s)\n", slave.requests_served());
@@ -100,6 +163,11 @@ void add_simulate_command(CLI::App& app, int& exit_code) {
     command->add_option("--device", options->devices, "Simulated device to serve, DEVICE@UNIT (ac20@1, tc10@3, rampsoak@5; repeat for several)");
     command->add_option("--unit", options->units, "Unit id to serve as a plain register bank (repeat for several; default 1 when no --device)")->check(CLI::Range(1, 247));
     command->add_option("--pty", options->pty, "Create a pseudo-terminal with a link at PATH and serve there (open PATH like a serial port)");
+    command->add_option("--state", options->state, "Keep what the devices hold in non-volatile memory in FILE across restarts (RAM-only values are lost, as on the real device)");
+    command->add_option("--seed", options->seed, "Seed of the simulated measurement noise, for runs that repeat exactly (default 1)");
+    command->add_option("--speed", options->speed, "Run the process (plant, program timers) X times faster than real time; protocol timing stays real (default 1)")
+        ->check(CLI::Range(0.001, 100000.0));
+    command->add_option("--fault", options->faults, "Inject a fault at start, DEVICE@UNIT:FAULT (e.g. tc10@3:open-input; repeat for several)");
     command->add_option("--duration", options->duration, "Stop by itself after this long (e.g. 30s)");
     command->add_flag("-v,--verbose", options->verbose, "Print every frame received and sent, with timestamps, on stderr");
     command->footer(exit_code_help);

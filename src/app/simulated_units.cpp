@@ -5,7 +5,7 @@
 #include <fmt/format.h>
 
 #include "device/device_client.hpp"
-#include "device/simulated_device.hpp"
+#include "device/models/simulator_factory.hpp"
 #include "session/register_bank.hpp"
 
 namespace loopwire::app {
@@ -54,13 +54,20 @@ Result<void> claim(SimulatedUnits& result, int unit) {
 }  // namespace
 
 Result<SimulatedUnits> build_simulated_units(const std::vector<int>& bank_units, const std::vector<std::string>& devices,
-                                             const transport::LinkUrl& link) {
+                                             const transport::LinkUrl& link,
+                                             const device::SimulationEnvironment& environment) {
     SimulatedUnits result;
+    device::SimulationEnvironment unit_environment = environment;
+    unit_environment.framing = transport::framing_name(link.framing);
     for (const std::string& text : devices) {
         auto device = device::parse_device_address(text);
         if (!device) return device.error();
         if (auto free = claim(result, device->unit); !free) return free.error();
-        result.units[device->unit] = std::make_shared<device::SimulatedDevice>(device->profile);
+        // Each unit its own noise: the same seed on two units would make them move in lockstep.
+        unit_environment.seed = environment.seed * 1000003ULL + device->unit;
+        auto simulated = device::models::make_simulated_device(device->profile, unit_environment);
+        result.units[device->unit] = simulated;
+        result.devices[device->unit] = simulated;
         result.descriptions.push_back(fmt::format("{}: {} ({})", device->unit, device->profile->id, device->profile->title));
         auto warnings = link_mismatches(*device->profile, device->unit, link);
         result.warnings.insert(result.warnings.end(), warnings.begin(), warnings.end());
@@ -73,6 +80,25 @@ Result<SimulatedUnits> build_simulated_units(const std::vector<int>& bank_units,
         result.descriptions.push_back(fmt::format("{}: plain register bank", unit));
     }
     return result;
+}
+
+Result<void> apply_fault_option(SimulatedUnits& units, const std::string& option) {
+    const auto colon = option.rfind(':');
+    if (colon == std::string::npos) {
+        return make_error(ErrorKind::usage, fmt::format("--fault '{}': write DEVICE@UNIT:FAULT, e.g. tc10@3:open-input", option));
+    }
+    auto address = device::parse_device_address(option.substr(0, colon));
+    if (!address) return address.error();
+    const auto found = units.devices.find(address->unit);
+    if (found == units.devices.end() || found->second->profile().id != address->profile->id) {
+        return make_error(ErrorKind::usage, fmt::format("--fault '{}': unit {} is not simulated as {}; add --device {}@{}",
+                                                        option, address->unit, address->profile->id,
+                                                        address->profile->id, address->unit));
+    }
+    if (auto applied = found->second->inject_fault(option.substr(colon + 1)); !applied) {
+        return make_error(ErrorKind::usage, fmt::format("--fault '{}': {}", option, applied.error().message));
+    }
+    return {};
 }
 
 }  // namespace loopwire::app

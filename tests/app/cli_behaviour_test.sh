@@ -3,27 +3,7 @@
 # simulator on a pseudo-terminal and on loopback TCP driven by loopwire's own read/write.
 set -u
 loopwire=${1:?usage: cli_behaviour_test.sh path/to/loopwire}
-work=$(mktemp -d)
-pids=()
-cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; wait 2>/dev/null; rm -rf "$work"; }
-trap cleanup EXIT
-failures=0
-passes=0
-
-check() {  # name, expected-status, expected-substring (stdout+stderr), command...
-  local name=$1 want=$2 text=$3; shift 3
-  local out status
-  out=$(timeout 20 "$@" 2>&1); status=$?
-  if [ "$status" -ne "$want" ] || [[ "$out" != *"$text"* ]]; then
-    echo "FAIL $name: status $status (want $want), output:"; echo "$out" | sed 's/^/    /'
-    echo "    (wanted text: $text)"
-    failures=$((failures + 1))
-  else
-    passes=$((passes + 1))
-  fi
-}
-
-wait_for_path() { for _ in $(seq 100); do [ -e "$1" ] && return 0; sleep 0.05; done; return 1; }
+source "$(dirname "$0")/cli_test_lib.sh"
 
 # Usage errors: exit 2, naming the bad part.
 check no-subcommand 2 "subcommand" "$loopwire"
@@ -102,5 +82,4 @@ check write-above-sp-hl-refused 5 "exception 3" "$loopwire" write --link "rtu:$t
 check simulate-parity-warning 0 "cannot be set to parity none" \
   "$loopwire" simulate --pty "$work/ttyV2" --link "rtu:$work/ttyV2?parity=none" --device rampsoak@1 --duration 300ms
 
-echo "$passes passed, $failures failed"
-[ "$failures" -eq 0 ]
+finish
