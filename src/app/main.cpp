@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
     add_demo_command(app, exit_code);
     add_profile_commands(app, exit_code);
     add_scan_command(app, exit_code);
+    add_restore_command(app, exit_code);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& error) {

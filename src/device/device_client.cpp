@@ -200,6 +200,10 @@ Result<WriteReport> DeviceClient::write(const std::vector<std::pair<const Parame
         planned.push_back({parameter, *raw});
         known[parameter->name] = *raw;  // later bounds see the new value (TC10 SPLL before SP)
     }
+    return write_raw(planned);
+}
+
+Result<WriteReport> DeviceClient::write_raw(const std::vector<PlannedWrite>& planned) {
     WriteReport report;
     for (const WriteBlock& block : plan_writes(*device_.profile, planned, device_.address_offset)) {
         ++report.requests;

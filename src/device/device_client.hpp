@@ -58,6 +58,11 @@ public:
     // parameters were and were not written.
     Result<WriteReport> write(const std::vector<std::pair<const Parameter*, std::string>>& assignments);
 
+    // Writes raw words as they are (restore: values read from the device before), in planned
+    // blocks in the order given, checking nothing first. Stops at the first failed request and
+    // says which parameters were and were not written.
+    Result<WriteReport> write_raw(const std::vector<PlannedWrite>& writes);
+
     // The profile's meaning of an exception code, if it names one ("AC20: ...").
     Error explain(Error error) const;
 

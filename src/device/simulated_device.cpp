@@ -43,18 +43,6 @@ bool is_dont_care(const Parameter& parameter, std::uint16_t raw) {
     });
 }
 
-// Whether the device keeps `raw` for `parameter`: the value is decoded and checked the way a
-// master's encode_value checks a user's value (type, decimals, range, bounds set by other
-// parameters). Special states are legal by definition; an enum code the profile does not list
-// is not a setting the device has (TC10 §4.4 B.2, ramp/soak §4.6 "out of setting range").
-bool value_in_range(const Parameter& parameter, std::uint16_t raw, const RawValues& known) {
-    const auto decoded = decode_value(parameter, raw, known);
-    if (!decoded || decoded->status == "unknown-label") return false;
-    if (decoded->status != "ok") return true;
-    const auto text = format_value(parameter, *decoded, known);
-    return text && encode_value(parameter, *text, known).ok();
-}
-
 struct StagedWrite {
     MemoryCell* cell = nullptr;
     std::uint16_t raw = 0;
@@ -235,7 +223,7 @@ codec::Reply SimulatedDevice::write(const codec::Request& request) {
             if (!profile_->read_only_writes_ignored) failure = illegal_data_address;
         } else if (!is_dont_care(*cell->parameter, raw)) {
             const RawValues known = memory_.known_for(*cell->parameter, pending);
-            failure = value_in_range(*cell->parameter, raw, known) ? accept_write(*cell->parameter, raw, known)
+            failure = raw_in_range(*cell->parameter, raw, known) ? accept_write(*cell->parameter, raw, known)
                                                                     : std::optional<std::uint8_t>(illegal_data_value);
             if (!failure) {
                 staged.push_back({cell, raw});

@@ -220,4 +220,17 @@ Result<std::uint16_t> encode_value(const Parameter& parameter, std::string_view 
     return encode(parameter, text, known);
 }
 
+bool raw_in_range(const Parameter& parameter, std::uint16_t raw, const RawValues& known) {
+    const auto decoded = decode_value(parameter, raw, known);
+    if (!decoded || decoded->status == "unknown-label") return false;
+    if (decoded->status != "ok") return true;
+    const auto text = format_value(parameter, *decoded, known);
+    if (!text) return false;
+    if (parameter.writable) return encode_value(parameter, *text, known).ok();
+    // The access check is not this function's business: judge a read-only word as if writable.
+    Parameter writable = parameter;
+    writable.writable = true;
+    return encode_value(writable, *text, known).ok();
+}
+
 }  // namespace loopwire::device

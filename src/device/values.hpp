@@ -48,6 +48,13 @@ Result<EngineeringValue> decode_value(const Parameter& parameter, std::uint16_t 
 // Labels and special state names are legal values by definition and skip the range check.
 Result<std::uint16_t> encode_value(const Parameter& parameter, std::string_view text, const RawValues& known);
 
+// Whether a device keeps `raw` for `parameter`: the value is decoded and checked the way
+// encode_value checks a user's value (type, decimals, range, bounds set by other parameters in
+// `known`). Special states are legal by definition; an enum code the profile does not list is
+// not a setting the device has (TC10 §4.4 B.2, ramp/soak §4.6 "out of setting range").
+// Access is not checked. Simulators use it for range-checked writes, restore for write order.
+bool raw_in_range(const Parameter& parameter, std::uint16_t raw, const RawValues& known);
+
 // Which parameters a value of `parameter` depends on (decimals source, range bounds), so a
 // caller can read them first. A bound's own decimals source is included too (from
 // Parameter::bound_sources), listed before the bound.

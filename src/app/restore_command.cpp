@@ -1,0 +1,206 @@
+// loopwire restore --link URL --device DEVICE@UNIT FILE [--dry-run] [--yes] [--force]
+//                  [--security] [--lock-code N] [--control-code N]
+// Writes a `loopwire dump` back: refuses another profile's or another device's dump unless
+// --force, shows the differences, writes only what differs in the order and modes the manual
+// requires (device/restore_plan.hpp), verifies every value by reading it back, and on any
+// failure says exactly what was and was not written and returns the device to control mode.
+#include <unistd.h>
+
+#include <cstdio>
+#include <iostream>
+#include <set>
+
+#include <fmt/format.h>
+
+#include "app/command_line.hpp"
+#include "app/commands.hpp"
+#include "app/dump_file.hpp"
+#include "app/exit_codes.hpp"
+#include "app/master_options.hpp"
+#include "device/device_client.hpp"
+#include "device/restore_plan.hpp"
+
+namespace loopwire::app {
+namespace {
+
+struct RestoreCommandOptions {
+    MasterCommandOptions master;
+    std::string file;
+    bool dry_run = false;
+    bool yes = false;
+    bool force = false;
+    bool security = false;
+    unsigned lock_code = 0;
+    std::optional<unsigned> control_code;
+};
+
+std::string shown(const device::Parameter& parameter, std::uint16_t raw, const device::RawValues& known) {
+    auto value = device::decode_value(parameter, raw, known);
+    if (!value) return fmt::format("raw {}", raw);
+    auto text = device::format_value(parameter, *value, known);
+    return fmt::format("{}{} (raw {})", text ? *text : "?", parameter.unit.empty() ? "" : " " + parameter.unit, raw);
+}
+
+// The dump must come from this kind of device, and from this very device where the profile
+// has identification words (AC20 120/121, TC10 20/21, ramp/soak VER).
+Result<void> check_origin(const DumpFile& dump, const device::DeviceAddress& device, const device::RawValues& now, bool force) {
+    if (dump.profile != device.profile->id && !force) {
+        return make_error(ErrorKind::usage, fmt::format("the dump is of a {}, the device is a {}; add --force to write the "
+                                                        "parameters they share anyway", dump.profile, device.profile->id));
+    }
+    for (const auto& [name, raw] : dump.identification) {
+        const auto current = now.find(name);
+        if (current != now.end() && current->second != raw && !force) {
+            return make_error(ErrorKind::usage, fmt::format("the dump's {} is {}, the device's is {}: it was taken from another "
+                                                            "device or version; add --force to restore it anyway",
+                                                            name, raw, current->second));
+        }
+    }
+    return {};
+}
+
+Result<device::RawValues> read_current(device::DeviceClient& client, const device::Profile& profile, const DumpFile& dump) {
+    std::vector<const device::Parameter*> wanted;
+    for (const device::Parameter& parameter : profile.parameters) {
+        if (!parameter.readable) continue;
+        if (dump.values.contains(parameter.name) || dump.identification.contains(parameter.name)) wanted.push_back(&parameter);
+    }
+    auto report = client.read(wanted);
+    if (report.first_error) return make_error(report.first_error->kind, "reading the device's present values failed: " + report.first_error->message);
+    return report.raw;
+}
+
+void print_differences(const device::RestorePlan& plan, const device::RawValues& current, const device::RawValues& saved) {
+    if (plan.changes.empty()) fmt::print("the device already holds every value of the dump\n");
+    for (const auto& change : plan.changes) {
+        fmt::print("  {:<34} {} -> {}\n", change.parameter->name, shown(*change.parameter, change.from, current),
+                   shown(*change.parameter, change.to, saved));
+    }
+    for (const auto& skipped : plan.skipped) fmt::print("  not restored: {}\n", skipped);
+}
+
+Result<void> confirm(const RestoreCommandOptions& options, std::size_t changes) {
+    if (options.yes) return {};
+    if (!::isatty(STDIN_FILENO)) {
+        return make_error(ErrorKind::usage, "not asking on a pipe: add --yes to write, or --dry-run to only show the differences");
+    }
+    fmt::print("write {} change(s) to {}? [y/N] ", changes, options.master.device);
+    std::fflush(stdout);
+    std::string answer;
+    std::getline(std::cin, answer);
+    if (answer == "y" || answer == "Y" || answer == "yes") return {};
+    return make_error(ErrorKind::usage, "nothing written (not confirmed)");
+}
+
+struct Progress {
+    std::vector<std::string> written;
+    bool in_special_mode = false;
+};
+
+std::string names_not_written(const device::RestorePlan& plan, const Progress& progress) {
+    std::vector<std::string> missing;
+    for (const auto& change : plan.changes) {
+        if (std::find(progress.written.begin(), progress.written.end(), change.parameter->name) == progress.written.end()) {
+            missing.push_back(change.parameter->name);
+        }
+    }
+    return missing.empty() ? "nothing" : fmt::format("{}", fmt::join(missing, ", "));
+}
+
+Result<void> run_stages(device::DeviceClient& client, const device::RestorePlan& plan, Progress& progress) {
+    std::size_t index = 0;
+    for (const auto& stage : plan.stages) {
+        fmt::print("[{}/{}] {}\n", ++index, plan.stages.size(), stage.title);
+        auto done = client.write_raw(stage.writes);
+        if (!done) return done.error();
+        if (stage.restores_values) {
+            for (const auto& [parameter, raw] : done->written) progress.written.push_back(parameter->name);
+        }
+        if (stage.mode_effect == device::ModeEffect::enters_special_mode) progress.in_special_mode = true;
+        if (stage.mode_effect == device::ModeEffect::leaves_special_mode) progress.in_special_mode = false;
+    }
+    return {};
+}
+
+// Every changed value read back; a device that kept another value is a failed restore.
+Result<void> verify(device::DeviceClient& client, const device::RestorePlan& plan) {
+    std::vector<const device::Parameter*> changed;
+    for (const auto& change : plan.changes) changed.push_back(change.parameter);
+    const auto report = client.read(changed);
+    if (report.first_error) return make_error(report.first_error->kind, "reading back failed: " + report.first_error->message);
+    std::vector<std::string> differing;
+    for (const auto& change : plan.changes) {
+        const auto raw = report.raw.find(change.parameter->name);
+        if (raw == report.raw.end() || raw->second != change.to) differing.push_back(change.parameter->name);
+    }
+    if (!differing.empty()) {
+        return make_error(ErrorKind::mismatch, fmt::format("written but read back different: {}", fmt::join(differing, ", ")));
+    }
+    return {};
+}
+
+int fail(device::DeviceClient& client, const device::RestorePlan& plan, const Progress& progress, const Error& error) {
+    fmt::print(stderr, "loopwire: restore stopped: {}\n", error.message);
+    fmt::print(stderr, "loopwire: written: {}\n", progress.written.empty() ? "nothing" : fmt::format("{}", fmt::join(progress.written, ", ")));
+    fmt::print(stderr, "loopwire: not written: {}\n", names_not_written(plan, progress));
+    if (progress.in_special_mode && plan.back_to_control) {
+        auto back = client.write_raw({*plan.back_to_control});
+        fmt::print(stderr, "loopwire: {}\n", back ? "returned the device to control mode (word 3051 = 1)"
+                                                  : "could not return the device to control mode: " + back.error().message);
+    }
+    return exit_code_for(error);
+}
+
+int run_restore(const RestoreCommandOptions& options) {
+    auto dump = read_dump_file(options.file);
+    if (!dump) return report_error(dump.error());
+    auto device = device::parse_device_address(options.master.device, options.master.numbering);
+    if (!device) return report_error(device.error());
+    if (options.force) {  // names of another profile cannot be written; the shared ones can
+        std::erase_if(dump->values, [&](const auto& entry) { return device->profile->find(entry.first) == nullptr; });
+        std::erase_if(dump->identification, [&](const auto& entry) { return device->profile->find(entry.first) == nullptr; });
+    }
+    auto master = options.master.open();
+    if (!master) return report_error(master.error());
+    device::DeviceClient client(**master, *device);
+    auto current = read_current(client, *device->profile, *dump);
+    if (!current) return report_error(current.error());
+    if (auto origin = check_origin(*dump, *device, *current, options.force); !origin) return report_error(origin.error());
+    device::RestoreOptions restore_options;
+    restore_options.include_security = options.security;
+    restore_options.configuration_lock_code = static_cast<std::uint16_t>(options.lock_code);
+    if (options.control_code) restore_options.control_lock_code = static_cast<std::uint16_t>(*options.control_code);
+    auto plan = device::plan_restore(*device->profile, dump->values, *current, restore_options);
+    if (!plan) return report_error(plan.error());
+    fmt::print("{} differences between {} and {}:\n", plan->changes.size(), options.file, options.master.device);
+    print_differences(*plan, *current, dump->values);
+    if (options.dry_run || plan->changes.empty()) {
+        if (options.dry_run) fmt::print("dry run: nothing written\n");
+        return exit_ok;
+    }
+    if (auto confirmed = confirm(options, plan->changes.size()); !confirmed) return report_error(confirmed.error());
+    Progress progress;
+    if (auto ran = run_stages(client, *plan, progress); !ran) return fail(client, *plan, progress, client.explain(ran.error()));
+    if (auto verified = verify(client, *plan); !verified) return fail(client, *plan, progress, verified.error());
+    fmt::print("restored {} parameter(s); every value read back as written\n", plan->changes.size());
+    return exit_ok;
+}
+
+}  // namespace
+
+void add_restore_command(CLI::App& app, int& exit_code) {
+    auto options = std::make_shared<RestoreCommandOptions>();
+    auto* command = app.add_subcommand("restore", "Write a `loopwire dump` back to a device, showing the differences first");
+    options->master.add_to(*command, true);
+    command->add_option("file", options->file, "Dump file written by `loopwire dump`")->required();
+    command->add_flag("--dry-run", options->dry_run, "Only show the differences; write nothing");
+    command->add_flag("--yes,-y", options->yes, "Write without asking");
+    command->add_flag("--force", options->force, "Restore a dump of another profile or another device's identification");
+    command->add_flag("--security", options->security, "AC20: also restore the security-code words 4000-4011");
+    command->add_option("--lock-code", options->lock_code, "AC20: configuration lock combination for words 347/348 (default 0)")->check(CLI::Range(0, 250));
+    command->add_option("--control-code", options->control_code, "AC20: control lock combination to unlock control parameters (word 349)")->check(CLI::Range(0, 250));
+    command->footer(exit_code_help);
+    command->callback([options, &exit_code] { exit_code = run_restore(*options); });
+}
+
+}  // namespace loopwire::app

@@ -1,0 +1,191 @@
+#include "device/restore_plan.hpp"
+
+#include <algorithm>
+#include <map>
+
+#include <fmt/format.h>
+
+namespace loopwire::device {
+namespace {
+
+bool has_mode(const Parameter& parameter, std::string_view mode) {
+    return std::find(parameter.write_modes.begin(), parameter.write_modes.end(), mode) != parameter.write_modes.end();
+}
+
+// Write-only words are commands (AC20 3000-3051, load-default bits 223-232) and words whose
+// only write mode is remote/local are mode switches (AC20 218, 347-349): procedure, not values.
+bool is_restorable(const Parameter& parameter) {
+    if (!parameter.writable || !parameter.readable) return false;
+    return std::any_of(parameter.write_modes.begin(), parameter.write_modes.end(),
+                       [](const std::string& mode) { return mode != "local" && mode != "remote"; }) ||
+           parameter.write_modes.empty();
+}
+
+bool bounded_by(const Parameter& parameter, const std::string& name) {
+    const auto names = [&](const std::optional<Bound>& bound) {
+        const std::string* bound_name = bound ? std::get_if<std::string>(&*bound) : nullptr;
+        return bound_name != nullptr && *bound_name == name;
+    };
+    return names(parameter.min) || names(parameter.max);
+}
+
+// Whether writing `change` now keeps it, and every value it bounds, within range.
+bool keeps_ranges(const Profile& profile, const RestoreChange& change, const RawValues& values, bool strict) {
+    if (!raw_in_range(*change.parameter, change.to, values)) return false;
+    if (!strict) return true;
+    RawValues after = values;
+    after[change.parameter->name] = change.to;
+    return std::all_of(profile.parameters.begin(), profile.parameters.end(), [&](const Parameter& other) {
+        const auto value = after.find(other.name);
+        return !bounded_by(other, change.parameter->name) || value == after.end() ||
+               raw_in_range(other, value->second, after);
+    });
+}
+
+// Orders `changes` so each value is within its bounds when it is written, given the values
+// written before it, and preferably so the values it bounds stay within range too (TC10: a
+// lower SP.HL waits for the lower SP). A set no order can satisfy is an error naming them.
+Result<std::vector<PlannedWrite>> bound_safe_order(const Profile& profile, std::vector<RestoreChange> changes, RawValues values) {
+    std::vector<PlannedWrite> ordered;
+    while (!changes.empty()) {
+        auto next = std::find_if(changes.begin(), changes.end(),
+                                 [&](const RestoreChange& change) { return keeps_ranges(profile, change, values, true); });
+        if (next == changes.end()) {
+            next = std::find_if(changes.begin(), changes.end(),
+                                [&](const RestoreChange& change) { return keeps_ranges(profile, change, values, false); });
+        }
+        if (next == changes.end()) {
+            std::vector<std::string> names;
+            for (const RestoreChange& change : changes) names.push_back(change.parameter->name);
+            return make_error(ErrorKind::usage, fmt::format("the saved values of {} are outside the ranges their bounds "
+                                                            "allow in any order of writing; check the dump file",
+                                                            fmt::join(names, ", ")));
+        }
+        values[next->parameter->name] = next->to;
+        ordered.push_back({next->parameter, next->to});
+        changes.erase(next);
+    }
+    return ordered;
+}
+
+// A stage of procedure: one command word, not a restored value.
+RestoreStage procedure(std::string title, const Profile& profile, std::string_view name, std::uint16_t raw,
+                       ModeEffect effect = ModeEffect::none) {
+    return RestoreStage{std::move(title), {PlannedWrite{profile.find(name), raw}}, false, effect};
+}
+
+bool is_ac20_procedure(const Profile& profile) {
+    return profile.find("local_remote") && profile.find("configuration_mode_code") && profile.find("enable_control_mode");
+}
+
+// AC20 configuration menus in menu order ("Menu Conf. 1" .. 6): groups by the lowest address
+// of their parameters (2000 Inpt., 2100 Out., 2205 C.Cn., 2300 AC.Cn., 2400 In.Ot., 2500 Othr.).
+std::vector<std::string> configuration_menus(const Profile& profile) {
+    std::map<std::string, std::uint16_t> lowest;
+    for (const Parameter& parameter : profile.parameters) {
+        if (!has_mode(parameter, "configuration") || !is_restorable(parameter)) continue;
+        auto [entry, added] = lowest.emplace(parameter.group, parameter.address);
+        if (!added) entry->second = std::min(entry->second, parameter.address);
+    }
+    std::map<std::uint16_t, std::string> by_address;
+    for (const auto& [group, address] : lowest) by_address.emplace(address, group);
+    std::vector<std::string> menus;
+    for (const auto& [address, group] : by_address) menus.push_back(group);
+    return menus;
+}
+
+std::vector<RestoreChange> select(const std::vector<RestoreChange>& changes, std::string_view mode,
+                                  std::string_view group = {}) {
+    std::vector<RestoreChange> selected;
+    for (const RestoreChange& change : changes) {
+        if (has_mode(*change.parameter, mode) && (group.empty() || change.parameter->group == group)) selected.push_back(change);
+    }
+    return selected;
+}
+
+Result<void> add_value_stage(const Profile& profile, RestorePlan& plan, std::string title, const std::vector<RestoreChange>& changes, RawValues& values) {
+    if (changes.empty()) return {};
+    auto ordered = bound_safe_order(profile, changes, values);
+    if (!ordered) return ordered.error();
+    for (const PlannedWrite& write : *ordered) values[write.parameter->name] = write.raw;
+    plan.stages.push_back({std::move(title), std::move(*ordered), true, ModeEffect::none});
+    return {};
+}
+
+Result<void> plan_ac20(const Profile& profile, RestorePlan& plan, const RestoreOptions& options, RawValues values) {
+    const auto remote = [&] { return procedure("remote (bit 218)", profile, "local_remote", 1); };
+    const auto leave = [&] {
+        return procedure("control mode (word 3051; the device resets)", profile, "enable_control_mode", 1, ModeEffect::leaves_special_mode);
+    };
+    plan.stages.push_back(remote());
+    const auto configuration = select(plan.changes, "configuration");
+    if (!configuration.empty()) {
+        plan.stages.push_back(procedure("configuration mode (word 347)", profile, "configuration_mode_code",
+                                        options.configuration_lock_code, ModeEffect::enters_special_mode));
+        plan.back_to_control = leave().writes.front();
+        const auto menus = configuration_menus(profile);
+        for (std::size_t index = 0; index < menus.size(); ++index) {
+            const std::string& menu = menus[index];
+            const std::size_t number = index + 1;
+            const auto in_menu = select(configuration, "configuration", menu);
+            if (in_menu.empty()) continue;
+            auto added = add_value_stage(profile, plan, fmt::format("configuration menu {} ({})", number, menu), in_menu, values);
+            if (!added) return added;
+            const std::string end = fmt::format("end_configuration_menu_{}", number);
+            if (profile.find(end)) plan.stages.push_back(procedure(fmt::format("close menu {} (word {})", number, profile.find(end)->address), profile, end, 1));
+        }
+        plan.stages.push_back(leave());
+        plan.stages.push_back(remote());
+    }
+    const auto security = select(plan.changes, "security");
+    if (!security.empty() && options.include_security) {
+        plan.stages.push_back(procedure("security code mode (word 348)", profile, "security_mode_code",
+                                        options.configuration_lock_code, ModeEffect::enters_special_mode));
+        plan.back_to_control = leave().writes.front();
+        if (auto added = add_value_stage(profile, plan, "security-code words", security, values); !added) return added;
+        plan.stages.push_back(leave());
+        plan.stages.push_back(remote());
+    }
+    if (options.control_lock_code) {
+        plan.stages.push_back(procedure("unlock control parameters (word 349)", profile, "control_lock_code", *options.control_lock_code));
+    }
+    std::vector<RestoreChange> control;
+    for (const RestoreChange& change : plan.changes) {
+        if (!has_mode(*change.parameter, "configuration") && !has_mode(*change.parameter, "security")) control.push_back(change);
+    }
+    return add_value_stage(profile, plan, "control parameters", control, values);
+}
+
+}  // namespace
+
+Result<RestorePlan> plan_restore(const Profile& profile, const RawValues& saved, const RawValues& current,
+                                 const RestoreOptions& options) {
+    RestorePlan plan;
+    for (const auto& [name, raw] : saved) {
+        if (!profile.find(name)) return make_error(ErrorKind::usage, fmt::format("the dump names '{}', which {} does not have", name, profile.id));
+    }
+    for (const Parameter& parameter : profile.parameters) {
+        const auto wanted = saved.find(parameter.name);
+        if (wanted == saved.end() || !is_restorable(parameter)) continue;
+        const auto now = current.find(parameter.name);
+        if (now == current.end()) {
+            return make_error(ErrorKind::link, fmt::format("{} could not be read from the device, so it cannot be compared", parameter.name));
+        }
+        if (now->second == wanted->second) continue;
+        if (has_mode(parameter, "security") && !options.include_security) {
+            plan.skipped.push_back(fmt::format("{}: security-code word (give --security to restore it)", parameter.name));
+            continue;
+        }
+        plan.changes.push_back({&parameter, now->second, wanted->second});
+    }
+    if (plan.changes.empty()) return plan;
+    if (is_ac20_procedure(profile)) {
+        if (auto planned = plan_ac20(profile, plan, options, current); !planned) return planned.error();
+        return plan;
+    }
+    RawValues values = current;
+    if (auto added = add_value_stage(profile, plan, "parameters", plan.changes, values); !added) return added.error();
+    return plan;
+}
+
+}  // namespace loopwire::device
