@@ -171,6 +171,7 @@ void Ac20Simulator::restart() {
     set_value("manufacturer_trade_mark", 50);
     set_value("device_identification_code", identification_code);
     set_value("change_flag_general", 1);
+    arm_standby_ = true;
     settings_dirty_ = true;
 }
 

@@ -1,10 +1,11 @@
-// The furnace, the carbon controller and the procedures it runs (probe test, burn-off).
+// The furnace, its measurement and the carbon controller.
 #include <algorithm>
 #include <cmath>
 #include <random>
 
 #include "device/models/ac20_atmosphere.hpp"
 #include "device/models/ac20_simulator.hpp"
+#include "device/models/ac20_words.hpp"
 
 namespace loopwire::device::models {
 namespace {
@@ -13,35 +14,13 @@ constexpr std::uint8_t cannot_modify = 10;
 constexpr std::uint16_t not_available = 0x8000;  // FC3/4: "not relevant in the actual device configuration"
 constexpr int no_step = 0x7FFF;
 
-// Error reply, codes 50-55 (start of a probe test or a burn-off).
-constexpr std::uint8_t another_procedure = 50;
-constexpr std::uint8_t tune_in_progress = 51;
-constexpr std::uint8_t too_soon = 52;
-constexpr std::uint8_t probe_too_cold = 53;
-constexpr std::uint8_t probe_output_low = 54;
-constexpr std::uint8_t probe_unstable = 55;
-constexpr double quiet_period = 5 * 60.0;    // 52: "5 minutes from power on or from end of another procedure"
-constexpr double minimum_probe_celsius = 538.0;  // 53: "1000°F/538°"
-constexpr double minimum_probe_mv = 1000.0;  // 54
-constexpr double maximum_drift = 10.0;       // 55: "drift > 10 mV/minute"
 
-// Not in the manual (it refers to the AC20's technical specification): the probe test
-// lasts one minute; the Smart TUNE phase five minutes, after which adaptive control goes on.
-constexpr double probe_test_seconds = 60.0;
-constexpr double tune_seconds = 5 * 60.0;
-constexpr double probe_resistance_kohm = 4.8;
-constexpr double probe_response_seconds = 12.5;
 constexpr double furnace_output = 0.9;
 constexpr double noise_mv = 0.1;
 constexpr double noise_celsius = 0.2;
 
 const ac20::Gas furnace_gas{0.20, 0.40};  // what the endothermic carrier really holds
 
-std::uint16_t word_of(double value) {
-    return static_cast<std::uint16_t>(static_cast<std::int16_t>(std::lround(std::clamp(value, -32767.0, 32767.0))));
-}
-double celsius_to_unit(double celsius, bool fahrenheit) { return fahrenheit ? celsius * 9.0 / 5.0 + 32.0 : celsius; }
-double signed_word(std::uint16_t raw) { return static_cast<std::int16_t>(raw); }
 
 }  // namespace
 
@@ -69,6 +48,7 @@ void Ac20Simulator::refresh_settings() {
     s.rate_down = value("set_point_rate_negative") == no_step ? -1.0 : signed_word(value("set_point_rate_negative"));
     if (value("carbon_monoxide_factor") > 0) s.carbon_monoxide = value("carbon_monoxide_factor") / 100.0;
     if (value("hydrogen_factor") > 0) s.hydrogen = value("hydrogen_factor") / 100.0;
+    read_alarm_settings(s);
     settings_ = s;
     pid_.set_settings(s.pid);
 }
@@ -131,7 +111,7 @@ void Ac20Simulator::control(double seconds) {
         operative_set_point_ += std::clamp(target - operative_set_point_, -step, step);
     }
     const double sp = operative_set_point_ / settings_.decimals_scale;
-    const double pv = primary_value();
+    const double pv = primary_ = primary_value();
     const double direction = settings_.primary == 1 ? -1.0 : 1.0;
     if (measurement_fault()) {
         main_output_ = pid_output_ = settings_.output_low;
@@ -147,65 +127,8 @@ void Ac20Simulator::control(double seconds) {
     }
 }
 
-void Ac20Simulator::run_timers(double seconds) {
-    if (tune_left_ > 0) {
-        tune_left_ -= seconds;
-        if (tune_left_ <= 0) {
-            // TUNE done, adaptive control goes on: a group 2 status change the device made
-            // itself, so flagged (bit 252: "The information of group 2 are on bits 211, 212, 221").
-            set_value("tune_status", 0);
-            raise_change_flag("change_flag_group_2");
-        }
-    }
-    if (procedure_ == Procedure::none) return;
-    procedure_left_ -= seconds;
-    if (procedure_left_ <= 0) finish_procedure();
-}
-
-void Ac20Simulator::finish_procedure() {
-    if (procedure_ == Procedure::burn_off) {  // word 135: 3 burn-off, then 4 purge
-        procedure_ = Procedure::purge;
-        procedure_left_ = std::max(0.0, signed_word(value("purge_timer")));
-        return;
-    }
-    if (procedure_ == Procedure::probe_test) {
-        // Words 127-129 and bit 249: "The probe test is terminated and new data are available".
-        std::normal_distribution<double> spread(0.0, 0.05);
-        set_value("probe_resistance", word_of((probe_resistance_kohm + spread(random())) * 100.0));
-        set_value("probe_response_time", word_of(probe_response_seconds * 10.0));
-        set_value("last_probe_test_temperature", temperature_word(temperature_));
-        set_value("change_flag_probe_test_data", 1);
-    }
-    procedure_ = Procedure::none;
-    quiet_since_ = clock_;
-}
-
-void Ac20Simulator::raise_change_flag(const std::string& flag) {
-    set_value(flag, 1);
-    set_value("change_flag_general", 1);
-}
-
 std::uint16_t Ac20Simulator::temperature_word(double celsius) const {
     return word_of(celsius_to_unit(celsius, settings_.fahrenheit));
-}
-
-// Bits 216/217 (value 1). The manual lists the refusals without saying which applies to which
-// procedure: 50-53 are taken to guard both; 54 and 55 concern the probe's output, which only
-// the probe test measures, so they guard the probe test. Checked in the listed order.
-std::optional<std::uint8_t> Ac20Simulator::procedure_refusal(const Parameter& parameter, std::uint16_t raw) const {
-    const bool probe_test = parameter.name == "start_probe_test";
-    if (raw == 0 || (!probe_test && parameter.name != "start_burn_off")) return std::nullopt;
-    if (procedure_ != Procedure::none) return another_procedure;
-    if (tune_left_ > 0) return tune_in_progress;
-    if (clock_ - quiet_since_ < quiet_period) return too_soon;
-    // A thermocouple that cannot be read cannot show the probe hot enough.
-    if (fault("open-thermocouple") || fault("reference-junction") || temperature_ < minimum_probe_celsius) {
-        return probe_too_cold;
-    }
-    if (!probe_test) return std::nullopt;
-    if (fault("open-probe") || millivolts_ < minimum_probe_mv) return probe_output_low;
-    if (probe_drift_per_minute() > maximum_drift) return probe_unstable;
-    return std::nullopt;
 }
 
 // Note 6: writes are accepted only "if they are meaningful in the present contest".
@@ -223,13 +146,7 @@ std::optional<std::uint8_t> Ac20Simulator::context_refusal(const Parameter& para
 
 void Ac20Simulator::after_process_write(const Parameter& parameter, std::uint16_t raw) {
     const std::string& name = parameter.name;
-    if ((name == "start_probe_test" || name == "start_burn_off") && raw == 1) {
-        const bool probe_test = name == "start_probe_test";
-        procedure_ = probe_test ? Procedure::probe_test : Procedure::burn_off;
-        procedure_left_ = probe_test ? probe_test_seconds : std::max(0.0, signed_word(value("burn_off_timer")));
-        if (probe_test) set_value("change_flag_probe_test_data", 0);
-        set_value(name, 0);
-    } else if (name == "auto_manual") {
+    if (name == "auto_manual") {
         const bool to_manual = raw == 1 && !manual_;
         manual_ = raw == 1;
         // Word 2303: the output on transfer to manual, 7FFFh = bumpless (keep the output).
@@ -238,30 +155,12 @@ void Ac20Simulator::after_process_write(const Parameter& parameter, std::uint16_
         }
     } else if (name == "main_output_value") {
         main_output_ = pid_output_ = std::clamp(signed_word(raw) / 10.0, 0.0, 100.0);
-    } else if (name == "smart_enable") {
-        set_value("tune_status", raw);
-        set_value("adaptive_status", raw);
-        tune_left_ = raw == 1 ? tune_seconds : 0.0;
     } else if (name == "main_set_point") {
         operative_set_point_type_ = 1;
     } else if (name == "operative_set_point") {
         operative_set_point_ = signed_word(raw);
         operative_set_point_type_ = 0;
     }
-}
-
-// Bits 210 and 250-259: "The bit resets after reading". Bit 249 (probe test data) has no such
-// note; it clears when the next probe test starts. Bit 221 reads as bit 211 OR bit 212.
-std::optional<std::uint16_t> Ac20Simulator::flag_read(const Parameter& parameter, std::uint16_t stored) {
-    if (parameter.table != Table::coils) return std::nullopt;
-    if (parameter.name == "smart_enable") {
-        return static_cast<std::uint16_t>(value("tune_status") != 0 || value("adaptive_status") != 0);
-    }
-    if (parameter.address == 210 || (parameter.address >= 250 && parameter.address <= 259)) {
-        if (stored != 0) set_value(parameter.name, 0);
-        return stored;
-    }
-    return std::nullopt;
 }
 
 // Process words, computed when read. Note 6: variables are "available only if the device is

@@ -49,7 +49,9 @@ Ac20Simulator::Ac20Simulator(std::shared_ptr<const Profile> profile, SimulationE
     set_value("local_remote", 0);
     refresh_settings();
     measure(0);
-    pid_.track(pid_output_, operative_set_point_ / settings_.decimals_scale, primary_value());
+    primary_ = primary_value();
+    pid_.track(pid_output_, operative_set_point_ / settings_.decimals_scale, primary_);
+    update_alarms();
 }
 
 std::vector<std::string> Ac20Simulator::fault_names() const {
@@ -96,7 +98,10 @@ void Ac20Simulator::after_write(const Parameter& parameter, std::uint16_t raw) {
     after_access_write(parameter, raw);
     after_default_write(parameter, raw);
     after_process_write(parameter, raw);
+    after_procedure_write(parameter, raw);
+    after_alarm_write(parameter, raw);
     refresh_settings();  // a read right after this write already sees the new settings
+    update_alarms();
 }
 
 void Ac20Simulator::step_process(double seconds) {
@@ -105,6 +110,7 @@ void Ac20Simulator::step_process(double seconds) {
     run_timers(seconds);
     measure(seconds);
     control(seconds);
+    update_alarms();
 }
 
 }  // namespace loopwire::device::models

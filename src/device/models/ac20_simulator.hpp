@@ -7,8 +7,10 @@
 //    (Note 9 and its N.B.: words 347-359, 4000-4011), buffer overflow silence (Error reply).
 //  - Configuration (ac20_configuration.cpp): end-of-menu words 3000-3005 with the congruence
 //    check (Note 7, errors 101-106), default tables (word 3050, bits 223-232).
-//  - Process (ac20_process.cpp): the furnace atmosphere (ac20_atmosphere.hpp), the carbon
-//    controller, Smart, probe test and burn-off (errors 50-55, word 135), unsolicited flags.
+//  - Process (ac20_process.cpp): the furnace atmosphere (ac20_atmosphere.hpp) and the carbon
+//    controller. Procedures (ac20_procedures.cpp): Smart TUNE, probe test and burn-off (errors
+//    50-55, word 135), unsolicited request flags. Alarms (ac20_alarms.cpp): words 113-119,
+//    bits 204-206, 222, 233.
 #include <array>
 #include <deque>
 #include <optional>
@@ -54,6 +56,21 @@ private:
         bool complement = false;                   // word 2205
         double rate_up = -1, rate_down = -1;       // words 1013/1014, raw units per minute; <0 = step
         double carbon_monoxide = 0.20, hydrogen = 0.40;  // words 142/143
+        struct Alarm {
+            int type = 0, configuration = 0, action = 0;  // words 1100-1111
+            bool standby = false;
+            double threshold = 0, hysteresis = 0, band_low = 0, band_high = 0;  // raw, words 177-193
+        };
+        std::array<Alarm, 3> alarms{};
+    };
+    // One alarm's state (words 113-115, 119, bits 204-206).
+    struct AlarmState {
+        bool condition = false;     // the process is in the alarm zone (with hysteresis)
+        bool latched = false;       // manual-reset alarms remember until bit 222
+        bool acknowledged = false;  // acknowledge alarms, by bit 222
+        bool standby = false;       // suppressed until the process first leaves the alarm zone
+        bool output = false;
+        int led = -1, relay = -1;   // last values stored (-1: not yet)
     };
 
     // ac20_access.cpp
@@ -76,10 +93,11 @@ private:
     void after_default_write(const Parameter& parameter, std::uint16_t raw);
     void store_default(std::string_view name, int raw);
 
-    // ac20_process.cpp
+    // ac20_process.cpp, ac20_procedures.cpp
     std::optional<std::uint8_t> procedure_refusal(const Parameter& parameter, std::uint16_t raw) const;
     std::optional<std::uint8_t> context_refusal(const Parameter& parameter, std::uint16_t raw) const;
     void after_process_write(const Parameter& parameter, std::uint16_t raw);
+    void after_procedure_write(const Parameter& parameter, std::uint16_t raw);
     std::optional<std::uint16_t> process_read(const Parameter& parameter) const;
     std::optional<std::uint16_t> flag_read(const Parameter& parameter, std::uint16_t stored);
     void refresh_settings();
@@ -93,6 +111,11 @@ private:
     std::uint16_t temperature_word(double celsius) const;
     bool fault(const std::string& name) const;
     bool measurement_fault() const;
+
+    // ac20_alarms.cpp
+    void read_alarm_settings(Settings& settings) const;
+    void update_alarms();
+    void after_alarm_write(const Parameter& parameter, std::uint16_t raw);
 
     // Line and modes.
     bool remote_ = false;
@@ -117,6 +140,9 @@ private:
     double temperature_ = 0;            // °C, what the thermocouple input reads
     std::deque<std::pair<double, double>> millivolt_history_;  // (process time, mV), last minute
     std::vector<std::string> faults_;
+    double primary_ = 0;                // last primary variable, engineering units
+    std::array<AlarmState, 3> alarms_{};
+    bool arm_standby_ = true;           // standby alarms re-arm at (re)start
 
     // Smart and procedures.
     double tune_left_ = 0;              // s of the Smart TUNE phase still to run

@@ -584,6 +584,62 @@ TEST(Ac20Simulator, FaultsShowTheManualsErrorCodes_Words122To125) {
     EXPECT_FALSE(dev.device().inject_fault("no-such-fault").ok());
 }
 
+// --- Alarms: words 113-119, bits 204-206, 222, 233 -------------------------------------------
+
+// Factory alarm 1: high alarm on the process variable at 1.20 %C, automatic reset, action Rev
+// (relay de-energised in alarm). Word 119: D8 = 1 entering / 0 leaving, D2-D0 = alarm number.
+TEST(Ac20Simulator, AlarmFollowsTheCarbonPotential_Words113_119_Bit204) {
+    Simulated dev("ac20", Model::behaviour, at_speed(100));
+    go_remote(dev);
+    EXPECT_EQ(dev.word(113), 0);
+    EXPECT_TRUE(dev.bit(204)) << "Rev: energised while not in alarm";
+    ASSERT_EQ(dev.write(138, 130), echo_word(138, 130));
+    poll(dev, 6.0);
+    ASSERT_GT(static_cast<std::int16_t>(dev.word(123)), 120);
+    EXPECT_EQ(dev.word(113), 1);
+    EXPECT_FALSE(dev.bit(204));
+    EXPECT_EQ(dev.word(119), 0x101);
+    EXPECT_EQ(dev.word(114), 0) << "alarm 2 (low, 0.40 %C) stays off";
+    ASSERT_EQ(dev.write(138, 80), echo_word(138, 80));
+    poll(dev, 6.0);
+    EXPECT_EQ(dev.word(113), 0);
+    EXPECT_TRUE(dev.bit(204));
+    EXPECT_EQ(dev.word(119), 0x001);
+}
+
+// Word 1101 = 4, high alarm with manual reset, action Dir: the alarm stays after the process
+// returns (LED flashing: waiting for the operator) until bit 222 resets it.
+TEST(Ac20Simulator, ManualResetAlarmWaitsForBit222_Words1101_1102_Bit222) {
+    Simulated dev("ac20", Model::behaviour, at_speed(100));
+    go_remote(dev);
+    ASSERT_EQ(dev.write(1101, 4), echo_word(1101, 4));
+    ASSERT_EQ(dev.write(1102, 1), echo_word(1102, 1));
+    EXPECT_FALSE(dev.bit(204));
+    ASSERT_EQ(dev.write(138, 130), echo_word(138, 130));
+    poll(dev, 6.0);
+    EXPECT_EQ(dev.word(113), 1);
+    EXPECT_TRUE(dev.bit(204));
+    EXPECT_EQ(set_bit(dev, 222), echo_bit(222));
+    EXPECT_EQ(dev.word(113), 1) << "still in alarm: a reset does not clear it";
+    ASSERT_EQ(dev.write(138, 80), echo_word(138, 80));
+    poll(dev, 6.0);
+    EXPECT_EQ(dev.word(113), 2);
+    EXPECT_TRUE(dev.bit(204));
+    EXPECT_EQ(set_bit(dev, 222), echo_bit(222));
+    EXPECT_EQ(dev.word(113), 0);
+    EXPECT_FALSE(dev.bit(204));
+}
+
+// Bit 233 "De-energized all 10 auxiliary outputs" (bits 310-319).
+TEST(Ac20Simulator, Bit233SwitchesOffTheAuxiliaryOutputs_Bit233) {
+    Simulated dev("ac20");
+    go_remote(dev);
+    ASSERT_EQ(dev.send(codec::write_multiple_coils(310, {1, 1, 0, 1})), echo_of(codec::write_multiple_coils(310, {1, 1, 0, 1})));
+    EXPECT_EQ(dev.read(310, 4, FunctionCode::read_coils), (Words{1, 1, 0, 1}));
+    EXPECT_EQ(set_bit(dev, 233), echo_bit(233));
+    EXPECT_EQ(dev.read(310, 10, FunctionCode::read_coils), Words(10, 0));
+}
+
 // --- The probe equation itself ---------------------------------------------------------------
 
 // 0.80 %C at 925 °C with 20 % CO and 40 % H2: 1134 mV (derivation in ac20_atmosphere.hpp);
