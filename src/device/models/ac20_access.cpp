@@ -172,6 +172,8 @@ void Ac20Simulator::restart() {
     set_value("device_identification_code", identification_code);
     set_value("change_flag_general", 1);
     arm_standby_ = true;
+    schedule_interval(false);
+    schedule_interval(true);
     settings_dirty_ = true;
 }
 

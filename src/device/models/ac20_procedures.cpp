@@ -1,5 +1,6 @@
 // Procedures (probe test, burn-off and purge), Smart TUNE, and the unsolicited request flags.
 #include <algorithm>
+#include <cmath>
 #include <random>
 
 #include "device/models/ac20_simulator.hpp"
@@ -39,9 +40,38 @@ void Ac20Simulator::run_timers(double seconds) {
             raise_change_flag("change_flag_group_2");
         }
     }
+    run_intervals();
     if (procedure_ == Procedure::none) return;
     procedure_left_ -= seconds;
     if (procedure_left_ <= 0) finish_procedure();
+}
+
+// Words 1302/1303: automatic burn-off and probe test every so many minutes (7FFFh = none),
+// counted from when the interval was set or the device started; 1304/1305 count down in
+// minutes. A procedure due while the device refuses it (errors 50-55) starts as soon as it may.
+void Ac20Simulator::run_intervals() {
+    for (const bool probe_test : {false, true}) {
+        auto& due = probe_test ? next_probe_test_ : next_burn_off_;
+        if (!due || clock_ < *due || procedure_refusal_for(probe_test)) continue;
+        start_procedure(probe_test);
+        schedule_interval(probe_test);
+    }
+}
+
+void Ac20Simulator::schedule_interval(bool probe_test) {
+    const std::uint16_t minutes = value(probe_test ? "probe_test_interval" : "burn_off_interval");
+    auto& due = probe_test ? next_probe_test_ : next_burn_off_;
+    due = minutes == 0x7FFF || signed_word(minutes) <= 0 ? std::nullopt
+                                                        : std::optional<double>(clock_ + signed_word(minutes) * 60.0);
+}
+
+std::optional<std::uint16_t> Ac20Simulator::countdown_read(const Parameter& parameter) const {
+    if (parameter.table != Table::holding || (parameter.address != 1304 && parameter.address != 1305)) {
+        return std::nullopt;
+    }
+    const auto& due = parameter.address == 1305 ? next_probe_test_ : next_burn_off_;
+    if (!due) return 0x7FFF;
+    return word_of(std::ceil(std::max(0.0, *due - clock_) / 60.0));
 }
 
 void Ac20Simulator::finish_procedure() {
@@ -74,6 +104,10 @@ void Ac20Simulator::raise_change_flag(const std::string& flag) {
 std::optional<std::uint8_t> Ac20Simulator::procedure_refusal(const Parameter& parameter, std::uint16_t raw) const {
     const bool probe_test = parameter.name == "start_probe_test";
     if (raw == 0 || (!probe_test && parameter.name != "start_burn_off")) return std::nullopt;
+    return procedure_refusal_for(probe_test);
+}
+
+std::optional<std::uint8_t> Ac20Simulator::procedure_refusal_for(bool probe_test) const {
     if (procedure_ != Procedure::none) return another_procedure;
     if (tune_left_ > 0) return tune_in_progress;
     if (clock_ - quiet_since_ < quiet_period) return too_soon;
@@ -103,14 +137,19 @@ std::optional<std::uint16_t> Ac20Simulator::flag_read(const Parameter& parameter
 }
 
 
+void Ac20Simulator::start_procedure(bool probe_test) {
+    procedure_ = probe_test ? Procedure::probe_test : Procedure::burn_off;
+    procedure_left_ = probe_test ? probe_test_seconds : std::max(0.0, signed_word(value("burn_off_timer")));
+    if (probe_test) set_value("change_flag_probe_test_data", 0);
+}
+
 void Ac20Simulator::after_procedure_write(const Parameter& parameter, std::uint16_t raw) {
     const std::string& name = parameter.name;
     if ((name == "start_probe_test" || name == "start_burn_off") && raw == 1) {
-        const bool probe_test = name == "start_probe_test";
-        procedure_ = probe_test ? Procedure::probe_test : Procedure::burn_off;
-        procedure_left_ = probe_test ? probe_test_seconds : std::max(0.0, signed_word(value("burn_off_timer")));
-        if (probe_test) set_value("change_flag_probe_test_data", 0);
+        start_procedure(name == "start_probe_test");
         set_value(name, 0);  // a command, not a state
+    } else if (name == "burn_off_interval" || name == "probe_test_interval") {
+        schedule_interval(name == "probe_test_interval");
     } else if (name == "smart_enable") {
         set_value("tune_status", raw);
         set_value("adaptive_status", raw);

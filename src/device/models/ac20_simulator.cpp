@@ -55,12 +55,16 @@ Ac20Simulator::Ac20Simulator(std::shared_ptr<const Profile> profile, SimulationE
 }
 
 std::vector<std::string> Ac20Simulator::fault_names() const {
-    return {"open-probe", "open-thermocouple", "reference-junction", "auto-zero", "air-leak", "heater-failure"};
+    return {"open-probe", "open-thermocouple", "reference-junction", "auto-zero", "air-leak", "heater-failure",
+            "error-e130", "error-e140"};
 }
 
 void Ac20Simulator::apply_fault(const std::string& name) {
     if (name == "none") {
         faults_.clear();
+        device_error_ = 0;
+    } else if (name == "error-e130" || name == "error-e140") {
+        device_error_ = name == "error-e130" ? 1 : 2;  // word 135: "Control mode with error E.130/E.140"
     } else if (!fault(name)) {
         faults_.push_back(name);
     }
@@ -88,6 +92,15 @@ std::optional<std::uint8_t> Ac20Simulator::accept_write(const Parameter& paramet
 }
 
 std::uint16_t Ac20Simulator::on_read(const Parameter& parameter, std::uint16_t stored) {
+    // Word 135: an E.130/E.140 error shows in control mode; "The error is reset when read if
+    // device is in remote state".
+    if (parameter.name == "device_status" && device_error_ != 0 && mode_ == Mode::control &&
+        procedure_ == Procedure::none) {
+        const int error = device_error_;
+        if (remote_) device_error_ = 0;
+        return static_cast<std::uint16_t>(error);
+    }
+    if (auto countdown = countdown_read(parameter)) return *countdown;
     if (auto lock = lock_word_read(parameter, stored)) return *lock;
     if (auto flag = flag_read(parameter, stored)) return *flag;
     if (auto process = process_read(parameter)) return *process;

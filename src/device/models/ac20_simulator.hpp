@@ -104,6 +104,11 @@ private:
     void measure(double seconds);
     void control(double seconds);
     void run_timers(double seconds);
+    void run_intervals();
+    void schedule_interval(bool probe_test);
+    std::optional<std::uint16_t> countdown_read(const Parameter& parameter) const;
+    std::optional<std::uint8_t> procedure_refusal_for(bool probe_test) const;
+    void start_procedure(bool probe_test);
     void finish_procedure();
     void raise_change_flag(const std::string& flag);
     double primary_value() const;
@@ -149,6 +154,8 @@ private:
     Procedure procedure_ = Procedure::none;
     double procedure_left_ = 0;         // s
     double quiet_since_ = 0;            // process time of power-on or of the last procedure's end
+    std::optional<double> next_burn_off_, next_probe_test_;  // process time an automatic one is due
+    int device_error_ = 0;              // word 135: 1 = E.130, 2 = E.140, until read in remote
 };
 
 }  // namespace loopwire::device::models

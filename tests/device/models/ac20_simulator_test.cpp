@@ -473,6 +473,35 @@ TEST(Ac20Simulator, ProbeTestRefusedWhileTheProbeDrifts_Error55) {
     EXPECT_EQ(set_bit(dev, 216), "85 37");
 }
 
+// Words 1302 and 1304: an automatic burn-off every 10 minutes; 1304 counts the minutes down
+// (7FFFh while no interval is set, as 1305 stays).
+TEST(Ac20Simulator, AutomaticBurnOffIntervalCountsDownAndStarts_Words1302And1304) {
+    Simulated dev("ac20", Model::behaviour, at_speed(100));
+    go_remote(dev);
+    EXPECT_EQ(dev.word(1304), 0x7FFF);
+    ASSERT_EQ(dev.write(1302, 10), echo_word(1302, 10));
+    EXPECT_EQ(dev.word(1304), 10);
+    poll(dev, 3.3);
+    EXPECT_EQ(dev.word(1304), 5);
+    EXPECT_EQ(dev.word(1305), 0x7FFF);
+    EXPECT_EQ(dev.word(135), 0);
+    poll(dev, 3.0);
+    EXPECT_EQ(dev.word(135), 3) << "burn-off started on its own";
+    EXPECT_EQ(dev.word(1304), 10) << "the next one is 10 minutes away";
+}
+
+// Word 135: 1 = control mode with error E.130, 2 = E.140; "The error is reset when read if
+// device is in remote state" (in local it stays).
+TEST(Ac20Simulator, DeviceErrorInWord135ResetsWhenReadInRemote_Word135) {
+    Simulated dev("ac20");
+    ASSERT_TRUE(dev.device().inject_fault("error-e140").ok());
+    EXPECT_EQ(dev.word(135), 2);
+    EXPECT_EQ(dev.word(135), 2) << "local: not reset";
+    go_remote(dev);
+    EXPECT_EQ(dev.word(135), 2);
+    EXPECT_EQ(dev.word(135), 0);
+}
+
 // --- Identification, buffer overflow ---------------------------------------------------------
 
 // Words 120 (trade mark 50) and 121 (software revision × 100 + identification code 43).
