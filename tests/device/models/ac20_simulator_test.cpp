@@ -285,6 +285,24 @@ TEST(Ac20Simulator, EndOfMenusFourToSixAnswer104To106_Note7) {
     EXPECT_EQ(dev.write(3005, 1), "86 6A");
 }
 
+// Note 7, errors 102 and 103: a retransmitting output (2106 = 3, process variable) with its
+// scale upside down (2108 > 2109); a scaled main output display (2206 = 1) with 2208 > 2209.
+TEST(Ac20Simulator, EndOfMenusTwoAndThreeAnswer102And103_Note7) {
+    Simulated dev("ac20");
+    enter_configuration(dev);
+    ASSERT_EQ(dev.write(2108, 150), echo_word(2108, 150));
+    ASSERT_EQ(dev.write(2109, 100), echo_word(2109, 100));
+    EXPECT_EQ(dev.write(3001, 1), echo_word(3001, 1)) << "Out 6 not used: its scale does not matter";
+    ASSERT_EQ(dev.write(2106, 3), echo_word(2106, 3));
+    EXPECT_EQ(dev.write(3001, 1), "86 66");
+    ASSERT_EQ(dev.write(2109, 200), echo_word(2109, 200));
+    ASSERT_EQ(dev.write(3001, 1), echo_word(3001, 1));
+    ASSERT_EQ(dev.write(2208, 500), echo_word(2208, 500));
+    ASSERT_EQ(dev.write(2209, 100), echo_word(2209, 100));
+    ASSERT_EQ(dev.write(2206, 1), echo_word(2206, 1));
+    EXPECT_EQ(dev.write(3002, 1), "86 67");
+}
+
 // --- Default loading: word 3050, bits 223-232 ----------------------------------------------
 
 // Word 3050: 2 = TB2 American table: here °F (word 2003 = 4), so the probe temperature word
@@ -558,6 +576,26 @@ TEST(Ac20Simulator, CarbonPotentialSettlesAtANewSetPoint_ClosedLoop) {
     EXPECT_NEAR(dev.word(130), 700, 40) << "steady enrichment for 1.00 %C: (1.00 - 0.30) / 1.00";
     EXPECT_EQ(dev.word(137), 100) << "operative set point";
     EXPECT_EQ(dev.word(136), 1) << "main set point in use";
+}
+
+// Word 2001 = 1: dew point as the primary variable (°C, no decimals, word 300 = 0). A lower dew
+// point needs a richer atmosphere, so the controller acts in reverse: -10 °C is reached by
+// raising the enrichment above the factory 0.80 %C (-5.6 °C).
+TEST(Ac20Simulator, DewPointAsPrimaryVariableSettlesReverseActing_Word2001_ClosedLoop) {
+    Simulated dev("ac20", Model::behaviour, at_speed(100));
+    enter_configuration(dev);
+    ASSERT_EQ(dev.write(2503, 40), echo_word(2503, 40));
+    ASSERT_EQ(dev.write(3005, 1), echo_word(3005, 1));
+    ASSERT_EQ(dev.write(2001, 1), echo_word(2001, 1));
+    ASSERT_EQ(dev.write(3000, 1), echo_word(3000, 1));
+    leave_to_control(dev);
+    EXPECT_EQ(dev.word(300), 0);
+    ASSERT_EQ(dev.write(1011, raw(-75)), echo_word(1011, raw(-75)));
+    ASSERT_EQ(dev.write(1012, 40), echo_word(1012, 40));
+    ASSERT_EQ(dev.write(138, raw(-10)), echo_word(138, raw(-10)));
+    poll(dev, 15.0);
+    EXPECT_NEAR(static_cast<std::int16_t>(dev.word(124)), -10, 1);
+    EXPECT_GT(static_cast<std::int16_t>(dev.word(123)), 85) << "richer than 0.80 %C";
 }
 
 // Bit 219 manual: word 130 holds what the master wrote, and the atmosphere follows it
