@@ -110,7 +110,7 @@ std::optional<int> Ac20Simulator::configuration_menu_of(const Parameter& paramet
 // data of a different menu are programmed ... and if the output of the configuration mode is
 // imposed": a write to another menu's word, or to word 3051, first closes the open menu and
 // is refused with that menu's 1xx error if the check fails (the write is not executed).
-// Reads do not close a menu here (a read cannot carry the 1xx error in this model).
+// Reads: see menu_read_refusal.
 std::optional<std::uint8_t> Ac20Simulator::configuration_refusal(const Parameter& parameter, std::uint16_t) {
     if (mode_ != Mode::configuration) return std::nullopt;
     auto closing_error = [](int menu) { return static_cast<std::uint8_t>(100 + menu); };
@@ -121,6 +121,31 @@ std::optional<std::uint8_t> Ac20Simulator::configuration_refusal(const Parameter
     const auto menu = configuration_menu_of(parameter);
     const bool leaves_menu = parameter.name == "enable_control_mode" || (menu && menu != open_menu_);
     if (open_menu_ && leaves_menu && !menu_congruent(*open_menu_)) return closing_error(*open_menu_);
+    return std::nullopt;
+}
+
+// Note 7: the end of the programming of a menu "is anyway automatically sent if data of a
+// different menu are ... read": a read (FC3/FC4, within the 20-word limit) that touches a word
+// of another configuration menu closes the open one first, and answers its 1xx error if the
+// check fails. The wire address is the profile's own plus 1 under J-BUS numbering (word 526 = 2).
+std::optional<Bytes> Ac20Simulator::menu_read_refusal(ByteView request_pdu) {
+    if (mode_ != Mode::configuration || !open_menu_ || request_pdu.size() != 5) return std::nullopt;
+    const std::uint8_t function = request_pdu[0];
+    if (function != 3 && function != 4) return std::nullopt;
+    const std::uint16_t start = read_be16(request_pdu, 1);
+    const std::uint16_t count = read_be16(request_pdu, 3);
+    const std::uint16_t offset = value("serial_interface_protocol") == 2 ? 1 : 0;
+    if (count > profile().limits.read_registers || start < offset) return std::nullopt;
+    for (unsigned i = 0; i < count; ++i) {
+        const MemoryCell* cell = memory().find(Table::holding, static_cast<std::uint16_t>(start - offset + i));
+        const auto menu = cell == nullptr ? std::nullopt : configuration_menu_of(*cell->parameter);
+        if (!menu || menu == open_menu_) continue;
+        if (!menu_congruent(*open_menu_)) {
+            return Bytes{static_cast<std::uint8_t>(function | 0x80), static_cast<std::uint8_t>(100 + *open_menu_)};
+        }
+        open_menu_.reset();
+        return std::nullopt;
+    }
     return std::nullopt;
 }
 

@@ -77,6 +77,7 @@ bool Ac20Simulator::fault(const std::string& name) const {
 std::optional<std::optional<Bytes>> Ac20Simulator::intercept(ByteView request_pdu, bool) {
     note_line_activity();
     if (request_pdu.size() > receive_buffer_pdu) return std::make_optional(std::optional<Bytes>{});
+    if (auto refusal = menu_read_refusal(request_pdu)) return std::make_optional(std::optional<Bytes>(std::move(*refusal)));
     return std::nullopt;
 }
 

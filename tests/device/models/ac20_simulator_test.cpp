@@ -248,8 +248,11 @@ TEST(Ac20Simulator, EndOfMenuOneChecksOtherMenusAndAnswers101_Note7) {
     EXPECT_EQ(dev.write(3000, 1), echo_word(3000, 1)) << "factory data are congruent";
     ASSERT_EQ(dev.write(2001, 1), echo_word(2001, 1));
     EXPECT_EQ(dev.write(3000, 1), "86 65");
-    // Programming another menu closes menu 1 first: refused with the same error.
+    // Programming or reading another menu closes menu 1 first: refused with the same error.
     EXPECT_EQ(dev.write(2503, 40), "86 65");
+    EXPECT_EQ(dev.send(codec::read_request(FunctionCode::read_holding_registers, 2500, 4)), "83 65");
+    EXPECT_EQ(dev.send(codec::read_request(FunctionCode::read_input_registers, 2000, 2)), "04 04 00 00 00 01")
+        << "reading the open menu itself is fine";
     EXPECT_EQ(dev.write(3051, 1), "86 65") << "leaving configuration mode closes the menu too";
     EXPECT_EQ(dev.word(135), 6);
     ASSERT_EQ(dev.write(2001, 0), echo_word(2001, 0));
