@@ -75,7 +75,8 @@ TEST(Ac20Simulator, WritesInLocalAreRefusedWithError10ExceptBit218_Note5) {
 }
 
 // Note 5: "If there is no line activity for more than 3 sec. every slave will automatically
-// return to local mode."
+// return to local mode." The Korean edition says "3초 이상" (3 s or more); the English edition
+// wins, so exactly 3 s of silence keeps remote.
 TEST(Ac20Simulator, ReturnsToLocalAfterMoreThanThreeSecondsWithoutLineActivity_Note5) {
     Simulated dev("ac20");
     go_remote(dev);
