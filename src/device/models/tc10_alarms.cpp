@@ -21,6 +21,11 @@ bool inside(double measured, double low, double high, double hysteresis, bool wa
     return was_on ? measured > low - hysteresis && measured < high + hysteresis : measured >= low && measured <= high;
 }
 
+bool is_relative(AlarmType type) {
+    return type == AlarmType::deviation_low || type == AlarmType::deviation_high ||
+           type == AlarmType::relative_band_outside || type == AlarmType::relative_band_inside;
+}
+
 }  // namespace
 
 // §5.3.3 #28 names the types; the manual does not define where a relative threshold lies.
@@ -57,15 +62,33 @@ void Alarm::update(double seconds, const AlarmSettings& settings, const AlarmInp
                                     (settings.enable & enabled_out_of_range) == 0;
     if (settings.type == AlarmType::none || inhibited_by_standby || inhibited_by_error) {
         clear();
+        started_ = true;  // power-on is over even for an alarm that is off
+        last_set_point_ = inputs.set_point;
         return;
     }
     condition_ = condition(settings, inputs);
+    update_mask(settings, inputs);
     // ALnd (#34): the condition must last the delay before the alarm is raised.
     held_ = condition_ ? held_ + seconds : 0;
-    raised_ = condition_ && held_ >= settings.delay;
+    raised_ = condition_ && !masked_ && held_ >= settings.delay;
     if (raised_ && (settings.function & function_latched) != 0) latched_ = true;
     // An acknowledgement lasts until the alarm is over; the next occurrence alarms again.
     if (!raised_ && !latched_) acknowledged_ = false;
+}
+
+// Abn +1 "не активна при включении питания" and +8 "относительная сигнализация не активна при
+// изменении уставки" (#29): after power-on, or after the set point moves under a relative
+// alarm, an alarm condition already present is ignored until the process has once left it
+// (the usual start-up masking: an oven starting cold must not raise its low alarm).
+void Alarm::update_mask(const AlarmSettings& settings, const AlarmInputs& inputs) {
+    if (!started_ && (settings.function & function_masked_at_power_on) != 0) masked_ = true;
+    if (started_ && inputs.set_point != last_set_point_ && is_relative(settings.type) &&
+        (settings.function & function_masked_at_sp_change) != 0) {
+        masked_ = true;
+    }
+    started_ = true;
+    last_set_point_ = inputs.set_point;
+    if (!condition_) masked_ = false;
 }
 
 void Alarm::reset() {
@@ -77,7 +100,7 @@ void Alarm::acknowledge(std::uint16_t function) {
 }
 
 void Alarm::clear() {
-    condition_ = raised_ = latched_ = acknowledged_ = false;
+    condition_ = raised_ = latched_ = acknowledged_ = masked_ = false;
     held_ = 0;
 }
 

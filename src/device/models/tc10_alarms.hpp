@@ -21,8 +21,10 @@ enum class AlarmType : std::uint16_t {
 };
 
 // Abn function bits (§5.3.3 #29).
-inline constexpr std::uint16_t function_latched = 2;          // +2 manual reset
-inline constexpr std::uint16_t function_acknowledgeable = 4;  // +4
+inline constexpr std::uint16_t function_masked_at_power_on = 1;    // +1 not active at power-on
+inline constexpr std::uint16_t function_latched = 2;               // +2 manual reset
+inline constexpr std::uint16_t function_acknowledgeable = 4;       // +4
+inline constexpr std::uint16_t function_masked_at_sp_change = 8;   // +8 relative: not at SP change
 
 // ALno (§5.3.3 #35): bit 0 = enabled in standby, bit 1 = enabled in the out-of-range state.
 inline constexpr std::uint16_t enabled_in_standby = 1;
@@ -63,7 +65,12 @@ public:
 
 private:
     bool condition(const AlarmSettings& settings, const AlarmInputs& inputs) const;
+    void update_mask(const AlarmSettings& settings, const AlarmInputs& inputs);
     void clear();
+
+    bool started_ = false;
+    double last_set_point_ = 0;
+    bool masked_ = false;  // +1 / +8: held off until the condition has once been absent
 
     bool condition_ = false;  // the type's condition, with hysteresis
     double held_ = 0;         // seconds the condition has lasted (delay)

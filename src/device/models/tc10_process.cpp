@@ -47,6 +47,7 @@ void Tc10Simulator::apply_fault(const std::string& fault) {
 }
 
 void Tc10Simulator::step_process(double seconds) {
+    power_on();
     const StepSettings& settings = step_settings();
     output_ = next_output(seconds, settings);
     // The oven has a heater only: a cooling (negative) output puts no heat in.

@@ -74,10 +74,29 @@ void Tc10Simulator::apply_factory_settings() {
     set_value("parameter_table_id", 0x0102);
 }
 
+// dSPu (#128): the state the controller starts in. 0 = AS.Pr as before power-off (the saved
+// control state), 1 = automatic, 2 = oP.0 manual with output 0, 3 = standby. Applied at the
+// first request or process step, once the saved contents (--state) are in memory.
+void Tc10Simulator::power_on() {
+    if (powered_on_) return;
+    powered_on_ = true;
+    switch (value("power_on_state")) {
+        case 1: set_value("control_state", static_cast<std::uint16_t>(State::automatic), Persistence::saved); break;
+        case 2:
+            set_value("control_state", static_cast<std::uint16_t>(State::manual), Persistence::saved);
+            set_value("manual_output_power", 0, Persistence::saved);
+            break;
+        case 3: set_value("control_state", static_cast<std::uint16_t>(State::standby), Persistence::saved); break;
+        default: return;
+    }
+    set_value("operating_mode", value("control_state"), Persistence::saved);
+}
+
 // §3.4: exception 6 "неготовность контроллера" is the answer to a well-formed request the
 // controller cannot serve in its present situation. The manual names no situation; the
 // simulator is not ready while it rewrites its parameters after word 19 = 481.
 std::optional<std::optional<Bytes>> Tc10Simulator::intercept(ByteView request_pdu, bool) {
+    power_on();
     if (!busy_until_) return std::nullopt;
     if (environment().now() >= *busy_until_) {
         busy_until_.reset();

@@ -62,6 +62,7 @@ private:
 
     // tc10_simulator.cpp
     void apply_factory_settings();
+    void power_on();
     void load_defaults();
     void copy_to_twin(const Parameter& parameter, std::uint16_t raw);
     State state() const;
@@ -94,6 +95,7 @@ private:
     InputFault fault_ = InputFault::none;
     double output_ = 0;  // % -100…100, what the controller drives now
     std::optional<SimulationClock::time_point> busy_until_;
+    bool powered_on_ = false;  // dSPu applied (after --state has been loaded)
     StepSettings step_settings_;
     std::optional<double> step_settings_time_;  // process_time() they were read at
 };
