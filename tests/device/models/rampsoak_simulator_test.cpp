@@ -186,6 +186,26 @@ TEST(RampSoakSimulator, ProgramEndHoldsTheLastSetPoint_7) {
     EXPECT_EQ(device.word(sv), 1000);
     device.wait(20.0);
     EXPECT_NEAR(signed_word(device, pv), 1000, 10);
+    // Writing PTN again runs the pattern again from segment 1.
+    device.write(ptn, 1);
+    EXPECT_EQ(device.read(seg, 2), (Words{1, 10}));
+    EXPECT_TRUE(lit(device, pro_led));
+}
+
+// PTN is a saved setting, but a restart leaves the program stopped (the manual describes no
+// power-failure recovery): SEG reads 0 and the controller runs on the fixed SV.
+TEST(RampSoakSimulator, RestartLeavesTheProgramStopped_7) {
+    Simulated device("rampsoak", Model::behaviour, minutes_per_second());
+    device.write(sv, 400);
+    load_ramp_soak_ramp(device);
+    device.write(ptn, 1);
+    device.wait(3.0);
+    Simulated restarted("rampsoak", Model::behaviour, minutes_per_second());
+    restarted.device().load_saved(device.device().saved_values());
+    EXPECT_EQ(restarted.word(ptn), 1);
+    EXPECT_EQ(restarted.read(seg, 2), (Words{0, 0}));
+    EXPECT_EQ(restarted.word(sv), 400);
+    EXPECT_FALSE(lit(restarted, pro_led));
 }
 
 // PTN = 0 stops the program: SV reads the fixed set point again and control returns to it.
