@@ -63,6 +63,10 @@ void poll(Polled& polled, WatchedDevice& watched, MonitorClock::time_point sampl
     polled.backoff.succeeded();
 }
 
+void note_retry(const Polled& polled, WatchedDevice& watched) {
+    watched.next_try = polled.backoff.consecutive_failures() > 0 ? std::optional(polled.backoff.next_try()) : std::nullopt;
+}
+
 class SampleWriter {
 public:
     SampleWriter(std::FILE* out, MonitorFormat format) : out_(out), format_(format) {}
@@ -120,7 +124,10 @@ void run_monitor(const std::vector<MonitorTarget>& targets, const MonitorSetting
     for (unsigned index = 1; !stop.stop_requested() && (!settings.count || index <= *settings.count); ++index) {
         const auto sample_start = MonitorClock::now();
         const auto wall = std::chrono::system_clock::now();
-        for (std::size_t i = 0; i < polled.size() && !stop.stop_requested(); ++i) poll(polled[i], watched[i], sample_start);
+        for (std::size_t i = 0; i < polled.size() && !stop.stop_requested(); ++i) {
+            poll(polled[i], watched[i], sample_start);
+            note_retry(polled[i], watched[i]);
+        }
         if (stop.stop_requested()) break;
         writer.write(SampleView{index, wall, MonitorClock::now(), &watched});
         if (settings.count && index == *settings.count) break;

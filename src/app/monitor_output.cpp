@@ -1,5 +1,6 @@
 #include "app/monitor_output.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include <fmt/format.h>
@@ -41,6 +42,20 @@ std::string age_text(const WatchedValue& value, MonitorClock::time_point now) {
     return fmt::format("{:.1f}s", *age);
 }
 
+std::optional<double> retry_in(const WatchedDevice& device, MonitorClock::time_point now) {
+    if (!device.next_try) return std::nullopt;
+    const double seconds = std::chrono::duration<double>(*device.next_try - now).count();
+    return std::round(std::max(seconds, 0.0) * 1000.0) / 1000.0;
+}
+
+// "tc10@3  ok  errors 0", or for a unit in trouble also when it is tried next and why.
+std::string device_line(const WatchedDevice& device, MonitorClock::time_point now) {
+    std::string line = fmt::format("{}  {}  errors {}", device.label, device.status, device.errors);
+    if (const auto retry = retry_in(device, now)) line += fmt::format("  retry in {:.1f}s", *retry);
+    if (device.status != "ok") line += "  " + device.last_error.substr(0, 60);
+    return line;
+}
+
 }  // namespace
 
 nlohmann::ordered_json sample_json(const SampleView& sample) {
@@ -48,7 +63,10 @@ nlohmann::ordered_json sample_json(const SampleView& sample) {
     for (const auto& device : *sample.devices) {
         nlohmann::ordered_json values = nlohmann::ordered_json::object();
         for (const auto& value : device.values) values[value.parameter->name] = value_entry(device, value, sample.now);
-        devices[device.label] = {{"status", device.status}, {"errors", device.errors}, {"values", values}};
+        devices[device.label] = {{"status", device.status}, {"errors", device.errors}};
+        if (device.status != "ok") devices[device.label]["error"] = device.last_error;
+        if (const auto retry = retry_in(device, sample.now)) devices[device.label]["retry_in"] = *retry;
+        devices[device.label]["values"] = values;
     }
     return {{"time", iso8601_utc(sample.time)}, {"sample", sample.index}, {"devices", devices}};
 }
@@ -80,7 +98,7 @@ std::vector<std::string> table_lines(const SampleView& sample) {
     lines.push_back(fmt::format("loopwire monitor  {}  sample {}  (Ctrl-C to stop)", iso8601_utc(sample.time), sample.index));
     lines.push_back(fmt::format("  {:<34} {:>14} {:<6} {:<14} {:>8}", "PARAMETER", "VALUE", "UNIT", "STATUS", "AGE"));
     for (const auto& device : *sample.devices) {
-        lines.push_back(fmt::format("{}  {}  errors {}", device.label, device.status, device.errors));
+        lines.push_back(device_line(device, sample.now));
         for (const auto& value : device.values) {
             const auto& p = *value.parameter;
             const std::string text = value.last ? value_text(p, *value.last) : "-";

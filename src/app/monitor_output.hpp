@@ -24,6 +24,8 @@ struct SampleView {
 // {"value":V,"text":"25.0","unit":"°C","status":"ok","age":0.0,"changed":false}}}}}.
 // A value not read in this sample has "value":null and "text":null whatever was read before;
 // "age" says how old the last good reading is (null: never read), "status" why it is missing.
+// A device whose status is not "ok" also has "error" (the last failure) and, while in back-off,
+// "retry_in" (seconds until it is tried again).
 nlohmann::ordered_json sample_json(const SampleView& sample);
 
 // CSV: time,sample, then per device "DEVICE status","DEVICE errors", and one column

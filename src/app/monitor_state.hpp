@@ -31,6 +31,7 @@ struct WatchedDevice {
     unsigned errors = 0;  // failed polls so far
     unsigned polls = 0;
     std::string last_error;
+    std::optional<MonitorClock::time_point> next_try;  // while in back-off: when it is tried again
 };
 
 WatchedDevice watch(std::string label, const std::vector<const device::Parameter*>& parameters);

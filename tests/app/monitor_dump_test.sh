@@ -99,7 +99,7 @@ jcheck monitor-dead-unit "$work/dead.jsonl" "
 from datetime import datetime
 assert len(rows) == 12, len(rows)
 dead = [r['devices']['tc10@7'] for r in rows]
-assert all(d['status'] in ('no-reply', 'waiting') for d in dead), dead
+assert all(d['status'] in ('no-reply', 'waiting') and d['retry_in'] > 0 and 'no reply' in d['error'] for d in dead), dead
 assert all(v['value'] is None and v['text'] is None for d in dead for v in d['values'].values()), dead[-1]
 tries = sum(d['status'] == 'no-reply' for d in dead)
 assert tries == dead[-1]['errors'] == $dead_tries and 2 <= tries <= 5, (tries, dead[-1]['errors'], $dead_tries)

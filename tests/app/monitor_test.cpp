@@ -96,6 +96,19 @@ TEST(MonitorState, UnansweredPollKeepsTheOldValueButNeverAsCurrent) {
     EXPECT_EQ(value_status(devices[0], devices[0].values[0]), "waiting");
 }
 
+TEST(MonitorOutput, AUnitInBackOffSaysWhyAndWhenItIsTriedAgain) {
+    auto p = profile("rampsoak");
+    std::vector<WatchedDevice> devices{watch("rampsoak@5", {p->find("output_percentage")})};
+    const auto t0 = MonitorClock::now();
+    record_poll(devices[0], device::ReadReport{}, false, "no reply from unit 5", t0);
+    devices[0].next_try = t0 + 2500ms;
+    const auto row = sample_json(SampleView{1, std::chrono::system_clock::now(), t0 + 1s, &devices});
+    EXPECT_EQ(row["devices"]["rampsoak@5"]["error"], "no reply from unit 5");
+    EXPECT_EQ(row["devices"]["rampsoak@5"]["retry_in"], 1.5);
+    const auto lines = table_lines(SampleView{1, std::chrono::system_clock::now(), t0 + 1s, &devices});
+    EXPECT_EQ(lines[2], "rampsoak@5  no-reply  errors 1  retry in 1.5s  no reply from unit 5");
+}
+
 TEST(MonitorState, ValuesTheDeviceRefusedShowAsErrorsWhileTheRestIsCurrent) {
     auto p = profile("rampsoak");
     auto device = watch("rampsoak@5", {p->find("output_percentage"), p->find("controller_status")});
