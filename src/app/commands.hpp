@@ -12,5 +12,7 @@ void add_demo_command(CLI::App& app, int& exit_code);
 void add_profile_commands(CLI::App& app, int& exit_code);  // devices, describe
 void add_scan_command(CLI::App& app, int& exit_code);
 void add_restore_command(CLI::App& app, int& exit_code);
+void add_monitor_command(CLI::App& app, int& exit_code);
+void add_dump_command(CLI::App& app, int& exit_code);
 
 }  // namespace loopwire::app

@@ -19,6 +19,8 @@ int main(int argc, char** argv) {
     add_profile_commands(app, exit_code);
     add_scan_command(app, exit_code);
     add_restore_command(app, exit_code);
+    add_monitor_command(app, exit_code);
+    add_dump_command(app, exit_code);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& error) {

@@ -1,0 +1,95 @@
+// loopwire dump --link URL --device DEVICE@UNIT [--numbering jbus] [--output FILE]
+// Every readable parameter of one device into one JSON document (format: dump_document.hpp).
+#include <unistd.h>
+
+#include <algorithm>
+
+#include <fmt/format.h>
+
+#include "app/command_line.hpp"
+#include "app/commands.hpp"
+#include "app/dump_document.hpp"
+#include "app/exit_codes.hpp"
+#include "app/master_options.hpp"
+#include "app/time_text.hpp"
+
+namespace loopwire::app {
+namespace {
+
+struct DumpOptions {
+    MasterCommandOptions master;
+    std::string output;
+};
+
+// Reads block by block (the planner's blocks), so progress can be shown between requests; the
+// first failure ends the dump: a partial dump is worse than none for a restore.
+Result<device::ReadReport> read_everything(device::DeviceClient& client) {
+    const auto& device = client.device();
+    const auto blocks = device::plan_reads(*device.profile, dumped_parameters(*device.profile), device.address_offset);
+    const bool progress = ::isatty(STDERR_FILENO) == 1;
+    device::ReadReport all;
+    std::size_t done = 0;
+    for (std::size_t i = 0; i < blocks.size(); ++i) {
+        auto part = client.read(blocks[i].parameters);
+        if (part.first_error) {
+            if (progress) fmt::print(stderr, "\n");
+            return make_error(part.first_error->kind, fmt::format("dump stopped at {} {}..: {}", device::table_name(blocks[i].table),
+                                                                  blocks[i].wire_address, part.first_error->message));
+        }
+        done += part.readings.size();
+        all.readings.insert(all.readings.end(), part.readings.begin(), part.readings.end());
+        all.raw.insert(part.raw.begin(), part.raw.end());
+        all.requests += part.requests;
+        if (progress) fmt::print(stderr, "\r  block {}/{}, {} parameters read   ", i + 1, blocks.size(), done);
+    }
+    if (progress) fmt::print(stderr, "\n");
+    return all;
+}
+
+// The readings in the profile's order, whatever order the blocks came in.
+void sort_by_profile(device::ReadReport& report, const device::Profile& profile) {
+    const auto position = [&profile](const device::Parameter* p) { return p - profile.parameters.data(); };
+    std::stable_sort(report.readings.begin(), report.readings.end(),
+                     [&](const auto& a, const auto& b) { return position(a.parameter) < position(b.parameter); });
+}
+
+int run_dump(const DumpOptions& options) {
+    auto device = device::parse_device_address(options.master.device, options.master.numbering);
+    if (!device) return report_error(device.error());
+    auto master = options.master.open();
+    if (!master) return report_error(master.error());
+    const auto time = iso8601_utc(std::chrono::system_clock::now());
+    device::DeviceClient client(**master, *device);
+    auto report = read_everything(client);
+    if (!report) return report_error(report.error());
+    sort_by_profile(*report, *device->profile);
+    auto document = dump_document(*device, DumpHeader{options.master.link, time, options.master.numbering}, *report);
+    if (!document) return report_error(document.error());
+    const std::string text = document->dump(2) + "\n";
+    if (options.output.empty()) {
+        fmt::print("{}", text);
+        return exit_ok;
+    }
+    if (auto written = write_file_atomically(options.output, text); !written) return report_error(written.error());
+    fmt::print(stderr, "loopwire: {} parameters of {}@{} written to {}\n", report->readings.size(), device->profile->id,
+               device->unit, options.output);
+    return exit_ok;
+}
+
+}  // namespace
+
+void add_dump_command(CLI::App& app, int& exit_code) {
+    auto options = std::make_shared<DumpOptions>();
+    auto* command = app.add_subcommand("dump", "Read every readable parameter of a device into one JSON document (for restore)");
+    command->add_option("--link", options->master.link, "Link URL (see `loopwire read --help`)")->required();
+    command->add_option("--device", options->master.device, "DEVICE@UNIT (e.g. tc10@3)")->required();
+    command->add_option("--numbering", options->master.numbering, "The device's alternative numbering in use (ac20: jbus)");
+    command->add_option("--output", options->output, "Write the document to FILE (atomically: all of it or nothing); default stdout");
+    command->add_option("--timeout", options->master.timeout, "Time to wait for each reply")->capture_default_str();
+    command->add_option("--retries", options->master.retries, "Extra tries after a timeout")->capture_default_str();
+    command->add_flag("-v,--verbose", options->master.verbose, "Print every frame sent and received, with timestamps, on stderr");
+    command->footer(exit_code_help);
+    command->callback([options, &exit_code] { exit_code = run_dump(*options); });
+}
+
+}  // namespace loopwire::app

@@ -1,0 +1,124 @@
+// loopwire monitor --link URL --device DEVICE@UNIT [--device ...] [NAMES...] [--interval 1s]
+//                  [--format table|csv|jsonl] [--count N] [--output FILE]
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+#include <fmt/format.h>
+
+#include "app/command_line.hpp"
+#include "app/commands.hpp"
+#include "app/exit_codes.hpp"
+#include "app/master_options.hpp"
+#include "app/monitor_loop.hpp"
+#include "app/monitor_names.hpp"
+#include "app/stop_signal.hpp"
+
+namespace loopwire::app {
+namespace {
+
+struct MonitorOptions {
+    MasterCommandOptions master;
+    std::vector<std::string> devices;
+    std::vector<std::string> names;
+    std::string interval = "1s";
+    std::string format;  // empty: table on a terminal, jsonl otherwise
+    unsigned count = 0;  // 0: until stopped
+    std::string output;
+};
+
+Result<MonitorFormat> choose_format(const MonitorOptions& options) {
+    if (options.format.empty()) {
+        const bool terminal = options.output.empty() && ::isatty(STDOUT_FILENO) == 1;
+        return terminal ? MonitorFormat::table : MonitorFormat::jsonl;
+    }
+    if (options.format == "jsonl") return MonitorFormat::jsonl;
+    if (options.format == "csv") return MonitorFormat::csv;
+    if (options.format != "table") return make_error(ErrorKind::usage, fmt::format("--format '{}': choose table, csv or jsonl", options.format));
+    if (!options.output.empty()) return make_error(ErrorKind::usage, "the table redraws a terminal; write files as --format csv or jsonl");
+    return MonitorFormat::table;
+}
+
+Result<MonitorSettings> settings_of(const MonitorOptions& options) {
+    auto format = choose_format(options);
+    if (!format) return format.error();
+    auto interval = parse_duration(options.interval);
+    if (!interval) return interval.error();
+    const auto millis = std::chrono::duration_cast<std::chrono::milliseconds>(*interval);
+    if (millis.count() < 10) return make_error(ErrorKind::usage, "--interval must be at least 10ms");
+    MonitorSettings settings;
+    settings.interval = millis;
+    settings.format = *format;
+    if (options.count > 0) settings.count = options.count;
+    return settings;
+}
+
+Result<std::vector<device::DeviceAddress>> parse_devices(const std::vector<std::string>& texts) {
+    std::vector<device::DeviceAddress> devices;
+    for (const auto& text : texts) {
+        auto device = device::parse_device_address(text);
+        if (!device) return device.error();
+        for (const auto& seen : devices) {
+            if (seen.unit == device->unit) return make_error(ErrorKind::usage, fmt::format("two --device options name unit {}", seen.unit));
+        }
+        devices.push_back(std::move(*device));
+    }
+    return devices;
+}
+
+struct FileCloser {
+    void operator()(std::FILE* file) const { std::fclose(file); }
+};
+
+int run_monitor_command(const MonitorOptions& options) {
+    auto settings = settings_of(options);
+    if (!settings) return report_error(settings.error());
+    auto devices = parse_devices(options.devices);
+    if (!devices) return report_error(devices.error());
+    auto lists = watch_lists(*devices, options.names);
+    if (!lists) return report_error(lists.error());
+    std::unique_ptr<std::FILE, FileCloser> file;
+    if (!options.output.empty()) {
+        file.reset(std::fopen(options.output.c_str(), "w"));
+        if (!file) return report_error(make_error(ErrorKind::usage, fmt::format("cannot write {}: {}", options.output, std::strerror(errno))));
+    }
+    StopSignal stop;  // before the master's threads start, so they inherit the blocked signals
+    auto master = options.master.open();
+    if (!master) return report_error(master.error());
+    std::vector<MonitorTarget> targets;
+    for (std::size_t i = 0; i < devices->size(); ++i) targets.push_back(MonitorTarget{master->get(), (*devices)[i], (*lists)[i]});
+    run_monitor(targets, *settings, file ? file.get() : stdout, stop.token());
+    return exit_ok;
+}
+
+}  // namespace
+
+void add_monitor_command(CLI::App& app, int& exit_code) {
+    auto options = std::make_shared<MonitorOptions>();
+    options->master.timeout = "500ms";  // below the default interval, so a dead unit does not stretch a sample
+    auto* command = app.add_subcommand("monitor", "Poll devices on one link and show their values live, or stream them as CSV / JSON lines");
+    command->add_option("--link", options->master.link, "Link URL (see `loopwire read --help`); all devices share it")->required();
+    command->add_option("--device", options->devices, "DEVICE@UNIT to poll (repeat for several units on the link)")
+        ->required()
+        ->allow_extra_args(false);  // one value per --device, so NAMES after it stay NAMES
+    command->add_option("names", options->names,
+                        "What to watch: NAME (a name, mnemonic, group or all) for every device that has it, or "
+                        "DEVICE@UNIT:NAME for one device. A device no NAME applies to shows its default set: "
+                        "process value, set point, output, alarm/status");
+    command->add_option("--interval", options->interval, "Time between samples: 500ms, 2s, ...")->capture_default_str();
+    command->add_option("--format", options->format,
+                        "table (live, redrawn in place), csv or jsonl (one line per sample, ISO 8601 UTC time). "
+                        "Default: table when stdout is a terminal, jsonl otherwise");
+    command->add_option("--count", options->count, "Stop after N samples (default: until Ctrl-C)");
+    command->add_option("--output", options->output, "Write samples to FILE (csv or jsonl) instead of stdout");
+    command->add_option("--timeout", options->master.timeout, "Time to wait for each reply")->capture_default_str();
+    command->add_option("--retries", options->master.retries, "Extra tries after a timeout")->capture_default_str();
+    command->add_flag("-v,--verbose", options->master.verbose, "Print every frame sent and received, with timestamps, on stderr");
+    command->footer(std::string("A unit that stops answering shows status no-reply (then waiting) and is retried after one "
+                                "interval, doubling up to 30s; values not read in a sample are shown with their age, "
+                                "never as current.\n") + exit_code_help);
+    command->callback([options, &exit_code] { exit_code = run_monitor_command(*options); });
+}
+
+}  // namespace loopwire::app

@@ -1,0 +1,122 @@
+#include "app/monitor_output.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "app/time_text.hpp"
+#include "app/value_format.hpp"
+
+namespace loopwire::app {
+namespace {
+
+nlohmann::ordered_json value_entry(const WatchedDevice& device, const WatchedValue& value, MonitorClock::time_point now) {
+    const auto& p = *value.parameter;
+    nlohmann::ordered_json entry{{"value", nullptr}, {"text", nullptr}, {"unit", p.unit}, {"status", value_status(device, value)}};
+    if (value.fresh) {
+        entry["value"] = value_json(p, *value.last)["value"];
+        entry["text"] = value_text(p, *value.last);
+    }
+    const auto age = age_seconds(value, now);
+    entry["age"] = age ? nlohmann::ordered_json(std::round(*age * 1000.0) / 1000.0) : nlohmann::ordered_json(nullptr);
+    entry["changed"] = value.changed;
+    if (!value.fresh) entry["error"] = value.error;
+    return entry;
+}
+
+// RFC 4180: quote a field holding a comma, a quote or a line break; double inner quotes.
+std::string csv_field(const std::string& text) {
+    if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+    std::string quoted = "\"";
+    for (char c : text) {
+        if (c == '"') quoted += '"';
+        quoted += c;
+    }
+    return quoted + "\"";
+}
+
+std::string age_text(const WatchedValue& value, MonitorClock::time_point now) {
+    const auto age = age_seconds(value, now);
+    if (!age) return "never";
+    return fmt::format("{:.1f}s", *age);
+}
+
+std::optional<double> retry_in(const WatchedDevice& device, MonitorClock::time_point now) {
+    if (!device.next_try) return std::nullopt;
+    const double seconds = std::chrono::duration<double>(*device.next_try - now).count();
+    return std::round(std::max(seconds, 0.0) * 1000.0) / 1000.0;
+}
+
+// "tc10@3  ok  errors 0", or for a unit in trouble also when it is tried next and why.
+std::string device_line(const WatchedDevice& device, MonitorClock::time_point now) {
+    std::string line = fmt::format("{}  {}  errors {}", device.label, device.status, device.errors);
+    if (const auto retry = retry_in(device, now)) line += fmt::format("  retry in {:.1f}s", *retry);
+    if (device.status != "ok") line += "  " + device.last_error.substr(0, 60);
+    return line;
+}
+
+}  // namespace
+
+nlohmann::ordered_json sample_json(const SampleView& sample) {
+    nlohmann::ordered_json devices = nlohmann::ordered_json::object();
+    for (const auto& device : *sample.devices) {
+        nlohmann::ordered_json values = nlohmann::ordered_json::object();
+        for (const auto& value : device.values) values[value.parameter->name] = value_entry(device, value, sample.now);
+        devices[device.label] = {{"status", device.status}, {"errors", device.errors}};
+        if (device.status != "ok") devices[device.label]["error"] = device.last_error;
+        if (const auto retry = retry_in(device, sample.now)) devices[device.label]["retry_in"] = *retry;
+        devices[device.label]["values"] = values;
+    }
+    return {{"time", iso8601_utc(sample.time)}, {"sample", sample.index}, {"devices", devices}};
+}
+
+std::string csv_header(const std::vector<WatchedDevice>& devices) {
+    std::vector<std::string> columns{"time", "sample"};
+    for (const auto& device : devices) {
+        columns.push_back(csv_field(device.label + " status"));
+        columns.push_back(csv_field(device.label + " errors"));
+        for (const auto& value : device.values) columns.push_back(csv_field(device.label + ":" + value.parameter->name));
+    }
+    return fmt::format("{}\n", fmt::join(columns, ","));
+}
+
+std::string csv_row(const SampleView& sample) {
+    std::vector<std::string> fields{iso8601_utc(sample.time), std::to_string(sample.index)};
+    for (const auto& device : *sample.devices) {
+        fields.push_back(device.status);
+        fields.push_back(std::to_string(device.errors));
+        for (const auto& value : device.values) {
+            fields.push_back(value.fresh ? csv_field(value_text(*value.parameter, *value.last)) : "");
+        }
+    }
+    return fmt::format("{}\n", fmt::join(fields, ","));
+}
+
+std::vector<std::string> table_lines(const SampleView& sample) {
+    std::vector<std::string> lines;
+    lines.push_back(fmt::format("loopwire monitor  {}  sample {}  (Ctrl-C to stop)", iso8601_utc(sample.time), sample.index));
+    lines.push_back(fmt::format("  {:<34} {:>14} {:<6} {:<14} {:>8}", "PARAMETER", "VALUE", "UNIT", "STATUS", "AGE"));
+    for (const auto& device : *sample.devices) {
+        lines.push_back(device_line(device, sample.now));
+        for (const auto& value : device.values) {
+            const auto& p = *value.parameter;
+            const std::string text = value.last ? value_text(p, *value.last) : "-";
+            // Bold for a value that just changed; dim for one not read this sample (its status
+            // and age say why), so an old value never passes for a current one.
+            const char* style = value.changed ? "\x1b[1m" : value.fresh ? "" : "\x1b[2m";
+            lines.push_back(fmt::format("  {:<34} {}{:>14}\x1b[0m {:<6} {:<14} {:>8}", p.name, style, text, p.unit,
+                                        value_status(device, value), age_text(value, sample.now)));
+        }
+    }
+    return lines;
+}
+
+std::string table_frame(const std::vector<std::string>& lines, std::size_t previous_line_count) {
+    std::string frame = previous_line_count == 0 ? "\x1b[?25l" : fmt::format("\x1b[{}F", previous_line_count);
+    for (const auto& line : lines) frame += "\r" + line + "\x1b[K\n";
+    frame += "\x1b[J";  // a shorter frame than the last leaves nothing of it below
+    return frame;
+}
+
+}  // namespace loopwire::app

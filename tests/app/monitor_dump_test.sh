@@ -1,0 +1,184 @@
+#!/usr/bin/env bash
+# `loopwire monitor` and `loopwire dump` against simulated devices on one RTU pseudo-terminal:
+# rows and names, values that change between samples, one request per planned block, a unit
+# that does not answer, the live table on a terminal and Ctrl-C, and dumps checked against
+# `loopwire describe --json`.
+set -u
+loopwire=${1:?usage: monitor_dump_test.sh path/to/loopwire}
+python=/usr/bin/python3
+work=$(mktemp -d)
+pids=()
+cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; wait 2>/dev/null; rm -rf "$work"; }
+trap cleanup EXIT
+failures=0
+passes=0
+
+pass() { passes=$((passes + 1)); }
+fail() { echo "FAIL $1"; shift; for f in "$@"; do [ -e "$f" ] && sed 's/^/    /' "$f" | head -40; done; failures=$((failures + 1)); }
+wait_for_path() { for _ in $(seq 100); do [ -e "$1" ] && return 0; sleep 0.05; done; return 1; }
+
+pty="$work/ttyM0"
+"$loopwire" simulate --pty "$pty" --device tc10@3 --device rampsoak@5 --duration 100s 2>"$work/sim.log" &
+pids+=($!)
+wait_for_path "$pty" || { echo "FAIL simulator pty never appeared"; cat "$work/sim.log"; exit 1; }
+link="rtu:$pty"
+# The same devices over loopback TCP, where several masters may connect at once (a serial port
+# is opened exclusively): a write can then land between two monitor samples.
+port=$($python -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+"$loopwire" simulate --link "tcp://127.0.0.1:$port" --device tc10@3 --device rampsoak@5 --duration 100s 2>"$work/tcp.log" &
+pids+=($!)
+for _ in $(seq 100); do grep -q listening "$work/tcp.log" && break; sleep 0.05; done
+tcp="tcp://127.0.0.1:$port"
+
+# Python checks on JSON lines: exit 0 when the assertion holds, else print why.
+jcheck() {  # name, file, python body using `rows` (list of parsed lines)
+  local name=$1 file=$2 body=$3
+  if $python - "$file" <<PY >"$work/why" 2>&1
+import json, sys
+rows = [json.loads(line) for line in open(sys.argv[1]) if line.strip()]
+$body
+PY
+  then pass; else fail "$name" "$work/why" "$file"; fi
+}
+
+# N rows, every default name of both devices present and read.
+timeout 20 "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@5 --interval 200ms --count 3 \
+  >"$work/rows.jsonl" 2>"$work/mon.err" || fail "monitor-jsonl exit status" "$work/mon.err"
+jcheck monitor-jsonl-rows "$work/rows.jsonl" '
+assert len(rows) == 3, len(rows)
+names = {"tc10@3": ["measured_value", "operating_set_point", "output_power", "alarm_status"],
+         "rampsoak@5": ["process_value", "set_value", "output_percentage", "controller_status"]}
+for i, row in enumerate(rows, 1):
+    assert row["sample"] == i and row["time"].endswith("Z") and "T" in row["time"], row
+    for device, wanted in names.items():
+        d = row["devices"][device]
+        assert d["status"] == "ok" and d["errors"] == 0, d
+        assert list(d["values"]) == wanted, list(d["values"])
+        for name in wanted:
+            assert d["values"][name]["text"] is not None and d["values"][name]["age"] < 0.2, (name, d["values"][name])
+'
+
+# Named selection: a plain name for every device that has it, DEVICE@UNIT:NAME for one.
+timeout 20 "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@5 --count 1 --format csv \
+  output_power rampsoak@5:SV >"$work/rows.csv" 2>"$work/mon.err" || fail "monitor-csv exit status" "$work/mon.err"
+if [ "$(head -1 "$work/rows.csv")" = "time,sample,tc10@3 status,tc10@3 errors,tc10@3:output_power,rampsoak@5 status,rampsoak@5 errors,rampsoak@5:set_value" ] \
+   && [ "$(wc -l <"$work/rows.csv")" -eq 2 ]; then pass; else fail monitor-csv-columns "$work/rows.csv"; fi
+
+# A value written between samples shows up changed in the following ones.
+timeout 20 "$loopwire" monitor --link "$tcp" --device rampsoak@5 set_value --interval 300ms --count 8 \
+  --output "$work/change.jsonl" 2>"$work/change.err" &
+monitor_pid=$!
+for _ in $(seq 100); do [ -e "$work/change.jsonl" ] && [ "$(wc -l <"$work/change.jsonl")" -ge 2 ] && break; sleep 0.05; done
+timeout 10 "$loopwire" write --link "$tcp" --device rampsoak@5 SV=425 >"$work/write.out" 2>&1 || fail "write SV" "$work/write.out"
+wait "$monitor_pid" || fail "monitor-change exit status" "$work/change.err"
+jcheck monitor-sees-written-value "$work/change.jsonl" '
+texts = [r["devices"]["rampsoak@5"]["values"]["set_value"]["text"] for r in rows]
+assert len(rows) == 8, len(rows)
+assert texts[0] != "425" and texts[-1] == "425", texts
+first = texts.index("425")
+assert rows[first]["devices"]["rampsoak@5"]["values"]["set_value"]["changed"] is True, rows[first]
+'
+
+# One request per planned block: a monitor sample sends exactly what `read --device` of the same
+# names sends, nothing more.
+count_tx() { grep -c ' TX ' "$1"; }
+timeout 20 "$loopwire" read -v --link "$link" --device tc10@3 measured_value operating_set_point output_power alarm_status >/dev/null 2>"$work/r1.err"
+timeout 20 "$loopwire" read -v --link "$link" --device rampsoak@5 process_value set_value output_percentage controller_status >/dev/null 2>"$work/r2.err"
+timeout 20 "$loopwire" monitor -v --link "$link" --device tc10@3 --device rampsoak@5 --interval 100ms --count 3 \
+  >/dev/null 2>"$work/mv.err"
+per_sample=$(( $(count_tx "$work/r1.err") + $(count_tx "$work/r2.err") ))
+if [ "$per_sample" -ge 2 ] && [ "$(count_tx "$work/mv.err")" -eq $((3 * per_sample)) ]; then pass
+else echo "    requests per sample $per_sample, monitor sent $(count_tx "$work/mv.err") in 3 samples"; fail monitor-one-request-per-block "$work/mv.err"; fi
+
+# Unit 7 is not served: it shows as not answering, is retried with back-off (not every sample),
+# and the served units keep the 300 ms cadence.
+timeout 30 "$loopwire" monitor -v --link "$link" --device tc10@3 --device tc10@7 --device rampsoak@5 --interval 300ms \
+  --timeout 100ms --count 12 >"$work/dead.jsonl" 2>"$work/dead.err" || fail "monitor-dead exit status" "$work/dead.err"
+dead_tries=$(grep -c ' TX 07 ' "$work/dead.err")
+jcheck monitor-dead-unit "$work/dead.jsonl" "
+from datetime import datetime
+assert len(rows) == 12, len(rows)
+dead = [r['devices']['tc10@7'] for r in rows]
+assert all(d['status'] in ('no-reply', 'waiting') and d['retry_in'] > 0 and 'no reply' in d['error'] for d in dead), dead
+assert all(v['value'] is None and v['text'] is None for d in dead for v in d['values'].values()), dead[-1]
+tries = sum(d['status'] == 'no-reply' for d in dead)
+assert tries == dead[-1]['errors'] == $dead_tries and 2 <= tries <= 5, (tries, dead[-1]['errors'], $dead_tries)
+for r in rows:
+    for name in ('tc10@3', 'rampsoak@5'):
+        assert r['devices'][name]['status'] == 'ok', r['devices'][name]
+times = [datetime.strptime(r['time'], '%Y-%m-%dT%H:%M:%S.%fZ') for r in rows]
+gaps = [(b - a).total_seconds() for a, b in zip(times, times[1:])]
+assert all(0.2 <= g <= 0.45 for g in gaps), gaps
+"
+
+# The live table on a terminal: header and values drawn, Ctrl-C ends it with the cursor shown.
+if $python - "$loopwire" "$link" >"$work/why" 2>&1 <<'PY'
+import os, pty, re, select, signal, sys, time
+pid, fd = pty.fork()
+if pid == 0:
+    os.execv(sys.argv[1], [sys.argv[1], "monitor", "--link", sys.argv[2], "--device", "tc10@3", "--interval", "200ms"])
+out = b""
+deadline = time.time() + 15
+def read_some(until):
+    global out
+    while time.time() < until:
+        ready, _, _ = select.select([fd], [], [], 0.1)
+        if ready:
+            try: chunk = os.read(fd, 4096)
+            except OSError: return False
+            if not chunk: return False
+            out += chunk
+        if until is deadline and out.count(b"sample ") >= 3: return True
+    return True
+read_some(deadline)
+assert b"PARAMETER" in out and b"measured_value" in out and b"\x1b[?25l" in out, out[-400:]
+# Later frames move back up over the 7 lines of the previous one (title, header, device, 4 values).
+assert b"\x1b[7F" in out, out[-400:]
+os.kill(pid, signal.SIGINT)
+read_some(time.time() + 5)
+_, status = os.waitpid(pid, 0)
+code = os.waitstatus_to_exitcode(status)
+assert code in (0, 130), code
+assert out.rstrip(b"\r\n").endswith(b"\x1b[?25h"), out[-80:]
+PY
+then pass; else fail monitor-table-and-ctrl-c "$work/why"; fi
+
+# Usage errors name the problem.
+timeout 10 "$loopwire" monitor --link "$link" --device tc10@3 tc10@9:SP >"$work/u.out" 2>&1
+if [ $? -eq 2 ] && grep -q "not one of the --device options" "$work/u.out"; then pass; else fail monitor-unknown-device "$work/u.out"; fi
+timeout 10 "$loopwire" monitor --link "$link" --device tc10@3 --format table --output "$work/t.txt" >"$work/u.out" 2>&1
+if [ $? -eq 2 ] && [ ! -e "$work/t.txt" ]; then pass; else fail monitor-table-to-file "$work/u.out"; fi
+
+# Dumps: valid JSON holding every readable parameter `describe --json` lists.
+for device in tc10@3 rampsoak@5; do
+  id=${device%@*}
+  timeout 30 "$loopwire" describe "$id" --json >"$work/$id.describe.json"
+  timeout 60 "$loopwire" dump --link "$link" --device "$device" --output "$work/$id.dump.json" 2>"$work/$id.dump.err" \
+    || fail "dump $device exit status" "$work/$id.dump.err"
+  if $python - "$work/$id.dump.json" "$work/$id.describe.json" "$id" "${device#*@}" >"$work/why" 2>&1 <<'PY'
+import json, sys
+dump = json.load(open(sys.argv[1]))
+described = json.load(open(sys.argv[2]))
+assert dump["format"] == "loopwire-dump" and dump["version"] == 1, dump.get("format")
+assert dump["profile"] == sys.argv[3] and dump["unit"] == int(sys.argv[4])
+assert dump["time"].endswith("Z") and dump["identification"], dump["identification"]
+readable = [p["name"] for p in described["parameters"] if "r" in p["access"]]
+assert list(dump["parameters"]) == readable, set(readable) ^ set(dump["parameters"])
+for name, entry in dump["parameters"].items():
+    assert set(entry) == {"value", "text", "unit", "raw", "status", "writable"}, (name, entry)
+    assert len(entry["raw"]) == 1 and 0 <= entry["raw"][0] <= 0xFFFF and isinstance(entry["text"], str), (name, entry)
+    assert (entry["value"] is None) == (entry["status"] not in ("ok", "unknown-label")), (name, entry)
+PY
+  then pass; else fail "dump-$id-matches-describe" "$work/why"; fi
+done
+if timeout 60 "$loopwire" dump --link "$tcp" --device rampsoak@5 | $python -c 'import json,sys; d=json.load(sys.stdin); assert d["parameters"]["set_value"]["text"] == "425"' 2>"$work/why"
+then pass; else fail dump-to-stdout "$work/why"; fi
+
+# A device that does not answer: non-zero exit, a message, and no file, temporary or final.
+timeout 20 "$loopwire" dump --link "$link" --device tc10@7 --timeout 100ms --output "$work/unanswered.json" >"$work/dd.out" 2>&1
+status=$?
+if [ "$status" -eq 4 ] && grep -q "no reply" "$work/dd.out" && [ -z "$(ls "$work" | grep '^unanswered')" ]; then pass
+else echo "    status $status"; fail dump-unanswered-leaves-no-file "$work/dd.out"; fi
+
+echo "$passes passed, $failures failed"
+[ "$failures" -eq 0 ]
