@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "app/atomic_file.hpp"
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/dump_document.hpp"

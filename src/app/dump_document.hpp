@@ -38,9 +38,5 @@ std::vector<const device::Parameter*> dumped_parameters(const device::Profile& p
 Result<nlohmann::ordered_json> dump_document(const device::DeviceAddress& device, const DumpHeader& header,
                                              const device::ReadReport& report);
 
-// Writes `text` to `path` so a reader sees the old file or the whole new one, never a part: a
-// temporary file in the same directory, flushed to disk (fsync), then renamed over `path`. On
-// failure nothing is left behind.
-Result<void> write_file_atomically(const std::string& path, const std::string& text);
 
 }  // namespace loopwire::app

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "app/atomic_file.hpp"
 #include "app/dump_document.hpp"
 
 namespace loopwire::app {

@@ -171,7 +171,7 @@ for name, entry in dump["parameters"].items():
 PY
   then pass; else fail "dump-$id-matches-describe" "$work/why"; fi
 done
-if timeout 60 "$loopwire" dump --link "$tcp" --device rampsoak@5 | $python -c 'import json,sys; d=json.load(sys.stdin); assert d["parameters"]["set_value"]["text"] == "425"' 2>"$work/why"
+if timeout 60 "$loopwire" dump --link "$tcp" --device rampsoak@5 | $python -c 'import json,sys; d=json.load(sys.stdin); assert float(d["parameters"]["set_value"]["text"]) == 425' 2>"$work/why"
 then pass; else fail dump-to-stdout "$work/why"; fi
 
 # A device that does not answer: non-zero exit, a message, and no file, temporary or final.

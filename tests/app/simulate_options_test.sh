@@ -30,7 +30,7 @@ check state-foreign-file-untouched 0 "something-else" cat "$work/other.json"
 echo '{ not json' >"$work/broken.json"
 check state-broken-json 2 "is not valid JSON" \
   "$loopwire" simulate --pty "$work/ttyD" --device tc10@3 --state "$work/broken.json" --duration 1s
-check state-unwritable-dir 2 "cannot create a temporary file" \
+check state-unwritable-dir 2 "creating a temporary file failed" \
   "$loopwire" simulate --pty "$work/ttyE" --device tc10@3 --state "$work/no/such/dir/state.json" --duration 1s
 
 # --fault and --speed are checked before anything is served.

@@ -14,6 +14,7 @@ import time
 
 from pymodbus.client import ModbusSerialClient
 from pymodbus.framer.rtu_framer import ModbusRtuFramer
+from pymodbus.other_message import ReportSlaveIdRequest
 from pymodbus.pdu import ExceptionResponse
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -48,7 +49,7 @@ def check_ac20(client):
     support.check_equal(len(registers(client, 120, 20, "20 words")), 20, "20 words in one FC3")
     support.check_equal(exception_code(client.read_holding_registers(120, 21, slave=UNIT), "21 words"), 9, "error 9")
     # Error reply: no reply for a function code the AC20 does not implement (FC 17 here).
-    check_silence(client, "FC17 (not implemented)", lambda: client.report_slave_id(slave=UNIT))
+    check_silence(client, "FC17 (not implemented)", lambda: client.execute(ReportSlaveIdRequest(unit=UNIT)))
     # Note 5: in local only bit 218 may be written (error 10 for the rest); remote lets SP in.
     support.check_equal(exception_code(client.write_register(138, 5, slave=UNIT), "SP in local"), 10, "error 10 in local")
     support.expect_reply(client.write_coil(218, True, slave=UNIT), "bit 218 = remote")

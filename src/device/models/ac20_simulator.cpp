@@ -18,11 +18,13 @@ process::ThermalPlantSettings atmosphere_settings() { return {0.30, 1.00, 120.0,
 constexpr double start_carbon = 0.80;
 
 // Error reply: "If ... a buffer over flows has been received, the slave does not send any
-// reply". The longest request the AC20 accepts is FC16 with its 20-word limit: function,
-// address, count, byte count and 40 data bytes = a 46-byte PDU (49 bytes on the line with
-// slave address and CRC). The receive buffer is taken to be exactly that long, so a longer
-// request PDU overflows it (an FC16 of 21 words is silence, not exception 9).
-constexpr std::size_t receive_buffer_pdu = 1 + 2 + 2 + 1 + 2 * 20;
+// reply". The manual gives no buffer size, and also says a count over the limits gets error 9
+// ("Illegal number of data required"): a buffer just long enough for the 20-word limit would
+// turn every over-limit write into silence and leave error 9 to reads only. The receive buffer
+// is taken as 64 bytes on the line (a common UART buffer): address, PDU and CRC, so a PDU of
+// up to 61 bytes is received (FC16 up to 27 words: over the limit, error 9) and a longer one
+// overflows it and gets no reply.
+constexpr std::size_t receive_buffer_pdu = 64 - 1 - 2;
 
 }  // namespace
 

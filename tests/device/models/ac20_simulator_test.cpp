@@ -536,17 +536,18 @@ TEST(Ac20Simulator, IdentificationWords_Words120And121) {
     EXPECT_GE(code / 100, 1);
 }
 
-// Error reply: no reply to "a buffer over flows". The receive buffer holds the longest request
-// the device accepts, FC16 with 20 words (46-byte PDU): 21 words overflow it and get no reply
-// (the profile-only simulator answers exception 9 instead); a read of 21 words is short and
-// still gets 9.
+// Error reply: no reply to "a buffer over flows", error 9 for a count over the limits. The
+// manual gives no buffer size; the model takes 64 bytes on the line (61-byte PDU): an FC16 of
+// 21..27 words is received and refused with 9, one of 28 words overflows the buffer.
 TEST(Ac20Simulator, RequestLongerThanTheReceiveBufferGetsNoReply_ErrorReply) {
     Simulated dev("ac20");  // local: a 20-word write is received, then refused with 10 (Note 5)
-    EXPECT_EQ(dev.send(codec::write_multiple_registers(138, Words(21, 90))), "silence");
     EXPECT_EQ(dev.send(codec::write_multiple_registers(138, Words(20, 90))), "90 0A");
+    EXPECT_EQ(dev.send(codec::write_multiple_registers(138, Words(21, 90))), "90 09");
+    EXPECT_EQ(dev.send(codec::write_multiple_registers(138, Words(27, 90))), "90 09");
+    EXPECT_EQ(dev.send(codec::write_multiple_registers(138, Words(28, 90))), "silence");
     EXPECT_EQ(dev.send(codec::read_request(FunctionCode::read_holding_registers, 120, 21)), "83 09");
     Bytes padded = *codec::encode_request(codec::read_request(FunctionCode::read_holding_registers, 120, 1));
-    padded.resize(47, 0);
+    padded.resize(62, 0);
     EXPECT_EQ(dev.send_pdu(padded), "silence");
 }
 
