@@ -15,11 +15,15 @@ start_tc10() {  # pty-name: serves tc10@3 with the state file until killed
 # A value written over the wire survives a restart of the simulator through the state file.
 start_tc10 ttyA
 check state-write 0 "wrote set_point = 150" "$loopwire" write --link "rtu:$work/ttyA?parity=none" --device tc10@3 set_point=150
+# §5.1 16A: the remote set point lives in RAM only; it must not come back after a restart.
+check state-write-ram-only 0 "wrote remote_set_point = 120" "$loopwire" write --link "rtu:$work/ttyA?parity=none" --device tc10@3 remote_set_point=120
 sleep 0.6  # the state file follows within a quarter second
 kill "${pids[-1]}"; wait "${pids[-1]}" 2>/dev/null
 check state-file-holds-value 0 '"set_point": 150' cat "$state"
 start_tc10 ttyB
 check state-restored-after-restart 0 "(raw 150)" "$loopwire" read --link "rtu:$work/ttyB?parity=none" --device tc10@3 set_point
+check state-ram-only-lost-at-restart 0 "(raw 0)" "$loopwire" read --link "rtu:$work/ttyB?parity=none" --device tc10@3 remote_set_point
+check state-file-has-no-ram-only-value 1 "" grep -q '"remote_set_point"' "$state"
 kill "${pids[-1]}"; wait "${pids[-1]}" 2>/dev/null
 
 # Files that are not a state file are refused and left untouched.
