@@ -53,6 +53,7 @@ public:
                     const std::size_t n = std::min(buffer.size(), pending_.size());
                     std::copy_n(pending_.begin(), n, buffer.begin());
                     pending_.erase(pending_.begin(), pending_.begin() + static_cast<long>(n));
+                    delivered_ = Clock::now();
                     return n;
                 }
             }
@@ -73,6 +74,12 @@ public:
         std::lock_guard lock(mutex_);
         return writes_;
     }
+    // When the last answer bytes were handed to the reader: the earliest moment the reader
+    // can have seen the end of a reply.
+    Clock::time_point last_delivery() const {
+        std::lock_guard lock(mutex_);
+        return delivered_;
+    }
     bool script_done() const {
         std::lock_guard lock(mutex_);
         return script_.empty();
@@ -83,6 +90,7 @@ private:
     std::deque<ScriptStep> script_;
     Bytes pending_;
     Clock::time_point due_{};
+    Clock::time_point delivered_{};
     std::vector<Write> writes_;
 };
 

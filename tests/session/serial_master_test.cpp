@@ -149,12 +149,15 @@ TEST(SerialMaster, KeepsThreeAndAHalfCharactersOfSilenceBeforeEachRequest) {
     auto [stream, master] = master_on({{request, answer}, {request, answer}}, {}, rtu_link(1200));
     const auto read = codec::read_request(codec::FunctionCode::read_holding_registers, 178, 3);
     ASSERT_TRUE(master->execute(29, read).ok());
-    const auto reply_seen = std::chrono::steady_clock::now();
+    // The reply's end reached the master no earlier than this; a busy machine can only delay the
+    // master's own timestamp, never bring the next request closer (a timestamp taken after
+    // execute() returned could, and made this test flaky under load).
+    const auto reply_delivered = stream->last_delivery();
     ASSERT_TRUE(master->execute(29, read).ok());
     const auto writes = stream->writes();
     ASSERT_EQ(writes.size(), 2u);
     const auto t3_5 = codec::CharacterTiming{1200, 11}.t3_5();
-    EXPECT_GE(writes[1].at - reply_seen, t3_5 - 1ms);  // reply_seen is taken just after the reply
+    EXPECT_GE(writes[1].at - reply_delivered, t3_5);
 }
 
 TEST(SerialMaster, ConcurrentCallersAreSerialisedOnTheLine) {
