@@ -70,11 +70,33 @@ TEST(ManualExchanges, Ac20_FunctionCode3And4_WordsReading_Example) {
 }
 
 // "Function code 16: Multiple words writing / Example": wire 139..141 are SP, SP2, SP3 (table
-// 138..140); 300 and 700 lie inside the set point limits. The printed 8000h for SP2 is "don't
-// care": the word keeps its value.
-TEST(ManualExchanges, Ac20_FunctionCode16_MultipleWordsWriting_Example) {
+// 138..140). The set points are bounded by rL/rH (words 1011/1012), which the primary variable's
+// span (word 2001, carbon potential 0.00-2.00 %C, raw 0-200) limits; the printed 300 (3.00 %C)
+// lies above it. A stated rule beats an example (AUDIT.md §1, "AC20"): the reply is exception 3
+// (Error reply, code 3 "Illegal data value"), and under the in-order block writes of the AC20
+// nothing is stored, since the first word already fails.
+TEST(ManualExchanges, Ac20_FunctionCode16_MultipleWordsWriting_Example_RuleWinsSetPointAboveLimit) {
     for (const char* edition : editions) {
         Simulated device = ac20_in_jbus_remote();
+        ASSERT_LT(device.word(1012 + jbus), 300) << "rH below the printed SP";
+        const Words before = device.read(138 + jbus, 3);
+        EXPECT_EQ(replay(device, ac20(edition, "fc16-req")), to_hex(codec::rtu_encode(0x0A, Bytes{0x90, 0x03})))
+            << edition;
+        EXPECT_EQ(device.read(138 + jbus, 3), before) << edition;
+    }
+}
+
+// The same example in a configuration where its values are set points: primary variable probe
+// mV (word 2001 = 2, configuration mode, Note 7; span 0-1500 mV) and rH (word 1012) = 1500.
+// Then 300 and 700 are stored, the printed 8000h leaves SP2 as it was ("don't care"), and the
+// reply is the manual's byte for byte.
+TEST(ManualExchanges, Ac20_FunctionCode16_MultipleWordsWriting_Example_WithMillivoltSetPoints) {
+    for (const char* edition : editions) {
+        Simulated device = ac20_in_jbus_remote();
+        ASSERT_EQ(device.write(347 + jbus, 0), echo_of(codec::write_single_register(347 + jbus, 0)));
+        ASSERT_EQ(device.write(2001 + jbus, 2), echo_of(codec::write_single_register(2001 + jbus, 2)));
+        ASSERT_EQ(device.write(3051 + jbus, 1), echo_of(codec::write_single_register(3051 + jbus, 1)));
+        ASSERT_EQ(device.write(1012 + jbus, 1500), echo_of(codec::write_single_register(1012 + jbus, 1500)));
         const std::uint16_t sp2_before = device.word(139 + jbus);
         EXPECT_EQ(replay(device, ac20(edition, "fc16-req")), printed(ac20(edition, "fc16-rep"))) << edition;
         EXPECT_EQ(device.read(138 + jbus, 3), (Words{300, sp2_before, 700})) << edition;
@@ -82,12 +104,19 @@ TEST(ManualExchanges, Ac20_FunctionCode16_MultipleWordsWriting_Example) {
 }
 
 // "Function code 15: Multiple bits writing / Example": wire 224..232 are table 223..231, the
-// load-defaults bits (control mode, Smart off). The printed 0 lands on table 225+1 = 226, the
-// one group without defaults (no bit), which the whole write tolerates.
-TEST(ManualExchanges, Ac20_FunctionCode15_MultipleBitsWriting_Example) {
+// load-defaults bits (control mode, Smart off). The printed 0 falls on table bit 226, which
+// neither edition lists (group 2 has no defaults). AUDIT.md §1 "AC20": under J-BUS the example
+// writes the one undefined bit. The Error reply code 2 "Illegal data address" is the rule for an
+// address the tables do not list, and AC20 block writes stop at the first failing address
+// (profile block_writes "in-order"), so the reply is exception 2, not the printed echo.
+TEST(ManualExchanges, Ac20_FunctionCode15_MultipleBitsWriting_Example_RuleWinsUndefinedBitIsException2) {
     for (const char* edition : editions) {
         Simulated device = ac20_in_jbus_remote();
-        EXPECT_EQ(replay(device, ac20(edition, "fc15-req")), printed(ac20(edition, "fc15-rep"))) << edition;
+        EXPECT_EQ(replay(device, ac20(edition, "fc15-req")), to_hex(codec::rtu_encode(0x02, Bytes{0x8F, 0x02})))
+            << edition;
+        // Without the undefined bit (wire 224..226 = table 223..225) the write is echoed.
+        const auto defined = codec::write_multiple_coils(224, {0, 1, 1});
+        EXPECT_EQ(device.send(defined), echo_of(defined)) << edition;
     }
 }
 
