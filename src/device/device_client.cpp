@@ -190,11 +190,11 @@ Result<WriteReport> DeviceClient::write(const std::vector<std::pair<const Parame
         if (current.first_error) return *current.first_error;
         known = std::move(current.raw);
     }
-    for (const auto& [parameter, text] : assignments) {
-        if (auto allowed = check_write_mode(*device_.profile, *parameter, known); !allowed) return allowed.error();
-    }
+    // Checked in order against the values as they will be by then: an earlier assignment can
+    // set the mode a later one needs (AC20 local_remote=remote main_set_point=0.9, Note 5).
     std::vector<PlannedWrite> planned;
     for (const auto& [parameter, text] : assignments) {
+        if (auto allowed = check_write_mode(*device_.profile, *parameter, known); !allowed) return allowed.error();
         auto raw = encode_value(*parameter, text, known);
         if (!raw) return raw.error();
         planned.push_back({parameter, *raw});

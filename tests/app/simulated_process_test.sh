@@ -56,10 +56,9 @@ settles rampsoak-settles-at-set-value ttyR rampsoak@5 process_value 150 1 20
 
 # --- AC20 (unit 1): remote first (bit 218, Note 5), then the carbon potential follows SP.
 start ttyA --device ac20@1 --speed 200
-# The client plans by the device's present mode, so remote is a write of its own; the next
-# request follows well within the 3 s of line silence that would drop back to local.
-check ac20-write-remote 0 "wrote local_remote" "$loopwire" write --link "rtu:$work/ttyA" --device ac20@1 local_remote=remote
-check ac20-write-set-point 0 "wrote main_set_point = 0.9" "$loopwire" write --link "rtu:$work/ttyA" --device ac20@1 main_set_point=0.9
+# One command: the mode check sees that the first assignment puts the device in remote.
+check ac20-write-remote-and-set-point 0 "wrote main_set_point = 0.9" \
+  "$loopwire" write --link "rtu:$work/ttyA" --device ac20@1 local_remote=remote main_set_point=0.9
 settles ac20-settles-at-set-point ttyA ac20@1 carbon_potential 0.9 0.03 20
 
 # --- Faults: an open TC10 input reads over-range (§5.1 1A), an open ramp/soak input

@@ -114,6 +114,22 @@ TEST(SimulatedAc20, WriteInLocalIsRefusedBeforeSendingWithTheRemedy) {
     EXPECT_NE(after.readings[0].value->raw, 250);
 }
 
+// The mode check follows the assignments in order: remote set by the first lets the second in;
+// the other way round, the set point would reach a device still in local, so it is refused.
+TEST(SimulatedAc20, RemoteSetEarlierInTheSameWriteLetsLaterAssignmentsThrough_Note5) {
+    const BusCase ac20{"ac20", "rtu:virtual?baud=9600&parity=even", "auxiliary_set_point_2", "250"};
+    BusRig rig(ac20);
+    const Profile& profile = *rig.client->device().profile;
+    const Parameter* remote = profile.find("local_remote");
+    const Parameter* set_point = profile.find("auxiliary_set_point_2");
+    EXPECT_FALSE(rig.client->write({{set_point, "250"}, {remote, "remote"}}).ok());
+    auto written = rig.client->write({{remote, "remote"}, {set_point, "250"}});
+    ASSERT_TRUE(written.ok()) << written.error().message;
+    const ReadReport after = rig.client->read({set_point});
+    ASSERT_TRUE(after.readings.at(0).value);
+    EXPECT_EQ(after.readings[0].value->raw, 250);
+}
+
 INSTANTIATE_TEST_SUITE_P(
     Profiles, SimulatedDeviceOnBus,
     ::testing::Values(BusCase{"ac20", "rtu:virtual?baud=9600&parity=even", "auxiliary_set_point_2", "250"},
