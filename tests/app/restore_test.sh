@@ -10,7 +10,9 @@
 # values the process itself moves. The latter are found by rule, not listed: a writable word
 # that differs between two dumps of the untouched device, taken one after the other, is moved
 # by the process (outputs, timers), and so are the AC20 outputs 130-132 and TC10 output power,
-# which the controller overwrites every cycle in automatic mode.
+# which the controller overwrites every cycle in automatic mode. Restore itself writes only
+# stored words (profile "storage": "persistent"): the AC20 dry run below lists exactly the five
+# changed parameters, not the outputs 130/132 that moved meanwhile.
 set -u
 loopwire=${1:?usage: restore_test.sh path/to/loopwire}
 source "$(dirname "$0")/cli_test_lib.sh"
