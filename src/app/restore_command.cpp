@@ -8,7 +8,6 @@
 
 #include <cstdio>
 #include <iostream>
-#include <set>
 
 #include <fmt/format.h>
 
@@ -17,6 +16,7 @@
 #include "app/dump_file.hpp"
 #include "app/exit_codes.hpp"
 #include "app/master_options.hpp"
+#include "app/restore_runner.hpp"
 #include "device/device_client.hpp"
 #include "device/restore_plan.hpp"
 
@@ -92,65 +92,6 @@ Result<void> confirm(const RestoreCommandOptions& options, std::size_t changes) 
     return make_error(ErrorKind::usage, "nothing written (not confirmed)");
 }
 
-struct Progress {
-    std::vector<std::string> written;
-    bool in_special_mode = false;
-};
-
-std::string names_not_written(const device::RestorePlan& plan, const Progress& progress) {
-    std::vector<std::string> missing;
-    for (const auto& change : plan.changes) {
-        if (std::find(progress.written.begin(), progress.written.end(), change.parameter->name) == progress.written.end()) {
-            missing.push_back(change.parameter->name);
-        }
-    }
-    return missing.empty() ? "nothing" : fmt::format("{}", fmt::join(missing, ", "));
-}
-
-Result<void> run_stages(device::DeviceClient& client, const device::RestorePlan& plan, Progress& progress) {
-    std::size_t index = 0;
-    for (const auto& stage : plan.stages) {
-        fmt::print("[{}/{}] {}\n", ++index, plan.stages.size(), stage.title);
-        auto done = client.write_raw(stage.writes);
-        if (!done) return done.error();
-        if (stage.restores_values) {
-            for (const auto& [parameter, raw] : done->written) progress.written.push_back(parameter->name);
-        }
-        if (stage.mode_effect == device::ModeEffect::enters_special_mode) progress.in_special_mode = true;
-        if (stage.mode_effect == device::ModeEffect::leaves_special_mode) progress.in_special_mode = false;
-    }
-    return {};
-}
-
-// Every changed value read back; a device that kept another value is a failed restore.
-Result<void> verify(device::DeviceClient& client, const device::RestorePlan& plan) {
-    std::vector<const device::Parameter*> changed;
-    for (const auto& change : plan.changes) changed.push_back(change.parameter);
-    const auto report = client.read(changed);
-    if (report.first_error) return make_error(report.first_error->kind, "reading back failed: " + report.first_error->message);
-    std::vector<std::string> differing;
-    for (const auto& change : plan.changes) {
-        const auto raw = report.raw.find(change.parameter->name);
-        if (raw == report.raw.end() || raw->second != change.to) differing.push_back(change.parameter->name);
-    }
-    if (!differing.empty()) {
-        return make_error(ErrorKind::mismatch, fmt::format("written but read back different: {}", fmt::join(differing, ", ")));
-    }
-    return {};
-}
-
-int fail(device::DeviceClient& client, const device::RestorePlan& plan, const Progress& progress, const Error& error) {
-    fmt::print(stderr, "loopwire: restore stopped: {}\n", error.message);
-    fmt::print(stderr, "loopwire: written: {}\n", progress.written.empty() ? "nothing" : fmt::format("{}", fmt::join(progress.written, ", ")));
-    fmt::print(stderr, "loopwire: not written: {}\n", names_not_written(plan, progress));
-    if (progress.in_special_mode && plan.back_to_control) {
-        auto back = client.write_raw({*plan.back_to_control});
-        fmt::print(stderr, "loopwire: {}\n", back ? "returned the device to control mode (word 3051 = 1)"
-                                                  : "could not return the device to control mode: " + back.error().message);
-    }
-    return exit_code_for(error);
-}
-
 int run_restore(const RestoreCommandOptions& options) {
     auto dump = read_dump_file(options.file);
     if (!dump) return report_error(dump.error());
@@ -179,9 +120,11 @@ int run_restore(const RestoreCommandOptions& options) {
         return exit_ok;
     }
     if (auto confirmed = confirm(options, plan->changes.size()); !confirmed) return report_error(confirmed.error());
-    Progress progress;
-    if (auto ran = run_stages(client, *plan, progress); !ran) return fail(client, *plan, progress, client.explain(ran.error()));
-    if (auto verified = verify(client, *plan); !verified) return fail(client, *plan, progress, verified.error());
+    const RestoreOutcome outcome = execute_restore(client, *plan, stdout);
+    if (outcome.error) {
+        print_restore_failure(outcome, stderr);
+        return exit_code_for(*outcome.error);
+    }
     fmt::print("restored {} parameter(s); every value read back as written\n", plan->changes.size());
     return exit_ok;
 }

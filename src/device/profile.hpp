@@ -58,6 +58,7 @@ struct Parameter {
     std::map<unsigned, std::string> bit_names;
     std::vector<SpecialValue> special;    // the parameter's own, then the profile's word_specials
     bool ram_only = false;
+    bool persistent = false;  // "storage": "persistent": kept across power-off (configuration)
     bool hidden = false;
     std::string source;
     std::string note;

@@ -81,6 +81,7 @@ Parameter parameter_from(const Json& entry, const std::vector<SpecialValue>& wor
         parameter.special.insert(parameter.special.end(), word_specials.begin(), word_specials.end());
     }
     parameter.ram_only = entry.value("storage", std::string()) == "ram";
+    parameter.persistent = entry.value("storage", std::string()) == "persistent";
     parameter.hidden = entry.value("hidden", false);
     parameter.source = entry.at("source").get<std::string>();
     parameter.note = entry.value("note", std::string());

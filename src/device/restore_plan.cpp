@@ -14,8 +14,12 @@ bool has_mode(const Parameter& parameter, std::string_view mode) {
 
 // Write-only words are commands (AC20 3000-3051, load-default bits 223-232) and words whose
 // only write mode is remote/local are mode switches (AC20 218, 347-349): procedure, not values.
+// A dump is a saved configuration: only what the device itself keeps across power-off
+// (profile "storage": "persistent") is restored. Live words are not: the AC20 outputs 130-132
+// (Table "control non-parameters", no storage; refused with error 10 in automatic), TC10
+// remote set point and output overrides (RAM), commands such as TC10 alarm reset.
 bool is_restorable(const Parameter& parameter) {
-    if (!parameter.writable || !parameter.readable) return false;
+    if (!parameter.writable || !parameter.readable || !parameter.persistent) return false;
     return std::any_of(parameter.write_modes.begin(), parameter.write_modes.end(),
                        [](const std::string& mode) { return mode != "local" && mode != "remote"; }) ||
            parameter.write_modes.empty();
