@@ -74,13 +74,17 @@ Result<void> verify(device::DeviceClient& client, const device::RestorePlan& pla
 
 // AC20 Note 5: after 3 s without line activity the device is back in local and refuses word
 // 3051, so the way back claims remote (bit 218) first; Note 7: 3051 = 1 ends configuration mode.
+// Tried three times: the same line just failed once, and a device left in configuration mode
+// does not control its process.
 std::string return_to_control(device::DeviceClient& client, const device::PlannedWrite& back) {
     std::vector<device::PlannedWrite> writes;
     if (const device::Parameter* remote = client.device().profile->find("local_remote")) writes.push_back({remote, 1});
     writes.push_back(back);
-    auto done = client.write_raw(writes);
+    constexpr int attempts = 3;
+    Result<device::WriteReport> done = make_error(ErrorKind::link, "not tried");
+    for (int attempt = 0; attempt < attempts && !done; ++attempt) done = client.write_raw(writes);
     return done ? "returned the device to control mode (word 3051 = 1)"
-                : "could not return the device to control mode: " + done.error().message;
+                : fmt::format("could not return the device to control mode in {} tries: {}", attempts, done.error().message);
 }
 
 void sort_out_not_written(const device::RestorePlan& plan, RestoreOutcome& outcome) {

@@ -89,7 +89,9 @@ Tally restore_under_each_fault(FaultyBusRig& rig, const device::RawValues& saved
             const RestoreOutcome outcome = execute_restore(client, *plan, progress.get());
             rig.heal();
             const auto after = read_raw(clean, names);
-            SCOPED_TRACE(::testing::Message() << "fault " << static_cast<int>(fault) << " at request " << frame);
+            SCOPED_TRACE(::testing::Message() << "fault " << static_cast<int>(fault) << " at request " << frame << "; "
+                                              << (outcome.error ? outcome.error->message : "completed") << "; "
+                                              << outcome.return_to_control.value_or("no return to control mode"));
             check_after(clean);
             if (!outcome.error) {
                 ++tally.completed;
