@@ -1,5 +1,5 @@
 // RTU framing tests: CRC-16, encoding, character timing, the streaming decoder, and every RTU
-// example frame printed in the manuals (/work/shared/manuals, listed in
+// example frame printed in the manuals (../shared/manuals beside the repository, listed in
 // tests/codec/data/manual-example-frames.json and audited in AUDIT.md §1).
 #include "codec/rtu.hpp"
 

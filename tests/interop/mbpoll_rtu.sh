@@ -7,7 +7,7 @@
 #   pty:   loopwire makes the pseudo-terminal itself (`--pty`, whose default is RTU 19200 8E1)
 #          and mbpoll opens it with its own default parity, even; proves the --pty path.
 # mbpoll: `-0` for 0-based (wire) addresses, `-1` to poll once, and always inside `timeout`
-# (see /work/shared/PEERS.md).
+# (see ../shared/PEERS.md beside the repository).
 
 # shellcheck source=tests/interop/lib.sh
 source "$(dirname "$0")/lib.sh"
