@@ -301,20 +301,22 @@ RtuDecoder::RtuDecoder(Direction direction, CharacterTiming timing)
 // over in batches with timestamps jittered by more than a character time, so that rule would
 // reject good frames; the CRC catches what it would have caught.
 // Arrival times are taken when a reader gets the bytes, not when they crossed the wire: a reader
-// scheduled late sees a "gap" inside a frame that had none. So a gap does not end the pending
-// bytes when a frame that starts among them (after noise, perhaps) runs on into the new bytes
-// with the implied length and a CRC that checks: the CRC is the stronger evidence (as with the
-// 1.5-character rule above). The next silence then sorts noise from frame as usual.
-bool RtuDecoder::completes_pending_frame(ByteView bytes) const {
+// scheduled late sees a "gap" inside a frame that had none (a loaded machine, a USB adapter
+// handing bytes over in batches). So a gap does not end the pending bytes while a frame that
+// starts among them (after noise, perhaps) runs on into the new bytes and is either complete
+// with a CRC that checks (the CRC is the stronger evidence, as with the 1.5-character rule
+// above) or still shorter than its function code says (only more bytes or a silence seen
+// while waiting can tell). A silence the reader observes itself (flush) is never second-
+// guessed, and frames of unknown length keep ending at any gap: silence is all they have.
+bool RtuDecoder::frame_runs_on(ByteView bytes) const {
     Bytes joined(buffer_);
     joined.insert(joined.end(), bytes.begin(), bytes.end());
     for (std::size_t start = 0; start < buffer_.size(); ++start) {
         const ByteView window = ByteView(joined).subspan(start);
         const auto length = implied_frame_length(direction_, window);
-        if (length && *length > buffer_.size() - start && *length <= window.size() &&
-            crc_matches(window.first(*length))) {
-            return true;
-        }
+        if (!length) return true;  // the function code needs more bytes to tell the length
+        if (*length == 0 || *length > max_frame_size || *length <= buffer_.size() - start) continue;
+        if (*length > window.size() || crc_matches(window.first(*length))) return true;
     }
     return false;
 }
@@ -322,7 +324,7 @@ bool RtuDecoder::completes_pending_frame(ByteView bytes) const {
 FrameEvents RtuDecoder::feed(ByteView bytes, Instant arrival) {
     if (bytes.empty()) return flush(arrival);
     // A gap before these bytes ends whatever was pending: judge it before appending.
-    FrameEvents events = completes_pending_frame(bytes) ? FrameEvents{} : flush(arrival);
+    FrameEvents events = frame_runs_on(bytes) ? FrameEvents{} : flush(arrival);
     buffer_.insert(buffer_.end(), bytes.begin(), bytes.end());
     last_arrival_ = arrival;
     FrameEvents more = drain(false);

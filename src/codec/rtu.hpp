@@ -48,7 +48,7 @@ public:
 
 private:
     FrameEvents drain(bool line_quiet);
-    bool completes_pending_frame(ByteView bytes) const;
+    bool frame_runs_on(ByteView bytes) const;
     void extend_discard_run(std::uint8_t byte, FrameEvents& events);
     void report_discard_run(FrameEvents& events);
 

@@ -8,23 +8,14 @@
 
 #include "app/atomic_file.hpp"
 #include "app/dump_document.hpp"
+#include "read_report_of.hpp"
 
 namespace loopwire::app {
 namespace {
 
 device::DeviceAddress tc10_at(int unit) { return *device::parse_device_address("tc10@" + std::to_string(unit)); }
 
-device::ReadReport report_of(const device::Profile& p, const std::vector<std::pair<std::string, std::uint16_t>>& words) {
-    device::ReadReport report;
-    for (const auto& [name, raw] : words) report.raw[name] = raw;
-    for (const auto& [name, raw] : words) {
-        const auto* parameter = p.find(name);
-        auto value = device::decode_value(*parameter, raw, report.raw);
-        EXPECT_TRUE(value) << name;
-        report.readings.push_back(device::ParameterReading{parameter, *value, {}});
-    }
-    return report;
-}
+using testing::report_of;
 
 TEST(DumpDocument, SelfDescribingHeaderAndOneEntryPerParameter) {
     const auto device = tc10_at(3);

@@ -8,6 +8,7 @@
 #include "app/monitor_output.hpp"
 #include "app/monitor_state.hpp"
 #include "app/time_text.hpp"
+#include "read_report_of.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -20,18 +21,7 @@ std::shared_ptr<const device::Profile> profile(const std::string& id) {
     return *loaded;
 }
 
-// A read report as DeviceClient::read would give it for these raw words.
-device::ReadReport report_of(const device::Profile& p, const std::vector<std::pair<std::string, std::uint16_t>>& words) {
-    device::ReadReport report;
-    for (const auto& [name, raw] : words) report.raw[name] = raw;
-    for (const auto& [name, raw] : words) {
-        const auto* parameter = p.find(name);
-        auto value = device::decode_value(*parameter, raw, report.raw);
-        EXPECT_TRUE(value) << name;
-        report.readings.push_back(device::ParameterReading{parameter, *value, {}});
-    }
-    return report;
-}
+using testing::report_of;
 
 TEST(RetryBackoff, FirstRetryAfterOneWaitThenDoublesUpToTheCap) {
     RetryBackoff backoff(1000ms, 30000ms);

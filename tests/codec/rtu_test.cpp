@@ -266,6 +266,49 @@ TEST(RtuDecoder, NoiseThenAFrameStraddlingAReaderLatencyGapKeepsTheFrame) {
     EXPECT_EQ(std::get<Frame>(events[1]).raw, read_pv_request);
 }
 
+// A loaded machine: the reader got a reply in three pieces, each after more than t3.5. No piece
+// ends a frame the function code says is longer, so the reply is kept whole.
+TEST(RtuDecoder, ReplyReadInThreeLatePiecesIsKept) {
+    const Bytes reply = hex("03 03 02 00 00 C1 84");  // TC10 unit 3, one register = 0
+    RtuDecoder decoder(Direction::reply, timing_9600());
+    EXPECT_TRUE(decoder.feed(ByteView(reply).first(2), t0).empty());
+    EXPECT_TRUE(decoder.feed(ByteView(reply).subspan(2, 4), t0 + 5ms).empty());
+    EXPECT_EQ(decoder.buffered(), 6u);
+    const auto events = decoder.feed(ByteView(reply).subspan(6), t0 + 10ms);
+    ASSERT_EQ(events.size(), 1u);
+    EXPECT_EQ(std::get<Frame>(events[0]).raw, reply);
+}
+
+// A silence the reader waited through itself is real: a frame cut short by it is discarded,
+// and the late pieces rule above does not keep it alive.
+TEST(RtuDecoder, FrameCutShortBySilenceTheReaderSawIsDiscarded) {
+    const Bytes reply = hex("03 03 02 00 00 C1 84");
+    RtuDecoder decoder(Direction::reply, timing_9600());
+    EXPECT_TRUE(decoder.feed(ByteView(reply).first(2), t0).empty());
+    EXPECT_TRUE(decoder.feed(ByteView(reply).subspan(2, 2), t0 + 5ms).empty());
+    const auto at_silence = decoder.flush(t0 + 10ms);
+    ASSERT_EQ(at_silence.size(), 1u);
+    EXPECT_EQ(std::get<DiscardedBytes>(at_silence[0]).bytes, hex("03 03 02 00"));
+    EXPECT_EQ(std::get<DiscardedBytes>(at_silence[0]).reason, "gap inside frame: silence after 4 of 7 bytes");
+    EXPECT_EQ(decoder.buffered(), 0u);
+}
+
+// A frame of unknown length has only silence to end it: one followed after a gap by a known
+// frame comes out whole, and so does the known frame.
+TEST(RtuDecoder, FrameOfUnknownFunctionThenAFrameAfterAGapAreBothKept) {
+    RtuDecoder decoder(Direction::request, timing_9600());
+    const Bytes unknown = rtu_encode(1, hex("41 00"));  // function 41h gives no length
+    EXPECT_TRUE(decoder.feed(unknown, t0).empty());
+    FrameEvents events = decoder.feed(read_pv_request, t0 + 10ms);
+    append(events, decoder.flush(t0 + 20ms));
+    EXPECT_TRUE(discards_in(events).empty());
+    const auto frames = frames_in(events);
+    ASSERT_EQ(frames.size(), 2u);
+    EXPECT_EQ(frames[0].raw, unknown);
+    EXPECT_EQ(frames[1].raw, read_pv_request);
+}
+
+// The second half makes the frame's full length and its CRC fails: the gap was real.
 TEST(RtuDecoder, FrameSplitByALongGapIsDiscarded) {
     const Bytes second_half = hex("00 02 A5 E0");  // does not complete a frame whose CRC checks
     RtuDecoder decoder(Direction::request, timing_9600());
