@@ -63,19 +63,32 @@ void SimulatedDevice::advance() {
 }
 
 // The process catches up with the clock lazily, on each request: deterministic for a test
-// that moves its clock by hand, and free while nobody asks. A long pause at a high --speed is
-// walked in at most max_steps steps (each then longer than max_process_step) so a request
-// never waits on the catch-up.
+// that moves its clock by hand, and free while nobody asks. It walks a fixed grid of process
+// time, max_process_step apart, carrying the remainder to the next request: with the same
+// --seed the trajectory is the same however often (or seldom) clients poll. A pause longer
+// than max_steps grid steps is walked in max_steps longer steps so a request never waits on the
+// catch-up; the grid starts afresh after it.
 void SimulatedDevice::advance_locked() {
-    constexpr int max_steps = 20000;
+    constexpr long long max_steps = 20000;
+    // Sums of real seconds round differently for different poll patterns; this much slack
+    // keeps them on the same grid step (1e-9 of a step over hours of process time).
+    constexpr double grid_slack = 1e-9;
     const auto now = environment_.now();
     const double real = std::chrono::duration<double>(now - last_advance_).count();
     last_advance_ = now;
     if (real <= 0) return;
-    const double process = real * environment_.speed;
-    const int steps = std::min(max_steps, std::max(1, static_cast<int>(std::ceil(process / max_process_step))));
-    for (int i = 0; i < steps; ++i) step_process(process / steps);
-    process_time_ += process;
+    pending_process_time_ += real * environment_.speed;
+    long long steps = static_cast<long long>(std::floor(pending_process_time_ / max_process_step + grid_slack));
+    if (steps <= 0) return;
+    double step = max_process_step;
+    if (steps > max_steps) {
+        step = pending_process_time_ / max_steps;
+        steps = max_steps;
+    }
+    for (long long i = 0; i < steps; ++i) step_process(step);
+    const double walked = step * static_cast<double>(steps);
+    process_time_ += walked;
+    pending_process_time_ = std::max(0.0, pending_process_time_ - walked);
 }
 
 Result<void> SimulatedDevice::inject_fault(const std::string& fault) {

@@ -32,7 +32,7 @@ public:
 
     const Profile& profile() const { return *profile_; }
 
-    static constexpr double max_process_step = 0.1;  // seconds of process time per model step
+    static constexpr double max_process_step = 0.1;  // seconds of process time per model step (the grid)
 
     // Brings the process up to the environment's clock without a request (monitors, tests).
     void advance();
@@ -63,7 +63,7 @@ protected:
     // Where a write from `function` lands (ramp/soak: Linking M, served as FC6, is RAM only).
     virtual Persistence persistence_of(std::uint8_t function) const;
     // Runs the process and timers forward by `seconds` of process time (already scaled by
-    // --speed), in steps of at most max_process_step.
+    // --speed), in steps of max_process_step (longer ones only after a very long pause).
     virtual void step_process(double seconds);
     // Applies a fault named in fault_names(), or "none".
     virtual void apply_fault(const std::string& fault);
@@ -94,7 +94,8 @@ private:
     DeviceMemory memory_;
     std::mt19937_64 random_;
     SimulationClock::time_point last_advance_;
-    double process_time_ = 0;
+    double process_time_ = 0;          // walked so far
+    double pending_process_time_ = 0;  // elapsed but shorter than a grid step
     mutable std::mutex mutex_;  // one device, several links or TCP connections
 };
 
