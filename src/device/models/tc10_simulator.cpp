@@ -84,7 +84,7 @@ void Tc10Simulator::power_on() {
         case 1: set_value("control_state", static_cast<std::uint16_t>(State::automatic), Persistence::saved); break;
         case 2:
             set_value("control_state", static_cast<std::uint16_t>(State::manual), Persistence::saved);
-            set_value("manual_output_power", 0, Persistence::saved);
+            set_value("manual_output_power", 0, Persistence::ram_only);
             break;
         case 3: set_value("control_state", static_cast<std::uint16_t>(State::standby), Persistence::saved); break;
         default: return;
@@ -141,8 +141,9 @@ void Tc10Simulator::after_write(const Parameter& parameter, std::uint16_t raw) {
         set_value(name, 0, Persistence::saved);
     } else if (name == "output_power" && state() == State::manual) {
         // §5.1 4A: always writable, effective only in manual mode, where it is the manual
-        // output (§5.2 28B). In automatic or standby the write is answered and has no effect.
-        set_value("manual_output_power", raw, Persistence::saved);
+        // output (§5.2 28B, RAM like every word of that area). In automatic or standby the
+        // write is answered and has no effect.
+        set_value("manual_output_power", raw, Persistence::ram_only);
     }
 }
 

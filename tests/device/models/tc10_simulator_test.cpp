@@ -138,22 +138,27 @@ TEST(Tc10Model, OprEOffersOnlyItsModes_Section5_3_10_129And4_4B2) {
     EXPECT_EQ(tc10.word(control_state), standby);
 }
 
-// --- §5.1 16A, 18A: RAM-only values ------------------------------------------------------------
+// --- §5.1 16A, 18A, §5.2 28B: RAM-only values ---------------------------------------------------
 
-TEST(Tc10Model, RemoteSetPointAndErrorOutputAreLostAtRestart_Section5_1_16A_18A) {
+// §5 lists words 1-29 and 512-592 as computed, dynamically updated values; the remote set point
+// (16A), error output (18A) and manual output (28B, also word 4) are lost at power-off, as
+// issue 4 says; the control state (15A) is kept for dSPu = AS.Pr (#128).
+TEST(Tc10Model, RemoteSetPointErrorAndManualOutputAreLostAtRestart_Section5_1_16A_18A_And5_2_28B) {
     Simulated before("tc10");
     set(before, remote_sp, 150);
     set(before, error_output, 40);
     set(before, set_point, 180);
-    set(before, manual_output, 2500);  // no RAM note in §5.2 28B: saved
+    set(before, manual_output, 2500);
     set(before, control_state, manual);
     Simulated after("tc10");
     EXPECT_TRUE(after.device().load_saved(before.device().saved_values()).empty());
     EXPECT_EQ(after.word(remote_sp), 0);
     EXPECT_EQ(after.word(error_output), 0);
     EXPECT_EQ(after.word(set_point), 180);
-    EXPECT_EQ(after.word(manual_output), 2500);
+    EXPECT_EQ(after.word(manual_output), 0);
     EXPECT_EQ(after.word(control_state), manual);
+    after.wait(1);
+    EXPECT_EQ(after.word(output_power), 0);
 }
 
 // dSPu (#128) decides the control state after a restart.
@@ -168,9 +173,9 @@ TEST(Tc10Model, PowerOnStateFollowsDSPu_Section5_3_10_128) {
         EXPECT_TRUE(after->device().load_saved(before.device().saved_values()).empty());
         return after;
     };
-    auto as_before = restart_with(0);  // AS.Pr
+    auto as_before = restart_with(0);  // AS.Pr: the state kept, the manual output (RAM) not
     EXPECT_EQ(as_before->word(control_state), manual);
-    EXPECT_EQ(as_before->word(manual_output), 5000);
+    EXPECT_EQ(as_before->word(manual_output), 0);
     auto automatic = restart_with(1);
     EXPECT_EQ(automatic->word(control_state), 0);
     EXPECT_EQ(automatic->word(operating_mode), 0);
