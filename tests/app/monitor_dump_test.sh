@@ -79,6 +79,25 @@ first = texts.index("425")
 assert rows[first]["devices"]["rampsoak@5"]["values"]["set_value"]["changed"] is True, rows[first]
 '
 
+# Values moving as the process runs: a TC10 at --speed 100 heading for SP 300 from a 25 °C room.
+fast_port=$($python -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+"$loopwire" simulate --link "tcp://127.0.0.1:$fast_port" --device tc10@3 --speed 100 --duration 60s 2>"$work/fast.log" &
+pids+=($!)
+for _ in $(seq 100); do grep -q listening "$work/fast.log" && break; sleep 0.05; done
+fast="tcp://127.0.0.1:$fast_port"
+timeout 10 "$loopwire" write --link "$fast" --device tc10@3 set_point=300 >"$work/fast-write.out" 2>&1 || fail "write SP" "$work/fast-write.out"
+timeout 20 "$loopwire" monitor --link "$fast" --device tc10@3 --interval 300ms --count 5 \
+  >"$work/moving.jsonl" 2>"$work/moving.err" || fail "monitor-moving exit status" "$work/moving.err"
+jcheck monitor-values-move-with-the-process "$work/moving.jsonl" '
+values = [r["devices"]["tc10@3"]["values"] for r in rows]
+pv = [v["measured_value"]["value"] for v in values]
+assert len(rows) == 5 and None not in pv, pv
+assert all(a <= b for a, b in zip(pv, pv[1:])) and pv[-1] > pv[0], ("PV should rise towards 300", pv)
+assert any(v["measured_value"]["changed"] for v in values[1:]), values
+assert all(v["output_power"]["value"] > 0 for v in values), [v["output_power"] for v in values]
+assert all(v["operating_set_point"]["value"] == 300 for v in values), values
+'
+
 # One request per planned block: a monitor sample sends exactly what `read --device` of the same
 # names sends, nothing more.
 count_tx() { grep -c ' TX ' "$1"; }
