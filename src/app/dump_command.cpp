@@ -5,6 +5,7 @@
 #include <algorithm>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "app/atomic_file.hpp"
 #include "app/command_line.hpp"
@@ -13,6 +14,7 @@
 #include "app/exit_codes.hpp"
 #include "app/master_options.hpp"
 #include "app/time_text.hpp"
+#include "device/restore_plan.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -22,8 +24,10 @@ struct DumpOptions {
     std::string output;
 };
 
-// Reads block by block (the planner's blocks), so progress can be shown between requests; the
-// first failure ends the dump: a partial dump is worse than none for a restore.
+// Reads block by block (the planner's blocks), so progress can be shown between requests. A
+// block the device refuses with an exception (an AC20 in a start-up error condition answers
+// only its configuration, control and security words) is kept as unread and the dump goes on;
+// any other failure (no reply, a broken link) ends it: a partial dump is worse than none.
 Result<device::ReadReport> read_everything(device::DeviceClient& client) {
     const auto& device = client.device();
     const auto blocks = device::plan_reads(*device.profile, dumped_parameters(*device.profile), device.address_offset);
@@ -32,11 +36,12 @@ Result<device::ReadReport> read_everything(device::DeviceClient& client) {
     std::size_t done = 0;
     for (std::size_t i = 0; i < blocks.size(); ++i) {
         auto part = client.read(blocks[i].parameters);
-        if (part.first_error) {
+        if (part.first_error && part.first_error->kind != ErrorKind::exception) {
             if (progress) fmt::print(stderr, "\n");
             return make_error(part.first_error->kind, fmt::format("dump stopped at {} {}..: {}", device::table_name(blocks[i].table),
                                                                   blocks[i].wire_address, part.first_error->message));
         }
+        if (part.first_error && !all.first_error) all.first_error = part.first_error;
         done += part.readings.size();
         all.readings.insert(all.readings.end(), part.readings.begin(), part.readings.end());
         all.raw.insert(part.raw.begin(), part.raw.end());
@@ -45,6 +50,27 @@ Result<device::ReadReport> read_everything(device::DeviceClient& client) {
     }
     if (progress) fmt::print(stderr, "\n");
     return all;
+}
+
+// What the device refused must not be something restore would write back: such a dump is not
+// a backup. Refused live values (process values, status words) are only reported.
+Result<void> check_refusals(const device::ReadReport& report) {
+    std::vector<std::string> stored, live;
+    for (const auto& reading : report.readings) {
+        if (reading.value) continue;
+        (device::is_restorable(*reading.parameter) ? stored : live).push_back(reading.parameter->name);
+    }
+    if (!stored.empty()) {
+        return make_error(ErrorKind::exception, fmt::format("the device refused to read {} stored parameter(s) ({}): {}; "
+                                                            "no dump written, as it could not restore them",
+                                                            stored.size(), fmt::join(stored, ", "), report.first_error->message));
+    }
+    if (!live.empty()) {
+        fmt::print(stderr, "loopwire: warning: the device refused {} live value(s) ({}), marked \"status\": \"unread\" "
+                           "in the dump: {}; every stored parameter was read\n",
+                   live.size(), fmt::join(live, ", "), report.first_error->message);
+    }
+    return {};
 }
 
 // The readings in the profile's order, whatever order the blocks came in.
@@ -63,6 +89,7 @@ int run_dump(const DumpOptions& options) {
     device::DeviceClient client(**master, *device);
     auto report = read_everything(client);
     if (!report) return report_error(report.error());
+    if (auto refused = check_refusals(*report); !refused) return report_error(refused.error());
     sort_by_profile(*report, *device->profile);
     auto document = dump_document(*device, DumpHeader{options.master.link, time, options.master.numbering}, *report);
     if (!document) return report_error(document.error());

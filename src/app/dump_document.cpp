@@ -26,7 +26,10 @@ namespace {
 
 Result<nlohmann::ordered_json> parameter_entry(const device::ParameterReading& reading, const device::RawValues& known) {
     const auto& p = *reading.parameter;
-    if (!reading.value) return make_error(ErrorKind::mismatch, fmt::format("{} was not read: {}", p.name, reading.error));
+    if (!reading.value) {
+        return nlohmann::ordered_json{{"value", nullptr}, {"text", nullptr}, {"unit", p.unit}, {"raw", nlohmann::ordered_json::array()},
+                                      {"status", "unread"}, {"error", reading.error}, {"writable", p.writable}};
+    }
     auto text = device::format_value(p, *reading.value, known);
     if (!text) return text.error();
     auto entry = value_json(p, *reading.value);

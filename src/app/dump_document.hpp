@@ -12,8 +12,9 @@
 // Per parameter, in the profile's order: "value" a number, an enum label, an object of named
 // bits, or null for a special state; "text" the value as `loopwire write NAME=TEXT` accepts it
 // back (numbers with the parameter's decimals, labels, special state names, bits joined by '+');
-// "raw" the words read, first word first; "status" "ok", a special state or "unknown-label";
-// "writable" whether a restore may write it. "numbering" is present when the device uses an
+// "raw" the words read, first word first; "status" "ok", a special state or "unknown-label",
+// or "unread" (value, text null, raw empty) with "error" the device's refusal; "writable"
+// whether a restore may write it. "numbering" is present when the device uses an
 // alternative numbering (ac20: "jbus").
 #include <string>
 
@@ -33,10 +34,10 @@ struct DumpHeader {
 // Every readable parameter of the profile, hidden ones included: a dump records the device.
 std::vector<const device::Parameter*> dumped_parameters(const device::Profile& profile);
 
-// The document from a complete read; an error when any parameter was not read or its word
-// cannot be turned into text: a dump is all or nothing.
+// The document from a read; a parameter not read is an "unread" entry with its reason (the
+// dump command decides which refusals a dump may carry). An error when a word read cannot be
+// turned into text.
 Result<nlohmann::ordered_json> dump_document(const device::DeviceAddress& device, const DumpHeader& header,
                                              const device::ReadReport& report);
-
 
 }  // namespace loopwire::app

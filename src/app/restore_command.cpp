@@ -50,6 +50,11 @@ Result<void> check_origin(const DumpFile& dump, const device::DeviceAddress& dev
     }
     for (const auto& [name, raw] : dump.identification) {
         const auto current = now.find(name);
+        if (current == now.end() && !force) {
+            return make_error(ErrorKind::usage, fmt::format("the device did not tell its {} (it refused the read): it cannot "
+                                                            "be checked against the dump's; add --force to restore it anyway",
+                                                            name));
+        }
         if (current != now.end() && current->second != raw && !force) {
             return make_error(ErrorKind::usage, fmt::format("the dump's {} is {}, the device's is {}: it was taken from another "
                                                             "device or version; add --force to restore it anyway",
@@ -59,14 +64,25 @@ Result<void> check_origin(const DumpFile& dump, const device::DeviceAddress& dev
     return {};
 }
 
+// The present values of what restore may write, and the identification words. A device may
+// refuse some words with an exception (an AC20 in a start-up error condition answers only its
+// configuration, control and security words, which restore can then repair): a refused
+// identification word is left out for check_origin to judge; any other failure ends here.
 Result<device::RawValues> read_current(device::DeviceClient& client, const device::Profile& profile, const DumpFile& dump) {
     std::vector<const device::Parameter*> wanted;
     for (const device::Parameter& parameter : profile.parameters) {
         if (!parameter.readable) continue;
-        if (dump.values.contains(parameter.name) || dump.identification.contains(parameter.name)) wanted.push_back(&parameter);
+        const bool restorable = dump.values.contains(parameter.name) && device::is_restorable(parameter);
+        if (restorable || dump.identification.contains(parameter.name)) wanted.push_back(&parameter);
     }
     auto report = client.read(wanted);
-    if (report.first_error) return make_error(report.first_error->kind, "reading the device's present values failed: " + report.first_error->message);
+    for (const auto& reading : report.readings) {
+        const bool refused_identification = report.first_error && report.first_error->kind == ErrorKind::exception &&
+                                            dump.identification.contains(reading.parameter->name);
+        if (report.raw.contains(reading.parameter->name) || refused_identification) continue;
+        return make_error(report.first_error ? report.first_error->kind : ErrorKind::mismatch,
+                          fmt::format("reading the device's present values failed at {}: {}", reading.parameter->name, reading.error));
+    }
     return report.raw;
 }
 

@@ -96,21 +96,38 @@ Result<codec::Reply> DeviceClient::execute_read(const ReadBlock& block) {
     return master_.execute(device_.unit, codec::read_request(read_function(block.table), block.wire_address, block.count));
 }
 
+// Reads one planned block into `report`; a failure marks its parameters in `failures`.
+bool DeviceClient::read_block(const ReadBlock& block, ReadReport& report, std::map<const Parameter*, std::string>& failures,
+                              bool may_split) {
+    ++report.requests;
+    auto reply = execute_read(block);
+    if (!reply) {
+        const Error error = explain(reply.error());
+        if (may_split && error.kind == ErrorKind::exception) return false;
+        if (!report.first_error) report.first_error = error;
+        for (const Parameter* p : block.parameters) failures[p] = error.message;
+        return true;
+    }
+    for (const Parameter* p : block.parameters) {
+        const int wire = p->address + device_.address_offset;
+        report.raw[p->name] = reply->values.at(static_cast<std::size_t>(wire - block.wire_address));
+    }
+    return true;
+}
+
 ReadReport DeviceClient::read(const std::vector<const Parameter*>& parameters) {
     ReadReport report;
     std::map<const Parameter*, std::string> failures;
     for (const ReadBlock& block : plan_reads(*device_.profile, with_dependencies(*device_.profile, parameters), device_.address_offset)) {
-        ++report.requests;
-        auto reply = execute_read(block);
-        if (!reply) {
-            const Error error = explain(reply.error());
-            if (!report.first_error) report.first_error = error;
-            for (const Parameter* p : block.parameters) failures[p] = error.message;
-            continue;
-        }
+        // A device may refuse a whole block for some of its words (an AC20 in a start-up error
+        // condition answers only its configuration, control and security words): on an
+        // exception, each parameter is asked for alone, so every word it answers is read.
+        const bool may_split = block.parameters.size() > 1;
+        if (read_block(block, report, failures, may_split)) continue;
         for (const Parameter* p : block.parameters) {
-            const int wire = p->address + device_.address_offset;
-            report.raw[p->name] = reply->values.at(static_cast<std::size_t>(wire - block.wire_address));
+            for (const ReadBlock& single : plan_reads(*device_.profile, {p}, device_.address_offset)) {
+                read_block(single, report, failures, false);
+            }
         }
     }
     for (const Parameter* p : parameters) {

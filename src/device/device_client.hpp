@@ -70,6 +70,10 @@ public:
 
 private:
     Result<codec::Reply> execute_read(const ReadBlock& block);
+    // false: the device refused the block with an exception and `may_split` was set (the
+    // caller splits it); otherwise the block's values or failures are in the report.
+    bool read_block(const ReadBlock& block, ReadReport& report, std::map<const Parameter*, std::string>& failures,
+                    bool may_split);
 
     session::Master& master_;
     DeviceAddress device_;

@@ -2,11 +2,13 @@
 // Device profiles: everything loopwire knows about one device model, loaded from
 // profiles/*.json and validated against profiles/profile.schema.json (DESIGN.md, "Device
 // knowledge is data").
+#include <algorithm>
 #include <cstdint>
 #include <map>
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <variant>
 #include <vector>
 
@@ -51,6 +53,10 @@ struct Parameter {
     bool readable = true;
     bool writable = false;
     std::vector<std::string> write_modes;
+    // Whether `mode` ("remote", "control", "configuration", ...) is one the word is written in.
+    bool writable_in(std::string_view mode) const {
+        return std::find(write_modes.begin(), write_modes.end(), mode) != write_modes.end();
+    }
     std::optional<Bound> min;
     std::optional<Bound> max;
     std::map<std::string, BoundSource> bound_sources;  // by name, for every parameter min/max name

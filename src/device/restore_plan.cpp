@@ -8,23 +8,6 @@
 namespace loopwire::device {
 namespace {
 
-bool has_mode(const Parameter& parameter, std::string_view mode) {
-    return std::find(parameter.write_modes.begin(), parameter.write_modes.end(), mode) != parameter.write_modes.end();
-}
-
-// Write-only words are commands (AC20 3000-3051, load-default bits 223-232) and words whose
-// only write mode is remote/local are mode switches (AC20 218, 347-349): procedure, not values.
-// A dump is a saved configuration: only what the device itself keeps across power-off
-// (profile "storage": "persistent") is restored. Live words are not: the AC20 outputs 130-132
-// (Table "control non-parameters", no storage; refused with error 10 in automatic), TC10
-// remote set point and output overrides (RAM), commands such as TC10 alarm reset.
-bool is_restorable(const Parameter& parameter) {
-    if (!parameter.writable || !parameter.readable || !parameter.persistent) return false;
-    return std::any_of(parameter.write_modes.begin(), parameter.write_modes.end(),
-                       [](const std::string& mode) { return mode != "local" && mode != "remote"; }) ||
-           parameter.write_modes.empty();
-}
-
 bool bounded_by(const Parameter& parameter, const std::string& name) {
     const auto names = [&](const std::optional<Bound>& bound) {
         const std::string* bound_name = bound ? std::get_if<std::string>(&*bound) : nullptr;
@@ -87,7 +70,7 @@ bool is_ac20_procedure(const Profile& profile) {
 std::vector<std::string> configuration_menus(const Profile& profile) {
     std::map<std::string, std::uint16_t> lowest;
     for (const Parameter& parameter : profile.parameters) {
-        if (!has_mode(parameter, "configuration") || !is_restorable(parameter)) continue;
+        if (!parameter.writable_in("configuration") || !is_restorable(parameter)) continue;
         auto [entry, added] = lowest.emplace(parameter.group, parameter.address);
         if (!added) entry->second = std::min(entry->second, parameter.address);
     }
@@ -102,7 +85,7 @@ std::vector<RestoreChange> select(const std::vector<RestoreChange>& changes, std
                                   std::string_view group = {}) {
     std::vector<RestoreChange> selected;
     for (const RestoreChange& change : changes) {
-        if (has_mode(*change.parameter, mode) && (group.empty() || change.parameter->group == group)) selected.push_back(change);
+        if (change.parameter->writable_in(mode) && (group.empty() || change.parameter->group == group)) selected.push_back(change);
     }
     return selected;
 }
@@ -155,12 +138,25 @@ Result<void> plan_ac20(const Profile& profile, RestorePlan& plan, const RestoreO
     }
     std::vector<RestoreChange> control;
     for (const RestoreChange& change : plan.changes) {
-        if (!has_mode(*change.parameter, "configuration") && !has_mode(*change.parameter, "security")) control.push_back(change);
+        if (!change.parameter->writable_in("configuration") && !change.parameter->writable_in("security")) control.push_back(change);
     }
     return add_value_stage(profile, plan, "control parameters", control, values);
 }
 
 }  // namespace
+
+// Write-only words are commands (AC20 3000-3051, load-default bits 223-232) and words whose
+// only write mode is remote/local are mode switches (AC20 218, 347-349): procedure, not values.
+// A dump is a saved configuration: only what the device itself keeps across power-off
+// (profile "storage": "persistent") is restored. Live words are not: the AC20 outputs 130-132
+// (Table "control non-parameters", no storage; refused with error 10 in automatic), TC10
+// remote set point and output overrides (RAM), commands such as TC10 alarm reset.
+bool is_restorable(const Parameter& parameter) {
+    if (!parameter.writable || !parameter.readable || !parameter.persistent) return false;
+    return std::any_of(parameter.write_modes.begin(), parameter.write_modes.end(),
+                       [](const std::string& mode) { return mode != "local" && mode != "remote"; }) ||
+           parameter.write_modes.empty();
+}
 
 Result<RestorePlan> plan_restore(const Profile& profile, const RawValues& saved, const RawValues& current,
                                  const RestoreOptions& options) {
@@ -176,7 +172,7 @@ Result<RestorePlan> plan_restore(const Profile& profile, const RawValues& saved,
             return make_error(ErrorKind::link, fmt::format("{} could not be read from the device, so it cannot be compared", parameter.name));
         }
         if (now->second == wanted->second) continue;
-        if (has_mode(parameter, "security") && !options.include_security) {
+        if (parameter.writable_in("security") && !options.include_security) {
             plan.skipped.push_back(fmt::format("{}: security-code word (give --security to restore it)", parameter.name));
             continue;
         }

@@ -26,6 +26,10 @@
 
 namespace loopwire::device {
 
+// Whether restore writes `parameter` back: stored (profile "storage": "persistent"), readable
+// and writable, and not a procedure word (see restore_plan.cpp).
+bool is_restorable(const Parameter& parameter);
+
 struct RestoreChange {
     const Parameter* parameter = nullptr;
     std::uint16_t from = 0;

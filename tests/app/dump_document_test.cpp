@@ -53,13 +53,21 @@ TEST(DumpDocument, TextOfEveryEntryIsAcceptedBackByTheEncoder) {
     EXPECT_EQ(*raw, 0xFF38);  // -2.00 %
 }
 
-TEST(DumpDocument, AnUnreadParameterMakesTheWholeDumpFail) {
+// A parameter the device refused stays in the document, unread, with the refusal: restore
+// finds no raw word to write for it.
+TEST(DumpDocument, AnUnreadParameterIsKeptWithTheReason) {
     const auto device = tc10_at(3);
     auto report = report_of(*device.profile, {{"output_power", 1}});
-    report.readings.push_back(device::ParameterReading{device.profile->find("alarm_status"), std::nullopt, "no reply from unit 3"});
+    report.readings.push_back(device::ParameterReading{device.profile->find("alarm_status"), std::nullopt, "exception 2 (illegal data address)"});
     auto document = dump_document(device, DumpHeader{"l", "t", {}}, report);
-    ASSERT_FALSE(document);
-    EXPECT_NE(document.error().message.find("alarm_status"), std::string::npos);
+    ASSERT_TRUE(document);
+    const auto& unread = (*document)["parameters"]["alarm_status"];
+    EXPECT_TRUE(unread["value"].is_null());
+    EXPECT_TRUE(unread["text"].is_null());
+    EXPECT_TRUE(unread["raw"].empty());
+    EXPECT_EQ(unread["status"], "unread");
+    EXPECT_EQ(unread["error"], "exception 2 (illegal data address)");
+    EXPECT_EQ((*document)["parameters"]["output_power"]["status"], "ok");
 }
 
 TEST(DumpDocument, DumpsEveryReadableParameterHiddenOnesIncluded) {

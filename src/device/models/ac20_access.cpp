@@ -22,10 +22,6 @@ constexpr std::uint8_t wrong_value = 3;
 // return to local mode."
 constexpr auto remote_timeout = std::chrono::seconds(3);
 
-bool allows(const Parameter& parameter, std::string_view mode) {
-    return std::find(parameter.write_modes.begin(), parameter.write_modes.end(), mode) != parameter.write_modes.end();
-}
-
 // What the lock words read for a combination (words 347/348/4000/4001): 0 = free, 1 = always
 // locked, 2 = locked by a software key (N.B. after Note 9: combinations 0, 1 and 2-250).
 std::uint16_t combination_class(std::uint16_t combination) { return combination <= 1 ? combination : 2; }
@@ -62,11 +58,11 @@ std::optional<std::uint8_t> Ac20Simulator::access_refusal(const Parameter& param
     if (parameter.name == "configuration_mode_code" || parameter.name == "security_mode_code") {
         return mode_entry_refusal(raw);
     }
-    if (allows(parameter, "remote")) return std::nullopt;
-    if (allows(parameter, "configuration") && mode_ == Mode::configuration) return std::nullopt;
-    if (allows(parameter, "security") && mode_ == Mode::security) return std::nullopt;
+    if (parameter.writable_in("remote")) return std::nullopt;
+    if (parameter.writable_in("configuration") && mode_ == Mode::configuration) return std::nullopt;
+    if (parameter.writable_in("security") && mode_ == Mode::security) return std::nullopt;
     // Note 6: control-mode writes need control mode, remote and the unlock condition.
-    if (allows(parameter, "control") && mode_ == Mode::control) {
+    if (parameter.writable_in("control") && mode_ == Mode::control) {
         const auto group = control_group_of(parameter);
         if (group && group_locked(*group)) return cannot_modify;
         return std::nullopt;
@@ -156,7 +152,8 @@ void Ac20Simulator::after_access_write(const Parameter& parameter, std::uint16_t
 }
 
 // Power-on and the restart after word 3051: control mode, Smart and procedures stopped, the
-// RAM-only operative set point (word 137) lost, and bit 210 set "to signal the start up".
+// RAM-only operative set point (word 137) lost, bit 210 set "to signal the start up", and the
+// start-up error check due.
 void Ac20Simulator::restart() {
     mode_ = Mode::control;
     open_menu_.reset();
@@ -175,6 +172,7 @@ void Ac20Simulator::restart() {
     schedule_interval(false);
     schedule_interval(true);
     settings_dirty_ = true;
+    start_up_check_due_ = true;  // ac20_error_condition.cpp
 }
 
 }  // namespace loopwire::device::models

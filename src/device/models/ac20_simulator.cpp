@@ -78,7 +78,9 @@ bool Ac20Simulator::fault(const std::string& name) const {
 
 std::optional<std::optional<Bytes>> Ac20Simulator::intercept(ByteView request_pdu, bool) {
     note_line_activity();
+    track_error_condition();
     if (request_pdu.size() > receive_buffer_pdu) return std::make_optional(std::optional<Bytes>{});
+    if (auto refusal = error_condition_read_refusal(request_pdu)) return std::make_optional(std::optional<Bytes>(std::move(*refusal)));
     if (auto refusal = menu_read_refusal(request_pdu)) return std::make_optional(std::optional<Bytes>(std::move(*refusal)));
     return std::nullopt;
 }
@@ -88,6 +90,7 @@ std::optional<std::optional<Bytes>> Ac20Simulator::intercept(ByteView request_pd
 std::optional<std::uint8_t> Ac20Simulator::accept_write(const Parameter& parameter, std::uint16_t raw,
                                                         const RawValues&) {
     if (auto refusal = access_refusal(parameter, raw)) return refusal;
+    if (auto refusal = error_condition_refusal(parameter)) return refusal;
     if (auto refusal = configuration_refusal(parameter, raw)) return refusal;
     if (auto refusal = load_default_refusal(parameter, raw)) return refusal;
     if (auto refusal = procedure_refusal(parameter, raw)) return refusal;
@@ -116,6 +119,7 @@ void Ac20Simulator::after_write(const Parameter& parameter, std::uint16_t raw) {
     after_process_write(parameter, raw);
     after_procedure_write(parameter, raw);
     after_alarm_write(parameter, raw);
+    after_error_condition_write();
     refresh_settings();  // a read right after this write already sees the new settings
     update_alarms();
 }

@@ -10,7 +10,9 @@
 //  - Process (ac20_process.cpp): the furnace atmosphere (ac20_atmosphere.hpp) and the carbon
 //    controller. Procedures (ac20_procedures.cpp): Smart TUNE, probe test and burn-off (errors
 //    50-55, word 135), unsolicited request flags. Alarms (ac20_alarms.cpp): words 113-119,
-//    bits 204-206, 222, 233.
+//    bits 204-206, 222, 233. Error conditions (ac20_error_condition.cpp): configuration and
+//    control mode errors found at start-up (101-106, 151-160), what the device still answers
+//    and accepts then, and its 30 s reset.
 #include <array>
 #include <deque>
 #include <optional>
@@ -45,6 +47,8 @@ protected:
 private:
     enum class Mode { control, configuration, security };
     enum class Procedure { none, burn_off, purge, probe_test };
+    // The areas the error conditions name: configuration, control and security code mode words.
+    enum class Area { configuration, control, security, other };
 
     // What the controller takes from its parameters, re-read after every write.
     struct Settings {
@@ -94,6 +98,15 @@ private:
     void after_default_write(const Parameter& parameter, std::uint16_t raw);
     void store_default(std::string_view name, int raw);
 
+    // ac20_error_condition.cpp
+    Area area_of(const Parameter& parameter) const;
+    std::optional<std::uint8_t> start_up_error() const;
+    void track_error_condition();
+    bool is_configuration_error() const;
+    std::optional<Bytes> error_condition_read_refusal(ByteView request_pdu);
+    std::optional<std::uint8_t> error_condition_refusal(const Parameter& parameter) const;
+    void after_error_condition_write();
+
     // ac20_process.cpp, ac20_procedures.cpp
     std::optional<std::uint8_t> procedure_refusal(const Parameter& parameter, std::uint16_t raw) const;
     std::optional<std::uint8_t> context_refusal(const Parameter& parameter, std::uint16_t raw) const;
@@ -129,6 +142,9 @@ private:
     Mode mode_ = Mode::control;
     bool control_unlocked_ = false;  // word 349 was written with the control combination
     std::optional<int> open_menu_;   // configuration menu being programmed (Note 7)
+    bool start_up_check_due_ = false;                // a (re)start: check at the next request
+    std::optional<std::uint8_t> error_condition_;    // 101-106 or 151-160 while shown
+    SimulationClock::time_point error_since_;        // the 30 s reset counts from here
 
     // Process.
     double clock_ = 0;  // process seconds since power-on (the base's process_time() lags a request)
