@@ -124,24 +124,35 @@ std::optional<std::uint8_t> Ac20Simulator::configuration_refusal(const Parameter
     return std::nullopt;
 }
 
-// Note 7: the end of the programming of a menu "is anyway automatically sent if data of a
-// different menu are ... read": a read (FC3/FC4, within the 20-word limit) that touches a word
-// of another configuration menu closes the open one first, and answers its 1xx error if the
-// check fails. The wire address is the profile's own plus 1 under J-BUS numbering (word 526 = 2).
-std::optional<Bytes> Ac20Simulator::menu_read_refusal(ByteView request_pdu) {
-    if (mode_ != Mode::configuration || !open_menu_ || request_pdu.size() != 5) return std::nullopt;
-    const std::uint8_t function = request_pdu[0];
-    if (function != 3 && function != 4) return std::nullopt;
+// The parameters a read request (FC1-FC4, within the per-request limits) touches, in order;
+// none for any other request (the base answers or refuses it). The wire address is the
+// profile's own plus 1 under J-BUS numbering (word 526 = 2).
+std::vector<const Parameter*> Ac20Simulator::parameters_read_by(ByteView request_pdu) {
+    std::vector<const Parameter*> touched;
+    if (request_pdu.size() != 5 || request_pdu[0] < 1 || request_pdu[0] > 4) return touched;
+    const bool bits = request_pdu[0] <= 2;
     const std::uint16_t start = read_be16(request_pdu, 1);
     const std::uint16_t count = read_be16(request_pdu, 3);
     const std::uint16_t offset = value("serial_interface_protocol") == 2 ? 1 : 0;
-    if (count > profile().limits.read_registers || start < offset) return std::nullopt;
+    if (count > (bits ? profile().limits.read_bits : profile().limits.read_registers) || start < offset) return touched;
     for (unsigned i = 0; i < count; ++i) {
-        const MemoryCell* cell = memory().find(Table::holding, static_cast<std::uint16_t>(start - offset + i));
-        const auto menu = cell == nullptr ? std::nullopt : configuration_menu_of(*cell->parameter);
+        const auto address = static_cast<std::uint16_t>(start - offset + i);
+        if (const MemoryCell* cell = memory().find(bits ? Table::coils : Table::holding, address)) touched.push_back(cell->parameter);
+    }
+    return touched;
+}
+
+// Note 7: the end of the programming of a menu "is anyway automatically sent if data of a
+// different menu are ... read": a read (FC3/FC4, within the 20-word limit) that touches a word
+// of another configuration menu closes the open one first, and answers its 1xx error if the
+// check fails.
+std::optional<Bytes> Ac20Simulator::menu_read_refusal(ByteView request_pdu) {
+    if (mode_ != Mode::configuration || !open_menu_) return std::nullopt;
+    for (const Parameter* parameter : parameters_read_by(request_pdu)) {
+        const auto menu = configuration_menu_of(*parameter);
         if (!menu || menu == open_menu_) continue;
         if (!menu_congruent(*open_menu_)) {
-            return Bytes{static_cast<std::uint8_t>(function | 0x80), static_cast<std::uint8_t>(100 + *open_menu_)};
+            return Bytes{static_cast<std::uint8_t>(request_pdu[0] | 0x80), static_cast<std::uint8_t>(100 + *open_menu_)};
         }
         open_menu_.reset();
         return std::nullopt;

@@ -89,21 +89,9 @@ bool Ac20Simulator::is_configuration_error() const {
 // Reads (FC1-FC4 within the limits; the rest is the base's to refuse) that touch a mapped word
 // outside the configuration, control and security areas.
 std::optional<Bytes> Ac20Simulator::error_condition_read_refusal(ByteView request_pdu) {
-    if (!error_condition_ || request_pdu.size() != 5) return std::nullopt;
-    const std::uint8_t function = request_pdu[0];
-    if (function < 1 || function > 4) return std::nullopt;
-    const bool bits = function <= 2;
-    const std::uint16_t start = read_be16(request_pdu, 1);
-    const std::uint16_t count = read_be16(request_pdu, 3);
-    const std::uint16_t offset = value("serial_interface_protocol") == 2 ? 1 : 0;
-    const unsigned limit = bits ? profile().limits.read_bits : profile().limits.read_registers;
-    if (count == 0 || count > limit || start < offset) return std::nullopt;
-    for (unsigned i = 0; i < count; ++i) {
-        const auto address = static_cast<std::uint16_t>(start - offset + i);
-        const MemoryCell* cell = memory().find(bits ? Table::coils : Table::holding, address);
-        if (cell != nullptr && area_of(*cell->parameter) == Area::other) {
-            return Bytes{static_cast<std::uint8_t>(function | 0x80), *error_condition_};
-        }
+    if (!error_condition_) return std::nullopt;
+    for (const Parameter* parameter : parameters_read_by(request_pdu)) {
+        if (area_of(*parameter) == Area::other) return Bytes{static_cast<std::uint8_t>(request_pdu[0] | 0x80), *error_condition_};
     }
     return std::nullopt;
 }

@@ -91,6 +91,7 @@ private:
     static std::optional<int> configuration_menu_of(const Parameter& parameter);
     std::optional<std::uint8_t> configuration_refusal(const Parameter& parameter, std::uint16_t raw);
     bool menu_congruent(int menu) const;
+    std::vector<const Parameter*> parameters_read_by(ByteView request_pdu);
     std::optional<Bytes> menu_read_refusal(ByteView request_pdu);
     void load_configuration_table(int table);
     void load_control_defaults(int group);
