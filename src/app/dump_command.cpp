@@ -56,19 +56,21 @@ Result<device::ReadReport> read_everything(device::DeviceClient& client) {
 // a backup. Refused live values (process values, status words) are only reported.
 Result<void> check_refusals(const device::ReadReport& report) {
     std::vector<std::string> stored, live;
+    std::string reason;  // per reading: a word read but not decoded leaves no first_error
     for (const auto& reading : report.readings) {
         if (reading.value) continue;
         (device::is_restorable(*reading.parameter) ? stored : live).push_back(reading.parameter->name);
+        if (reason.empty()) reason = reading.error;
     }
     if (!stored.empty()) {
         return make_error(ErrorKind::exception, fmt::format("the device refused to read {} stored parameter(s) ({}): {}; "
                                                             "no dump written, as it could not restore them",
-                                                            stored.size(), fmt::join(stored, ", "), report.first_error->message));
+                                                            stored.size(), fmt::join(stored, ", "), reason));
     }
     if (!live.empty()) {
         fmt::print(stderr, "loopwire: warning: the device refused {} live value(s) ({}), marked \"status\": \"unread\" "
                            "in the dump: {}; every stored parameter was read\n",
-                   live.size(), fmt::join(live, ", "), report.first_error->message);
+                   live.size(), fmt::join(live, ", "), reason);
     }
     return {};
 }
