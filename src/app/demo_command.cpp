@@ -12,11 +12,12 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
-#include "app/monitor_loop.hpp"
-#include "app/monitor_names.hpp"
+#include "app/monitor_output.hpp"
+#include "client/monitor_loop.hpp"
+#include "client/monitor_names.hpp"
 #include "app/simulated_units.hpp"
 #include "app/stop_signal.hpp"
-#include "device/device_client.hpp"
+#include "client/device_client.hpp"
 #include "session/slave.hpp"
 #include "transport/tcp.hpp"
 #include "transport/virtual_bus.hpp"
@@ -57,16 +58,6 @@ void apply_demo_settings(session::Master& master) {
     }
 }
 
-Result<MonitorSettings> demo_monitor_settings(const DemoOptions& options) {
-    MonitorSettings settings;
-    const bool terminal = ::isatty(STDOUT_FILENO) == 1;
-    if (options.format.empty()) settings.format = terminal ? MonitorFormat::table : MonitorFormat::jsonl;
-    else if (options.format == "table") settings.format = MonitorFormat::table;
-    else if (options.format == "jsonl") settings.format = MonitorFormat::jsonl;
-    else if (options.format == "csv") settings.format = MonitorFormat::csv;
-    else return make_error(ErrorKind::usage, fmt::format("--format '{}': choose table, csv or jsonl", options.format));
-    return settings;
-}
 
 Result<std::optional<std::chrono::microseconds>> demo_duration(const DemoOptions& options) {
     if (options.duration.empty()) {
@@ -101,8 +92,8 @@ void print_hint(std::uint16_t port, bool bounded, double speed) {
 }
 
 int run_demo(const DemoOptions& options) {
-    auto settings = demo_monitor_settings(options);
-    if (!settings) return report_error(settings.error());
+    auto format = monitor_format(options.format, ::isatty(STDOUT_FILENO) == 1);
+    if (!format) return report_error(format.error());
     auto duration = demo_duration(options);
     if (!duration) return report_error(duration.error());
     auto link = transport::parse_link_url("rtu:virtual?baud=19200&parity=none");
@@ -130,13 +121,14 @@ int run_demo(const DemoOptions& options) {
     apply_demo_settings(*master);
 
     print_hint((*listener)->port(), duration->has_value(), options.speed);
-    std::vector<MonitorTarget> targets;
+    std::vector<device::MonitorTarget> targets;
     for (const std::string& text : demo_devices) {
         auto address = device::parse_device_address(text);
         if (!address) return report_error(address.error());
-        targets.push_back(MonitorTarget{master.get(), *address, default_watch_list(*address->profile)});
+        targets.push_back(device::MonitorTarget{master.get(), *address, device::default_watch_list(*address->profile)});
     }
-    run_monitor(targets, *settings, stdout, stop.token());
+    StreamSampleSink sink(stdout, *format);
+    device::run_monitor(targets, device::MonitorSettings{}, sink, stop.token());
     stop.request_stop();
     return exit_ok;
 }

@@ -6,8 +6,8 @@
 
 #include "app/command_line.hpp"
 #include "app/exit_codes.hpp"
-#include "app/value_format.hpp"
-#include "device/device_client.hpp"
+#include "profile/value_format.hpp"
+#include "client/device_client.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -29,7 +29,7 @@ void print_readings(const MasterCommandOptions& options, const device::DeviceAdd
     if (options.json) {
         nlohmann::ordered_json values = nlohmann::ordered_json::object();
         for (const auto& reading : report.readings) {
-            values[reading.parameter->name] = reading.value ? value_json(*reading.parameter, *reading.value)
+            values[reading.parameter->name] = reading.value ? device::value_json(*reading.parameter, *reading.value)
                                                             : nlohmann::ordered_json{{"value", nullptr}, {"raw", nullptr}, {"unit", reading.parameter->unit}, {"status", "error"}, {"error", reading.error}};
         }
         nlohmann::ordered_json out{{"unit", device.unit}, {"device", device.profile->id}, {"values", values}};
@@ -43,7 +43,7 @@ void print_readings(const MasterCommandOptions& options, const device::DeviceAdd
             continue;
         }
         const auto& v = *reading.value;
-        fmt::print("{:<34} {:<8} {:>12} {:<6} {}{}\n", p.name, p.mnemonic, value_text(p, v), p.unit,
+        fmt::print("{:<34} {:<8} {:>12} {:<6} {}{}\n", p.name, p.mnemonic, device::value_text(p, v), p.unit,
                    v.status == "ok" ? "" : v.status + " ", fmt::format("(raw {})", v.raw));
     }
 }

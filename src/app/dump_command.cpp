@@ -1,5 +1,5 @@
 // loopwire dump --link URL --device DEVICE@UNIT [--numbering jbus] [--output FILE]
-// Every readable parameter of one device into one JSON document (format: dump_document.hpp).
+// Every readable parameter of one device into one JSON document (format: device::dump_document.hpp).
 #include <unistd.h>
 
 #include <algorithm>
@@ -7,14 +7,14 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
-#include "app/atomic_file.hpp"
+#include "common/atomic_file.hpp"
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
-#include "app/dump_document.hpp"
+#include "client/dump_document.hpp"
 #include "app/exit_codes.hpp"
 #include "app/master_options.hpp"
-#include "app/time_text.hpp"
-#include "device/restore_plan.hpp"
+#include "common/time_text.hpp"
+#include "client/restore_plan.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -30,7 +30,7 @@ struct DumpOptions {
 // any other failure (no reply, a broken link) ends it: a partial dump is worse than none.
 Result<device::ReadReport> read_everything(device::DeviceClient& client) {
     const auto& device = client.device();
-    const auto blocks = device::plan_reads(*device.profile, dumped_parameters(*device.profile), device.address_offset);
+    const auto blocks = device::plan_reads(*device.profile, device::dumped_parameters(*device.profile), device.address_offset);
     const bool progress = ::isatty(STDERR_FILENO) == 1;
     device::ReadReport all;
     std::size_t done = 0;
@@ -93,7 +93,7 @@ int run_dump(const DumpOptions& options) {
     if (!report) return report_error(report.error());
     if (auto refused = check_refusals(*report); !refused) return report_error(refused.error());
     sort_by_profile(*report, *device->profile);
-    auto document = dump_document(*device, DumpHeader{options.master.link, time, options.master.numbering}, *report);
+    auto document = device::dump_document(*device, device::DumpHeader{options.master.link, time, options.master.numbering}, *report);
     if (!document) return report_error(document.error());
     const std::string text = document->dump(2) + "\n";
     if (options.output.empty()) {

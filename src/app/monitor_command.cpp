@@ -10,9 +10,10 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "app/monitor_output.hpp"
 #include "app/master_options.hpp"
-#include "app/monitor_loop.hpp"
-#include "app/monitor_names.hpp"
+#include "client/monitor_loop.hpp"
+#include "client/monitor_names.hpp"
 #include "app/stop_signal.hpp"
 
 namespace loopwire::app {
@@ -29,27 +30,21 @@ struct MonitorOptions {
 };
 
 Result<MonitorFormat> choose_format(const MonitorOptions& options) {
-    if (options.format.empty()) {
-        const bool terminal = options.output.empty() && ::isatty(STDOUT_FILENO) == 1;
-        return terminal ? MonitorFormat::table : MonitorFormat::jsonl;
+    const bool terminal = options.output.empty() && ::isatty(STDOUT_FILENO) == 1;
+    auto format = monitor_format(options.format, terminal);
+    if (format && *format == MonitorFormat::table && !options.output.empty()) {
+        return make_error(ErrorKind::usage, "the table redraws a terminal; write files as --format csv or jsonl");
     }
-    if (options.format == "jsonl") return MonitorFormat::jsonl;
-    if (options.format == "csv") return MonitorFormat::csv;
-    if (options.format != "table") return make_error(ErrorKind::usage, fmt::format("--format '{}': choose table, csv or jsonl", options.format));
-    if (!options.output.empty()) return make_error(ErrorKind::usage, "the table redraws a terminal; write files as --format csv or jsonl");
-    return MonitorFormat::table;
+    return format;
 }
 
-Result<MonitorSettings> settings_of(const MonitorOptions& options) {
-    auto format = choose_format(options);
-    if (!format) return format.error();
+Result<device::MonitorSettings> settings_of(const MonitorOptions& options) {
     auto interval = parse_duration(options.interval);
     if (!interval) return interval.error();
     const auto millis = std::chrono::duration_cast<std::chrono::milliseconds>(*interval);
     if (millis.count() < 10) return make_error(ErrorKind::usage, "--interval must be at least 10ms");
-    MonitorSettings settings;
+    device::MonitorSettings settings;
     settings.interval = millis;
-    settings.format = *format;
     if (options.count > 0) settings.count = options.count;
     return settings;
 }
@@ -74,9 +69,11 @@ struct FileCloser {
 int run_monitor_command(const MonitorOptions& options) {
     auto settings = settings_of(options);
     if (!settings) return report_error(settings.error());
+    auto format = choose_format(options);
+    if (!format) return report_error(format.error());
     auto devices = parse_devices(options.devices);
     if (!devices) return report_error(devices.error());
-    auto lists = watch_lists(*devices, options.names);
+    auto lists = device::watch_lists(*devices, options.names);
     if (!lists) return report_error(lists.error());
     std::unique_ptr<std::FILE, FileCloser> file;
     if (!options.output.empty()) {
@@ -86,9 +83,10 @@ int run_monitor_command(const MonitorOptions& options) {
     StopSignal stop;  // before the master's threads start, so they inherit the blocked signals
     auto master = options.master.open();
     if (!master) return report_error(master.error());
-    std::vector<MonitorTarget> targets;
-    for (std::size_t i = 0; i < devices->size(); ++i) targets.push_back(MonitorTarget{master->get(), (*devices)[i], (*lists)[i]});
-    run_monitor(targets, *settings, file ? file.get() : stdout, stop.token());
+    std::vector<device::MonitorTarget> targets;
+    for (std::size_t i = 0; i < devices->size(); ++i) targets.push_back(device::MonitorTarget{master->get(), (*devices)[i], (*lists)[i]});
+    StreamSampleSink sink(file ? file.get() : stdout, *format);
+    device::run_monitor(targets, *settings, sink, stop.token());
     return exit_ok;
 }
 

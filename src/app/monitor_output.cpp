@@ -5,20 +5,20 @@
 
 #include <fmt/format.h>
 
-#include "app/time_text.hpp"
-#include "app/value_format.hpp"
+#include "common/time_text.hpp"
+#include "profile/value_format.hpp"
 
 namespace loopwire::app {
 namespace {
 
-nlohmann::ordered_json value_entry(const WatchedDevice& device, const WatchedValue& value, MonitorClock::time_point now) {
+nlohmann::ordered_json value_entry(const device::WatchedDevice& device, const device::WatchedValue& value, device::MonitorClock::time_point now) {
     const auto& p = *value.parameter;
-    nlohmann::ordered_json entry{{"value", nullptr}, {"text", nullptr}, {"unit", p.unit}, {"status", value_status(device, value)}};
+    nlohmann::ordered_json entry{{"value", nullptr}, {"text", nullptr}, {"unit", p.unit}, {"status", device::value_status(device, value)}};
     if (value.fresh) {
-        entry["value"] = value_json(p, *value.last)["value"];
-        entry["text"] = value_text(p, *value.last);
+        entry["value"] = device::value_json(p, *value.last)["value"];
+        entry["text"] = device::value_text(p, *value.last);
     }
-    const auto age = age_seconds(value, now);
+    const auto age = device::age_seconds(value, now);
     entry["age"] = age ? nlohmann::ordered_json(std::round(*age * 1000.0) / 1000.0) : nlohmann::ordered_json(nullptr);
     entry["changed"] = value.changed;
     if (!value.fresh) entry["error"] = value.error;
@@ -36,20 +36,20 @@ std::string csv_field(const std::string& text) {
     return quoted + "\"";
 }
 
-std::string age_text(const WatchedValue& value, MonitorClock::time_point now) {
-    const auto age = age_seconds(value, now);
+std::string age_text(const device::WatchedValue& value, device::MonitorClock::time_point now) {
+    const auto age = device::age_seconds(value, now);
     if (!age) return "never";
     return fmt::format("{:.1f}s", *age);
 }
 
-std::optional<double> retry_in(const WatchedDevice& device, MonitorClock::time_point now) {
+std::optional<double> retry_in(const device::WatchedDevice& device, device::MonitorClock::time_point now) {
     if (!device.next_try) return std::nullopt;
     const double seconds = std::chrono::duration<double>(*device.next_try - now).count();
     return std::round(std::max(seconds, 0.0) * 1000.0) / 1000.0;
 }
 
 // "tc10@3  ok  errors 0", or for a unit in trouble also when it is tried next and why.
-std::string device_line(const WatchedDevice& device, MonitorClock::time_point now) {
+std::string device_line(const device::WatchedDevice& device, device::MonitorClock::time_point now) {
     std::string line = fmt::format("{}  {}  errors {}", device.label, device.status, device.errors);
     if (const auto retry = retry_in(device, now)) line += fmt::format("  retry in {:.1f}s", *retry);
     if (device.status != "ok") line += "  " + device.last_error.substr(0, 60);
@@ -58,7 +58,7 @@ std::string device_line(const WatchedDevice& device, MonitorClock::time_point no
 
 }  // namespace
 
-nlohmann::ordered_json sample_json(const SampleView& sample) {
+nlohmann::ordered_json sample_json(const device::SampleView& sample) {
     nlohmann::ordered_json devices = nlohmann::ordered_json::object();
     for (const auto& device : *sample.devices) {
         nlohmann::ordered_json values = nlohmann::ordered_json::object();
@@ -71,7 +71,7 @@ nlohmann::ordered_json sample_json(const SampleView& sample) {
     return {{"time", iso8601_utc(sample.time)}, {"sample", sample.index}, {"devices", devices}};
 }
 
-std::string csv_header(const std::vector<WatchedDevice>& devices) {
+std::string csv_header(const std::vector<device::WatchedDevice>& devices) {
     std::vector<std::string> columns{"time", "sample"};
     for (const auto& device : devices) {
         columns.push_back(csv_field(device.label + " status"));
@@ -81,19 +81,19 @@ std::string csv_header(const std::vector<WatchedDevice>& devices) {
     return fmt::format("{}\n", fmt::join(columns, ","));
 }
 
-std::string csv_row(const SampleView& sample) {
+std::string csv_row(const device::SampleView& sample) {
     std::vector<std::string> fields{iso8601_utc(sample.time), std::to_string(sample.index)};
     for (const auto& device : *sample.devices) {
         fields.push_back(device.status);
         fields.push_back(std::to_string(device.errors));
         for (const auto& value : device.values) {
-            fields.push_back(value.fresh ? csv_field(value_text(*value.parameter, *value.last)) : "");
+            fields.push_back(value.fresh ? csv_field(device::value_text(*value.parameter, *value.last)) : "");
         }
     }
     return fmt::format("{}\n", fmt::join(fields, ","));
 }
 
-std::vector<std::string> table_lines(const SampleView& sample) {
+std::vector<std::string> table_lines(const device::SampleView& sample) {
     std::vector<std::string> lines;
     lines.push_back(fmt::format("loopwire monitor  {}  sample {}  (Ctrl-C to stop)", iso8601_utc(sample.time), sample.index));
     lines.push_back(fmt::format("  {:<34} {:>14} {:<6} {:<14} {:>8}", "PARAMETER", "VALUE", "UNIT", "STATUS", "AGE"));
@@ -101,12 +101,12 @@ std::vector<std::string> table_lines(const SampleView& sample) {
         lines.push_back(device_line(device, sample.now));
         for (const auto& value : device.values) {
             const auto& p = *value.parameter;
-            const std::string text = value.last ? value_text(p, *value.last) : "-";
+            const std::string text = value.last ? device::value_text(p, *value.last) : "-";
             // Bold for a value that just changed; dim for one not read this sample (its status
             // and age say why), so an old value never passes for a current one.
             const char* style = value.changed ? "\x1b[1m" : value.fresh ? "" : "\x1b[2m";
             lines.push_back(fmt::format("  {:<34} {}{:>14}\x1b[0m {:<6} {:<14} {:>8}", p.name, style, text, p.unit,
-                                        value_status(device, value), age_text(value, sample.now)));
+                                        device::value_status(device, value), age_text(value, sample.now)));
         }
     }
     return lines;
@@ -117,6 +117,34 @@ std::string table_frame(const std::vector<std::string>& lines, std::size_t previ
     for (const auto& line : lines) frame += "\r" + line + "\x1b[K\n";
     frame += "\x1b[J";  // a shorter frame than the last leaves nothing of it below
     return frame;
+}
+
+Result<MonitorFormat> monitor_format(std::string_view option, bool terminal) {
+    if (option.empty()) return terminal ? MonitorFormat::table : MonitorFormat::jsonl;
+    if (option == "table") return MonitorFormat::table;
+    if (option == "jsonl") return MonitorFormat::jsonl;
+    if (option == "csv") return MonitorFormat::csv;
+    return make_error(ErrorKind::usage, fmt::format("--format '{}': choose table, csv or jsonl", option));
+}
+
+StreamSampleSink::~StreamSampleSink() {
+    if (format_ == MonitorFormat::table) {
+        std::fputs(terminal_restore, out_);
+        std::fflush(out_);
+    }
+}
+
+void StreamSampleSink::write(const device::SampleView& sample) {
+    std::string text;
+    if (format_ == MonitorFormat::jsonl) text = sample_json(sample).dump() + "\n";
+    else if (format_ == MonitorFormat::csv) text = (sample.index == 1 ? csv_header(*sample.devices) : "") + csv_row(sample);
+    else {
+        const auto lines = table_lines(sample);
+        text = table_frame(lines, shown_lines_);
+        shown_lines_ = lines.size();
+    }
+    std::fputs(text.c_str(), out_);
+    std::fflush(out_);
 }
 
 }  // namespace loopwire::app

@@ -7,18 +7,15 @@
 
 #include <nlohmann/json.hpp>
 
-#include "app/monitor_state.hpp"
+#include "client/monitor_loop.hpp"
 
 namespace loopwire::app {
 
 enum class MonitorFormat { table, csv, jsonl };
 
-struct SampleView {
-    unsigned index = 0;                           // 1-based
-    std::chrono::system_clock::time_point time;   // when the sample started
-    MonitorClock::time_point now;                 // the same instant, for ages
-    const std::vector<WatchedDevice>* devices = nullptr;
-};
+// The format a --format option names; empty chooses the table on a terminal, JSON lines otherwise.
+Result<MonitorFormat> monitor_format(std::string_view option, bool terminal);
+
 
 // {"time":"...Z","sample":1,"devices":{"tc10@3":{"status":"ok","errors":0,"values":{NAME:
 // {"value":V,"text":"25.0","unit":"°C","status":"ok","age":0.0,"changed":false}}}}}.
@@ -26,22 +23,39 @@ struct SampleView {
 // "age" says how old the last good reading is (null: never read), "status" why it is missing.
 // A device whose status is not "ok" also has "error" (the last failure) and, while in back-off,
 // "retry_in" (seconds until it is tried again).
-nlohmann::ordered_json sample_json(const SampleView& sample);
+nlohmann::ordered_json sample_json(const device::SampleView& sample);
 
 // CSV: time,sample, then per device "DEVICE status","DEVICE errors", and one column
 // "DEVICE:NAME" per value holding its text, empty when not read in this sample.
-std::string csv_header(const std::vector<WatchedDevice>& devices);
-std::string csv_row(const SampleView& sample);
+std::string csv_header(const std::vector<device::WatchedDevice>& devices);
+std::string csv_row(const device::SampleView& sample);
 
 // The table for one sample, one line per element (no newlines, no cursor movement): a title,
 // a header, then per device a line with its status and error count and a line per value with
 // value, unit, status and age. Changed values are bold; values not read this sample are dim.
-std::vector<std::string> table_lines(const SampleView& sample);
+std::vector<std::string> table_lines(const device::SampleView& sample);
 
 // Terminal control around table_lines: the first frame hides the cursor; each later frame moves
 // back up over the previous one and overwrites it line by line, so the screen never scrolls.
 std::string table_frame(const std::vector<std::string>& lines, std::size_t previous_line_count);
 // Shows the cursor and resets attributes: printed however the monitor ends.
 inline constexpr const char* terminal_restore = "\x1b[0m\x1b[?25h";
+
+// Writes each sample to a stdio stream in one of the formats above, flushed per sample; the
+// table format leaves the cursor shown and attributes reset when the sink is destroyed.
+class StreamSampleSink final : public device::SampleSink {
+public:
+    StreamSampleSink(std::FILE* out, MonitorFormat format) : out_(out), format_(format) {}
+    ~StreamSampleSink() override;
+    StreamSampleSink(const StreamSampleSink&) = delete;
+    StreamSampleSink& operator=(const StreamSampleSink&) = delete;
+
+    void write(const device::SampleView& sample) override;
+
+private:
+    std::FILE* out_;
+    MonitorFormat format_;
+    std::size_t shown_lines_ = 0;
+};
 
 }  // namespace loopwire::app

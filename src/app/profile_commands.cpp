@@ -7,8 +7,8 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
-#include "app/value_format.hpp"
-#include "device/profile.hpp"
+#include "profile/value_format.hpp"
+#include "profile/profile.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -43,7 +43,7 @@ nlohmann::ordered_json bound_json(const std::optional<device::Bound>& bound) {
 
 nlohmann::ordered_json parameter_json(const device::Parameter& p) {
     nlohmann::ordered_json out{{"name", p.name}, {"mnemonic", p.mnemonic}, {"group", p.group}, {"table", device::table_name(p.table)},
-                               {"address", p.address}, {"access", access_text(p)}, {"unit", p.unit},
+                               {"address", p.address}, {"access", device::access_text(p)}, {"unit", p.unit},
                                {"min", bound_json(p.min)}, {"max", bound_json(p.max)}, {"description", p.description}, {"source", p.source}};
     if (const auto* fixed = std::get_if<int>(&p.decimals)) out["decimals"] = *fixed;
     else out["decimals"] = {{"parameter", std::get<std::string>(p.decimals)}};
@@ -83,7 +83,7 @@ int run_describe(const std::string& id, const std::string& group, bool json) {
     for (const auto* q : shown) {
         const std::string range = (q->min || q->max) ? bound_text(q->min) + ".." + bound_text(q->max) : "";
         fmt::print("{:<34} {:<8} {:<8} {:>5} {:<3} {:<6} {:<24} {}\n", q->name, q->mnemonic, device::table_name(q->table), q->address,
-                   access_text(*q), q->unit, range, q->description.substr(0, 60));
+                   device::access_text(*q), q->unit, range, q->description.substr(0, 60));
     }
     return exit_ok;
 }

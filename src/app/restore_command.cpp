@@ -13,12 +13,13 @@
 
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
-#include "app/dump_file.hpp"
+#include "client/dump_file.hpp"
 #include "app/exit_codes.hpp"
 #include "app/master_options.hpp"
-#include "app/restore_runner.hpp"
-#include "device/device_client.hpp"
-#include "device/restore_plan.hpp"
+#include "client/restore_runner.hpp"
+#include "client/device_client.hpp"
+#include "client/restore_plan.hpp"
+#include "devices/registry.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -43,7 +44,7 @@ std::string shown(const device::Parameter& parameter, std::uint16_t raw, const d
 
 // The dump must come from this kind of device, and from this very device where the profile
 // has identification words (AC20 120/121, TC10 20/21, ramp/soak VER).
-Result<void> check_origin(const DumpFile& dump, const device::DeviceAddress& device, const device::RawValues& now, bool force) {
+Result<void> check_origin(const device::DumpFile& dump, const device::DeviceAddress& device, const device::RawValues& now, bool force) {
     if (dump.profile != device.profile->id && !force) {
         return make_error(ErrorKind::usage, fmt::format("the dump is of a {}, the device is a {}; add --force to write the "
                                                         "parameters they share anyway", dump.profile, device.profile->id));
@@ -68,7 +69,7 @@ Result<void> check_origin(const DumpFile& dump, const device::DeviceAddress& dev
 // refuse some words with an exception (an AC20 in a start-up error condition answers only its
 // configuration, control and security words, which restore can then repair): a refused
 // identification word is left out for check_origin to judge; any other failure ends here.
-Result<device::RawValues> read_current(device::DeviceClient& client, const device::Profile& profile, const DumpFile& dump) {
+Result<device::RawValues> read_current(device::DeviceClient& client, const device::Profile& profile, const device::DumpFile& dump) {
     std::vector<const device::Parameter*> wanted;
     for (const device::Parameter& parameter : profile.parameters) {
         if (!parameter.readable) continue;
@@ -109,7 +110,7 @@ Result<void> confirm(const RestoreCommandOptions& options, std::size_t changes) 
 }
 
 int run_restore(const RestoreCommandOptions& options) {
-    auto dump = read_dump_file(options.file);
+    auto dump = device::read_dump_file(options.file);
     if (!dump) return report_error(dump.error());
     auto device = device::parse_device_address(options.master.device, options.master.numbering);
     if (!device) return report_error(device.error());
@@ -127,7 +128,8 @@ int run_restore(const RestoreCommandOptions& options) {
     restore_options.include_security = options.security;
     restore_options.configuration_lock_code = static_cast<std::uint16_t>(options.lock_code);
     if (options.control_code) restore_options.control_lock_code = static_cast<std::uint16_t>(*options.control_code);
-    auto plan = device::plan_restore(*device->profile, dump->values, *current, restore_options);
+    auto plan = device::plan_restore(*device->profile, dump->values, *current, restore_options,
+                                     device::models::restore_procedure_for(*device->profile));
     if (!plan) return report_error(plan.error());
     fmt::print("{} differences between {} and {}:\n", plan->changes.size(), options.file, options.master.device);
     print_differences(*plan, *current, dump->values);
@@ -136,9 +138,9 @@ int run_restore(const RestoreCommandOptions& options) {
         return exit_ok;
     }
     if (auto confirmed = confirm(options, plan->changes.size()); !confirmed) return report_error(confirmed.error());
-    const RestoreOutcome outcome = execute_restore(client, *plan, stdout);
+    const device::RestoreOutcome outcome = device::execute_restore(client, *plan, stdout);
     if (outcome.error) {
-        print_restore_failure(outcome, stderr);
+        device::print_restore_failure(outcome, stderr);
         return exit_code_for(*outcome.error);
     }
     fmt::print("restored {} parameter(s); every value read back as written\n", plan->changes.size());

@@ -10,7 +10,7 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
-#include "device/device_client.hpp"
+#include "client/device_client.hpp"
 #include "transport/serial_port.hpp"
 
 namespace loopwire::app {

@@ -13,7 +13,7 @@
 #include "app/exit_codes.hpp"
 #include "app/stop_signal.hpp"
 #include "app/simulated_units.hpp"
-#include "app/simulator_state_file.hpp"
+#include "simulation/state_file.hpp"
 #include "session/slave.hpp"
 #include "transport/pseudo_terminal.hpp"
 #include "transport/serial_port.hpp"
@@ -39,7 +39,7 @@ struct SimulateOptions {
 // file that silently stopped following the device would be worse than none).
 class StateSaver {
 public:
-    StateSaver(SimulatorStateFile& file, StopSignal& stop)
+    StateSaver(device::SimulatorStateFile& file, StopSignal& stop)
         : file_(file), thread_([this, &stop](std::stop_token own) { run(own, stop); }) {}
     ~StateSaver() { thread_.request_stop(); }
     Result<void> finish() {
@@ -64,7 +64,7 @@ private:
         }
     }
 
-    SimulatorStateFile& file_;
+    device::SimulatorStateFile& file_;
     Error failure_{ErrorKind::usage, ""};
     std::jthread thread_;
 };
@@ -117,9 +117,9 @@ int run_simulate(SimulateOptions options) {
     for (const std::string& fault : options.faults) {
         if (auto applied = apply_fault_option(*served_units, fault); !applied) return report_error(applied.error());
     }
-    std::optional<SimulatorStateFile> state;
+    std::optional<device::SimulatorStateFile> state;
     if (!options.state.empty()) {
-        auto opened = SimulatorStateFile::open(options.state, served_units->devices);
+        auto opened = device::SimulatorStateFile::open(options.state, served_units->devices);
         if (!opened) return report_error(opened.error());
         state.emplace(std::move(*opened));
         served_units->warnings.insert(served_units->warnings.end(), state->warnings().begin(), state->warnings().end());

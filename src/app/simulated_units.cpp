@@ -4,9 +4,9 @@
 
 #include <fmt/format.h>
 
-#include "device/device_client.hpp"
-#include "device/models/simulator_factory.hpp"
-#include "session/register_bank.hpp"
+#include "client/device_client.hpp"
+#include "devices/registry.hpp"
+#include "simulation/register_bank.hpp"
 
 namespace loopwire::app {
 namespace {

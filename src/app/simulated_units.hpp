@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "common/result.hpp"
-#include "device/simulated_device.hpp"
+#include "simulation/simulated_device.hpp"
 #include "session/slave.hpp"
 #include "transport/link_url.hpp"
 

@@ -1,6 +1,6 @@
 #pragma once
 // The master side: sends requests, waits for the matching reply, retries, and keeps the line
-// discipline of its framing (DESIGN.md, session layer).
+// discipline of its framing (docs/DESIGN.md, session layer).
 #include <chrono>
 #include <cstdint>
 #include <functional>

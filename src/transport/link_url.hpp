@@ -1,5 +1,5 @@
 #pragma once
-// One string names a link everywhere (DESIGN.md, "Links"):
+// One string names a link everywhere (docs/DESIGN.md, "Links"):
 //   rtu:/dev/ttyUSB0?baud=19200&parity=even&stop=1&data=8&rs485=1
 //   ascii:/dev/ttyS1?baud=9600&parity=even&data=7
 //   linking:/dev/ttyS1?baud=9600

@@ -1,4 +1,4 @@
-// run_monitor on a faulty bus (tests/app/faulty_bus_rig.hpp): whatever the line does to the
+// device::run_monitor on a faulty bus (tests/app/faulty_bus_rig.hpp): whatever the line does to the
 // frames, a value shown as current is one the device holds, failed polls are counted and said,
 // and a unit that stops answering does not slow the healthy one down.
 #include <gtest/gtest.h>
@@ -10,9 +10,10 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "app/monitor_loop.hpp"
-#include "app/value_format.hpp"
-#include "faulty_bus_rig.hpp"
+#include "app/monitor_output.hpp"
+#include "client/monitor_loop.hpp"
+#include "profile/value_format.hpp"
+#include "client/faulty_bus_rig.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -43,30 +44,32 @@ nlohmann::json write_constants(FaultyBusRig& rig, const std::vector<Watched>& wa
         EXPECT_FALSE(report.first_error);
         const std::string label = fmt::format("{}@{}", client.device().profile->id, client.device().unit);
         for (const auto& reading : report.readings) {
-            expected[label][reading.parameter->name] = value_json(*reading.parameter, *reading.value)["value"];
+            expected[label][reading.parameter->name] = device::value_json(*reading.parameter, *reading.value)["value"];
         }
     }
     return expected;
 }
 
-std::vector<MonitorTarget> targets_of(FaultyBusRig& rig, const std::vector<Watched>& watched) {
-    std::vector<MonitorTarget> targets;
+std::vector<device::MonitorTarget> targets_of(FaultyBusRig& rig, const std::vector<Watched>& watched) {
+    std::vector<device::MonitorTarget> targets;
     for (const auto& [index, values] : watched) {
-        MonitorTarget target{&rig.master(), rig.address(index), {}};
+        device::MonitorTarget target{&rig.master(), rig.address(index), {}};
         for (const auto& [name, text] : values) target.parameters.push_back(target.device.profile->find(name));
         targets.push_back(std::move(target));
     }
     return targets;
 }
 
-// The JSON lines run_monitor writes, parsed.
-std::vector<nlohmann::json> monitor(const std::vector<MonitorTarget>& targets, std::chrono::milliseconds interval, unsigned count) {
+// The JSON lines device::run_monitor writes, parsed.
+std::vector<nlohmann::json> monitor(const std::vector<device::MonitorTarget>& targets, std::chrono::milliseconds interval, unsigned count) {
     std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::tmpfile(), &std::fclose);
-    MonitorSettings settings;
+    device::MonitorSettings settings;
     settings.interval = interval;
     settings.count = count;
-    settings.format = MonitorFormat::jsonl;
-    run_monitor(targets, settings, file.get(), std::stop_token{});
+    {
+        StreamSampleSink sink(file.get(), MonitorFormat::jsonl);
+        device::run_monitor(targets, settings, sink, std::stop_token{});
+    }
     std::rewind(file.get());
     std::vector<nlohmann::json> rows;
     std::string line;

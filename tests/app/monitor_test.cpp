@@ -3,12 +3,12 @@
 
 #include <nlohmann/json.hpp>
 
-#include "app/monitor_backoff.hpp"
-#include "app/monitor_names.hpp"
+#include "client/monitor_backoff.hpp"
+#include "client/monitor_names.hpp"
 #include "app/monitor_output.hpp"
-#include "app/monitor_state.hpp"
-#include "app/time_text.hpp"
-#include "read_report_of.hpp"
+#include "client/monitor_state.hpp"
+#include "common/time_text.hpp"
+#include "client/read_report_of.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -24,8 +24,8 @@ std::shared_ptr<const device::Profile> profile(const std::string& id) {
 using testing::report_of;
 
 TEST(RetryBackoff, FirstRetryAfterOneWaitThenDoublesUpToTheCap) {
-    RetryBackoff backoff(1000ms, 30000ms);
-    const auto t0 = RetryBackoff::Clock::time_point{} + 1h;
+    device::RetryBackoff backoff(1000ms, 30000ms);
+    const auto t0 = device::RetryBackoff::Clock::time_point{} + 1h;
     EXPECT_TRUE(backoff.due(t0));
     std::vector<long> waits;
     for (int failure = 0; failure < 8; ++failure) {
@@ -37,8 +37,8 @@ TEST(RetryBackoff, FirstRetryAfterOneWaitThenDoublesUpToTheCap) {
 }
 
 TEST(RetryBackoff, NotDueUntilTheWaitHasPassedAndDueAgainAfterSuccess) {
-    RetryBackoff backoff(200ms, 30000ms);
-    const auto t0 = RetryBackoff::Clock::time_point{} + 1h;
+    device::RetryBackoff backoff(200ms, 30000ms);
+    const auto t0 = device::RetryBackoff::Clock::time_point{} + 1h;
     backoff.failed(t0);
     backoff.failed(t0);  // second failure: 400 ms
     EXPECT_FALSE(backoff.due(t0 + 399ms));
@@ -51,13 +51,13 @@ TEST(RetryBackoff, NotDueUntilTheWaitHasPassedAndDueAgainAfterSuccess) {
 
 TEST(MonitorState, AnsweredPollMakesValuesFreshAndMarksChangedRawWords) {
     auto p = profile("rampsoak");
-    auto device = watch("rampsoak@5", {p->find("output_percentage"), p->find("controller_status")});
-    const auto t0 = MonitorClock::now();
-    record_poll(device, report_of(*p, {{"output_percentage", 125}, {"controller_status", 0}}), true, {}, t0);
+    auto device = device::watch("rampsoak@5", {p->find("output_percentage"), p->find("controller_status")});
+    const auto t0 = device::MonitorClock::now();
+    device::record_poll(device, report_of(*p, {{"output_percentage", 125}, {"controller_status", 0}}), true, {}, t0);
     EXPECT_EQ(device.status, "ok");
     EXPECT_TRUE(device.values[0].fresh);
     EXPECT_FALSE(device.values[0].changed);  // the first reading has nothing to differ from
-    record_poll(device, report_of(*p, {{"output_percentage", 130}, {"controller_status", 0}}), true, {}, t0 + 1s);
+    device::record_poll(device, report_of(*p, {{"output_percentage", 130}, {"controller_status", 0}}), true, {}, t0 + 1s);
     EXPECT_TRUE(device.values[0].changed);
     EXPECT_FALSE(device.values[1].changed);
     EXPECT_EQ(device.errors, 0u);
@@ -66,60 +66,60 @@ TEST(MonitorState, AnsweredPollMakesValuesFreshAndMarksChangedRawWords) {
 
 TEST(MonitorState, UnansweredPollKeepsTheOldValueButNeverAsCurrent) {
     auto p = profile("rampsoak");
-    auto device = watch("rampsoak@5", {p->find("output_percentage")});
-    const auto t0 = MonitorClock::now();
-    record_poll(device, report_of(*p, {{"output_percentage", 125}}), true, {}, t0);
-    record_poll(device, device::ReadReport{}, false, "no reply from unit 5", t0 + 2s);
+    auto device = device::watch("rampsoak@5", {p->find("output_percentage")});
+    const auto t0 = device::MonitorClock::now();
+    device::record_poll(device, report_of(*p, {{"output_percentage", 125}}), true, {}, t0);
+    device::record_poll(device, device::ReadReport{}, false, "no reply from unit 5", t0 + 2s);
     EXPECT_EQ(device.status, "no-reply");
     EXPECT_EQ(device.errors, 1u);
     EXPECT_FALSE(device.values[0].fresh);
-    EXPECT_EQ(value_status(device, device.values[0]), "no-reply");
-    EXPECT_NEAR(*age_seconds(device.values[0], t0 + 3s), 3.0, 1e-9);
-    std::vector<WatchedDevice> devices{device};
-    const auto row = sample_json(SampleView{2, std::chrono::system_clock::now(), t0 + 3s, &devices});
+    EXPECT_EQ(device::value_status(device, device.values[0]), "no-reply");
+    EXPECT_NEAR(*device::age_seconds(device.values[0], t0 + 3s), 3.0, 1e-9);
+    std::vector<device::WatchedDevice> devices{device};
+    const auto row = sample_json(device::SampleView{2, std::chrono::system_clock::now(), t0 + 3s, &devices});
     const auto& entry = row["devices"]["rampsoak@5"]["values"]["output_percentage"];
     EXPECT_TRUE(entry["value"].is_null());
     EXPECT_TRUE(entry["text"].is_null());
     EXPECT_EQ(entry["status"], "no-reply");
     EXPECT_EQ(entry["age"], 3.0);
-    record_skipped(devices[0]);
-    EXPECT_EQ(value_status(devices[0], devices[0].values[0]), "waiting");
+    device::record_skipped(devices[0]);
+    EXPECT_EQ(device::value_status(devices[0], devices[0].values[0]), "waiting");
 }
 
 TEST(MonitorOutput, AUnitInBackOffSaysWhyAndWhenItIsTriedAgain) {
     auto p = profile("rampsoak");
-    std::vector<WatchedDevice> devices{watch("rampsoak@5", {p->find("output_percentage")})};
-    const auto t0 = MonitorClock::now();
-    record_poll(devices[0], device::ReadReport{}, false, "no reply from unit 5", t0);
+    std::vector<device::WatchedDevice> devices{device::watch("rampsoak@5", {p->find("output_percentage")})};
+    const auto t0 = device::MonitorClock::now();
+    device::record_poll(devices[0], device::ReadReport{}, false, "no reply from unit 5", t0);
     devices[0].next_try = t0 + 2500ms;
-    const auto row = sample_json(SampleView{1, std::chrono::system_clock::now(), t0 + 1s, &devices});
+    const auto row = sample_json(device::SampleView{1, std::chrono::system_clock::now(), t0 + 1s, &devices});
     EXPECT_EQ(row["devices"]["rampsoak@5"]["error"], "no reply from unit 5");
     EXPECT_EQ(row["devices"]["rampsoak@5"]["retry_in"], 1.5);
-    const auto lines = table_lines(SampleView{1, std::chrono::system_clock::now(), t0 + 1s, &devices});
+    const auto lines = table_lines(device::SampleView{1, std::chrono::system_clock::now(), t0 + 1s, &devices});
     EXPECT_EQ(lines[2], "rampsoak@5  no-reply  errors 1  retry in 1.5s  no reply from unit 5");
 }
 
 TEST(MonitorState, ValuesTheDeviceRefusedShowAsErrorsWhileTheRestIsCurrent) {
     auto p = profile("rampsoak");
-    auto device = watch("rampsoak@5", {p->find("output_percentage"), p->find("controller_status")});
+    auto device = device::watch("rampsoak@5", {p->find("output_percentage"), p->find("controller_status")});
     auto report = report_of(*p, {{"output_percentage", 125}});
     report.readings.push_back(device::ParameterReading{p->find("controller_status"), std::nullopt, "exception 2"});
     report.first_error = make_error(ErrorKind::exception, "exception 2");
-    record_poll(device, report, true, {}, MonitorClock::now());
+    device::record_poll(device, report, true, {}, device::MonitorClock::now());
     EXPECT_EQ(device.status, "partial");
     EXPECT_EQ(device.errors, 1u);
     EXPECT_TRUE(device.values[0].fresh);
-    EXPECT_EQ(value_status(device, device.values[1]), "error");
+    EXPECT_EQ(device::value_status(device, device.values[1]), "error");
     EXPECT_EQ(device.values[1].error, "exception 2");
 }
 
 TEST(MonitorOutput, JsonLineCarriesIso8601UtcTimeAndEngineeringValues) {
     auto p = profile("rampsoak");
-    std::vector<WatchedDevice> devices{watch("rampsoak@5", {p->find("output_percentage")})};
-    const auto t0 = MonitorClock::now();
-    record_poll(devices[0], report_of(*p, {{"output_percentage", 125}}), true, {}, t0);
+    std::vector<device::WatchedDevice> devices{device::watch("rampsoak@5", {p->find("output_percentage")})};
+    const auto t0 = device::MonitorClock::now();
+    device::record_poll(devices[0], report_of(*p, {{"output_percentage", 125}}), true, {}, t0);
     const auto time = std::chrono::system_clock::time_point(std::chrono::milliseconds(1795426262123));
-    const auto row = sample_json(SampleView{1, time, t0, &devices});
+    const auto row = sample_json(device::SampleView{1, time, t0, &devices});
     EXPECT_EQ(row["time"], "2026-11-23T09:31:02.123Z");
     EXPECT_EQ(row["sample"], 1);
     const auto& entry = row["devices"]["rampsoak@5"]["values"]["output_percentage"];
@@ -132,16 +132,16 @@ TEST(MonitorOutput, JsonLineCarriesIso8601UtcTimeAndEngineeringValues) {
 
 TEST(MonitorOutput, CsvHasOneColumnPerDeviceValueAndLeavesUnreadCellsEmpty) {
     auto p = profile("rampsoak");
-    std::vector<WatchedDevice> devices{watch("rampsoak@5", {p->find("output_percentage")}), watch("rampsoak@6", {p->find("output_percentage")})};
-    const auto t0 = MonitorClock::now();
-    record_poll(devices[0], report_of(*p, {{"output_percentage", 125}}), true, {}, t0);
-    record_poll(devices[1], report_of(*p, {{"output_percentage", 300}}), true, {}, t0);
-    record_poll(devices[1], device::ReadReport{}, false, "no reply", t0 + 1s);
+    std::vector<device::WatchedDevice> devices{device::watch("rampsoak@5", {p->find("output_percentage")}), device::watch("rampsoak@6", {p->find("output_percentage")})};
+    const auto t0 = device::MonitorClock::now();
+    device::record_poll(devices[0], report_of(*p, {{"output_percentage", 125}}), true, {}, t0);
+    device::record_poll(devices[1], report_of(*p, {{"output_percentage", 300}}), true, {}, t0);
+    device::record_poll(devices[1], device::ReadReport{}, false, "no reply", t0 + 1s);
     EXPECT_EQ(csv_header(devices),
               "time,sample,rampsoak@5 status,rampsoak@5 errors,rampsoak@5:output_percentage,"
               "rampsoak@6 status,rampsoak@6 errors,rampsoak@6:output_percentage\n");
     const auto time = std::chrono::system_clock::time_point(std::chrono::milliseconds(1795426262000));
-    EXPECT_EQ(csv_row(SampleView{3, time, t0 + 1s, &devices}), "2026-11-23T09:31:02.000Z,3,ok,0,12.5,no-reply,1,\n");
+    EXPECT_EQ(csv_row(device::SampleView{3, time, t0 + 1s, &devices}), "2026-11-23T09:31:02.000Z,3,ok,0,12.5,no-reply,1,\n");
 }
 
 TEST(MonitorOutput, TableFramesHideTheCursorThenOverwriteThePreviousFrameInPlace) {
@@ -157,18 +157,18 @@ TEST(MonitorOutput, TableFramesHideTheCursorThenOverwriteThePreviousFrameInPlace
 
 TEST(MonitorOutput, TableShowsChangedValuesBoldAndUnreadOnesDimWithTheirStatus) {
     auto p = profile("rampsoak");
-    std::vector<WatchedDevice> devices{watch("rampsoak@5", {p->find("output_percentage")})};
-    const auto t0 = MonitorClock::now();
-    record_poll(devices[0], report_of(*p, {{"output_percentage", 125}}), true, {}, t0);
-    record_poll(devices[0], report_of(*p, {{"output_percentage", 126}}), true, {}, t0);
-    auto lines = table_lines(SampleView{2, std::chrono::system_clock::now(), t0, &devices});
+    std::vector<device::WatchedDevice> devices{device::watch("rampsoak@5", {p->find("output_percentage")})};
+    const auto t0 = device::MonitorClock::now();
+    device::record_poll(devices[0], report_of(*p, {{"output_percentage", 125}}), true, {}, t0);
+    device::record_poll(devices[0], report_of(*p, {{"output_percentage", 126}}), true, {}, t0);
+    auto lines = table_lines(device::SampleView{2, std::chrono::system_clock::now(), t0, &devices});
     ASSERT_EQ(lines.size(), 4u);
     EXPECT_NE(lines[1].find("PARAMETER"), std::string::npos);
     EXPECT_NE(lines[2].find("rampsoak@5  ok  errors 0"), std::string::npos);
     EXPECT_NE(lines[3].find("\x1b[1m"), std::string::npos);
     EXPECT_NE(lines[3].find("12.6"), std::string::npos);
-    record_poll(devices[0], device::ReadReport{}, false, "no reply", t0 + 5s);
-    lines = table_lines(SampleView{3, std::chrono::system_clock::now(), t0 + 5s, &devices});
+    device::record_poll(devices[0], device::ReadReport{}, false, "no reply", t0 + 5s);
+    lines = table_lines(device::SampleView{3, std::chrono::system_clock::now(), t0 + 5s, &devices});
     EXPECT_NE(lines[3].find("\x1b[2m"), std::string::npos);
     EXPECT_NE(lines[3].find("no-reply"), std::string::npos);
     EXPECT_NE(lines[3].find("5.0s"), std::string::npos);
@@ -191,25 +191,25 @@ std::vector<std::string> names_of(const std::vector<const device::Parameter*>& l
 TEST(MonitorNames, DefaultWatchListsNameReadableParametersOfEveryBuiltInProfile) {
     const std::map<std::string, std::size_t> expected{{"tc10", 4}, {"rampsoak", 4}, {"ac20", 5}};
     for (const auto& id : device::builtin_profile_ids()) {
-        const auto list = default_watch_list(*profile(id));
+        const auto list = device::default_watch_list(*profile(id));
         EXPECT_EQ(list.size(), expected.at(id)) << id;
         for (const auto* p : list) EXPECT_TRUE(p->readable) << id << " " << p->name;
     }
-    EXPECT_EQ(names_of(default_watch_list(*profile("tc10"))),
+    EXPECT_EQ(names_of(device::default_watch_list(*profile("tc10"))),
               (std::vector<std::string>{"measured_value", "operating_set_point", "output_power", "alarm_status"}));
 }
 
 TEST(MonitorNames, PlainNameAppliesToDevicesThatHaveItOthersKeepTheirDefaults) {
     const auto devices = devices_of({"tc10@3", "rampsoak@5"});
-    auto lists = watch_lists(devices, {"output_power"});
+    auto lists = device::watch_lists(devices, {"output_power"});
     ASSERT_TRUE(lists);
     EXPECT_EQ(names_of((*lists)[0]), (std::vector<std::string>{"output_power"}));
-    EXPECT_EQ(names_of((*lists)[1]), names_of(default_watch_list(*devices[1].profile)));
+    EXPECT_EQ(names_of((*lists)[1]), names_of(device::default_watch_list(*devices[1].profile)));
 }
 
 TEST(MonitorNames, DeviceQualifiedNameAppliesToThatDeviceOnly) {
     const auto devices = devices_of({"tc10@3", "tc10@4"});
-    auto lists = watch_lists(devices, {"tc10@4:SP.HL", "tc10@4:set_point"});
+    auto lists = device::watch_lists(devices, {"tc10@4:SP.HL", "tc10@4:set_point"});
     ASSERT_TRUE(lists);
     EXPECT_EQ(names_of((*lists)[1]), (std::vector<std::string>{"set_point_high_limit", "set_point"}));
     EXPECT_EQ((*lists)[0].size(), 4u);  // defaults
@@ -217,10 +217,10 @@ TEST(MonitorNames, DeviceQualifiedNameAppliesToThatDeviceOnly) {
 
 TEST(MonitorNames, UnknownNamesAndDevicesAreUsageErrors) {
     const auto devices = devices_of({"tc10@3"});
-    auto unknown = watch_lists(devices, {"nosuch"});
+    auto unknown = device::watch_lists(devices, {"nosuch"});
     ASSERT_FALSE(unknown);
     EXPECT_EQ(unknown.error().kind, ErrorKind::usage);
-    auto other_device = watch_lists(devices, {"tc10@9:SP"});
+    auto other_device = device::watch_lists(devices, {"tc10@9:SP"});
     ASSERT_FALSE(other_device);
     EXPECT_NE(other_device.error().message.find("not one of the --device options"), std::string::npos);
 }

@@ -6,7 +6,7 @@
 #include "codec/linking.hpp"
 #include "scripted_stream.hpp"
 #include "session/master.hpp"
-#include "session/register_bank.hpp"
+#include "simulation/register_bank.hpp"
 #include "session/slave.hpp"
 #include "transport/virtual_bus.hpp"
 

@@ -1,4 +1,4 @@
-// Serial master behaviour, as expectations on the exact bytes it writes (DESIGN.md): the
+// Serial master behaviour, as expectations on the exact bytes it writes (docs/DESIGN.md): the
 // manuals' example exchanges are the scripts.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Slave dispatch and the silence rules, through the wire on the virtual bus (DESIGN.md: encode
+// Slave dispatch and the silence rules, through the wire on the virtual bus (docs/DESIGN.md: encode
 // a request, feed the slave, decode the reply).
 #include <gtest/gtest.h>
 
@@ -7,7 +7,7 @@
 #include "codec/rtu.hpp"
 #include "scripted_stream.hpp"
 #include "session/master.hpp"
-#include "session/register_bank.hpp"
+#include "simulation/register_bank.hpp"
 #include "session/slave.hpp"
 #include "transport/virtual_bus.hpp"
 

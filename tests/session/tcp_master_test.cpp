@@ -6,7 +6,7 @@
 
 #include "codec/tcp.hpp"
 #include "session/master.hpp"
-#include "session/register_bank.hpp"
+#include "simulation/register_bank.hpp"
 #include "session/slave.hpp"
 #include "transport/tcp.hpp"
 

@@ -1,0 +1,240 @@
+#include "client/device_client.hpp"
+
+#include <algorithm>
+#include <set>
+
+#include <fmt/format.h>
+
+namespace loopwire::device {
+namespace {
+
+codec::FunctionCode read_function(Table table) {
+    switch (table) {
+        case Table::holding: return codec::FunctionCode::read_holding_registers;
+        case Table::input: return codec::FunctionCode::read_input_registers;
+        case Table::coils: return codec::FunctionCode::read_coils;
+        case Table::discrete: return codec::FunctionCode::read_discrete_inputs;
+    }
+    return codec::FunctionCode::read_holding_registers;
+}
+
+bool is_bit_table(Table table) { return table == Table::coils || table == Table::discrete; }
+
+codec::Request write_request(const WriteBlock& block) {
+    const bool bits = is_bit_table(block.table);
+    if (block.single) {
+        return bits ? codec::write_single_coil(block.wire_address, block.values.at(0) != 0)
+                    : codec::write_single_register(block.wire_address, block.values.at(0));
+    }
+    return bits ? codec::write_multiple_coils(block.wire_address, block.values)
+                : codec::write_multiple_registers(block.wire_address, block.values);
+}
+
+// The parameters to read so that every wanted one can be decoded (decimals from other words).
+std::vector<const Parameter*> with_dependencies(const Profile& profile, const std::vector<const Parameter*>& wanted) {
+    std::vector<const Parameter*> all = wanted;
+    std::set<const Parameter*> seen(wanted.begin(), wanted.end());
+    for (const Parameter* parameter : wanted) {
+        if (const auto* source = std::get_if<std::string>(&parameter->decimals)) {
+            const Parameter* dependency = profile.find(*source);
+            if (dependency && dependency->readable && seen.insert(dependency).second) all.push_back(dependency);
+        }
+    }
+    return all;
+}
+
+}  // namespace
+
+Result<DeviceAddress> parse_device_address(const std::string& text, const std::string& numbering) {
+    const auto at = text.find('@');
+    const std::string id = text.substr(0, at);
+    auto profile = builtin_profile(id);
+    if (!profile) return profile.error();
+    DeviceAddress device{*profile, 1, 0};
+    if (at != std::string::npos) {
+        const std::string unit = text.substr(at + 1);
+        int value = -1;
+        try {
+            std::size_t used = 0;
+            value = std::stoi(unit, &used);
+            if (used != unit.size()) value = -1;
+        } catch (...) {
+            value = -1;
+        }
+        if (value < 1 || value > 247) {
+            return make_error(ErrorKind::usage, fmt::format("'{}': the unit after '@' must be 1..247 (e.g. {}@3)", text, id));
+        }
+        device.unit = static_cast<std::uint8_t>(value);
+    }
+    if (!numbering.empty()) {
+        const auto& choices = device.profile->numberings;
+        auto it = std::find_if(choices.begin(), choices.end(), [&](const auto& n) { return n.name == numbering; });
+        if (it == choices.end()) {
+            std::vector<std::string> names;
+            for (const auto& n : choices) names.push_back(n.name);
+            return make_error(ErrorKind::usage,
+                              fmt::format("{} has no numbering '{}' ({})", id, numbering,
+                                          names.empty() ? "it has only its own" : "choices: " + fmt::format("{}", fmt::join(names, ", "))));
+        }
+        device.address_offset = it->offset;
+    }
+    return device;
+}
+
+DeviceClient::DeviceClient(session::Master& master, DeviceAddress device) : master_(master), device_(std::move(device)) {}
+
+Error DeviceClient::explain(Error error) const {
+    if (error.kind != ErrorKind::exception) return error;
+    auto it = device_.profile->exception_names.find(static_cast<std::uint8_t>(error.code));
+    if (it != device_.profile->exception_names.end()) {
+        error.message += fmt::format(" — {} manual: {}", device_.profile->id, it->second);
+    }
+    return error;
+}
+
+Result<codec::Reply> DeviceClient::execute_read(const ReadBlock& block) {
+    return master_.execute(device_.unit, codec::read_request(read_function(block.table), block.wire_address, block.count));
+}
+
+// Reads one planned block into `report`; a failure marks its parameters in `failures`.
+bool DeviceClient::read_block(const ReadBlock& block, ReadReport& report, std::map<const Parameter*, std::string>& failures,
+                              bool may_split) {
+    ++report.requests;
+    auto reply = execute_read(block);
+    if (!reply) {
+        const Error error = explain(reply.error());
+        if (may_split && error.kind == ErrorKind::exception) return false;
+        if (!report.first_error) report.first_error = error;
+        for (const Parameter* p : block.parameters) failures[p] = error.message;
+        return true;
+    }
+    for (const Parameter* p : block.parameters) {
+        const int wire = p->address + device_.address_offset;
+        report.raw[p->name] = reply->values.at(static_cast<std::size_t>(wire - block.wire_address));
+    }
+    return true;
+}
+
+ReadReport DeviceClient::read(const std::vector<const Parameter*>& parameters) {
+    ReadReport report;
+    std::map<const Parameter*, std::string> failures;
+    for (const ReadBlock& block : plan_reads(*device_.profile, with_dependencies(*device_.profile, parameters), device_.address_offset)) {
+        // A device may refuse a whole block for some of its words (an AC20 in a start-up error
+        // condition answers only its configuration, control and security words): on an
+        // exception, each parameter is asked for alone, so every word it answers is read.
+        const bool may_split = block.parameters.size() > 1;
+        if (read_block(block, report, failures, may_split)) continue;
+        for (const Parameter* p : block.parameters) {
+            for (const ReadBlock& single : plan_reads(*device_.profile, {p}, device_.address_offset)) {
+                read_block(single, report, failures, false);
+            }
+        }
+    }
+    for (const Parameter* p : parameters) {
+        ParameterReading reading{p, std::nullopt, {}};
+        if (auto failed = failures.find(p); failed != failures.end()) {
+            reading.error = failed->second;
+        } else if (auto raw = report.raw.find(p->name); raw != report.raw.end()) {
+            auto value = decode_value(*p, raw->second, report.raw);
+            if (value) reading.value = std::move(*value);
+            else reading.error = value.error().message;
+        } else {
+            reading.error = "not read";
+        }
+        report.readings.push_back(std::move(reading));
+    }
+    return report;
+}
+
+namespace {
+
+// The parameters whose values tell whether one of `parameter`'s write modes holds; empty when
+// some write mode has no requirement a master can check (it may hold: the device decides).
+std::vector<std::string> mode_indicators(const Profile& profile, const Parameter& parameter) {
+    std::vector<std::string> names;
+    for (const auto& mode : parameter.write_modes) {
+        auto requirement = profile.mode_requirements.find(mode);
+        if (requirement == profile.mode_requirements.end()) return {};
+        for (const auto& check : requirement->second) names.push_back(check.parameter);
+    }
+    return names;
+}
+
+bool requirements_hold(const std::vector<IdentificationCheck>& checks, const RawValues& known) {
+    return std::all_of(checks.begin(), checks.end(), [&](const IdentificationCheck& check) {
+        auto raw = known.find(check.parameter);
+        return raw != known.end() && static_cast<std::int32_t>(raw->second) == check.equals;
+    });
+}
+
+// A write the device would refuse in its present mode (AC20 in local: Note 5), said before
+// anything is sent, with what to do about it.
+Result<void> check_write_mode(const Profile& profile, const Parameter& parameter, const RawValues& known) {
+    if (mode_indicators(profile, parameter).empty()) return {};
+    std::vector<std::string> unmet;
+    for (const auto& mode : parameter.write_modes) {
+        const auto& checks = profile.mode_requirements.at(mode);
+        if (requirements_hold(checks, known)) return {};
+        for (const auto& check : checks) {
+            const Parameter* indicator = profile.find(check.parameter);
+            auto label = indicator ? indicator->enum_labels.find(check.equals) : std::map<std::int32_t, std::string>::const_iterator{};
+            const std::string wanted = indicator && label != indicator->enum_labels.end() ? label->second : std::to_string(check.equals);
+            unmet.push_back(fmt::format("{} needs {}={}", mode, check.parameter, wanted));
+        }
+    }
+    return make_error(ErrorKind::usage, fmt::format("{} can be written only in {} mode, which {} is not in now ({}); set that first",
+                                                    parameter.name, fmt::join(parameter.write_modes, " or "), profile.id,
+                                                    fmt::join(unmet, "; ")));
+}
+
+}  // namespace
+
+Result<WriteReport> DeviceClient::write(const std::vector<std::pair<const Parameter*, std::string>>& assignments) {
+    // What the new values are checked against: decimals and range bounds held by other words,
+    // and the words that tell the device's mode.
+    std::vector<const Parameter*> needed;
+    for (const auto& [parameter, text] : assignments) {
+        auto names = dependencies_of(*parameter);
+        const auto indicators = mode_indicators(*device_.profile, *parameter);
+        names.insert(names.end(), indicators.begin(), indicators.end());
+        for (const auto& name : names) {
+            if (const Parameter* dependency = device_.profile->find(name); dependency && dependency->readable) needed.push_back(dependency);
+        }
+    }
+    RawValues known;
+    if (!needed.empty()) {
+        auto current = read(needed);
+        if (current.first_error) return *current.first_error;
+        known = std::move(current.raw);
+    }
+    // Checked in order against the values as they will be by then: an earlier assignment can
+    // set the mode a later one needs (AC20 local_remote=remote main_set_point=0.9, Note 5).
+    std::vector<PlannedWrite> planned;
+    for (const auto& [parameter, text] : assignments) {
+        if (auto allowed = check_write_mode(*device_.profile, *parameter, known); !allowed) return allowed.error();
+        auto raw = encode_value(*parameter, text, known);
+        if (!raw) return raw.error();
+        planned.push_back({parameter, *raw});
+        known[parameter->name] = *raw;  // later bounds see the new value (TC10 SPLL before SP)
+    }
+    return write_raw(planned);
+}
+
+Result<WriteReport> DeviceClient::write_raw(const std::vector<PlannedWrite>& planned) {
+    WriteReport report;
+    for (const WriteBlock& block : plan_writes(*device_.profile, planned, device_.address_offset)) {
+        ++report.requests;
+        auto reply = master_.execute(device_.unit, write_request(block));
+        if (!reply) {
+            Error error = explain(reply.error());
+            std::vector<std::string> done;
+            for (const auto& [p, raw] : report.written) done.push_back(p->name);
+            error.message += fmt::format("; written before the failure: {}", done.empty() ? "nothing" : fmt::format("{}", fmt::join(done, ", ")));
+            return error;
+        }
+        for (std::size_t i = 0; i < block.parameters.size(); ++i) report.written.emplace_back(block.parameters[i], block.values[i]);
+    }
+    return report;
+}
+
+}  // namespace loopwire::device

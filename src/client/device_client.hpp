@@ -1,0 +1,82 @@
+#pragma once
+// Reads and writes one device by parameter name, in engineering units, over any master: the
+// request planner decides the requests, the value codecs turn words into values.
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/result.hpp"
+#include "profile/profile.hpp"
+#include "profile/request_planner.hpp"
+#include "profile/values.hpp"
+#include "session/master.hpp"
+
+namespace loopwire::device {
+
+// "tc10@3": a profile and the unit id it answers at.
+struct DeviceAddress {
+    std::shared_ptr<const Profile> profile;
+    std::uint8_t unit = 1;
+    int address_offset = 0;  // numbering alternative in use (AC20 J-BUS: +1)
+};
+
+// Parses "DEVICE@UNIT" against the built-in profiles; `numbering` names an alternative
+// numbering of the profile ("jbus") or is empty for the profile's own.
+Result<DeviceAddress> parse_device_address(const std::string& text, const std::string& numbering = {});
+
+struct ParameterReading {
+    const Parameter* parameter = nullptr;
+    std::optional<EngineeringValue> value;  // absent when the read failed
+    std::string error;                      // why, when it failed
+};
+
+struct ReadReport {
+    std::vector<ParameterReading> readings;  // in the order asked
+    RawValues raw;                           // every word read, dependencies included
+    unsigned requests = 0;
+    std::optional<Error> first_error;        // the first failed request, if any
+};
+
+struct WriteReport {
+    std::vector<std::pair<const Parameter*, std::uint16_t>> written;
+    unsigned requests = 0;
+};
+
+class DeviceClient {
+public:
+    DeviceClient(session::Master& master, DeviceAddress device);
+
+    // Reads `parameters` and whatever their values depend on (decimals from other words), in
+    // planned blocks. A failed block marks its parameters as failed; the others are still read.
+    ReadReport read(const std::vector<const Parameter*>& parameters);
+
+    // Validates every value first (access, type, decimals, range — bounds by other parameters
+    // are read from the device), then writes in planned blocks, in the order given. Nothing is
+    // sent when any value is invalid. Stops at the first failed request and says which
+    // parameters were and were not written.
+    Result<WriteReport> write(const std::vector<std::pair<const Parameter*, std::string>>& assignments);
+
+    // Writes raw words as they are (restore: values read from the device before), in planned
+    // blocks in the order given, checking nothing first. Stops at the first failed request and
+    // says which parameters were and were not written.
+    Result<WriteReport> write_raw(const std::vector<PlannedWrite>& writes);
+
+    // The profile's meaning of an exception code, if it names one ("AC20: ...").
+    Error explain(Error error) const;
+
+    const DeviceAddress& device() const { return device_; }
+
+private:
+    Result<codec::Reply> execute_read(const ReadBlock& block);
+    // false: the device refused the block with an exception and `may_split` was set (the
+    // caller splits it); otherwise the block's values or failures are in the report.
+    bool read_block(const ReadBlock& block, ReadReport& report, std::map<const Parameter*, std::string>& failures,
+                    bool may_split);
+
+    session::Master& master_;
+    DeviceAddress device_;
+};
+
+}  // namespace loopwire::device

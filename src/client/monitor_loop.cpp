@@ -1,0 +1,109 @@
+#include "client/monitor_loop.hpp"
+
+#include <condition_variable>
+#include <mutex>
+
+#include <fmt/format.h>
+
+#include "client/monitor_backoff.hpp"
+
+namespace loopwire::device {
+namespace {
+
+// Passes requests to the shared master until one times out or the link fails; after that, every
+// further request of the same poll fails at once with that error instead of waiting again. A
+// DeviceClient read spanning several blocks thus spends one timeout on a dead unit, not one per
+// block.
+class StopAtFirstTimeout final : public session::Master {
+public:
+    explicit StopAtFirstTimeout(session::Master& inner) : inner_(inner) {}
+
+    Result<codec::Reply> execute(std::uint8_t unit, const codec::Request& request) override {
+        if (failure_) return *failure_;
+        auto reply = inner_.execute(unit, request);
+        if (!reply && (reply.error().kind == ErrorKind::timeout || reply.error().kind == ErrorKind::link)) failure_ = reply.error();
+        return reply;
+    }
+    void execute_async(std::uint8_t unit, codec::Request request, Completion done) override {
+        inner_.execute_async(unit, std::move(request), std::move(done));
+    }
+    std::string describe() const override { return inner_.describe(); }
+
+    void start_poll() { failure_.reset(); }
+    const std::optional<Error>& failure() const { return failure_; }
+
+private:
+    session::Master& inner_;
+    std::optional<Error> failure_;
+};
+
+struct Polled {
+    std::unique_ptr<StopAtFirstTimeout> guard;
+    std::unique_ptr<device::DeviceClient> client;
+    const MonitorTarget* target;
+    RetryBackoff backoff;
+};
+
+std::string label_of(const device::DeviceAddress& device) { return fmt::format("{}@{}", device.profile->id, device.unit); }
+
+void poll(Polled& polled, WatchedDevice& watched, MonitorClock::time_point sample_start) {
+    if (!polled.backoff.due(sample_start)) {
+        record_skipped(watched);
+        return;
+    }
+    polled.guard->start_poll();
+    const auto report = polled.client->read(polled.target->parameters);
+    const auto now = MonitorClock::now();
+    if (const auto& failure = polled.guard->failure()) {
+        record_poll(watched, report, false, failure->message, now);
+        polled.backoff.failed(now);
+        return;
+    }
+    record_poll(watched, report, true, {}, now);
+    polled.backoff.succeeded();
+}
+
+void note_retry(const Polled& polled, WatchedDevice& watched) {
+    watched.next_try = polled.backoff.consecutive_failures() > 0 ? std::optional(polled.backoff.next_try()) : std::nullopt;
+}
+
+// Sleeps until `deadline` or until stop is requested; false when stopped.
+bool sleep_until(MonitorClock::time_point deadline, std::stop_token stop) {
+    std::mutex mutex;
+    std::condition_variable_any woken;
+    std::unique_lock lock(mutex);
+    woken.wait_until(lock, stop, deadline, [] { return false; });
+    return !stop.stop_requested();
+}
+
+}  // namespace
+
+void run_monitor(const std::vector<MonitorTarget>& targets, const MonitorSettings& settings, SampleSink& sink,
+                 std::stop_token stop) {
+    std::vector<Polled> polled;
+    std::vector<WatchedDevice> watched;
+    for (const auto& target : targets) {
+        auto guard = std::make_unique<StopAtFirstTimeout>(*target.master);
+        auto client = std::make_unique<device::DeviceClient>(*guard, target.device);
+        polled.push_back(Polled{std::move(guard), std::move(client), &target, RetryBackoff(settings.interval, settings.backoff_cap)});
+        watched.push_back(watch(label_of(target.device), target.parameters));
+    }
+    const auto start = MonitorClock::now();
+    for (unsigned index = 1; !stop.stop_requested() && (!settings.count || index <= *settings.count); ++index) {
+        const auto sample_start = MonitorClock::now();
+        const auto wall = std::chrono::system_clock::now();
+        for (std::size_t i = 0; i < polled.size() && !stop.stop_requested(); ++i) {
+            poll(polled[i], watched[i], sample_start);
+            note_retry(polled[i], watched[i]);
+        }
+        if (stop.stop_requested()) break;
+        sink.write(SampleView{index, wall, MonitorClock::now(), &watched});
+        if (settings.count && index == *settings.count) break;
+        // The next slot of the fixed schedule that is still ahead.
+        const auto elapsed = MonitorClock::now() - start;
+        const auto slots = elapsed / settings.interval + 1;
+        if (!sleep_until(start + slots * settings.interval, stop)) break;
+    }
+}
+
+}  // namespace loopwire::device

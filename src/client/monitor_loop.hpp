@@ -1,0 +1,53 @@
+#pragma once
+// The polling loop of `loopwire monitor`, apart from option parsing, so `loopwire demo` can run
+// it on simulators inside the process: it takes masters that are already open.
+#include <chrono>
+#include <cstdio>
+#include <optional>
+#include <stop_token>
+#include <vector>
+
+#include "client/monitor_state.hpp"
+#include "client/device_client.hpp"
+#include "session/master.hpp"
+
+namespace loopwire::device {
+
+struct MonitorTarget {
+    session::Master* master = nullptr;  // shared by targets on the same link
+    device::DeviceAddress device;
+    std::vector<const device::Parameter*> parameters;
+};
+
+// One sample as the poller hands it to its sinks: every watched device with its values.
+struct SampleView {
+    unsigned index = 0;                           // 1-based
+    std::chrono::system_clock::time_point time;   // when the sample started
+    MonitorClock::time_point now;                 // the same instant, for ages
+    const std::vector<WatchedDevice>* devices = nullptr;
+};
+
+// What consumes samples: the terminal table, CSV and JSON-lines files (app/monitor_output.hpp),
+// and later the gateway's fronts. Called on the poller's thread, once per sample, in order.
+class SampleSink {
+public:
+    virtual ~SampleSink() = default;
+    virtual void write(const SampleView& sample) = 0;
+};
+
+struct MonitorSettings {
+    std::chrono::milliseconds interval{1000};
+    std::optional<unsigned> count;  // stop after this many samples
+    std::chrono::milliseconds backoff_cap{30000};
+};
+
+// Polls every target once per interval (samples start on a fixed schedule; a late sample skips
+// the slots it missed rather than bunching up), and hands each sample to `sink`. A target that
+// does not answer is retried with exponential back-off (RetryBackoff: first wait one interval,
+// doubling up to backoff_cap), and each poll of it stops at its first timeout, so a dead unit
+// costs at most one timeout per back-off period. Returns when `count` samples were taken or
+// `stop` is requested.
+void run_monitor(const std::vector<MonitorTarget>& targets, const MonitorSettings& settings, SampleSink& sink,
+                 std::stop_token stop);
+
+}  // namespace loopwire::device

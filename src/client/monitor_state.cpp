@@ -1,0 +1,83 @@
+#include "client/monitor_state.hpp"
+
+namespace loopwire::device {
+
+WatchedDevice watch(std::string label, const std::vector<const device::Parameter*>& parameters) {
+    WatchedDevice device;
+    device.label = std::move(label);
+    for (const auto* parameter : parameters) device.values.push_back(WatchedValue{parameter, {}, {}, false, false, "not read yet"});
+    return device;
+}
+
+namespace {
+
+const device::ParameterReading* find_reading(const device::ReadReport& report, const device::Parameter* parameter) {
+    for (const auto& reading : report.readings) {
+        if (reading.parameter == parameter) return &reading;
+    }
+    return nullptr;
+}
+
+void record_value(WatchedValue& value, const device::ParameterReading* reading, MonitorClock::time_point now) {
+    if (!reading || !reading->value) {
+        value.fresh = false;
+        value.changed = false;
+        value.error = reading ? reading->error : "not read";
+        return;
+    }
+    value.changed = value.last && value.last->raw != reading->value->raw;
+    value.last = reading->value;
+    value.read_at = now;
+    value.fresh = true;
+    value.error.clear();
+}
+
+}  // namespace
+
+void record_poll(WatchedDevice& device, const device::ReadReport& report, bool answered, const std::string& failure,
+                 MonitorClock::time_point now) {
+    ++device.polls;
+    if (!answered) {
+        ++device.errors;
+        device.status = "no-reply";
+        device.last_error = failure;
+        for (auto& value : device.values) {
+            value.fresh = false;
+            value.changed = false;
+            value.error = failure;
+        }
+        return;
+    }
+    bool all_read = true;
+    for (auto& value : device.values) {
+        record_value(value, find_reading(report, value.parameter), now);
+        all_read = all_read && value.fresh;
+    }
+    if (!all_read) {
+        ++device.errors;
+        device.last_error = report.first_error ? report.first_error->message : "a value could not be decoded";
+    }
+    device.status = all_read ? "ok" : "partial";
+}
+
+void record_skipped(WatchedDevice& device) {
+    device.status = "waiting";
+    for (auto& value : device.values) {
+        value.fresh = false;
+        value.changed = false;
+        value.error = "waiting to retry: " + device.last_error;
+    }
+}
+
+std::optional<double> age_seconds(const WatchedValue& value, MonitorClock::time_point now) {
+    if (!value.read_at) return std::nullopt;
+    return std::chrono::duration<double>(now - *value.read_at).count();
+}
+
+std::string value_status(const WatchedDevice& device, const WatchedValue& value) {
+    if (value.fresh) return value.last->status;
+    if (device.status == "no-reply" || device.status == "waiting") return device.status;
+    return "error";
+}
+
+}  // namespace loopwire::device

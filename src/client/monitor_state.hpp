@@ -1,0 +1,54 @@
+#pragma once
+// What `loopwire monitor` knows about each device between samples: the last good value of every
+// watched parameter and when it was read, whether the device answers, and how often it failed.
+#include <chrono>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "client/device_client.hpp"
+
+namespace loopwire::device {
+
+using MonitorClock = std::chrono::steady_clock;
+
+struct WatchedValue {
+    const device::Parameter* parameter = nullptr;
+    std::optional<device::EngineeringValue> last;  // the last value read, kept to show its age
+    std::optional<MonitorClock::time_point> read_at;
+    bool fresh = false;    // read in the latest sample
+    bool changed = false;  // fresh, and its raw word differs from the value before
+    std::string error;     // why it is not fresh, when it is not
+};
+
+// "ok": every value read; "partial": the device answered but some values failed (exception,
+// undecodable word); "no-reply": this sample's poll timed out or the link failed; "waiting":
+// not polled this sample because the device is in back-off after failing.
+struct WatchedDevice {
+    std::string label;  // "tc10@3"
+    std::vector<WatchedValue> values;
+    std::string status = "waiting";
+    unsigned errors = 0;  // failed polls so far
+    unsigned polls = 0;
+    std::string last_error;
+    std::optional<MonitorClock::time_point> next_try;  // while in back-off: when it is tried again
+};
+
+WatchedDevice watch(std::string label, const std::vector<const device::Parameter*>& parameters);
+
+// Folds one poll into the device's state. `answered` is false when the device did not answer at
+// all (timeout, link failure): its values then keep their last reading but are not fresh.
+void record_poll(WatchedDevice& device, const device::ReadReport& report, bool answered, const std::string& failure,
+                 MonitorClock::time_point now);
+
+// The device was not polled this sample (back-off): nothing is fresh.
+void record_skipped(WatchedDevice& device);
+
+// Seconds since the value was last read, or nothing when it never was.
+std::optional<double> age_seconds(const WatchedValue& value, MonitorClock::time_point now);
+
+// The status shown for one value: the value's own ("ok", a special state such as
+// "under-range") when fresh, else why it is not ("no-reply", "waiting", "error").
+std::string value_status(const WatchedDevice& device, const WatchedValue& value);
+
+}  // namespace loopwire::device

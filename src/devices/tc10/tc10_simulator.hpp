@@ -1,0 +1,103 @@
+#pragma once
+// The Yokogawa TC10 behaviour model (tc10-modbus-im05c01e81-03.ru.txt): control states,
+// alarms, load defaults, the busy answer and the heated process, beyond its profile data.
+// The class is split by concern: tc10_simulator.cpp (writes, modes, defaults, busy),
+// tc10_readings.cpp (what the computed words answer), tc10_process.cpp (plant, PID, alarms,
+// faults).
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "devices/tc10/tc10_alarms.hpp"
+#include "simulation/process/pid_controller.hpp"
+#include "simulation/process/thermal_plant.hpp"
+#include "simulation/simulated_device.hpp"
+
+namespace loopwire::device::models {
+
+class Tc10Simulator : public SimulatedDevice {
+public:
+    Tc10Simulator(std::shared_ptr<const Profile> profile, SimulationEnvironment environment);
+
+    // After word 19 = 481 the controller answers exception 6 for this long (protocol time).
+    static constexpr double defaults_busy_seconds = 1.0;
+
+protected:
+    std::optional<std::optional<Bytes>> intercept(ByteView request_pdu, bool broadcast) override;
+    std::optional<std::uint8_t> accept_write(const Parameter& parameter, std::uint16_t raw,
+                                             const RawValues& known) override;
+    std::uint16_t on_read(const Parameter& parameter, std::uint16_t stored) override;
+    void after_write(const Parameter& parameter, std::uint16_t raw) override;
+    void step_process(double seconds) override;
+    std::vector<std::string> fault_names() const override;
+    void apply_fault(const std::string& fault) override;
+
+private:
+    // Control state, word 15 / oPEr 768 (§5.1 15A, §5.3.10 #130).
+    enum class State : std::uint16_t { automatic = 0, manual = 1, standby = 2 };
+    // Measurement errors and what word 1 answers for them (§5.1 1A).
+    enum class InputFault { none, over_range, under_range, adc_overflow };
+    // The measurement as the controller sees it: the plant temperature rounded to display
+    // counts, or the error that replaces it.
+    struct Measurement {
+        InputFault fault = InputFault::none;
+        double value = 0;  // engineering units; meaningless while fault != none
+    };
+
+    // Everything one process step reads from memory. Settings cannot change while the base
+    // class walks one catch-up in steps (no request is served in between), so they are read
+    // once per catch-up: process_time() moves only when a catch-up ends.
+    struct StepSettings {
+        State state = State::automatic;
+        double scale = 1;
+        double set_point = 0;
+        double manual_output = 0;  // %
+        double error_output = 0;   // %
+        std::uint16_t error_mode = 0;
+        process::PidSettings pid;
+        std::array<tc10::AlarmSettings, 3> alarms{};
+    };
+
+    // tc10_simulator.cpp
+    void apply_factory_settings();
+    void power_on();
+    void load_defaults();
+    void copy_to_twin(const Parameter& parameter, std::uint16_t raw);
+    State state() const;
+
+    // tc10_readings.cpp
+    std::optional<std::uint16_t> computed_word(std::string_view name) const;
+    std::uint16_t measured_raw() const;
+    std::uint16_t alarm_status() const;
+    std::uint16_t output_status() const;
+    std::uint16_t instrument_status() const;
+    std::uint16_t controller_state() const;
+    bool output_on(int output) const;
+
+    // tc10_process.cpp
+    double scale() const;  // 10^dP: engineering units per raw count
+    double engineering(std::string_view name) const;
+    double working_set_point() const;
+    bool remote_set_point_in_use() const;
+    Measurement measurement() const { return measurement(scale()); }
+    Measurement measurement(double scale) const;
+    const StepSettings& step_settings();
+    process::PidSettings pid_settings() const;
+    tc10::AlarmSettings alarm_settings(std::size_t alarm) const;
+    double next_output(double seconds, const StepSettings& settings);
+    void update_alarms(double seconds, const StepSettings& settings);
+
+    process::ThermalPlant plant_;
+    process::PidController pid_;
+    std::array<tc10::Alarm, 3> alarms_{};
+    InputFault fault_ = InputFault::none;
+    double output_ = 0;  // % -100…100, what the controller drives now
+    std::optional<SimulationClock::time_point> busy_until_;
+    bool powered_on_ = false;  // dSPu applied (after --state has been loaded)
+    StepSettings step_settings_;
+    std::optional<double> step_settings_time_;  // process_time() they were read at
+};
+
+}  // namespace loopwire::device::models

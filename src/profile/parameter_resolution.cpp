@@ -1,0 +1,103 @@
+// resolve_parameters (request_planner.hpp): what a user names on the command line to profile
+// entries.
+#include <algorithm>
+
+#include <cctype>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include "profile/request_planner.hpp"
+#include "profile/value_text.hpp"
+
+namespace loopwire::device {
+namespace {
+
+using Found = std::vector<const Parameter*>;
+
+Found by_name(const Profile& profile, const std::string& name) {
+    if (const Parameter* exact = profile.find(name)) return {exact};
+    for (const Parameter& parameter : profile.parameters) {
+        if (equal_ignoring_case(parameter.name, name)) return {&parameter};
+    }
+    return {};
+}
+
+Found matching(const Profile& profile, const std::string& text, const std::string Parameter::*field,
+               bool readable_only) {
+    Found found;
+    for (const Parameter& parameter : profile.parameters) {
+        if (readable_only && !parameter.readable) continue;
+        const std::string& value = parameter.*field;
+        if (!value.empty() && equal_ignoring_case(value, text)) found.push_back(&parameter);
+    }
+    return found;
+}
+
+// "all" is what a full read means: every readable entry except those the profile marks hidden
+// (service words the manual hides from users; name them or their group to read them).
+Found every_readable(const Profile& profile) {
+    Found found;
+    for (const Parameter& parameter : profile.parameters) {
+        if (parameter.readable && !parameter.hidden) found.push_back(&parameter);
+    }
+    return found;
+}
+
+Error ambiguous(const std::string& text, const Found& candidates) {
+    std::string listed;
+    for (const Parameter* parameter : candidates) {
+        listed += fmt::format("{}{} ({}, {} {})", listed.empty() ? "" : ", ", parameter->name, parameter->mnemonic,
+                              table_name(parameter->table), parameter->address);
+    }
+    return make_error(ErrorKind::usage,
+                      fmt::format("mnemonic \"{}\" is ambiguous: {}; use the name instead", text, listed));
+}
+
+Error not_found(const Profile& profile, const std::string& text) {
+    std::string lowered = text;
+    std::transform(lowered.begin(), lowered.end(), lowered.begin(), [](unsigned char c) { return std::tolower(c); });
+    std::vector<std::string> similar;
+    for (const Parameter& parameter : profile.parameters) {
+        if (similar.size() < 5 && !lowered.empty() && parameter.name.find(lowered) != std::string::npos) {
+            similar.push_back(parameter.name);
+        }
+    }
+    return make_error(ErrorKind::usage,
+                      fmt::format("profile {} has no parameter, mnemonic or group \"{}\"{}", profile.id, text,
+                                  similar.empty() ? "" : fmt::format(" (did you mean {}?)", fmt::join(similar, ", "))));
+}
+
+Result<Found> resolve_one(const Profile& profile, const std::string& text) {
+    const std::string group_prefix = "group:";
+    if (text.size() > group_prefix.size() && equal_ignoring_case(text.substr(0, group_prefix.size()), group_prefix)) {
+        const std::string group = text.substr(group_prefix.size());
+        if (Found found = matching(profile, group, &Parameter::group, true); !found.empty()) return found;
+        return make_error(ErrorKind::usage, fmt::format("profile {} has no group \"{}\" with readable parameters",
+                                                        profile.id, group));
+    }
+    if (Found found = by_name(profile, text); !found.empty()) return found;
+    if (Found found = matching(profile, text, &Parameter::mnemonic, false); !found.empty()) {
+        if (found.size() > 1) return ambiguous(text, found);
+        return found;
+    }
+    if (Found found = matching(profile, text, &Parameter::group, true); !found.empty()) return found;
+    if (equal_ignoring_case(text, "all")) return every_readable(profile);
+    return not_found(profile, text);
+}
+
+}  // namespace
+
+Result<std::vector<const Parameter*>> resolve_parameters(const Profile& profile, const std::vector<std::string>& names) {
+    std::vector<const Parameter*> resolved;
+    for (const std::string& name : names) {
+        auto found = resolve_one(profile, std::string(trimmed(name)));
+        if (!found) return found.error();
+        for (const Parameter* parameter : *found) {
+            if (std::find(resolved.begin(), resolved.end(), parameter) == resolved.end()) resolved.push_back(parameter);
+        }
+    }
+    return resolved;
+}
+
+}  // namespace loopwire::device

@@ -1,0 +1,211 @@
+#include "profile/profile_checks.hpp"
+
+#include <charconv>
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+
+#include <fmt/format.h>
+
+namespace loopwire::device {
+namespace {
+
+using Json = nlohmann::json;
+
+std::string parameter_pointer(std::size_t index, const std::string& rest = {}) {
+    return fmt::format("/parameters/{}{}", index, rest);
+}
+
+// Keys the schema restricts to decimal digits, which may still overflow; nullopt then.
+std::optional<long long> integer_key(const std::string& key) {
+    long long value = 0;
+    const auto [end, error] = std::from_chars(key.data(), key.data() + key.size(), value);
+    if (error != std::errc() || end != key.data() + key.size()) return std::nullopt;
+    return value;
+}
+
+bool has_note(const Json& parameter) {
+    return parameter.contains("note") && !parameter.at("note").get<std::string>().empty();
+}
+
+void check_unique_names(const Json& parameters, std::vector<DocumentProblem>& problems) {
+    std::map<std::string, std::size_t> first_index;
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+        const auto name = parameters[i].at("name").get<std::string>();
+        const auto [it, inserted] = first_index.emplace(name, i);
+        if (!inserted) {
+            problems.push_back({parameter_pointer(i, "/name"),
+                                fmt::format("duplicate name \"{}\" (also {})", name, parameter_pointer(it->second))});
+        }
+    }
+}
+
+void check_unique_addresses(const Json& parameters, std::vector<DocumentProblem>& problems) {
+    std::map<std::pair<std::string, int>, std::size_t> first_index;
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+        const Json& parameter = parameters[i];
+        const auto key = std::make_pair(parameter.at("table").get<std::string>(), parameter.at("address").get<int>());
+        const auto [it, inserted] = first_index.emplace(key, i);
+        if (inserted) continue;
+        const Json& other = parameters[it->second];
+        if (has_note(parameter) && has_note(other)) continue;  // a glitch explained on both entries
+        problems.push_back({parameter_pointer(i, "/address"),
+                            fmt::format("{} {} is also the address of {} ({}); two entries may share an address "
+                                        "only if both carry a \"note\" explaining the manual glitch",
+                                        key.first, key.second, parameter_pointer(it->second),
+                                        other.at("name").get<std::string>())});
+    }
+}
+
+class ReferenceCheck {
+public:
+    ReferenceCheck(const Json& document, std::vector<DocumentProblem>& problems) : problems_(problems) {
+        for (const Json& parameter : document.at("parameters")) names_.insert(parameter.at("name").get<std::string>());
+    }
+
+    // `pointer` locates the referring string itself; `self` is the referring parameter, if any.
+    void check(const Json& name, const std::string& pointer, const std::string& self = {}) {
+        const auto text = name.get<std::string>();
+        if (!names_.contains(text)) {
+            problems_.push_back({pointer, fmt::format("no parameter named \"{}\"", text)});
+        } else if (text == self) {
+            problems_.push_back({pointer, fmt::format("\"{}\" refers to itself", text)});
+        }
+    }
+
+private:
+    std::set<std::string> names_;
+    std::vector<DocumentProblem>& problems_;
+};
+
+void check_parameter_references(const Json& parameters, ReferenceCheck& references) {
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+        const Json& parameter = parameters[i];
+        const auto self = parameter.at("name").get<std::string>();
+        if (const auto decimals = parameter.find("decimals"); decimals != parameter.end() && decimals->is_object()) {
+            references.check(decimals->at("parameter"), parameter_pointer(i, "/decimals/parameter"), self);
+        }
+        const auto range = parameter.find("range");
+        if (range == parameter.end()) continue;
+        for (const char* bound : {"min", "max"}) {
+            if (const auto value = range->find(bound); value != range->end() && value->is_object()) {
+                references.check(value->at("parameter"), parameter_pointer(i, fmt::format("/range/{}/parameter", bound)),
+                                 self);
+            }
+        }
+    }
+}
+
+void check_top_level_references(const Json& document, ReferenceCheck& references,
+                                 std::vector<DocumentProblem>& problems) {
+    const Json& identification = document.at("identification");
+    const Json& match = identification.at("match");
+    for (std::size_t k = 0; k < match.size(); ++k) {
+        const std::string pointer = fmt::format("/identification/match/{}", k);
+        references.check(match[k].at("parameter"), pointer + "/parameter");
+        if (!match[k].contains("equals")) problems.push_back({pointer, "an identification match needs \"equals\""});
+    }
+    if (const auto report = identification.find("report"); report != identification.end()) {
+        for (std::size_t k = 0; k < report->size(); ++k) {
+            references.check((*report)[k], fmt::format("/identification/report/{}", k));
+        }
+    }
+    if (const auto requirements = document.find("mode_requirements"); requirements != document.end()) {
+        for (const auto& [mode, checks] : requirements->items()) {
+            for (std::size_t k = 0; k < checks.size(); ++k) {
+                const std::string pointer = fmt::format("/mode_requirements/{}/{}", mode, k);
+                references.check(checks[k].at("parameter"), pointer + "/parameter");
+                if (!checks[k].contains("equals")) problems.push_back({pointer, "a mode requirement needs \"equals\""});
+            }
+        }
+    }
+    const Json& addressing = document.at("addressing");
+    if (const auto alternatives = addressing.find("alternatives"); alternatives != addressing.end()) {
+        for (std::size_t k = 0; k < alternatives->size(); ++k) {
+            const std::string pointer = fmt::format("/addressing/alternatives/{}/selected_by", k);
+            const Json& selector = (*alternatives)[k].at("selected_by");
+            references.check(selector.at("parameter"), pointer + "/parameter");
+            if (!selector.contains("equals")) problems.push_back({pointer, "a numbering selector needs \"equals\""});
+        }
+    }
+}
+
+void check_write_modes(const Json& document, std::vector<DocumentProblem>& problems) {
+    const Json modes = document.value("modes", Json::object());
+    const Json& parameters = document.at("parameters");
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+        const Json write_modes = parameters[i].value("write_modes", Json::array());
+        for (std::size_t k = 0; k < write_modes.size(); ++k) {
+            const auto mode = write_modes[k].get<std::string>();
+            if (!modes.contains(mode)) {
+                problems.push_back({parameter_pointer(i, fmt::format("/write_modes/{}", k)),
+                                    fmt::format("no mode named \"{}\" in /modes", mode)});
+            }
+        }
+    }
+    const Json requirements = document.value("mode_requirements", Json::object());
+    for (const auto& [mode, checks] : requirements.items()) {
+        if (!modes.contains(mode)) problems.push_back({"/mode_requirements/" + mode, fmt::format("no mode named \"{}\" in /modes", mode)});
+    }
+}
+
+void check_parameter_values(const Json& parameters, std::vector<DocumentProblem>& problems) {
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+        const Json& parameter = parameters[i];
+        const auto table = parameter.at("table").get<std::string>();
+        const bool bit_table = table == "coils" || table == "discrete";
+        if (bit_table != (parameter.at("type") == "bool")) {
+            problems.push_back({parameter_pointer(i, "/type"),
+                                bit_table ? fmt::format("entries of table {} must be bool", table)
+                                          : fmt::format("bool entries belong in coils or discrete, not {}", table)});
+        }
+        for (const auto& [key, label] : object_member(parameter, "enum").items()) {
+            const auto raw = integer_key(key);
+            if (!raw || *raw < -32768 || *raw > 65535) {
+                problems.push_back({parameter_pointer(i, "/enum/" + key), "raw value must be within -32768..65535"});
+            }
+        }
+        const Json range = parameter.value("range", Json::object());
+        if (range.contains("min") && range.contains("max") && range.at("min").is_number() &&
+            range.at("max").is_number() && range.at("min").get<double>() > range.at("max").get<double>()) {
+            problems.push_back({parameter_pointer(i, "/range"),
+                                fmt::format("min {} is above max {}", range.at("min").dump(), range.at("max").dump())});
+        }
+    }
+}
+
+void check_codes_and_mirrors(const Json& document, std::vector<DocumentProblem>& problems) {
+    for (const auto& [code, meaning] : object_member(document, "exceptions").items()) {
+        const auto value = integer_key(code);
+        if (!value || *value < 1 || *value > 255) problems.push_back({"/exceptions/" + code, "exception codes are 1..255"});
+    }
+    const Json mirrors = document.at("addressing").value("mirrors", Json::array());
+    for (std::size_t k = 0; k < mirrors.size(); ++k) {
+        const auto first = mirrors[k].at("first").get<long long>();
+        const auto last = mirrors[k].at("last").get<long long>();
+        const auto offset = mirrors[k].at("offset").get<long long>();
+        if (first > last || first < 0 || last > 65535 || first + offset < 0 || last + offset > 65535) {
+            problems.push_back({fmt::format("/addressing/mirrors/{}", k),
+                                "need 0 <= first <= last <= 65535 with first..last + offset within 0..65535"});
+        }
+    }
+}
+
+}  // namespace
+
+std::vector<DocumentProblem> semantic_problems(const Json& document) {
+    std::vector<DocumentProblem> problems;
+    const Json& parameters = document.at("parameters");
+    check_unique_names(parameters, problems);
+    check_unique_addresses(parameters, problems);
+    ReferenceCheck references(document, problems);
+    check_parameter_references(parameters, references);
+    check_top_level_references(document, references, problems);
+    check_write_modes(document, problems);
+    check_parameter_values(parameters, problems);
+    check_codes_and_mirrors(document, problems);
+    return problems;
+}
+
+}  // namespace loopwire::device

@@ -1,0 +1,99 @@
+// The tc10 process through the wire (tc10-modbus-im05c01e81-03.ru.txt): PV from the oven
+// driven by the PID (§5.3.7), output words (§5.1 4A, 11A; §5.2 3B–5B) and input faults
+// (§5.1 1A, 12A, 18A).
+#include <gtest/gtest.h>
+
+#include <cstdint>
+
+#include "codec/pdu.hpp"
+#include "devices/tc10/tc10_test_support.hpp"
+
+namespace loopwire::device {
+namespace {
+
+using namespace testing;
+using namespace tc10_testing;
+
+TEST(Tc10Model, ClosedLoopSettlesAtTheSetPoint_Section5_3_7) {
+    Simulated tc10("tc10", Model::behaviour, at_speed(100));
+    EXPECT_EQ(tc10.word(measured), 25);
+    set(tc10, set_point, 200);
+    for (int i = 0; i < 30; ++i) tc10.wait(1);  // 50 minutes of process time
+    const int pv = static_cast<std::int16_t>(tc10.word(measured));
+    EXPECT_NEAR(pv, 200, 2);
+    // Holding 200 °C takes (200 - 25) / 400 of full power against the loss.
+    EXPECT_NEAR(tc10.word(output_power) / 100.0, 43.75, 3.0);
+    EXPECT_EQ(tc10.word(working_sp), 200);
+    tc10.wait(10);
+    EXPECT_NEAR(static_cast<std::int16_t>(tc10.word(measured)), 200, 2);
+}
+
+TEST(Tc10Model, ProportionalBandIsInUnitsScaledByDp_Section5_3_7_62And5_3_1_2) {
+    Simulated tc10("tc10");
+    set(tc10, integral_time, 0);
+    set(tc10, derivative_time, 0);
+    set(tc10, proportional_band, 50);
+    set(tc10, set_point, 50);  // 25 units below: 25 / 50 = 50 %
+    tc10.wait(0.5);            // within the oven's dead time PV has not moved
+    EXPECT_EQ(tc10.word(output_power), 5000);
+    set(tc10, decimal_point, 1);  // the same raw words now mean 5.0 and 5.0 units
+    tc10.wait(0.5);
+    EXPECT_EQ(tc10.word(decimals), 1);
+    EXPECT_EQ(tc10.word(measured), 250);  // 25.0
+    EXPECT_EQ(tc10.word(output_power), 0);  // SP 5.0 below PV 25.0
+    set(tc10, proportional_band, 500);  // 50.0
+    set(tc10, set_point, 500);          // 50.0
+    tc10.wait(0.5);
+    EXPECT_EQ(tc10.word(output_power), 5000);
+}
+
+TEST(Tc10Model, HeatingRelayIsTimeProportionedOverTcH_Section5_1_11AAnd5_3_7_66) {
+    Simulated tc10("tc10");
+    set(tc10, manual_output, 5000);
+    set(tc10, control_state, manual);
+    int on = 0;
+    for (int second = 0; second < 20; ++second) {  // tcH = 20.0 s
+        tc10.wait(1);
+        if (bit(tc10.word(output_status), 0)) ++on;
+    }
+    EXPECT_NEAR(on, 10, 1);
+    set(tc10, output_power, 10000);
+    tc10.wait(1);
+    EXPECT_TRUE(bit(tc10.word(output_status), 0));
+}
+
+TEST(Tc10Model, InputFaultsReadAsTheSpecialValues_Section5_1_1AAnd12A) {
+    Simulated tc10("tc10");
+    ASSERT_TRUE(tc10.device().inject_fault("open-input").ok());
+    EXPECT_EQ(tc10.word(measured), 10000);
+    EXPECT_EQ(tc10.word(512), 10000);
+    EXPECT_TRUE(bit(tc10.word(instrument_status), 12));
+    ASSERT_TRUE(tc10.device().inject_fault("short-input").ok());
+    EXPECT_EQ(tc10.word(measured), 10000);
+    ASSERT_TRUE(tc10.device().inject_fault("adc-overflow").ok());
+    EXPECT_EQ(tc10.word(measured), 10001);
+    ASSERT_TRUE(tc10.device().inject_fault("none").ok());
+    EXPECT_EQ(tc10.word(measured), 25);
+    EXPECT_FALSE(bit(tc10.word(instrument_status), 12));
+}
+
+TEST(Tc10Model, MeasurementErrorDrivesTheErrorOutputWhereInECoversIt_Section5_1_18AAnd5_3_1_7) {
+    Simulated tc10("tc10");
+    set(tc10, error_output, 30);
+    ASSERT_TRUE(tc10.device().inject_fault("open-input").ok());  // over-range
+    tc10.wait(1);
+    EXPECT_EQ(tc10.word(output_power), 3000);  // inE = 0 (or): over-range uses word 18
+    set(tc10, sensor_error_mode, 1);           // ou: under-range only
+    tc10.wait(1);
+    EXPECT_EQ(tc10.word(output_power), 0);
+    ASSERT_TRUE(tc10.device().inject_fault("short-input").ok());
+    tc10.wait(1);
+    EXPECT_EQ(tc10.word(output_power), 3000);
+}
+
+// The manual's own examples write out-of-range values and show normal replies: 10 to bAud
+// (770, 0…4; §3.2) and 100 to nSP (10314, 1…4; §3.3). §4.4 B.2 states the rule, and a stated
+// rule beats an example: both are refused.
+
+}  // namespace
+}  // namespace loopwire::device

@@ -1,0 +1,49 @@
+#pragma once
+// Shared helpers of the device tests: the built-in profiles and files beside the repository.
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "profile/profile.hpp"
+
+namespace loopwire::device::testing {
+
+inline const std::vector<std::string> profile_ids{"ac20", "rampsoak", "tc10"};
+
+inline std::string profile_path(const std::string& id) { return std::string(LOOPWIRE_PROFILE_DIR) + "/" + id + ".json"; }
+
+// The file's text; an empty optional-like "" plus a failed assertion when it cannot be read.
+inline bool read_text(const std::string& path, std::string& text) {
+    std::ifstream file(path, std::ios::binary);
+    if (!file) return false;
+    std::ostringstream buffer;
+    buffer << file.rdbuf();
+    text = buffer.str();
+    return true;
+}
+
+inline nlohmann::json read_json(const std::string& path) {
+    std::string text;
+    EXPECT_TRUE(read_text(path, text)) << "cannot read " << path;
+    return nlohmann::json::parse(text);
+}
+
+// The built-in profile; the test fails (and the caller should stop) when it does not load.
+inline std::shared_ptr<const Profile> builtin(const std::string& id) {
+    auto profile = builtin_profile(id);
+    EXPECT_TRUE(profile.ok()) << (profile.ok() ? "" : profile.error().message);
+    return profile.ok() ? *profile : nullptr;
+}
+
+inline const Parameter& parameter(const Profile& profile, const std::string& name) {
+    const Parameter* found = profile.find(name);
+    if (found == nullptr) throw std::runtime_error("profile " + profile.id + " has no parameter " + name);
+    return *found;
+}
+
+}  // namespace loopwire::device::testing
