@@ -1,6 +1,6 @@
 #pragma once
-// Pieces every subcommand shares: parsing durations and numbers, the -v frame trace, and how
-// errors are printed.
+// Pieces every subcommand shares: the -v frame trace and how errors are printed. Numbers and
+// durations are parsed by common/text_parsing.hpp, included here for every subcommand.
 #include <chrono>
 #include <cstdint>
 #include <optional>
@@ -8,15 +8,10 @@
 #include <string_view>
 
 #include "common/result.hpp"
+#include "common/text_parsing.hpp"
 #include "session/trace.hpp"
 
 namespace loopwire::app {
-
-// "500ms", "2s", "1.5s", "1m", "250us"; a bare number is milliseconds.
-Result<std::chrono::microseconds> parse_duration(std::string_view text);
-
-// Decimal, 0x-prefixed hex or h-suffixed hex ("1Fh", as the manuals write); optionally signed.
-Result<long long> parse_integer(std::string_view text, long long min, long long max, std::string_view what);
 
 // Prints each traced frame to stderr: "12:03:04.123456 TX 01 03 ...  note".
 session::TraceSink stderr_trace();

@@ -64,7 +64,7 @@ Result<std::optional<std::chrono::microseconds>> demo_duration(const DemoOptions
         if (::isatty(STDOUT_FILENO) == 1) return std::optional<std::chrono::microseconds>{};
         return std::optional<std::chrono::microseconds>{std::chrono::seconds(5)};  // scripts, CI: ends by itself
     }
-    auto parsed = parse_duration(options.duration);
+    auto parsed = parse_duration(options.duration, "--duration");
     if (!parsed) return parsed.error();
     return std::optional<std::chrono::microseconds>{*parsed};
 }

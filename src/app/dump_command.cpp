@@ -53,14 +53,26 @@ Result<device::ReadReport> read_everything(device::DeviceClient& client) {
 }
 
 // What the device refused must not be something restore would write back: such a dump is not
-// a backup. Refused live values (process values, status words) are only reported.
+// a backup. Refused live values (process values, status words) are only reported. A word that
+// was read but cannot be decoded (its decimals word holds nonsense) is no refusal: the dump
+// keeps the word, which is all restore needs, and marks it "undecodable".
 Result<void> check_refusals(const device::ReadReport& report) {
-    std::vector<std::string> stored, live;
-    std::string reason;  // per reading: a word read but not decoded leaves no first_error
+    std::vector<std::string> stored, live, undecodable;
+    std::string reason, undecodable_reason;
     for (const auto& reading : report.readings) {
         if (reading.value) continue;
+        if (report.raw.contains(reading.parameter->name)) {
+            undecodable.push_back(reading.parameter->name);
+            if (undecodable_reason.empty()) undecodable_reason = reading.error;
+            continue;
+        }
         (device::is_restorable(*reading.parameter) ? stored : live).push_back(reading.parameter->name);
         if (reason.empty()) reason = reading.error;
+    }
+    if (!undecodable.empty()) {
+        fmt::print(stderr, "loopwire: warning: {} value(s) read but not decodable ({}), kept as raw words and marked "
+                           "\"status\": \"undecodable\" in the dump: {}\n",
+                   undecodable.size(), fmt::join(undecodable, ", "), undecodable_reason);
     }
     if (!stored.empty()) {
         return make_error(ErrorKind::exception, fmt::format("the device refused to read {} stored parameter(s) ({}): {}; "
@@ -85,6 +97,9 @@ void sort_by_profile(device::ReadReport& report, const device::Profile& profile)
 int run_dump(const DumpOptions& options) {
     auto device = device::parse_device_address(options.master.device, options.master.numbering);
     if (!device) return report_error(device.error());
+    if (!options.output.empty()) {  // before the reading, which takes long, not after it
+        if (auto writable = check_writable_atomically(options.output); !writable) return report_error(writable.error());
+    }
     auto master = options.master.open();
     if (!master) return report_error(master.error());
     const auto time = iso8601_utc(std::chrono::system_clock::now());
@@ -100,7 +115,10 @@ int run_dump(const DumpOptions& options) {
         fmt::print("{}", text);
         return exit_ok;
     }
-    if (auto written = write_file_atomically(options.output, text); !written) return report_error(written.error());
+    // A dump holds the AC20's lock combinations: a new file is readable by its owner only.
+    // An earlier dump killed half-way may have left its temporary: it is of no use now.
+    remove_stale_temporaries(options.output);
+    if (auto written = write_file_atomically(options.output, text, private_file_mode); !written) return report_error(written.error());
     fmt::print(stderr, "loopwire: {} parameters of {}@{} written to {}\n", report->readings.size(), device->profile->id,
                device->unit, options.output);
     return exit_ok;
@@ -114,7 +132,8 @@ void add_dump_command(CLI::App& app, int& exit_code) {
     command->add_option("--link", options->master.link, "Link URL (see `loopwire read --help`)")->required();
     command->add_option("--device", options->master.device, "DEVICE@UNIT (e.g. tc10@3)")->required();
     command->add_option("--numbering", options->master.numbering, "The device's alternative numbering in use (ac20: jbus)");
-    command->add_option("--output", options->output, "Write the document to FILE (atomically: all of it or nothing); default stdout");
+    command->add_option("--output", options->output, "Write the document to FILE (atomically: all of it or nothing; a new file is private to you, an existing one keeps "
+                        "its mode and owner, a link is followed, a FIFO or device such as /dev/stdout is written into); default stdout");
     command->add_option("--timeout", options->master.timeout, "Time to wait for each reply")->capture_default_str();
     command->add_option("--retries", options->master.retries, "Extra tries after a timeout")->capture_default_str();
     command->add_flag("-v,--verbose", options->master.verbose, "Print every frame sent and received, with timestamps, on stderr");

@@ -22,10 +22,10 @@ void MasterCommandOptions::add_to(CLI::App& command, bool with_device) {
 Result<std::unique_ptr<session::Master>> MasterCommandOptions::open() const {
     auto url = transport::parse_link_url(link);
     if (!url) return url.error();
-    auto wait = parse_duration(timeout);
+    auto wait = parse_duration(timeout, "--timeout", std::chrono::milliseconds(1));
     if (!wait) return wait.error();
     session::MasterOptions options;
-    options.timeout = std::max(std::chrono::milliseconds(1), std::chrono::duration_cast<std::chrono::milliseconds>(*wait));
+    options.timeout = std::chrono::ceil<std::chrono::milliseconds>(*wait);  // 1.5ms waits 2ms, never less than asked
     options.retries = retries;
     if (verbose) options.trace = stderr_trace();
     return session::open_master(*url, std::move(options));

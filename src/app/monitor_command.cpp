@@ -39,10 +39,9 @@ Result<MonitorFormat> choose_format(const MonitorOptions& options) {
 }
 
 Result<device::MonitorSettings> settings_of(const MonitorOptions& options) {
-    auto interval = parse_duration(options.interval);
+    auto interval = parse_duration(options.interval, "--interval", std::chrono::milliseconds(10));
     if (!interval) return interval.error();
     const auto millis = std::chrono::duration_cast<std::chrono::milliseconds>(*interval);
-    if (millis.count() < 10) return make_error(ErrorKind::usage, "--interval must be at least 10ms");
     device::MonitorSettings settings;
     settings.interval = millis;
     if (options.count > 0) settings.count = options.count;

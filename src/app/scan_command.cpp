@@ -160,7 +160,7 @@ int run_scan(const ScanOptions& options) {
     if (!units) return report_error(units.error());
     auto settings = line_settings(options);
     if (!settings) return report_error(settings.error());
-    auto wait = parse_duration(options.timeout);
+    auto wait = parse_duration(options.timeout, "--timeout", std::chrono::milliseconds(1));
     if (!wait) return report_error(wait.error());
 
     std::vector<FoundUnit> found;
@@ -168,7 +168,7 @@ int run_scan(const ScanOptions& options) {
     for (const auto& url : *settings) {
         auto garbled = std::make_shared<unsigned>(0);
         session::MasterOptions master_options;
-        master_options.timeout = std::max(std::chrono::milliseconds(1), std::chrono::duration_cast<std::chrono::milliseconds>(*wait));
+        master_options.timeout = std::chrono::ceil<std::chrono::milliseconds>(*wait);
         auto verbose = options.verbose ? stderr_trace() : session::TraceSink{};
         master_options.trace = [garbled, verbose](const session::TraceEvent& event) {
             if (event.direction == session::TraceDirection::discarded) ++*garbled;

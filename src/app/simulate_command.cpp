@@ -35,37 +35,54 @@ struct SimulateOptions {
 };
 
 // Saves the state file while the simulator runs, a quarter second after a change at most, so
-// a crash or kill loses no more than that; a save that fails stops the simulator (a state
-// file that silently stopped following the device would be worse than none).
+// a crash or kill loses no more than that. A save that fails does not stop the simulator (the
+// masters on the line depend on it, and the cause — a full disk, a removed folder — is often
+// passing): it is reported on stderr, retried every few seconds, and its recovery reported
+// too. On the way out a last save is tried; finish() fails when a change is still unsaved,
+// so the run never ends quietly with an acknowledged write lost.
 class StateSaver {
 public:
-    StateSaver(device::SimulatorStateFile& file, StopSignal& stop)
-        : file_(file), thread_([this, &stop](std::stop_token own) { run(own, stop); }) {}
+    explicit StateSaver(device::SimulatorStateFile& file) : file_(file), thread_([this](std::stop_token own) { run(own); }) {}
     ~StateSaver() { thread_.request_stop(); }
     Result<void> finish() {
         thread_.request_stop();
         if (thread_.joinable()) thread_.join();
-        if (!failure_.message.empty()) return failure_;
-        return file_.save_if_changed();
+        if (auto saved = file_.save_if_changed(); !saved) {
+            return make_error(saved.error().kind, fmt::format("values written to the simulated devices (acknowledged to the "
+                                                              "master) are NOT saved in the state file: {}",
+                                                              saved.error().message));
+        }
+        return {};
     }
 
 private:
-    void run(std::stop_token own, StopSignal& stop) {
+    static constexpr auto poll_interval = std::chrono::milliseconds(250);
+    static constexpr auto retry_interval = std::chrono::seconds(2);
+
+    void run(std::stop_token own) {
         std::mutex mutex;
         std::condition_variable_any wake;
         std::unique_lock lock(mutex);
+        std::string reported;  // the failure last reported, so a lasting one is said once
+        auto next_try = std::chrono::steady_clock::now();
         while (!own.stop_requested()) {
-            wake.wait_for(lock, own, std::chrono::milliseconds(250), [] { return false; });
+            wake.wait_for(lock, own, poll_interval, [] { return false; });
+            if (own.stop_requested() || std::chrono::steady_clock::now() < next_try) continue;
             if (auto saved = file_.save_if_changed(); !saved) {
-                failure_ = saved.error();
-                stop.request_stop();
-                return;
+                if (saved.error().message != reported) {
+                    fmt::print(stderr, "loopwire: error: saving the state failed: {}; still serving, retrying every {} s\n",
+                               saved.error().message, retry_interval.count());
+                    reported = saved.error().message;
+                }
+                next_try = std::chrono::steady_clock::now() + retry_interval;
+            } else if (!reported.empty()) {
+                fmt::print(stderr, "loopwire: the state is saved again\n");
+                reported.clear();
             }
         }
     }
 
     device::SimulatorStateFile& file_;
-    Error failure_{ErrorKind::usage, ""};
     std::jthread thread_;
 };
 
@@ -105,7 +122,7 @@ int run_simulate(SimulateOptions options) {
     if (!url) return report_error(url.error());
     std::optional<std::chrono::microseconds> limit;
     if (!options.duration.empty()) {
-        auto parsed = parse_duration(options.duration);
+        auto parsed = parse_duration(options.duration, "--duration");
         if (!parsed) return report_error(parsed.error());
         limit = *parsed;
     }
@@ -131,7 +148,7 @@ int run_simulate(SimulateOptions options) {
     if (options.verbose) slave_options.trace = stderr_trace();
     session::Slave slave(*url, std::move(served_units->units), slave_options);
     std::optional<StateSaver> saver;
-    if (state) saver.emplace(*state, stop);
+    if (state) saver.emplace(*state);
     Result<void> served;
     if (url->is_serial()) {
         auto stream = open_serial_side(options, *url);

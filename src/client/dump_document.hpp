@@ -13,7 +13,9 @@
 // bits, or null for a special state; "text" the value as `loopwire write NAME=TEXT` accepts it
 // back (numbers with the parameter's decimals, labels, special state names, bits joined by '+');
 // "raw" the words read, first word first; "status" "ok", a special state or "unknown-label",
-// or "unread" (value, text null, raw empty) with "error" the device's refusal; "writable"
+// "unread" (value, text null, raw empty) with "error" the device's refusal, or "undecodable"
+// (value, text null, raw the word read) with "error" why it could not be decoded (e.g. the
+// AC20 word 300 holding the decimals reads 0xFFFF); "writable"
 // whether a restore may write it. "numbering" is present when the device uses an
 // alternative numbering (ac20: "jbus").
 #include <string>
@@ -35,8 +37,8 @@ struct DumpHeader {
 std::vector<const device::Parameter*> dumped_parameters(const device::Profile& profile);
 
 // The document from a read; a parameter not read is an "unread" entry with its reason (the
-// dump command decides which refusals a dump may carry). An error when a word read cannot be
-// turned into text.
+// dump command decides which refusals a dump may carry), a word read that cannot be decoded
+// or turned into text an "undecodable" entry with its reason.
 Result<nlohmann::ordered_json> dump_document(const device::DeviceAddress& device, const DumpHeader& header,
                                              const device::ReadReport& report);
 

@@ -17,7 +17,10 @@ struct DumpFile {
     device::RawValues values;          // the first raw word of every parameter read
 };
 
-// Errors (ErrorKind::usage) name the file and what is wrong with it.
+// Errors (ErrorKind::usage) name the file, the JSON pointer of the wrong value and what was
+// expected there; every value restore uses is checked (a parameter's raw words included).
 Result<DumpFile> read_dump_file(const std::string& path);
+// The same from the file's text; `path` only names it in errors.
+Result<DumpFile> parse_dump_text(const std::string& text, const std::string& path);
 
 }  // namespace loopwire::device

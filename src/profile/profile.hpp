@@ -134,7 +134,9 @@ struct Profile {
 // Beyond the schema: unique names, unique (table, address) pairs, references to existing
 // parameters (the full list, and the rule that two entries may share an address only when both
 // carry a "note" explaining the manual glitch, is in profile_checks.hpp). A key given twice in
-// one JSON object is an error too.
+// one JSON object is an error too. A value of a type the schema failed to catch is an error
+// containing profile_type_gap_message, never an uncaught exception.
+inline constexpr const char* profile_type_gap_message = "a value has a type loopwire cannot use";
 Result<Profile> load_profile_text(const std::string& json_text, const std::string& origin);
 Result<Profile> load_profile_file(const std::string& path);
 

@@ -125,9 +125,13 @@ private:
     Result<codec::Reply> await_reply(std::uint8_t unit, const codec::Request& request,
                                       Clock::time_point deadline, TimeoutContext& context) {
         std::array<std::uint8_t, 512> buffer{};
+        std::optional<Error> wrong_reply;  // the last frame from `unit` that did not answer the request
         for (;;) {
             const auto now = Clock::now();
-            if (now >= deadline) return make_error(ErrorKind::timeout, "no reply");
+            // A reply that came but was wrong is what went wrong, not silence: it is reported as
+            // such (exit 6, as on TCP), and not retried. The wait still runs to the deadline, as
+            // the right reply may follow a stale one.
+            if (now >= deadline) return wrong_reply ? *wrong_reply : make_error(ErrorKind::timeout, "no reply");
             auto wait = deadline - now;
             if (auto flush_at = codec_->flush_deadline()) {
                 wait = std::min<Clock::duration>(wait, std::max<Clock::duration>(*flush_at - now, Clock::duration::zero()));
@@ -144,15 +148,17 @@ private:
                 events = codec_->flush(Clock::now());
             }
             for (auto& event : events) {
-                if (auto answer = consider(unit, request, event, context)) return std::move(*answer);
+                if (auto answer = consider(unit, request, event, context, wrong_reply)) return std::move(*answer);
             }
         }
     }
 
-    // A frame that answers the request ends the wait; anything else is traced and skipped.
+    // A frame that answers the request ends the wait; anything else is traced and skipped, and
+    // a whole frame (check bytes right) from the asked unit that is not a valid answer is kept
+    // in `wrong_reply`, with its bytes.
     std::optional<Result<codec::Reply>> consider(std::uint8_t unit, const codec::Request& request,
                                                  const codec::FrameEvent& event,
-                                                 TimeoutContext& context) {
+                                                 TimeoutContext& context, std::optional<Error>& wrong_reply) {
         if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
             ++context.discarded_runs;
             trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
@@ -165,14 +171,15 @@ private:
         }
         auto reply = codec::decode_reply(frame.pdu);
         if (!reply) {
-            ++context.discarded_runs;
             trace(TraceDirection::discarded, frame.raw, reply.error().message);
+            wrong_reply = wrong_reply_error(unit, request, reply.error(), frame.raw);
             return std::nullopt;
         }
         auto matched = codec::match_reply(request, std::move(*reply));
         if (!matched) {
             trace(TraceDirection::discarded, frame.raw, matched.error().message);
-            return std::nullopt;  // a stale or foreign reply; the right one may still come
+            wrong_reply = wrong_reply_error(unit, request, matched.error(), frame.raw);
+            return std::nullopt;  // a stale reply, perhaps; the right one may still come
         }
         if (matched->kind == codec::ReplyKind::exception) {
             trace(TraceDirection::received, frame.raw, "exception " + codec::describe_exception(matched->exception_code));
@@ -180,6 +187,14 @@ private:
         }
         trace(TraceDirection::received, frame.raw, "reply from unit " + std::to_string(unit));
         return Result<codec::Reply>(std::move(*matched));
+    }
+
+    static Error wrong_reply_error(std::uint8_t unit, const codec::Request& request, const Error& why, ByteView bytes) {
+        return make_error(why.kind == ErrorKind::mismatch ? ErrorKind::mismatch : ErrorKind::malformed,
+                          "unit " + std::to_string(unit) + " answered " + describe_transaction(unit, request) +
+                              " with a reply that is not valid (" + why.message + "): " + to_hex(bytes) +
+                              "; check that the unit id belongs to the device meant, and that nothing else on the "
+                              "line answers for it");
     }
 
     static std::string fmt_unit_skip(std::uint8_t got, std::uint8_t wanted) {

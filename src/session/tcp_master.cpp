@@ -164,6 +164,13 @@ private:
         }
         trace(outcome ? TraceDirection::received : TraceDirection::discarded, frame.raw,
               outcome ? std::string("reply") : outcome.error().message);
+        if (!outcome && outcome.error().kind != ErrorKind::exception) {
+            // Named like the serial master's: which request, why, and the bytes themselves.
+            outcome = make_error(outcome.error().kind == ErrorKind::mismatch ? ErrorKind::mismatch : ErrorKind::malformed,
+                                 fmt::format("unit {} answered {} with a reply that is not valid ({}): {}", pending.unit,
+                                             describe_transaction(pending.unit, pending.request), outcome.error().message,
+                                             to_hex(frame.raw)));
+        }
         auto done = std::move(pending.done);
         pending_.erase(it);
         return std::make_pair(std::move(done), std::move(outcome));

@@ -25,12 +25,17 @@ public:
     using Devices = std::map<std::uint8_t, std::shared_ptr<device::SimulatedDevice>>;
 
     // Reads `path` (a missing file is an empty state) and loads each served device's saved
-    // values. A file that is not a state file is an error (and is never overwritten); a unit
-    // kept for another profile, or names the profile lacks, are warnings.
+    // values. A file that is not a state file, or that has a value of the wrong type, is an
+    // error naming its JSON pointer (and is never overwritten); so is a file that could not be
+    // saved (found now, before anything is served, not at the first acknowledged write). A unit
+    // kept for another profile, names the profile lacks, and temporaries left by a writer that
+    // was killed (removed) are warnings.
     static Result<SimulatorStateFile> open(const std::string& path, const Devices& devices);
 
-    // Writes the file if any device's saved contents changed since the last save.
+    // Writes the file if any device's saved contents changed since the last successful save;
+    // after a failed save the change stays pending, so the next call tries again.
     Result<void> save_if_changed();
+    bool has_unsaved_changes() const;
 
     const std::vector<std::string>& warnings() const { return warnings_; }
 
@@ -45,5 +50,8 @@ private:
     std::map<std::uint8_t, std::uint64_t> saved_generations_;
     std::vector<std::string> warnings_;
 };
+
+// Checks a state file's text as open() does; `path` only names it in errors.
+Result<nlohmann::json> parse_state_text(const std::string& text, const std::string& path);
 
 }  // namespace loopwire::device

@@ -3,10 +3,11 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
-#include <charconv>
+#include <limits>
 #include <optional>
 #include <vector>
 
+#include "common/text_parsing.hpp"
 #include "transport/serial_settings.hpp"
 
 namespace loopwire::transport {
@@ -40,13 +41,13 @@ std::optional<Framing> framing_of(std::string_view name) {
     return std::nullopt;
 }
 
-// Whole-string unsigned decimal; nullopt for empty text, signs, spaces or overflow.
+// Whole-string unsigned decimal (the project's one number parser) that fits T; nullopt for
+// empty text, signs, spaces, hex or overflow.
 template <typename T>
 std::optional<T> parse_number(std::string_view text) {
-    T value{};
-    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-    if (text.empty() || ec != std::errc{} || end != text.data() + text.size()) return std::nullopt;
-    return value;
+    const auto value = parse_decimal_digits(text);
+    if (!value || *value > std::numeric_limits<T>::max()) return std::nullopt;
+    return static_cast<T>(*value);
 }
 
 std::string lower(std::string_view text) {

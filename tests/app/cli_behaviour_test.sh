@@ -12,6 +12,16 @@ check bad-scheme 2 "modbus" "$loopwire" read --link 'modbus://x' --unit 1 holdin
 check bad-table 2 "unknown table 'holdings'" "$loopwire" read --link "rtu:$work/none" --unit 1 holdings 0 1
 check bad-address 2 "address 70000 is out of range" "$loopwire" read --link "rtu:$work/none" --unit 1 holding 70000 1
 check bad-timeout 2 "not a duration" "$loopwire" read --link "rtu:$work/none" --timeout soon --unit 1 holding 0 1
+# Durations are parsed strictly, where they are typed: no "1.2 s" out of "1.2.3s", no 1 ms out of 0.
+check timeout-two-points 2 "--timeout '1.2.3s' is not a duration: write it like 500ms, 2s, 1.5s or 1m" \
+  "$loopwire" read --link "rtu:$work/none" --timeout 1.2.3s --unit 1 holding 0 1
+check timeout-zero 2 "--timeout '0' is too short: give at least 1ms" "$loopwire" read --link "rtu:$work/none" --timeout 0 --unit 1 holding 0 1
+check timeout-zero-seconds 2 "--timeout '0s' is too short" "$loopwire" dump --link "rtu:$work/none" --device tc10@3 --timeout 0s
+check scan-timeout-zero 2 "--timeout '0ms' is too short" "$loopwire" scan --link "rtu:$work/none" --units 1 --timeout 0ms
+check interval-zero 2 "--interval '0s' is too short: give at least 10ms" \
+  "$loopwire" monitor --link "rtu:$work/none" --device tc10@3 --interval 0s
+check interval-malformed 2 "--interval '1s2' is not a duration" "$loopwire" monitor --link "rtu:$work/none" --device tc10@3 --interval 1s2
+check simulate-duration-malformed 2 "--duration '5 s' is not a duration" "$loopwire" simulate --pty "$work/ttyDur" --unit 1 --duration "5 s"
 check read-broadcast 2 "unit 0 is broadcast" "$loopwire" read --link "rtu:$work/none" --unit 0 holding 0 1
 check bad-coil 2 "coil value 'maybe'" "$loopwire" write --link "rtu:$work/none" --unit 1 coils 0 maybe
 check help-lists-exit-codes 0 "4  timeout" "$loopwire" read --help

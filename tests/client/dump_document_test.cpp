@@ -1,12 +1,6 @@
-// The `loopwire dump` document (format in app/dump_document.hpp) and its atomic file write.
+// The `loopwire dump` document (format in app/dump_document.hpp).
 #include <gtest/gtest.h>
 
-#include <cstdlib>
-#include <filesystem>
-#include <fstream>
-#include <sstream>
-
-#include "common/atomic_file.hpp"
 #include "client/dump_document.hpp"
 #include "read_report_of.hpp"
 
@@ -70,6 +64,29 @@ TEST(DumpDocument, AnUnreadParameterIsKeptWithTheReason) {
     EXPECT_EQ((*document)["parameters"]["output_power"]["status"], "ok");
 }
 
+// AC20 word 300 holds the decimals of the set points; a device answering 0xFFFF there leaves
+// them undecodable: the dump keeps their words (restore needs only those) and says why.
+TEST(DumpDocument, AWordReadButNotDecodableIsKeptRawWithTheReason) {
+    const auto device = *device::parse_device_address("ac20@1");
+    device::ReadReport report;
+    report.raw["primary_variable_decimals"] = 0xFFFF;
+    report.raw["main_set_point"] = 850;
+    const auto* decimals = device.profile->find("primary_variable_decimals");
+    report.readings.push_back(device::ParameterReading{decimals, *device::decode_value(*decimals, 0xFFFF, report.raw), {}});
+    const auto* set_point = device.profile->find("main_set_point");
+    const auto decoded = device::decode_value(*set_point, 850, report.raw);
+    ASSERT_FALSE(decoded) << "the test needs a value that cannot be decoded";
+    report.readings.push_back(device::ParameterReading{set_point, std::nullopt, decoded.error().message});
+    auto document = dump_document(device, device::DumpHeader{"l", "t", {}}, report);
+    ASSERT_TRUE(document) << document.error().message;
+    const auto& entry = (*document)["parameters"]["main_set_point"];
+    EXPECT_EQ(entry["status"], "undecodable");
+    EXPECT_EQ(entry["raw"], nlohmann::ordered_json::array({850}));
+    EXPECT_TRUE(entry["value"].is_null());
+    EXPECT_NE(entry["error"].get<std::string>().find("primary_variable_decimals"), std::string::npos) << entry["error"];
+    EXPECT_EQ((*document)["parameters"]["primary_variable_decimals"]["raw"], nlohmann::ordered_json::array({0xFFFF}));
+}
+
 TEST(DumpDocument, DumpsEveryReadableParameterHiddenOnesIncluded) {
     const auto profile = *device::builtin_profile("tc10");
     const auto list = device::dumped_parameters(*profile);
@@ -77,50 +94,6 @@ TEST(DumpDocument, DumpsEveryReadableParameterHiddenOnesIncluded) {
     for (const auto& p : profile->parameters) readable += p.readable ? 1 : 0;
     EXPECT_EQ(list.size(), readable);
     EXPECT_NE(std::find(list.begin(), list.end(), profile->find("reserved_26")), list.end());
-}
-
-class AtomicWrite : public ::testing::Test {
-protected:
-    void SetUp() override {
-        std::string pattern = (std::filesystem::temp_directory_path() / "loopwire-dump-test-XXXXXX").string();
-        ASSERT_NE(::mkdtemp(pattern.data()), nullptr);
-        dir = pattern;
-    }
-    void TearDown() override { std::filesystem::remove_all(dir); }
-    std::size_t entries() const {
-        return static_cast<std::size_t>(std::distance(std::filesystem::directory_iterator(dir), std::filesystem::directory_iterator()));
-    }
-    static std::string contents(const std::filesystem::path& path) {
-        std::ifstream in(path);
-        std::stringstream text;
-        text << in.rdbuf();
-        return text.str();
-    }
-    std::filesystem::path dir;
-};
-
-TEST_F(AtomicWrite, ReplacesTheFileWholeAndLeavesNoTemporaryBehind) {
-    const auto path = (dir / "unit3.json").string();
-    ASSERT_TRUE(write_file_atomically(path, "old\n"));
-    ASSERT_TRUE(write_file_atomically(path, "{\"new\":true}\n"));
-    EXPECT_EQ(contents(path), "{\"new\":true}\n");
-    EXPECT_EQ(entries(), 1u);
-}
-
-TEST_F(AtomicWrite, AnUnwritableDestinationFailsWithoutLeavingAFile) {
-    const auto path = (dir / "missing-dir" / "unit3.json").string();
-    auto written = write_file_atomically(path, "x");
-    ASSERT_FALSE(written);
-    EXPECT_NE(written.error().message.find(path), std::string::npos);
-    EXPECT_EQ(entries(), 0u);
-}
-
-TEST_F(AtomicWrite, ARenameOntoADirectoryFailsAndRemovesTheTemporary) {
-    const auto path = dir / "taken";
-    std::filesystem::create_directory(path);
-    std::filesystem::create_directory(path / "inside");  // a non-empty directory cannot be replaced
-    ASSERT_FALSE(write_file_atomically(path.string(), "x"));
-    EXPECT_EQ(entries(), 1u);  // only the directory
 }
 
 }  // namespace

@@ -119,13 +119,43 @@ TEST(SerialMaster, ReplyFromAnotherUnitIsNotTakenForTheAnswer) {
 }
 
 TEST(SerialMaster, EchoThatDiffersFromTheRequestIsNotAccepted) {
-    // TC10 manual §3.2 request; the "echo" carries another value.
+    // TC10 manual §3.2 request; the "echo" carries another value: a reply, but a wrong one.
     MasterOptions options;
     options.timeout = 50ms;
     auto [stream, master] = master_on({{hex("01 06 03 02 00 0A A8 49"), codec::rtu_encode(1, hex("06 03 02 00 0B"))}}, options);
     auto reply = master->execute(1, codec::write_single_register(770, 10));
     ASSERT_FALSE(reply.ok());
-    EXPECT_EQ(reply.error().kind, ErrorKind::timeout);
+    EXPECT_EQ(reply.error().kind, ErrorKind::mismatch);
+}
+
+// A whole frame (CRC right) from the unit asked that is not an answer is a bad reply, exit 6
+// as on TCP, with its bytes named; "no reply" (exit 4) is only for silence or garbled bytes.
+// Not retried: the device answered, and would answer the same again.
+TEST(SerialMaster, AWrongReplyWithAValidCrcIsABadReplyNamingItsBytes) {
+    const Bytes request = hex("01 03 00 19 00 02 15 CC");  // TC10 manual §3.1: words 25..26 of unit 1
+    struct Case {
+        const char* what;
+        Bytes reply;
+    };
+    const std::vector<Case> cases{
+        {"wrong function", codec::rtu_encode(1, hex("04 04 00 0A 00 14"))},
+        {"short byte count", codec::rtu_encode(1, hex("03 02 00 0A"))},
+        {"byte count beyond the data", codec::rtu_encode(1, hex("03 05 FF"))},
+        {"unknown function", codec::rtu_encode(1, hex("42 00"))},
+    };
+    for (const auto& c : cases) {
+        MasterOptions options;
+        options.timeout = 50ms;
+        options.retries = 2;
+        auto [stream, master] = master_on({{request, c.reply}}, options);
+        auto reply = master->execute(1, codec::read_request(codec::FunctionCode::read_holding_registers, 25, 2));
+        ASSERT_FALSE(reply.ok()) << c.what;
+        EXPECT_TRUE(reply.error().kind == ErrorKind::malformed || reply.error().kind == ErrorKind::mismatch)
+            << c.what << ": " << reply.error().message;
+        EXPECT_NE(reply.error().message.find(to_hex(c.reply)), std::string::npos) << c.what << ": " << reply.error().message;
+        EXPECT_EQ(reply.error().message.find("no reply"), std::string::npos) << c.what << ": " << reply.error().message;
+        EXPECT_EQ(stream->writes().size(), 1u) << c.what;
+    }
 }
 
 TEST(SerialMaster, BroadcastAwaitsNoReplyButKeepsTheTurnaroundDelay) {

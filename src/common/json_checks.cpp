@@ -1,0 +1,48 @@
+#include "common/json_checks.hpp"
+
+#include <fmt/format.h>
+
+namespace loopwire {
+
+std::string json_pointer(const std::string& parent, std::string_view key) {
+    std::string pointer = parent + "/";
+    for (const char c : key) {
+        if (c == '~') pointer += "~0";
+        else if (c == '/') pointer += "~1";
+        else pointer += c;
+    }
+    return pointer;
+}
+
+std::string json_pointer(const std::string& parent, std::size_t index) { return parent + "/" + std::to_string(index); }
+
+std::string describe_json(const nlohmann::json& value) {
+    // Invalid UTF-8 in a string must not make the description itself throw.
+    std::string text = value.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+    constexpr std::size_t longest = 40;
+    if (text.size() > longest) text = text.substr(0, longest) + "...";
+    switch (value.type()) {
+        case nlohmann::json::value_t::null: return "null";
+        case nlohmann::json::value_t::boolean: return text;
+        case nlohmann::json::value_t::string: return "a string " + text;
+        case nlohmann::json::value_t::number_integer:
+        case nlohmann::json::value_t::number_unsigned:
+        case nlohmann::json::value_t::number_float: return "the number " + text;
+        case nlohmann::json::value_t::array: return "an array " + text;
+        case nlohmann::json::value_t::object: return "an object";
+        default: return "a value " + text;
+    }
+}
+
+std::optional<std::uint16_t> json_word(const nlohmann::json& value) {
+    if (value.is_number_unsigned()) {
+        const auto number = value.get<std::uint64_t>();
+        if (number <= 0xFFFF) return static_cast<std::uint16_t>(number);
+    } else if (value.is_number_integer()) {
+        const auto number = value.get<std::int64_t>();
+        if (number >= 0 && number <= 0xFFFF) return static_cast<std::uint16_t>(number);
+    }
+    return std::nullopt;
+}
+
+}  // namespace loopwire
