@@ -51,6 +51,14 @@ bool TcpSlaveConnection::may_read() const {
     return !closed_ && !closing_ && outstanding_ < slave_.options().tcp.max_outstanding_requests;
 }
 
+void TcpSlaveConnection::start() {
+    // A synchronous send returns would_block instead of waiting (flush_output()); the
+    // asynchronous calls are unaffected.
+    error_code ignored;
+    socket_.non_blocking(true, ignored);
+    read();
+}
+
 void TcpSlaveConnection::read() {
     reading_ = true;
     socket_.async_read_some(asio::buffer(input_), [self = shared_from_this()](const error_code& error, std::size_t size) {
@@ -60,33 +68,41 @@ void TcpSlaveConnection::read() {
 
 void TcpSlaveConnection::on_read(const error_code& error, std::size_t size) {
     reading_ = false;
-    if (closed_) return;
-    if (error == asio::error::eof) {
-        close_after_replies("client closed its side");
-        return;
+    take(error, size);
+    after_turn();
+}
+
+// One read's worth of bytes (or its failure): every complete frame is answered and the replies
+// go out in one write. False once the connection is closed or closing.
+bool TcpSlaveConnection::take(const error_code& error, std::size_t size) {
+    if (closed_ || closing_) return false;
+    if (error == asio::error::eof) {  // the client is done sending: a normal end, not traced
+        close_after_replies({});
+        return false;
     }
     if (error) {
         close();
-        return;
+        return false;
     }
     auto events = codec_->feed(ByteView(input_.data(), size), Clock::now());
     if (!events) {
         if (slave_.tracing()) slave_.trace(TraceDirection::discarded, ByteView(input_.data(), size), events.error().message + "; connection closed");
         close();
-        return;
+        return false;
     }
     batching_ = true;
     handle(*events);
     batching_ = false;
-    if (closed_) return;
+    if (closed_) return false;
     // Modbus Messaging on TCP/IP V1.0b, 4.2: the frames before a bad header were complete
     // requests and are answered; the stream cannot be followed past it.
     if (auto broken = codec_->stream_error()) {
         close_after_replies(broken->message);
-        return;
+        return false;
     }
     arm_timer();
-    after_turn();
+    flush_output();
+    return !closed_;
 }
 
 void TcpSlaveConnection::handle(codec::FrameEvents& events) {
@@ -148,7 +164,21 @@ void TcpSlaveConnection::queue(std::uint8_t unit, std::uint16_t transaction, con
     }
 }
 
-// Everything queued goes out in one write; what is queued meanwhile waits for the next.
+// Everything queued goes out in one send, straight away: the kernel nearly always takes it all,
+// and then no completion has to run. What it does not take is written asynchronously.
+void TcpSlaveConnection::flush_output() {
+    if (closed_ || write_active_ || queued_.empty()) return;
+    error_code error;
+    const std::size_t sent = socket_.write_some(asio::buffer(queued_), error);
+    if (error && error != asio::error::would_block) {
+        close();
+        return;
+    }
+    queued_.erase(queued_.begin(), queued_.begin() + static_cast<std::ptrdiff_t>(sent));
+    if (!queued_.empty()) write();
+}
+
+// The rest of the queue, asynchronously; what is queued meanwhile waits for the next write.
 void TcpSlaveConnection::write() {
     writing_.swap(queued_);
     write_active_ = true;
@@ -170,8 +200,8 @@ void TcpSlaveConnection::on_written(const error_code& error) {
 
 // What a connection does when a read, a write, a timer or a deferred reply has been handled.
 void TcpSlaveConnection::after_turn() {
+    flush_output();
     if (closed_) return;
-    if (!write_active_ && !queued_.empty()) write();
     if (closing_) {
         if (!write_active_ && outstanding_ == 0) close();
         return;
@@ -213,7 +243,9 @@ void TcpSlaveConnection::on_timer(const error_code& error) {
 
 void TcpSlaveConnection::close_after_replies(const std::string& reason) {
     if (closing_ || closed_) return;
-    if (slave_.tracing()) slave_.trace(TraceDirection::discarded, {}, reason + "; closing once the replies owed are sent");
+    if (!reason.empty() && slave_.tracing()) {
+        slave_.trace(TraceDirection::discarded, {}, reason + "; closing once the replies owed are sent");
+    }
     closing_ = true;
     timer_.expires_after(closing_grace);
     timer_.async_wait([self = shared_from_this()](const error_code& error) { self->on_timer(error); });

@@ -3,7 +3,7 @@
 //
 // Reads go into one fixed buffer and through the connection's own FrameCodec (MBAP, or RTU for
 // rtu+tcp with its silence flush on a timer); every complete frame is answered, and replies are
-// appended to one queue that goes out in a single write per turn of the loop. A client that
+// appended to one queue that goes out in a single send per read. A client that
 // stops reading is closed once its queue passes TcpClientLimits::max_queued_reply_bytes.
 #include <array>
 #include <cstdint>
@@ -54,12 +54,14 @@ public:
     TcpSlaveConnection(const TcpSlaveConnection&) = delete;
     TcpSlaveConnection& operator=(const TcpSlaveConnection&) = delete;
 
-    void start() { read(); }
+    void start();
     void close();
 
 private:
     void read();
     void on_read(const boost::system::error_code& error, std::size_t size);
+    bool take(const boost::system::error_code& error, std::size_t size);  // false: closed or closing
+    void flush_output();
     void handle(codec::FrameEvents& events);
     void dispatch(const codec::Frame& frame);
     void deliver(std::uint8_t unit, std::uint16_t transaction, std::optional<Bytes> pdu);
@@ -68,6 +70,7 @@ private:
     void on_written(const boost::system::error_code& error);
     void arm_timer();
     void on_timer(const boost::system::error_code& error);
+    // Stops reading, sends the replies still owed, then closes; `reason` is traced unless empty.
     void close_after_replies(const std::string& reason);
     void after_turn();
     bool may_read() const;
@@ -86,7 +89,7 @@ private:
     std::size_t outstanding_ = 0;  // requests whose reply has not been delivered yet
     bool reading_ = false;
     bool write_active_ = false;
-    bool batching_ = false;  // inside on_read: replies gather and go out in one write afterwards
+    bool batching_ = false;  // answering a read: replies gather and go out in one send afterwards
     bool closing_ = false;   // answer what has been received, then close
     bool closed_ = false;
 };
