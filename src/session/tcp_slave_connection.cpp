@@ -203,7 +203,11 @@ void TcpSlaveConnection::after_turn() {
     flush_output();
     if (closed_) return;
     if (closing_) {
-        if (!write_active_ && outstanding_ == 0) close();
+        if (write_active_ || outstanding_ > 0) return;
+        // FIN after the last reply, so the client reads the replies before it sees the end.
+        error_code ignored;
+        socket_.shutdown(asio::ip::tcp::socket::shutdown_send, ignored);
+        close();
         return;
     }
     if (!reading_ && may_read()) read();
