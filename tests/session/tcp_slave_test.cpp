@@ -191,7 +191,8 @@ long voluntary_context_switches() {
 
 // No polling: a server with connected, silent clients sleeps until something happens. Its CPU
 // time catches a busy loop; its wake-ups (voluntary context switches of the whole process)
-// catch a timed poll, which a 20 ms timeout would make 50 times a second.
+// catch a timed poll, which a 20 ms timeout would make 50 times a second. (The bound leaves
+// room for a sanitizer's own background thread, which wakes up about ten times a second.)
 TEST(TcpSlaveServer, AnIdleServerUsesNoCpuAndDoesNotWakeUp) {
     ServedSlave served(UnitMap{{1, std::make_shared<RegisterBank>()}});
     RawClient client(served.port());
@@ -202,7 +203,7 @@ TEST(TcpSlaveServer, AnIdleServerUsesNoCpuAndDoesNotWakeUp) {
     const auto cpu = process_cpu_time() - cpu_before;
     const long switches = voluntary_context_switches() - switches_before;
     EXPECT_LT(cpu, 50ms) << "CPU used by an idle server in one second";
-    EXPECT_LT(switches, 10) << "wake-ups of an idle server in one second";
+    EXPECT_LT(switches, 25) << "wake-ups of an idle server in one second";
 }
 
 }  // namespace
