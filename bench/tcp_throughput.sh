@@ -1,10 +1,12 @@
 #!/bin/bash
-# Loopback Modbus/TCP throughput: `loopwire simulate` against libmodbus's own slave, measured in
-# the same run by the same libmodbus client (read 10 holding registers, one request at a time).
+# Loopback Modbus/TCP throughput: `loopwire simulate` against libmodbus's own slave and against
+# a bare ping-pong server (one read and one write per request, no Modbus logic: the floor),
+# measured in the same run by the same libmodbus client (read 10 holding registers, one request
+# at a time).
 #
 # Usage: bench/tcp_throughput.sh BUILD_DIR [REQUESTS]    (REQUESTS defaults to 20000)
-# Builds nothing: BUILD_DIR must hold loopwire, bench/tcp_throughput_client and
-# bench/libmodbus_tcp_server (cmake --build BUILD_DIR).
+# Builds nothing: BUILD_DIR must hold loopwire, bench/tcp_throughput_client,
+# bench/libmodbus_tcp_server and bench/pingpong_server (cmake --build BUILD_DIR).
 #
 # Server and client are both pinned to CPU 0 (taskset -c 0). On small VMs cross-CPU wake-ups
 # dominate a request/response loop (PEERS.md: ~6,000 requests/s spread over two CPUs, ~30,000
@@ -19,7 +21,8 @@ readonly BUILD_DIR=$1 REQUESTS=${2:-20000}
 readonly LOOPWIRE=$BUILD_DIR/loopwire
 readonly CLIENT=$BUILD_DIR/bench/tcp_throughput_client
 readonly LIBMODBUS_SERVER=$BUILD_DIR/bench/libmodbus_tcp_server
-for program in "$LOOPWIRE" "$CLIENT" "$LIBMODBUS_SERVER"; do
+readonly PINGPONG_SERVER=$BUILD_DIR/bench/pingpong_server
+for program in "$LOOPWIRE" "$CLIENT" "$LIBMODBUS_SERVER" "$PINGPONG_SERVER"; do
     [[ -x $program ]] || { echo "$0: $program is missing: build it first (cmake --build $BUILD_DIR)" >&2; exit 2; }
 done
 [[ $REQUESTS =~ ^[1-9][0-9]*$ ]] || { echo "$0: REQUESTS must be a positive number, not '$REQUESTS'" >&2; exit 2; }
@@ -43,7 +46,8 @@ measure() {
     shift
     taskset -c 0 "$@" >"$WORK_DIR/$name.log" 2>&1 &
     SERVER_PID=$!
-    # Both servers name their port: "listening on port N" (loopwire on stderr, libmodbus's on stdout).
+    # Every server names its port: "listening on port N" (loopwire and ping-pong on stderr,
+    # libmodbus's on stdout).
     until [[ -n $port ]]; do
         port=$(sed -nE 's/.*listening on port ([0-9]+).*/\1/p' "$WORK_DIR/$name.log" | head -n 1)
         if [[ -z $port ]]; then
@@ -67,6 +71,9 @@ measure loopwire "$LOOPWIRE" simulate --link tcp://127.0.0.1:0 --unit 1 --durati
 loopwire_rate=$RATE
 measure libmodbus "$LIBMODBUS_SERVER" 0 600
 libmodbus_rate=$RATE
-ratio=$(awk -v a="$loopwire_rate" -v b="$libmodbus_rate" 'BEGIN { printf "%.2f", a / b }')
+measure pingpong "$PINGPONG_SERVER" 0
+pingpong_rate=$RATE
+ratio() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.2f", a / b }'; }
 echo "$REQUESTS requests of 10 holding registers each, server and client pinned to CPU 0"
-echo "loopwire: $loopwire_rate req/s, libmodbus: $libmodbus_rate req/s, ratio: $ratio"
+echo "loopwire: $loopwire_rate req/s, libmodbus: $libmodbus_rate req/s, ping-pong: $pingpong_rate req/s"
+echo "loopwire/libmodbus: $(ratio "$loopwire_rate" "$libmodbus_rate"), loopwire/ping-pong: $(ratio "$loopwire_rate" "$pingpong_rate")"

@@ -1,5 +1,5 @@
 // MBAP stream decoder under arbitrary bytes and read splits. Properties: every frame re-encodes
-// to its own bytes, PDUs stay within Modbus limits, the buffer stays below one ADU, and a bad
+// to its own bytes, PDUs stay within what the length field may announce, the buffer stays below one ADU, and a bad
 // header is a malformed error that repeats until reset.
 #include "codec/tcp.hpp"
 #include "fuzz_support.hpp"
@@ -24,12 +24,20 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
             return 0;
         }
         for (const Frame& frame : result.value()) {
-            fuzz::check(!frame.pdu.empty() && frame.pdu.size() <= 253, "MBAP PDU is 1..253 bytes");
-            fuzz::check(mbap_encode(frame.transaction, frame.unit, frame.pdu) == frame.raw,
-                        "MBAP frame re-encodes to its bytes");
+            // Over-long PDUs (length 255..260) are framed by their length for the receiver to refuse.
+            fuzz::check(!frame.pdu.empty() && frame.pdu.size() < mbap_max_trusted_length, "MBAP PDU is 1..259 bytes");
+            if (frame.pdu.size() <= 253) {
+                fuzz::check(mbap_encode(frame.transaction, frame.unit, frame.pdu) == frame.raw,
+                            "MBAP frame re-encodes to its bytes");
+            }
             framed += frame.raw.size();
         }
-        fuzz::check(decoder.buffered() < 7 + 254, "MBAP buffer stays below one ADU");
+        fuzz::check(decoder.buffered() < 6 + mbap_max_trusted_length, "MBAP buffer stays below one ADU");
+        if (decoder.broken()) {  // frames came before a bad header: the next feed reports it
+            auto again = decoder.feed(ByteView{});
+            fuzz::check(!again.ok() && again.error().message == decoder.broken()->message, "MBAP error is sticky");
+            return 0;
+        }
     }
     fuzz::check(framed + decoder.buffered() == input.stream.size(), "MBAP: every byte framed or pending");
     return 0;

@@ -41,11 +41,13 @@ std::optional<Error> check_header(ByteView header) {
     }
     if (header.size() >= length_field_end) {
         const std::uint16_t length = read_be16(header, 4);
-        if (length < min_length || length > max_length) {
+        if (length < min_length || length > mbap_max_trusted_length) {
             return make_error(ErrorKind::malformed,
                               "MBAP length " + std::to_string(length) + " is outside " +
-                                  std::to_string(min_length) + ".." + std::to_string(max_length) +
-                                  " (unit id + PDU of at most 253 bytes): the stream cannot be "
+                                  std::to_string(min_length) + ".." + std::to_string(mbap_max_trusted_length) +
+                                  " (unit id + PDU of at most 253 bytes; up to " +
+                                  std::to_string(mbap_max_trusted_length) +
+                                  " is skipped and refused): the stream cannot be "
                                   "resynchronised; close the connection");
         }
     }
@@ -63,29 +65,36 @@ Frame make_frame(ByteView adu) {
 
 }  // namespace
 
-Bytes mbap_encode(std::uint16_t transaction, std::uint8_t unit, ByteView pdu) {
-    // A PDU longer than 253 bytes is a programming error: no decoder produces one.
+void mbap_append(Bytes& out, std::uint16_t transaction, std::uint8_t unit, ByteView pdu) {
+    // A PDU longer than 253 bytes is a programming error: nobody may send one.
     assert(pdu.size() + 1 <= max_length);
-    Bytes out;
-    out.reserve(mbap_header_size + pdu.size());
     append_be16(out, transaction);
     append_be16(out, modbus_protocol_id);
     append_be16(out, static_cast<std::uint16_t>(pdu.size() + 1));
     out.push_back(unit);
     out.insert(out.end(), pdu.begin(), pdu.end());
+}
+
+Bytes mbap_encode(std::uint16_t transaction, std::uint8_t unit, ByteView pdu) {
+    Bytes out;
+    out.reserve(mbap_header_size + pdu.size());
+    mbap_append(out, transaction, unit, pdu);
     return out;
 }
 
 Result<std::vector<Frame>> MbapDecoder::feed(ByteView bytes) {
+    if (broken_) return *broken_;
     buffer_.insert(buffer_.end(), bytes.begin(), bytes.end());
     std::vector<Frame> frames;
     std::size_t start = 0;
     while (true) {
         const ByteView rest = ByteView(buffer_).subspan(start);
-        // The bad header stays buffered so every later feed() reports it too, until reset().
+        // The bad header stays buffered; the error repeats on every later feed(), until reset().
         if (auto error = check_header(rest.first(std::min(rest.size(), length_field_end)))) {
             buffer_.erase(buffer_.begin(), buffer_.begin() + static_cast<std::ptrdiff_t>(start));
-            return *error;
+            broken_ = std::move(*error);
+            if (frames.empty()) return *broken_;
+            return frames;  // answered before the connection closes (broken() says so)
         }
         if (rest.size() < length_field_end) break;
         const std::size_t adu_size = length_field_end + read_be16(rest, 4);

@@ -52,9 +52,11 @@ public:
         auto frames = decoder_.feed(bytes);
         if (!frames) return frames.error();
         FrameEvents events;
+        events.reserve(frames->size());
         for (auto& frame : *frames) events.emplace_back(std::move(frame));
         return events;
     }
+    std::optional<Error> stream_error() const override { return decoder_.broken(); }
     void reset() override { decoder_.reset(); }
 
 private:

@@ -19,6 +19,9 @@ public:
     // Bytes that arrived at `arrival`. An error means the stream cannot be resynchronised
     // (MBAP header garbage) and the connection should be dropped.
     virtual Result<codec::FrameEvents> feed(ByteView bytes, Instant arrival) = 0;
+    // Set when feed() returned the frames that preceded a header that cannot be resynchronised
+    // (MBAP): answer those, then drop the connection. Later feed() calls return the error.
+    virtual std::optional<Error> stream_error() const { return std::nullopt; }
     // The line has been quiet until `now` (RTU completes or drops a pending frame).
     virtual codec::FrameEvents flush(Instant /*now*/) { return {}; }
     // When flush() should next be called, if bytes are pending.

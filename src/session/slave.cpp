@@ -1,13 +1,11 @@
 #include "session/slave.hpp"
 
-#include <poll.h>
-
-#include <list>
 #include <thread>
 
 #include <fmt/format.h>
 
 #include "codec/rtu.hpp"
+#include "session/tcp_slave_server.hpp"
 
 namespace loopwire::session {
 namespace {
@@ -29,6 +27,10 @@ milliseconds until(std::optional<Instant> deadline, milliseconds longest) {
     return std::clamp(left, milliseconds(0), longest);
 }
 
+Bytes exception_pdu(std::uint8_t function, std::uint8_t code) {
+    return Bytes{static_cast<std::uint8_t>(function | 0x80), code};
+}
+
 }  // namespace
 
 Slave::Slave(transport::LinkUrl link, UnitMap units, SlaveOptions options)
@@ -38,38 +40,70 @@ void Slave::trace(TraceDirection direction, ByteView bytes, std::string note) co
     if (options_.trace) options_.trace({Clock::now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
 }
 
-std::optional<Bytes> Slave::answer(const codec::Frame& frame, FrameCodec& codec) {
-    if (frame.pdu.empty()) return std::nullopt;
+Slave::Route Slave::route(const codec::Frame& frame) {
+    if (frame.pdu.empty()) return {};
     if (frame.unit == 0) {
-        trace(TraceDirection::received, frame.raw, "broadcast: executed by every unit, not answered");
-        for (auto& [unit, handler] : units_) handler->handle(frame.pdu, true);
+        if (tracing()) trace(TraceDirection::received, frame.raw, "broadcast: executed by every unit, not answered");
         ++requests_;
-        return std::nullopt;
+        return {Route::Kind::broadcast, nullptr, {}};
     }
     auto it = units_.find(frame.unit);
     if (it == units_.end() && frame.unit == tcp_direct_unit && link_.framing == transport::Framing::tcp && units_.size() == 1) {
         it = units_.begin();
     }
     if (it == units_.end()) {
-        trace(TraceDirection::received, frame.raw, fmt::format("unit {} is not served here", frame.unit));
-        if (link_.framing != transport::Framing::tcp) return std::nullopt;
-        Bytes pdu{static_cast<std::uint8_t>(frame.pdu[0] | 0x80), gateway_target_failed};
-        auto encoded = codec.encode(frame.unit, pdu, frame.transaction);
-        return encoded ? std::optional<Bytes>(std::move(*encoded)) : std::nullopt;
+        if (tracing()) trace(TraceDirection::received, frame.raw, fmt::format("unit {} is not served here", frame.unit));
+        if (link_.framing != transport::Framing::tcp) return {};
+        return {Route::Kind::own_reply, nullptr, exception_pdu(frame.pdu[0], gateway_target_failed)};
     }
-    trace(TraceDirection::received, frame.raw, fmt::format("request for unit {}", frame.unit));
     ++requests_;
-    auto reply_pdu = it->second->handle(frame.pdu, false);
+    // Only an MBAP length of 255..260 yields a PDU past 253 bytes (codec/tcp.hpp): no PDU may be
+    // that long (application protocol V1.1b3, 4.1), so it is refused with exception 3 (illegal
+    // data value, as for a quantity past the limit in 6.12) without reaching the unit.
+    if (frame.pdu.size() > codec::max_pdu_size) {
+        if (tracing()) trace(TraceDirection::discarded, frame.raw, fmt::format("PDU of {} bytes is longer than 253: refused", frame.pdu.size()));
+        return {Route::Kind::own_reply, nullptr,
+                exception_pdu(frame.pdu[0], static_cast<std::uint8_t>(codec::ExceptionCode::illegal_data_value))};
+    }
+    if (tracing()) trace(TraceDirection::received, frame.raw, fmt::format("request for unit {}", frame.unit));
+    return {Route::Kind::unit, it->second.get(), {}};
+}
+
+std::optional<Bytes> Slave::answer(const codec::Frame& frame, FrameCodec& codec) {
+    Route where = route(frame);
+    std::optional<Bytes> reply_pdu;
+    switch (where.kind) {
+        case Route::Kind::silent: return std::nullopt;
+        case Route::Kind::broadcast:
+            for (auto& [unit, handler] : units_) handler->handle(frame.pdu, true);
+            return std::nullopt;
+        case Route::Kind::own_reply: reply_pdu = std::move(where.reply_pdu); break;
+        case Route::Kind::unit: reply_pdu = where.handler->handle(frame.pdu, false); break;
+    }
     if (!reply_pdu) {
-        trace(TraceDirection::discarded, frame.raw, "unit stays silent");
+        if (tracing()) trace(TraceDirection::discarded, frame.raw, "unit stays silent");
         return std::nullopt;
     }
     auto encoded = codec.encode(frame.unit, *reply_pdu, frame.transaction);
     if (!encoded) {
-        trace(TraceDirection::discarded, *reply_pdu, "reply not sent: " + encoded.error().message);
+        if (tracing()) trace(TraceDirection::discarded, *reply_pdu, "reply not sent: " + encoded.error().message);
         return std::nullopt;
     }
     return std::move(*encoded);
+}
+
+void Slave::answer_async(const codec::Frame& frame, UnitHandler::ReplyCallback reply) {
+    Route where = route(frame);
+    switch (where.kind) {
+        case Route::Kind::silent: reply(std::nullopt); return;
+        case Route::Kind::broadcast:
+            // Every unit executes it; whatever they answer, and whenever, is dropped.
+            for (auto& [unit, handler] : units_) handler->handle_async(frame.pdu, true, [](std::optional<Bytes>) {});
+            reply(std::nullopt);
+            return;
+        case Route::Kind::own_reply: reply(std::move(where.reply_pdu)); return;
+        case Route::Kind::unit: where.handler->handle_async(frame.pdu, false, std::move(reply)); return;
+    }
 }
 
 // A serial-line slave may only answer once the request has ended, i.e. after 3.5 characters of
@@ -80,7 +114,7 @@ void Slave::reply_after_silence(transport::ByteStream& stream, const Bytes& repl
         const auto gap = codec::CharacterTiming{link_.serial.baud, link_.serial.bits_per_character()}.t3_5();
         std::this_thread::sleep_until(request_end + gap);
     }
-    trace(TraceDirection::sent, reply, "reply");
+    if (tracing()) trace(TraceDirection::sent, reply, "reply");
     (void)stream.write(reply);  // a failed write surfaces as a read error on the next turn
 }
 
@@ -101,77 +135,18 @@ Result<void> Slave::serve_stream(transport::ByteStream& stream, std::stop_token 
         }
         for (const auto& event : events) {
             if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
-                trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
+                if (tracing()) trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
                 continue;
             }
             if (auto reply = answer(std::get<codec::Frame>(event), *codec)) reply_after_silence(stream, *reply, now);
         }
+        if (auto broken = codec->stream_error()) return *broken;  // after answering what came before
     }
     return {};
-}
-
-struct SlaveConnection {
-    std::unique_ptr<transport::ByteStream> stream;
-    std::unique_ptr<FrameCodec> codec;
-};
-
-// RTU frames through a device server whose function code gives no length end by silence.
-void Slave::flush_quiet(SlaveConnection& connection) {
-    auto deadline = connection.codec->flush_deadline();
-    if (!deadline || *deadline > Clock::now()) return;
-    for (const auto& event : connection.codec->flush(Clock::now())) {
-        if (const auto* frame = std::get_if<codec::Frame>(&event)) {
-            if (auto reply = answer(*frame, *connection.codec)) {
-                trace(TraceDirection::sent, *reply, "reply");
-                (void)connection.stream->write(*reply);
-            }
-        }
-    }
 }
 
 Result<void> Slave::serve_listener(transport::TcpListener& listener, std::stop_token stop) {
-    std::list<SlaveConnection> connections;
-    std::array<std::uint8_t, 4096> buffer{};
-    std::vector<pollfd> fds;
-    while (!stop.stop_requested()) {
-        fds.assign(1, pollfd{listener.poll_handle(), POLLIN, 0});
-        for (auto& c : connections) fds.push_back(pollfd{c.stream->poll_handle(), POLLIN, 0});
-        if (::poll(fds.data(), fds.size(), 20) <= 0) {
-            for (auto& c : connections) flush_quiet(c);
-            continue;
-        }
-        std::size_t index = 1;
-        for (auto it = connections.begin(); it != connections.end(); ++index) {
-            if (!(fds[index].revents & (POLLIN | POLLHUP | POLLERR))) { ++it; continue; }
-            auto got = it->stream->read_some(buffer, milliseconds(0));
-            bool keep = got.ok();
-            if (keep && *got > 0) {
-                auto events = it->codec->feed(ByteView(buffer.data(), *got), Clock::now());
-                keep = events.ok();
-                if (!events) trace(TraceDirection::discarded, ByteView(buffer.data(), *got), events.error().message + "; connection closed");
-                for (const auto& event : keep ? *events : codec::FrameEvents{}) {
-                    if (const auto* frame = std::get_if<codec::Frame>(&event)) {
-                        if (auto reply = answer(*frame, *it->codec)) {
-                            trace(TraceDirection::sent, *reply, "reply");
-                            keep = it->stream->write(*reply).ok();
-                        }
-                    } else {
-                        const auto& discarded = std::get<codec::DiscardedBytes>(event);
-                        trace(TraceDirection::discarded, discarded.bytes, discarded.reason);
-                    }
-                }
-            }
-            it = keep ? std::next(it) : connections.erase(it);
-        }
-        for (auto& c : connections) flush_quiet(c);
-        if (fds[0].revents & POLLIN) {
-            auto client = listener.accept(milliseconds(0));
-            if (client && *client) {
-                connections.push_back({std::move(*client), make_frame_codec(link_, codec::Direction::request)});
-            }
-        }
-    }
-    return {};
+    return serve_tcp_clients(*this, listener, std::move(stop));
 }
 
 }  // namespace loopwire::session

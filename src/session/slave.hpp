@@ -3,6 +3,8 @@
 // manual shares: bad check bytes -> no reply (the framer drops the frame); a frame for another
 // unit -> no reply; broadcast (unit 0) -> executed by every unit, no reply.
 #include <atomic>
+#include <chrono>
+#include <cstddef>
 #include <map>
 #include <memory>
 #include <stop_token>
@@ -17,12 +19,24 @@
 
 namespace loopwire::session {
 
-struct SlaveConnection;  // one accepted TCP client and its framer
-
 using UnitMap = std::map<std::uint8_t, std::shared_ptr<UnitHandler>>;
+
+// How much one TCP client may cost the others (serve_listener).
+struct TcpClientLimits {
+    // Replies queued for a client that does not read them: past this the connection is closed,
+    // so a stalled or hostile client costs bounded memory and never delays anyone else.
+    std::size_t max_queued_reply_bytes = 64 * 1024;
+    // Requests handed to deferring handlers and not answered yet: at this many the connection
+    // is not read until one is answered (backpressure on a pipelining client).
+    std::size_t max_outstanding_requests = 32;
+    // After accept() fails for lack of resources (EMFILE, ENFILE, ENOBUFS, ENOMEM) the waiting
+    // client stays queued in the kernel; retrying at once would spin, so accepting pauses.
+    std::chrono::milliseconds accept_retry_delay{100};
+};
 
 struct SlaveOptions {
     TraceSink trace;
+    TcpClientLimits tcp;
 };
 
 class Slave {
@@ -33,18 +47,34 @@ public:
     // port, one TCP connection) until `stop` is requested or the stream fails.
     Result<void> serve_stream(transport::ByteStream& stream, std::stop_token stop);
 
-    // Serves every connection `listener` accepts (tcp and rtu+tcp links) until `stop`.
+    // Serves every connection `listener` accepts (tcp and rtu+tcp links) until `stop`, all on
+    // one event loop (session/tcp_slave_server.hpp).
     Result<void> serve_listener(transport::TcpListener& listener, std::stop_token stop);
 
     // The reply frame (wire bytes) for one received frame, or nullopt for silence.
     std::optional<Bytes> answer(const codec::Frame& frame, FrameCodec& codec);
 
+    // The reply PDU for one received frame through `reply` (nullopt: silence), at once or later
+    // from any thread when the unit's handler defers it (UnitHandler::handle_async).
+    void answer_async(const codec::Frame& frame, UnitHandler::ReplyCallback reply);
+
     // Requests served and replies sent so far (for status lines and tests).
     std::uint64_t requests_served() const { return requests_; }
 
-private:
+    const transport::LinkUrl& link() const { return link_; }
+    const SlaveOptions& options() const { return options_; }
+    bool tracing() const { return static_cast<bool>(options_.trace); }
+    // Callers check tracing() first, so nothing is formatted when nobody listens.
     void trace(TraceDirection direction, ByteView bytes, std::string note) const;
-    void flush_quiet(SlaveConnection& connection);
+
+private:
+    // Where one frame goes: to a unit's handler, or answered (or not) by the slave itself.
+    struct Route {
+        enum class Kind { silent, own_reply, unit, broadcast } kind = Kind::silent;
+        UnitHandler* handler = nullptr;  // Kind::unit
+        Bytes reply_pdu;                 // Kind::own_reply
+    };
+    Route route(const codec::Frame& frame);
     void reply_after_silence(transport::ByteStream& stream, const Bytes& reply, Instant request_end);
 
     transport::LinkUrl link_;

@@ -141,6 +141,11 @@ private:
             for (auto& frame : *frames) {
                 if (auto done = match(frame)) finished.push_back(std::move(*done));
             }
+            // The replies before a bad header were matched above; the rest of the stream is lost.
+            if (const auto& broken = decoder_.broken()) {
+                trace(TraceDirection::discarded, bytes, broken->message);
+                decoder_.reset();
+            }
         }
         for (auto& [done, result] : finished) done(std::move(result));
     }

@@ -1,6 +1,7 @@
 #pragma once
 // What a slave session dispatches to: one handler per unit id. The handler decides what the
 // device answers, and when it stays silent.
+#include <functional>
 #include <optional>
 
 #include "codec/pdu.hpp"
@@ -15,6 +16,19 @@ public:
     // on requests they cannot serve, e.g. the AC20 on an unimplemented function code).
     // `broadcast`: the request came to unit 0; it is executed and any reply is dropped.
     virtual std::optional<Bytes> handle(ByteView request_pdu, bool broadcast) = 0;
+
+    // Receives the reply PDU of one request, or nullopt for no reply. Call it exactly once.
+    using ReplyCallback = std::function<void(std::optional<Bytes>)>;
+
+    // The same decision, for handlers that answer later: a gateway forwards the request to a
+    // serial line and replies when the device has answered. `reply` may be called from any
+    // thread, after handle_async() has returned; a TCP slave sends the reply with the request's
+    // transaction id whenever it comes, so replies on one connection may overtake each other
+    // (Modbus Messaging on TCP/IP V1.0b, 4.2: the transaction id pairs them). The default
+    // answers at once through handle().
+    virtual void handle_async(Bytes request_pdu, bool broadcast, ReplyCallback reply) {
+        reply(handle(request_pdu, broadcast));
+    }
 };
 
 // A handler that works on decoded requests. Requests that do not decode are answered the way

@@ -145,17 +145,37 @@ TEST(MbapDecodeErrors, LengthBelowTwoNamesFieldAndValue) {
         append_be16(header, length);
         const Error error = feed_error(decoder, header);
         EXPECT_EQ(error.kind, ErrorKind::malformed);
-        EXPECT_THAT(error.message, HasSubstr("MBAP length " + std::to_string(length) + " is outside 2..254"));
+        EXPECT_THAT(error.message, HasSubstr("MBAP length " + std::to_string(length) + " is outside 2..260"));
     }
 }
 
-TEST(MbapDecodeErrors, LengthAbove254NamesFieldAndValue) {
-    for (std::uint16_t length : {255, 256, 0xFFFF}) {
+TEST(MbapDecodeErrors, LengthAbove260NamesFieldAndValue) {
+    for (std::uint16_t length : {261, 262, 0xFFFF}) {
         MbapDecoder decoder;
         Bytes header = hex("00 01 00 00");
         append_be16(header, length);
         const Error error = feed_error(decoder, header);
-        EXPECT_THAT(error.message, HasSubstr("MBAP length " + std::to_string(length) + " is outside 2..254"));
+        EXPECT_THAT(error.message, HasSubstr("MBAP length " + std::to_string(length) + " is outside 2..260"));
+    }
+}
+
+// A length of 255..260 is wrong (PDU past 253 bytes) but still delimits the frame: it is handed
+// out whole, so the receiver can refuse it and the next frame is read in step.
+TEST(MbapDecode, OverlongPduWithATrustedLengthIsFramedByItsLength) {
+    for (std::uint16_t length : {255, 260}) {
+        Bytes overlong = hex("00 05 00 00");
+        append_be16(overlong, length);
+        overlong.push_back(0x01);
+        overlong.push_back(0x10);
+        overlong.resize(6u + length, 0x00);
+        MbapDecoder decoder;
+        const std::vector<Frame> frames = feed_ok(decoder, concat({overlong, read_pv_adu}));
+        ASSERT_EQ(frames.size(), 2u) << length;
+        EXPECT_EQ(frames[0].transaction, 5);
+        EXPECT_EQ(frames[0].pdu.size(), length - 1u);
+        EXPECT_EQ(frames[0].pdu[0], 0x10);
+        EXPECT_EQ(frames[1].pdu, read_pv_pdu);
+        EXPECT_FALSE(decoder.broken());
     }
 }
 
@@ -166,19 +186,31 @@ TEST(MbapDecodeErrors, LongestLegalLengthIsAccepted) {
     EXPECT_EQ(frames[0].pdu.size(), 253u);
 }
 
-// A bad header cannot be skipped on a byte stream: the error is sticky until reset(), even
-// when good frames came before it in the same read (the connection is closed anyway).
-TEST(MbapDecodeErrors, ErrorIsStickyUntilReset) {
+// A bad header cannot be skipped on a byte stream, but the frames before it in the same read
+// are complete requests: they come out, broken() names the error, and the error is sticky
+// until reset().
+TEST(MbapDecodeErrors, FramesBeforeABadHeaderComeOutAndTheErrorIsSticky) {
     MbapDecoder decoder;
-    const Error first = feed_error(decoder, concat({read_pv_adu, hex("00 02 00 01 00 06")}));
-    EXPECT_THAT(first.message, HasSubstr("protocol id 0001h"));
+    const std::vector<Frame> good = feed_ok(decoder, concat({read_pv_adu, hex("00 02 00 01 00 06")}));
+    ASSERT_EQ(good.size(), 1u);
+    EXPECT_EQ(good[0].pdu, read_pv_pdu);
+    ASSERT_TRUE(decoder.broken());
+    EXPECT_THAT(decoder.broken()->message, HasSubstr("protocol id 0001h"));
     EXPECT_EQ(decoder.buffered(), 6u);  // the good frame before it was consumed
     const Error again = feed_error(decoder, read_pv_adu);
-    EXPECT_EQ(again.message, first.message);
+    EXPECT_EQ(again.message, decoder.broken()->message);
 
     decoder.reset();
     EXPECT_EQ(decoder.buffered(), 0u);
+    EXPECT_FALSE(decoder.broken());
     EXPECT_EQ(feed_ok(decoder, read_pv_adu).size(), 1u);
+}
+
+TEST(MbapDecodeErrors, ABadHeaderAloneIsAnError) {
+    MbapDecoder decoder;
+    const Error error = feed_error(decoder, hex("00 02 00 01 00 06"));
+    EXPECT_THAT(error.message, HasSubstr("protocol id 0001h"));
+    ASSERT_TRUE(decoder.broken());
 }
 
 }  // namespace

@@ -1,0 +1,97 @@
+#pragma once
+// One accepted TCP client of a slave (internal to session/, used by tcp_slave_server.cpp).
+//
+// Reads go into one fixed buffer and through the connection's own FrameCodec (MBAP, or RTU for
+// rtu+tcp with its silence flush on a timer); every complete frame is answered, and replies are
+// appended to one queue that goes out in a single send per read. A client that
+// stops reading is closed once its queue passes TcpClientLimits::max_queued_reply_bytes.
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/steady_timer.hpp>
+
+#include "session/frame_codec.hpp"
+#include "session/slave.hpp"
+
+namespace loopwire::session::detail {
+
+// What a connection needs from the server that owns it (called on the loop thread only).
+class ConnectionOwner {
+public:
+    virtual ~ConnectionOwner() = default;
+    // The connection has closed: the server drops its reference.
+    virtual void forget(const void* connection) = 0;
+};
+
+// Where deferred replies enter the loop. A unit handler may answer from any thread, and even
+// after the server has stopped: the mailbox outlives the loop (shared by every pending reply)
+// and drops what arrives once close() has run.
+class ReplyMailbox {
+public:
+    explicit ReplyMailbox(boost::asio::io_context& loop) : loop_(&loop) {}
+    // True on the thread running the loop: the reply can be handled at once.
+    bool on_loop_thread() const;
+    // Runs `work` on the loop later, or never if the server has stopped.
+    void post(std::function<void()> work);
+    // The loop is going away (called on the loop's thread).
+    void close();
+
+private:
+    mutable std::mutex mutex_;
+    boost::asio::io_context* loop_;  // guarded by mutex_; null once closed
+};
+
+class TcpSlaveConnection : public std::enable_shared_from_this<TcpSlaveConnection> {
+public:
+    TcpSlaveConnection(Slave& slave, ConnectionOwner& owner, std::shared_ptr<ReplyMailbox> mailbox,
+                       boost::asio::ip::tcp::socket socket);
+    TcpSlaveConnection(const TcpSlaveConnection&) = delete;
+    TcpSlaveConnection& operator=(const TcpSlaveConnection&) = delete;
+
+    void start();
+    void close();
+
+private:
+    void read();
+    void on_read(const boost::system::error_code& error, std::size_t size);
+    bool take(const boost::system::error_code& error, std::size_t size);  // false: closed or closing
+    void flush_output();
+    void handle(codec::FrameEvents& events);
+    void dispatch(const codec::Frame& frame);
+    void deliver(std::uint8_t unit, std::uint16_t transaction, std::optional<Bytes> pdu);
+    void queue(std::uint8_t unit, std::uint16_t transaction, const Bytes& pdu);
+    void write();
+    void on_written(const boost::system::error_code& error);
+    void arm_timer();
+    void on_timer(const boost::system::error_code& error);
+    // Stops reading, sends the replies still owed, then closes; `reason` is traced unless empty.
+    void close_after_replies(const std::string& reason);
+    void after_turn();
+    bool may_read() const;
+    std::size_t queued_bytes() const { return queued_.size() + writing_.size(); }
+
+    Slave& slave_;
+    ConnectionOwner& owner_;
+    std::shared_ptr<ReplyMailbox> mailbox_;
+    boost::asio::ip::tcp::socket socket_;
+    boost::asio::steady_timer timer_;  // RTU silence flush; the last grace period when closing
+    std::unique_ptr<FrameCodec> codec_;
+    const bool mbap_;
+    std::array<std::uint8_t, 4096> input_{};
+    Bytes queued_;   // replies waiting for the write in progress to finish
+    Bytes writing_;  // the write in progress
+    std::size_t outstanding_ = 0;  // requests whose reply has not been delivered yet
+    bool reading_ = false;
+    bool write_active_ = false;
+    bool batching_ = false;  // answering a read: replies gather and go out in one send afterwards
+    bool closing_ = false;   // answer what has been received, then close
+    bool closed_ = false;
+};
+
+}  // namespace loopwire::session::detail

@@ -1,0 +1,137 @@
+#include "session/tcp_slave_server.hpp"
+
+#include <fcntl.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <unordered_map>
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/steady_timer.hpp>
+
+#include "session/slave.hpp"
+#include "session/tcp_slave_connection.hpp"
+
+namespace loopwire::session {
+namespace {
+
+namespace asio = boost::asio;
+using asio::ip::tcp;
+using boost::system::error_code;
+
+// accept() failures that concern only the client being accepted (it gave up, or a firewall
+// refused it): the next one can be accepted at once. Every other failure -- EMFILE, ENFILE,
+// ENOBUFS, ENOMEM, or something unforeseen -- would fail again just as fast while the client
+// waits in the backlog, so accepting pauses instead of spinning.
+bool concerns_one_client(const error_code& error) {
+    return error == asio::error::connection_aborted || error == asio::error::interrupted ||
+           error == asio::error::would_block || error.value() == EPROTO || error.value() == EPERM;
+}
+
+class TcpSlaveServer final : public detail::ConnectionOwner {
+public:
+    explicit TcpSlaveServer(Slave& slave) : slave_(slave) {}
+    TcpSlaveServer(const TcpSlaveServer&) = delete;
+    TcpSlaveServer& operator=(const TcpSlaveServer&) = delete;
+    ~TcpSlaveServer() override { shut_down(); }
+
+    Result<void> serve(transport::TcpListener& listener, std::stop_token stop);
+    void forget(const void* connection) override { connections_.erase(connection); }
+
+private:
+    Result<void> adopt(const transport::TcpListener& listener);
+    void accept();
+    void on_accept(const error_code& error, tcp::socket socket);
+    void shut_down();
+
+    Slave& slave_;
+    // Declared first, destroyed last: pending handlers (and the connections they hold) go with it.
+    asio::io_context loop_{1};
+    tcp::acceptor acceptor_{loop_};
+    asio::steady_timer accept_pause_{loop_};
+    std::shared_ptr<detail::ReplyMailbox> mailbox_ = std::make_shared<detail::ReplyMailbox>(loop_);
+    std::unordered_map<const void*, std::shared_ptr<detail::TcpSlaveConnection>> connections_;
+};
+
+// The acceptor works on its own duplicate of the listener's socket, so the listener keeps its
+// descriptor (and its port) when serving ends.
+Result<void> TcpSlaveServer::adopt(const transport::TcpListener& listener) {
+    const int fd = ::fcntl(listener.poll_handle(), F_DUPFD_CLOEXEC, 0);
+    if (fd < 0) {
+        return make_error(ErrorKind::link, "cannot serve port " + std::to_string(listener.port()) + ": " +
+                                               std::system_category().message(errno));
+    }
+    sockaddr_storage address{};
+    socklen_t length = sizeof address;
+    const bool ipv6 = ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) == 0 && address.ss_family == AF_INET6;
+    error_code error;
+    acceptor_.assign(ipv6 ? tcp::v6() : tcp::v4(), fd, error);
+    if (error) {
+        ::close(fd);
+        return make_error(ErrorKind::link, "cannot serve port " + std::to_string(listener.port()) + ": " + error.message());
+    }
+    return {};
+}
+
+Result<void> TcpSlaveServer::serve(transport::TcpListener& listener, std::stop_token stop) {
+    if (auto adopted = adopt(listener); !adopted) return adopted.error();
+    accept();
+    {
+        // io_context::stop() is thread-safe; the callback may run on the stopping thread, or
+        // here at once if stop was requested already (then run() returns immediately).
+        std::stop_callback on_stop(stop, [this] { loop_.stop(); });
+        loop_.run();
+    }
+    shut_down();
+    return {};
+}
+
+void TcpSlaveServer::accept() {
+    acceptor_.async_accept([this](const error_code& error, tcp::socket socket) { on_accept(error, std::move(socket)); });
+}
+
+void TcpSlaveServer::on_accept(const error_code& error, tcp::socket socket) {
+    if (error == asio::error::operation_aborted) return;
+    if (!error) {
+        // Requests and replies are small and answered one by one: Nagle would only add latency.
+        error_code ignored;
+        socket.set_option(tcp::no_delay(true), ignored);
+        auto connection = std::make_shared<detail::TcpSlaveConnection>(slave_, *this, mailbox_, std::move(socket));
+        connections_.emplace(connection.get(), connection);
+        connection->start();
+        accept();
+        return;
+    }
+    if (concerns_one_client(error)) {
+        accept();
+        return;
+    }
+    if (slave_.tracing()) {
+        slave_.trace(TraceDirection::discarded, {}, "accepting a connection failed (" + error.message() + "); retrying shortly");
+    }
+    accept_pause_.expires_after(slave_.options().tcp.accept_retry_delay);
+    accept_pause_.async_wait([this](const error_code& waited) {
+        if (!waited) accept();
+    });
+}
+
+void TcpSlaveServer::shut_down() {
+    mailbox_->close();  // replies still to come are dropped from now on
+    error_code ignored;
+    acceptor_.close(ignored);
+    accept_pause_.cancel();
+    auto open = std::move(connections_);
+    connections_.clear();
+    for (auto& [key, connection] : open) connection->close();
+}
+
+}  // namespace
+
+Result<void> serve_tcp_clients(Slave& slave, transport::TcpListener& listener, std::stop_token stop) {
+    TcpSlaveServer server(slave);
+    return server.serve(listener, std::move(stop));
+}
+
+}  // namespace loopwire::session
