@@ -1,5 +1,8 @@
 // loopwire: read, write, simulate and explain Modbus traffic of process controllers.
+#include <string>
+
 #include <CLI/CLI.hpp>
+#include <loopwire/version.hpp>
 
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
@@ -7,7 +10,7 @@
 int main(int argc, char** argv) {
     using namespace loopwire::app;
     CLI::App app{"loopwire: talk to, simulate and bridge process controllers over Modbus RTU, ASCII, TCP and Linking"};
-    app.set_version_flag("--version", "loopwire 0.1.0");
+    app.set_version_flag("--version", "loopwire " + std::string(loopwire::version()));
     app.require_subcommand(1);
     app.footer(exit_code_help);
     int exit_code = exit_ok;

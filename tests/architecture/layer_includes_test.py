@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Fails when a file includes a layer above its own (docs/DESIGN.md, "Layers").
 
-Layers, lowest first; client and simulation are siblings and may not include each other:
-    common < codec < transport < session < profile < client | simulation < devices < gateway < app
+Layers, lowest first; siblings (client and simulation; gateway and api) may not include each other:
+    common < codec < transport < session < profile < client | simulation < devices < gateway | api < app
 Run: layer_includes_test.py SRC_DIR  (prints every offending include with file and line).
 """
 import pathlib
@@ -10,7 +10,7 @@ import re
 import sys
 
 RANK = {"common": 0, "codec": 1, "transport": 2, "session": 3, "profile": 4,
-        "client": 5, "simulation": 5, "devices": 6, "gateway": 7, "app": 8}
+        "client": 5, "simulation": 5, "devices": 6, "gateway": 7, "api": 7, "app": 8}
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([a-z_]+)/')
 
 
