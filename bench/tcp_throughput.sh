@@ -27,44 +27,25 @@ for program in "$LOOPWIRE" "$CLIENT" "$LIBMODBUS_SERVER" "$PINGPONG_SERVER"; do
 done
 [[ $REQUESTS =~ ^[1-9][0-9]*$ ]] || { echo "$0: REQUESTS must be a positive number, not '$REQUESTS'" >&2; exit 2; }
 
-WORK_DIR=$(mktemp -d "${TMPDIR:-/tmp}/loopwire-bench.XXXXXX")
-SERVER_PID=
-cleanup() {
-    local status=$?
-    [[ -n $SERVER_PID ]] && { kill "$SERVER_PID" 2>/dev/null || true; wait "$SERVER_PID" 2>/dev/null || true; }
-    rm -rf "$WORK_DIR"
-    exit "$status"
-}
-trap cleanup EXIT
-trap 'exit 143' TERM INT HUP
+# shellcheck source=tests/support/test_lib.sh
+source "$(dirname "$0")/../tests/support/test_lib.sh"
 
 # measure NAME SERVER_COMMAND... : starts the server pinned to CPU 0 on a kernel-chosen port,
 # runs the pinned client against it, stops the server, leaves the requests per second in RATE.
-# (Not called as $(measure ...): a subshell would hide SERVER_PID from the cleanup trap.)
+# Every server names its port: "listening on port N" (loopwire and ping-pong on stderr,
+# libmodbus's on stdout).
 measure() {
-    local name=$1 port='' deadline=$((SECONDS + 10))
+    local name=$1
     shift
-    taskset -c 0 "$@" >"$WORK_DIR/$name.log" 2>&1 &
-    SERVER_PID=$!
-    # Every server names its port: "listening on port N" (loopwire and ping-pong on stderr,
-    # libmodbus's on stdout).
-    until [[ -n $port ]]; do
-        port=$(sed -nE 's/.*listening on port ([0-9]+).*/\1/p' "$WORK_DIR/$name.log" | head -n 1)
-        if [[ -z $port ]]; then
-            kill -0 "$SERVER_PID" 2>/dev/null || { echo "$0: the $name server exited: $(cat "$WORK_DIR/$name.log")" >&2; exit 1; }
-            ((SECONDS <= deadline)) || { echo "$0: the $name server named no port within 10 s" >&2; exit 1; }
-            sleep 0.02
-        fi
-    done
+    start_tcp_server "$name.log" taskset -c 0 "$@"
     # The client's limit grows with the request count; even 1,000 requests/s stays inside it.
-    timeout $((30 + REQUESTS / 1000)) taskset -c 0 "$CLIENT" 127.0.0.1 "$port" "$REQUESTS" 1 \
+    timeout $((30 + REQUESTS / 1000)) taskset -c 0 "$CLIENT" 127.0.0.1 "$PORT" "$REQUESTS" 1 \
         >"$WORK_DIR/$name.client" 2>&1 ||
-        { echo "$0: the client failed against $name: $(cat "$WORK_DIR/$name.client")" >&2; exit 1; }
-    kill "$SERVER_PID" 2>/dev/null || true
-    wait "$SERVER_PID" 2>/dev/null || true
-    SERVER_PID=
+        fail "the client failed against $name: $(cat "$WORK_DIR/$name.client")"
+    kill "$LAST_PID" 2>/dev/null || true
+    wait "$LAST_PID" 2>/dev/null || true
     RATE=$(sed -nE 's/^requests\/s: ([0-9.]+)$/\1/p' "$WORK_DIR/$name.client")
-    [[ -n $RATE ]] || { echo "$0: the client printed no rate against $name: $(cat "$WORK_DIR/$name.client")" >&2; exit 1; }
+    [[ -n $RATE ]] || fail "the client printed no rate against $name: $(cat "$WORK_DIR/$name.client")"
 }
 
 measure loopwire "$LOOPWIRE" simulate --link tcp://127.0.0.1:0 --unit 1 --duration 10m

@@ -24,9 +24,11 @@ target_compile_features(loopwire_library INTERFACE cxx_std_17)
 # What a static library's users must link besides it. nlohmann-json, Boost.Asio and valijson
 # are header-only and used inside loopwire only, so they are not asked of users.
 target_link_libraries(loopwire_library INTERFACE fmt::fmt Threads::Threads)
+# A sanitized build's objects need the sanitizer runtimes in every program linking them.
 if(LOOPWIRE_SANITIZE)
-  # A sanitized build's objects need the sanitizer runtimes in every program linking them.
   target_link_options(loopwire_library INTERFACE -fsanitize=address,undefined)
+elseif(LOOPWIRE_TSAN)
+  target_link_options(loopwire_library INTERFACE -fsanitize=thread)
 endif()
 
 install(TARGETS loopwire RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})

@@ -3,39 +3,39 @@
 # simulator on a pseudo-terminal and on loopback TCP driven by loopwire's own read/write.
 set -u
 loopwire=${1:?usage: cli_behaviour_test.sh path/to/loopwire}
-source "$(dirname "$0")/cli_test_lib.sh"
+source "$(dirname "$0")/../support/test_lib.sh"
 
 # Usage errors: exit 2, naming the bad part.
 check no-subcommand 2 "subcommand" "$loopwire"
 check bad-baud 2 "12345" "$loopwire" read --link 'rtu:/dev/ttyUSB9?baud=12345' --unit 1 holding 0 1
 check bad-scheme 2 "modbus" "$loopwire" read --link 'modbus://x' --unit 1 holding 0 1
-check bad-table 2 "unknown table 'holdings'" "$loopwire" read --link "rtu:$work/none" --unit 1 holdings 0 1
-check bad-address 2 "address 70000 is out of range" "$loopwire" read --link "rtu:$work/none" --unit 1 holding 70000 1
-check bad-timeout 2 "not a duration" "$loopwire" read --link "rtu:$work/none" --timeout soon --unit 1 holding 0 1
+check bad-table 2 "unknown table 'holdings'" "$loopwire" read --link "rtu:$WORK_DIR/none" --unit 1 holdings 0 1
+check bad-address 2 "address 70000 is out of range" "$loopwire" read --link "rtu:$WORK_DIR/none" --unit 1 holding 70000 1
+check bad-timeout 2 "not a duration" "$loopwire" read --link "rtu:$WORK_DIR/none" --timeout soon --unit 1 holding 0 1
 # Durations are parsed strictly, where they are typed: no "1.2 s" out of "1.2.3s", no 1 ms out of 0.
 check timeout-two-points 2 "--timeout '1.2.3s' is not a duration: write it like 500ms, 2s, 1.5s or 1m" \
-  "$loopwire" read --link "rtu:$work/none" --timeout 1.2.3s --unit 1 holding 0 1
-check timeout-zero 2 "--timeout '0' is too short: give at least 1ms" "$loopwire" read --link "rtu:$work/none" --timeout 0 --unit 1 holding 0 1
-check timeout-zero-seconds 2 "--timeout '0s' is too short" "$loopwire" dump --link "rtu:$work/none" --device tc10@3 --timeout 0s
-check scan-timeout-zero 2 "--timeout '0ms' is too short" "$loopwire" scan --link "rtu:$work/none" --units 1 --timeout 0ms
+  "$loopwire" read --link "rtu:$WORK_DIR/none" --timeout 1.2.3s --unit 1 holding 0 1
+check timeout-zero 2 "--timeout '0' is too short: give at least 1ms" "$loopwire" read --link "rtu:$WORK_DIR/none" --timeout 0 --unit 1 holding 0 1
+check timeout-zero-seconds 2 "--timeout '0s' is too short" "$loopwire" dump --link "rtu:$WORK_DIR/none" --device tc10@3 --timeout 0s
+check scan-timeout-zero 2 "--timeout '0ms' is too short" "$loopwire" scan --link "rtu:$WORK_DIR/none" --units 1 --timeout 0ms
 check interval-zero 2 "--interval '0s' is too short: give at least 10ms" \
-  "$loopwire" monitor --link "rtu:$work/none" --device tc10@3 --interval 0s
-check interval-malformed 2 "--interval '1s2' is not a duration" "$loopwire" monitor --link "rtu:$work/none" --device tc10@3 --interval 1s2
-check simulate-duration-malformed 2 "--duration '5 s' is not a duration" "$loopwire" simulate --pty "$work/ttyDur" --unit 1 --duration "5 s"
-check read-broadcast 2 "unit 0 is broadcast" "$loopwire" read --link "rtu:$work/none" --unit 0 holding 0 1
-check bad-coil 2 "coil value 'maybe'" "$loopwire" write --link "rtu:$work/none" --unit 1 coils 0 maybe
+  "$loopwire" monitor --link "rtu:$WORK_DIR/none" --device tc10@3 --interval 0s
+check interval-malformed 2 "--interval '1s2' is not a duration" "$loopwire" monitor --link "rtu:$WORK_DIR/none" --device tc10@3 --interval 1s2
+check simulate-duration-malformed 2 "--duration '5 s' is not a duration" "$loopwire" simulate --pty "$WORK_DIR/ttyDur" --unit 1 --duration "5 s"
+check read-broadcast 2 "unit 0 is broadcast" "$loopwire" read --link "rtu:$WORK_DIR/none" --unit 0 holding 0 1
+check bad-coil 2 "coil value 'maybe'" "$loopwire" write --link "rtu:$WORK_DIR/none" --unit 1 coils 0 maybe
 check help-lists-exit-codes 0 "4  timeout" "$loopwire" read --help
 
 # The README's first command ends in `loopwire demo`: it must work on a bare machine, and end by
 # itself when its output is not a terminal (5 s of JSON lines, one per sample, all three units).
-demo_out=$(timeout 20 "$loopwire" demo --port 0 2>"$work/demo.err"); demo_status=$?
+demo_out=$(timeout 20 "$loopwire" demo --port 0 2>"$WORK_DIR/demo.err"); demo_status=$?
 check demo-exit 0 "" test "$demo_status" -eq 0
 # Every unit answers in some sample (a sample may miss one on a loaded, sanitised machine: the
 # monitor then backs off, and says so in that unit's status).
 for unit in '"ac20@1":{"status":"ok"' '"rampsoak@2":{"status":"ok"' '"tc10@3":{"status":"ok"'; do
   check "demo-answers-${unit:1:6}" 0 "$unit" printf '%s\n' "$demo_out"
 done
-check demo-hint 0 "--device tc10@3" cat "$work/demo.err"
+check demo-hint 0 "--device tc10@3" cat "$WORK_DIR/demo.err"
 # The process moves: the TC10 heats towards its set point of 150 between the first and last sample.
 check demo-process-moves 0 "" /usr/bin/python3 -c '
 import json, sys
@@ -44,7 +44,7 @@ pv = [r["devices"]["tc10@3"]["values"]["measured_value"]["value"] for r in rows 
 assert len(pv) >= 2 and pv[-1] > pv[0], pv' "$demo_out"
 
 # Link errors: exit 3, naming the port.
-check missing-port 3 "$work/none" "$loopwire" read --link "rtu:$work/none" --unit 1 holding 0 1
+check missing-port 3 "$WORK_DIR/none" "$loopwire" read --link "rtu:$WORK_DIR/none" --unit 1 holding 0 1
 
 # decode: 0 for a valid frame, 1 for an invalid one with the reason.
 check decode-ac20-fc1 0 '{"protocol":"rtu","unit":100,"function":1,"kind":"request","address":201,"count":14,"values":[],"exception":null,"check_ok":true' \
@@ -59,18 +59,17 @@ check devices-json 0 '"id":"rampsoak"' "$loopwire" devices --json
 check describe-group 0 "SP.HL" "$loopwire" describe tc10 --group SP
 check describe-unknown-group 2 "has no group 'nope'" "$loopwire" describe tc10 --group nope
 check describe-unknown-device 2 "known profiles: ac20, rampsoak, tc10" "$loopwire" describe tc99
-check device-bad-unit 2 "must be 1..247" "$loopwire" read --link "rtu:$work/none" --device tc10@300 SP
-check device-unknown-name 2 '"nosuch"' "$loopwire" read --link "rtu:$work/none" --device tc10@3 nosuch
-check device-read-only 2 "measured_value (rV) is read-only" "$loopwire" write --link "rtu:$work/none" --device tc10@3 measured_value=3
-check device-not-an-assignment 2 "'SP' is not NAME=VALUE" "$loopwire" write --link "rtu:$work/none" --device tc10@3 SP
-check device-and-unit-exclusive 2 "excludes" "$loopwire" read --link "rtu:$work/none" --device tc10@3 --unit 3 SP
-check device-unknown-numbering 2 "choices: jbus" "$loopwire" read --link "rtu:$work/none" --device ac20@3 --numbering modbus2 SP
+check device-bad-unit 2 "must be 1..247" "$loopwire" read --link "rtu:$WORK_DIR/none" --device tc10@300 SP
+check device-unknown-name 2 '"nosuch"' "$loopwire" read --link "rtu:$WORK_DIR/none" --device tc10@3 nosuch
+check device-read-only 2 "measured_value (rV) is read-only" "$loopwire" write --link "rtu:$WORK_DIR/none" --device tc10@3 measured_value=3
+check device-not-an-assignment 2 "'SP' is not NAME=VALUE" "$loopwire" write --link "rtu:$WORK_DIR/none" --device tc10@3 SP
+check device-and-unit-exclusive 2 "excludes" "$loopwire" read --link "rtu:$WORK_DIR/none" --device tc10@3 --unit 3 SP
+check device-unknown-numbering 2 "choices: jbus" "$loopwire" read --link "rtu:$WORK_DIR/none" --device ac20@3 --numbering modbus2 SP
 
 # A simulator on a pseudo-terminal, read and written by loopwire.
-pty="$work/ttyV0"
-"$loopwire" simulate --pty "$pty" --unit 1 --unit 2 --duration 60s 2>"$work/sim.log" &
-pids+=($!)
-wait_for_path "$pty" || { echo "FAIL simulator pty never appeared"; cat "$work/sim.log"; exit 1; }
+pty="$WORK_DIR/ttyV0"
+start_background sim.log "$loopwire" simulate --pty "$pty" --unit 1 --unit 2 --duration 60s
+wait_for_path "$pty"
 link="rtu:$pty?baud=19200&parity=even"
 check write-registers 0 "wrote 3 register(s)" "$loopwire" write --link "$link" --unit 1 holding 100 1250 -100 0x8000
 check read-registers-json 0 '{"unit":1,"table":"holding","address":100,"values":[1250,65436,32768]}' \
@@ -84,10 +83,8 @@ check unserved-unit-times-out 4 "no reply from unit 9" "$loopwire" read --link "
 check verbose-trace 0 "TX 01 03 00 64 00 01" "$loopwire" read -v --link "$link" --unit 1 holding 100 1
 
 # The same over loopback TCP.
-port=$(/usr/bin/python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
-"$loopwire" simulate --link "tcp://127.0.0.1:$port" --unit 1 --duration 60s 2>"$work/tcp.log" &
-pids+=($!)
-for _ in $(seq 100); do grep -q listening "$work/tcp.log" && break; sleep 0.05; done
+start_tcp_server tcp.log "$loopwire" simulate --link tcp://127.0.0.1:0 --unit 1 --duration 60s
+port=$PORT
 check tcp-write 0 "wrote 2" "$loopwire" write --link "tcp://127.0.0.1:$port" --unit 1 holding 10 11 22
 check tcp-read 0 '"values":[11,22]' "$loopwire" read --link "tcp://127.0.0.1:$port" --unit 1 holding 10 2 --json
 check tcp-unserved-unit 5 "exception 11" "$loopwire" read --link "tcp://127.0.0.1:$port" --unit 3 holding 0 1
@@ -95,15 +92,14 @@ check tcp-refused 3 "127.0.0.1" "$loopwire" read --link "tcp://127.0.0.1:1" --un
 
 # A profile-driven simulated TC10 at unit 3 (device/simulated_device.hpp): scan identifies it
 # (word 21 = 20), named reads work, and a set point above SP.HL is refused (TC10 §4.4 B).
-tc10_pty="$work/ttyV1"
-"$loopwire" simulate --pty "$tc10_pty" --device tc10@3 --duration 60s 2>"$work/sim-tc10.log" &
-pids+=($!)
-wait_for_path "$tc10_pty" || { echo "FAIL tc10 simulator pty never appeared"; cat "$work/sim-tc10.log"; exit 1; }
-check simulate-names-device 0 "unit 3: tc10" cat "$work/sim-tc10.log"
+tc10_pty="$WORK_DIR/ttyV1"
+start_background sim-tc10.log "$loopwire" simulate --pty "$tc10_pty" --device tc10@3 --duration 60s
+wait_for_path "$tc10_pty"
+check simulate-names-device 0 "unit 3: tc10" cat "$WORK_DIR/sim-tc10.log"
 check scan-finds-simulated-tc10 0 '{"unit":3,"device":"tc10"' "$loopwire" scan --link "rtu:$tc10_pty" --units 1-4 --timeout 200ms --json
 check read-simulated-tc10-sp 0 "SP" "$loopwire" read --link "rtu:$tc10_pty" --device tc10@3 SP
 check write-above-sp-hl-refused 5 "exception 3" "$loopwire" write --link "rtu:$tc10_pty" --unit 3 holding 717 30000
 check simulate-parity-warning 0 "cannot be set to parity none" \
-  "$loopwire" simulate --pty "$work/ttyV2" --link "rtu:$work/ttyV2?parity=none" --device rampsoak@1 --duration 300ms
+  "$loopwire" simulate --pty "$WORK_DIR/ttyV2" --link "rtu:$WORK_DIR/ttyV2?parity=none" --device rampsoak@1 --duration 300ms
 
 finish

@@ -6,45 +6,32 @@
 set -u
 loopwire=${1:?usage: monitor_dump_test.sh path/to/loopwire}
 python=/usr/bin/python3
-work=$(mktemp -d)
-pids=()
-cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; wait 2>/dev/null; rm -rf "$work"; }
-trap cleanup EXIT
-failures=0
-passes=0
+source "$(dirname "$0")/../support/test_lib.sh"
 
-pass() { passes=$((passes + 1)); }
-fail() { echo "FAIL $1"; shift; for f in "$@"; do [ -e "$f" ] && sed 's/^/    /' "$f" | head -40; done; failures=$((failures + 1)); }
-wait_for_path() { for _ in $(seq 100); do [ -e "$1" ] && return 0; sleep 0.05; done; return 1; }
-
-pty="$work/ttyM0"
-"$loopwire" simulate --pty "$pty" --device tc10@3 --device rampsoak@5 --duration 100s 2>"$work/sim.log" &
-pids+=($!)
-wait_for_path "$pty" || { echo "FAIL simulator pty never appeared"; cat "$work/sim.log"; exit 1; }
+pty="$WORK_DIR/ttyM0"
+start_background sim.log "$loopwire" simulate --pty "$pty" --device tc10@3 --device rampsoak@5 --duration 100s
+wait_for_path "$pty"
 link="rtu:$pty"
 # The same devices over loopback TCP, where several masters may connect at once (a serial port
 # is opened exclusively): a write can then land between two monitor samples.
-port=$($python -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
-"$loopwire" simulate --link "tcp://127.0.0.1:$port" --device tc10@3 --device rampsoak@5 --duration 100s 2>"$work/tcp.log" &
-pids+=($!)
-for _ in $(seq 100); do grep -q listening "$work/tcp.log" && break; sleep 0.05; done
-tcp="tcp://127.0.0.1:$port"
+start_tcp_server tcp.log "$loopwire" simulate --link tcp://127.0.0.1:0 --device tc10@3 --device rampsoak@5 --duration 100s
+tcp="tcp://127.0.0.1:$PORT"
 
 # Python checks on JSON lines: exit 0 when the assertion holds, else print why.
 jcheck() {  # name, file, python body using `rows` (list of parsed lines)
   local name=$1 file=$2 body=$3
-  if $python - "$file" <<PY >"$work/why" 2>&1
+  if $python - "$file" <<PY >"$WORK_DIR/why" 2>&1
 import json, sys
 rows = [json.loads(line) for line in open(sys.argv[1]) if line.strip()]
 $body
 PY
-  then pass; else fail "$name" "$work/why" "$file"; fi
+  then count_pass; else count_failure "$name" "$WORK_DIR/why" "$file"; fi
 }
 
 # N rows, every default name of both devices present and read.
 timeout 20 "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@5 --interval 200ms --count 3 \
-  >"$work/rows.jsonl" 2>"$work/mon.err" || fail "monitor-jsonl exit status" "$work/mon.err"
-jcheck monitor-jsonl-rows "$work/rows.jsonl" '
+  >"$WORK_DIR/rows.jsonl" 2>"$WORK_DIR/mon.err" || count_failure "monitor-jsonl exit status" "$WORK_DIR/mon.err"
+jcheck monitor-jsonl-rows "$WORK_DIR/rows.jsonl" '
 assert len(rows) == 3, len(rows)
 names = {"tc10@3": ["measured_value", "operating_set_point", "output_power", "alarm_status"],
          "rampsoak@5": ["process_value", "set_value", "output_percentage", "controller_status"]}
@@ -60,18 +47,19 @@ for i, row in enumerate(rows, 1):
 
 # Named selection: a plain name for every device that has it, DEVICE@UNIT:NAME for one.
 timeout 20 "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@5 --count 1 --format csv \
-  output_power rampsoak@5:SV >"$work/rows.csv" 2>"$work/mon.err" || fail "monitor-csv exit status" "$work/mon.err"
-if [ "$(head -1 "$work/rows.csv")" = "time,sample,tc10@3 status,tc10@3 errors,tc10@3:output_power,rampsoak@5 status,rampsoak@5 errors,rampsoak@5:set_value" ] \
-   && [ "$(wc -l <"$work/rows.csv")" -eq 2 ]; then pass; else fail monitor-csv-columns "$work/rows.csv"; fi
+  output_power rampsoak@5:SV >"$WORK_DIR/rows.csv" 2>"$WORK_DIR/mon.err" || count_failure "monitor-csv exit status" "$WORK_DIR/mon.err"
+if [ "$(head -1 "$WORK_DIR/rows.csv")" = "time,sample,tc10@3 status,tc10@3 errors,tc10@3:output_power,rampsoak@5 status,rampsoak@5 errors,rampsoak@5:set_value" ] \
+   && [ "$(wc -l <"$WORK_DIR/rows.csv")" -eq 2 ]; then count_pass; else count_failure monitor-csv-columns "$WORK_DIR/rows.csv"; fi
 
 # A value written between samples shows up changed in the following ones.
 timeout 20 "$loopwire" monitor --link "$tcp" --device rampsoak@5 set_value --interval 300ms --count 8 \
-  --output "$work/change.jsonl" 2>"$work/change.err" &
+  --output "$WORK_DIR/change.jsonl" 2>"$WORK_DIR/change.err" &
 monitor_pid=$!
-for _ in $(seq 100); do [ -e "$work/change.jsonl" ] && [ "$(wc -l <"$work/change.jsonl")" -ge 2 ] && break; sleep 0.05; done
-timeout 10 "$loopwire" write --link "$tcp" --device rampsoak@5 SV=425 >"$work/write.out" 2>&1 || fail "write SV" "$work/write.out"
-wait "$monitor_pid" || fail "monitor-change exit status" "$work/change.err"
-jcheck monitor-sees-written-value "$work/change.jsonl" '
+two_samples_written() { [ -e "$WORK_DIR/change.jsonl" ] && [ "$(wc -l <"$WORK_DIR/change.jsonl")" -ge 2 ]; }
+wait_for 10 "two monitor samples in change.jsonl before the write" two_samples_written
+timeout 10 "$loopwire" write --link "$tcp" --device rampsoak@5 SV=425 >"$WORK_DIR/write.out" 2>&1 || count_failure "write SV" "$WORK_DIR/write.out"
+wait "$monitor_pid" || count_failure "monitor-change exit status" "$WORK_DIR/change.err"
+jcheck monitor-sees-written-value "$WORK_DIR/change.jsonl" '
 texts = [r["devices"]["rampsoak@5"]["values"]["set_value"]["text"] for r in rows]
 assert len(rows) == 8, len(rows)
 assert texts[0] != "425" and texts[-1] == "425", texts
@@ -80,15 +68,12 @@ assert rows[first]["devices"]["rampsoak@5"]["values"]["set_value"]["changed"] is
 '
 
 # Values moving as the process runs: a TC10 at --speed 100 heading for SP 300 from a 25 °C room.
-fast_port=$($python -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
-"$loopwire" simulate --link "tcp://127.0.0.1:$fast_port" --device tc10@3 --speed 100 --duration 60s 2>"$work/fast.log" &
-pids+=($!)
-for _ in $(seq 100); do grep -q listening "$work/fast.log" && break; sleep 0.05; done
-fast="tcp://127.0.0.1:$fast_port"
-timeout 10 "$loopwire" write --link "$fast" --device tc10@3 set_point=300 >"$work/fast-write.out" 2>&1 || fail "write SP" "$work/fast-write.out"
+start_tcp_server fast.log "$loopwire" simulate --link tcp://127.0.0.1:0 --device tc10@3 --speed 100 --duration 60s
+fast="tcp://127.0.0.1:$PORT"
+timeout 10 "$loopwire" write --link "$fast" --device tc10@3 set_point=300 >"$WORK_DIR/fast-write.out" 2>&1 || count_failure "write SP" "$WORK_DIR/fast-write.out"
 timeout 20 "$loopwire" monitor --link "$fast" --device tc10@3 --interval 300ms --count 5 \
-  >"$work/moving.jsonl" 2>"$work/moving.err" || fail "monitor-moving exit status" "$work/moving.err"
-jcheck monitor-values-move-with-the-process "$work/moving.jsonl" '
+  >"$WORK_DIR/moving.jsonl" 2>"$WORK_DIR/moving.err" || count_failure "monitor-moving exit status" "$WORK_DIR/moving.err"
+jcheck monitor-values-move-with-the-process "$WORK_DIR/moving.jsonl" '
 values = [r["devices"]["tc10@3"]["values"] for r in rows]
 pv = [v["measured_value"]["value"] for v in values]
 assert len(rows) == 5 and None not in pv, pv
@@ -101,20 +86,20 @@ assert all(v["operating_set_point"]["value"] == 300 for v in values), values
 # One request per planned block: a monitor sample sends exactly what `read --device` of the same
 # names sends, nothing more.
 count_tx() { grep -c ' TX ' "$1"; }
-timeout 20 "$loopwire" read -v --link "$link" --device tc10@3 measured_value operating_set_point output_power alarm_status >/dev/null 2>"$work/r1.err"
-timeout 20 "$loopwire" read -v --link "$link" --device rampsoak@5 process_value set_value output_percentage controller_status >/dev/null 2>"$work/r2.err"
+timeout 20 "$loopwire" read -v --link "$link" --device tc10@3 measured_value operating_set_point output_power alarm_status >/dev/null 2>"$WORK_DIR/r1.err"
+timeout 20 "$loopwire" read -v --link "$link" --device rampsoak@5 process_value set_value output_percentage controller_status >/dev/null 2>"$WORK_DIR/r2.err"
 timeout 20 "$loopwire" monitor -v --link "$link" --device tc10@3 --device rampsoak@5 --interval 100ms --count 3 \
-  >/dev/null 2>"$work/mv.err"
-per_sample=$(( $(count_tx "$work/r1.err") + $(count_tx "$work/r2.err") ))
-if [ "$per_sample" -ge 2 ] && [ "$(count_tx "$work/mv.err")" -eq $((3 * per_sample)) ]; then pass
-else echo "    requests per sample $per_sample, monitor sent $(count_tx "$work/mv.err") in 3 samples"; fail monitor-one-request-per-block "$work/mv.err"; fi
+  >/dev/null 2>"$WORK_DIR/mv.err"
+per_sample=$(( $(count_tx "$WORK_DIR/r1.err") + $(count_tx "$WORK_DIR/r2.err") ))
+if [ "$per_sample" -ge 2 ] && [ "$(count_tx "$WORK_DIR/mv.err")" -eq $((3 * per_sample)) ]; then count_pass
+else echo "    requests per sample $per_sample, monitor sent $(count_tx "$WORK_DIR/mv.err") in 3 samples"; count_failure monitor-one-request-per-block "$WORK_DIR/mv.err"; fi
 
 # Unit 7 is not served: it shows as not answering, is retried with back-off (not every sample),
 # and the served units keep the 300 ms cadence.
 timeout 30 "$loopwire" monitor -v --link "$link" --device tc10@3 --device tc10@7 --device rampsoak@5 --interval 300ms \
-  --timeout 100ms --count 12 >"$work/dead.jsonl" 2>"$work/dead.err" || fail "monitor-dead exit status" "$work/dead.err"
-dead_tries=$(grep -c ' TX 07 ' "$work/dead.err")
-jcheck monitor-dead-unit "$work/dead.jsonl" "
+  --timeout 100ms --count 12 >"$WORK_DIR/dead.jsonl" 2>"$WORK_DIR/dead.err" || count_failure "monitor-dead exit status" "$WORK_DIR/dead.err"
+dead_tries=$(grep -c ' TX 07 ' "$WORK_DIR/dead.err")
+jcheck monitor-dead-unit "$WORK_DIR/dead.jsonl" "
 from datetime import datetime
 assert len(rows) == 12, len(rows)
 dead = [r['devices']['tc10@7'] for r in rows]
@@ -131,7 +116,7 @@ assert all(0.2 <= g <= 0.45 for g in gaps), gaps
 "
 
 # The live table on a terminal: header and values drawn, Ctrl-C ends it with the cursor shown.
-if $python - "$loopwire" "$link" >"$work/why" 2>&1 <<'PY'
+if $python - "$loopwire" "$link" >"$WORK_DIR/why" 2>&1 <<'PY'
 import os, pty, re, select, signal, sys, time
 pid, fd = pty.fork()
 if pid == 0:
@@ -160,21 +145,21 @@ code = os.waitstatus_to_exitcode(status)
 assert code in (0, 130), code
 assert out.rstrip(b"\r\n").endswith(b"\x1b[?25h"), out[-80:]
 PY
-then pass; else fail monitor-table-and-ctrl-c "$work/why"; fi
+then count_pass; else count_failure monitor-table-and-ctrl-c "$WORK_DIR/why"; fi
 
 # Usage errors name the problem.
-timeout 10 "$loopwire" monitor --link "$link" --device tc10@3 tc10@9:SP >"$work/u.out" 2>&1
-if [ $? -eq 2 ] && grep -q "not one of the --device options" "$work/u.out"; then pass; else fail monitor-unknown-device "$work/u.out"; fi
-timeout 10 "$loopwire" monitor --link "$link" --device tc10@3 --format table --output "$work/t.txt" >"$work/u.out" 2>&1
-if [ $? -eq 2 ] && [ ! -e "$work/t.txt" ]; then pass; else fail monitor-table-to-file "$work/u.out"; fi
+timeout 10 "$loopwire" monitor --link "$link" --device tc10@3 tc10@9:SP >"$WORK_DIR/u.out" 2>&1
+if [ $? -eq 2 ] && grep -q "not one of the --device options" "$WORK_DIR/u.out"; then count_pass; else count_failure monitor-unknown-device "$WORK_DIR/u.out"; fi
+timeout 10 "$loopwire" monitor --link "$link" --device tc10@3 --format table --output "$WORK_DIR/t.txt" >"$WORK_DIR/u.out" 2>&1
+if [ $? -eq 2 ] && [ ! -e "$WORK_DIR/t.txt" ]; then count_pass; else count_failure monitor-table-to-file "$WORK_DIR/u.out"; fi
 
 # Dumps: valid JSON holding every readable parameter `describe --json` lists.
 for device in tc10@3 rampsoak@5; do
   id=${device%@*}
-  timeout 30 "$loopwire" describe "$id" --json >"$work/$id.describe.json"
-  timeout 60 "$loopwire" dump --link "$link" --device "$device" --output "$work/$id.dump.json" 2>"$work/$id.dump.err" \
-    || fail "dump $device exit status" "$work/$id.dump.err"
-  if $python - "$work/$id.dump.json" "$work/$id.describe.json" "$id" "${device#*@}" >"$work/why" 2>&1 <<'PY'
+  timeout 30 "$loopwire" describe "$id" --json >"$WORK_DIR/$id.describe.json"
+  timeout 60 "$loopwire" dump --link "$link" --device "$device" --output "$WORK_DIR/$id.dump.json" 2>"$WORK_DIR/$id.dump.err" \
+    || count_failure "dump $device exit status" "$WORK_DIR/$id.dump.err"
+  if $python - "$WORK_DIR/$id.dump.json" "$WORK_DIR/$id.describe.json" "$id" "${device#*@}" >"$WORK_DIR/why" 2>&1 <<'PY'
 import json, sys
 dump = json.load(open(sys.argv[1]))
 described = json.load(open(sys.argv[2]))
@@ -188,16 +173,15 @@ for name, entry in dump["parameters"].items():
     assert len(entry["raw"]) == 1 and 0 <= entry["raw"][0] <= 0xFFFF and isinstance(entry["text"], str), (name, entry)
     assert (entry["value"] is None) == (entry["status"] not in ("ok", "unknown-label")), (name, entry)
 PY
-  then pass; else fail "dump-$id-matches-describe" "$work/why"; fi
+  then count_pass; else count_failure "dump-$id-matches-describe" "$WORK_DIR/why"; fi
 done
-if timeout 60 "$loopwire" dump --link "$tcp" --device rampsoak@5 | $python -c 'import json,sys; d=json.load(sys.stdin); assert float(d["parameters"]["set_value"]["text"]) == 425' 2>"$work/why"
-then pass; else fail dump-to-stdout "$work/why"; fi
+if timeout 60 "$loopwire" dump --link "$tcp" --device rampsoak@5 | $python -c 'import json,sys; d=json.load(sys.stdin); assert float(d["parameters"]["set_value"]["text"]) == 425' 2>"$WORK_DIR/why"
+then count_pass; else count_failure dump-to-stdout "$WORK_DIR/why"; fi
 
 # A device that does not answer: non-zero exit, a message, and no file, temporary or final.
-timeout 20 "$loopwire" dump --link "$link" --device tc10@7 --timeout 100ms --output "$work/unanswered.json" >"$work/dd.out" 2>&1
+timeout 20 "$loopwire" dump --link "$link" --device tc10@7 --timeout 100ms --output "$WORK_DIR/unanswered.json" >"$WORK_DIR/dd.out" 2>&1
 status=$?
-if [ "$status" -eq 4 ] && grep -q "no reply" "$work/dd.out" && [ -z "$(ls "$work" | grep '^unanswered')" ]; then pass
-else echo "    status $status"; fail dump-unanswered-leaves-no-file "$work/dd.out"; fi
+if [ "$status" -eq 4 ] && grep -q "no reply" "$WORK_DIR/dd.out" && [ -z "$(ls "$WORK_DIR" | grep '^unanswered')" ]; then count_pass
+else echo "    status $status"; count_failure dump-unanswered-leaves-no-file "$WORK_DIR/dd.out"; fi
 
-echo "$passes passed, $failures failed"
-[ "$failures" -eq 0 ]
+finish

@@ -15,21 +15,18 @@
 # changed parameters, not the outputs 130/132 that moved meanwhile.
 set -u
 loopwire=${1:?usage: restore_test.sh path/to/loopwire}
-source "$(dirname "$0")/cli_test_lib.sh"
+source "$(dirname "$0")/../support/test_lib.sh"
 python=/usr/bin/python3
 
 serve() {  # device -> sets $served to the link URL of a simulator serving it alone
-  local device=$1 port
-  port=$($python -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
-  "$loopwire" simulate --link "tcp://127.0.0.1:$port" --device "$device" --duration 170s >/dev/null 2>"$work/$device.sim.log" &
-  pids+=($!)
-  for _ in $(seq 100); do grep -q listening "$work/$device.sim.log" && break; sleep 0.05; done
-  served="tcp://127.0.0.1:$port"
+  local device=$1
+  start_tcp_server "$device.sim.log" "$loopwire" simulate --link tcp://127.0.0.1:0 --device "$device" --duration 170s
+  served="tcp://127.0.0.1:$PORT"
 }
 
 dump() {  # link device file
-  timeout 60 "$loopwire" dump --link "$1" --device "$2" --output "$3" >"$work/dump.out" 2>&1 \
-    || { echo "FAIL dump $2 to $3:"; sed 's/^/    /' "$work/dump.out"; failures=$((failures + 1)); }
+  timeout 60 "$loopwire" dump --link "$1" --device "$2" --output "$3" >"$WORK_DIR/dump.out" 2>&1 \
+    || { echo "FAIL dump $2 to $3:"; sed 's/^/    /' "$WORK_DIR/dump.out"; failures=$((failures + 1)); }
 }
 
 # Exits non-zero, printing why, when the two dumps differ in a compared word.
@@ -58,26 +55,26 @@ listed() { sed -n 's/^  \([a-z0-9_]*\) .* -> .*/\1/p' "$1" | sort; }
 restore_round_trip() {  # device link change-function expected-names...
   local device=$1 link=$2 change=$3; shift 3
   local id=${device%@*}
-  dump "$link" "$device" "$work/$id.before.json"
-  dump "$link" "$device" "$work/$id.baseline.json"
+  dump "$link" "$device" "$WORK_DIR/$id.before.json"
+  dump "$link" "$device" "$WORK_DIR/$id.baseline.json"
   "$change" "$link"
-  dump "$link" "$device" "$work/$id.changed.json"
+  dump "$link" "$device" "$WORK_DIR/$id.changed.json"
 
-  timeout 60 "$loopwire" restore --link "$link" --device "$device" "$work/$id.before.json" --dry-run >"$work/$id.dry.out" 2>&1
+  timeout 60 "$loopwire" restore --link "$link" --device "$device" "$WORK_DIR/$id.before.json" --dry-run >"$WORK_DIR/$id.dry.out" 2>&1
   local status=$?
   local want; want=$(printf '%s\n' "$@" | sort)
-  if [ "$status" -eq 0 ] && [ "$(listed "$work/$id.dry.out")" = "$want" ] && grep -q "dry run: nothing written" "$work/$id.dry.out"
+  if [ "$status" -eq 0 ] && [ "$(listed "$WORK_DIR/$id.dry.out")" = "$want" ] && grep -q "dry run: nothing written" "$WORK_DIR/$id.dry.out"
   then passes=$((passes + 1))
-  else echo "FAIL $id-dry-run-lists-exactly-the-changes (status $status; want: $(echo $want))"; sed 's/^/    /' "$work/$id.dry.out"; failures=$((failures + 1)); fi
-  dump "$link" "$device" "$work/$id.after-dry.json"
-  if same_words "$work/$id.changed.json" "$work/$id.after-dry.json" "$work/$id.before.json" >"$work/why" 2>&1; then passes=$((passes + 1))
-  else echo "FAIL $id-dry-run-writes-nothing"; sed 's/^/    /' "$work/why"; failures=$((failures + 1)); fi
+  else echo "FAIL $id-dry-run-lists-exactly-the-changes (status $status; want: $(echo $want))"; sed 's/^/    /' "$WORK_DIR/$id.dry.out"; failures=$((failures + 1)); fi
+  dump "$link" "$device" "$WORK_DIR/$id.after-dry.json"
+  if same_words "$WORK_DIR/$id.changed.json" "$WORK_DIR/$id.after-dry.json" "$WORK_DIR/$id.before.json" >"$WORK_DIR/why" 2>&1; then passes=$((passes + 1))
+  else echo "FAIL $id-dry-run-writes-nothing"; sed 's/^/    /' "$WORK_DIR/why"; failures=$((failures + 1)); fi
 
   check "$id-restore" 0 "every value read back as written" \
-    "$loopwire" restore --link "$link" --device "$device" "$work/$id.before.json" --yes
-  dump "$link" "$device" "$work/$id.after.json"
-  if same_words "$work/$id.before.json" "$work/$id.after.json" "$work/$id.baseline.json" >"$work/why" 2>&1; then passes=$((passes + 1))
-  else echo "FAIL $id-restore-brings-back-every-word"; sed 's/^/    /' "$work/why"; failures=$((failures + 1)); fi
+    "$loopwire" restore --link "$link" --device "$device" "$WORK_DIR/$id.before.json" --yes
+  dump "$link" "$device" "$WORK_DIR/$id.after.json"
+  if same_words "$WORK_DIR/$id.before.json" "$WORK_DIR/$id.after.json" "$WORK_DIR/$id.baseline.json" >"$WORK_DIR/why" 2>&1; then passes=$((passes + 1))
+  else echo "FAIL $id-restore-brings-back-every-word"; sed 's/^/    /' "$WORK_DIR/why"; failures=$((failures + 1)); fi
 }
 
 serve ac20@1; ac20=$served
@@ -117,16 +114,16 @@ ac20_steps ac20-set-lock "$ac20" local_remote=remote security_mode_code=0 config
 ac20_steps ac20-change-under-lock "$ac20" local_remote=remote configuration_mode_code=77 probe_input_filter=9 \
   end_configuration_menu_1=1 enable_control_mode=1
 ac20_steps ac20-change-control "$ac20" local_remote=remote auxiliary_set_point_2=1.35
-timeout 30 "$loopwire" restore --link "$ac20" --device ac20@1 "$work/ac20.before.json" --yes --lock-code 13 >"$work/lock.out" 2>&1
+timeout 30 "$loopwire" restore --link "$ac20" --device ac20@1 "$WORK_DIR/ac20.before.json" --yes --lock-code 13 >"$WORK_DIR/lock.out" 2>&1
 status=$?
-if [ "$status" -ne 0 ] && grep -q "restore stopped:.*347\|restore stopped:.*configuration_mode_code" "$work/lock.out" \
-   && grep -q "written: nothing" "$work/lock.out" && grep -q "not written: .*probe_input_filter" "$work/lock.out" \
-   && grep -q "not written: .*auxiliary_set_point_2" "$work/lock.out"
-then passes=$((passes + 1)); else echo "FAIL ac20-wrong-lock-code-fails-cleanly (status $status)"; sed 's/^/    /' "$work/lock.out"; failures=$((failures + 1)); fi
+if [ "$status" -ne 0 ] && grep -q "restore stopped:.*347\|restore stopped:.*configuration_mode_code" "$WORK_DIR/lock.out" \
+   && grep -q "written: nothing" "$WORK_DIR/lock.out" && grep -q "not written: .*probe_input_filter" "$WORK_DIR/lock.out" \
+   && grep -q "not written: .*auxiliary_set_point_2" "$WORK_DIR/lock.out"
+then passes=$((passes + 1)); else echo "FAIL ac20-wrong-lock-code-fails-cleanly (status $status)"; sed 's/^/    /' "$WORK_DIR/lock.out"; failures=$((failures + 1)); fi
 check ac20-after-wrong-lock-in-control-mode 0 '"raw":0' "$loopwire" read --link "$ac20" --device ac20@1 device_status --json
 check ac20-wrong-lock-wrote-nothing 0 '"raw":9' "$loopwire" read --link "$ac20" --device ac20@1 probe_input_filter --json
 check ac20-right-lock-restores 0 "every value read back as written" \
-  "$loopwire" restore --link "$ac20" --device ac20@1 "$work/ac20.before.json" --yes --lock-code 77
+  "$loopwire" restore --link "$ac20" --device ac20@1 "$WORK_DIR/ac20.before.json" --yes --lock-code 77
 
 change_rampsoak() {
   check rampsoak-write 0 "" "$loopwire" write --link "$1" --device rampsoak@5 SV=425 out1_proportional_band=77 alarm_1_mode=3
@@ -137,12 +134,12 @@ restore_round_trip rampsoak@5 "$rampsoak" change_rampsoak set_value out1_proport
 # the ramp/soak and the TC10 share decimal_point and baud_rate);
 # a file that is not a dump is a clear usage error.
 check other-profile-refused 2 "the dump is of a ac20, the device is a tc10; add --force" \
-  "$loopwire" restore --link "$tc10" --device tc10@3 "$work/ac20.before.json" --dry-run
+  "$loopwire" restore --link "$tc10" --device tc10@3 "$WORK_DIR/ac20.before.json" --dry-run
 check other-profile-forced 0 "dry run: nothing written" \
-  "$loopwire" restore --link "$tc10" --device tc10@3 "$work/rampsoak.before.json" --dry-run --force
-echo '{"parameters": {}}' >"$work/plain.json"
-check not-a-dump 2 "is not a loopwire dump" "$loopwire" restore --link "$tc10" --device tc10@3 "$work/plain.json" --dry-run
-echo 'SP=100' >"$work/notes.txt"
-check not-json 2 "is not valid JSON" "$loopwire" restore --link "$tc10" --device tc10@3 "$work/notes.txt" --dry-run
+  "$loopwire" restore --link "$tc10" --device tc10@3 "$WORK_DIR/rampsoak.before.json" --dry-run --force
+echo '{"parameters": {}}' >"$WORK_DIR/plain.json"
+check not-a-dump 2 "is not a loopwire dump" "$loopwire" restore --link "$tc10" --device tc10@3 "$WORK_DIR/plain.json" --dry-run
+echo 'SP=100' >"$WORK_DIR/notes.txt"
+check not-json 2 "is not valid JSON" "$loopwire" restore --link "$tc10" --device tc10@3 "$WORK_DIR/notes.txt" --dry-run
 
 finish

@@ -6,18 +6,17 @@
 set -u
 loopwire=${1:?usage: simulated_process_test.sh path/to/loopwire}
 python=/usr/bin/python3
-source "$(dirname "$0")/cli_test_lib.sh"
+source "$(dirname "$0")/../support/test_lib.sh"
 
 start() {  # pty-name, simulate arguments...: serves until the script ends
   local name=$1; shift
-  "$loopwire" simulate --pty "$work/$name" "$@" --duration 60s 2>"$work/$name.log" &
-  pids+=($!)
-  wait_for_path "$work/$name" || echo "simulator $name never opened its pty: $(cat "$work/$name.log")"
+  start_background "$name.log" "$loopwire" simulate --pty "$WORK_DIR/$name" "$@" --duration 60s
+  wait_for_path "$WORK_DIR/$name"
 }
 
 # The JSON "value" (or, with a third argument, another field) of one parameter, or "none".
 field() {  # pty-name, DEVICE@UNIT, parameter [field]
-  timeout 5 "$loopwire" read --link "rtu:$work/$1" --device "$2" "$3" --json 2>/dev/null |
+  timeout 5 "$loopwire" read --link "rtu:$WORK_DIR/$1" --device "$2" "$3" --json 2>/dev/null |
     $python -c "import json,sys
 try: print(json.load(sys.stdin)['values']['$3']['${4:-value}'])
 except Exception: print('none')"
@@ -46,26 +45,26 @@ settles() {  # name, pty-name, DEVICE@UNIT, parameter, target, tolerance, second
 
 # --- TC10 (unit 3): measured value (word 1) follows the set point (717) under PID control.
 start ttyT --device tc10@3 --speed 200
-check tc10-write-set-point 0 "wrote set_point = 300" "$loopwire" write --link "rtu:$work/ttyT" --device tc10@3 set_point=300
+check tc10-write-set-point 0 "wrote set_point = 300" "$loopwire" write --link "rtu:$WORK_DIR/ttyT" --device tc10@3 set_point=300
 settles tc10-settles-at-set-point ttyT tc10@3 measured_value 300 2 20
 
 # --- Ramp/soak (unit 5): PV (008Ah) follows SV (0000h).
 start ttyR --device rampsoak@5 --speed 200
-check rampsoak-write-set-value 0 "wrote set_value = 150" "$loopwire" write --link "rtu:$work/ttyR" --device rampsoak@5 set_value=150
+check rampsoak-write-set-value 0 "wrote set_value = 150" "$loopwire" write --link "rtu:$WORK_DIR/ttyR" --device rampsoak@5 set_value=150
 settles rampsoak-settles-at-set-value ttyR rampsoak@5 process_value 150 1 20
 
 # --- AC20 (unit 1): remote first (bit 218, Note 5), then the carbon potential follows SP.
 start ttyA --device ac20@1 --speed 200
 # One command: the mode check sees that the first assignment puts the device in remote.
 check ac20-write-remote-and-set-point 0 "wrote main_set_point = 0.9" \
-  "$loopwire" write --link "rtu:$work/ttyA" --device ac20@1 local_remote=remote main_set_point=0.9
+  "$loopwire" write --link "rtu:$WORK_DIR/ttyA" --device ac20@1 local_remote=remote main_set_point=0.9
 settles ac20-settles-at-set-point ttyA ac20@1 carbon_potential 0.9 0.03 20
 
 # --- Faults: an open TC10 input reads over-range (§5.1 1A), an open ramp/soak input
 # lights the IN1E message of OBIT (§7, 0088H).
 start ttyF --device tc10@3 --fault tc10@3:open-input
-check tc10-open-input-is-out-of-range 0 "out-of-range (raw 10000)" "$loopwire" read --link "rtu:$work/ttyF" --device tc10@3 measured_value
+check tc10-open-input-is-out-of-range 0 "out-of-range (raw 10000)" "$loopwire" read --link "rtu:$WORK_DIR/ttyF" --device tc10@3 measured_value
 start ttyG --device rampsoak@5 --fault rampsoak@5:open-input
-check rampsoak-open-input-shows 0 "{Message IN1E}" "$loopwire" read --link "rtu:$work/ttyG" --device rampsoak@5 controller_status
+check rampsoak-open-input-shows 0 "{Message IN1E}" "$loopwire" read --link "rtu:$WORK_DIR/ttyG" --device rampsoak@5 controller_status
 
 finish

@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
 # The layer check must reject a codec file that includes the session layer.
 set -euo pipefail
+# shellcheck source=tests/support/test_lib.sh
+source "$(dirname "$0")/../support/test_lib.sh"
 check=$1
-tree=$(mktemp -d)
-trap 'rm -rf "$tree"' EXIT
+tree=$WORK_DIR/src
 mkdir -p "$tree/codec" "$tree/session"
 printf '#include "session/master.hpp"\n' > "$tree/codec/bad.cpp"
 printf '#include "codec/pdu.hpp"\n' > "$tree/session/good.cpp"
 if out=$(/usr/bin/python3 "$check" "$tree"); then
-  echo "FAIL: an upward include was accepted: $out"; exit 1
+  fail "an upward include was accepted: $out"
 fi
-grep -q "codec/bad.cpp:1: layer 'codec' includes 'session'" <<<"$out" || { echo "FAIL: unexpected report: $out"; exit 1; }
-grep -q "good.cpp" <<<"$out" && { echo "FAIL: a downward include was reported: $out"; exit 1; }
+grep -q "codec/bad.cpp:1: layer 'codec' includes 'session'" <<<"$out" || fail "unexpected report: $out"
+if grep -q "good.cpp" <<<"$out"; then fail "a downward include was reported: $out"; fi
 echo "ok: $out"

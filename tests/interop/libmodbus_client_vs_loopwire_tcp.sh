@@ -6,14 +6,14 @@
 # the first mismatch); afterwards loopwire's own master reads the same values over a second
 # connection, which shows the simulator keeps state across connections.
 
-# shellcheck source=tests/interop/lib.sh
-source "$(dirname "$0")/lib.sh"
+set -euo pipefail
+# shellcheck source=tests/support/test_lib.sh
+source "$(dirname "$0")/../support/test_lib.sh"
 
 readonly LOOPWIRE=$1 CLIENT=$2
 
 # Port 0: loopwire takes a free port from the kernel and names it on stderr.
-start_background simulate.log "$LOOPWIRE" simulate --link tcp://127.0.0.1:0 --unit 1 --duration "${PEER_LIFETIME}s"
-PORT=$(wait_for_log simulate.log 'listening on port ([0-9]+)')
+start_tcp_server simulate.log "$LOOPWIRE" simulate --link tcp://127.0.0.1:0 --unit 1 --duration "${PEER_LIFETIME}s"
 
 timeout 20 "$CLIENT" 127.0.0.1 "$PORT" 1 scenario || fail "the libmodbus client's scenario failed (exit $?)"
 

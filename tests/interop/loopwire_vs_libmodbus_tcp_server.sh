@@ -5,14 +5,14 @@
 # Reads compare loopwire's --json output exactly; writes are read back by loopwire and by the
 # libmodbus client, so a mistake loopwire makes the same way in both directions cannot hide.
 
-# shellcheck source=tests/interop/lib.sh
-source "$(dirname "$0")/lib.sh"
+set -euo pipefail
+# shellcheck source=tests/support/test_lib.sh
+source "$(dirname "$0")/../support/test_lib.sh"
 
 readonly LOOPWIRE=$1 SERVER=$2 CLIENT=$3
 
 # Port 0: the server takes a free port from the kernel and says which.
-start_background server.log "$SERVER" 0 "$PEER_LIFETIME"
-PORT=$(wait_for_log server.log 'listening on port ([0-9]+)')
+start_tcp_server server.log "$SERVER" 0 "$PEER_LIFETIME"
 readonly LINK=tcp://127.0.0.1:$PORT
 MASTER=(--link "$LINK" --unit 1 --timeout 1s --retries 0)
 

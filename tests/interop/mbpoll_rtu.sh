@@ -9,8 +9,9 @@
 # mbpoll: `-0` for 0-based (wire) addresses, `-1` to poll once, and always inside `timeout`
 # (see ../shared/PEERS.md beside the repository).
 
-# shellcheck source=tests/interop/lib.sh
-source "$(dirname "$0")/lib.sh"
+set -euo pipefail
+# shellcheck source=tests/support/test_lib.sh
+source "$(dirname "$0")/../support/test_lib.sh"
 
 readonly LOOPWIRE=$1 MODE=$2
 readonly UNIT=7

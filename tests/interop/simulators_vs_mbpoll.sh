@@ -6,8 +6,9 @@
 # The link is 8N1 (pseudo-terminals keep no parity, PEERS.md); mbpoll: `-0` wire addresses,
 # `-1` one poll, always inside `timeout`.
 
-# shellcheck source=tests/interop/lib.sh
-source "$(dirname "$0")/lib.sh"
+set -euo pipefail
+# shellcheck source=tests/support/test_lib.sh
+source "$(dirname "$0")/../support/test_lib.sh"
 
 readonly LOOPWIRE=$1 DEVICE_ID=$2
 readonly UNIT=9
