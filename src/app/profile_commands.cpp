@@ -117,7 +117,7 @@ void add_profile_commands(CLI::App& app, int& exit_code, const ProfileOptions& p
     };
     auto options = std::make_shared<DescribeOptions>();
     auto* describe = app.add_subcommand("describe", "Print a device's register map: names, mnemonics, addresses, access, units, ranges");
-    describe->add_option("device", options->id, "Profile id (see `loopwire devices`)")->required();
+    describe->add_option("device", options->id, "Profile id (see `loopwire devices`; --profile FILE.json adds a profile)")->required();
     describe->add_option("--group", options->group, "Only this group or menu");
     describe->add_flag("--json", options->json, "Print the map as JSON");
     describe->callback([options, &exit_code, &profiles] {
