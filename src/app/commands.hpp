@@ -1,18 +1,22 @@
 #pragma once
 // Each subcommand registers itself on the CLI11 app and, when chosen, stores its exit code.
+// Those that take a device id look it up in the registry `profiles` loads (main owns it; it
+// outlives the parse).
 #include <CLI/CLI.hpp>
+
+#include "app/profile_options.hpp"
 
 namespace loopwire::app {
 
-void add_read_command(CLI::App& app, int& exit_code);
-void add_write_command(CLI::App& app, int& exit_code);
-void add_simulate_command(CLI::App& app, int& exit_code);
+void add_read_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
+void add_write_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
+void add_simulate_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
 void add_decode_command(CLI::App& app, int& exit_code);
 void add_demo_command(CLI::App& app, int& exit_code);
-void add_profile_commands(CLI::App& app, int& exit_code);  // devices, describe
+void add_profile_commands(CLI::App& app, int& exit_code, const ProfileOptions& profiles);  // devices, describe
 void add_scan_command(CLI::App& app, int& exit_code);
-void add_restore_command(CLI::App& app, int& exit_code);
-void add_monitor_command(CLI::App& app, int& exit_code);
-void add_dump_command(CLI::App& app, int& exit_code);
+void add_restore_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
+void add_monitor_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
+void add_dump_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
 
 }  // namespace loopwire::app

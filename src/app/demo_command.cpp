@@ -100,7 +100,10 @@ int run_demo(const DemoOptions& options) {
     if (!link) return report_error(link.error());
     device::SimulationEnvironment environment;
     environment.speed = options.speed;
-    auto units = build_simulated_units({}, demo_devices, *link, environment);
+    // The demo's devices are built-in ones: no profile files needed.
+    auto builtins = device::ProfileRegistry::builtins();
+    if (!builtins) return report_error(builtins.error());
+    auto units = build_simulated_units(*builtins, {}, demo_devices, *link, environment);
     if (!units) return report_error(units.error());
     auto listener = demo_listener(options.port);
     if (!listener) return report_error(listener.error());

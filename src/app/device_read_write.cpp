@@ -17,8 +17,8 @@ struct Connected {
     std::unique_ptr<session::Master> master;
 };
 
-Result<Connected> connect(const MasterCommandOptions& options) {
-    auto device = device::parse_device_address(options.device, options.numbering);
+Result<Connected> connect(const device::ProfileRegistry& profiles, const MasterCommandOptions& options) {
+    auto device = device::parse_device_address(profiles, options.device, options.numbering);
     if (!device) return device.error();
     auto master = options.open();
     if (!master) return master.error();
@@ -50,13 +50,13 @@ void print_readings(const MasterCommandOptions& options, const device::DeviceAdd
 
 }  // namespace
 
-int run_device_read(const MasterCommandOptions& options, const std::vector<std::string>& names) {
+int run_device_read(const device::ProfileRegistry& profiles, const MasterCommandOptions& options, const std::vector<std::string>& names) {
     if (names.empty()) return report_error(make_error(ErrorKind::usage, "name the parameters to read (names, mnemonics, a group, or all); `loopwire describe DEVICE` lists them"));
-    auto device = device::parse_device_address(options.device, options.numbering);
+    auto device = device::parse_device_address(profiles, options.device, options.numbering);
     if (!device) return report_error(device.error());
     auto parameters = device::resolve_parameters(*device->profile, names);
     if (!parameters) return report_error(parameters.error());
-    auto connected = connect(options);
+    auto connected = connect(profiles, options);
     if (!connected) return report_error(connected.error());
     device::DeviceClient client(*connected->master, connected->device);
     const auto report = client.read(*parameters);
@@ -65,9 +65,9 @@ int run_device_read(const MasterCommandOptions& options, const std::vector<std::
     return exit_ok;
 }
 
-int run_device_write(const MasterCommandOptions& options, const std::vector<std::string>& assignments) {
+int run_device_write(const device::ProfileRegistry& profiles, const MasterCommandOptions& options, const std::vector<std::string>& assignments) {
     if (assignments.empty()) return report_error(make_error(ErrorKind::usage, "give NAME=VALUE pairs to write"));
-    auto device = device::parse_device_address(options.device, options.numbering);
+    auto device = device::parse_device_address(profiles, options.device, options.numbering);
     if (!device) return report_error(device.error());
     std::vector<std::pair<const device::Parameter*, std::string>> resolved;
     for (const auto& assignment : assignments) {
@@ -87,7 +87,7 @@ int run_device_write(const MasterCommandOptions& options, const std::vector<std:
         }
         resolved.emplace_back(parameter, assignment.substr(equals + 1));
     }
-    auto connected = connect(options);
+    auto connected = connect(profiles, options);
     if (!connected) return report_error(connected.error());
     device::DeviceClient client(*connected->master, connected->device);
     auto written = client.write(resolved);

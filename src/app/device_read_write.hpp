@@ -4,10 +4,11 @@
 #include <vector>
 
 #include "app/master_options.hpp"
+#include "profile/profile_registry.hpp"
 
 namespace loopwire::app {
 
-int run_device_read(const MasterCommandOptions& options, const std::vector<std::string>& names);
-int run_device_write(const MasterCommandOptions& options, const std::vector<std::string>& assignments);
+int run_device_read(const device::ProfileRegistry& profiles, const MasterCommandOptions& options, const std::vector<std::string>& names);
+int run_device_write(const device::ProfileRegistry& profiles, const MasterCommandOptions& options, const std::vector<std::string>& assignments);
 
 }  // namespace loopwire::app

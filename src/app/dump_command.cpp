@@ -94,8 +94,10 @@ void sort_by_profile(device::ReadReport& report, const device::Profile& profile)
                      [&](const auto& a, const auto& b) { return position(a.parameter) < position(b.parameter); });
 }
 
-int run_dump(const DumpOptions& options) {
-    auto device = device::parse_device_address(options.master.device, options.master.numbering);
+int run_dump(const DumpOptions& options, const ProfileOptions& profiles) {
+    auto registry = profiles.load();
+    if (!registry) return report_error(registry.error());
+    auto device = device::parse_device_address(*registry, options.master.device, options.master.numbering);
     if (!device) return report_error(device.error());
     if (!options.output.empty()) {  // before the reading, which takes long, not after it
         if (auto writable = check_writable_atomically(options.output); !writable) return report_error(writable.error());
@@ -126,7 +128,7 @@ int run_dump(const DumpOptions& options) {
 
 }  // namespace
 
-void add_dump_command(CLI::App& app, int& exit_code) {
+void add_dump_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles) {
     auto options = std::make_shared<DumpOptions>();
     auto* command = app.add_subcommand("dump", "Read every readable parameter of a device into one JSON document (for restore)");
     command->add_option("--link", options->master.link, "Link URL (see `loopwire read --help`)")->required();
@@ -138,7 +140,7 @@ void add_dump_command(CLI::App& app, int& exit_code) {
     command->add_option("--retries", options->master.retries, "Extra tries after a timeout")->capture_default_str();
     command->add_flag("-v,--verbose", options->master.verbose, "Print every frame sent and received, with timestamps, on stderr");
     command->footer(exit_code_help);
-    command->callback([options, &exit_code] { exit_code = run_dump(*options); });
+    command->callback([options, &exit_code, &profiles] { exit_code = run_dump(*options, profiles); });
 }
 
 }  // namespace loopwire::app

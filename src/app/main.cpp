@@ -14,16 +14,19 @@ int main(int argc, char** argv) {
     app.require_subcommand(1);
     app.footer(exit_code_help);
     int exit_code = exit_ok;
-    add_read_command(app, exit_code);
-    add_write_command(app, exit_code);
-    add_simulate_command(app, exit_code);
+    // Before the subcommands, which inherit the fallthrough that lets --profile follow them.
+    ProfileOptions profiles;
+    profiles.add_to(app);
+    add_read_command(app, exit_code, profiles);
+    add_write_command(app, exit_code, profiles);
+    add_simulate_command(app, exit_code, profiles);
     add_decode_command(app, exit_code);
     add_demo_command(app, exit_code);
-    add_profile_commands(app, exit_code);
+    add_profile_commands(app, exit_code, profiles);
     add_scan_command(app, exit_code);
-    add_restore_command(app, exit_code);
-    add_monitor_command(app, exit_code);
-    add_dump_command(app, exit_code);
+    add_restore_command(app, exit_code, profiles);
+    add_monitor_command(app, exit_code, profiles);
+    add_dump_command(app, exit_code, profiles);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& error) {

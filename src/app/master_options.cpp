@@ -9,7 +9,7 @@ void MasterCommandOptions::add_to(CLI::App& command, bool with_device) {
         ->required();
     auto* unit_option = command.add_option("--unit", unit, "Unit (slave) id; 0 broadcasts writes")->check(CLI::Range(0, 255))->capture_default_str();
     if (with_device) {
-        command.add_option("--device", device, "DEVICE@UNIT (e.g. tc10@3): name parameters instead of addresses (see `loopwire devices`)")
+        command.add_option("--device", device, "DEVICE@UNIT (e.g. tc10@3): name parameters instead of addresses (see `loopwire devices`; --profile FILE.json adds a profile)")
             ->excludes(unit_option);
         command.add_option("--numbering", numbering, "The device's alternative numbering in use (ac20: jbus, when its word 526 says so)");
     }

@@ -48,10 +48,10 @@ Result<device::MonitorSettings> settings_of(const MonitorOptions& options) {
     return settings;
 }
 
-Result<std::vector<device::DeviceAddress>> parse_devices(const std::vector<std::string>& texts) {
+Result<std::vector<device::DeviceAddress>> parse_devices(const device::ProfileRegistry& profiles, const std::vector<std::string>& texts) {
     std::vector<device::DeviceAddress> devices;
     for (const auto& text : texts) {
-        auto device = device::parse_device_address(text);
+        auto device = device::parse_device_address(profiles, text);
         if (!device) return device.error();
         for (const auto& seen : devices) {
             if (seen.unit == device->unit) return make_error(ErrorKind::usage, fmt::format("two --device options name unit {}", seen.unit));
@@ -65,12 +65,14 @@ struct FileCloser {
     void operator()(std::FILE* file) const { std::fclose(file); }
 };
 
-int run_monitor_command(const MonitorOptions& options) {
+int run_monitor_command(const MonitorOptions& options, const ProfileOptions& profiles) {
     auto settings = settings_of(options);
     if (!settings) return report_error(settings.error());
     auto format = choose_format(options);
     if (!format) return report_error(format.error());
-    auto devices = parse_devices(options.devices);
+    auto registry = profiles.load();
+    if (!registry) return report_error(registry.error());
+    auto devices = parse_devices(*registry, options.devices);
     if (!devices) return report_error(devices.error());
     auto lists = device::watch_lists(*devices, options.names);
     if (!lists) return report_error(lists.error());
@@ -91,7 +93,7 @@ int run_monitor_command(const MonitorOptions& options) {
 
 }  // namespace
 
-void add_monitor_command(CLI::App& app, int& exit_code) {
+void add_monitor_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles) {
     auto options = std::make_shared<MonitorOptions>();
     options->master.timeout = "500ms";  // below the default interval, so a dead unit does not stretch a sample
     auto* command = app.add_subcommand("monitor", "Poll devices on one link and show their values live, or stream them as CSV / JSON lines");
@@ -115,7 +117,7 @@ void add_monitor_command(CLI::App& app, int& exit_code) {
     command->footer(std::string("A unit that stops answering shows status no-reply (then waiting) and is retried after one "
                                 "interval, doubling up to 30s; values not read in a sample are shown with their age, "
                                 "never as current.\n") + exit_code_help);
-    command->callback([options, &exit_code] { exit_code = run_monitor_command(*options); });
+    command->callback([options, &exit_code, &profiles] { exit_code = run_monitor_command(*options, profiles); });
 }
 
 }  // namespace loopwire::app

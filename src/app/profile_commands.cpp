@@ -1,5 +1,7 @@
 // loopwire devices [--json] and loopwire describe DEVICE [--group G] [--json]: what loopwire
 // knows about each device, straight from its profile.
+#include <functional>
+
 #include <fmt/format.h>
 
 #include <nlohmann/json.hpp>
@@ -9,20 +11,22 @@
 #include "app/exit_codes.hpp"
 #include "profile/value_format.hpp"
 #include "profile/profile.hpp"
+#include "profile/profile_registry.hpp"
 
 namespace loopwire::app {
 namespace {
 
-int run_devices(bool json) {
+// Each profile with where it came from: "built-in" or the file it was loaded from.
+int run_devices(const device::ProfileRegistry& profiles, bool json) {
     nlohmann::ordered_json list = nlohmann::ordered_json::array();
-    for (const auto& id : device::builtin_profile_ids()) {
-        auto profile = device::builtin_profile(id);
-        if (!profile) return report_error(profile.error());
-        const auto& p = **profile;
+    for (const auto& entry : profiles.profiles()) {
+        const auto& p = *entry.profile;
         if (json) {
-            list.push_back({{"id", p.id}, {"title", p.title}, {"protocols", p.protocols}, {"manual", p.manual_document}, {"parameters", p.parameters.size()}});
+            list.push_back({{"id", p.id}, {"title", p.title}, {"protocols", p.protocols}, {"manual", p.manual_document},
+                            {"parameters", p.parameters.size()}, {"source", entry.origin}});
         } else {
-            fmt::print("{:<10} {} ({}; {} parameters)\n", p.id, p.title, fmt::join(p.protocols, ", "), p.parameters.size());
+            fmt::print("{:<10} {} ({}; {} parameters) [{}]\n", p.id, p.title, fmt::join(p.protocols, ", "), p.parameters.size(),
+                       entry.origin);
         }
     }
     if (json) fmt::print("{}\n", list.dump());
@@ -64,8 +68,8 @@ bool in_group(const device::Parameter& p, const std::string& group) {
                       [](char a, char b) { return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b)); });
 }
 
-int run_describe(const std::string& id, const std::string& group, bool json) {
-    auto profile = device::builtin_profile(id);
+int run_describe(const device::ProfileRegistry& profiles, const std::string& id, const std::string& group, bool json) {
+    auto profile = profiles.find(id);
     if (!profile) return report_error(profile.error());
     const auto& p = **profile;
     std::vector<const device::Parameter*> shown;
@@ -88,13 +92,23 @@ int run_describe(const std::string& id, const std::string& group, bool json) {
     return exit_ok;
 }
 
+// Both commands load the registry when they run: --profile may come after their name, and is
+// only parsed by then.
+int with_registry(const ProfileOptions& profiles, const std::function<int(const device::ProfileRegistry&)>& run) {
+    auto registry = profiles.load();
+    if (!registry) return report_error(registry.error());
+    return run(*registry);
+}
+
 }  // namespace
 
-void add_profile_commands(CLI::App& app, int& exit_code) {
+void add_profile_commands(CLI::App& app, int& exit_code, const ProfileOptions& profiles) {
     auto json = std::make_shared<bool>(false);
     auto* devices = app.add_subcommand("devices", "List the device profiles loopwire knows");
     devices->add_flag("--json", *json, "Print the list as JSON");
-    devices->callback([json, &exit_code] { exit_code = run_devices(*json); });
+    devices->callback([json, &exit_code, &profiles] {
+        exit_code = with_registry(profiles, [&](const device::ProfileRegistry& registry) { return run_devices(registry, *json); });
+    });
 
     struct DescribeOptions {
         std::string id;
@@ -103,10 +117,14 @@ void add_profile_commands(CLI::App& app, int& exit_code) {
     };
     auto options = std::make_shared<DescribeOptions>();
     auto* describe = app.add_subcommand("describe", "Print a device's register map: names, mnemonics, addresses, access, units, ranges");
-    describe->add_option("device", options->id, "Profile id (see `loopwire devices`)")->required();
+    describe->add_option("device", options->id, "Profile id (see `loopwire devices`; --profile FILE.json adds a profile)")->required();
     describe->add_option("--group", options->group, "Only this group or menu");
     describe->add_flag("--json", options->json, "Print the map as JSON");
-    describe->callback([options, &exit_code] { exit_code = run_describe(options->id, options->group, options->json); });
+    describe->callback([options, &exit_code, &profiles] {
+        exit_code = with_registry(profiles, [&](const device::ProfileRegistry& registry) {
+            return run_describe(registry, options->id, options->group, options->json);
+        });
+    });
 }
 
 }  // namespace loopwire::app

@@ -98,8 +98,12 @@ int run_raw_read(const ReadOptions& options) {
     return exit_ok;
 }
 
-int run_read(ReadOptions options) {
-    if (!options.master.device.empty()) return run_device_read(options.master, options.arguments);
+int run_read(ReadOptions options, const ProfileOptions& profiles) {
+    if (!options.master.device.empty()) {
+        auto registry = profiles.load();
+        if (!registry) return report_error(registry.error());
+        return run_device_read(*registry, options.master, options.arguments);
+    }
     if (options.arguments.size() < 2 || options.arguments.size() > 3) {
         return report_error(make_error(ErrorKind::usage, "read takes TABLE ADDRESS [COUNT] (or --device DEVICE@UNIT and parameter names)"));
     }
@@ -111,7 +115,7 @@ int run_read(ReadOptions options) {
 
 }  // namespace
 
-void add_read_command(CLI::App& app, int& exit_code) {
+void add_read_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles) {
     auto options = std::make_shared<ReadOptions>();
     auto* command = app.add_subcommand("read", "Read registers, coils or discrete inputs from a device");
     options->master.add_to(*command, true);
@@ -119,7 +123,7 @@ void add_read_command(CLI::App& app, int& exit_code) {
                         "TABLE ADDRESS [COUNT]: holding|input|coils|discrete, first 0-based wire address (decimal, 0x.. or ..h), "
                         "how many (split into several requests where needed). With --device: parameter names, mnemonics, groups or all");
     command->footer(exit_code_help);
-    command->callback([options, &exit_code] { exit_code = run_read(*options); });
+    command->callback([options, &exit_code, &profiles] { exit_code = run_read(*options, profiles); });
 }
 
 }  // namespace loopwire::app

@@ -109,10 +109,12 @@ Result<void> confirm(const RestoreCommandOptions& options, std::size_t changes) 
     return make_error(ErrorKind::usage, "nothing written (not confirmed)");
 }
 
-int run_restore(const RestoreCommandOptions& options) {
+int run_restore(const RestoreCommandOptions& options, const ProfileOptions& profiles) {
     auto dump = device::read_dump_file(options.file);
     if (!dump) return report_error(dump.error());
-    auto device = device::parse_device_address(options.master.device, options.master.numbering);
+    auto registry = profiles.load();
+    if (!registry) return report_error(registry.error());
+    auto device = device::parse_device_address(*registry, options.master.device, options.master.numbering);
     if (!device) return report_error(device.error());
     if (options.force) {  // names of another profile cannot be written; the shared ones can
         std::erase_if(dump->values, [&](const auto& entry) { return device->profile->find(entry.first) == nullptr; });
@@ -149,7 +151,7 @@ int run_restore(const RestoreCommandOptions& options) {
 
 }  // namespace
 
-void add_restore_command(CLI::App& app, int& exit_code) {
+void add_restore_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles) {
     auto options = std::make_shared<RestoreCommandOptions>();
     auto* command = app.add_subcommand("restore", "Write a `loopwire dump` back to a device, showing the differences first");
     options->master.add_to(*command, true);
@@ -161,7 +163,7 @@ void add_restore_command(CLI::App& app, int& exit_code) {
     command->add_option("--lock-code", options->lock_code, "AC20: configuration lock combination for words 347/348 (default 0)")->check(CLI::Range(0, 250));
     command->add_option("--control-code", options->control_code, "AC20: control lock combination to unlock control parameters (word 349)")->check(CLI::Range(0, 250));
     command->footer(exit_code_help);
-    command->callback([options, &exit_code] { exit_code = run_restore(*options); });
+    command->callback([options, &exit_code, &profiles] { exit_code = run_restore(*options, profiles); });
 }
 
 }  // namespace loopwire::app

@@ -117,7 +117,7 @@ std::string unit_list(const session::UnitMap& units) {
     return fmt::format("{}", fmt::join(ids, ", "));
 }
 
-int run_simulate(SimulateOptions options) {
+int run_simulate(SimulateOptions options, const ProfileOptions& profiles) {
     auto url = simulated_link(options);
     if (!url) return report_error(url.error());
     std::optional<std::chrono::microseconds> limit;
@@ -129,7 +129,9 @@ int run_simulate(SimulateOptions options) {
     device::SimulationEnvironment environment;
     environment.speed = options.speed;
     environment.seed = options.seed;
-    auto served_units = build_simulated_units(options.units, options.devices, *url, environment);
+    auto registry = profiles.load();
+    if (!registry) return report_error(registry.error());
+    auto served_units = build_simulated_units(*registry, options.units, options.devices, *url, environment);
     if (!served_units) return report_error(served_units.error());
     for (const std::string& fault : options.faults) {
         if (auto applied = apply_fault_option(*served_units, fault); !applied) return report_error(applied.error());
@@ -173,7 +175,7 @@ int run_simulate(SimulateOptions options) {
 
 }  // namespace
 
-void add_simulate_command(CLI::App& app, int& exit_code) {
+void add_simulate_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles) {
     auto options = std::make_shared<SimulateOptions>();
     auto* command = app.add_subcommand("simulate", "Serve simulated devices and plain register banks on a link");
     command->add_option("--link", options->link, "Link URL to serve on: rtu:/dev/ttyUSB0?baud=19200, tcp://127.0.0.1:1502, rtu+tcp://0.0.0.0:4001");
@@ -188,7 +190,7 @@ void add_simulate_command(CLI::App& app, int& exit_code) {
     command->add_option("--duration", options->duration, "Stop by itself after this long (e.g. 30s)");
     command->add_flag("-v,--verbose", options->verbose, "Print every frame received and sent, with timestamps, on stderr");
     command->footer(exit_code_help);
-    command->callback([options, &exit_code] { exit_code = run_simulate(*options); });
+    command->callback([options, &exit_code, &profiles] { exit_code = run_simulate(*options, profiles); });
 }
 
 }  // namespace loopwire::app

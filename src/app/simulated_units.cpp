@@ -53,14 +53,14 @@ Result<void> claim(SimulatedUnits& result, int unit) {
 
 }  // namespace
 
-Result<SimulatedUnits> build_simulated_units(const std::vector<int>& bank_units, const std::vector<std::string>& devices,
+Result<SimulatedUnits> build_simulated_units(const device::ProfileRegistry& profiles, const std::vector<int>& bank_units, const std::vector<std::string>& devices,
                                              const transport::LinkUrl& link,
                                              const device::SimulationEnvironment& environment) {
     SimulatedUnits result;
     device::SimulationEnvironment unit_environment = environment;
     unit_environment.framing = transport::framing_name(link.framing);
     for (const std::string& text : devices) {
-        auto device = device::parse_device_address(text);
+        auto device = device::parse_device_address(profiles, text);
         if (!device) return device.error();
         if (auto free = claim(result, device->unit); !free) return free.error();
         // Each unit its own noise: the same seed on two units would make them move in lockstep.
@@ -87,13 +87,13 @@ Result<void> apply_fault_option(SimulatedUnits& units, const std::string& option
     if (colon == std::string::npos) {
         return make_error(ErrorKind::usage, fmt::format("--fault '{}': write DEVICE@UNIT:FAULT, e.g. tc10@3:open-input", option));
     }
-    auto address = device::parse_device_address(option.substr(0, colon));
+    // Compared with the simulated units only, so the id needs no profile lookup here.
+    auto address = device::split_device_address(option.substr(0, colon));
     if (!address) return address.error();
     const auto found = units.devices.find(address->unit);
-    if (found == units.devices.end() || found->second->profile().id != address->profile->id) {
+    if (found == units.devices.end() || found->second->profile().id != address->id) {
         return make_error(ErrorKind::usage, fmt::format("--fault '{}': unit {} is not simulated as {}; add --device {}@{}",
-                                                        option, address->unit, address->profile->id,
-                                                        address->profile->id, address->unit));
+                                                        option, address->unit, address->id, address->id, address->unit));
     }
     if (auto applied = found->second->inject_fault(option.substr(colon + 1)); !applied) {
         return make_error(ErrorKind::usage, fmt::format("--fault '{}': {}", option, applied.error().message));

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "common/result.hpp"
+#include "profile/profile_registry.hpp"
 #include "simulation/simulated_device.hpp"
 #include "session/slave.hpp"
 #include "transport/link_url.hpp"
@@ -20,10 +21,10 @@ struct SimulatedUnits {
     std::vector<std::string> warnings;      // link settings the real device cannot have
 };
 
-// A unit named twice, or an unknown device, is a usage error. With neither list given, unit 1
+// A unit named twice, or a device id not in `profiles`, is a usage error. With neither list given, unit 1
 // is a plain bank.
 // Each device gets its own copy of `environment` (its framing taken from the link).
-Result<SimulatedUnits> build_simulated_units(const std::vector<int>& bank_units, const std::vector<std::string>& devices,
+Result<SimulatedUnits> build_simulated_units(const device::ProfileRegistry& profiles, const std::vector<int>& bank_units, const std::vector<std::string>& devices,
                                              const transport::LinkUrl& link,
                                              const device::SimulationEnvironment& environment = {});
 

@@ -101,8 +101,12 @@ int run_raw_write(const WriteOptions& options) {
     return exit_ok;
 }
 
-int run_write(WriteOptions options) {
-    if (!options.master.device.empty()) return run_device_write(options.master, options.arguments);
+int run_write(WriteOptions options, const ProfileOptions& profiles) {
+    if (!options.master.device.empty()) {
+        auto registry = profiles.load();
+        if (!registry) return report_error(registry.error());
+        return run_device_write(*registry, options.master, options.arguments);
+    }
     if (options.arguments.size() < 3) {
         return report_error(make_error(ErrorKind::usage, "write takes TABLE ADDRESS VALUE... (or --device DEVICE@UNIT and NAME=VALUE pairs)"));
     }
@@ -114,7 +118,7 @@ int run_write(WriteOptions options) {
 
 }  // namespace
 
-void add_write_command(CLI::App& app, int& exit_code) {
+void add_write_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles) {
     auto options = std::make_shared<WriteOptions>();
     auto* command = app.add_subcommand("write", "Write holding registers or coils");
     options->master.add_to(*command, true);
@@ -123,7 +127,7 @@ void add_write_command(CLI::App& app, int& exit_code) {
                         "-32768..-1, decimal, 0x.. or ..h; coils 0/1/on/off). With --device: NAME=VALUE in engineering units or enum labels");
     command->add_flag("--multiple", options->multiple, "Use function 16/15 even for a single value");
     command->footer(exit_code_help);
-    command->callback([options, &exit_code] { exit_code = run_write(*options); });
+    command->callback([options, &exit_code, &profiles] { exit_code = run_write(*options, profiles); });
 }
 
 }  // namespace loopwire::app

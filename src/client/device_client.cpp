@@ -45,27 +45,32 @@ std::vector<const Parameter*> with_dependencies(const Profile& profile, const st
 
 }  // namespace
 
-Result<DeviceAddress> parse_device_address(const std::string& text, const std::string& numbering) {
+Result<DeviceName> split_device_address(const std::string& text) {
     const auto at = text.find('@');
-    const std::string id = text.substr(0, at);
-    auto profile = builtin_profile(id);
-    if (!profile) return profile.error();
-    DeviceAddress device{*profile, 1, 0};
-    if (at != std::string::npos) {
-        const std::string unit = text.substr(at + 1);
-        int value = -1;
-        try {
-            std::size_t used = 0;
-            value = std::stoi(unit, &used);
-            if (used != unit.size()) value = -1;
-        } catch (...) {
-            value = -1;
-        }
-        if (value < 1 || value > 247) {
-            return make_error(ErrorKind::usage, fmt::format("'{}': the unit after '@' must be 1..247 (e.g. {}@3)", text, id));
-        }
-        device.unit = static_cast<std::uint8_t>(value);
+    DeviceName name{text.substr(0, at), 1};
+    if (at == std::string::npos) return name;
+    const std::string unit = text.substr(at + 1);
+    int value = -1;
+    try {
+        std::size_t used = 0;
+        value = std::stoi(unit, &used);
+        if (used != unit.size()) value = -1;
+    } catch (...) {
+        value = -1;
     }
+    if (value < 1 || value > 247) {
+        return make_error(ErrorKind::usage, fmt::format("'{}': the unit after '@' must be 1..247 (e.g. {}@3)", text, name.id));
+    }
+    name.unit = static_cast<std::uint8_t>(value);
+    return name;
+}
+
+namespace {
+
+Result<DeviceAddress> device_address(const Result<std::shared_ptr<const Profile>>& profile, const DeviceName& name,
+                                     const std::string& numbering) {
+    if (!profile) return profile.error();
+    DeviceAddress device{*profile, name.unit, 0};
     if (!numbering.empty()) {
         const auto& choices = device.profile->numberings;
         auto it = std::find_if(choices.begin(), choices.end(), [&](const auto& n) { return n.name == numbering; });
@@ -73,12 +78,26 @@ Result<DeviceAddress> parse_device_address(const std::string& text, const std::s
             std::vector<std::string> names;
             for (const auto& n : choices) names.push_back(n.name);
             return make_error(ErrorKind::usage,
-                              fmt::format("{} has no numbering '{}' ({})", id, numbering,
+                              fmt::format("{} has no numbering '{}' ({})", name.id, numbering,
                                           names.empty() ? "it has only its own" : "choices: " + fmt::format("{}", fmt::join(names, ", "))));
         }
         device.address_offset = it->offset;
     }
     return device;
+}
+
+}  // namespace
+
+Result<DeviceAddress> parse_device_address(const ProfileRegistry& profiles, const std::string& text, const std::string& numbering) {
+    auto name = split_device_address(text);
+    if (!name) return name.error();
+    return device_address(profiles.find(name->id), *name, numbering);
+}
+
+Result<DeviceAddress> parse_device_address(const std::string& text, const std::string& numbering) {
+    auto name = split_device_address(text);
+    if (!name) return name.error();
+    return device_address(builtin_profile(name->id), *name, numbering);
 }
 
 DeviceClient::DeviceClient(session::Master& master, DeviceAddress device) : master_(master), device_(std::move(device)) {}

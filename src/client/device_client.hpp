@@ -9,6 +9,7 @@
 
 #include "common/result.hpp"
 #include "profile/profile.hpp"
+#include "profile/profile_registry.hpp"
 #include "profile/request_planner.hpp"
 #include "profile/values.hpp"
 #include "session/master.hpp"
@@ -22,8 +23,19 @@ struct DeviceAddress {
     int address_offset = 0;  // numbering alternative in use (AC20 J-BUS: +1)
 };
 
-// Parses "DEVICE@UNIT" against the built-in profiles; `numbering` names an alternative
+// "DEVICE@UNIT" taken apart without looking the id up: the unit must be 1..247 (1 when no
+// '@' is given).
+struct DeviceName {
+    std::string id;
+    std::uint8_t unit = 1;
+};
+Result<DeviceName> split_device_address(const std::string& text);
+
+// Parses "DEVICE@UNIT" against the profiles of `profiles`; `numbering` names an alternative
 // numbering of the profile ("jbus") or is empty for the profile's own.
+Result<DeviceAddress> parse_device_address(const ProfileRegistry& profiles, const std::string& text,
+                                           const std::string& numbering = {});
+// The same against the built-in profiles only (no profile files).
 Result<DeviceAddress> parse_device_address(const std::string& text, const std::string& numbering = {});
 
 struct ParameterReading {

@@ -23,8 +23,8 @@ const std::map<std::string, std::vector<std::string>>& builtin_defaults() {
     return defaults;
 }
 
-bool same_device(const device::DeviceAddress& a, const device::DeviceAddress& b) {
-    return a.profile->id == b.profile->id && a.unit == b.unit;
+bool same_device(const device::DeviceAddress& a, const device::DeviceName& b) {
+    return a.profile->id == b.id && a.unit == b.unit;
 }
 
 void append_new(std::vector<const device::Parameter*>& list, const std::vector<const device::Parameter*>& more) {
@@ -44,7 +44,8 @@ std::pair<std::string, std::string> split_target(const std::string& text) {
 
 Result<void> apply_to_one(const std::vector<device::DeviceAddress>& devices, const std::string& target, const std::string& name,
                           std::vector<std::vector<const device::Parameter*>>& lists) {
-    auto address = device::parse_device_address(target);
+    // Only compared with the --device options, so the id needs no profile lookup here.
+    auto address = device::split_device_address(target);
     if (!address) return address.error();
     for (std::size_t i = 0; i < devices.size(); ++i) {
         if (!same_device(devices[i], *address)) continue;
