@@ -8,6 +8,7 @@
 #include <string>
 
 #include "codec/pdu.hpp"
+#include "common/clock.hpp"
 #include "common/result.hpp"
 #include "session/trace.hpp"
 #include "transport/byte_stream.hpp"
@@ -25,6 +26,10 @@ struct MasterOptions {
     milliseconds turnaround{100};
     bool linking_ram_only = false;  // Linking: single writes as M (RAM only) instead of W
     TraceSink trace;                // -v: every frame sent, received or discarded
+    // What the serial master's silences, timeouts and turnarounds run on (common/clock.hpp). A
+    // virtual clock only makes sense with a stream that reads the same clock. The TCP master
+    // runs on the steady clock.
+    std::shared_ptr<Clock> clock = steady_clock();
 };
 
 class Master {

@@ -12,7 +12,7 @@
 namespace loopwire::session {
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using Duration = Instant::duration;
 
 // Runs queued jobs on one thread, for execute_async. Started on first use.
 class JobQueue {
@@ -61,6 +61,7 @@ public:
         : stream_(std::move(stream)),
           codec_(make_frame_codec(link, codec::Direction::reply, options.linking_ram_only)),
           options_(std::move(options)),
+          clock_(options_.clock ? options_.clock : steady_clock()),
           inter_frame_gap_(gap_for(link)),
           name_(link.to_string()) {}
 
@@ -91,61 +92,61 @@ private:
     // that. Through a device server the server times the line. ASCII needs no gap (2.5.2.1),
     // Linking documents none; loopwire keeps the RTU gap on both: it costs little and never
     // hurts a slave.
-    static Clock::duration gap_for(const transport::LinkUrl& link) {
-        if (!link.is_serial()) return Clock::duration::zero();
+    static Duration gap_for(const transport::LinkUrl& link) {
+        if (!link.is_serial()) return Duration::zero();
         return codec::CharacterTiming{link.serial.baud, link.serial.bits_per_character()}.t3_5();
     }
 
     void trace(TraceDirection direction, ByteView bytes, std::string note) const {
-        if (options_.trace) options_.trace({Clock::now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
+        if (options_.trace) options_.trace({clock_->now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
     }
 
     Result<codec::Reply> attempt_once(std::uint8_t unit, const codec::Request& request,
                                       const Bytes& pdu, TimeoutContext& context) {
         auto frame = codec_->encode(unit, pdu, 0);
         if (!frame) return frame.error();
-        std::this_thread::sleep_until(line_quiet_since_ + inter_frame_gap_);
+        clock_->sleep_until(line_quiet_since_ + inter_frame_gap_);
         stream_->discard_input();  // a late reply to an earlier try must not answer this one
         codec_->reset();
         trace(TraceDirection::sent, *frame, describe_transaction(unit, request));
         auto written = stream_->write(*frame);
-        line_quiet_since_ = Clock::now();
+        line_quiet_since_ = clock_->now();
         if (!written) return written.error();
         if (unit == 0) {
             // Broadcast: nobody answers; give every slave the turnaround delay to execute it.
-            std::this_thread::sleep_for(options_.turnaround);
-            line_quiet_since_ = Clock::now();
+            clock_->sleep_for(options_.turnaround);
+            line_quiet_since_ = clock_->now();
             return codec::Reply{request.function, codec::ReplyKind::normal, 0, request.address, request.count, {}};
         }
-        auto reply = await_reply(unit, request, Clock::now() + options_.timeout, context);
-        line_quiet_since_ = Clock::now();
+        auto reply = await_reply(unit, request, clock_->now() + options_.timeout, context);
+        line_quiet_since_ = clock_->now();
         return reply;
     }
 
     Result<codec::Reply> await_reply(std::uint8_t unit, const codec::Request& request,
-                                      Clock::time_point deadline, TimeoutContext& context) {
+                                      Instant deadline, TimeoutContext& context) {
         std::array<std::uint8_t, 512> buffer{};
         std::optional<Error> wrong_reply;  // the last frame from `unit` that did not answer the request
         for (;;) {
-            const auto now = Clock::now();
+            const auto now = clock_->now();
             // A reply that came but was wrong is what went wrong, not silence: it is reported as
             // such (exit 6, as on TCP), and not retried. The wait still runs to the deadline, as
             // the right reply may follow a stale one.
             if (now >= deadline) return wrong_reply ? *wrong_reply : make_error(ErrorKind::timeout, "no reply");
             auto wait = deadline - now;
             if (auto flush_at = codec_->flush_deadline()) {
-                wait = std::min<Clock::duration>(wait, std::max<Clock::duration>(*flush_at - now, Clock::duration::zero()));
+                wait = std::min<Duration>(wait, std::max<Duration>(*flush_at - now, Duration::zero()));
             }
             const auto wait_ms = std::chrono::ceil<milliseconds>(wait);
             auto got = stream_->read_some(buffer, wait_ms);
             if (!got) return got.error();
             codec::FrameEvents events;
             if (*got > 0) {
-                auto fed = codec_->feed(ByteView(buffer.data(), *got), Clock::now());
+                auto fed = codec_->feed(ByteView(buffer.data(), *got), clock_->now());
                 if (!fed) return fed.error();
                 events = std::move(*fed);
             } else {
-                events = codec_->flush(Clock::now());
+                events = codec_->flush(clock_->now());
             }
             for (auto& event : events) {
                 if (auto answer = consider(unit, request, event, context, wrong_reply)) return std::move(*answer);
@@ -204,10 +205,11 @@ private:
     std::unique_ptr<transport::ByteStream> stream_;
     std::unique_ptr<FrameCodec> codec_;
     MasterOptions options_;
-    Clock::duration inter_frame_gap_;
+    std::shared_ptr<Clock> clock_;
+    Duration inter_frame_gap_;
     std::string name_;
     std::mutex line_;
-    Clock::time_point line_quiet_since_{};
+    Instant line_quiet_since_{};
     JobQueue jobs_;  // last member: its thread stops before the rest is destroyed
 };
 

@@ -1,7 +1,5 @@
 #include "session/slave.hpp"
 
-#include <thread>
-
 #include <fmt/format.h>
 
 #include "codec/rtu.hpp"
@@ -10,7 +8,6 @@
 namespace loopwire::session {
 namespace {
 
-using Clock = std::chrono::steady_clock;
 using std::chrono::milliseconds;
 
 // Exception 0Bh: "gateway target device failed to respond" (Modbus application protocol
@@ -21,9 +18,9 @@ constexpr std::uint8_t gateway_target_failed = 0x0B;
 // should accept unit FFh as "this server". With one unit served, FFh reaches it.
 constexpr std::uint8_t tcp_direct_unit = 0xFF;
 
-milliseconds until(std::optional<Instant> deadline, milliseconds longest) {
+milliseconds until(std::optional<Instant> deadline, Instant now, milliseconds longest) {
     if (!deadline) return longest;
-    auto left = std::chrono::ceil<milliseconds>(*deadline - Clock::now());
+    auto left = std::chrono::ceil<milliseconds>(*deadline - now);
     return std::clamp(left, milliseconds(0), longest);
 }
 
@@ -34,10 +31,13 @@ Bytes exception_pdu(std::uint8_t function, std::uint8_t code) {
 }  // namespace
 
 Slave::Slave(transport::LinkUrl link, UnitMap units, SlaveOptions options)
-    : link_(std::move(link)), units_(std::move(units)), options_(std::move(options)) {}
+    : link_(std::move(link)),
+      units_(std::move(units)),
+      options_(std::move(options)),
+      clock_(options_.clock ? options_.clock : steady_clock()) {}
 
 void Slave::trace(TraceDirection direction, ByteView bytes, std::string note) const {
-    if (options_.trace) options_.trace({Clock::now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
+    if (options_.trace) options_.trace({clock_->now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
 }
 
 Slave::Route Slave::route(const codec::Frame& frame) {
@@ -112,7 +112,7 @@ void Slave::answer_async(const codec::Frame& frame, UnitHandler::ReplyCallback r
 void Slave::reply_after_silence(transport::ByteStream& stream, const Bytes& reply, Instant request_end) {
     if (link_.is_serial()) {
         const auto gap = codec::CharacterTiming{link_.serial.baud, link_.serial.bits_per_character()}.t3_5();
-        std::this_thread::sleep_until(request_end + gap);
+        clock_->sleep_until(request_end + gap);
     }
     if (tracing()) trace(TraceDirection::sent, reply, "reply");
     (void)stream.write(reply);  // a failed write surfaces as a read error on the next turn
@@ -122,9 +122,9 @@ Result<void> Slave::serve_stream(transport::ByteStream& stream, std::stop_token 
     auto codec = make_frame_codec(link_, codec::Direction::request);
     std::array<std::uint8_t, 1024> buffer{};
     while (!stop.stop_requested()) {
-        auto got = stream.read_some(buffer, until(codec->flush_deadline(), milliseconds(100)));
+        auto got = stream.read_some(buffer, until(codec->flush_deadline(), clock_->now(), milliseconds(100)));
         if (!got) return got.error();
-        const auto now = Clock::now();
+        const auto now = clock_->now();
         codec::FrameEvents events;
         if (*got > 0) {
             auto fed = codec->feed(ByteView(buffer.data(), *got), now);

@@ -9,6 +9,7 @@
 #include <memory>
 #include <stop_token>
 
+#include "common/clock.hpp"
 #include "common/result.hpp"
 #include "session/frame_codec.hpp"
 #include "session/trace.hpp"
@@ -37,6 +38,10 @@ struct TcpClientLimits {
 struct SlaveOptions {
     TraceSink trace;
     TcpClientLimits tcp;
+    // What serve_stream's reply gap and frame timing run on (common/clock.hpp). A virtual clock
+    // only makes sense with a stream that reads the same clock. TCP listeners keep the steady
+    // clock.
+    std::shared_ptr<Clock> clock = steady_clock();
 };
 
 class Slave {
@@ -64,6 +69,7 @@ public:
     const transport::LinkUrl& link() const { return link_; }
     const SlaveOptions& options() const { return options_; }
     bool tracing() const { return static_cast<bool>(options_.trace); }
+    Clock& clock() const { return *clock_; }
     // Callers check tracing() first, so nothing is formatted when nobody listens.
     void trace(TraceDirection direction, ByteView bytes, std::string note) const;
 
@@ -80,6 +86,7 @@ private:
     transport::LinkUrl link_;
     UnitMap units_;
     SlaveOptions options_;
+    std::shared_ptr<Clock> clock_;
     std::atomic<std::uint64_t> requests_{0};
 };
 

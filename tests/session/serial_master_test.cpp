@@ -3,11 +3,16 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cstdlib>
+#include <filesystem>
 #include <future>
+#include <stdexcept>
 
 #include "codec/rtu.hpp"
 #include "scripted_stream.hpp"
 #include "session/master.hpp"
+#include "transport/pseudo_terminal.hpp"
+#include "transport/serial_port.hpp"
 
 namespace loopwire::session {
 namespace {
@@ -29,6 +34,16 @@ struct MasterOnScript {
 MasterOnScript master_on(std::deque<ScriptStep> script, MasterOptions options = {},
                          transport::LinkUrl link = rtu_link()) {
     auto stream = std::make_unique<ScriptedStream>(std::move(script));
+    auto* raw = stream.get();
+    return {raw, make_serial_master(std::move(stream), link, std::move(options))};
+}
+
+// The master and its script on one virtual clock: timeouts, retries and silences cost no wall
+// time and land on exact instants.
+MasterOnScript master_in_virtual_time(const std::shared_ptr<VirtualClock>& clock, std::deque<ScriptStep> script,
+                                      MasterOptions options = {}, transport::LinkUrl link = rtu_link()) {
+    options.clock = clock;
+    auto stream = std::make_unique<ScriptedStream>(std::move(script), clock);
     auto* raw = stream.get();
     return {raw, make_serial_master(std::move(stream), link, std::move(options))};
 }
@@ -69,6 +84,67 @@ TEST(SerialMaster, RampSoakExceptionReplyIsAnErrorWithCode) {
     EXPECT_NE(reply.error().message.find("illegal data value"), std::string::npos) << reply.error().message;
 }
 
+// A serial port with a device that never answers, on the steady clock: the wall-clock path of
+// timeouts, retries and turnaround, end to end through a pseudo-terminal. Holds the
+// pseudo-terminal's own side (which nobody reads) and a master on the port its link opens.
+class SilentSerialLine {
+public:
+    explicit SilentSerialLine(MasterOptions options) {
+        std::string pattern = (std::filesystem::temp_directory_path() / "loopwire-session-XXXXXX").string();
+        if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed for " + pattern);
+        directory_ = pattern;
+        const std::string link_path = (directory_ / "ttyS").string();
+        const auto link = rtu_link();
+        auto pty = transport::create_pseudo_terminal(link_path, link.serial);
+        if (!pty) throw std::runtime_error(pty.error().message);
+        device_side_ = std::move(*pty);
+        auto port = transport::open_serial_port(link_path, link.serial);
+        if (!port) throw std::runtime_error(port.error().message);
+        master_ = make_serial_master(std::move(*port), link, std::move(options));
+    }
+    ~SilentSerialLine() {
+        master_.reset();
+        device_side_.reset();
+        std::error_code ignored;
+        std::filesystem::remove_all(directory_, ignored);
+    }
+    SilentSerialLine(const SilentSerialLine&) = delete;
+    SilentSerialLine& operator=(const SilentSerialLine&) = delete;
+
+    Master& master() { return *master_; }
+
+private:
+    std::filesystem::path directory_;
+    std::unique_ptr<transport::ByteStream> device_side_;
+    std::unique_ptr<Master> master_;
+};
+
+TEST(SerialMaster, TimesOutAndRetriesOnASerialPortInWallTime) {
+    MasterOptions options;
+    options.timeout = 50ms;
+    options.retries = 1;
+    SilentSerialLine line(options);
+    const auto start = std::chrono::steady_clock::now();
+    auto reply = line.master().execute(7, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1));
+    const auto took = std::chrono::steady_clock::now() - start;
+    ASSERT_FALSE(reply.ok());
+    EXPECT_EQ(reply.error().kind, ErrorKind::timeout) << reply.error().message;
+    EXPECT_NE(reply.error().message.find("2 tries"), std::string::npos) << reply.error().message;
+    EXPECT_GE(took, 100ms);
+}
+
+TEST(SerialMaster, KeepsTheTurnaroundAfterABroadcastOnASerialPortInWallTime) {
+    MasterOptions options;
+    options.turnaround = 60ms;
+    SilentSerialLine line(options);
+    const auto start = std::chrono::steady_clock::now();
+    auto reply = line.master().execute(0, codec::write_single_register(16, 42));
+    const auto took = std::chrono::steady_clock::now() - start;
+    ASSERT_TRUE(reply.ok()) << reply.error().message;
+    EXPECT_GE(took, 60ms);
+}
+
+// On the steady clock, against a script.
 TEST(SerialMaster, TimeoutRetriesThenSaysWhichUnitHowLongHowManyTries) {
     const Bytes request = hex("07 03 00 00 00 01 84 6C");
     MasterOptions options;
@@ -85,11 +161,36 @@ TEST(SerialMaster, TimeoutRetriesThenSaysWhichUnitHowLongHowManyTries) {
     EXPECT_NE(message.find("3 tries"), std::string::npos) << message;
 }
 
+// The same in virtual time, with the default one-second timeout: each try waits exactly the
+// timeout, and the next begins exactly 3.5 characters later.
+TEST(SerialMaster, TimeoutsAndRetriesRunOnTheInjectedClock) {
+    const Bytes request = hex("07 03 00 00 00 01 84 6C");
+    auto clock = std::make_shared<VirtualClock>();
+    MasterOptions options;
+    options.timeout = 1s;
+    options.retries = 2;
+    auto [stream, master] =
+        master_in_virtual_time(clock, {{request, std::nullopt}, {request, std::nullopt}, {request, std::nullopt}}, options);
+    const auto start = clock->now();
+    auto reply = master->execute(7, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1));
+    ASSERT_FALSE(reply.ok());
+    EXPECT_EQ(reply.error().kind, ErrorKind::timeout);
+    EXPECT_NE(reply.error().message.find("1000 ms"), std::string::npos) << reply.error().message;
+    EXPECT_NE(reply.error().message.find("3 tries"), std::string::npos) << reply.error().message;
+    const auto writes = stream->writes();
+    ASSERT_EQ(writes.size(), 3u);
+    const auto t3_5 = codec::CharacterTiming{19200, 11}.t3_5();
+    EXPECT_EQ(writes[0].at, start);
+    EXPECT_EQ(writes[1].at - writes[0].at, 1s + t3_5);
+    EXPECT_EQ(writes[2].at - writes[1].at, 1s + t3_5);
+    EXPECT_EQ(clock->now() - writes[2].at, 1s);
+}
+
 TEST(SerialMaster, GarbledRepliesPointAtBaudRateOrParity) {
     const Bytes request = hex("1D 03 00 B2 00 03 A7 B0");
     MasterOptions options;
-    options.timeout = 50ms;
-    auto [stream, master] = master_on({{request, hex("1D 03 06 FF 9C 80 00 05 5A 00 00")}}, options);
+    options.timeout = 1s;
+    auto [stream, master] = master_in_virtual_time(std::make_shared<VirtualClock>(), {{request, hex("1D 03 06 FF 9C 80 00 05 5A 00 00")}}, options);
     auto reply = master->execute(29, codec::read_request(codec::FunctionCode::read_holding_registers, 178, 3));
     ASSERT_FALSE(reply.ok());
     EXPECT_EQ(reply.error().kind, ErrorKind::timeout);
@@ -99,9 +200,9 @@ TEST(SerialMaster, GarbledRepliesPointAtBaudRateOrParity) {
 TEST(SerialMaster, RetrySucceedsAfterALostReply) {
     const Bytes request = hex("1D 03 00 B2 00 03 A7 B0");
     MasterOptions options;
-    options.timeout = 40ms;
+    options.timeout = 1s;
     options.retries = 1;
-    auto [stream, master] = master_on({{request, std::nullopt}, {request, hex("1D 03 06 FF 9C 80 00 05 5A D7 0D")}}, options);
+    auto [stream, master] = master_in_virtual_time(std::make_shared<VirtualClock>(), {{request, std::nullopt}, {request, hex("1D 03 06 FF 9C 80 00 05 5A D7 0D")}}, options);
     auto reply = master->execute(29, codec::read_request(codec::FunctionCode::read_holding_registers, 178, 3));
     ASSERT_TRUE(reply.ok()) << reply.error().message;
     EXPECT_EQ(reply->values.at(2), 0x055A);
@@ -111,8 +212,8 @@ TEST(SerialMaster, ReplyFromAnotherUnitIsNotTakenForTheAnswer) {
     // TC10 manual §3.1 reply, but from unit 2 while unit 1 was asked: ignored, then timeout.
     Bytes foreign = codec::rtu_encode(2, hex("03 04 00 0A 00 14"));
     MasterOptions options;
-    options.timeout = 50ms;
-    auto [stream, master] = master_on({{hex("01 03 00 19 00 02 15 CC"), foreign}}, options);
+    options.timeout = 1s;
+    auto [stream, master] = master_in_virtual_time(std::make_shared<VirtualClock>(), {{hex("01 03 00 19 00 02 15 CC"), foreign}}, options);
     auto reply = master->execute(1, codec::read_request(codec::FunctionCode::read_holding_registers, 25, 2));
     ASSERT_FALSE(reply.ok());
     EXPECT_EQ(reply.error().kind, ErrorKind::timeout);
@@ -121,8 +222,8 @@ TEST(SerialMaster, ReplyFromAnotherUnitIsNotTakenForTheAnswer) {
 TEST(SerialMaster, EchoThatDiffersFromTheRequestIsNotAccepted) {
     // TC10 manual §3.2 request; the "echo" carries another value: a reply, but a wrong one.
     MasterOptions options;
-    options.timeout = 50ms;
-    auto [stream, master] = master_on({{hex("01 06 03 02 00 0A A8 49"), codec::rtu_encode(1, hex("06 03 02 00 0B"))}}, options);
+    options.timeout = 1s;
+    auto [stream, master] = master_in_virtual_time(std::make_shared<VirtualClock>(), {{hex("01 06 03 02 00 0A A8 49"), codec::rtu_encode(1, hex("06 03 02 00 0B"))}}, options);
     auto reply = master->execute(1, codec::write_single_register(770, 10));
     ASSERT_FALSE(reply.ok());
     EXPECT_EQ(reply.error().kind, ErrorKind::mismatch);
@@ -145,9 +246,9 @@ TEST(SerialMaster, AWrongReplyWithAValidCrcIsABadReplyNamingItsBytes) {
     };
     for (const auto& c : cases) {
         MasterOptions options;
-        options.timeout = 50ms;
+        options.timeout = 1s;
         options.retries = 2;
-        auto [stream, master] = master_on({{request, c.reply}}, options);
+        auto [stream, master] = master_in_virtual_time(std::make_shared<VirtualClock>(), {{request, c.reply}}, options);
         auto reply = master->execute(1, codec::read_request(codec::FunctionCode::read_holding_registers, 25, 2));
         ASSERT_FALSE(reply.ok()) << c.what;
         EXPECT_TRUE(reply.error().kind == ErrorKind::malformed || reply.error().kind == ErrorKind::mismatch)
@@ -170,6 +271,26 @@ TEST(SerialMaster, BroadcastAwaitsNoReplyButKeepsTheTurnaroundDelay) {
     EXPECT_LT(took, 1s);
 }
 
+// In virtual time: the broadcast's turnaround and then 3.5 characters pass, exactly, before the
+// next request.
+TEST(SerialMaster, TurnaroundAfterABroadcastRunsOnTheInjectedClock) {
+    auto clock = std::make_shared<VirtualClock>();
+    MasterOptions options;
+    options.turnaround = 200ms;
+    const Bytes read_frame = hex("1D 03 00 B2 00 03 A7 B0");
+    auto [stream, master] = master_in_virtual_time(
+        clock,
+        {{codec::rtu_encode(0, hex("06 00 10 00 2A")), std::nullopt}, {read_frame, hex("1D 03 06 FF 9C 80 00 05 5A D7 0D")}},
+        options);
+    const auto start = clock->now();
+    ASSERT_TRUE(master->execute(0, codec::write_single_register(16, 42)).ok());
+    EXPECT_EQ(clock->now() - start, 200ms);
+    ASSERT_TRUE(master->execute(29, codec::read_request(codec::FunctionCode::read_holding_registers, 178, 3)).ok());
+    const auto writes = stream->writes();
+    ASSERT_EQ(writes.size(), 2u);
+    EXPECT_EQ(writes[1].at - writes[0].at, (200ms + codec::CharacterTiming{19200, 11}.t3_5()));
+}
+
 // Modbus over serial line V1.02, 2.5.1.1: frames are separated by at least 3.5 characters of
 // silence. At 1200 baud 8E1 that is 3.5 * 11 / 1200 s ≈ 32 ms between the reply's arrival and the
 // next request.
@@ -188,6 +309,23 @@ TEST(SerialMaster, KeepsThreeAndAHalfCharactersOfSilenceBeforeEachRequest) {
     ASSERT_EQ(writes.size(), 2u);
     const auto t3_5 = codec::CharacterTiming{1200, 11}.t3_5();
     EXPECT_GE(writes[1].at - reply_delivered, t3_5);
+}
+
+// In virtual time the silence is exact: the next request leaves 3.5 characters after the reply
+// that arrived 80 ms after the first request.
+TEST(SerialMaster, SilenceBeforeEachRequestRunsOnTheInjectedClock) {
+    auto clock = std::make_shared<VirtualClock>();
+    const Bytes request = hex("1D 03 00 B2 00 03 A7 B0");
+    const Bytes answer = hex("1D 03 06 FF 9C 80 00 05 5A D7 0D");
+    auto [stream, master] =
+        master_in_virtual_time(clock, {{request, answer, 80ms}, {request, answer, 80ms}}, {}, rtu_link(1200));
+    const auto read = codec::read_request(codec::FunctionCode::read_holding_registers, 178, 3);
+    ASSERT_TRUE(master->execute(29, read).ok());
+    EXPECT_EQ(stream->last_delivery() - stream->writes().at(0).at, 80ms);
+    ASSERT_TRUE(master->execute(29, read).ok());
+    const auto writes = stream->writes();
+    ASSERT_EQ(writes.size(), 2u);
+    EXPECT_EQ(writes[1].at - writes[0].at, (80ms + codec::CharacterTiming{1200, 11}.t3_5()));
 }
 
 TEST(SerialMaster, ConcurrentCallersAreSerialisedOnTheLine) {

@@ -2,6 +2,7 @@
 // a request, feed the slave, decode the reply).
 #include <gtest/gtest.h>
 
+#include <deque>
 #include <thread>
 
 #include "codec/rtu.hpp"
@@ -75,15 +76,6 @@ TEST_F(SlaveOnBus, BadCrcGetsNoReply) {
     EXPECT_TRUE(exchange(hex("01 03 00 8A 00 01 A5 E1")).empty());
 }
 
-TEST_F(SlaveOnBus, AnotherUnitsRequestGetsNoReply) {
-    EXPECT_TRUE(exchange(codec::rtu_encode(9, hex("03 00 00 00 01"))).empty());
-}
-
-TEST_F(SlaveOnBus, BroadcastIsExecutedByEveryUnitAndNotAnswered) {
-    EXPECT_TRUE(exchange(codec::rtu_encode(0, hex("06 00 05 12 34"))).empty());
-    EXPECT_EQ(unit1->get(Table::holding_registers, 5), 0x1234);
-    EXPECT_EQ(unit2->get(Table::holding_registers, 5), 0x1234);
-}
 
 TEST_F(SlaveOnBus, UnknownFunctionGetsIllegalFunction) {
     // A function the RTU framer cannot size ends only at the 3.5-character silence the slave's
@@ -147,6 +139,113 @@ TEST_F(SlaveOnBus, SeveralThreadsShareOneMasterOnAMultiDropLine) {
     }
     for (auto& t : threads) t.join();
     EXPECT_EQ(good.load(), 20);
+}
+
+// The slave's end of a line in virtual time: requests arrive at the instants a test gives, and
+// every write is kept with the virtual instant it was made. A read jumps the clock to the next
+// arrival, or to the end of its timeout; a read that finds nothing left to arrive asks the
+// slave to stop, so serve_stream runs on the test's thread and returns when the line is done.
+class VirtualLine final : public transport::ByteStream {
+public:
+    VirtualLine(std::shared_ptr<VirtualClock> clock, std::stop_source stop) : clock_(std::move(clock)), stop_(std::move(stop)) {}
+
+    struct Write {
+        Instant at;
+        Bytes bytes;
+    };
+
+    void arrive(Instant at, Bytes bytes) { inbox_.push_back({at, std::move(bytes)}); }
+    const std::vector<Write>& writes() const { return writes_; }
+
+    Result<void> write(ByteView bytes) override {
+        writes_.push_back({clock_->now(), Bytes(bytes.begin(), bytes.end())});
+        return {};
+    }
+
+    Result<std::size_t> read_some(std::span<std::uint8_t> buffer, std::chrono::milliseconds timeout) override {
+        const Instant until = clock_->now() + timeout;
+        if (inbox_.empty() || inbox_.front().at > until) {
+            clock_->sleep_until(until);
+            if (inbox_.empty()) stop_.request_stop();
+            return std::size_t{0};
+        }
+        clock_->sleep_until(inbox_.front().at);
+        Bytes& next = inbox_.front().bytes;
+        const std::size_t count = std::min(buffer.size(), next.size());
+        std::copy_n(next.begin(), count, buffer.begin());
+        next.erase(next.begin(), next.begin() + static_cast<std::ptrdiff_t>(count));
+        if (next.empty()) inbox_.pop_front();
+        return count;
+    }
+
+    void discard_input() override {}
+    int poll_handle() const override { return -1; }
+    std::string describe() const override { return "virtual line"; }
+
+private:
+    struct Arrival {
+        Instant at;
+        Bytes bytes;
+    };
+    std::shared_ptr<VirtualClock> clock_;
+    std::stop_source stop_;
+    std::deque<Arrival> inbox_;
+    std::vector<Write> writes_;
+};
+
+// RTU at 9600 baud, 8N1: 3.5 characters are 3.5 * 10 / 9600 s, about 3.6 ms.
+class SlaveInVirtualTime : public ::testing::Test {
+protected:
+    // Serves every request given, each arriving `spacing` after the one before, until the line
+    // is done; returns what the slave wrote.
+    const std::vector<VirtualLine::Write>& serve(const std::vector<Bytes>& requests,
+                                                 std::chrono::milliseconds spacing = 500ms) {
+        Instant at = clock->now();
+        for (const auto& request : requests) line.arrive(at += spacing, request);
+        SlaveOptions options;
+        options.clock = clock;
+        Slave slave(link, UnitMap{{1, unit1}, {2, unit2}}, options);
+        EXPECT_TRUE(slave.serve_stream(line, stop.get_token()).ok());
+        return line.writes();
+    }
+
+    const transport::LinkUrl link = *transport::parse_link_url("rtu:virtual?baud=9600&parity=none");
+    std::shared_ptr<VirtualClock> clock = std::make_shared<VirtualClock>();
+    std::stop_source stop;
+    VirtualLine line{clock, stop};
+    std::shared_ptr<RegisterBank> unit1 = std::make_shared<RegisterBank>();
+    std::shared_ptr<RegisterBank> unit2 = std::make_shared<RegisterBank>();
+};
+
+// Modbus over serial line V1.02, 2.5.1.1: the request ends with 3.5 characters of silence, and
+// only then may the reply start. The frame is complete by its length when its last byte comes,
+// so the slave waits out exactly the gap.
+TEST_F(SlaveInVirtualTime, RepliesExactlyThreeAndAHalfCharactersAfterTheRequest) {
+    unit1->set(Table::holding_registers, 0x8A, 1000);
+    const Instant start = clock->now();
+    const auto& writes = serve({hex("01 03 00 8A 00 01 A5 E0")});  // ramp/soak manual §4.7.1
+    ASSERT_EQ(writes.size(), 1u);
+    EXPECT_EQ(to_hex(writes[0].bytes), "01 03 02 03 E8 B8 FA");
+    EXPECT_EQ(writes[0].at - start, (500ms + codec::CharacterTiming{9600, 10}.t3_5()));
+}
+
+// Silence is checked to the end of the line, not for a window of wall time.
+TEST_F(SlaveInVirtualTime, AnotherUnitsRequestGetsNoReply) {
+    EXPECT_TRUE(serve({codec::rtu_encode(9, hex("03 00 00 00 01"))}).empty());
+}
+
+TEST_F(SlaveInVirtualTime, BroadcastIsExecutedByEveryUnitAndNotAnswered) {
+    EXPECT_TRUE(serve({codec::rtu_encode(0, hex("06 00 05 12 34"))}).empty());
+    EXPECT_EQ(unit1->get(Table::holding_registers, 5), 0x1234);
+    EXPECT_EQ(unit2->get(Table::holding_registers, 5), 0x1234);
+}
+
+// A broadcast between two requests leaves the unit asked next answering as usual.
+TEST_F(SlaveInVirtualTime, AnswersOnlyTheRequestsAddressedToItsUnits) {
+    const auto& writes = serve({codec::rtu_encode(9, hex("03 00 00 00 01")), codec::rtu_encode(0, hex("06 00 05 12 34")),
+                                codec::rtu_encode(2, hex("03 00 05 00 01"))});
+    ASSERT_EQ(writes.size(), 1u);
+    EXPECT_EQ(to_hex(writes[0].bytes), to_hex(codec::rtu_encode(2, hex("03 02 12 34"))));
 }
 
 }  // namespace
