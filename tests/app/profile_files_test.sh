@@ -5,7 +5,7 @@
 # unreadable folders say which file and what to do.
 set -u
 loopwire=${1:?usage: profile_files_test.sh path/to/loopwire}
-source "$(dirname "$0")/cli_test_lib.sh"
+source "$(dirname "$0")/../support/test_lib.sh"
 python=/usr/bin/python3
 profiles_dir="$(cd "$(dirname "$0")/../../profiles" && pwd)"
 
@@ -22,35 +22,20 @@ PY
 }
 
 # Every run gets its own configuration folder, so the user's own profiles never interfere.
-empty_config="$work/empty-config"
+empty_config="$WORK_DIR/empty-config"
 mkdir -p "$empty_config"
-folder_config="$work/config"
+folder_config="$WORK_DIR/config"
 mkdir -p "$folder_config/loopwire/profiles"
-make_profile oven-x "$work/oven-x.json"
+make_profile oven-x "$WORK_DIR/oven-x.json"
 make_profile oven-x "$folder_config/loopwire/profiles/oven-x.json"
 
 # Serves oven-x@3 on a kernel-chosen loopback port; sets `link` to it. $@: the loopwire command.
 start_simulator() {
-  local log="$work/simulate.$RANDOM.log"
-  "$@" simulate --link "tcp://127.0.0.1:0" --device oven-x@3 --duration 60s 2>"$log" &
-  pids+=($!)
-  local port=""
-  for _ in $(seq 200); do
-    port=$(sed -n 's/.*listening on port \([0-9]*\).*/\1/p' "$log")
-    [ -n "$port" ] && break
-    kill -0 "${pids[-1]}" 2>/dev/null || break
-    sleep 0.05
-  done
-  if [ -z "$port" ]; then
-    echo "FAIL simulator did not report its port within 10 s; its output:"; sed 's/^/    /' "$log"
-    failures=$((failures + 1))
-    link="tcp://127.0.0.1:1"
-    return 1
-  fi
-  link="tcp://127.0.0.1:$port"
+  start_tcp_server "simulate.$RANDOM.log" "$@" simulate --link "tcp://127.0.0.1:0" --device oven-x@3 --duration 60s
+  link="tcp://127.0.0.1:$PORT"
 }
 
-stop_simulator() { kill "${pids[-1]}" 2>/dev/null; wait "${pids[-1]}" 2>/dev/null; }
+stop_simulator() { kill "$LAST_PID" 2>/dev/null; wait "$LAST_PID" 2>/dev/null; }
 
 # The same journey for one way of making oven-x known. $1: label; the rest: the loopwire command.
 device_journey() {
@@ -69,57 +54,57 @@ device_journey() {
 }
 
 # 1. Named with --profile, before the subcommand (a global option) ...
-device_journey flag env XDG_CONFIG_HOME="$empty_config" "$loopwire" --profile "$work/oven-x.json"
+device_journey flag env XDG_CONFIG_HOME="$empty_config" "$loopwire" --profile "$WORK_DIR/oven-x.json"
 # ... and after it.
-check flag-after-subcommand 0 "oven-x — " env XDG_CONFIG_HOME="$empty_config" "$loopwire" describe --profile "$work/oven-x.json" oven-x
-check flag-devices-lists-file 0 "[$work/oven-x.json]" env XDG_CONFIG_HOME="$empty_config" "$loopwire" devices --profile "$work/oven-x.json"
-check flag-devices-lists-builtin 0 "[built-in]" env XDG_CONFIG_HOME="$empty_config" "$loopwire" devices --profile "$work/oven-x.json"
-check flag-devices-json-source 0 "\"source\":\"$work/oven-x.json\"" env XDG_CONFIG_HOME="$empty_config" "$loopwire" devices --json --profile "$work/oven-x.json"
+check flag-after-subcommand 0 "oven-x — " env XDG_CONFIG_HOME="$empty_config" "$loopwire" describe --profile "$WORK_DIR/oven-x.json" oven-x
+check flag-devices-lists-file 0 "[$WORK_DIR/oven-x.json]" env XDG_CONFIG_HOME="$empty_config" "$loopwire" devices --profile "$WORK_DIR/oven-x.json"
+check flag-devices-lists-builtin 0 "[built-in]" env XDG_CONFIG_HOME="$empty_config" "$loopwire" devices --profile "$WORK_DIR/oven-x.json"
+check flag-devices-json-source 0 "\"source\":\"$WORK_DIR/oven-x.json\"" env XDG_CONFIG_HOME="$empty_config" "$loopwire" devices --json --profile "$WORK_DIR/oven-x.json"
 check flag-not-given-unknown 2 'unknown device "oven-x"' env XDG_CONFIG_HOME="$empty_config" "$loopwire" describe oven-x
 
 # 2. Found in $XDG_CONFIG_HOME/loopwire/profiles ...
 device_journey folder env XDG_CONFIG_HOME="$folder_config" "$loopwire"
 check folder-devices-lists-file 0 "[$folder_config/loopwire/profiles/oven-x.json]" env XDG_CONFIG_HOME="$folder_config" "$loopwire" devices
 # ... or in ~/.config/loopwire/profiles when XDG_CONFIG_HOME is empty.
-mkdir -p "$work/home/.config"
-cp -r "$folder_config/loopwire" "$work/home/.config/"
-check home-folder 0 "oven-x — " env XDG_CONFIG_HOME= HOME="$work/home" "$loopwire" describe oven-x
+mkdir -p "$WORK_DIR/home/.config"
+cp -r "$folder_config/loopwire" "$WORK_DIR/home/.config/"
+check home-folder 0 "oven-x — " env XDG_CONFIG_HOME= HOME="$WORK_DIR/home" "$loopwire" describe oven-x
 
 # Errors. A bad file named with --profile: exit 2, the file and the schema's complaint.
-make_profile oven-bad "$work/oven-bad.json" broken
-check flag-invalid-file 2 "$work/oven-bad.json: /parameters/0/access" \
-  env XDG_CONFIG_HOME="$empty_config" "$loopwire" --profile "$work/oven-bad.json" describe tc10
-check flag-missing-file 2 "$work/nowhere.json: cannot open profile" \
-  env XDG_CONFIG_HOME="$empty_config" "$loopwire" read --link tcp://127.0.0.1:1 --device tc10@3 set_point --profile "$work/nowhere.json"
+make_profile oven-bad "$WORK_DIR/oven-bad.json" broken
+check flag-invalid-file 2 "$WORK_DIR/oven-bad.json: /parameters/0/access" \
+  env XDG_CONFIG_HOME="$empty_config" "$loopwire" --profile "$WORK_DIR/oven-bad.json" describe tc10
+check flag-missing-file 2 "$WORK_DIR/nowhere.json: cannot open profile" \
+  env XDG_CONFIG_HOME="$empty_config" "$loopwire" read --link tcp://127.0.0.1:1 --device tc10@3 set_point --profile "$WORK_DIR/nowhere.json"
 
 # A bad file in the folder: a warning naming it, the others still load, and its id says why.
-mkdir -p "$work/mixed/loopwire/profiles"
-cp "$work/oven-x.json" "$work/mixed/loopwire/profiles/"
-cp "$work/oven-bad.json" "$work/mixed/loopwire/profiles/"
-check folder-invalid-warns 0 "warning: $work/mixed/loopwire/profiles/oven-bad.json: /parameters/0/access" \
-  env XDG_CONFIG_HOME="$work/mixed" "$loopwire" describe oven-x
-check folder-invalid-others-load 0 "oven-x — " env XDG_CONFIG_HOME="$work/mixed" "$loopwire" describe oven-x
-check folder-invalid-id-explained 2 "the file $work/mixed/loopwire/profiles/oven-bad.json that may define it is invalid" \
-  env XDG_CONFIG_HOME="$work/mixed" "$loopwire" read --link tcp://127.0.0.1:1 --device oven-bad@3 set_point
+mkdir -p "$WORK_DIR/mixed/loopwire/profiles"
+cp "$WORK_DIR/oven-x.json" "$WORK_DIR/mixed/loopwire/profiles/"
+cp "$WORK_DIR/oven-bad.json" "$WORK_DIR/mixed/loopwire/profiles/"
+check folder-invalid-warns 0 "warning: $WORK_DIR/mixed/loopwire/profiles/oven-bad.json: /parameters/0/access" \
+  env XDG_CONFIG_HOME="$WORK_DIR/mixed" "$loopwire" describe oven-x
+check folder-invalid-others-load 0 "oven-x — " env XDG_CONFIG_HOME="$WORK_DIR/mixed" "$loopwire" describe oven-x
+check folder-invalid-id-explained 2 "the file $WORK_DIR/mixed/loopwire/profiles/oven-bad.json that may define it is invalid" \
+  env XDG_CONFIG_HOME="$WORK_DIR/mixed" "$loopwire" read --link tcp://127.0.0.1:1 --device oven-bad@3 set_point
 
 # Two profiles with one id: an error naming both, whether the second is a file or a built-in.
-check duplicate-files 2 "\"oven-x\" is defined twice, by $work/oven-x.json and by $folder_config/loopwire/profiles/oven-x.json" \
-  env XDG_CONFIG_HOME="$folder_config" "$loopwire" --profile "$work/oven-x.json" devices
-make_profile tc10 "$work/tc10-copy.json"
-check duplicate-builtin 2 "\"tc10\" is defined twice, by the built-in profile and by $work/tc10-copy.json" \
-  env XDG_CONFIG_HOME="$empty_config" "$loopwire" describe tc10 --profile "$work/tc10-copy.json"
+check duplicate-files 2 "\"oven-x\" is defined twice, by $WORK_DIR/oven-x.json and by $folder_config/loopwire/profiles/oven-x.json" \
+  env XDG_CONFIG_HOME="$folder_config" "$loopwire" --profile "$WORK_DIR/oven-x.json" devices
+make_profile tc10 "$WORK_DIR/tc10-copy.json"
+check duplicate-builtin 2 "\"tc10\" is defined twice, by the built-in profile and by $WORK_DIR/tc10-copy.json" \
+  env XDG_CONFIG_HOME="$empty_config" "$loopwire" describe tc10 --profile "$WORK_DIR/tc10-copy.json"
 
 # A profile folder that cannot be read: a warning, and the built-ins still work.
-mkdir -p "$work/blocked/loopwire"
-touch "$work/blocked/loopwire/profiles"  # a file where the folder should be
-check folder-unreadable-warns 0 "warning: cannot read the profile folder $work/blocked/loopwire/profiles" \
-  env XDG_CONFIG_HOME="$work/blocked" "$loopwire" describe tc10
+mkdir -p "$WORK_DIR/blocked/loopwire"
+touch "$WORK_DIR/blocked/loopwire/profiles"  # a file where the folder should be
+check folder-unreadable-warns 0 "warning: cannot read the profile folder $WORK_DIR/blocked/loopwire/profiles" \
+  env XDG_CONFIG_HOME="$WORK_DIR/blocked" "$loopwire" describe tc10
 if [ "$(id -u)" -ne 0 ]; then  # root reads any folder, whatever its mode
-  mkdir -p "$work/locked/loopwire/profiles"
-  chmod 000 "$work/locked/loopwire/profiles"
-  check folder-no-permission-warns 0 "warning: cannot read the profile folder $work/locked/loopwire/profiles" \
-    env XDG_CONFIG_HOME="$work/locked" "$loopwire" describe tc10
-  chmod 700 "$work/locked/loopwire/profiles"
+  mkdir -p "$WORK_DIR/locked/loopwire/profiles"
+  chmod 000 "$WORK_DIR/locked/loopwire/profiles"
+  check folder-no-permission-warns 0 "warning: cannot read the profile folder $WORK_DIR/locked/loopwire/profiles" \
+    env XDG_CONFIG_HOME="$WORK_DIR/locked" "$loopwire" describe tc10
+  chmod 700 "$WORK_DIR/locked/loopwire/profiles"
 fi
 
 finish
