@@ -53,13 +53,13 @@ Bytes fc16_request_pdu() {
 
 std::size_t frames_in(const FrameEvents& events) {
     std::size_t frames = 0;
-    for (const auto& event : events) frames += std::holds_alternative<Frame>(event) ? 1 : 0;
+    for (const auto& event : events) frames += std::holds_alternative<Frame>(event) ? 1u : 0u;
     return frames;
 }
 
 void count_frames(benchmark::State& state, std::size_t wire_bytes) {
     state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
-    state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * wire_bytes));
+    state.SetBytesProcessed(state.iterations() * static_cast<std::int64_t>(wire_bytes));
 }
 
 // ---- PDU ----------------------------------------------------------------------------------

@@ -42,12 +42,13 @@ void print_text(const FrameExplanation& e) {
     if (e.transaction) fmt::print("transaction {}\n", *e.transaction);
     if (e.unit) fmt::print("unit       {}\n", *e.unit);
     if (e.command) fmt::print("command    {}\n", *e.command);
-    if (e.function) fmt::print("function   {} ({})\n", *e.function, codec::function_name(*e.function));
+    // The function and exception codes were each read from one byte of the frame.
+    if (e.function) fmt::print("function   {} ({})\n", *e.function, codec::function_name(static_cast<std::uint8_t>(*e.function)));
     if (!e.kind.empty()) fmt::print("kind       {}\n", e.kind);
     if (e.address) fmt::print("address    {} (0x{:04X})\n", *e.address, *e.address);
     if (e.count) fmt::print("count      {}\n", *e.count);
     if (!e.values.empty()) fmt::print("values     {}\n", fmt::join(e.values, " "));
-    if (e.exception) fmt::print("exception  {}\n", codec::describe_exception(*e.exception));
+    if (e.exception) fmt::print("exception  {}\n", codec::describe_exception(static_cast<std::uint8_t>(*e.exception)));
     fmt::print("check      {}\n", e.check_ok ? "ok" : "BAD");
     if (!e.problem.empty()) fmt::print("invalid    {}\n", e.problem);
 }

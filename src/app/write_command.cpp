@@ -78,7 +78,7 @@ int run_raw_write(const WriteOptions& options) {
     if (!address) return report_error(address.error());
     auto values = parse_values(options, coils);
     if (!values) return report_error(values.error());
-    if (*address + values->size() > 0x10000) {
+    if (static_cast<std::size_t>(*address) + values->size() > 0x10000) {  // address is 0..65535 here
         return report_error(make_error(ErrorKind::usage, fmt::format("{} values from address {} run past the last address 65535", values->size(), *address)));
     }
     auto url = transport::parse_link_url(options.master.link);

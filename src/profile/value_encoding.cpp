@@ -188,9 +188,11 @@ Result<std::uint16_t> encode_number(const Parameter& parameter, std::string_view
     const std::int64_t lowest = word_minimum(parameter);
     const std::int64_t highest = word_maximum(parameter);
     if (!scaled.value || *scaled.value < lowest || *scaled.value > highest) {
+        // The limits are those of a 16-bit word, exact as doubles.
         return refused(fmt::format("{} {} does not fit its 16-bit word: with {} decimals it holds {} .. {}",
-                                   parameter.name, text, *decimals, fixed_text(lowest / power_of_ten(*decimals), *decimals),
-                                   fixed_text(highest / power_of_ten(*decimals), *decimals)));
+                                   parameter.name, text, *decimals,
+                                   fixed_text(static_cast<double>(lowest) / power_of_ten(*decimals), *decimals),
+                                   fixed_text(static_cast<double>(highest) / power_of_ten(*decimals), *decimals)));
     }
     return to_word(*scaled.value);
 }

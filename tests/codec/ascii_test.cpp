@@ -161,7 +161,7 @@ TEST(AsciiDecode, LongestFrameCarriesA253BytePdu) {
 }
 
 TEST(AsciiDecode, RoundTripsEveryPduSizeAndSeveralUnits) {
-    for (std::uint8_t unit : {0x00, 0x01, 0x7F, 0xF7, 0xFF}) {
+    for (std::uint8_t unit : std::initializer_list<std::uint8_t>{0x00, 0x01, 0x7F, 0xF7, 0xFF}) {
         for (std::size_t size = 1; size <= 253; ++size) {
             Bytes pdu(size);
             for (std::size_t i = 0; i < size; ++i) pdu[i] = static_cast<std::uint8_t>(i * 53 + unit + size);

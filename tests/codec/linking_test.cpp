@@ -99,7 +99,7 @@ TEST(LinkingEncode, SumKeepsTheLowEightBits) {
 TEST(LinkingEncode, RequestsAndRepliesRoundTrip) {
     for (LinkingCommand command :
          {LinkingCommand::read, LinkingCommand::modify_ram, LinkingCommand::write_eeprom}) {
-        for (std::uint16_t value : {0x0000, 0x0001, 0x00FF, 0x1234, 0xFFFF}) {
+        for (std::uint16_t value : std::initializer_list<std::uint16_t>{0x0000, 0x0001, 0x00FF, 0x1234, 0xFFFF}) {
             const LinkingRequest request{command, static_cast<std::uint8_t>(value), value,
                                          static_cast<std::uint16_t>(~value)};
             const Bytes wire = encode_linking_request(request);

@@ -483,7 +483,7 @@ TEST(PduExpectedLength, Replies) {
     EXPECT_EQ(expected_pdu_length(Direction::reply, hex("01 02 A7")), 4u);
     EXPECT_EQ(expected_pdu_length(Direction::reply, hex("02 FF")), 257u);  // the framer rejects it
     EXPECT_EQ(expected_pdu_length(Direction::reply, hex("04 02")), 4u);
-    for (std::uint8_t fc : {5, 6, 15, 16}) {
+    for (std::uint8_t fc : std::initializer_list<std::uint8_t>{5, 6, 15, 16}) {
         EXPECT_EQ(expected_pdu_length(Direction::reply, Bytes{fc}), 5u) << int{fc};
     }
     EXPECT_EQ(expected_pdu_length(Direction::reply, hex("83")), 2u);

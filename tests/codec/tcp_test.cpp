@@ -139,7 +139,7 @@ TEST(MbapDecodeErrors, ProtocolIdRefusedOnItsFourthByte) {
 }
 
 TEST(MbapDecodeErrors, LengthBelowTwoNamesFieldAndValue) {
-    for (std::uint16_t length : {0, 1}) {
+    for (std::uint16_t length : std::initializer_list<std::uint16_t>{0, 1}) {
         MbapDecoder decoder;
         Bytes header = hex("00 01 00 00");
         append_be16(header, length);
@@ -150,7 +150,7 @@ TEST(MbapDecodeErrors, LengthBelowTwoNamesFieldAndValue) {
 }
 
 TEST(MbapDecodeErrors, LengthAbove260NamesFieldAndValue) {
-    for (std::uint16_t length : {261, 262, 0xFFFF}) {
+    for (std::uint16_t length : std::initializer_list<std::uint16_t>{261, 262, 0xFFFF}) {
         MbapDecoder decoder;
         Bytes header = hex("00 01 00 00");
         append_be16(header, length);
@@ -162,7 +162,7 @@ TEST(MbapDecodeErrors, LengthAbove260NamesFieldAndValue) {
 // A length of 255..260 is wrong (PDU past 253 bytes) but still delimits the frame: it is handed
 // out whole, so the receiver can refuse it and the next frame is read in step.
 TEST(MbapDecode, OverlongPduWithATrustedLengthIsFramedByItsLength) {
-    for (std::uint16_t length : {255, 260}) {
+    for (std::uint16_t length : std::initializer_list<std::uint16_t>{255, 260}) {
         Bytes overlong = hex("00 05 00 00");
         append_be16(overlong, length);
         overlong.push_back(0x01);

@@ -76,7 +76,7 @@ TEST(ReadPlanner, RandomSelectionsAreOptimal) {
         const auto all = every_readable(*profile);
         for (int round = 0; round < 300; ++round) {
             std::vector<const Parameter*> wanted;
-            const unsigned percent = 5 + random() % 60;
+            const auto percent = 5 + random() % 60;
             for (const Parameter* parameter : all) {
                 if (random() % 100 < percent) wanted.push_back(parameter);
             }

@@ -59,7 +59,7 @@ TEST(TcpMaster, MatchesOutOfOrderRepliesByTransactionId) {
     auto master = open_master(link, MasterOptions{});
     ASSERT_TRUE(master.ok()) << master.error().message;
     std::vector<std::future<Result<codec::Reply>>> replies;
-    for (std::uint16_t address : {10, 20, 30}) {
+    for (std::uint16_t address : std::initializer_list<std::uint16_t>{10, 20, 30}) {
         auto promise = std::make_shared<std::promise<Result<codec::Reply>>>();
         replies.push_back(promise->get_future());
         (*master)->execute_async(1, codec::read_request(codec::FunctionCode::read_holding_registers, address, 1),

@@ -135,7 +135,7 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(BusCase{"ac20", "rtu:virtual?baud=9600&parity=even", "auxiliary_set_point_2", "250"},
                       BusCase{"tc10", "rtu:virtual?baud=9600&parity=none", "set_point", "125"},
                       BusCase{"rampsoak", "rtu:virtual?baud=9600&parity=odd", "output_limit", "87.5"}),
-    [](const ::testing::TestParamInfo<BusCase>& info) { return info.param.id; });
+    [](const ::testing::TestParamInfo<BusCase>& test) { return test.param.id; });
 
 }  // namespace
 }  // namespace loopwire::device

@@ -382,15 +382,15 @@ TEST_F(VirtualBusFaults, FaultsApplyPerWrite) {
 // station, and frames stay whole.
 TEST(VirtualBus, SurvivesManyThreadsWritingAndReading) {
     auto bus = VirtualBus::create(115200, 10);
-    constexpr int stations = 4;
+    constexpr std::size_t stations = 4;
     constexpr int frames_each = 20;
     constexpr std::size_t frame_size = 8;
     std::vector<std::unique_ptr<ByteStream>> ports;
-    for (int i = 0; i < stations; ++i) ports.push_back(bus->attach("station" + std::to_string(i)));
+    for (std::size_t i = 0; i < stations; ++i) ports.push_back(bus->attach("station" + std::to_string(i)));
 
     std::vector<Bytes> heard(stations);
     std::vector<std::thread> threads;
-    for (int i = 0; i < stations; ++i) {
+    for (std::size_t i = 0; i < stations; ++i) {
         threads.emplace_back([&, i] {
             const std::size_t expected = (stations - 1) * frames_each * frame_size;
             std::thread talker([&] {
@@ -403,10 +403,11 @@ TEST(VirtualBus, SurvivesManyThreadsWritingAndReading) {
         });
     }
     for (auto& thread : threads) thread.join();
-    for (int i = 0; i < stations; ++i) {
+    for (std::size_t i = 0; i < stations; ++i) {
         ASSERT_EQ(heard[i].size(), (stations - 1) * frames_each * frame_size) << "station " << i;
         for (std::size_t at = 0; at < heard[i].size(); at += frame_size) {
-            const Bytes frame(heard[i].begin() + at, heard[i].begin() + at + frame_size);
+            const auto start = heard[i].begin() + static_cast<std::ptrdiff_t>(at);
+            const Bytes frame(start, start + static_cast<std::ptrdiff_t>(frame_size));
             EXPECT_EQ(frame, Bytes(frame_size, frame[0])) << "interleaved frame at " << at;
             EXPECT_NE(frame[0], i) << "station heard itself";
         }

@@ -85,7 +85,7 @@ std::uint16_t Tc10Simulator::alarm_status() const {
 
 std::uint16_t Tc10Simulator::output_status() const {
     std::uint16_t word = 0;
-    for (int output = 1; output <= 4; ++output) word |= bit(output_on(output), output_bits[output - 1]);
+    for (int output = 1; output <= 4; ++output) word |= bit(output_on(output), output_bits[static_cast<std::size_t>(output - 1)]);
     return word;
 }
 
