@@ -1,6 +1,6 @@
 // loopwire simulate --link URL [--device DEVICE@UNIT ...] [--unit N ...] [--pty PATH] [--state FILE]
 //                   [--seed N] [--speed X] [--fault DEVICE@UNIT:FAULT ...] [--duration S] [-v]
-// --device serves a simulated controller: its behaviour model (device/models/) over its
+// --device serves a simulated controller: its behaviour model (devices/<id>/) over its
 // profile; --unit a plain register bank (all four tables, 65536 entries, zero, writable).
 #include <condition_variable>
 #include <mutex>

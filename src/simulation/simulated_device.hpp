@@ -3,7 +3,7 @@
 // (function codes, per-request limits, unmapped addresses, mirrors, read-only words, ranges,
 // special values, broadcast, numbering alternatives). Device behaviour the data cannot express
 // (AC20 modes and locks, TC10 alarms, the ramp/soak program, the process each one controls)
-// belongs in a model subclass (device/models/) that overrides the hooks below.
+// belongs in a model subclass (devices/<id>/) that overrides the hooks below.
 #include <cstdint>
 #include <memory>
 #include <mutex>

@@ -1,4 +1,4 @@
-// The `loopwire dump` document (format in app/dump_document.hpp).
+// The `loopwire dump` document (format in client/dump_document.hpp).
 #include <gtest/gtest.h>
 
 #include "client/dump_document.hpp"

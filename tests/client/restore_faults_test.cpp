@@ -1,4 +1,4 @@
-// The restore runner (app/restore_runner.hpp) on a faulty bus (faulty_bus_rig.hpp). The faults
+// The restore runner (client/restore_runner.hpp) on a faulty bus (client/faulty_bus_rig.hpp). The faults
 // hit each frame of the restore in turn: a dropped request, a dropped reply, a corrupted reply.
 // Whatever happens, the outcome is honest, checked through the clean bus afterwards: success
 // only when every value is back; otherwise each change is named exactly once as written (and

@@ -4,7 +4,7 @@
 // rows 0009H-0038H: pattern 1 at 0009H, pattern 2 at 0021H, three words per segment).
 //
 // The manual lists the registers but not how a program runs; what this model does (each choice
-// is tested in tests/device/models/rampsoak_simulator_test.cpp):
+// is tested in tests/devices/rampsoak/rampsoak_simulator_test.cpp):
 // - Segment n ramps the working set point linearly from where segment n-1 ended (segment 1:
 //   from the PV at the start) to SV_n over TM_n; a soak is a segment whose SV_n equals the
 //   previous one. Ramping from the PV avoids a step at the start, as program controllers do.

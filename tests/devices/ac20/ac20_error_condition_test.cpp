@@ -1,5 +1,5 @@
 // The AC20's start-up error conditions through the wire (ENG. 824E rev. 1, "List of error
-// codes" and the paragraphs after it; choices in src/device/models/ac20_error_condition.cpp).
+// codes" and the paragraphs after it; choices in src/devices/ac20/ac20_error_condition.cpp).
 #include <gtest/gtest.h>
 
 #include "ac20_test_support.hpp"
