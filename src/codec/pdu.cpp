@@ -586,7 +586,7 @@ std::vector<std::uint16_t> unpack_bits(ByteView packed, std::size_t count) {
     const std::size_t available = std::min(count, packed.size() * 8);
     std::vector<std::uint16_t> states(available);
     for (std::size_t i = 0; i < available; ++i) {
-        states[i] = static_cast<std::uint16_t>((packed[i / 8] >> (i % 8)) & 1u);
+        states[i] = static_cast<std::uint16_t>((static_cast<unsigned>(packed[i / 8]) >> (i % 8)) & 1u);
     }
     return states;
 }

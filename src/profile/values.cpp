@@ -34,7 +34,7 @@ Result<EngineeringValue> decode_bit(const Parameter& parameter, std::uint16_t ra
 
 EngineeringValue decode_bits(const Parameter& parameter, std::uint16_t raw) {
     std::map<std::string, bool> bits;
-    for (const auto& [bit, name] : parameter.bit_names) bits[name] = ((raw >> bit) & 1U) != 0;
+    for (const auto& [bit, name] : parameter.bit_names) bits[name] = ((unsigned{raw} >> bit) & 1U) != 0;
     return with(std::move(bits), raw);
 }
 
@@ -53,7 +53,7 @@ Result<EngineeringValue> decode_number(const Parameter& parameter, std::uint16_t
 std::string bits_text(const Parameter& parameter, std::uint16_t raw) {
     std::string text;
     for (unsigned bit = 0; bit < 16; ++bit) {
-        if (((raw >> bit) & 1U) == 0) continue;
+        if (((unsigned{raw} >> bit) & 1U) == 0) continue;
         const auto name = parameter.bit_names.find(bit);
         text += (text.empty() ? "" : "+") + (name == parameter.bit_names.end() ? fmt::format("bit{}", bit) : name->second);
     }

@@ -18,7 +18,7 @@ std::uint16_t word_of(double counts) {
     return static_cast<std::uint16_t>(static_cast<std::int16_t>(std::lround(counts)));
 }
 
-std::uint16_t bit(bool on, unsigned position) { return on ? static_cast<std::uint16_t>(1U << position) : 0; }
+std::uint16_t bit(bool on, unsigned position) { return static_cast<std::uint16_t>(on ? 1U << position : 0U); }
 
 // §5.1 11A prints output 1 at bit 0, output 2 at bit 1, output 3 at bit 3, output 4 at bit 4
 // (bit 2 skipped); the profile keeps the bits as printed.

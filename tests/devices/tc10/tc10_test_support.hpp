@@ -36,7 +36,7 @@ inline void set(Simulated& tc10, std::uint16_t address, int value) {
     EXPECT_EQ(tc10.send(request), testing::echo_of(request)) << "write " << value << " to " << address;
 }
 
-inline bool bit(std::uint16_t word, unsigned position) { return ((word >> position) & 1U) != 0; }
+inline bool bit(std::uint16_t word, unsigned position) { return ((unsigned{word} >> position) & 1U) != 0; }
 
 inline SimulationEnvironment at_speed(double speed) {
     SimulationEnvironment environment;
