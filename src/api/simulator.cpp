@@ -35,16 +35,15 @@ session::UnitMap simulated_units(const std::vector<std::string>& devices, const 
     session::UnitMap units;
     device::SimulationEnvironment environment;
     environment.speed = options.speed;
-    environment.framing = transport::framing_name(link.framing);
+    environment.seed = options.seed;
     for (const std::string& text : devices) {
         auto address = api::value_or_throw(api::resolve_device(text));
         if (units.contains(address.unit)) {
             throw Failure(Failure::Kind::usage, fmt::format("unit {} is given twice ('{}'); each unit id can be served once",
                                                             address.unit, text));
         }
-        // Each unit its own noise: one seed on two units would make them move in lockstep.
-        environment.seed = options.seed * 1000003ULL + address.unit;
-        units[address.unit] = device::models::make_simulated_device(address.profile, environment);
+        units[address.unit] = device::models::make_simulated_device(
+            address.profile, environment.for_unit(address.unit, transport::framing_name(link.framing)));
     }
     return units;
 }

@@ -57,15 +57,12 @@ Result<SimulatedUnits> build_simulated_units(const device::ProfileRegistry& prof
                                              const transport::LinkUrl& link,
                                              const device::SimulationEnvironment& environment) {
     SimulatedUnits result;
-    device::SimulationEnvironment unit_environment = environment;
-    unit_environment.framing = transport::framing_name(link.framing);
     for (const std::string& text : devices) {
         auto device = device::parse_device_address(profiles, text);
         if (!device) return device.error();
         if (auto free = claim(result, device->unit); !free) return free.error();
-        // Each unit its own noise: the same seed on two units would make them move in lockstep.
-        unit_environment.seed = environment.seed * 1000003ULL + device->unit;
-        auto simulated = device::models::make_simulated_device(device->profile, unit_environment);
+        auto simulated = device::models::make_simulated_device(
+            device->profile, environment.for_unit(device->unit, transport::framing_name(link.framing)));
         result.units[device->unit] = simulated;
         result.devices[device->unit] = simulated;
         result.descriptions.push_back(fmt::format("{}: {} ({})", device->unit, device->profile->id, device->profile->title));

@@ -5,6 +5,8 @@
 
 #include <fmt/format.h>
 
+#include "common/text_parsing.hpp"
+
 namespace loopwire::device {
 namespace {
 
@@ -49,19 +51,11 @@ Result<DeviceName> split_device_address(const std::string& text) {
     const auto at = text.find('@');
     DeviceName name{text.substr(0, at), 1};
     if (at == std::string::npos) return name;
-    const std::string unit = text.substr(at + 1);
-    int value = -1;
-    try {
-        std::size_t used = 0;
-        value = std::stoi(unit, &used);
-        if (used != unit.size()) value = -1;
-    } catch (...) {
-        value = -1;
-    }
-    if (value < 1 || value > 247) {
+    const auto unit = parse_decimal_digits(std::string_view(text).substr(at + 1));
+    if (!unit || *unit < 1 || *unit > 247) {
         return make_error(ErrorKind::usage, fmt::format("'{}': the unit after '@' must be 1..247 (e.g. {}@3)", text, name.id));
     }
-    name.unit = static_cast<std::uint8_t>(value);
+    name.unit = static_cast<std::uint8_t>(*unit);  // 1..247, checked above
     return name;
 }
 

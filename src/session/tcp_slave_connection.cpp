@@ -73,36 +73,35 @@ void TcpSlaveConnection::on_read(const error_code& error, std::size_t size) {
 }
 
 // One read's worth of bytes (or its failure): every complete frame is answered and the replies
-// go out in one write. False once the connection is closed or closing.
-bool TcpSlaveConnection::take(const error_code& error, std::size_t size) {
-    if (closed_ || closing_) return false;
+// go out in one write.
+void TcpSlaveConnection::take(const error_code& error, std::size_t size) {
+    if (closed_ || closing_) return;
     if (error == asio::error::eof) {  // the client is done sending: a normal end, not traced
         close_after_replies({});
-        return false;
+        return;
     }
     if (error) {
         close();
-        return false;
+        return;
     }
     auto events = codec_->feed(ByteView(input_.data(), size), Clock::now());
     if (!events) {
         if (slave_.tracing()) slave_.trace(TraceDirection::discarded, ByteView(input_.data(), size), events.error().message + "; connection closed");
         close();
-        return false;
+        return;
     }
     batching_ = true;
     handle(*events);
     batching_ = false;
-    if (closed_) return false;
+    if (closed_) return;
     // Modbus Messaging on TCP/IP V1.0b, 4.2: the frames before a bad header were complete
     // requests and are answered; the stream cannot be followed past it.
     if (auto broken = codec_->stream_error()) {
         close_after_replies(broken->message);
-        return false;
+        return;
     }
     arm_timer();
     flush_output();
-    return !closed_;
 }
 
 void TcpSlaveConnection::handle(codec::FrameEvents& events) {

@@ -60,7 +60,7 @@ public:
 private:
     void read();
     void on_read(const boost::system::error_code& error, std::size_t size);
-    bool take(const boost::system::error_code& error, std::size_t size);  // false: closed or closing
+    void take(const boost::system::error_code& error, std::size_t size);
     void flush_output();
     void handle(codec::FrameEvents& events);
     void dispatch(const codec::Frame& frame);

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <utility>
 
 namespace loopwire::device {
 
@@ -22,6 +23,15 @@ struct SimulationEnvironment {
     // The framing the device is served with ("rtu", "ascii", "linking", "tcp"): the ramp/soak
     // controller's Linking M request modifies RAM only, its W request RAM and EEPROM.
     std::string framing = "rtu";
+
+    // The environment of the device at `unit` on a line served with `line_framing`: each unit
+    // its own noise, as one seed on two units would make them move in lockstep.
+    SimulationEnvironment for_unit(std::uint8_t unit, std::string line_framing) const {
+        SimulationEnvironment environment = *this;
+        environment.seed = seed * 1000003ULL + unit;
+        environment.framing = std::move(line_framing);
+        return environment;
+    }
 };
 
 }  // namespace loopwire::device

@@ -15,6 +15,9 @@
 # Sourcing sets no shell options: a script that wants `set -euo pipefail` sets it itself.
 
 WORK_DIR=$(mktemp -d "${TMPDIR:-/tmp}/loopwire-test.XXXXXX")
+# loopwire loads profile files from the user's folder ($XDG_CONFIG_HOME/loopwire/profiles): the
+# tests see none but their own, whatever the machine's user keeps there.
+export XDG_CONFIG_HOME="$WORK_DIR/config"
 BACKGROUND_PIDS=()
 LAST_PID=
 PORT=
