@@ -5,6 +5,7 @@
 # unreadable folders say which file and what to do.
 set -u
 loopwire=${1:?usage: profile_files_test.sh path/to/loopwire}
+loopwire_binary=$(cd "$(dirname "$loopwire")" && pwd)/$(basename "$loopwire")
 source "$(dirname "$0")/../support/test_lib.sh"
 python=/usr/bin/python3
 profiles_dir="$(cd "$(dirname "$0")/../../profiles" && pwd)"
@@ -106,5 +107,19 @@ if [ "$(id -u)" -ne 0 ]; then  # root reads any folder, whatever its mode
     env XDG_CONFIG_HOME="$WORK_DIR/locked" "$loopwire" describe tc10
   chmod 700 "$WORK_DIR/locked/loopwire/profiles"
 fi
+
+# The README's "copy a built-in as a start" commands, as printed, in a home of the test's own
+# (from the repository's top folder, where the README's commands are run).
+readme_home="$WORK_DIR/readme-home"
+mkdir -p "$readme_home"
+(
+  cd "$profiles_dir/.." || exit 1
+  export HOME="$readme_home" XDG_CONFIG_HOME=
+  loopwire() { "$loopwire_binary" "$@"; }
+  mkdir -p ~/.config/loopwire/profiles
+  sed 's/"id": "tc10"/"id": "oven-x"/' profiles/tc10.json >~/.config/loopwire/profiles/oven-x.json
+  loopwire describe oven-x
+) >"$WORK_DIR/readme.log" 2>&1
+check readme-copy-of-a-builtin 0 "oven-x — " cat "$WORK_DIR/readme.log"
 
 finish
