@@ -4,17 +4,14 @@
 
 namespace loopwire {
 
+// nlohmann's json_pointer does the escaping; `parent` is always a pointer made here, so it parses.
 std::string json_pointer(const std::string& parent, std::string_view key) {
-    std::string pointer = parent + "/";
-    for (const char c : key) {
-        if (c == '~') pointer += "~0";
-        else if (c == '/') pointer += "~1";
-        else pointer += c;
-    }
-    return pointer;
+    return (nlohmann::json::json_pointer(parent) / std::string(key)).to_string();
 }
 
-std::string json_pointer(const std::string& parent, std::size_t index) { return parent + "/" + std::to_string(index); }
+std::string json_pointer(const std::string& parent, std::size_t index) {
+    return (nlohmann::json::json_pointer(parent) / index).to_string();
+}
 
 std::string describe_json(const nlohmann::json& value) {
     // Invalid UTF-8 in a string must not make the description itself throw.
