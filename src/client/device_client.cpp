@@ -10,17 +10,8 @@
 namespace loopwire::device {
 namespace {
 
-codec::FunctionCode read_function(Table table) {
-    switch (table) {
-        case Table::holding: return codec::FunctionCode::read_holding_registers;
-        case Table::input: return codec::FunctionCode::read_input_registers;
-        case Table::coils: return codec::FunctionCode::read_coils;
-        case Table::discrete: return codec::FunctionCode::read_discrete_inputs;
-    }
-    return codec::FunctionCode::read_holding_registers;
-}
-
-bool is_bit_table(Table table) { return table == Table::coils || table == Table::discrete; }
+using codec::is_bit_table;
+using codec::read_function;
 
 codec::Request write_request(const WriteBlock& block) {
     const bool bits = is_bit_table(block.table);

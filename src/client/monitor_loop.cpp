@@ -27,6 +27,10 @@ public:
     void execute_async(std::uint8_t unit, codec::Request request, Completion done) override {
         inner_.execute_async(unit, std::move(request), std::move(done));
     }
+    Result<Bytes> forward(std::uint8_t unit, ByteView pdu) override { return inner_.forward(unit, pdu); }
+    void forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) override {
+        inner_.forward_async(unit, std::move(pdu), std::move(done));
+    }
     std::string describe() const override { return inner_.describe(); }
 
     void start_poll() { failure_.reset(); }

@@ -17,16 +17,6 @@
 
 namespace loopwire::device {
 
-std::string table_name(Table table) {
-    switch (table) {
-        case Table::holding: return "holding";
-        case Table::input: return "input";
-        case Table::coils: return "coils";
-        case Table::discrete: return "discrete";
-    }
-    return "holding";
-}
-
 const Parameter* Profile::find(std::string_view name) const {
     const auto it = std::find_if(parameters.begin(), parameters.end(),
                                  [&](const Parameter& parameter) { return parameter.name == name; });

@@ -12,12 +12,13 @@
 #include <variant>
 #include <vector>
 
+#include "codec/table.hpp"
 #include "common/result.hpp"
 
 namespace loopwire::device {
 
-enum class Table { holding, input, coils, discrete };
-std::string table_name(Table table);  // "holding", "input", "coils", "discrete"
+using codec::Table;
+using codec::table_name;
 
 enum class ValueType { int16, uint16, enumeration, bitfield, boolean };
 
@@ -45,7 +46,7 @@ struct Parameter {
     std::string mnemonic;
     std::string group;
     std::string description;
-    Table table = Table::holding;
+    Table table = Table::holding_registers;
     std::uint16_t address = 0;            // in the device's own numbering
     ValueType type = ValueType::uint16;
     std::variant<int, std::string> decimals = 0;  // fixed, or the parameter giving them
@@ -78,7 +79,7 @@ struct Limits {
 };
 
 struct AddressMirror {
-    Table table = Table::holding;
+    Table table = Table::holding_registers;
     std::uint16_t first = 0;
     std::uint16_t last = 0;
     int offset = 0;

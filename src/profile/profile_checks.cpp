@@ -8,6 +8,8 @@
 
 #include <fmt/format.h>
 
+#include "codec/table.hpp"
+
 namespace loopwire::device {
 namespace {
 
@@ -154,7 +156,8 @@ void check_parameter_values(const Json& parameters, std::vector<DocumentProblem>
     for (std::size_t i = 0; i < parameters.size(); ++i) {
         const Json& parameter = parameters[i];
         const auto table = parameter.at("table").get<std::string>();
-        const bool bit_table = table == "coils" || table == "discrete";
+        const auto named = codec::table_named(table);
+        const bool bit_table = named && codec::is_bit_table(*named);
         if (bit_table != (parameter.at("type") == "bool")) {
             problems.push_back({parameter_pointer(i, "/type"),
                                 bit_table ? fmt::format("entries of table {} must be bool", table)

@@ -9,13 +9,8 @@ namespace {
 
 using Json = nlohmann::json;
 
-Table table_from(const Json& text) {
-    const auto name = text.get<std::string>();
-    if (name == "input") return Table::input;
-    if (name == "coils") return Table::coils;
-    if (name == "discrete") return Table::discrete;
-    return Table::holding;
-}
+// The schema allows only the four names (profile_schema): anything else is a holding register.
+Table table_from(const Json& text) { return codec::table_named(text.get<std::string>()).value_or(Table::holding_registers); }
 
 ValueType type_from(const Json& text) {
     const auto name = text.get<std::string>();
@@ -77,7 +72,7 @@ Parameter parameter_from(const Json& entry, const std::vector<SpecialValue>& wor
     read_range(entry, parameter);
     read_labels(entry, parameter);
     parameter.special = specials_from(entry.value("special", Json::array()));
-    if (parameter.table == Table::holding || parameter.table == Table::input) {
+    if (parameter.table == Table::holding_registers || parameter.table == Table::input_registers) {
         parameter.special.insert(parameter.special.end(), word_specials.begin(), word_specials.end());
     }
     parameter.ram_only = entry.value("storage", std::string()) == "ram";

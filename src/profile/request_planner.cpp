@@ -8,7 +8,7 @@
 namespace loopwire::device {
 namespace {
 
-bool is_bit_table(Table table) { return table == Table::coils || table == Table::discrete; }
+using codec::is_bit_table;
 
 bool supports(const Profile& profile, std::uint8_t function) {
     return std::find(profile.function_codes.begin(), profile.function_codes.end(), function) !=

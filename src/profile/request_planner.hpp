@@ -10,7 +10,7 @@
 namespace loopwire::device {
 
 struct ReadBlock {
-    Table table = Table::holding;
+    Table table = Table::holding_registers;
     std::uint16_t wire_address = 0;
     std::uint16_t count = 0;
     std::vector<const Parameter*> parameters;  // the wanted ones inside the block, by address
@@ -30,7 +30,7 @@ std::vector<ReadBlock> plan_reads(const Profile& profile, const std::vector<cons
                                   int address_offset = 0);
 
 struct WriteBlock {
-    Table table = Table::holding;
+    Table table = Table::holding_registers;
     std::uint16_t wire_address = 0;
     std::vector<std::uint16_t> values;
     std::vector<const Parameter*> parameters;

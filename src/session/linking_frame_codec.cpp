@@ -66,7 +66,12 @@ public:
 private:
     Result<Bytes> encode_request(std::uint8_t unit, ByteView pdu) {
         auto request = codec::decode_request(pdu);
-        if (!request) return request.error();
+        if (!request) {
+            return make_error(ErrorKind::usage,
+                              fmt::format("the Linking protocol carries one register read or write per "
+                                          "request; this PDU is not one ({})",
+                                          request.error().message));
+        }
         Exchange exchange{LinkingCommand::read, request->function, request->address, 0};
         if (request->function == 0x03 && request->count == 1) {
             exchange.command = LinkingCommand::read;

@@ -50,6 +50,17 @@ public:
     // The same without blocking, for event loops: `done` runs on a thread of the master's.
     virtual void execute_async(std::uint8_t unit, codec::Request request, Completion done) = 0;
 
+    using ForwardCompletion = std::function<void(Result<Bytes>)>;
+
+    // A PDU of any function code passed through as it is, for a gateway that serves Modbus TCP
+    // clients from this link (docs/DESIGN.md, gateway). The result is the PDU the unit answered,
+    // an exception reply (function + 80h, code) included, for the caller to pass back
+    // unchanged; errors are only what a device cannot say itself: no reply, a reply that does
+    // not answer, a link that failed, a PDU that is not Modbus (check_forwardable), or a
+    // framing that cannot carry it (Linking). Unit 0 broadcasts and returns an empty PDU.
+    virtual Result<Bytes> forward(std::uint8_t unit, ByteView pdu) = 0;
+    virtual void forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) = 0;
+
     virtual std::string describe() const = 0;
 };
 

@@ -7,6 +7,7 @@
 #include "codec/rtu.hpp"
 #include "session/frame_codec.hpp"
 #include "session/master.hpp"
+#include "session/reply_check.hpp"
 #include "session/transaction_text.hpp"
 
 namespace loopwire::session {
@@ -68,20 +69,22 @@ public:
     Result<codec::Reply> execute(std::uint8_t unit, const codec::Request& request) override {
         auto pdu = codec::encode_request(request);
         if (!pdu) return pdu.error();
-        std::lock_guard lock(line_);  // one outstanding request per serial line
-        TimeoutContext context{name_, options_.timeout.count(), 0, 0};
-        for (unsigned attempt = 0; attempt <= options_.retries; ++attempt) {
-            ++context.tries;
-            auto reply = attempt_once(unit, request, *pdu, context);
-            if (reply.ok() || reply.error().kind != ErrorKind::timeout) return reply;
-        }
-        return timeout_error(unit, request, context);
+        return typed_reply(unit, request, exchange(unit, *pdu, describe_transaction(unit, request), answers_request(request)));
     }
 
     void execute_async(std::uint8_t unit, codec::Request request, Completion done) override {
         jobs_.push([this, unit, request = std::move(request), done = std::move(done)] {
             done(execute(unit, request));
         });
+    }
+
+    Result<Bytes> forward(std::uint8_t unit, ByteView pdu) override {
+        if (auto forwardable = check_forwardable(pdu); !forwardable) return forwardable.error();
+        return exchange(unit, pdu, describe_forwarded(unit, pdu), answers_forwarded(Bytes(pdu.begin(), pdu.end())));
+    }
+
+    void forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) override {
+        jobs_.push([this, unit, pdu = std::move(pdu), done = std::move(done)] { done(forward(unit, pdu)); });
     }
 
     std::string describe() const override { return name_; }
@@ -101,14 +104,27 @@ private:
         if (options_.trace) options_.trace({clock_->now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
     }
 
-    Result<codec::Reply> attempt_once(std::uint8_t unit, const codec::Request& request,
-                                      const Bytes& pdu, TimeoutContext& context) {
+    // One request on the line, tried again after each timeout up to the retries allowed: the PDU
+    // of the frame that answers it (exception replies included), empty for a broadcast.
+    Result<Bytes> exchange(std::uint8_t unit, ByteView pdu, const std::string& transaction, const ReplyCheck& answers) {
+        std::lock_guard lock(line_);  // one outstanding request per serial line
+        TimeoutContext context{name_, options_.timeout.count(), 0, 0};
+        for (unsigned attempt = 0; attempt <= options_.retries; ++attempt) {
+            ++context.tries;
+            auto reply = attempt_once(unit, pdu, transaction, answers, context);
+            if (reply.ok() || reply.error().kind != ErrorKind::timeout) return reply;
+        }
+        return timeout_error(unit, transaction, context);
+    }
+
+    Result<Bytes> attempt_once(std::uint8_t unit, ByteView pdu, const std::string& transaction,
+                               const ReplyCheck& answers, TimeoutContext& context) {
         auto frame = codec_->encode(unit, pdu, 0);
         if (!frame) return frame.error();
         clock_->sleep_until(line_quiet_since_ + inter_frame_gap_);
         stream_->discard_input();  // a late reply to an earlier try must not answer this one
         codec_->reset();
-        trace(TraceDirection::sent, *frame, describe_transaction(unit, request));
+        trace(TraceDirection::sent, *frame, transaction);
         auto written = stream_->write(*frame);
         line_quiet_since_ = clock_->now();
         if (!written) return written.error();
@@ -116,15 +132,15 @@ private:
             // Broadcast: nobody answers; give every slave the turnaround delay to execute it.
             clock_->sleep_for(options_.turnaround);
             line_quiet_since_ = clock_->now();
-            return codec::Reply{request.function, codec::ReplyKind::normal, 0, request.address, request.count, {}};
+            return Bytes{};
         }
-        auto reply = await_reply(unit, request, clock_->now() + options_.timeout, context);
+        auto reply = await_reply(unit, transaction, answers, clock_->now() + options_.timeout, context);
         line_quiet_since_ = clock_->now();
         return reply;
     }
 
-    Result<codec::Reply> await_reply(std::uint8_t unit, const codec::Request& request,
-                                      Instant deadline, TimeoutContext& context) {
+    Result<Bytes> await_reply(std::uint8_t unit, const std::string& transaction, const ReplyCheck& answers,
+                              Instant deadline, TimeoutContext& context) {
         std::array<std::uint8_t, 512> buffer{};
         std::optional<Error> wrong_reply;  // the last frame from `unit` that did not answer the request
         for (;;) {
@@ -149,7 +165,7 @@ private:
                 events = codec_->flush(clock_->now());
             }
             for (auto& event : events) {
-                if (auto answer = consider(unit, request, event, context, wrong_reply)) return std::move(*answer);
+                if (auto answer = consider(unit, transaction, answers, event, context, wrong_reply)) return std::move(*answer);
             }
         }
     }
@@ -157,9 +173,9 @@ private:
     // A frame that answers the request ends the wait; anything else is traced and skipped, and
     // a whole frame (check bytes right) from the asked unit that is not a valid answer is kept
     // in `wrong_reply`, with its bytes.
-    std::optional<Result<codec::Reply>> consider(std::uint8_t unit, const codec::Request& request,
-                                                 const codec::FrameEvent& event,
-                                                 TimeoutContext& context, std::optional<Error>& wrong_reply) {
+    std::optional<Bytes> consider(std::uint8_t unit, const std::string& transaction, const ReplyCheck& answers,
+                                  const codec::FrameEvent& event, TimeoutContext& context,
+                                  std::optional<Error>& wrong_reply) {
         if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
             ++context.discarded_runs;
             trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
@@ -170,32 +186,18 @@ private:
             trace(TraceDirection::received, frame.raw, fmt_unit_skip(frame.unit, unit));
             return std::nullopt;
         }
-        auto reply = codec::decode_reply(frame.pdu);
-        if (!reply) {
-            trace(TraceDirection::discarded, frame.raw, reply.error().message);
-            wrong_reply = wrong_reply_error(unit, request, reply.error(), frame.raw);
-            return std::nullopt;
-        }
-        auto matched = codec::match_reply(request, std::move(*reply));
-        if (!matched) {
-            trace(TraceDirection::discarded, frame.raw, matched.error().message);
-            wrong_reply = wrong_reply_error(unit, request, matched.error(), frame.raw);
+        if (auto answered = answers(frame.pdu); !answered) {
+            trace(TraceDirection::discarded, frame.raw, answered.error().message);
+            wrong_reply = wrong_reply_error(unit, transaction, answered.error(), frame.raw);
             return std::nullopt;  // a stale reply, perhaps; the right one may still come
         }
-        if (matched->kind == codec::ReplyKind::exception) {
-            trace(TraceDirection::received, frame.raw, "exception " + codec::describe_exception(matched->exception_code));
-            return Result<codec::Reply>(exception_error(unit, request, matched->exception_code));
-        }
-        trace(TraceDirection::received, frame.raw, "reply from unit " + std::to_string(unit));
-        return Result<codec::Reply>(std::move(*matched));
+        trace(TraceDirection::received, frame.raw, reply_note(unit, frame.pdu));
+        return frame.pdu;
     }
 
-    static Error wrong_reply_error(std::uint8_t unit, const codec::Request& request, const Error& why, ByteView bytes) {
-        return make_error(why.kind == ErrorKind::mismatch ? ErrorKind::mismatch : ErrorKind::malformed,
-                          "unit " + std::to_string(unit) + " answered " + describe_transaction(unit, request) +
-                              " with a reply that is not valid (" + why.message + "): " + to_hex(bytes) +
-                              "; check that the unit id belongs to the device meant, and that nothing else on the "
-                              "line answers for it");
+    static std::string reply_note(std::uint8_t unit, ByteView pdu) {
+        if (pdu.size() == 2 && (pdu[0] & 0x80) != 0) return "exception " + codec::describe_exception(pdu[1]);
+        return "reply from unit " + std::to_string(unit);
     }
 
     static std::string fmt_unit_skip(std::uint8_t got, std::uint8_t wanted) {

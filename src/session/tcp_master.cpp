@@ -10,6 +10,7 @@
 
 #include "codec/tcp.hpp"
 #include "session/master.hpp"
+#include "session/reply_check.hpp"
 #include "session/transaction_text.hpp"
 #include "transport/tcp.hpp"
 
@@ -20,12 +21,13 @@ using Clock = std::chrono::steady_clock;
 
 struct PendingRequest {
     std::uint8_t unit = 0;
-    codec::Request request;
     Bytes pdu;
+    std::string transaction;  // in words, for traces and errors
+    ReplyCheck answers;
     Clock::time_point deadline;
     unsigned tries = 1;
     bool broadcast = false;
-    Master::Completion done;
+    Master::ForwardCompletion done;  // the reply PDU (empty after a broadcast), or what failed
 };
 
 class TcpMaster final : public Master {
@@ -46,30 +48,55 @@ public:
     }
 
     Result<codec::Reply> execute(std::uint8_t unit, const codec::Request& request) override {
-        std::promise<Result<codec::Reply>> promise;
-        auto future = promise.get_future();
-        execute_async(unit, request, [&promise](Result<codec::Reply> r) { promise.set_value(std::move(r)); });
-        return future.get();
+        return wait_for<codec::Reply>([&](auto done) { execute_async(unit, request, std::move(done)); });
     }
 
     void execute_async(std::uint8_t unit, codec::Request request, Completion done) override {
         auto pdu = codec::encode_request(request);
         if (!pdu) return done(pdu.error());
-        PendingRequest pending{unit, std::move(request), std::move(*pdu), {}, 1, unit == 0, std::move(done)};
-        std::unique_lock lock(mutex_);
-        if (auto connected = ensure_connected(); !connected) {
-            lock.unlock();
-            return pending.done(connected.error());
-        }
-        if (auto sent = send(std::move(pending)); !sent) {
-            lock.unlock();
-            fail_all(sent.error());
-        }
+        auto transaction = describe_transaction(unit, request);
+        auto answers = answers_request(request);
+        submit({unit, std::move(*pdu), std::move(transaction), std::move(answers), {}, 1, unit == 0,
+                [unit, request = std::move(request), done = std::move(done)](Result<Bytes> answered) {
+                    done(typed_reply(unit, request, std::move(answered)));
+                }});
+    }
+
+    Result<Bytes> forward(std::uint8_t unit, ByteView pdu) override {
+        return wait_for<Bytes>([&](auto done) { forward_async(unit, Bytes(pdu.begin(), pdu.end()), std::move(done)); });
+    }
+
+    void forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) override {
+        if (auto forwardable = check_forwardable(pdu); !forwardable) return done(forwardable.error());
+        auto transaction = describe_forwarded(unit, pdu);
+        auto answers = answers_forwarded(pdu);
+        submit({unit, std::move(pdu), std::move(transaction), std::move(answers), {}, 1, unit == 0, std::move(done)});
     }
 
     std::string describe() const override { return link_.to_string(); }
 
 private:
+    // Blocks until the completion `start` is given has run, and returns what it was given.
+    template <typename T, typename Start>
+    static Result<T> wait_for(Start start) {
+        std::promise<Result<T>> promise;
+        auto future = promise.get_future();
+        start([&promise](Result<T> outcome) { promise.set_value(std::move(outcome)); });
+        return future.get();
+    }
+
+    void submit(PendingRequest pending) {
+        std::unique_lock lock(mutex_);
+        if (auto connected = ensure_connected(); !connected) {
+            lock.unlock();
+            return pending.done(connected.error());
+        }
+        if (auto failed = send(std::move(pending))) {
+            lock.unlock();
+            failed->first(std::move(failed->second));
+        }
+    }
+
     // Called with mutex_ held.
     Result<void> ensure_connected() {
         if (stream_) return {};
@@ -81,16 +108,22 @@ private:
         return {};
     }
 
+    using Finished = std::pair<ForwardCompletion, Result<Bytes>>;
+
     // Called with mutex_ held: gives the request a new transaction id and puts it on the wire.
-    Result<void> send(PendingRequest pending) {
+    // When the write fails the request is taken back, and its completion is returned with the
+    // error for the caller to run once the mutex is released (the reader drops the connection).
+    std::optional<Finished> send(PendingRequest pending) {
         const std::uint16_t transaction = next_transaction_++;
         Bytes frame = codec::mbap_encode(transaction, pending.unit, pending.pdu);
-        trace(TraceDirection::sent, frame, describe_transaction(pending.unit, pending.request));
+        trace(TraceDirection::sent, frame, pending.transaction);
         pending.deadline = Clock::now() + (pending.broadcast ? options_.turnaround : options_.timeout);
-        pending_.emplace(transaction, std::move(pending));
+        auto [entry, added] = pending_.insert_or_assign(transaction, std::move(pending));
         auto written = stream_->write(frame);
-        if (!written) pending_.erase(transaction);
-        return written;
+        if (written) return std::nullopt;
+        Finished failed{std::move(entry->second.done), written.error()};
+        pending_.erase(entry);
+        return failed;
     }
 
     void trace(TraceDirection direction, ByteView bytes, std::string note) const {
@@ -129,7 +162,7 @@ private:
     }
 
     void dispatch(ByteView bytes) {
-        std::vector<std::pair<Completion, Result<codec::Reply>>> finished;
+        std::vector<Finished> finished;
         {
             std::lock_guard lock(mutex_);
             auto frames = decoder_.feed(bytes);
@@ -150,8 +183,9 @@ private:
         for (auto& [done, result] : finished) done(std::move(result));
     }
 
-    // Called with mutex_ held.
-    std::optional<std::pair<Completion, Result<codec::Reply>>> match(const codec::Frame& frame) {
+    // Called with mutex_ held. The frame that carries an awaited transaction id ends that
+    // request: with its PDU when it answers, with what is wrong with it when it does not.
+    std::optional<Finished> match(codec::Frame& frame) {
         auto it = pending_.find(frame.transaction);
         if (it == pending_.end() || it->second.broadcast) {
             trace(TraceDirection::discarded, frame.raw,
@@ -159,30 +193,24 @@ private:
             return std::nullopt;
         }
         PendingRequest& pending = it->second;
-        auto reply = codec::decode_reply(frame.pdu);
-        Result<codec::Reply> outcome = reply ? codec::match_reply(pending.request, std::move(*reply)) : reply;
-        if (outcome && frame.unit != pending.unit) {
-            outcome = make_error(ErrorKind::mismatch, fmt::format("reply names unit {}, request went to unit {}", frame.unit, pending.unit));
+        Result<void> answers = pending.answers(frame.pdu);
+        if (answers && frame.unit != pending.unit) {
+            answers = make_error(ErrorKind::mismatch, fmt::format("reply names unit {}, request went to unit {}", frame.unit, pending.unit));
         }
-        if (outcome && outcome->kind == codec::ReplyKind::exception) {
-            outcome = exception_error(pending.unit, pending.request, outcome->exception_code);
+        Finished finished{std::move(pending.done), Bytes{}};
+        if (answers) {
+            trace(TraceDirection::received, frame.raw, "reply");
+            finished.second = std::move(frame.pdu);
+        } else {
+            trace(TraceDirection::discarded, frame.raw, answers.error().message);
+            finished.second = wrong_reply_error(pending.unit, pending.transaction, answers.error(), frame.raw);
         }
-        trace(outcome ? TraceDirection::received : TraceDirection::discarded, frame.raw,
-              outcome ? std::string("reply") : outcome.error().message);
-        if (!outcome && outcome.error().kind != ErrorKind::exception) {
-            // Named like the serial master's: which request, why, and the bytes themselves.
-            outcome = make_error(outcome.error().kind == ErrorKind::mismatch ? ErrorKind::mismatch : ErrorKind::malformed,
-                                 fmt::format("unit {} answered {} with a reply that is not valid ({}): {}", pending.unit,
-                                             describe_transaction(pending.unit, pending.request), outcome.error().message,
-                                             to_hex(frame.raw)));
-        }
-        auto done = std::move(pending.done);
         pending_.erase(it);
-        return std::make_pair(std::move(done), std::move(outcome));
+        return finished;
     }
 
     void expire_overdue() {
-        std::vector<std::pair<Completion, Result<codec::Reply>>> finished;
+        std::vector<Finished> finished;
         {
             std::lock_guard lock(mutex_);
             const auto now = Clock::now();
@@ -191,14 +219,13 @@ private:
                 PendingRequest pending = std::move(it->second);
                 it = pending_.erase(it);
                 if (pending.broadcast) {
-                    finished.emplace_back(std::move(pending.done), codec::Reply{pending.request.function, codec::ReplyKind::normal, 0, pending.request.address, pending.request.count, {}});
+                    finished.emplace_back(std::move(pending.done), Bytes{});
                 } else if (pending.tries <= options_.retries && stream_) {
                     ++pending.tries;
-                    auto done = pending.done;
-                    if (auto sent = send(std::move(pending)); !sent) finished.emplace_back(std::move(done), sent.error());
+                    if (auto failed = send(std::move(pending))) finished.push_back(std::move(*failed));
                 } else {
                     TimeoutContext context{link_.to_string(), options_.timeout.count(), pending.tries, 0};
-                    finished.emplace_back(std::move(pending.done), timeout_error(pending.unit, pending.request, context));
+                    finished.emplace_back(std::move(pending.done), timeout_error(pending.unit, pending.transaction, context));
                 }
             }
         }

@@ -30,11 +30,13 @@ void RegisterBank::write(Table which, std::uint16_t address, const std::vector<s
 codec::Reply RegisterBank::serve(const codec::Request& request) {
     std::lock_guard lock(mutex_);
     using codec::FunctionCode;
+    if (const auto read_table = codec::table_read_by(request.function)) return read(*read_table, request);
     switch (static_cast<FunctionCode>(request.function)) {
-        case FunctionCode::read_coils: return read(Table::coils, request);
-        case FunctionCode::read_discrete_inputs: return read(Table::discrete_inputs, request);
-        case FunctionCode::read_holding_registers: return read(Table::holding_registers, request);
-        case FunctionCode::read_input_registers: return read(Table::input_registers, request);
+        case FunctionCode::read_coils:
+        case FunctionCode::read_discrete_inputs:
+        case FunctionCode::read_holding_registers:
+        case FunctionCode::read_input_registers:
+            break;  // answered above
         case FunctionCode::write_single_coil:
         case FunctionCode::write_multiple_coils:
             write(Table::coils, request.address, request.values);

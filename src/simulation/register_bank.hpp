@@ -6,11 +6,12 @@
 #include <mutex>
 #include <vector>
 
+#include "codec/table.hpp"
 #include "session/unit_handler.hpp"
 
 namespace loopwire::session {
 
-enum class Table { coils, discrete_inputs, holding_registers, input_registers };
+using codec::Table;
 
 class RegisterBank final : public RequestHandler {
 public:

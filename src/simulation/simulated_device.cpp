@@ -187,9 +187,9 @@ std::optional<Bytes> SimulatedDevice::handle(ByteView request_pdu, bool broadcas
 // discrete-input or input-register table (AC20 "Function code 1 and 2", "3 and 4"; NOTES.md).
 Table SimulatedDevice::table_for(std::uint8_t function) const {
     switch (function) {
-        case 2: return memory_.has_table(Table::discrete) ? Table::discrete : Table::coils;
-        case 4: return memory_.has_table(Table::input) ? Table::input : Table::holding;
-        default: return is_bit_function(function) ? Table::coils : Table::holding;
+        case 2: return memory_.has_table(Table::discrete_inputs) ? Table::discrete_inputs : Table::coils;
+        case 4: return memory_.has_table(Table::input_registers) ? Table::input_registers : Table::holding_registers;
+        default: return is_bit_function(function) ? Table::coils : Table::holding_registers;
     }
 }
 

@@ -51,8 +51,9 @@ timeout 20 "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@
 if [ "$(head -1 "$WORK_DIR/rows.csv")" = "time,sample,tc10@3 status,tc10@3 errors,tc10@3:output_power,rampsoak@5 status,rampsoak@5 errors,rampsoak@5:set_value" ] \
    && [ "$(wc -l <"$WORK_DIR/rows.csv")" -eq 2 ]; then count_pass; else count_failure monitor-csv-columns "$WORK_DIR/rows.csv"; fi
 
-# A value written between samples shows up changed in the following ones.
-timeout 20 "$loopwire" monitor --link "$tcp" --device rampsoak@5 set_value --interval 300ms --count 8 \
+# A value written between samples shows up changed in the following ones. 30 samples give the
+# write 8 s to land even on a slow machine.
+timeout 30 "$loopwire" monitor --link "$tcp" --device rampsoak@5 set_value --interval 300ms --count 30 \
   --output "$WORK_DIR/change.jsonl" 2>"$WORK_DIR/change.err" &
 monitor_pid=$!
 two_samples_written() { [ -e "$WORK_DIR/change.jsonl" ] && [ "$(wc -l <"$WORK_DIR/change.jsonl")" -ge 2 ]; }
@@ -61,7 +62,7 @@ timeout 10 "$loopwire" write --link "$tcp" --device rampsoak@5 SV=425 >"$WORK_DI
 wait "$monitor_pid" || count_failure "monitor-change exit status" "$WORK_DIR/change.err"
 jcheck monitor-sees-written-value "$WORK_DIR/change.jsonl" '
 texts = [r["devices"]["rampsoak@5"]["values"]["set_value"]["text"] for r in rows]
-assert len(rows) == 8, len(rows)
+assert len(rows) == 30, len(rows)
 assert texts[0] != "425" and texts[-1] == "425", texts
 first = texts.index("425")
 assert rows[first]["devices"]["rampsoak@5"]["values"]["set_value"]["changed"] is True, rows[first]

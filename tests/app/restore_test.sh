@@ -83,12 +83,21 @@ serve rampsoak@5; rampsoak=$served
 
 # AC20: control parameters, and configuration parameters of two menus (Notes 5-7: remote, then
 # configuration mode with word 347, each menu closed with its end word, back with word 3051).
-# `loopwire write` checks the mode before sending, so each mode step is its own call.
+# `loopwire write` checks the mode before sending, so each mode step is its own call. Note 5:
+# after 3 s without line activity the unit returns to local mode; a background monitor polls it
+# every 500 ms meanwhile, as a SCADA would, so a slow machine (sanitizers, load) does not fall
+# out of remote between two calls.
 ac20_steps() {  # name link assignments...: one write call each, in order
   local name=$1 link=$2; shift 2
+  start_background "$name.keep-alive.log" timeout 120 "$loopwire" monitor --link "$link" --device ac20@1 device_status \
+    --interval 500ms --count 240
+  local keep_alive=$LAST_PID
+  wait_for 20 "the keep-alive monitor's first sample" test -s "$WORK_DIR/$name.keep-alive.log"
   for assignment in "$@"; do
     check "$name $assignment" 0 "" "$loopwire" write --link "$link" --device ac20@1 "$assignment"
   done
+  kill "$keep_alive" 2>/dev/null
+  wait "$keep_alive" 2>/dev/null
 }
 change_ac20() {
   ac20_steps ac20-write-configuration "$1" local_remote=remote configuration_mode_code=0 probe_input_filter=7 \

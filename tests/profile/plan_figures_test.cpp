@@ -15,7 +15,7 @@ namespace {
 
 using testing::builtin;
 using testing::every_readable;
-using testing::is_bit_table;
+using codec::is_bit_table;
 
 struct RtuCost {
     std::size_t requests = 0;
@@ -44,9 +44,9 @@ RtuCost cost_of(const std::vector<ReadBlock>& blocks) {
 int function_code(Table table) {
     switch (table) {
         case Table::coils: return 1;
-        case Table::discrete: return 2;
-        case Table::holding: return 3;
-        case Table::input: return 4;
+        case Table::discrete_inputs: return 2;
+        case Table::holding_registers: return 3;
+        case Table::input_registers: return 4;
     }
     return 3;
 }
@@ -78,7 +78,7 @@ TEST(PlanFigures, FullDeviceReadOnRtu) {
 }
 
 TEST(PlanFigures, ReplyBytesFollowTheFrameLayout) {
-    EXPECT_EQ(rtu_reply_bytes(ReadBlock{Table::holding, 0, 20, {}}), 45u);
+    EXPECT_EQ(rtu_reply_bytes(ReadBlock{Table::holding_registers, 0, 20, {}}), 45u);
     EXPECT_EQ(rtu_reply_bytes(ReadBlock{Table::coils, 0, 24, {}}), 8u);
     EXPECT_EQ(rtu_reply_bytes(ReadBlock{Table::coils, 0, 9, {}}), 7u);
 }

@@ -11,10 +11,8 @@
 
 namespace loopwire::device::testing {
 
-inline bool is_bit_table(Table table) { return table == Table::coils || table == Table::discrete; }
-
 inline unsigned read_limit(const Profile& profile, Table table) {
-    return is_bit_table(table) ? profile.limits.read_bits : profile.limits.read_registers;
+    return codec::is_bit_table(table) ? profile.limits.read_bits : profile.limits.read_registers;
 }
 
 inline std::set<int> readable_addresses(const Profile& profile, Table table, int offset = 0) {
@@ -67,7 +65,7 @@ inline int minimum_blocks(const Profile& profile, Table table, const std::vector
 
 inline int minimum_blocks(const Profile& profile, const std::vector<const Parameter*>& wanted, int offset = 0) {
     int total = 0;
-    for (const Table table : {Table::holding, Table::input, Table::coils, Table::discrete}) {
+    for (const Table table : {Table::holding_registers, Table::input_registers, Table::coils, Table::discrete_inputs}) {
         total += minimum_blocks(profile, table, wanted, offset);
     }
     return total;

@@ -87,7 +87,7 @@ void expect_bound(const std::optional<Bound>& bound, const Json& range, const ch
 
 void expect_specials(const Parameter& parameter, const Json& entry, const Json& word_specials, const std::string& where) {
     Json expected = entry.value("special", Json::array());
-    if (parameter.table == Table::holding || parameter.table == Table::input) {
+    if (parameter.table == Table::holding_registers || parameter.table == Table::input_registers) {
         for (const Json& special : word_specials) expected.push_back(special);  // after its own
     }
     ASSERT_EQ(parameter.special.size(), expected.size()) << where;

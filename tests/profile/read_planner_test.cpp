@@ -115,10 +115,10 @@ TEST(ReadPlanner, HolesSplitTc10ButNotAc20) {
     const auto tc10 = builtin("tc10");
     const auto ac20 = builtin("ac20");
     ASSERT_TRUE(tc10 && ac20);
-    const auto [tc10_low, tc10_high] = pair_around_hole(*tc10, Table::holding);
+    const auto [tc10_low, tc10_high] = pair_around_hole(*tc10, Table::holding_registers);
     ASSERT_NE(tc10_low, nullptr);
     EXPECT_EQ(plan_reads(*tc10, {tc10_low, tc10_high}).size(), 2u);
-    const auto [ac20_low, ac20_high] = pair_around_hole(*ac20, Table::holding);
+    const auto [ac20_low, ac20_high] = pair_around_hole(*ac20, Table::holding_registers);
     ASSERT_NE(ac20_low, nullptr);
     const auto blocks = plan_reads(*ac20, {ac20_low, ac20_high});
     ASSERT_EQ(blocks.size(), 1u);
@@ -148,7 +148,7 @@ TEST(ReadPlanner, BitsAndWordsGoInSeparateBlocksWithinTheirLimits) {
             ++bit_blocks;
             EXPECT_LE(block.count, 24);
         } else {
-            EXPECT_EQ(block.table, Table::holding);
+            EXPECT_EQ(block.table, Table::holding_registers);
             EXPECT_LE(block.count, 20);
         }
     }

@@ -114,13 +114,13 @@ std::optional<std::uint16_t> Ac20Simulator::lock_word_read(const Parameter& para
         const bool any = control_class == 1 || (control_class == 2 && !control_unlocked_);
         return any ? 1 : 0;
     }
-    if (parameter.table == Table::holding && parameter.address >= 350 && parameter.address <= 359) {
+    if (parameter.table == Table::holding_registers && parameter.address >= 350 && parameter.address <= 359) {
         const int group = parameter.address - 350;
         if (control_class != 2) return control_class;
         return value("protect_group_" + group_suffix(group)) == 1 ? key_state : 0;
     }
     // N.B.: with combination 0 or 1, words 4002-4011 are forced to 0 or 1.
-    if (parameter.table == Table::holding && parameter.address >= 4002 && parameter.address <= 4011 &&
+    if (parameter.table == Table::holding_registers && parameter.address >= 4002 && parameter.address <= 4011 &&
         control_class != 2) {
         return control_class;
     }

@@ -114,7 +114,7 @@ std::optional<int> Ac20Simulator::configuration_menu_of(const Parameter& paramet
 std::optional<std::uint8_t> Ac20Simulator::configuration_refusal(const Parameter& parameter, std::uint16_t) {
     if (mode_ != Mode::configuration) return std::nullopt;
     auto closing_error = [](int menu) { return static_cast<std::uint8_t>(100 + menu); };
-    if (parameter.table == Table::holding && parameter.address >= 3000 && parameter.address <= 3005) {
+    if (parameter.table == Table::holding_registers && parameter.address >= 3000 && parameter.address <= 3005) {
         const int menu = parameter.address - 3000 + 1;
         return menu_congruent(menu) ? std::nullopt : std::optional<std::uint8_t>(closing_error(menu));
     }
@@ -137,7 +137,7 @@ std::vector<const Parameter*> Ac20Simulator::parameters_read_by(ByteView request
     if (count > (bits ? profile().limits.read_bits : profile().limits.read_registers) || start < offset) return touched;
     for (unsigned i = 0; i < count; ++i) {
         const auto address = static_cast<std::uint16_t>(start - offset + i);
-        if (const MemoryCell* cell = memory().find(bits ? Table::coils : Table::holding, address)) touched.push_back(cell->parameter);
+        if (const MemoryCell* cell = memory().find(bits ? Table::coils : Table::holding_registers, address)) touched.push_back(cell->parameter);
     }
     return touched;
 }
@@ -238,7 +238,7 @@ void Ac20Simulator::after_default_write(const Parameter& parameter, std::uint16_
     const std::string& name = parameter.name;
     if (name == "load_configuration_defaults") {
         load_configuration_table(raw);
-    } else if (parameter.table == Table::holding && parameter.address >= 3000 && parameter.address <= 3005) {
+    } else if (parameter.table == Table::holding_registers && parameter.address >= 3000 && parameter.address <= 3005) {
         open_menu_.reset();  // closed after a passing check
     } else if (auto menu = configuration_menu_of(parameter)) {
         open_menu_ = menu;

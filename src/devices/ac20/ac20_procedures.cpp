@@ -66,7 +66,7 @@ void Ac20Simulator::schedule_interval(bool probe_test) {
 }
 
 std::optional<std::uint16_t> Ac20Simulator::countdown_read(const Parameter& parameter) const {
-    if (parameter.table != Table::holding || (parameter.address != 1304 && parameter.address != 1305)) {
+    if (parameter.table != Table::holding_registers || (parameter.address != 1304 && parameter.address != 1305)) {
         return std::nullopt;
     }
     const auto& due = parameter.address == 1305 ? next_probe_test_ : next_burn_off_;

@@ -168,7 +168,7 @@ void Ac20Simulator::after_process_write(const Parameter& parameter, std::uint16_
 // error puts the manual's code in the word (words 122-126); a value the failed input makes
 // impossible to compute, where the word lists no code for it, reads 8000h ("not relevant").
 std::optional<std::uint16_t> Ac20Simulator::process_read(const Parameter& parameter) const {
-    if (parameter.table != Table::holding) return std::nullopt;
+    if (parameter.table != Table::holding_registers) return std::nullopt;
     const std::uint16_t address = parameter.address;
     if (address == 135) {
         if (mode_ == Mode::configuration) return 6;

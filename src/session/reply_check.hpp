@@ -1,0 +1,30 @@
+#pragma once
+// What answers what: the test a master applies to each whole frame from the unit it asked, for
+// typed requests and for PDUs passed through as they are. Shared by the serial and TCP masters.
+#include <cstdint>
+#include <functional>
+
+#include "codec/pdu.hpp"
+#include "common/result.hpp"
+
+namespace loopwire::session {
+
+// Whether a reply PDU answers the request; the error says why not.
+using ReplyCheck = std::function<Result<void>(ByteView reply)>;
+
+// A reply that decodes and matches `request` (codec::match_reply), exception replies included.
+ReplyCheck answers_request(const codec::Request& request);
+
+// The typed reply from what a master accepted for `request` (an empty PDU after a broadcast);
+// an exception reply becomes ErrorKind::exception with its code.
+Result<codec::Reply> typed_reply(std::uint8_t unit, const codec::Request& request, Result<Bytes> answered);
+
+// A PDU a master can pass through: a function code 1..127 (0 is not one, 128 and above mark
+// exception replies: Modbus application protocol V1.1b3, 6 and 7) and at most 253 bytes (4.1).
+Result<void> check_forwardable(ByteView pdu);
+
+// A reply answers a forwarded `request` when it has the same function code, or that code + 80h
+// with one exception code byte after it (Modbus application protocol V1.1b3, 7).
+ReplyCheck answers_forwarded(Bytes request);
+
+}  // namespace loopwire::session
