@@ -50,6 +50,9 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
                                            const device::ProfileRegistry& profiles);
 Result<GatewayConfig> load_gateway_config(const std::filesystem::path& file, const device::ProfileRegistry& profiles);
 
+// What one poll of the device reads: the configured names, or the profile's default watch list.
+std::vector<const device::Parameter*> polled_parameters(const DeviceConfig& device);
+
 // What `loopwire gateway --check` prints: each line with its devices, poll groups and the
 // estimated share of the line's wire time the polls take.
 std::string describe_plan(const GatewayConfig& config);

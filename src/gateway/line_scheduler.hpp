@@ -44,11 +44,20 @@ struct LineStatistics {
     std::size_t queued = 0;          // waiting now
 };
 
+// Ownership: keep your own reference to the master and destroy the scheduler first, then the
+// master (declare the master before the scheduler). The serial master joins its thread when it
+// is destroyed, so it must never be destroyed on that thread, which is where completions and
+// `done` run; if the scheduler held the last reference, destroying the scheduler inside a
+// `done` would do exactly that. A request in flight when the scheduler goes still ends: its
+// `done` runs with the master's result whenever that arrives, without touching the scheduler.
+// `done` must not throw.
 class LineScheduler {
 public:
     LineScheduler(std::shared_ptr<session::Master> master, LineSchedulerOptions options = {},
                   std::shared_ptr<Clock> clock = steady_clock());
-    ~LineScheduler();  // fails what is still queued (ErrorKind::link, "gateway stopping")
+    // Fails what is still queued (ErrorKind::link, "gateway stopping") and lets go of the
+    // master; does not wait for the request in flight.
+    ~LineScheduler();
     LineScheduler(const LineScheduler&) = delete;
     LineScheduler& operator=(const LineScheduler&) = delete;
 
