@@ -18,5 +18,6 @@ void add_scan_command(CLI::App& app, int& exit_code);
 void add_restore_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
 void add_monitor_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
 void add_dump_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
+void add_gateway_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
 
 }  // namespace loopwire::app

@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
     add_restore_command(app, exit_code, profiles);
     add_monitor_command(app, exit_code, profiles);
     add_dump_command(app, exit_code, profiles);
+    add_gateway_command(app, exit_code, profiles);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& error) {

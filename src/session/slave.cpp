@@ -10,10 +10,6 @@ namespace {
 
 using std::chrono::milliseconds;
 
-// Exception 0Bh: "gateway target device failed to respond" (Modbus application protocol
-// V1.1b3, 7). On TCP a client addressing a unit nobody serves learns so at once instead of
-// waiting for a timeout; on a serial line other units may share the wire, so silence is the rule.
-constexpr std::uint8_t gateway_target_failed = 0x0B;
 // Modbus Messaging on TCP/IP Implementation Guide V1.0b, 4.4.2: a server that is not a gateway
 // should accept unit FFh as "this server". With one unit served, FFh reaches it.
 constexpr std::uint8_t tcp_direct_unit = 0xFF;
@@ -54,7 +50,7 @@ Slave::Route Slave::route(const codec::Frame& frame) {
     if (it == units_.end()) {
         if (tracing()) trace(TraceDirection::received, frame.raw, fmt::format("unit {} is not served here", frame.unit));
         if (link_.framing != transport::Framing::tcp) return {};
-        return {Route::Kind::own_reply, nullptr, exception_pdu(frame.pdu[0], gateway_target_failed)};
+        return {Route::Kind::own_reply, nullptr, exception_pdu(frame.pdu[0], options_.unserved_unit_exception)};
     }
     ++requests_;
     // Only an MBAP length of 255..260 yields a PDU past 253 bytes (codec/tcp.hpp): no PDU may be
@@ -92,17 +88,17 @@ std::optional<Bytes> Slave::answer(const codec::Frame& frame, FrameCodec& codec)
     return std::move(*encoded);
 }
 
-void Slave::answer_async(const codec::Frame& frame, UnitHandler::ReplyCallback reply) {
+void Slave::answer_async(const codec::Frame& frame, UnitHandler::Origin origin, UnitHandler::ReplyCallback reply) {
     Route where = route(frame);
     switch (where.kind) {
         case Route::Kind::silent: reply(std::nullopt); return;
         case Route::Kind::broadcast:
             // Every unit executes it; whatever they answer, and whenever, is dropped.
-            for (auto& [unit, handler] : units_) handler->handle_async(frame.pdu, true, [](std::optional<Bytes>) {});
+            for (auto& [unit, handler] : units_) handler->handle_async(frame.pdu, true, origin, [](std::optional<Bytes>) {});
             reply(std::nullopt);
             return;
         case Route::Kind::own_reply: reply(std::move(where.reply_pdu)); return;
-        case Route::Kind::unit: where.handler->handle_async(frame.pdu, false, std::move(reply)); return;
+        case Route::Kind::unit: where.handler->handle_async(frame.pdu, false, origin, std::move(reply)); return;
     }
 }
 

@@ -38,6 +38,11 @@ struct TcpClientLimits {
 struct SlaveOptions {
     TraceSink trace;
     TcpClientLimits tcp;
+    // What a TCP client addressing a unit nobody serves gets at once, instead of waiting for a
+    // timeout (on a serial line other units may share the wire, so silence is the rule there).
+    // Modbus application protocol V1.1b3, 7: 0Bh "gateway target device failed to respond"
+    // for a simulator, 0Ah "gateway path unavailable" for a gateway with no line to the unit.
+    std::uint8_t unserved_unit_exception = 0x0B;
     // What serve_stream's reply gap and frame timing run on (common/clock.hpp). A virtual clock
     // only makes sense with a stream that reads the same clock. TCP listeners keep the steady
     // clock.
@@ -61,7 +66,7 @@ public:
 
     // The reply PDU for one received frame through `reply` (nullopt: silence), at once or later
     // from any thread when the unit's handler defers it (UnitHandler::handle_async).
-    void answer_async(const codec::Frame& frame, UnitHandler::ReplyCallback reply);
+    void answer_async(const codec::Frame& frame, UnitHandler::Origin origin, UnitHandler::ReplyCallback reply);
 
     // Requests served and replies sent so far (for status lines and tests).
     std::uint64_t requests_served() const { return requests_; }

@@ -1,5 +1,7 @@
 #include "session/tcp_slave_connection.hpp"
 
+#include <atomic>
+
 #include <boost/asio/post.hpp>
 #include <boost/asio/write.hpp>
 #include <fmt/format.h>
@@ -16,6 +18,10 @@ using boost::system::error_code;
 // How long a connection that is being closed (after a bad MBAP header, or the client's end of
 // stream) may take to hand over the replies still owed before it is closed regardless.
 constexpr std::chrono::seconds closing_grace{2};
+
+// Origins name connections to the handlers for as long as the process runs: numbered, not
+// addresses, which a later connection could reuse.
+std::atomic<UnitHandler::Origin> connections_made{0};
 
 }  // namespace
 
@@ -42,7 +48,8 @@ TcpSlaveConnection::TcpSlaveConnection(Slave& slave, ConnectionOwner& owner, std
       socket_(std::move(socket)),
       timer_(socket_.get_executor()),
       codec_(make_frame_codec(slave.link(), codec::Direction::request)),
-      mbap_(slave.link().framing == transport::Framing::tcp) {}
+      mbap_(slave.link().framing == transport::Framing::tcp),
+      origin_(++connections_made) {}
 
 // Requests keep being read while replies queue up: a client that does not read its replies
 // is closed at the bound instead (queue()). Pausing reads for it would only keep its memory and
@@ -120,7 +127,7 @@ void TcpSlaveConnection::handle(codec::FrameEvents& events) {
 // then it is posted into the loop, and dropped if the connection has gone in the meantime.
 void TcpSlaveConnection::dispatch(const codec::Frame& frame) {
     ++outstanding_;
-    slave_.answer_async(frame, [weak = weak_from_this(), mailbox = mailbox_, unit = frame.unit,
+    slave_.answer_async(frame, origin_, [weak = weak_from_this(), mailbox = mailbox_, unit = frame.unit,
                                 transaction = frame.transaction](std::optional<Bytes> pdu) mutable {
         if (mailbox->on_loop_thread()) {
             if (auto self = weak.lock()) self->deliver(unit, transaction, std::move(pdu));

@@ -83,6 +83,7 @@ private:
     boost::asio::steady_timer timer_;  // RTU silence flush; the last grace period when closing
     std::unique_ptr<FrameCodec> codec_;
     const bool mbap_;
+    const UnitHandler::Origin origin_;  // this connection, as the handlers see it
     std::array<std::uint8_t, 4096> input_{};
     Bytes queued_;   // replies waiting for the write in progress to finish
     Bytes writing_;  // the write in progress

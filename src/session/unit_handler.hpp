@@ -20,13 +20,17 @@ public:
     // Receives the reply PDU of one request, or nullopt for no reply. Call it exactly once.
     using ReplyCallback = std::function<void(std::optional<Bytes>)>;
 
+    // Who asked: 0 for a serial line, one number per TCP connection, so a gateway can share a
+    // line fairly between the clients (docs/DESIGN.md, gateway).
+    using Origin = std::uint64_t;
+
     // The same decision, for handlers that answer later: a gateway forwards the request to a
     // serial line and replies when the device has answered. `reply` may be called from any
     // thread, after handle_async() has returned; a TCP slave sends the reply with the request's
     // transaction id whenever it comes, so replies on one connection may overtake each other
     // (Modbus Messaging on TCP/IP V1.0b, 4.2: the transaction id pairs them). The default
     // answers at once through handle().
-    virtual void handle_async(Bytes request_pdu, bool broadcast, ReplyCallback reply) {
+    virtual void handle_async(Bytes request_pdu, bool broadcast, Origin /*origin*/, ReplyCallback reply) {
         reply(handle(request_pdu, broadcast));
     }
 };

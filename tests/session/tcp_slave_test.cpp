@@ -103,7 +103,7 @@ TEST(TcpSlaveRtuOverTcp, AFrameOfUnknownLengthIsAnsweredAfterTheSilence) {
 class DeferringUnit final : public UnitHandler {
 public:
     std::optional<Bytes> handle(ByteView, bool) override { return std::nullopt; }
-    void handle_async(Bytes request_pdu, bool, ReplyCallback reply) override {
+    void handle_async(Bytes request_pdu, bool, Origin, ReplyCallback reply) override {
         std::lock_guard lock(mutex_);
         pending_.push_back({std::move(request_pdu), std::move(reply)});
         arrived_.notify_all();
@@ -121,6 +121,46 @@ private:
     std::condition_variable arrived_;
     std::vector<std::pair<Bytes, ReplyCallback>> pending_;
 };
+
+// Records who asked: a gateway shares a line fairly between connections by this.
+class OriginRecorder final : public UnitHandler {
+public:
+    std::optional<Bytes> handle(ByteView, bool) override { return Bytes{0x03, 0x02, 0x00, 0x00}; }
+    void handle_async(Bytes request_pdu, bool broadcast, Origin origin, ReplyCallback reply) override {
+        {
+            std::lock_guard lock(mutex_);
+            origins_.push_back(origin);
+        }
+        reply(handle(request_pdu, broadcast));
+    }
+    std::vector<Origin> origins() {
+        std::lock_guard lock(mutex_);
+        return origins_;
+    }
+
+private:
+    std::mutex mutex_;
+    std::vector<Origin> origins_;
+};
+
+TEST(TcpSlaveDeferred, EachConnectionIsOneOriginToTheHandlers) {
+    auto recorder = std::make_shared<OriginRecorder>();
+    ServedSlave served(UnitMap{{1, recorder}});
+    RawClient first(served.port());
+    RawClient second(served.port());
+    for (std::uint16_t transaction = 1; transaction <= 2; ++transaction) {
+        ASSERT_TRUE(first.send(testing::read_one_register(transaction, 0)));
+        EXPECT_EQ(first.receive(11).size(), 11u);
+        ASSERT_TRUE(second.send(testing::read_one_register(transaction, 0)));
+        EXPECT_EQ(second.receive(11).size(), 11u);
+    }
+    const auto origins = recorder->origins();
+    ASSERT_EQ(origins.size(), 4u);
+    EXPECT_NE(origins[0], 0u) << "origin 0 is a serial line's";
+    EXPECT_EQ(origins[0], origins[2]) << "one connection, one origin";
+    EXPECT_EQ(origins[1], origins[3]);
+    EXPECT_NE(origins[0], origins[1]) << "two connections share an origin";
+}
 
 TEST(TcpSlaveDeferred, RepliesGoOutWhenTheHandlerAnswersFromAnotherThreadInAnyOrder) {
     auto unit = std::make_shared<DeferringUnit>();

@@ -1,0 +1,56 @@
+#pragma once
+// The Modbus TCP front's view of one device: a unit handler that passes each request's PDU, of
+// any function code, to the line the device is on and answers with what the device answered
+// (Modbus Messaging on TCP/IP Implementation Guide V1.0b, 4.4.2: a gateway's unit id selects
+// the device behind it).
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "common/clock.hpp"
+#include "gateway/line_scheduler.hpp"
+#include "session/unit_handler.hpp"
+
+namespace loopwire::gateway {
+
+struct ForwardingSettings {
+    std::uint8_t line_unit = 1;      // the device's unit id on its line
+    bool writes_allowed = true;      // false: anything but a read is refused with exception 1
+    bool carries_broadcasts = false; // one unit per line passes unit-0 requests on, once
+    // A request not on the wire within this is answered 0Bh instead: the client has long given
+    // up on it (Modbus TCP clients wait 1-3 s), and sending it would only delay the others.
+    std::chrono::milliseconds queue_limit{3000};
+};
+
+// What the gateway says of refused or failed requests (for its log).
+using GatewayLog = std::function<void(const std::string&)>;
+
+class ForwardingUnit final : public session::UnitHandler {
+public:
+    ForwardingUnit(std::shared_ptr<LineScheduler> line, ForwardingSettings settings, std::shared_ptr<Clock> clock,
+                   GatewayLog log = {});
+
+    // For a front that cannot wait (a serial slave session): blocks until the line answered.
+    std::optional<Bytes> handle(ByteView request_pdu, bool broadcast) override;
+    void handle_async(Bytes request_pdu, bool broadcast, Origin origin, ReplyCallback reply) override;
+
+private:
+    std::optional<Bytes> refusal(ByteView request_pdu) const;
+
+    std::shared_ptr<LineScheduler> line_;
+    ForwardingSettings settings_;
+    std::shared_ptr<Clock> clock_;
+    GatewayLog log_;
+};
+
+// Modbus application protocol V1.1b3, 7: the reply a gateway gives for a request it could not
+// get answered. 0Bh (target device failed to respond) for silence and bad replies; 01h for a
+// request the line's framing cannot carry (Linking).
+Bytes failure_reply(std::uint8_t function, const Error& why);
+
+// Function codes that only read: what a gateway with `writes = false` still passes on.
+bool only_reads(std::uint8_t function);
+
+}  // namespace loopwire::gateway

@@ -1,0 +1,127 @@
+#include "gateway/gateway.hpp"
+
+#include <condition_variable>
+#include <map>
+#include <mutex>
+
+#include <fmt/format.h>
+
+#include "session/master.hpp"
+#include "session/slave.hpp"
+#include "transport/tcp.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+// Modbus application protocol V1.1b3, 7: "gateway path unavailable", for a unit id no line of
+// this gateway leads to.
+constexpr std::uint8_t gateway_path_unavailable = 0x0A;
+
+struct OpenLine {
+    std::string name;
+    std::string link;
+    // Held here as well as by the scheduler, and declared first so that it goes last: a serial
+    // master joins its own thread when destroyed, which must not be the thread that destroys the
+    // scheduler from a completion (line_scheduler.hpp, ownership).
+    std::shared_ptr<session::Master> master;
+    std::shared_ptr<LineScheduler> scheduler;
+};
+
+Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options) {
+    session::MasterOptions master_options;
+    master_options.timeout = line.timeout;
+    master_options.retries = line.retries;
+    master_options.trace = options.trace;
+    auto master = session::open_master(line.link, master_options);
+    if (!master) {
+        return make_error(master.error().kind, fmt::format("line {} ({}): {}", line.name, line.link.to_string(), master.error().message));
+    }
+    std::shared_ptr<session::Master> shared_master(std::move(*master));
+    auto scheduler = std::make_shared<LineScheduler>(shared_master);
+    return OpenLine{line.name, line.link.to_string(), std::move(shared_master), std::move(scheduler)};
+}
+
+}  // namespace
+
+struct Gateway::Parts {
+    // The front is destroyed first, then the polls (members go in reverse order): no request
+    // reaches a line scheduler that is gone.
+    std::vector<OpenLine> lines;
+    ValueCache cache;
+    std::unique_ptr<PollGroups> polls;
+    std::unique_ptr<transport::TcpListener> listener;
+    std::unique_ptr<session::Slave> front;
+};
+
+Gateway::Gateway(std::unique_ptr<Parts> parts) : parts_(std::move(parts)) {}
+Gateway::~Gateway() = default;
+
+Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, GatewayOptions options) {
+    auto parts = std::make_unique<Parts>();
+    session::UnitMap units;
+    auto clock = steady_clock();
+    for (const auto& line : config.lines) {
+        auto opened = open_line(line, options);
+        if (!opened) return opened.error();
+        bool first = true;
+        for (const auto& device : line.devices) {
+            ForwardingSettings settings;
+            settings.line_unit = device.address.unit;
+            settings.writes_allowed = config.modbus_tcp.writes;
+            settings.carries_broadcasts = std::exchange(first, false);
+            units[device.tcp_unit] = std::make_shared<ForwardingUnit>(opened->scheduler, settings, clock, options.log);
+        }
+        parts->lines.push_back(std::move(*opened));
+    }
+    std::map<std::string, std::shared_ptr<LineScheduler>> schedulers;
+    for (const auto& line : parts->lines) schedulers[line.name] = line.scheduler;
+    parts->polls = std::make_unique<PollGroups>(config, schedulers, parts->cache, options.log);
+    if (config.modbus_tcp.enabled) {
+        auto listener = transport::TcpListener::listen(config.modbus_tcp.host, config.modbus_tcp.port);
+        if (!listener) {
+            return make_error(listener.error().kind, fmt::format("modbus_tcp.listen {}:{}: {}", config.modbus_tcp.host,
+                                                                 config.modbus_tcp.port, listener.error().message));
+        }
+        parts->listener = std::move(*listener);
+        const bool ipv6 = config.modbus_tcp.host.find(':') != std::string::npos;
+        const auto host = ipv6 ? "[" + config.modbus_tcp.host + "]" : config.modbus_tcp.host;
+        auto link = transport::parse_link_url(fmt::format("tcp://{}:{}", host, parts->listener->port()));
+        if (!link) return link.error();
+        session::SlaveOptions slave_options;
+        slave_options.trace = options.trace;
+        slave_options.unserved_unit_exception = gateway_path_unavailable;
+        parts->front = std::make_unique<session::Slave>(*link, std::move(units), slave_options);
+    }
+    return std::unique_ptr<Gateway>(new Gateway(std::move(parts)));
+}
+
+std::uint16_t Gateway::modbus_tcp_port() const { return parts_->listener ? parts_->listener->port() : 0; }
+
+Result<void> Gateway::serve(std::stop_token stop) {
+    if (!parts_->front) {
+        std::mutex mutex;
+        std::condition_variable_any stopped;
+        std::unique_lock lock(mutex);
+        stopped.wait(lock, stop, [] { return false; });
+        return {};
+    }
+    return parts_->front->serve_listener(*parts_->listener, std::move(stop));
+}
+
+std::vector<LineReport> Gateway::report() const {
+    std::vector<LineReport> reports;
+    for (const auto& line : parts_->lines) reports.push_back({line.name, line.link, line.scheduler->statistics()});
+    return reports;
+}
+
+std::vector<CachedDevice> Gateway::values() const { return parts_->cache.snapshot(); }
+
+std::string describe(const LineReport& report) {
+    const auto& s = report.statistics;
+    return fmt::format("line {} ({}): {} sent, {} answered, {} timeout(s), {} bad repl{}, {} expired in the queue, "
+                       "{} refused while the unit backed off",
+                       report.name, report.link, s.sent, s.answered, s.timeouts, s.bad_replies,
+                       s.bad_replies == 1 ? "y" : "ies", s.expired, s.backed_off);
+}
+
+}  // namespace loopwire::gateway

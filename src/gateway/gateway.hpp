@@ -1,0 +1,59 @@
+#pragma once
+// The running gateway: the lines it owns (one master and one scheduler each) and the Modbus TCP
+// front that shares them (docs/DESIGN.md, gateway).
+#include <memory>
+#include <stop_token>
+#include <string>
+#include <vector>
+
+#include "common/result.hpp"
+#include "gateway/forwarding_unit.hpp"
+#include "gateway/gateway_config.hpp"
+#include "gateway/line_scheduler.hpp"
+#include "gateway/poll_groups.hpp"
+#include "session/trace.hpp"
+
+namespace loopwire::gateway {
+
+struct GatewayOptions {
+    session::TraceSink trace;  // every frame on the lines and the front (-v)
+    GatewayLog log;            // refused requests and other events worth a line
+};
+
+struct LineReport {
+    std::string name;
+    std::string link;
+    LineStatistics statistics;
+};
+
+class Gateway {
+public:
+    // Opens every line and the Modbus TCP listener; the error names what could not be opened.
+    static Result<std::unique_ptr<Gateway>> open(const GatewayConfig& config, GatewayOptions options = {});
+    ~Gateway();
+    Gateway(const Gateway&) = delete;
+    Gateway& operator=(const Gateway&) = delete;
+
+    // The port the Modbus TCP front listens on (the one the kernel chose for port 0); 0 when the
+    // front is disabled.
+    std::uint16_t modbus_tcp_port() const;
+
+    // Serves until `stop` is requested. Replies still owed are not sent after that: the request
+    // on each line finishes when the gateway is destroyed, and what was queued is dropped.
+    Result<void> serve(std::stop_token stop);
+
+    std::vector<LineReport> report() const;
+
+    // The last values the gateway's polls read, per device.
+    std::vector<CachedDevice> values() const;
+
+private:
+    struct Parts;
+    explicit Gateway(std::unique_ptr<Parts> parts);
+    std::unique_ptr<Parts> parts_;
+};
+
+// "tcp: 1234 sent, 1230 answered, 4 timeouts, ..." for the log and the exit summary.
+std::string describe(const LineReport& report);
+
+}  // namespace loopwire::gateway

@@ -1,0 +1,469 @@
+#include "gateway/gateway_config.hpp"
+
+#include <algorithm>
+#include <fstream>
+#include <initializer_list>
+#include <map>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <system_error>
+
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
+#include "common/text_parsing.hpp"
+#include "profile/request_planner.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+using std::chrono::milliseconds;
+
+constexpr std::uintmax_t max_file_size = 1024 * 1024;  // a real configuration is a few kilobytes
+constexpr long long max_retries = 10;
+
+// ---------------------------------------------------------------------------------------------
+// Locations: every message starts "FILE:LINE: KEY.PATH: ", so an editor can jump to the spot.
+
+std::string key_path(const std::string& parent, std::string_view key) {
+    return parent.empty() ? std::string(key) : fmt::format("{}.{}", parent, key);
+}
+
+std::string index_path(const std::string& parent, std::size_t index) { return fmt::format("{}[{}]", parent, index); }
+
+struct Context {
+    const std::string& source;
+    const device::ProfileRegistry& profiles;
+
+    Error fail(const toml::source_region& where, const std::string& path, const std::string& what) const {
+        // Line 0 means toml++ knows no position (a node built in code); the root is line 1.
+        const auto line = std::max<toml::source_index>(where.begin.line, 1);
+        return make_error(ErrorKind::usage, fmt::format("{}:{}: {}: {}", source, line, path, what));
+    }
+};
+
+// Messages of the shared parsers begin with the name they were given ("{option} '{text}' is
+// not ..."): given an empty name they begin with a space, trimmed here since the key path
+// already says what was parsed.
+std::string without_option_name(const std::string& message) {
+    const auto first = message.find_first_not_of(' ');
+    return first == std::string::npos ? message : message.substr(first);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Typed access to the values of one table. Absent keys are std::nullopt; a value of the wrong
+// type is an error saying which type is expected.
+
+Result<void> check_keys(const Context& ctx, const toml::table& table, const std::string& path,
+                        std::initializer_list<std::string_view> allowed) {
+    for (auto&& [key, node] : table) {
+        if (std::find(allowed.begin(), allowed.end(), key.str()) != allowed.end()) continue;
+        // A typo must not leave a setting at its default without a word: unknown keys are errors.
+        return ctx.fail(key.source(), key_path(path, key.str()),
+                        fmt::format("unknown key (allowed here: {})", fmt::join(allowed, ", ")));
+    }
+    return {};
+}
+
+template <typename T>
+Result<std::optional<T>> optional_value(const Context& ctx, const toml::table& table, const std::string& path,
+                                        std::string_view key, std::string_view expected) {
+    const toml::node* node = table.get(key);
+    if (!node) return std::optional<T>{};
+    if (const auto* value = node->as<T>()) return std::optional<T>{value->get()};
+    return ctx.fail(node->source(), key_path(path, key), fmt::format("expected {}", expected));
+}
+
+Result<std::string> required_string(const Context& ctx, const toml::table& table, const std::string& path,
+                                    std::string_view key, std::string_view example) {
+    auto text = optional_value<std::string>(ctx, table, path, key, fmt::format("a string such as {}", example));
+    if (!text) return text.error();
+    if (!*text) return ctx.fail(table.source(), path, fmt::format("missing `{}` (e.g. {} = {})", key, key, example));
+    return std::move(**text);
+}
+
+const toml::source_region& source_of(const toml::table& table, std::string_view key) {
+    const toml::node* node = table.get(key);
+    return node ? node->source() : table.source();
+}
+
+Result<std::optional<milliseconds>> optional_duration(const Context& ctx, const toml::table& table, const std::string& path,
+                                                      std::string_view key) {
+    auto text = optional_value<std::string>(ctx, table, path, key, "a duration string such as \"500ms\" or \"1s\"");
+    if (!text) return text.error();
+    if (!*text) return std::optional<milliseconds>{};
+    auto duration = parse_duration(**text, "", std::chrono::milliseconds(1));
+    if (!duration) return ctx.fail(source_of(table, key), key_path(path, key), without_option_name(duration.error().message));
+    // Sub-millisecond precision means nothing to a poll or a timeout; round to whole ms.
+    return std::optional<milliseconds>{std::chrono::round<milliseconds>(*duration)};
+}
+
+Result<std::optional<long long>> optional_integer(const Context& ctx, const toml::table& table, const std::string& path,
+                                                  std::string_view key, long long min, long long max) {
+    const std::string expected = fmt::format("an integer {}..{}", min, max);
+    auto value = optional_value<std::int64_t>(ctx, table, path, key, expected);
+    if (!value) return value.error();
+    if (!*value) return std::optional<long long>{};
+    if (**value < min || **value > max) {
+        return ctx.fail(source_of(table, key), key_path(path, key), fmt::format("{} is out of range (expected {})", **value, expected));
+    }
+    return std::optional<long long>{**value};
+}
+
+// An array of tables ([[lines]], [[lines.devices]]); absent is an empty list.
+Result<std::vector<const toml::table*>> tables_of(const Context& ctx, const toml::table& table, const std::string& path,
+                                                  std::string_view key) {
+    std::vector<const toml::table*> tables;
+    const toml::node* node = table.get(key);
+    if (!node) return tables;
+    const auto* array = node->as_array();
+    if (array && array->empty()) return tables;  // "lines = []": the caller says what is missing
+    if (!array || !array->is_array_of_tables()) {
+        return ctx.fail(node->source(), key_path(path, key), fmt::format("expected [[{}]] tables", key_path(path, key)));
+    }
+    for (const toml::node& element : *array) tables.push_back(element.as_table());
+    return tables;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Names go into MQTT topics and URLs: nothing there may need escaping.
+
+bool name_character(char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' || c == '_';
+}
+
+Result<std::string> checked_name(const Context& ctx, const toml::table& table, const std::string& path) {
+    auto name = required_string(ctx, table, path, "name", "\"furnace-line\"");
+    if (!name) return name.error();
+    if (name->empty() || !std::all_of(name->begin(), name->end(), name_character)) {
+        return ctx.fail(source_of(table, "name"), key_path(path, "name"),
+                        fmt::format("\"{}\" is not a valid name (expected letters, digits, '-' and '_' only: it is used "
+                                    "in MQTT topics and URLs)", *name));
+    }
+    return name;
+}
+
+// Where each name, unit and Modbus TCP unit was first given, for messages about clashes.
+struct Seen {
+    std::string path;
+    toml::source_index line = 0;
+    std::string name;
+};
+
+struct DeviceSeen {
+    Seen seen;
+    std::uint8_t tcp_unit = 0;
+    std::string tcp_unit_key;             // "tcp_unit", or "device" when the unit defaults from it
+    toml::source_region tcp_unit_source;
+};
+
+struct Registry {
+    std::map<std::string, Seen> line_names;
+    std::map<std::string, Seen> device_names;
+    std::vector<DeviceSeen> devices;  // every device, in file order
+};
+
+Result<void> claim_name(const Context& ctx, std::map<std::string, Seen>& names, const Seen& claim,
+                        const toml::source_region& where, std::string_view what) {
+    auto [it, fresh] = names.emplace(claim.name, claim);
+    if (fresh) return {};
+    return ctx.fail(where, key_path(claim.path, "name"),
+                    fmt::format("\"{}\" is already the name of {} (line {}); {} names must be unique", claim.name,
+                                it->second.path, it->second.line, what));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Devices
+
+Result<std::vector<std::string>> parameter_names(const Context& ctx, const toml::table& table, const std::string& path,
+                                                 const device::Profile& profile, const std::string& device_name) {
+    std::vector<std::string> names;
+    const toml::node* node = table.get("parameters");
+    if (!node) return names;
+    const std::string list_path = key_path(path, "parameters");
+    const auto* array = node->as_array();
+    if (!array) return ctx.fail(node->source(), list_path, "expected a list of parameter names, e.g. [\"measured_value\"]");
+    for (std::size_t i = 0; i < array->size(); ++i) {
+        const toml::node& element = *array->get(i);
+        const auto* name = element.as_string();
+        if (!name) return ctx.fail(element.source(), index_path(list_path, i), "expected a parameter name (a string)");
+        // Resolved as `loopwire read` resolves names, so what works there works here.
+        auto found = device::resolve_parameters(profile, {name->get()});
+        if (!found) {
+            return ctx.fail(element.source(), index_path(list_path, i),
+                            fmt::format("device {}: {}", device_name, found.error().message));
+        }
+        for (const device::Parameter* parameter : *found) {
+            if (parameter->readable) continue;
+            return ctx.fail(element.source(), index_path(list_path, i),
+                            fmt::format("device {}: {} is write-only and cannot be polled", device_name, parameter->name));
+        }
+        names.push_back(name->get());
+    }
+    return names;
+}
+
+Result<void> check_unit_free_on_line(const Context& ctx, const LineConfig& line, const DeviceConfig& device,
+                                     const std::vector<Seen>& line_devices, const toml::source_region& where,
+                                     const std::string& path) {
+    for (std::size_t i = 0; i < line.devices.size(); ++i) {
+        if (line.devices[i].address.unit != device.address.unit) continue;
+        // One unit id answers once on a serial line: two devices there would answer together.
+        return ctx.fail(where, key_path(path, "device"),
+                        fmt::format("unit {} is already used by {} ({}, line {}) on line {}; each device on a line "
+                                    "needs its own unit", device.address.unit, line.devices[i].name, line_devices[i].path,
+                                    line_devices[i].line, line.name));
+    }
+    return {};
+}
+
+Result<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry,
+                                  DeviceSeen& seen) {
+    if (auto keys = check_keys(ctx, table, path, {"name", "device", "poll", "parameters", "tcp_unit"}); !keys) return keys.error();
+    DeviceConfig device;
+    auto name = checked_name(ctx, table, path);
+    if (!name) return name.error();
+    device.name = std::move(*name);
+    seen.seen = Seen{path, table.source().begin.line, device.name};
+    if (auto claimed = claim_name(ctx, registry.device_names, seen.seen, source_of(table, "name"), "device"); !claimed) {
+        return claimed.error();
+    }
+    auto text = required_string(ctx, table, path, "device", "\"tc10@3\"");
+    if (!text) return text.error();
+    auto address = device::parse_device_address(ctx.profiles, *text);
+    if (!address) return ctx.fail(source_of(table, "device"), key_path(path, "device"), address.error().message);
+    device.address = std::move(*address);
+    auto poll = optional_duration(ctx, table, path, "poll");
+    if (!poll) return poll.error();
+    if (*poll) device.poll = **poll;
+    auto parameters = parameter_names(ctx, table, path, *device.address.profile, device.name);
+    if (!parameters) return parameters.error();
+    device.parameters = std::move(*parameters);
+    auto tcp_unit = optional_integer(ctx, table, path, "tcp_unit", 1, 247);
+    if (!tcp_unit) return tcp_unit.error();
+    device.tcp_unit = *tcp_unit ? static_cast<std::uint8_t>(**tcp_unit) : device.address.unit;  // 1..247, checked
+    seen.tcp_unit = device.tcp_unit;
+    seen.tcp_unit_key = *tcp_unit ? "tcp_unit" : "device";
+    seen.tcp_unit_source = source_of(table, seen.tcp_unit_key);
+    return device;
+}
+
+Result<void> parse_devices(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry,
+                           LineConfig& line) {
+    auto tables = tables_of(ctx, table, path, "devices");
+    if (!tables) return tables.error();
+    std::vector<Seen> line_devices;
+    for (std::size_t i = 0; i < tables->size(); ++i) {
+        const std::string device_path = index_path(key_path(path, "devices"), i);
+        DeviceSeen seen;
+        auto device = parse_device(ctx, *(*tables)[i], device_path, registry, seen);
+        if (!device) return device.error();
+        const auto& where = source_of(*(*tables)[i], "device");
+        if (auto free = check_unit_free_on_line(ctx, line, *device, line_devices, where, device_path); !free) return free.error();
+        line_devices.push_back(seen.seen);
+        registry.devices.push_back(std::move(seen));
+        line.devices.push_back(std::move(*device));
+    }
+    return {};
+}
+
+// ---------------------------------------------------------------------------------------------
+// Lines
+
+Result<void> parse_line_settings(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
+    auto link_text = required_string(ctx, table, path, "link", "\"rtu:/dev/ttyUSB0?baud=19200\"");
+    if (!link_text) return link_text.error();
+    auto link = transport::parse_link_url(*link_text);
+    if (!link) return ctx.fail(source_of(table, "link"), key_path(path, "link"), link.error().message);
+    line.link = std::move(*link);
+    auto timeout = optional_duration(ctx, table, path, "timeout");
+    if (!timeout) return timeout.error();
+    if (*timeout) line.timeout = **timeout;
+    auto retries = optional_integer(ctx, table, path, "retries", 0, max_retries);
+    if (!retries) return retries.error();
+    if (*retries) line.retries = static_cast<unsigned>(**retries);  // 0..10, checked
+    return {};
+}
+
+Result<LineConfig> parse_line(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry) {
+    if (auto keys = check_keys(ctx, table, path, {"name", "link", "timeout", "retries", "devices"}); !keys) return keys.error();
+    LineConfig line;
+    auto name = checked_name(ctx, table, path);
+    if (!name) return name.error();
+    line.name = std::move(*name);
+    const Seen seen{path, table.source().begin.line, line.name};
+    if (auto claimed = claim_name(ctx, registry.line_names, seen, source_of(table, "name"), "line"); !claimed) return claimed.error();
+    if (auto settings = parse_line_settings(ctx, table, path, line); !settings) return settings.error();
+    if (auto devices = parse_devices(ctx, table, path, registry, line); !devices) return devices.error();
+    return line;
+}
+
+// The lowest Modbus TCP unit no device uses, to suggest in a clash message.
+unsigned free_tcp_unit(const std::vector<DeviceSeen>& devices) {
+    std::set<unsigned> used;
+    for (const DeviceSeen& device : devices) used.insert(device.tcp_unit);
+    unsigned unit = 1;
+    while (unit <= 247 && used.count(unit) != 0) ++unit;
+    return unit;
+}
+
+// Modbus TCP clients address devices by unit id alone, across every line: each needs its own.
+Result<void> check_tcp_units(const Context& ctx, const std::vector<DeviceSeen>& devices) {
+    for (std::size_t later = 0; later < devices.size(); ++later) {
+        for (std::size_t earlier = 0; earlier < later; ++earlier) {
+            if (devices[earlier].tcp_unit != devices[later].tcp_unit) continue;
+            const Seen& a = devices[earlier].seen;
+            const Seen& b = devices[later].seen;
+            return ctx.fail(devices[later].tcp_unit_source, key_path(b.path, devices[later].tcp_unit_key),
+                            fmt::format("Modbus TCP unit {} would be both {} ({}, line {}) and {} ({}, line {}); map one "
+                                        "of them to another unit with tcp_unit = {}", devices[later].tcp_unit, a.name,
+                                        a.path, a.line, b.name, b.path, b.line, free_tcp_unit(devices)));
+        }
+    }
+    return {};
+}
+
+Result<std::vector<LineConfig>> parse_lines(const Context& ctx, const toml::table& root, Registry& registry) {
+    auto tables = tables_of(ctx, root, "", "lines");
+    if (!tables) return tables.error();
+    if (tables->empty()) {
+        return ctx.fail(source_of(root, "lines"), "lines",
+                        "no lines: at least one [[lines]] table is needed, with a name and a link");
+    }
+    std::vector<LineConfig> lines;
+    for (std::size_t i = 0; i < tables->size(); ++i) {
+        auto line = parse_line(ctx, *(*tables)[i], index_path("lines", i), registry);
+        if (!line) return line.error();
+        lines.push_back(std::move(*line));
+    }
+    if (auto units = check_tcp_units(ctx, registry.devices); !units) return units.error();
+    return lines;
+}
+
+// ---------------------------------------------------------------------------------------------
+// [modbus_tcp]
+
+struct HostPort {
+    std::string host;
+    std::uint16_t port = 0;
+};
+
+// "HOST:PORT", or "[IPV6]:PORT": the brackets keep the address's own colons apart from the
+// port's. The host is kept without them, as the socket layer takes it.
+std::optional<HostPort> split_listen(std::string_view text) {
+    std::string_view host;
+    std::string_view port;
+    if (!text.empty() && text.front() == '[') {
+        const auto close = text.find(']');
+        if (close == std::string_view::npos || close + 1 >= text.size() || text[close + 1] != ':') return std::nullopt;
+        host = text.substr(1, close - 1);
+        port = text.substr(close + 2);
+    } else {
+        const auto colon = text.find(':');
+        if (colon == std::string_view::npos || text.find(':', colon + 1) != std::string_view::npos) return std::nullopt;
+        host = text.substr(0, colon);
+        port = text.substr(colon + 1);
+    }
+    const auto number = parse_decimal_digits(port);
+    // Port 0: the kernel picks a free one, which the gateway prints when it starts (tests, and
+    // several gateways on one machine).
+    if (host.empty() || !number || *number > 65535) return std::nullopt;
+    return HostPort{std::string(host), static_cast<std::uint16_t>(*number)};  // 0..65535, checked
+}
+
+Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& root) {
+    ModbusTcpConfig config;
+    const toml::node* node = root.get("modbus_tcp");
+    if (!node) return config;
+    const auto* table = node->as_table();
+    if (!table) return ctx.fail(node->source(), "modbus_tcp", "expected a [modbus_tcp] table");
+    if (auto keys = check_keys(ctx, *table, "modbus_tcp", {"listen", "writes", "enabled"}); !keys) return keys.error();
+    auto listen = optional_value<std::string>(ctx, *table, "modbus_tcp", "listen", "a string such as \"127.0.0.1:1502\"");
+    if (!listen) return listen.error();
+    if (*listen) {
+        auto address = split_listen(**listen);
+        if (!address) {
+            return ctx.fail(source_of(*table, "listen"), "modbus_tcp.listen",
+                            fmt::format("\"{}\" is not an address to listen on (expected HOST:PORT with a port 0..65535, "
+                                        "0 for any free one, e.g. \"127.0.0.1:1502\", \"0.0.0.0:502\" or \"[::1]:1502\")", **listen));
+        }
+        config.host = std::move(address->host);
+        config.port = address->port;
+    }
+    auto writes = optional_value<bool>(ctx, *table, "modbus_tcp", "writes", "true or false");
+    if (!writes) return writes.error();
+    config.writes = writes->value_or(config.writes);
+    auto enabled = optional_value<bool>(ctx, *table, "modbus_tcp", "enabled", "true or false");
+    if (!enabled) return enabled.error();
+    config.enabled = enabled->value_or(config.enabled);
+    return config;
+}
+
+Result<toml::table> parse_toml(std::string_view text, const std::string& source) {
+#if TOML_EXCEPTIONS
+    try {
+        return toml::parse(text, std::string_view(source));
+    } catch (const toml::parse_error& error) {
+        return make_error(ErrorKind::usage, fmt::format("{}:{}:{}: TOML syntax error: {}", source, error.source().begin.line,
+                                                        error.source().begin.column, error.description()));
+    }
+#else
+    toml::parse_result parsed = toml::parse(text, std::string_view(source));
+    if (!parsed) {
+        const auto& error = parsed.error();
+        return make_error(ErrorKind::usage, fmt::format("{}:{}:{}: TOML syntax error: {}", source, error.source().begin.line,
+                                                        error.source().begin.column, error.description()));
+    }
+    return std::move(parsed).table();
+#endif
+}
+
+}  // namespace
+
+
+Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::string& source,
+                                           const device::ProfileRegistry& profiles) {
+    auto root = parse_toml(text, source);
+    if (!root) return root.error();
+    const Context ctx{source, profiles};
+    if (auto keys = check_keys(ctx, *root, "", {"lines", "modbus_tcp"}); !keys) return keys.error();
+    GatewayConfig config;
+    config.source = source;
+    Registry registry;
+    auto lines = parse_lines(ctx, *root, registry);
+    if (!lines) return lines.error();
+    config.lines = std::move(*lines);
+    auto modbus_tcp = parse_modbus_tcp(ctx, *root);
+    if (!modbus_tcp) return modbus_tcp.error();
+    config.modbus_tcp = std::move(*modbus_tcp);
+    return config;
+}
+
+Result<GatewayConfig> load_gateway_config(const std::filesystem::path& file, const device::ProfileRegistry& profiles) {
+    const std::string source = file.string();
+    std::error_code error;
+    const auto status = std::filesystem::status(file, error);
+    if (error || !std::filesystem::exists(status)) {
+        return make_error(ErrorKind::usage, fmt::format("{}: cannot read the gateway configuration: {}", source,
+                                                        error ? error.message() : "no such file"));
+    }
+    if (!std::filesystem::is_regular_file(status)) {
+        return make_error(ErrorKind::usage, fmt::format("{}: the gateway configuration must be a regular file", source));
+    }
+    const auto size = std::filesystem::file_size(file, error);
+    if (error) return make_error(ErrorKind::usage, fmt::format("{}: cannot read the gateway configuration: {}", source, error.message()));
+    // A configuration is a few kilobytes; anything far larger is the wrong file.
+    if (size > max_file_size) {
+        return make_error(ErrorKind::usage, fmt::format("{}: {} bytes is too large for a gateway configuration (at most 1 MiB)",
+                                                        source, size));
+    }
+    std::ifstream in(file, std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    if (!in || in.bad()) return make_error(ErrorKind::usage, fmt::format("{}: cannot read the gateway configuration", source));
+    return parse_gateway_config(text.str(), source, profiles);
+}
+
+
+}  // namespace loopwire::gateway

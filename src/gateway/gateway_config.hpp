@@ -1,0 +1,60 @@
+#pragma once
+// The gateway's configuration: one TOML file naming the lines the gateway owns, the devices on
+// each, and the fronts it serves (docs/DESIGN.md, gateway). Every error names the file, the
+// line and the key, and says what is expected.
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "client/device_client.hpp"
+#include "common/result.hpp"
+#include "profile/profile_registry.hpp"
+#include "transport/link_url.hpp"
+
+namespace loopwire::gateway {
+
+struct DeviceConfig {
+    std::string name;                       // used in MQTT topics, URLs and logs
+    device::DeviceAddress address;          // profile and unit on its line
+    std::uint8_t tcp_unit = 0;              // the unit id Modbus TCP clients use (default: the device's unit)
+    std::chrono::milliseconds poll{1000};   // interval of the parameters polled
+    std::vector<std::string> parameters;    // empty: the profile's default watch list
+};
+
+struct LineConfig {
+    std::string name;
+    transport::LinkUrl link;
+    std::chrono::milliseconds timeout{1000};
+    unsigned retries = 0;
+    std::vector<DeviceConfig> devices;
+};
+
+struct ModbusTcpConfig {
+    bool enabled = true;
+    std::string host = "127.0.0.1";  // loopback unless the file names another address
+    std::uint16_t port = 1502;
+    bool writes = true;              // false: writes are refused with exception 1 and logged
+};
+
+struct GatewayConfig {
+    std::string source;  // the file it came from, for messages
+    std::vector<LineConfig> lines;
+    ModbusTcpConfig modbus_tcp;
+};
+
+// Parses and checks a configuration; `source` names it in errors ("plant.toml").
+Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::string& source,
+                                           const device::ProfileRegistry& profiles);
+Result<GatewayConfig> load_gateway_config(const std::filesystem::path& file, const device::ProfileRegistry& profiles);
+
+// What one poll of the device reads: the configured names, or the profile's default watch list.
+std::vector<const device::Parameter*> polled_parameters(const DeviceConfig& device);
+
+// What `loopwire gateway --check` prints: each line with its devices, poll groups and the
+// estimated share of the line's wire time the polls take.
+std::string describe_plan(const GatewayConfig& config);
+
+}  // namespace loopwire::gateway

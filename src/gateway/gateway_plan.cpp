@@ -1,0 +1,142 @@
+// `loopwire gateway --check`: what the configuration asks of each line, and how much of the
+// line's wire time the polls will take.
+#include "gateway/gateway_config.hpp"
+
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "client/monitor_names.hpp"
+#include "codec/rtu.hpp"
+#include "profile/request_planner.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+using std::chrono::microseconds;
+using std::chrono::milliseconds;
+
+std::string duration_text(milliseconds duration) {
+    if (duration.count() % 60000 == 0) return fmt::format("{}m", duration.count() / 60000);
+    if (duration.count() % 1000 == 0) return fmt::format("{}s", duration.count() / 1000);
+    return fmt::format("{}ms", duration.count());
+}
+
+
+// The device client also reads the words that give a parameter its decimals (DeviceClient::read),
+// so they count in the requests a poll costs. The planner reads duplicates once.
+std::vector<device::ReadBlock> poll_requests(const DeviceConfig& device, const std::vector<const device::Parameter*>& wanted) {
+    const device::Profile& profile = *device.address.profile;
+    std::vector<const device::Parameter*> words = wanted;
+    for (const device::Parameter* parameter : wanted) {
+        const auto* source = std::get_if<std::string>(&parameter->decimals);
+        const device::Parameter* dependency = source ? profile.find(*source) : nullptr;
+        if (dependency && dependency->readable) words.push_back(dependency);
+    }
+    return device::plan_reads(profile, words, device.address.address_offset);
+}
+
+// RTU frame sizes: unit + function + address + count + CRC for the request; unit + function +
+// byte count + data + CRC for the reply.
+constexpr unsigned rtu_read_request_bytes = 8;
+
+unsigned rtu_reply_bytes(const device::ReadBlock& block) {
+    const unsigned data = codec::is_bit_table(block.table) ? (block.count + 7u) / 8u : 2u * block.count;
+    return 5 + data;
+}
+
+// ASCII sends each byte but the CRC as two hex characters, an LRC byte (two characters), and
+// ':' plus CR LF around them.
+unsigned ascii_characters(unsigned rtu_bytes) { return (rtu_bytes - 2 + 1) * 2 + 3; }
+
+// Wire time of one request and its reply. RTU frames are each preceded by a 3.5-character
+// silence; ASCII frames are delimited by characters, so only the characters count.
+microseconds wire_time(const device::ReadBlock& block, const transport::LinkUrl& link) {
+    const codec::CharacterTiming timing{link.serial.baud, link.serial.bits_per_character()};
+    unsigned characters = rtu_read_request_bytes + rtu_reply_bytes(block);
+    if (link.framing == transport::Framing::ascii) {
+        characters = ascii_characters(rtu_read_request_bytes) + ascii_characters(rtu_reply_bytes(block));
+        return timing.character_time() * characters;
+    }
+    return timing.character_time() * characters + 2 * timing.t3_5();
+}
+
+// Share of the line's time one device's polls take, in percent.
+double device_load_percent(const DeviceConfig& device, const std::vector<device::ReadBlock>& requests,
+                           const transport::LinkUrl& link) {
+    microseconds per_poll{0};
+    for (const device::ReadBlock& block : requests) per_poll += wire_time(block, link);
+    const auto interval = std::chrono::duration_cast<microseconds>(device.poll);
+    return 100.0 * static_cast<double>(per_poll.count()) / static_cast<double>(interval.count());
+}
+
+std::string plural(std::size_t count, std::string_view one, std::string_view many) {
+    return fmt::format("{} {}", count, count == 1 ? one : many);
+}
+
+void describe_device(std::ostringstream& out, const DeviceConfig& device, const std::vector<device::ReadBlock>& requests,
+                     std::size_t parameters) {
+    out << fmt::format("  device {}: {}@{}, Modbus TCP unit {}, every {}: {}{} in {} per poll\n", device.name,
+                       device.address.profile->id, device.address.unit, device.tcp_unit, duration_text(device.poll),
+                       plural(parameters, "parameter", "parameters"), device.parameters.empty() ? " (default watch list)" : "",
+                       plural(requests.size(), "request", "requests"));
+}
+
+void describe_load(std::ostringstream& out, const transport::LinkUrl& link, double load) {
+    if (!link.is_serial()) {
+        out << "  no wire-time estimate for TCP links\n";
+        return;
+    }
+    if (link.framing == transport::Framing::linking) {
+        out << "  no wire-time estimate for Linking links\n";
+        return;
+    }
+    const bool ascii = link.framing == transport::Framing::ascii;
+    out << fmt::format("  estimated line load: {:.1f} % of wire time{}\n", load, ascii ? " (approximate, ASCII framing)" : "");
+    if (load > 100.0) out << "  warning: over 100 %: polls will fall behind\n";
+}
+
+void describe_line(std::ostringstream& out, const LineConfig& line) {
+    out << fmt::format("line {}: {} (timeout {}, {})\n", line.name, line.link.to_string(), duration_text(line.timeout),
+                       plural(line.retries, "retry", "retries"));
+    if (line.devices.empty()) out << "  no devices\n";
+    double load = 0;
+    for (const DeviceConfig& device : line.devices) {
+        const auto wanted = polled_parameters(device);
+        const auto requests = poll_requests(device, wanted);
+        describe_device(out, device, requests, wanted.size());
+        load += device_load_percent(device, requests, line.link);
+    }
+    describe_load(out, line.link, load);
+}
+
+void describe_modbus_tcp(std::ostringstream& out, const ModbusTcpConfig& config) {
+    if (!config.enabled) {
+        out << "Modbus TCP: disabled\n";
+        return;
+    }
+    // An IPv6 address is shown in brackets again, as it would be written in the file.
+    const bool ipv6 = config.host.find(':') != std::string::npos;
+    out << fmt::format("Modbus TCP: listening on {}{}{}:{}, writes {}\n", ipv6 ? "[" : "", config.host, ipv6 ? "]" : "",
+                       config.port, config.writes ? "allowed" : "refused");
+}
+
+}  // namespace
+
+// What one poll asks for: the configured names, or the profile's default watch list.
+std::vector<const device::Parameter*> polled_parameters(const DeviceConfig& device) {
+    const device::Profile& profile = *device.address.profile;
+    if (device.parameters.empty()) return device::default_watch_list(profile);
+    auto resolved = device::resolve_parameters(profile, device.parameters);
+    return resolved ? *resolved : std::vector<const device::Parameter*>{};  // checked when parsed
+}
+
+std::string describe_plan(const GatewayConfig& config) {
+    std::ostringstream out;
+    out << fmt::format("{}: {}\n", config.source, plural(config.lines.size(), "line", "lines"));
+    for (const LineConfig& line : config.lines) describe_line(out, line);
+    describe_modbus_tcp(out, config.modbus_tcp);
+    return out.str();
+}
+
+}  // namespace loopwire::gateway

@@ -1,0 +1,342 @@
+#include "gateway/line_scheduler.hpp"
+
+#include <cassert>
+#include <condition_variable>
+#include <deque>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <type_traits>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "client/monitor_backoff.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+// The back-off runs on the scheduler's injected clock, so a virtual clock drives it in tests;
+// that only works while both speak of the same time points.
+static_assert(std::is_same_v<Instant, device::RetryBackoff::Clock::time_point>);
+
+void deliver(session::Master::ForwardCompletion& done, Result<Bytes> result) {
+    if (done) done(std::move(result));
+}
+
+Error stopping_error() { return make_error(ErrorKind::link, "gateway stopping: the request was not sent"); }
+
+Error expired_error(std::uint8_t unit) {
+    return make_error(ErrorKind::timeout,
+                      fmt::format("unit {}: the deadline passed before the line was free; not sent", unit));
+}
+
+Error abandoned_error(std::uint8_t unit) {
+    return make_error(ErrorKind::link, fmt::format("unit {}: the asker has gone; not sent", unit));
+}
+
+Error backing_off_error(std::uint8_t unit, const device::RetryBackoff& backoff, Instant now) {
+    const auto failures = backoff.consecutive_failures();
+    const auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(backoff.next_try() - now);
+    return make_error(ErrorKind::timeout,
+                      fmt::format("unit {} is backing off after {} consecutive timeout{}; polled again in {} ms",
+                                  unit, failures, failures == 1 ? "" : "s", wait.count()));
+}
+
+// Requests of one priority from many clients: each client has its own FIFO and the clients take
+// turns, so a client with a long queue delays another's request by at most one request.
+class FairLane {
+public:
+    void push(LineRequest request) {
+        auto& queue = queues_[request.client];
+        if (queue.empty()) turns_.push_back(request.client);
+        queue.push_back(std::move(request));
+        ++size_;
+    }
+
+    std::optional<LineRequest> pop() {
+        if (turns_.empty()) return std::nullopt;
+        const auto client = turns_.front();
+        turns_.pop_front();
+        auto found = queues_.find(client);
+        LineRequest request = std::move(found->second.front());
+        found->second.pop_front();
+        // To the back of the turns: every other client with something queued goes first.
+        if (found->second.empty()) {
+            queues_.erase(found);
+        } else {
+            turns_.push_back(client);
+        }
+        --size_;
+        return request;
+    }
+
+    void take_all(std::vector<LineRequest>& into) {
+        while (auto request = pop()) into.push_back(std::move(*request));
+    }
+
+    std::size_t size() const { return size_; }
+
+private:
+    std::unordered_map<std::uint64_t, std::deque<LineRequest>> queues_;
+    std::deque<std::uint64_t> turns_;  // clients with something queued, next first
+    std::size_t size_ = 0;
+};
+
+// One request on the wire. A master may call the completion inside forward_async (one that
+// answers at once) or later on its own thread. The first case is handed back to the loop that
+// sent the request, so `done` never runs inside forward_async: not under whatever the master
+// holds there, and not while the scheduler counts the master as in use (a `done` that destroys
+// the scheduler would wait for itself in stop()).
+struct Flight {
+    std::uint8_t unit = 0;
+    session::Master::ForwardCompletion done;
+
+    // True if the completion is for the caller to handle now; false if forward_async has not
+    // returned yet, in which case the result is kept for the sender.
+    bool arrived(Result<Bytes>& result) {
+        std::lock_guard lock(mutex_);
+        if (sender_returned_) return true;
+        early_.emplace(std::move(result));
+        return false;
+    }
+
+    // Called by the sender once forward_async has returned: a result that came back inside it.
+    std::optional<Result<Bytes>> sender_returned() {
+        std::lock_guard lock(mutex_);
+        sender_returned_ = true;
+        return std::exchange(early_, std::nullopt);
+    }
+
+private:
+    std::mutex mutex_;
+    bool sender_returned_ = false;
+    std::optional<Result<Bytes>> early_;
+};
+
+}  // namespace
+
+struct LineScheduler::State : std::enable_shared_from_this<State> {
+    State(std::shared_ptr<session::Master> line, LineSchedulerOptions chosen, std::shared_ptr<Clock> time)
+        : master(std::move(line)), options(chosen), clock(std::move(time)) {
+        assert(master && clock);
+    }
+
+    void submit(LineRequest request) {
+        bool queued = false;
+        {
+            std::lock_guard lock(mutex);
+            queued = !stopping;
+            if (queued) enqueue(std::move(request));
+        }
+        if (!queued) {
+            deliver(request.done, stopping_error());
+            return;
+        }
+        pump();
+    }
+
+    // Sends queued requests while the line is free. Runs on whichever thread found it free: the
+    // submitter's, or the master's after a completion. One thread pumps at a time, so a `done`
+    // that submits again only queues, and a master that answers at once makes this loop go
+    // round instead of recursing as deep as the queue.
+    void pump() {
+        auto keep = shared_from_this();  // a `done` may destroy the scheduler while this runs
+        {
+            std::lock_guard lock(mutex);
+            if (pumping) return;  // that thread will see what was queued
+            pumping = true;
+        }
+        while (auto request = pop_next()) {
+            auto line = admit(*request);
+            if (!line) {
+                deliver(request->done, line.error());
+                continue;
+            }
+            auto flight = std::make_shared<Flight>();
+            flight->unit = request->unit;
+            flight->done = std::move(request->done);
+            if (auto early = send(**line, flight, std::move(request->pdu))) finish(*flight, std::move(*early));
+        }
+    }
+
+    // The next request by priority, or nothing (and the pump stops) if the line is busy, the
+    // scheduler is stopping or nothing is queued. Deciding that and clearing `pumping` under one
+    // lock means a request queued meanwhile is never left behind with nobody pumping.
+    std::optional<LineRequest> pop_next() {
+        std::lock_guard lock(mutex);
+        std::optional<LineRequest> next;
+        if (!stopping && !in_flight) {
+            next = writes.pop();
+            if (!next) next = clients.pop();
+            if (!next && !polls.empty()) {
+                next.emplace(std::move(polls.front()));
+                polls.pop_front();
+            }
+        }
+        if (!next) pumping = false;
+        return next;
+    }
+
+    // Whether `request` goes on the wire: if so, the line is now taken and the master to send on
+    // is returned; if not, the reason (already counted).
+    Result<session::Master*> admit(const LineRequest& request) {
+        // Outside the lock: it is the asker's code. Checked first, since an asker that has gone
+        // wants nothing, not even a timeout.
+        const bool gone = request.still_wanted && !request.still_wanted();
+        std::lock_guard lock(mutex);
+        if (stopping) return stopping_error();
+        if (gone) {
+            ++stats.abandoned;
+            return abandoned_error(request.unit);
+        }
+        const auto now = clock->now();
+        // At the deadline itself no time is left for a reply either.
+        if (now >= request.deadline) {
+            ++stats.expired;
+            return expired_error(request.unit);
+        }
+        if (auto refusal = backing_off(request, now)) {
+            ++stats.backed_off;
+            return *refusal;
+        }
+        in_flight = true;
+        sending = true;
+        ++stats.sent;
+        return master.get();
+    }
+
+    // Polls for a unit that stopped answering wait for its back-off; requests a person made get a
+    // real try. Once the back-off is due the next request sent, of any kind, is the probe.
+    std::optional<Error> backing_off(const LineRequest& request, Instant now) const {
+        if (request.priority != Priority::poll) return std::nullopt;
+        const auto found = backoffs.find(request.unit);  // only units whose last answer was none
+        if (found == backoffs.end() || found->second.due(now)) return std::nullopt;
+        return backing_off_error(request.unit, found->second, now);
+    }
+
+    // Puts the request on the wire. Returns a result that came back inside forward_async, for the
+    // caller's loop to finish.
+    std::optional<Result<Bytes>> send(session::Master& line, const std::shared_ptr<Flight>& flight, Bytes pdu) {
+        // The completion holds only a weak reference: it may arrive after the scheduler is gone.
+        std::weak_ptr<State> weak = weak_from_this();
+        line.forward_async(flight->unit, std::move(pdu), [weak, flight](Result<Bytes> result) {
+            if (flight->arrived(result)) landed(weak, *flight, std::move(result));
+        });
+        {
+            std::lock_guard lock(mutex);
+            sending = false;
+        }
+        not_sending.notify_all();
+        return flight->sender_returned();
+    }
+
+    // A completion that arrived after forward_async returned, on the master's thread.
+    static void landed(const std::weak_ptr<State>& weak, Flight& flight, Result<Bytes> result) {
+        auto state = weak.lock();
+        if (!state) {  // the scheduler is gone; the asker still hears what the unit said
+            deliver(flight.done, std::move(result));
+            return;
+        }
+        state->finish(flight, std::move(result));
+        state->pump();
+    }
+
+    // The line is free again: counts the result, then tells the asker.
+    void finish(Flight& flight, Result<Bytes> result) {
+        {
+            std::lock_guard lock(mutex);
+            in_flight = false;
+            record(flight.unit, result);
+        }
+        deliver(flight.done, std::move(result));
+    }
+
+    void record(std::uint8_t unit, const Result<Bytes>& result) {
+        if (result.ok()) {  // any reply, exception replies included: the unit is alive
+            ++stats.answered;
+            backoffs.erase(unit);
+            return;
+        }
+        switch (result.error().kind) {
+            case ErrorKind::timeout:
+                ++stats.timeouts;
+                backoffs.try_emplace(unit, options.first_backoff, options.max_backoff)
+                    .first->second.failed(clock->now());
+                break;
+            case ErrorKind::mismatch:
+            case ErrorKind::malformed:
+                // Something answered, so the unit is not silent; the back-off stays as it was.
+                ++stats.bad_replies;
+                break;
+            default:  // the link or the request itself failed: says nothing about the unit
+                break;
+        }
+    }
+
+    void enqueue(LineRequest request) {
+        switch (request.priority) {
+            case Priority::write: writes.push(std::move(request)); break;
+            case Priority::client: clients.push(std::move(request)); break;
+            case Priority::poll: polls.push_back(std::move(request)); break;
+        }
+    }
+
+    // For the destructor: nothing is sent after this, what is queued fails, and the master is
+    // released on this thread (not a completion's, see the header).
+    void stop() {
+        std::vector<LineRequest> left;
+        std::shared_ptr<session::Master> line;
+        {
+            std::unique_lock lock(mutex);
+            stopping = true;
+            // A sender inside forward_async still uses the master; that call only queues, so
+            // this wait is short, and afterwards nothing here touches the master again.
+            not_sending.wait(lock, [this] { return !sending; });
+            writes.take_all(left);
+            clients.take_all(left);
+            for (auto& poll : polls) left.push_back(std::move(poll));
+            polls.clear();
+            line = std::move(master);
+        }
+        for (auto& request : left) deliver(request.done, stopping_error());
+    }
+
+    LineStatistics statistics() const {
+        std::lock_guard lock(mutex);
+        auto copy = stats;
+        copy.queued = writes.size() + clients.size() + polls.size();
+        return copy;
+    }
+
+    mutable std::mutex mutex;
+    std::condition_variable not_sending;
+    std::shared_ptr<session::Master> master;  // null once stopped
+    const LineSchedulerOptions options;
+    const std::shared_ptr<Clock> clock;
+
+    FairLane writes;
+    FairLane clients;
+    std::deque<LineRequest> polls;  // FIFO: polls are all the gateway's own, no one to be fair to
+    std::map<std::uint8_t, device::RetryBackoff> backoffs;  // units whose last request timed out
+    LineStatistics stats;
+
+    bool in_flight = false;  // a request is on the wire
+    bool pumping = false;    // a thread is in pump()
+    bool sending = false;    // a thread is inside master->forward_async
+    bool stopping = false;
+};
+
+LineScheduler::LineScheduler(std::shared_ptr<session::Master> master, LineSchedulerOptions options,
+                             std::shared_ptr<Clock> clock)
+    : state_(std::make_shared<State>(std::move(master), options, std::move(clock))) {}
+
+LineScheduler::~LineScheduler() { state_->stop(); }
+
+void LineScheduler::submit(LineRequest request) { state_->submit(std::move(request)); }
+
+LineStatistics LineScheduler::statistics() const { return state_->statistics(); }
+
+}  // namespace loopwire::gateway

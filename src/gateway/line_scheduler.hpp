@@ -1,0 +1,74 @@
+#pragma once
+// One serial line (or one-connection TCP device) shared by everything that wants it: one request
+// on the wire at a time, writes first, then clients' requests (round robin between clients, so
+// a busy one cannot starve another), then due polls. A request whose deadline has passed or
+// whose client has gone is never sent; a unit that stopped answering backs off, so it costs the
+// others at most one timeout per back-off period (docs/DESIGN.md, gateway).
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+
+#include "common/bytes.hpp"
+#include "common/clock.hpp"
+#include "common/result.hpp"
+#include "session/master.hpp"
+
+namespace loopwire::gateway {
+
+enum class Priority { write, client, poll };  // served in this order
+
+struct LineRequest {
+    std::uint8_t unit = 1;
+    Bytes pdu;
+    Priority priority = Priority::client;
+    std::uint64_t client = 0;  // who asked; fairness is round robin between clients
+    Instant deadline = Instant::max();  // not sent once this has passed
+    std::function<bool()> still_wanted;  // optional: false once the asker has gone
+    session::Master::ForwardCompletion done;  // the reply PDU, or why there is none
+};
+
+struct LineSchedulerOptions {
+    std::chrono::milliseconds first_backoff{1000};
+    std::chrono::milliseconds max_backoff{30000};
+};
+
+struct LineStatistics {
+    std::uint64_t sent = 0;          // requests put on the wire
+    std::uint64_t answered = 0;      // replies, exception replies included
+    std::uint64_t timeouts = 0;
+    std::uint64_t bad_replies = 0;   // malformed or mismatched replies
+    std::uint64_t expired = 0;       // dropped unsent: deadline passed
+    std::uint64_t abandoned = 0;     // dropped unsent: the asker had gone
+    std::uint64_t backed_off = 0;    // refused unsent: the unit is backing off
+    std::size_t queued = 0;          // waiting now
+};
+
+// Ownership: keep your own reference to the master and destroy the scheduler first, then the
+// master (declare the master before the scheduler). The serial master joins its thread when it
+// is destroyed, so it must never be destroyed on that thread, which is where completions and
+// `done` run; if the scheduler held the last reference, destroying the scheduler inside a
+// `done` would do exactly that. A request in flight when the scheduler goes still ends: its
+// `done` runs with the master's result whenever that arrives, without touching the scheduler.
+// `done` must not throw.
+class LineScheduler {
+public:
+    LineScheduler(std::shared_ptr<session::Master> master, LineSchedulerOptions options = {},
+                  std::shared_ptr<Clock> clock = steady_clock());
+    // Fails what is still queued (ErrorKind::link, "gateway stopping") and lets go of the
+    // master; does not wait for the request in flight.
+    ~LineScheduler();
+    LineScheduler(const LineScheduler&) = delete;
+    LineScheduler& operator=(const LineScheduler&) = delete;
+
+    // Queues a request; `done` runs exactly once, on the master's thread or the caller's.
+    void submit(LineRequest request);
+
+    LineStatistics statistics() const;
+
+private:
+    struct State;
+    std::shared_ptr<State> state_;
+};
+
+}  // namespace loopwire::gateway

@@ -1,0 +1,102 @@
+#include "gateway/poll_groups.hpp"
+
+#include <algorithm>
+
+#include <fmt/format.h>
+
+namespace loopwire::gateway {
+
+void ValueCache::update(const std::string& name, const device::WatchedDevice& state,
+                        std::chrono::system_clock::time_point sampled) {
+    std::lock_guard lock(mutex_);
+    auto it = std::find_if(devices_.begin(), devices_.end(), [&](const CachedDevice& cached) { return cached.name == name; });
+    if (it == devices_.end()) {
+        devices_.push_back({name, state, sampled});
+        return;
+    }
+    it->state = state;
+    it->sampled = sampled;
+}
+
+std::vector<CachedDevice> ValueCache::snapshot() const {
+    std::lock_guard lock(mutex_);
+    return devices_;
+}
+
+namespace {
+
+// Hands each sample of one group to the cache, and logs a device whose answering changes: the
+// first answer, a silence ("no-reply"), an answer again. Nothing per sample: the log is read by
+// people.
+class CachingSink final : public device::SampleSink {
+public:
+    CachingSink(std::vector<std::string> names, ValueCache& cache, GatewayLog log)
+        : names_(std::move(names)), answering_(names_.size()), cache_(cache), log_(std::move(log)) {}
+
+    void write(const device::SampleView& sample) override {
+        const auto& devices = *sample.devices;
+        for (std::size_t i = 0; i < devices.size() && i < names_.size(); ++i) {
+            cache_.update(names_[i], devices[i], sample.time);
+            note_answering(i, devices[i]);
+        }
+    }
+
+private:
+    void note_answering(std::size_t i, const device::WatchedDevice& device) {
+        if (device.status == "waiting") return;  // not polled this time: nothing new
+        const bool answers = device.status != "no-reply";
+        if (answering_[i] == answers) return;
+        const bool first = !answering_[i].has_value();
+        answering_[i] = answers;
+        if (!log_) return;
+        if (answers) {
+            log_(fmt::format("device {} ({}) {}", names_[i], device.label, first ? "answers" : "answers again"));
+        } else {
+            log_(fmt::format("device {} ({}) does not answer: {}; polled again with back-off", names_[i], device.label, device.last_error));
+        }
+    }
+
+    std::vector<std::string> names_;
+    std::vector<std::optional<bool>> answering_;
+    ValueCache& cache_;
+    GatewayLog log_;
+};
+
+}  // namespace
+
+struct PollGroups::Group {
+    std::vector<std::unique_ptr<ScheduledMaster>> masters;  // one per device: each names its line
+    std::vector<device::MonitorTarget> targets;
+    std::unique_ptr<CachingSink> sink;
+    device::MonitorSettings settings;
+    std::jthread thread;  // last: stops and joins before the rest goes
+};
+
+PollGroups::PollGroups(const GatewayConfig& config, const std::map<std::string, std::shared_ptr<LineScheduler>>& lines,
+                       ValueCache& cache, GatewayLog log) {
+    std::map<std::chrono::milliseconds, std::unique_ptr<Group>> by_interval;
+    std::map<std::chrono::milliseconds, std::vector<std::string>> names;
+    for (const auto& line : config.lines) {
+        const auto& scheduler = lines.at(line.name);
+        for (const auto& device : line.devices) {
+            auto& group = by_interval[device.poll];
+            if (!group) group = std::make_unique<Group>();
+            // A poll waiting longer than its interval would only be stale when it came back.
+            group->masters.push_back(std::make_unique<ScheduledMaster>(scheduler, line.link.to_string(), Priority::poll, device.poll));
+            group->targets.push_back({group->masters.back().get(), device.address, polled_parameters(device)});
+            names[device.poll].push_back(device.name);
+        }
+    }
+    for (auto& [interval, group] : by_interval) {
+        group->settings.interval = interval;
+        group->sink = std::make_unique<CachingSink>(std::move(names[interval]), cache, log);
+        group->thread = std::jthread([g = group.get()](std::stop_token stop) {
+            device::run_monitor(g->targets, g->settings, *g->sink, std::move(stop));
+        });
+        groups_.push_back(std::move(group));
+    }
+}
+
+PollGroups::~PollGroups() = default;
+
+}  // namespace loopwire::gateway

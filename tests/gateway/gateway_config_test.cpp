@@ -1,0 +1,416 @@
+// The gateway configuration (gateway/gateway_config.hpp): what a plant file parses to, the
+// errors a wrong one gives (file:line, key path, what is expected), and the plan
+// `loopwire gateway --check` prints, load figures checked against frame sizes worked out here.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <stdlib.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include <fmt/format.h>
+
+#include "gateway/gateway_config.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+using ::testing::Not;
+using ::testing::StartsWith;
+
+const device::ProfileRegistry& profiles() {
+    static const device::ProfileRegistry registry = [] {
+        auto built = device::ProfileRegistry::builtins();
+        if (!built) throw std::runtime_error(built.error().message);
+        return std::move(built).value();
+    }();
+    return registry;
+}
+
+Result<GatewayConfig> parse(const std::string& text) { return parse_gateway_config(text, "plant.toml", profiles()); }
+
+// The error message of a configuration that must be refused ("" and a failure when it parses).
+std::string error_of(const std::string& text) {
+    auto config = parse(text);
+    if (config) {
+        ADD_FAILURE() << "parsed, but should have been refused:\n" << text;
+        return {};
+    }
+    EXPECT_EQ(config.error().kind, ErrorKind::usage);
+    return config.error().message;
+}
+
+// The issue's example; line numbers matter to the tests below.
+const std::string example = R"toml([[lines]]
+name = "furnace-line"
+link = "rtu:/dev/ttyUSB0?baud=19200&parity=none"
+timeout = "300ms"
+retries = 1
+
+[[lines.devices]]
+name = "oven1"            # used in MQTT topics, URLs, logs
+device = "tc10@3"         # profile@unit, or a profile file
+poll = "1s"               # interval of the default parameter set
+parameters = ["measured_value", "set_point"]   # optional; default: the profile's monitor set
+tcp_unit = 13             # optional: unit id Modbus TCP clients use, default = the device's unit
+
+[modbus_tcp]
+listen = "127.0.0.1:1502" # loopback by default; another address only when written here
+writes = true
+enabled = true            # optional
+)toml";
+
+// One line with one tc10 device, and `extra` appended to the device table (line 7 on).
+std::string one_device(const std::string& extra) {
+    return "[[lines]]\n"                   // 1
+           "name = \"l1\"\n"               // 2
+           "link = \"rtu:virtual\"\n"      // 3
+           "\n"                            // 4
+           "[[lines.devices]]\n"           // 5
+           "name = \"oven1\"\n"            // 6
+           + extra;                        // 7...
+}
+
+TEST(GatewayConfig, TheIssueExampleParsesToItsValues) {
+    auto config = parse(example);
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->source, "plant.toml");
+    ASSERT_EQ(config->lines.size(), 1u);
+    const LineConfig& line = config->lines[0];
+    EXPECT_EQ(line.name, "furnace-line");
+    EXPECT_EQ(line.link.framing, transport::Framing::rtu);
+    EXPECT_EQ(line.link.path, "/dev/ttyUSB0");
+    EXPECT_EQ(line.link.serial.baud, 19200u);
+    EXPECT_EQ(line.link.serial.parity, transport::Parity::none);
+    EXPECT_EQ(line.timeout, std::chrono::milliseconds(300));
+    EXPECT_EQ(line.retries, 1u);
+    ASSERT_EQ(line.devices.size(), 1u);
+    const DeviceConfig& oven = line.devices[0];
+    EXPECT_EQ(oven.name, "oven1");
+    ASSERT_NE(oven.address.profile, nullptr);
+    EXPECT_EQ(oven.address.profile->id, "tc10");
+    EXPECT_EQ(oven.address.unit, 3);
+    EXPECT_EQ(oven.tcp_unit, 13);
+    EXPECT_EQ(oven.poll, std::chrono::milliseconds(1000));
+    EXPECT_EQ(oven.parameters, (std::vector<std::string>{"measured_value", "set_point"}));
+    EXPECT_TRUE(config->modbus_tcp.enabled);
+    EXPECT_TRUE(config->modbus_tcp.writes);
+    EXPECT_EQ(config->modbus_tcp.host, "127.0.0.1");
+    EXPECT_EQ(config->modbus_tcp.port, 1502);
+}
+
+TEST(GatewayConfig, DefaultsApplyToWhatIsLeftOut) {
+    auto config = parse(one_device("device = \"ac20@5\"\n"));
+    ASSERT_TRUE(config) << config.error().message;
+    const LineConfig& line = config->lines[0];
+    EXPECT_EQ(line.timeout, std::chrono::milliseconds(1000));
+    EXPECT_EQ(line.retries, 0u);
+    EXPECT_EQ(line.devices[0].tcp_unit, 5);  // the device's own unit
+    EXPECT_EQ(line.devices[0].poll, std::chrono::milliseconds(1000));
+    EXPECT_TRUE(line.devices[0].parameters.empty());  // the default watch list
+    EXPECT_TRUE(config->modbus_tcp.enabled);
+    EXPECT_TRUE(config->modbus_tcp.writes);
+    EXPECT_EQ(config->modbus_tcp.host, "127.0.0.1");  // loopback unless written otherwise
+    EXPECT_EQ(config->modbus_tcp.port, 1502);
+}
+
+TEST(GatewayConfig, ModbusTcpSettingsAreRead) {
+    auto config = parse(one_device("device = \"tc10@3\"\n") +
+                        "[modbus_tcp]\nlisten = \"0.0.0.0:502\"\nwrites = false\nenabled = false\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->modbus_tcp.host, "0.0.0.0");
+    EXPECT_EQ(config->modbus_tcp.port, 502);
+    EXPECT_FALSE(config->modbus_tcp.writes);
+    EXPECT_FALSE(config->modbus_tcp.enabled);
+
+    auto ipv6 = parse(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nlisten = \"[::1]:1502\"\n");
+    ASSERT_TRUE(ipv6) << ipv6.error().message;
+    EXPECT_EQ(ipv6->modbus_tcp.host, "::1");
+    EXPECT_EQ(ipv6->modbus_tcp.port, 1502);
+}
+
+TEST(GatewayConfig, ASyntaxErrorGivesLineColumnAndTheParsersWords) {
+    const std::string message = error_of("[[lines]]\nname = \"a\"\nlink = = \"rtu:virtual\"\n");
+    EXPECT_THAT(message, StartsWith("plant.toml:3:8: TOML syntax error: ")) << message;
+    EXPECT_GT(message.size(), std::string("plant.toml:3:8: TOML syntax error: ").size()) << message;
+}
+
+TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
+    const std::string device = error_of(one_device("device = \"tc10@3\"\npol = \"1s\"\n"));
+    EXPECT_EQ(device, "plant.toml:8: lines[0].devices[0].pol: unknown key (allowed here: name, device, poll, parameters, tcp_unit)");
+
+    const std::string line = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\ntimout = \"1s\"\n");
+    EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, devices)");
+
+    const std::string top = error_of(one_device("device = \"tc10@3\"\n") + "[modbus]\nlisten = \"127.0.0.1:1502\"\n");
+    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: lines, modbus_tcp)");
+
+    const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
+    EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: listen, writes, enabled)");
+}
+
+TEST(GatewayConfig, ABadDurationNamesTheKeyAndTheForm) {
+    const std::string poll = error_of(one_device("device = \"tc10@3\"\npoll = \"fast\"\n"));
+    EXPECT_THAT(poll, StartsWith("plant.toml:8: lines[0].devices[0].poll: 'fast' is not a duration")) << poll;
+    EXPECT_THAT(poll, HasSubstr("500ms")) << poll;
+
+    const std::string zero = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\ntimeout = \"0ms\"\n");
+    EXPECT_THAT(zero, StartsWith("plant.toml:4: lines[0].timeout: '0ms' is too short: give at least 1ms")) << zero;
+
+    const std::string number = error_of(one_device("device = \"tc10@3\"\npoll = 1000\n"));
+    EXPECT_THAT(number, StartsWith("plant.toml:8: lines[0].devices[0].poll: expected a duration string")) << number;
+}
+
+TEST(GatewayConfig, ABadLinkPassesTheLinkParsersWordsOn) {
+    const std::string message = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:/dev/ttyUSB0?baud=12345\"\n");
+    EXPECT_THAT(message, StartsWith("plant.toml:3: lines[0].link: ")) << message;
+    EXPECT_THAT(message, HasSubstr("12345")) << message;
+    EXPECT_THAT(message, HasSubstr("not a supported rate")) << message;
+}
+
+TEST(GatewayConfig, AnUnknownProfileOrBadUnitIsNamed) {
+    const std::string profile = error_of(one_device("device = \"oven@3\"\n"));
+    EXPECT_THAT(profile, StartsWith("plant.toml:7: lines[0].devices[0].device: ")) << profile;
+    EXPECT_THAT(profile, HasSubstr("oven")) << profile;
+    EXPECT_THAT(profile, HasSubstr("tc10")) << profile;  // the known ids are listed
+
+    const std::string unit = error_of(one_device("device = \"tc10@300\"\n"));
+    EXPECT_THAT(unit, StartsWith("plant.toml:7: lines[0].devices[0].device: ")) << unit;
+    EXPECT_THAT(unit, HasSubstr("1..247")) << unit;
+}
+
+TEST(GatewayConfig, TwoDevicesOnALineWithOneUnitAreRefused) {
+    const std::string message = error_of(one_device("device = \"tc10@3\"\n\n[[lines.devices]]\nname = \"oven2\"\ndevice = \"ac20@3\"\n"));
+    EXPECT_THAT(message, StartsWith("plant.toml:11: lines[0].devices[1].device: unit 3 is already used by oven1")) << message;
+    EXPECT_THAT(message, HasSubstr("lines[0].devices[0], line 5")) << message;
+}
+
+TEST(GatewayConfig, ATcpUnitClashAcrossLinesNamesBothAndSuggestsAMapping) {
+    const std::string text = one_device("device = \"tc10@3\"\n") +  // 1-7
+                             "\n"                                   // 8
+                             "[[lines]]\n"                          // 9
+                             "name = \"l2\"\n"                      // 10
+                             "link = \"tcp://192.0.2.1:502\"\n"     // 11
+                             "[[lines.devices]]\n"                  // 12
+                             "name = \"oven2\"\n"                   // 13
+                             "device = \"tc10@3\"\n";               // 14
+    const std::string message = error_of(text);
+    EXPECT_THAT(message, StartsWith("plant.toml:14: lines[1].devices[0].device: Modbus TCP unit 3 would be both oven1")) << message;
+    EXPECT_THAT(message, HasSubstr("oven2")) << message;
+    EXPECT_THAT(message, HasSubstr("tcp_unit = 1")) << message;  // the lowest free unit
+
+    // Mapped away, both are served; a clash with an explicit tcp_unit points at that key.
+    EXPECT_TRUE(parse(text + "tcp_unit = 4\n"));
+    const std::string mapped = error_of(text + "tcp_unit = 3\n");
+    EXPECT_THAT(mapped, StartsWith("plant.toml:15: lines[1].devices[0].tcp_unit: Modbus TCP unit 3")) << mapped;
+}
+
+TEST(GatewayConfig, AnUnknownParameterNamesTheDeviceAndTheName) {
+    const std::string message = error_of(one_device("device = \"tc10@3\"\nparameters = [\"measured_value\",\n  \"mesured_value\"]\n"));
+    EXPECT_THAT(message, StartsWith("plant.toml:9: lines[0].devices[0].parameters[1]: device oven1: ")) << message;
+    EXPECT_THAT(message, HasSubstr("\"mesured_value\"")) << message;
+
+    const std::string not_a_name = error_of(one_device("device = \"tc10@3\"\nparameters = [1]\n"));
+    EXPECT_THAT(not_a_name, StartsWith("plant.toml:8: lines[0].devices[0].parameters[0]: expected a parameter name")) << not_a_name;
+}
+
+TEST(GatewayConfig, ABadListenAddressIsRefused) {
+    for (const char* listen : {"127.0.0.1", "127.0.0.1:65536", ":1502", "::1:1502", "[::1]1502", "host:port"}) {
+        const std::string message = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nlisten = \"" + listen + "\"\n");
+        EXPECT_THAT(message, StartsWith(fmt::format("plant.toml:9: modbus_tcp.listen: \"{}\" is not an address to listen on", listen)))
+            << message;
+        EXPECT_THAT(message, HasSubstr("HOST:PORT")) << message;
+    }
+}
+
+// Port 0 asks the kernel for a free port (printed when the gateway starts): what tests use.
+TEST(GatewayConfig, PortZeroListensOnAnyFreePort) {
+    auto config = parse(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nlisten = \"127.0.0.1:0\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->modbus_tcp.port, 0);
+    EXPECT_EQ(config->modbus_tcp.host, "127.0.0.1");
+}
+
+TEST(GatewayConfig, NamesMustBeUniqueAndFitForTopics) {
+    const std::string lines = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\n"
+                                       "[[lines]]\nname = \"l1\"\nlink = \"tcp://192.0.2.1:502\"\n");
+    EXPECT_EQ(lines, "plant.toml:5: lines[1].name: \"l1\" is already the name of lines[0] (line 1); line names must be unique");
+
+    // Device names are unique across the gateway, not only on their line.
+    const std::string devices = error_of(one_device("device = \"tc10@3\"\n") +
+                                         "[[lines]]\nname = \"l2\"\nlink = \"tcp://192.0.2.1:502\"\n"
+                                         "[[lines.devices]]\nname = \"oven1\"\ndevice = \"tc10@4\"\n");
+    EXPECT_EQ(devices, "plant.toml:12: lines[1].devices[0].name: \"oven1\" is already the name of lines[0].devices[0] (line 5); "
+                       "device names must be unique");
+
+    for (const char* name : {"", "oven 1", "oven/1", "ofen\xc3\xa4"}) {
+        const std::string message = error_of(std::string("[[lines]]\nname = \"") + name + "\"\nlink = \"rtu:virtual\"\n");
+        EXPECT_THAT(message, StartsWith("plant.toml:2: lines[0].name: ")) << message;
+        EXPECT_THAT(message, HasSubstr("letters, digits, '-' and '_'")) << message;
+    }
+}
+
+TEST(GatewayConfig, RequiredPartsAreNamedWhenMissing) {
+    EXPECT_EQ(error_of("[modbus_tcp]\nwrites = false\n"),
+              "plant.toml:1: lines: no lines: at least one [[lines]] table is needed, with a name and a link");
+    EXPECT_THAT(error_of("\n\nlines = []\n"), StartsWith("plant.toml:3: lines: no lines"));
+    EXPECT_THAT(error_of("[lines]\nname = \"l1\"\n"), StartsWith("plant.toml:1: lines: expected [[lines]] tables"));
+    EXPECT_EQ(error_of("\n[[lines]]\nname = \"l1\"\n"), "plant.toml:2: lines[0]: missing `link` (e.g. link = \"rtu:/dev/ttyUSB0?baud=19200\")");
+    EXPECT_THAT(error_of("[[lines]]\nlink = \"rtu:virtual\"\n"), StartsWith("plant.toml:1: lines[0]: missing `name`"));
+    EXPECT_THAT(error_of(one_device("")), StartsWith("plant.toml:5: lines[0].devices[0]: missing `device` (e.g. device = \"tc10@3\")"));
+}
+
+TEST(GatewayConfig, IntegersAndBooleansAreRangeAndTypeChecked) {
+    EXPECT_EQ(error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nretries = 11\n"),
+              "plant.toml:4: lines[0].retries: 11 is out of range (expected an integer 0..10)");
+    EXPECT_EQ(error_of(one_device("device = \"tc10@3\"\ntcp_unit = 0\n")),
+              "plant.toml:8: lines[0].devices[0].tcp_unit: 0 is out of range (expected an integer 1..247)");
+    EXPECT_EQ(error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrites = \"yes\"\n"),
+              "plant.toml:9: modbus_tcp.writes: expected true or false");
+}
+
+// --- The plan ---------------------------------------------------------------------------------
+
+// Wire time of one RTU read of `registers` holding registers, in microseconds, as the codec
+// times characters (rounded up to whole microseconds): an 8-byte request, a 5 + 2n byte reply,
+// and a 3.5-character silence before each.
+long long rtu_read_wire_us(unsigned registers, unsigned baud, unsigned bits) {
+    const auto ceil_div = [](unsigned long long a, unsigned long long b) { return static_cast<long long>((a + b - 1) / b); };
+    const long long character = ceil_div(bits * 1'000'000ull, baud);
+    const long long t3_5 = ceil_div(bits * 7'000'000ull, 2ull * baud);
+    return (8 + 5 + 2 * static_cast<long long>(registers)) * character + 2 * t3_5;
+}
+
+std::string plan_of(const std::string& text) {
+    auto config = parse(text);
+    if (!config) {
+        ADD_FAILURE() << config.error().message;
+        return {};
+    }
+    return describe_plan(*config);
+}
+
+// tc10@3 on 19200 8E1 (11 bits a character). measured_value (word 1) and set_point (717) take
+// their decimals from decimal_point (641): three single-word reads, since the TC10 refuses reads
+// across unmapped words and 16 words is its limit.
+std::string tc10_line(const std::string& poll) {
+    return "[[lines]]\nname = \"l1\"\nlink = \"rtu:/dev/ttyUSB0?baud=19200&parity=even\"\n"
+           "[[lines.devices]]\nname = \"oven1\"\ndevice = \"tc10@3\"\npoll = \"" + poll + "\"\n"
+           "parameters = [\"measured_value\", \"set_point\"]\n";
+}
+
+TEST(GatewayConfigPlan, LoadIsTheWireTimeOfEachPollOverItsInterval) {
+    const long long per_poll_us = 3 * rtu_read_wire_us(1, 19200, 11);
+    ASSERT_EQ(per_poll_us, 3 * ((8 + 7) * 573 + 2 * 2006));  // 573 us a character, t3.5 = 2006 us
+    const std::string plan = plan_of(tc10_line("1s"));
+    EXPECT_THAT(plan, HasSubstr("line l1: rtu:/dev/ttyUSB0")) << plan;
+    EXPECT_THAT(plan, HasSubstr("device oven1: tc10@3, Modbus TCP unit 3, every 1s: 2 parameters in 3 requests per poll")) << plan;
+    const double load = 100.0 * static_cast<double>(per_poll_us) / 1e6;
+    EXPECT_THAT(plan, HasSubstr(fmt::format("estimated line load: {:.1f} % of wire time\n", load))) << plan;
+    EXPECT_THAT(plan, HasSubstr("estimated line load: 3.8 % of wire time")) << plan;
+    EXPECT_THAT(plan, Not(HasSubstr("fall behind"))) << plan;
+    EXPECT_THAT(plan, HasSubstr("Modbus TCP: listening on 127.0.0.1:1502, writes allowed")) << plan;
+}
+
+TEST(GatewayConfigPlan, AnOverloadedLineIsWarnedAbout) {
+    const long long per_poll_us = 3 * rtu_read_wire_us(1, 19200, 11);
+    const double load = 100.0 * static_cast<double>(per_poll_us) / 10e3;  // every 10 ms
+    const std::string plan = plan_of(tc10_line("10ms"));
+    EXPECT_THAT(plan, HasSubstr(fmt::format("estimated line load: {:.1f} % of wire time\n", load))) << plan;
+    EXPECT_THAT(plan, HasSubstr("378.2 %")) << plan;
+    EXPECT_THAT(plan, HasSubstr("over 100 %: polls will fall behind")) << plan;
+}
+
+TEST(GatewayConfigPlan, LoadsOfDevicesOnOneLineAddUp) {
+    const std::string text = tc10_line("1s") + "[[lines.devices]]\nname = \"oven2\"\ndevice = \"tc10@4\"\npoll = \"500ms\"\n"
+                                               "parameters = [\"measured_value\", \"set_point\"]\n";
+    const long long per_poll_us = 3 * rtu_read_wire_us(1, 19200, 11);
+    const double load = 100.0 * static_cast<double>(per_poll_us) / 1e6 + 100.0 * static_cast<double>(per_poll_us) / 500e3;
+    const std::string plan = plan_of(text);
+    EXPECT_THAT(plan, HasSubstr(fmt::format("estimated line load: {:.1f} % of wire time\n", load))) << plan;
+    EXPECT_THAT(plan, HasSubstr("11.3 %")) << plan;
+}
+
+TEST(GatewayConfigPlan, TheDefaultWatchListIsPolledWhenNoneIsNamed) {
+    const std::string plan = plan_of(one_device("device = \"tc10@3\"\n"));
+    // measured_value, operating_set_point, output_power, alarm_status (client/monitor_names.cpp)
+    EXPECT_THAT(plan, HasSubstr("4 parameters (default watch list)")) << plan;
+}
+
+TEST(GatewayConfigPlan, TcpAndAsciiLinksSayWhatTheEstimateIs) {
+    const std::string tcp = plan_of("[[lines]]\nname = \"l1\"\nlink = \"tcp://192.0.2.1:502\"\n"
+                                    "[[lines.devices]]\nname = \"oven1\"\ndevice = \"tc10@3\"\n");
+    EXPECT_THAT(tcp, HasSubstr("no wire-time estimate for TCP links")) << tcp;
+    EXPECT_THAT(tcp, Not(HasSubstr("estimated line load"))) << tcp;
+
+    // ASCII: each RTU byte but the CRC as two characters, plus LRC (2), ':' and CR LF; 7E1 is
+    // 10 bits a character. Request 8 RTU bytes -> 17 characters, reply 7 -> 15 characters.
+    const std::string ascii = plan_of("[[lines]]\nname = \"l1\"\nlink = \"ascii:/dev/ttyS1?baud=9600&parity=even&data=7\"\n"
+                                      "[[lines.devices]]\nname = \"oven1\"\ndevice = \"tc10@3\"\npoll = \"1s\"\n"
+                                      "parameters = [\"measured_value\", \"set_point\"]\n");
+    const long long character_us = (10 * 1'000'000 + 9600 - 1) / 9600;  // 1042 us
+    const double load = 100.0 * static_cast<double>(3 * (17 + 15) * character_us) / 1e6;
+    EXPECT_THAT(ascii, HasSubstr(fmt::format("estimated line load: {:.1f} % of wire time (approximate", load))) << ascii;
+}
+
+TEST(GatewayConfigPlan, ShowsTheLineSettingsAndTheTcpFront) {
+    const std::string plan = plan_of(example);
+    EXPECT_THAT(plan, StartsWith("plant.toml: 1 line\n")) << plan;
+    EXPECT_THAT(plan, HasSubstr("(timeout 300ms, 1 retry)")) << plan;
+    EXPECT_THAT(plan, HasSubstr("Modbus TCP unit 13")) << plan;
+    const std::string off = plan_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nenabled = false\n");
+    EXPECT_THAT(off, HasSubstr("Modbus TCP: disabled")) << off;
+}
+
+// --- Loading a file ---------------------------------------------------------------------------
+
+class GatewayConfigFile : public ::testing::Test {
+protected:
+    void SetUp() override {
+        std::string pattern = (fs::temp_directory_path() / "loopwire-gateway-config-XXXXXX").string();
+        ASSERT_NE(::mkdtemp(pattern.data()), nullptr);
+        dir = pattern;
+    }
+    void TearDown() override { fs::remove_all(dir); }
+    fs::path write(const std::string& name, const std::string& text) const {
+        const fs::path path = dir / name;
+        std::ofstream(path, std::ios::binary) << text;
+        return path;
+    }
+    fs::path dir;
+};
+
+TEST_F(GatewayConfigFile, ReadsTheFileAndNamesItInErrors) {
+    const fs::path good = write("plant.toml", example);
+    auto config = load_gateway_config(good, profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->source, good.string());
+    EXPECT_EQ(config->lines.at(0).devices.at(0).name, "oven1");
+
+    const fs::path bad = write("bad.toml", one_device("device = \"tc10@3\"\npoll = \"fast\"\n"));
+    auto refused = load_gateway_config(bad, profiles());
+    ASSERT_FALSE(refused);
+    EXPECT_THAT(refused.error().message, StartsWith(bad.string() + ":8: lines[0].devices[0].poll: "));
+}
+
+TEST_F(GatewayConfigFile, MissingDirectoryAndOversizedFilesAreRefused) {
+    auto missing = load_gateway_config(dir / "nope.toml", profiles());
+    ASSERT_FALSE(missing);
+    EXPECT_THAT(missing.error().message, HasSubstr("nope.toml: cannot read the gateway configuration"));
+
+    auto directory = load_gateway_config(dir, profiles());
+    ASSERT_FALSE(directory);
+    EXPECT_THAT(directory.error().message, HasSubstr("must be a regular file"));
+
+    // Comments only, so it would parse if it were read: the size alone refuses it.
+    const fs::path huge = write("huge.toml", std::string(1024 * 1024, '#') + "\n");
+    auto large = load_gateway_config(huge, profiles());
+    ASSERT_FALSE(large);
+    EXPECT_THAT(large.error().message, HasSubstr("too large"));
+}
+
+}  // namespace
+}  // namespace loopwire::gateway

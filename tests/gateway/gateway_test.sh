@@ -1,0 +1,128 @@
+#!/usr/bin/env bash
+# `loopwire gateway` in front of simulated devices on a pseudo-terminal line: Modbus TCP clients
+# (loopwire itself, mbpoll on libmodbus, a raw socket) read and write through it at the same
+# time; a unit no line serves gets exception 0Ah, a configured unit that stays silent 0Bh, a
+# read-only gateway refuses writes with exception 1; `--check` prints the plan, and a broken
+# configuration is refused naming the file, the line and the key.
+set -u
+loopwire=${1:?usage: gateway_test.sh path/to/loopwire}
+source "$(dirname "$0")/../support/test_lib.sh"
+python=/usr/bin/python3
+
+pty="$WORK_DIR/ttyG0"
+start_background sim.log "$loopwire" simulate --link "rtu:/unused?baud=19200&parity=none" --pty "$pty" \
+  --device tc10@3 --device rampsoak@5 --duration 120s
+wait_for_path "$pty"
+
+write_config() {  # FILE WRITES : a gateway for the line with oven1 (tc10@3), kiln (rampsoak@5),
+                  # and absent (tc10@4, which nothing on the line answers for)
+  cat >"$1" <<TOML
+[[lines]]
+name = "furnace-line"
+link = "rtu:$pty?baud=19200&parity=none"
+timeout = "300ms"
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@3"
+
+[[lines.devices]]
+name = "kiln"
+device = "rampsoak@5"
+
+[[lines.devices]]
+name = "absent"
+device = "tc10@4"
+
+[modbus_tcp]
+listen = "127.0.0.1:0"
+writes = $2
+TOML
+}
+write_config "$WORK_DIR/plant.toml" true
+
+# The README's command, as printed, from the repository's top folder.
+check readme-plan 0 "estimated line load" bash -c "cd '$(dirname "$0")/../..' && '$loopwire' gateway --config examples/plant.toml --check"
+
+check plan-names-the-line 0 "furnace-line" "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
+check plan-gives-the-load 0 "estimated line load" "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
+
+start_tcp_server gateway.log timeout 100 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+gateway="tcp://127.0.0.1:$PORT"
+gateway_port=$PORT
+
+# By name, through the gateway, with loopwire's own TCP master.
+check write-through-the-gateway 0 "" "$loopwire" write --link "$gateway" --device tc10@3 set_point=150
+check read-back-through-the-gateway 0 '"value":150' "$loopwire" read --link "$gateway" --device tc10@3 set_point --json
+check rampsoak-through-the-gateway 0 "" "$loopwire" write --link "$gateway" --device rampsoak@5 SV=321
+
+# mbpoll (libmodbus) as a SCADA would: TCP, unit 5, the ramp/soak SV at 0000h.
+mbpoll_out=$(timeout 10 mbpoll -m tcp -p "$gateway_port" -a 5 -0 -1 -r 0 -c 1 127.0.0.1 2>&1)
+if grep -qE '^\[0\]:[[:space:]]+321' <<<"$mbpoll_out"; then count_pass; else echo "FAIL mbpoll-reads-through-the-gateway"; echo "$mbpoll_out" | sed 's/^/    /'; failures=$((failures + 1)); fi
+
+# Three clients at once, each 20 reads: every one answered right.
+concurrent_reads() {  # NAME : 20 reads of tc10@3 set_point, each must say 150
+  local i
+  for i in $(seq 20); do
+    "$loopwire" read --link "$gateway" --device tc10@3 set_point --json 2>&1 | grep -q '"value":150' || { echo "$1: read $i wrong"; return 1; }
+  done
+}
+concurrent_reads a >"$WORK_DIR/a.out" & a=$!
+concurrent_reads b >"$WORK_DIR/b.out" & b=$!
+concurrent_reads c >"$WORK_DIR/c.out" & c=$!
+if wait $a && wait $b && wait $c; then count_pass; else count_failure clients-at-once "$WORK_DIR/a.out" "$WORK_DIR/b.out" "$WORK_DIR/c.out"; fi
+
+# Exceptions a gateway gives (Modbus application protocol V1.1b3, 7).
+check unserved-unit-gets-0Ah 5 "exception 10" "$loopwire" read --link "$gateway" --unit 9 holding 0
+check silent-unit-gets-0Bh 5 "exception 11" "$loopwire" read --link "$gateway" --unit 4 holding 0
+
+# A function code loopwire's typed master never sends goes through as it is: the TC10 answers
+# function 65 (user-defined) with exception 1, and the gateway hands that back unchanged.
+$python - "$gateway_port" >"$WORK_DIR/raw.out" 2>&1 <<'PY'
+import socket, sys
+s = socket.create_connection(("127.0.0.1", int(sys.argv[1])), timeout=5)
+s.sendall(bytes([0x12, 0x34, 0, 0, 0, 3, 3, 0x41, 0x00]))
+reply = b""
+while len(reply) < 9:
+    chunk = s.recv(64)
+    if not chunk:
+        break
+    reply += chunk
+print(reply.hex(" "))
+assert reply[:2] == b"\x12\x34", "transaction id not kept"
+assert reply[6] == 3 and reply[7] == 0xC1, "not the device's exception reply to function 65"
+PY
+if [[ $? -eq 0 ]]; then count_pass; else count_failure any-function-code-passes-through "$WORK_DIR/raw.out"; fi
+
+# The gateway's own polls (every device's default watch list, each second) share the line with
+# the clients above; a device that answers and one that does not are logged once each.
+wait_for 10 "oven1 polled" grep -q "device oven1 (tc10@3) answers" "$WORK_DIR/gateway.log"
+wait_for 10 "kiln polled" grep -q "device kiln (rampsoak@5) answers" "$WORK_DIR/gateway.log"
+wait_for 10 "the silent unit noticed" grep -q "device absent (tc10@4) does not answer" "$WORK_DIR/gateway.log"
+count_pass
+
+kill -TERM "$LAST_PID"
+wait "$LAST_PID" 2>/dev/null
+if grep -qE "line furnace-line .*: [1-9][0-9]* sent, [1-9][0-9]* answered, [1-9][0-9]* timeout" "$WORK_DIR/gateway.log"; then count_pass
+else count_failure statistics-at-exit "$WORK_DIR/gateway.log"; fi
+
+# writes = false: reads pass, writes get exception 1 and are logged.
+write_config "$WORK_DIR/read-only.toml" false
+start_tcp_server read-only.log timeout 60 "$loopwire" gateway --config "$WORK_DIR/read-only.toml"
+read_only="tcp://127.0.0.1:$PORT"
+check read-only-gateway-reads 0 '"value":150' "$loopwire" read --link "$read_only" --device tc10@3 set_point --json
+check read-only-gateway-refuses-writes 5 "exception 1" "$loopwire" write --link "$read_only" --device tc10@3 set_point=160
+check refused-write-was-not-made 0 '"value":150' "$loopwire" read --link "$read_only" --device tc10@3 set_point --json
+if grep -q "read-only" "$WORK_DIR/read-only.log"; then count_pass; else count_failure refused-write-is-logged "$WORK_DIR/read-only.log"; fi
+
+# A broken configuration: refused before anything opens, naming file, line and key.
+cat >"$WORK_DIR/broken.toml" <<TOML
+[[lines]]
+name = "furnace-line"
+link = "rtu:$pty"
+timeout = "fast"
+TOML
+check broken-config-names-file-line-key 2 "broken.toml:4" "$loopwire" gateway --config "$WORK_DIR/broken.toml" --check
+check missing-config 2 "nowhere.toml" "$loopwire" gateway --config "$WORK_DIR/nowhere.toml"
+
+finish

@@ -1,0 +1,517 @@
+// The line scheduler: one request on the wire at a time, writes before clients' requests before
+// polls, round robin between clients, requests past their deadline or whose asker has gone never
+// sent, a silent unit's polls held back until its back-off is due, and a scheduler that can go
+// while a request is still out.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "gateway/line_scheduler.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+using namespace std::chrono_literals;
+
+// Each test request reads the holding register numbered by its tag, so what went on the wire
+// says which request it was.
+Bytes pdu_for(int tag) {
+    return Bytes{0x03, static_cast<std::uint8_t>(tag >> 8), static_cast<std::uint8_t>(tag & 0xFF), 0x00, 0x01};
+}
+
+int tag_of(const Bytes& pdu) { return (pdu.at(1) << 8) | pdu.at(2); }
+
+Bytes normal_reply() { return Bytes{0x03, 0x02, 0x00, 0x2A}; }
+Bytes exception_reply() { return Bytes{0x83, 0x02}; }
+Error timed_out() { return make_error(ErrorKind::timeout, "no reply from the unit"); }
+
+Result<codec::Reply> forward_only() { return make_error(ErrorKind::usage, "the fake master only forwards"); }
+
+// A master the test answers by hand: forward_async records what was sent and holds the
+// completion until complete(). Set `instant` and it answers inside forward_async instead.
+class HandMaster final : public session::Master {
+public:
+    struct Sent {
+        std::uint8_t unit;
+        Bytes pdu;
+    };
+
+    Result<codec::Reply> execute(std::uint8_t, const codec::Request&) override { return forward_only(); }
+    void execute_async(std::uint8_t, codec::Request, Completion done) override { done(forward_only()); }
+    Result<Bytes> forward(std::uint8_t, ByteView) override { return make_error(ErrorKind::link, "not here"); }
+    std::string describe() const override { return "hand master"; }
+
+    void forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) override {
+        if (on_wire_) ADD_FAILURE() << "request " << tag_of(pdu) << " forwarded while another is on the wire";
+        on_wire_ = true;
+        sent_.push_back({unit, std::move(pdu)});
+        if (!instant) {
+            held_ = std::move(done);
+            return;
+        }
+        done(normal_reply());
+        on_wire_ = false;
+    }
+
+    // Answers the request on the wire, as the master's thread would.
+    void complete(Result<Bytes> result) {
+        ASSERT_TRUE(held_) << "nothing on the wire to complete";
+        auto done = std::move(held_);
+        held_ = nullptr;
+        on_wire_ = false;
+        done(std::move(result));
+    }
+
+    bool waiting() const { return static_cast<bool>(held_); }
+
+    std::vector<int> sent_tags() const {
+        std::vector<int> tags;
+        for (const auto& sent : sent_) tags.push_back(tag_of(sent.pdu));
+        return tags;
+    }
+
+    std::vector<Sent> sent() const { return sent_; }
+
+    bool instant = false;
+
+private:
+    std::vector<Sent> sent_;
+    ForwardCompletion held_;
+    bool on_wire_ = false;
+};
+
+class LineSchedulerTest : public ::testing::Test {
+protected:
+    static LineSchedulerOptions backoff_options() {
+        LineSchedulerOptions options;
+        options.first_backoff = 1000ms;
+        options.max_backoff = 30000ms;
+        return options;
+    }
+
+    LineRequest ask(int tag, Priority priority = Priority::client, std::uint8_t unit = 1, std::uint64_t client = 0) {
+        LineRequest request;
+        request.unit = unit;
+        request.pdu = pdu_for(tag);
+        request.priority = priority;
+        request.client = client;
+        request.done = [this, tag](Result<Bytes> result) { answers[tag].push_back(std::move(result)); };
+        return request;
+    }
+
+    void submit(int tag, Priority priority = Priority::client, std::uint8_t unit = 1, std::uint64_t client = 0) {
+        scheduler->submit(ask(tag, priority, unit, client));
+    }
+
+    // Answers every request in turn until nothing is left on the wire.
+    void complete_all() {
+        while (master->waiting()) master->complete(normal_reply());
+    }
+
+    const Result<Bytes>& only_answer(int tag) {
+        static const Result<Bytes> none = make_error(ErrorKind::usage, "no answer at all");
+        EXPECT_EQ(answers[tag].size(), 1U) << "request " << tag;
+        return answers[tag].empty() ? none : answers[tag].front();
+    }
+
+    bool was_sent(int tag) const {
+        const auto tags = master->sent_tags();
+        return std::find(tags.begin(), tags.end(), tag) != tags.end();
+    }
+
+    // Declared in this order so the scheduler goes first: its destructor still answers.
+    std::shared_ptr<VirtualClock> clock = std::make_shared<VirtualClock>();
+    std::shared_ptr<HandMaster> master = std::make_shared<HandMaster>();
+    std::map<int, std::vector<Result<Bytes>>> answers;
+    std::unique_ptr<LineScheduler> scheduler = std::make_unique<LineScheduler>(master, backoff_options(), clock);
+};
+
+TEST_F(LineSchedulerTest, SendsOneRequestAtATime) {
+    for (int tag = 1; tag <= 5; ++tag) submit(tag);
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1}));
+    EXPECT_EQ(scheduler->statistics().queued, 4U);
+
+    for (int answered = 1; answered <= 5; ++answered) {
+        ASSERT_EQ(master->sent_tags().size(), static_cast<std::size_t>(answered));
+        EXPECT_TRUE(answers[answered].empty()) << "done before the reply";
+        master->complete(normal_reply());
+        EXPECT_EQ(only_answer(answered).value(), normal_reply());
+    }
+    EXPECT_FALSE(master->waiting());
+    const auto stats = scheduler->statistics();
+    EXPECT_EQ(stats.sent, 5U);
+    EXPECT_EQ(stats.answered, 5U);
+    EXPECT_EQ(stats.queued, 0U);
+}
+
+TEST_F(LineSchedulerTest, WritesGoBeforeClientRequestsBeforePolls) {
+    submit(1, Priority::poll);  // on the wire while the rest queue
+    submit(2, Priority::poll);
+    submit(3, Priority::client);
+    submit(4, Priority::write);
+    submit(5, Priority::poll);
+    submit(6, Priority::client);
+    submit(7, Priority::write);
+    complete_all();
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 4, 7, 3, 6, 2, 5}));
+}
+
+TEST_F(LineSchedulerTest, BusyClientDelaysAnotherByAtMostOneRequest) {
+    const std::uint64_t busy = 1;
+    const std::uint64_t other = 2;
+    submit(0, Priority::client, 1, busy);  // on the wire
+    for (int tag = 1; tag <= 100; ++tag) submit(tag, Priority::client, 1, busy);
+    submit(1000, Priority::client, 1, other);
+    complete_all();
+    const auto tags = master->sent_tags();
+    ASSERT_EQ(tags.size(), 102U);
+    const auto position = std::find(tags.begin(), tags.end(), 1000) - tags.begin();
+    EXPECT_LE(position, 2) << "the other client's request waited behind " << position - 1 << " of the busy one's";
+    // The busy client's own requests keep their order.
+    EXPECT_TRUE(std::is_sorted(tags.begin(), tags.begin() + position));
+    EXPECT_TRUE(std::is_sorted(tags.begin() + position + 1, tags.end()));
+}
+
+TEST_F(LineSchedulerTest, ClientsTakeTurnsWithinWritesToo) {
+    submit(0, Priority::poll);  // on the wire
+    for (int tag : {11, 12, 13}) submit(tag, Priority::write, 1, 1);
+    for (int tag : {21, 22, 23}) submit(tag, Priority::write, 1, 2);
+    submit(31, Priority::write, 1, 3);
+    complete_all();
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{0, 11, 21, 31, 12, 22, 13, 23}));
+}
+
+TEST_F(LineSchedulerTest, RequestPastItsDeadlineIsNeverSent) {
+    submit(1);  // on the wire
+    auto late = ask(2);
+    late.deadline = clock->now() + 1s;
+    scheduler->submit(std::move(late));
+    auto in_time = ask(3);
+    in_time.deadline = clock->now() + 10s;
+    scheduler->submit(std::move(in_time));
+
+    clock->advance(2s);
+    complete_all();
+
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 3}));
+    const auto& expired = only_answer(2);
+    ASSERT_FALSE(expired.ok());
+    EXPECT_EQ(expired.error().kind, ErrorKind::timeout);
+    EXPECT_NE(expired.error().message.find("deadline passed before the line was free"), std::string::npos)
+        << expired.error().message;
+    EXPECT_TRUE(only_answer(3).ok());
+    EXPECT_EQ(scheduler->statistics().expired, 1U);
+    EXPECT_EQ(scheduler->statistics().sent, 2U);
+}
+
+TEST_F(LineSchedulerTest, RequestWhoseAskerHasGoneIsNeverSent) {
+    submit(1);  // on the wire
+    auto asker_here = std::make_shared<bool>(true);
+    auto gone = ask(2);
+    gone.still_wanted = [asker_here] { return *asker_here; };
+    scheduler->submit(std::move(gone));
+    auto wanted = ask(3);
+    wanted.still_wanted = [] { return true; };
+    scheduler->submit(std::move(wanted));
+
+    *asker_here = false;  // the client disconnected while its request queued
+    complete_all();
+
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 3}));
+    const auto& abandoned = only_answer(2);
+    ASSERT_FALSE(abandoned.ok());
+    EXPECT_EQ(abandoned.error().kind, ErrorKind::link);
+    EXPECT_NE(abandoned.error().message.find("the asker has gone"), std::string::npos);
+    EXPECT_EQ(scheduler->statistics().abandoned, 1U);
+}
+
+TEST_F(LineSchedulerTest, SilentUnitsPollsWaitForItsBackOffWhileOthersGoOn) {
+    submit(1, Priority::poll, 5);
+    master->complete(timed_out());
+    EXPECT_EQ(scheduler->statistics().timeouts, 1U);
+
+    submit(2, Priority::poll, 5);  // refused at once: the line is free but unit 5 backs off
+    EXPECT_FALSE(was_sent(2));
+    const auto& refused = only_answer(2);
+    ASSERT_FALSE(refused.ok());
+    EXPECT_EQ(refused.error().kind, ErrorKind::timeout);
+    EXPECT_NE(refused.error().message.find("backing off after 1 consecutive timeout"), std::string::npos)
+        << refused.error().message;
+    EXPECT_NE(refused.error().message.find("1000 ms"), std::string::npos) << refused.error().message;
+
+    submit(3, Priority::poll, 6);  // another unit is polled as usual
+    EXPECT_TRUE(was_sent(3));
+    master->complete(normal_reply());
+
+    clock->advance(999ms);
+    submit(4, Priority::poll, 5);
+    EXPECT_FALSE(was_sent(4));
+
+    clock->advance(1ms);  // the back-off is due: this poll is the probe
+    submit(5, Priority::poll, 5);
+    EXPECT_TRUE(was_sent(5));
+    master->complete(timed_out());  // still silent: the wait doubles
+
+    clock->advance(1999ms);
+    submit(6, Priority::poll, 5);
+    EXPECT_FALSE(was_sent(6));
+    EXPECT_NE(only_answer(6).error().message.find("after 2 consecutive timeouts"), std::string::npos);
+
+    clock->advance(1ms);
+    submit(7, Priority::poll, 5);
+    EXPECT_TRUE(was_sent(7));
+    master->complete(exception_reply());  // an exception reply is an answer: the unit is back
+
+    submit(8, Priority::poll, 5);
+    EXPECT_TRUE(was_sent(8));
+    master->complete(normal_reply());
+
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 3, 5, 7, 8}));
+    const auto stats = scheduler->statistics();
+    EXPECT_EQ(stats.backed_off, 3U);
+    EXPECT_EQ(stats.timeouts, 2U);
+    EXPECT_EQ(stats.answered, 3U);
+    EXPECT_EQ(stats.sent, 5U);
+}
+
+TEST_F(LineSchedulerTest, ClientRequestsToABackingOffUnitAreStillSent) {
+    submit(1, Priority::poll, 5);
+    master->complete(timed_out());
+
+    submit(2, Priority::client, 5);
+    EXPECT_TRUE(was_sent(2));
+    master->complete(timed_out());
+    submit(3, Priority::write, 5);
+    EXPECT_TRUE(was_sent(3));
+    master->complete(normal_reply());  // a real answer clears the back-off for the polls too
+
+    submit(4, Priority::poll, 5);
+    EXPECT_TRUE(was_sent(4));
+    master->complete(normal_reply());
+    EXPECT_EQ(scheduler->statistics().backed_off, 0U);
+}
+
+TEST_F(LineSchedulerTest, BadRepliesAreCountedAndDoNotBackOff) {
+    submit(1, Priority::poll, 5);
+    master->complete(make_error(ErrorKind::mismatch, "reply for another function"));
+    submit(2, Priority::poll, 5);
+    master->complete(make_error(ErrorKind::malformed, "bad CRC"));
+    submit(3, Priority::poll, 5);
+    EXPECT_TRUE(was_sent(3));
+    master->complete(make_error(ErrorKind::link, "port gone"));
+    const auto stats = scheduler->statistics();
+    EXPECT_EQ(stats.bad_replies, 2U);
+    EXPECT_EQ(stats.answered, 0U);
+    EXPECT_EQ(stats.timeouts, 0U);
+    EXPECT_EQ(stats.sent, 3U);
+    EXPECT_EQ(only_answer(3).error().kind, ErrorKind::link);
+}
+
+TEST_F(LineSchedulerTest, DoneMaySubmitAgain) {
+    auto first = ask(1);
+    first.done = [this](Result<Bytes> result) {
+        answers[1].push_back(std::move(result));
+        submit(2);  // from the completion, as a client that asks again would
+    };
+    scheduler->submit(std::move(first));
+    master->complete(normal_reply());
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 2}));
+    master->complete(normal_reply());
+    EXPECT_TRUE(only_answer(2).ok());
+}
+
+TEST_F(LineSchedulerTest, MasterAnsweringAtOnceDoesNotRecurse) {
+    submit(0);  // held on the wire while a long queue builds
+    constexpr int queued = 50000;
+    for (int tag = 1; tag <= queued; ++tag) submit(tag, Priority::poll);
+    master->instant = true;
+    master->complete(normal_reply());  // each further reply comes inside forward_async
+    EXPECT_EQ(master->sent_tags().size(), static_cast<std::size_t>(queued + 1));
+    EXPECT_EQ(scheduler->statistics().answered, static_cast<std::uint64_t>(queued + 1));
+    EXPECT_EQ(answers.size(), static_cast<std::size_t>(queued + 1));
+}
+
+TEST_F(LineSchedulerTest, DoneSubmittingToAMasterAnsweringAtOnceIsALoop) {
+    master->instant = true;
+    constexpr int chain = 20000;
+    std::function<void(int)> ask_from = [&](int tag) {
+        auto request = ask(tag);
+        request.done = [&, tag](Result<Bytes> result) {
+            answers[tag].push_back(std::move(result));
+            if (tag < chain) ask_from(tag + 1);
+        };
+        scheduler->submit(std::move(request));
+    };
+    ask_from(1);
+    EXPECT_EQ(answers.size(), static_cast<std::size_t>(chain));
+    EXPECT_EQ(scheduler->statistics().sent, static_cast<std::uint64_t>(chain));
+}
+
+TEST_F(LineSchedulerTest, DestroyingFailsWhatIsQueuedAndALateReplyIsHarmless) {
+    submit(1);  // on the wire
+    submit(2, Priority::poll);
+    submit(3, Priority::client);
+    submit(4, Priority::write);
+    scheduler.reset();
+
+    for (int tag : {2, 3, 4}) {
+        const auto& failed = only_answer(tag);
+        ASSERT_FALSE(failed.ok());
+        EXPECT_EQ(failed.error().kind, ErrorKind::link);
+        EXPECT_NE(failed.error().message.find("gateway stopping"), std::string::npos);
+    }
+    EXPECT_TRUE(answers[1].empty());
+
+    master->complete(normal_reply());  // the scheduler is gone; the asker still hears the unit
+    EXPECT_EQ(only_answer(1).value(), normal_reply());
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1}));
+}
+
+TEST_F(LineSchedulerTest, DoneMayDestroyTheScheduler) {
+    auto first = ask(1);
+    first.done = [this](Result<Bytes> result) {
+        answers[1].push_back(std::move(result));
+        scheduler.reset();  // the owner shuts down on the first answer
+    };
+    scheduler->submit(std::move(first));
+    submit(2);
+    master->complete(normal_reply());
+    EXPECT_TRUE(only_answer(1).ok());
+    EXPECT_EQ(only_answer(2).error().kind, ErrorKind::link);
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1}));
+}
+
+TEST_F(LineSchedulerTest, DoneMayDestroyTheSchedulerWhenTheMasterAnswersAtOnce) {
+    master->instant = true;
+    auto first = ask(1);
+    first.done = [this](Result<Bytes> result) {
+        answers[1].push_back(std::move(result));
+        scheduler.reset();  // must not wait for the forward_async this answer came out of
+    };
+    scheduler->submit(std::move(first));
+    EXPECT_TRUE(only_answer(1).ok());
+    EXPECT_EQ(scheduler, nullptr);
+}
+
+// Completes each request on its own thread after a short wait, as a serial master does.
+class ThreadedMaster final : public session::Master {
+public:
+    ThreadedMaster() : worker_([this] { run(); }) {}
+    ~ThreadedMaster() override {
+        {
+            std::lock_guard lock(mutex_);
+            stopping_ = true;
+        }
+        ready_.notify_all();
+        worker_.join();
+    }
+
+    Result<codec::Reply> execute(std::uint8_t, const codec::Request&) override { return forward_only(); }
+    void execute_async(std::uint8_t, codec::Request, Completion done) override { done(forward_only()); }
+    Result<Bytes> forward(std::uint8_t, ByteView) override { return make_error(ErrorKind::link, "not here"); }
+    std::string describe() const override { return "threaded master"; }
+
+    void forward_async(std::uint8_t, Bytes pdu, ForwardCompletion done) override {
+        if (on_wire_.exchange(true)) overlaps_.fetch_add(1);
+        std::lock_guard lock(mutex_);
+        jobs_.push_back({std::move(pdu), std::move(done)});
+        ready_.notify_one();
+    }
+
+    int overlaps() const { return overlaps_.load(); }
+
+private:
+    struct Job {
+        Bytes pdu;
+        ForwardCompletion done;
+    };
+
+    void run() {
+        std::unique_lock lock(mutex_);
+        for (;;) {
+            ready_.wait(lock, [this] { return stopping_ || !jobs_.empty(); });
+            if (jobs_.empty()) return;
+            auto job = std::move(jobs_.front());
+            jobs_.pop_front();
+            lock.unlock();
+            std::this_thread::sleep_for(20us);  // the line's turnaround
+            on_wire_.store(false);
+            // Every tenth request gets a garbled reply, so both outcomes are counted.
+            if (tag_of(job.pdu) % 10 == 0) {
+                job.done(make_error(ErrorKind::malformed, "bad CRC"));
+            } else {
+                job.done(normal_reply());
+            }
+            lock.lock();
+        }
+    }
+
+    std::mutex mutex_;
+    std::condition_variable ready_;
+    std::deque<Job> jobs_;
+    bool stopping_ = false;
+    std::atomic<bool> on_wire_{false};
+    std::atomic<int> overlaps_{0};
+    std::thread worker_;  // last: starts once the rest is ready
+};
+
+TEST(LineSchedulerThreads, EveryDoneRunsOnceWithRealThreads) {
+    constexpr int submitters = 4;
+    constexpr int each = 200;
+    constexpr int total = submitters * each;
+    auto master = std::make_shared<ThreadedMaster>();
+    std::vector<std::atomic<int>> calls(total);
+    std::atomic<int> bad{0};
+    std::mutex mutex;
+    std::condition_variable all_done;
+    int finished = 0;
+    auto scheduler = std::make_unique<LineScheduler>(master);
+
+    std::vector<std::thread> threads;
+    for (int thread = 0; thread < submitters; ++thread) {
+        threads.emplace_back([&, thread] {
+            for (int i = 0; i < each; ++i) {
+                const int tag = thread * each + i;
+                LineRequest request;
+                request.unit = static_cast<std::uint8_t>(1 + tag % 3);
+                request.pdu = pdu_for(tag);
+                request.priority = static_cast<Priority>(tag % 3);
+                request.client = static_cast<std::uint64_t>(thread);
+                request.done = [&, tag](Result<Bytes> result) {
+                    if (!result.ok()) bad.fetch_add(1);
+                    calls[static_cast<std::size_t>(tag)].fetch_add(1);
+                    std::lock_guard lock(mutex);
+                    ++finished;
+                    all_done.notify_all();
+                };
+                scheduler->submit(std::move(request));
+            }
+        });
+    }
+    for (auto& thread : threads) thread.join();
+    {
+        std::unique_lock lock(mutex);
+        ASSERT_TRUE(all_done.wait_for(lock, 60s, [&] { return finished >= total; }))
+            << finished << " of " << total << " answered";
+    }
+
+    const auto stats = scheduler->statistics();
+    scheduler.reset();  // before the master, as an owner must
+    for (int tag = 0; tag < total; ++tag) EXPECT_EQ(calls[static_cast<std::size_t>(tag)].load(), 1) << tag;
+    EXPECT_EQ(master->overlaps(), 0);
+    EXPECT_EQ(stats.sent, static_cast<std::uint64_t>(total));
+    EXPECT_EQ(stats.answered + stats.bad_replies, stats.sent);
+    EXPECT_EQ(stats.bad_replies, static_cast<std::uint64_t>(total / 10));
+    EXPECT_EQ(bad.load(), total / 10);
+    EXPECT_EQ(stats.queued, 0U);
+}
+
+}  // namespace
+}  // namespace loopwire::gateway
