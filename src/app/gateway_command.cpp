@@ -1,6 +1,8 @@
 // loopwire gateway --config FILE [--check] [-v]
 // One process owns every line of the configuration and shares it: Modbus TCP clients reach the
 // devices through it, their requests queued fairly with each other (docs/DESIGN.md, gateway).
+#include <systemd/sd-daemon.h>
+
 #include <fmt/format.h>
 
 #include "app/command_line.hpp"
@@ -42,7 +44,11 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
         fmt::print(stderr, "loopwire: gateway: {} line(s), {} device(s); Modbus TCP front disabled; Ctrl-C to stop\n",
                    config->lines.size(), devices);
     }
+    // Under systemd (Type=notify, packaging/loopwire-gateway.service) the unit is up once the
+    // lines and the listener are open; without $NOTIFY_SOCKET these calls do nothing.
+    sd_notifyf(0, "READY=1\nSTATUS=serving %zu line(s), %zu device(s)", config->lines.size(), devices);
     auto served = (*gateway)->serve(stop.token());
+    sd_notify(0, "STOPPING=1");
     for (const auto& line : (*gateway)->report()) fmt::print(stderr, "loopwire: gateway: {}\n", gateway::describe(line));
     if (!served) return report_error(served.error());
     return exit_ok;

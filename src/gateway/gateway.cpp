@@ -118,10 +118,11 @@ std::vector<CachedDevice> Gateway::values() const { return parts_->cache.snapsho
 
 std::string describe(const LineReport& report) {
     const auto& s = report.statistics;
+    const double busy = s.open.count() > 0 ? 100.0 * static_cast<double>(s.busy.count()) / static_cast<double>(s.open.count()) : 0.0;
     return fmt::format("line {} ({}): {} sent, {} answered, {} timeout(s), {} bad repl{}, {} expired in the queue, "
-                       "{} refused while the unit backed off",
+                       "{} refused while the unit backed off; busy {:.1f} % of the time",
                        report.name, report.link, s.sent, s.answered, s.timeouts, s.bad_replies,
-                       s.bad_replies == 1 ? "y" : "ies", s.expired, s.backed_off);
+                       s.bad_replies == 1 ? "y" : "ies", s.expired, s.backed_off, busy);
 }
 
 }  // namespace loopwire::gateway

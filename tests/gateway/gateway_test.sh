@@ -115,6 +115,37 @@ check read-only-gateway-refuses-writes 5 "exception 1" "$loopwire" write --link 
 check refused-write-was-not-made 0 '"value":150' "$loopwire" read --link "$read_only" --device tc10@3 set_point --json
 if grep -q "read-only" "$WORK_DIR/read-only.log"; then count_pass; else count_failure refused-write-is-logged "$WORK_DIR/read-only.log"; fi
 
+kill -TERM "$LAST_PID"  # the line is the gateway's alone: free it for the next one
+wait "$LAST_PID" 2>/dev/null
+
+# Under systemd (Type=notify): READY=1 once serving, STOPPING=1 on SIGTERM, exit status 0.
+notify="$WORK_DIR/notify.sock"
+$python - "$notify" >"$WORK_DIR/notify.out" 2>&1 <<'PY' &
+import socket, sys
+sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+sock.bind(sys.argv[1])
+sock.settimeout(30)
+for _ in range(2):
+    print(sock.recv(4096).decode().replace("\n", " "), flush=True)
+PY
+listener=$!
+wait_for_path "$notify"
+NOTIFY_SOCKET="$notify" "$loopwire" gateway --config "$WORK_DIR/read-only.toml" >"$WORK_DIR/notified.log" 2>&1 &
+notified=$!
+wait_for 10 "READY=1 from the gateway" grep -q "READY=1" "$WORK_DIR/notify.out"
+kill -TERM "$notified"
+wait "$notified"
+status=$?
+wait "$listener"
+if [[ $status -eq 0 ]] && grep -q "STATUS=serving 1 line(s), 3 device(s)" "$WORK_DIR/notify.out" && grep -q "STOPPING=1" "$WORK_DIR/notify.out"
+then count_pass; else echo "FAIL systemd-notify (exit $status)"; cat "$WORK_DIR/notify.out" "$WORK_DIR/notified.log"; failures=$((failures + 1)); fi
+
+# The unit file systemd would load, with ExecStart pointed at the binary under test.
+sed "s#^ExecStart=/usr/local/bin/loopwire #ExecStart=$(realpath "$loopwire") #" "$(dirname "$0")/../../packaging/loopwire-gateway.service" \
+  >"$WORK_DIR/loopwire-gateway.service"
+verify_out=$(timeout 20 systemd-analyze verify "$WORK_DIR/loopwire-gateway.service" 2>&1); verify_status=$?
+if [[ $verify_status -eq 0 && -z $verify_out ]]; then count_pass; else echo "FAIL unit-file-verifies (exit $verify_status)"; echo "$verify_out" | sed 's/^/    /'; failures=$((failures + 1)); fi
+
 # A broken configuration: refused before anything opens, naming file, line and key.
 cat >"$WORK_DIR/broken.toml" <<TOML
 [[lines]]
