@@ -310,6 +310,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         std::lock_guard lock(mutex);
         auto copy = stats;
         copy.queued = writes.size() + clients.size() + polls.size();
+        copy.on_wire = in_flight;
         copy.open = std::chrono::duration_cast<std::chrono::microseconds>(clock->now() - opened);
         return copy;
     }

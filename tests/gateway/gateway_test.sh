@@ -101,8 +101,22 @@ wait_for 10 "kiln polled" grep -q "device kiln (rampsoak@5) answers" "$WORK_DIR/
 wait_for 10 "the silent unit noticed" grep -q "device absent (tc10@4) does not answer" "$WORK_DIR/gateway.log"
 count_pass
 
-kill -TERM "$LAST_PID"
-wait "$LAST_PID" 2>/dev/null
+# SIGTERM drains: a request sent just before it (to the silent unit: 300 ms of waiting on the
+# line) is still answered, with 0Bh, and the gateway exits 0.
+$python - "$gateway_port" "$LAST_PID" >"$WORK_DIR/drain.out" 2>&1 <<'PY'
+import os, signal, socket, struct, sys, time
+s = socket.create_connection(("127.0.0.1", int(sys.argv[1])), timeout=5)
+s.sendall(struct.pack(">HHHB", 7, 0, 6, 4) + bytes([3, 0, 0, 0, 1]))
+time.sleep(0.1)  # on the line now
+os.kill(int(sys.argv[2]), signal.SIGTERM)
+reply = s.recv(64)
+print(reply.hex(" "))
+assert reply == struct.pack(">HHHB", 7, 0, 3, 4) + bytes([0x83, 0x0B]), "no 0Bh reply after SIGTERM"
+PY
+if [[ $? -eq 0 ]]; then count_pass; else count_failure sigterm-drains "$WORK_DIR/drain.out"; fi
+wait "$LAST_PID"
+gateway_status=$?
+if [[ $gateway_status -eq 0 ]]; then count_pass; else echo "FAIL sigterm-exit-status: $gateway_status"; failures=$((failures + 1)); fi
 if grep -qE "line furnace-line .*: [1-9][0-9]* sent, [1-9][0-9]* answered, [1-9][0-9]* timeout" "$WORK_DIR/gateway.log"; then count_pass
 else count_failure statistics-at-exit "$WORK_DIR/gateway.log"; fi
 
