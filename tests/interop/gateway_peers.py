@@ -1,9 +1,10 @@
 #!/usr/bin/python3
 """Real Modbus TCP clients through `loopwire gateway`, at the same time as its own polling.
 
-Three lines behind one gateway: simulated TC10 (unit 3) and ramp/soak (unit 5) on a
+Five lines behind one gateway: simulated TC10 (unit 3) and ramp/soak (unit 5) on a
 pseudo-terminal RTU line, a plain register bank behind a Modbus TCP device that takes one
-connection (unit 7), and one behind an RTU-over-TCP device server (unit 8). pymodbus, libmodbus
+connection (unit 7), one behind an RTU-over-TCP device server (unit 8), and ramp/soak
+controllers on an ASCII line (unit 6) and a Linking line (unit 11). pymodbus, libmodbus
 and mbpoll read and write through the gateway concurrently; a unit no line leads to gets
 exception 0Ah, a configured unit that stays silent 0Bh; a unit-0 request is broadcast on the
 lines and answered by nobody; a client that pipelines without reading and one that stalls
@@ -38,7 +39,7 @@ def start_tcp_simulator(processes, link, unit, log):
     return int(support.wait_for_log(processes, log, r"listening on port (\d+)").group(1))
 
 
-def write_config(path, pty, tcp_port, rtu_tcp_port):
+def write_config(path, pty, tcp_port, rtu_tcp_port, ascii_pty, linking_pty):
     with open(path, "w", encoding="utf-8") as file:
         file.write(f"""
 [[lines]]
@@ -78,6 +79,22 @@ link = "rtu+tcp://127.0.0.1:{rtu_tcp_port}"
 name = "bank8"
 device = "tc10@8"
 parameters = ["measured_value"]
+
+[[lines]]
+name = "ascii-line"
+link = "ascii:{ascii_pty}?baud=9600&parity=even&data=7"
+
+[[lines.devices]]
+name = "ramp-ascii"
+device = "rampsoak@6"
+
+[[lines]]
+name = "linking-line"
+link = "linking:{linking_pty}?baud=38400&parity=odd"
+
+[[lines.devices]]
+name = "ramp-linking"
+device = "rampsoak@11"
 
 [modbus_tcp]
 listen = "127.0.0.1:0"
@@ -121,6 +138,20 @@ def check_each_back_end(port):
                             "exception for a unit no line leads to (gateway path unavailable)")
         support.check_equal(exception_code(tcp.read_holding_registers(0, 1, slave=4), "unit 4"), 0x0B,
                             "exception for a silent unit (gateway target failed to respond)")
+    finally:
+        tcp.close()
+
+
+def check_ascii_and_linking_lines(port):
+    """An ASCII line carries every function as it is; the ramp/soak controller's Linking frames
+    carry one register read or write (manual, chapter 6): FC3 of one register and FC6 go
+    through, anything else gets exception 1 from the gateway."""
+    tcp = client(port)
+    try:
+        write_and_read_back(tcp, 6, 0, 250, "ramp/soak SV through the ASCII line")
+        write_and_read_back(tcp, 11, 0, 260, "ramp/soak SV through the Linking line")
+        support.check_equal(exception_code(tcp.read_holding_registers(0, 2, slave=11), "two registers over Linking"), 1,
+                            "exception for a request Linking frames cannot carry (illegal function)")
     finally:
         tcp.close()
 
@@ -235,12 +266,21 @@ def test():
         support.wait_for_path(pty)
         tcp_port = start_tcp_simulator(processes, "tcp://127.0.0.1:0", 7, "tcp-device.log")
         rtu_tcp_port = start_tcp_simulator(processes, "rtu+tcp://127.0.0.1:0", 8, "device-server.log")
+        ascii_pty = os.path.join(processes.tmp, "ttyAscii")
+        processes.start([LOOPWIRE, "simulate", "--link", "ascii:/unused?baud=9600&parity=even&data=7", "--pty", ascii_pty,
+                         "--device", "rampsoak@6", "--duration", f"{support.PEER_LIFETIME_S}s"], "ascii-line.log")
+        linking_pty = os.path.join(processes.tmp, "ttyLinking")
+        processes.start([LOOPWIRE, "simulate", "--link", "linking:/unused?baud=38400&parity=odd", "--pty", linking_pty,
+                         "--device", "rampsoak@11", "--duration", f"{support.PEER_LIFETIME_S}s"], "linking-line.log")
+        support.wait_for_path(ascii_pty)
+        support.wait_for_path(linking_pty)
         config = os.path.join(processes.tmp, "plant.toml")
-        write_config(config, pty, tcp_port, rtu_tcp_port)
+        write_config(config, pty, tcp_port, rtu_tcp_port, ascii_pty, linking_pty)
         processes.start(["timeout", str(support.PEER_LIFETIME_S), LOOPWIRE, "gateway", "--config", config], "gateway.log")
         port = int(support.wait_for_log(processes, "gateway.log", r"listening on port (\d+)").group(1))
 
         check_each_back_end(port)
+        check_ascii_and_linking_lines(port)
         check_other_peers(port)
         check_clients_at_once(port)
         check_broadcast(port)
