@@ -129,6 +129,24 @@ check read-only-gateway-refuses-writes 5 "exception 1" "$loopwire" write --link 
 check refused-write-was-not-made 0 '"value":150' "$loopwire" read --link "$read_only" --device tc10@3 set_point --json
 if grep -q "read-only" "$WORK_DIR/read-only.log"; then count_pass; else count_failure refused-write-is-logged "$WORK_DIR/read-only.log"; fi
 
+# SIGHUP re-reads the file: writes allowed now. Port 0 in the file: the reloaded gateway listens
+# on a new port, which it names like the first.
+read_only_pid=$(pgrep -P "$LAST_PID")  # the gateway itself, not `timeout` around it (which forwards one signal only)
+last_port() { grep -oE 'listening on port [0-9]+' "$WORK_DIR/read-only.log" | tail -1 | grep -oE '[0-9]+$'; }
+write_config "$WORK_DIR/read-only.toml" true
+kill -HUP "$read_only_pid"
+wait_for 10 "the reload" grep -q "configuration .*read-only.toml reloaded" "$WORK_DIR/read-only.log"
+wait_for 10 "the reloaded gateway's port" test "$(grep -c 'listening on port' "$WORK_DIR/read-only.log")" -ge 2
+reloaded="tcp://127.0.0.1:$(last_port)"
+check reloaded-gateway-takes-writes 0 "" "$loopwire" write --link "$reloaded" --device tc10@3 set_point=160
+check reloaded-gateway-wrote 0 '"value":160' "$loopwire" read --link "$reloaded" --device tc10@3 set_point --json
+# A broken file on SIGHUP: said why, and the running gateway goes on serving.
+printf '[[lines]]\nname = "x"\nlink = 7\n' >"$WORK_DIR/read-only.toml"
+kill -HUP "$read_only_pid"
+wait_for 10 "the refused reload" grep -q "configuration not reloaded, the running one is kept: .*read-only.toml:3: lines\[0\].link" "$WORK_DIR/read-only.log"
+check still-serving-after-a-bad-reload 0 '"value":160' "$loopwire" read --link "$reloaded" --device tc10@3 set_point --json
+write_config "$WORK_DIR/read-only.toml" false
+
 kill -TERM "$LAST_PID"  # the line is the gateway's alone: free it for the next one
 wait "$LAST_PID" 2>/dev/null
 
