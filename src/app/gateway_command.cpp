@@ -1,6 +1,13 @@
 // loopwire gateway --config FILE [--check] [-v]
 // One process owns every line of the configuration and shares it: Modbus TCP clients reach the
 // devices through it, their requests queued fairly with each other (docs/DESIGN.md, gateway).
+// SIGHUP re-reads the configuration: a bad one is reported and the running one kept.
+#include <mutex>
+#include <optional>
+#include <utility>
+
+#include <systemd/sd-daemon.h>
+
 #include <fmt/format.h>
 
 #include "app/command_line.hpp"
@@ -18,6 +25,75 @@ struct GatewayCommandOptions {
     bool verbose = false;
 };
 
+void log_line(const std::string& line) { fmt::print(stderr, "loopwire: gateway: {}\n", line); }
+
+// What SIGHUP hands over to the serving loop: a configuration that loaded, and the request to
+// stop the gateway running now so that the loop opens the new one.
+class Reloads {
+public:
+    Reloads(std::string file, const device::ProfileRegistry& profiles) : file_(std::move(file)), profiles_(profiles) {}
+
+    // On the signal thread. A configuration that does not load changes nothing.
+    void hangup() {
+        auto loaded = gateway::load_gateway_config(file_, profiles_);
+        if (!loaded) {
+            log_line(fmt::format("configuration not reloaded, the running one is kept: {}", loaded.error().message));
+            return;
+        }
+        std::lock_guard lock(mutex_);
+        next_ = std::move(*loaded);
+        running_.request_stop();
+    }
+
+    // A stop token for the gateway about to run.
+    std::stop_token start_round() {
+        std::lock_guard lock(mutex_);
+        running_ = std::stop_source();
+        return running_.get_token();
+    }
+
+    std::optional<gateway::GatewayConfig> take() {
+        std::lock_guard lock(mutex_);
+        return std::exchange(next_, std::nullopt);
+    }
+
+private:
+    std::string file_;
+    const device::ProfileRegistry& profiles_;
+    std::mutex mutex_;
+    std::stop_source running_;
+    std::optional<gateway::GatewayConfig> next_;
+};
+
+void announce(const gateway::GatewayConfig& config, const gateway::Gateway& running) {
+    std::size_t devices = 0;
+    for (const auto& line : config.lines) devices += line.devices.size();
+    if (config.modbus_tcp.enabled) {
+        fmt::print(stderr, "loopwire: gateway: {} line(s), {} device(s); Modbus TCP on {} (listening on port {}); Ctrl-C to stop\n",
+                   config.lines.size(), devices, config.modbus_tcp.host, running.modbus_tcp_port());
+    } else {
+        fmt::print(stderr, "loopwire: gateway: {} line(s), {} device(s); Modbus TCP front disabled; Ctrl-C to stop\n",
+                   config.lines.size(), devices);
+    }
+    // Under systemd (Type=notify, packaging/loopwire-gateway.service) the unit is up once the
+    // lines and the listener are open; without $NOTIFY_SOCKET these calls do nothing.
+    sd_notifyf(0, "READY=1\nSTATUS=serving %zu line(s), %zu device(s)", config.lines.size(), devices);
+}
+
+// Serves `config` until `stop` or `reload` is requested; the error when it cannot be opened.
+Result<void> serve_round(const gateway::GatewayConfig& config, const gateway::GatewayOptions& options,
+                         const std::stop_token& stop, std::stop_token reload) {
+    auto running = gateway::Gateway::open(config, options);
+    if (!running) return running.error();
+    announce(config, **running);
+    std::stop_source either;
+    std::stop_callback on_stop(stop, [&either] { either.request_stop(); });
+    std::stop_callback on_reload(reload, [&either] { either.request_stop(); });
+    auto served = (*running)->serve(either.get_token());
+    for (const auto& line : (*running)->report()) log_line(gateway::describe(line));
+    return served;
+}
+
 int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& profiles) {
     auto registry = profiles.load();
     if (!registry) return report_error(registry.error());
@@ -27,24 +103,32 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
         fmt::print("{}", gateway::describe_plan(*config));
         return exit_ok;
     }
-    StopSignal stop;  // before any thread starts: they inherit the blocked signals
+    Reloads reloads(options.config, *registry);
+    StopSignal stop(std::nullopt, [&reloads] { reloads.hangup(); });  // before any thread starts
     gateway::GatewayOptions gateway_options;
-    gateway_options.log = [](const std::string& line) { fmt::print(stderr, "loopwire: gateway: {}\n", line); };
+    gateway_options.log = log_line;
     if (options.verbose) gateway_options.trace = stderr_trace();
-    auto gateway = gateway::Gateway::open(*config, gateway_options);
-    if (!gateway) return report_error(gateway.error());
-    std::size_t devices = 0;
-    for (const auto& line : config->lines) devices += line.devices.size();
-    if (config->modbus_tcp.enabled) {
-        fmt::print(stderr, "loopwire: gateway: {} line(s), {} device(s); Modbus TCP on {} (listening on port {}); Ctrl-C to stop\n",
-                   config->lines.size(), devices, config->modbus_tcp.host, (*gateway)->modbus_tcp_port());
-    } else {
-        fmt::print(stderr, "loopwire: gateway: {} line(s), {} device(s); Modbus TCP front disabled; Ctrl-C to stop\n",
-                   config->lines.size(), devices);
+    gateway::GatewayConfig current = std::move(*config);
+    std::optional<gateway::GatewayConfig> previous;
+    for (;;) {
+        auto served = serve_round(current, gateway_options, stop.token(), reloads.start_round());
+        if (!served && !previous) return report_error(served.error());
+        if (!served) {
+            // The new configuration loaded but could not be opened (a port missing, an address
+            // taken): back to the one that ran.
+            log_line(fmt::format("the reloaded configuration cannot be served ({}); going back to the previous one",
+                                 served.error().message));
+            current = std::move(*std::exchange(previous, std::nullopt));
+            continue;
+        }
+        if (stop.token().stop_requested()) break;
+        if (auto next = reloads.take()) {
+            sd_notify(0, "RELOADING=1");
+            log_line(fmt::format("configuration {} reloaded", options.config));
+            previous = std::exchange(current, std::move(*next));
+        }
     }
-    auto served = (*gateway)->serve(stop.token());
-    for (const auto& line : (*gateway)->report()) fmt::print(stderr, "loopwire: gateway: {}\n", gateway::describe(line));
-    if (!served) return report_error(served.error());
+    sd_notify(0, "STOPPING=1");
     return exit_ok;
 }
 
@@ -56,7 +140,9 @@ void add_gateway_command(CLI::App& app, int& exit_code, const ProfileOptions& pr
     command->add_option("--config", options->config, "Gateway configuration (TOML): lines, devices, the Modbus TCP front")->required();
     command->add_flag("--check", options->check, "Check the configuration and print the plan (lines, devices, estimated line load); serve nothing");
     command->add_flag("-v,--verbose", options->verbose, "Print every frame on the lines and the front, with timestamps, on stderr");
-    command->footer(exit_code_help);
+    command->footer(std::string("SIGTERM or Ctrl-C stops the gateway once the requests it has taken are answered; SIGHUP re-reads "
+                                "the configuration (a configuration with errors is reported and the running one kept).\n\n") +
+                    exit_code_help);
     command->callback([options, &exit_code, &profiles] { exit_code = run_gateway(*options, profiles); });
 }
 

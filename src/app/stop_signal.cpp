@@ -6,23 +6,29 @@
 namespace loopwire::app {
 
 namespace {
-sigset_t stop_signals() {
+sigset_t handled_signals(bool hangup) {
     sigset_t set;
     sigemptyset(&set);
     sigaddset(&set, SIGINT);
     sigaddset(&set, SIGTERM);
+    if (hangup) sigaddset(&set, SIGHUP);
     return set;
 }
 }  // namespace
 
-StopSignal::StopSignal(std::optional<std::chrono::microseconds> limit) {
-    const sigset_t set = stop_signals();
-    pthread_sigmask(SIG_BLOCK, &set, nullptr);
+StopSignal::StopSignal(std::optional<std::chrono::microseconds> limit, std::function<void()> on_hangup)
+    : signals_(handled_signals(static_cast<bool>(on_hangup))) {
+    pthread_sigmask(SIG_BLOCK, &signals_, nullptr);
     const auto deadline = limit ? std::optional(std::chrono::steady_clock::now() + *limit) : std::nullopt;
-    waiter_ = std::jthread([this, set, deadline](std::stop_token own) {
+    waiter_ = std::jthread([this, deadline, on_hangup = std::move(on_hangup)](std::stop_token own) {
         const timespec tick{0, 50'000'000};
         while (!own.stop_requested() && !source_.stop_requested()) {
-            if (sigtimedwait(&set, nullptr, &tick) > 0) break;
+            const int received = sigtimedwait(&signals_, nullptr, &tick);
+            if (received == SIGHUP) {
+                on_hangup();
+                continue;
+            }
+            if (received > 0) break;
             if (deadline && std::chrono::steady_clock::now() >= *deadline) break;
         }
         source_.request_stop();
@@ -32,8 +38,7 @@ StopSignal::StopSignal(std::optional<std::chrono::microseconds> limit) {
 StopSignal::~StopSignal() {
     waiter_.request_stop();
     waiter_.join();
-    const sigset_t set = stop_signals();
-    pthread_sigmask(SIG_UNBLOCK, &set, nullptr);
+    pthread_sigmask(SIG_UNBLOCK, &signals_, nullptr);
 }
 
 }  // namespace loopwire::app

@@ -1,6 +1,8 @@
 #include "gateway/gateway.hpp"
 
+#include <algorithm>
 #include <condition_variable>
+#include <thread>
 #include <map>
 #include <mutex>
 
@@ -97,15 +99,50 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
 
 std::uint16_t Gateway::modbus_tcp_port() const { return parts_->listener ? parts_->listener->port() : 0; }
 
+namespace {
+
+// How long a stopping gateway keeps serving so that the requests already taken are answered.
+constexpr auto drain_limit = std::chrono::seconds(5);
+
+bool lines_idle(const std::vector<OpenLine>& lines) {
+    return std::all_of(lines.begin(), lines.end(), [](const OpenLine& line) {
+        const auto stats = line.scheduler->statistics();
+        return stats.queued == 0 && !stats.on_wire;
+    });
+}
+
+// Waits for `stop`, then until every line is idle (or the drain limit passes), then stops the
+// front: a request a client sent before SIGTERM still gets its answer.
+void stop_after_drain(const std::vector<OpenLine>& lines, const std::stop_token& stop, std::stop_source& front) {
+    std::mutex mutex;
+    std::condition_variable_any woken;
+    std::unique_lock lock(mutex);
+    woken.wait(lock, stop, [] { return false; });
+    const auto give_up = std::chrono::steady_clock::now() + drain_limit;
+    while (!lines_idle(lines) && std::chrono::steady_clock::now() < give_up) {
+        woken.wait_for(lock, std::chrono::milliseconds(10), [] { return false; });
+    }
+    front.request_stop();
+}
+
+}  // namespace
+
 Result<void> Gateway::serve(std::stop_token stop) {
+    std::stop_source front;
+    // Also ended by its own token: when the front fails, the jthread's destructor stops it.
+    std::jthread drain([this, &front, stop](std::stop_token own) {
+        std::stop_source either;
+        std::stop_callback on_stop(stop, [&either] { either.request_stop(); });
+        std::stop_callback on_own(own, [&either] { either.request_stop(); });
+        stop_after_drain(parts_->lines, either.get_token(), front);
+    });
     if (!parts_->front) {
-        std::mutex mutex;
-        std::condition_variable_any stopped;
-        std::unique_lock lock(mutex);
-        stopped.wait(lock, stop, [] { return false; });
+        drain.join();
         return {};
     }
-    return parts_->front->serve_listener(*parts_->listener, std::move(stop));
+    auto served = parts_->front->serve_listener(*parts_->listener, front.get_token());
+    if (!served) front.request_stop();
+    return served;
 }
 
 std::vector<LineReport> Gateway::report() const {
@@ -118,10 +155,11 @@ std::vector<CachedDevice> Gateway::values() const { return parts_->cache.snapsho
 
 std::string describe(const LineReport& report) {
     const auto& s = report.statistics;
+    const double busy = s.open.count() > 0 ? 100.0 * static_cast<double>(s.busy.count()) / static_cast<double>(s.open.count()) : 0.0;
     return fmt::format("line {} ({}): {} sent, {} answered, {} timeout(s), {} bad repl{}, {} expired in the queue, "
-                       "{} refused while the unit backed off",
+                       "{} refused while the unit backed off; busy {:.1f} % of the time",
                        report.name, report.link, s.sent, s.answered, s.timeouts, s.bad_replies,
-                       s.bad_replies == 1 ? "y" : "ies", s.expired, s.backed_off);
+                       s.bad_replies == 1 ? "y" : "ies", s.expired, s.backed_off, busy);
 }
 
 }  // namespace loopwire::gateway

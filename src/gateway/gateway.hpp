@@ -38,8 +38,8 @@ public:
     // front is disabled.
     std::uint16_t modbus_tcp_port() const;
 
-    // Serves until `stop` is requested. Replies still owed are not sent after that: the request
-    // on each line finishes when the gateway is destroyed, and what was queued is dropped.
+    // Serves until `stop` is requested, then drains: the requests already taken are answered
+    // (5 s at most) before the front closes.
     Result<void> serve(std::stop_token stop);
 
     std::vector<LineReport> report() const;

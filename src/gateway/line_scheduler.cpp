@@ -203,6 +203,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
             return *refusal;
         }
         in_flight = true;
+        flight_started = now;
         sending = true;
         ++stats.sent;
         return master.get();
@@ -249,6 +250,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         {
             std::lock_guard lock(mutex);
             in_flight = false;
+            stats.busy += std::chrono::duration_cast<std::chrono::microseconds>(clock->now() - flight_started);
             record(flight.unit, result);
         }
         deliver(flight.done, std::move(result));
@@ -308,6 +310,8 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         std::lock_guard lock(mutex);
         auto copy = stats;
         copy.queued = writes.size() + clients.size() + polls.size();
+        copy.on_wire = in_flight;
+        copy.open = std::chrono::duration_cast<std::chrono::microseconds>(clock->now() - opened);
         return copy;
     }
 
@@ -322,6 +326,8 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
     std::deque<LineRequest> polls;  // FIFO: polls are all the gateway's own, no one to be fair to
     std::map<std::uint8_t, device::RetryBackoff> backoffs;  // units whose last request timed out
     LineStatistics stats;
+    const Instant opened = clock->now();
+    Instant flight_started{};
 
     bool in_flight = false;  // a request is on the wire
     bool pumping = false;    // a thread is in pump()

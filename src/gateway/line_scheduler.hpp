@@ -42,6 +42,11 @@ struct LineStatistics {
     std::uint64_t abandoned = 0;     // dropped unsent: the asker had gone
     std::uint64_t backed_off = 0;    // refused unsent: the unit is backing off
     std::size_t queued = 0;          // waiting now
+    bool on_wire = false;            // a request is on the line now
+    // How long the line has carried a request (from sending to its outcome) and how long the
+    // scheduler has existed: busy / open is the line's utilisation.
+    std::chrono::microseconds busy{0};
+    std::chrono::microseconds open{0};
 };
 
 // Ownership: keep your own reference to the master and destroy the scheduler first, then the

@@ -101,8 +101,22 @@ wait_for 10 "kiln polled" grep -q "device kiln (rampsoak@5) answers" "$WORK_DIR/
 wait_for 10 "the silent unit noticed" grep -q "device absent (tc10@4) does not answer" "$WORK_DIR/gateway.log"
 count_pass
 
-kill -TERM "$LAST_PID"
-wait "$LAST_PID" 2>/dev/null
+# SIGTERM drains: a request sent just before it (to the silent unit: 300 ms of waiting on the
+# line) is still answered, with 0Bh, and the gateway exits 0.
+$python - "$gateway_port" "$LAST_PID" >"$WORK_DIR/drain.out" 2>&1 <<'PY'
+import os, signal, socket, struct, sys, time
+s = socket.create_connection(("127.0.0.1", int(sys.argv[1])), timeout=5)
+s.sendall(struct.pack(">HHHB", 7, 0, 6, 4) + bytes([3, 0, 0, 0, 1]))
+time.sleep(0.1)  # on the line now
+os.kill(int(sys.argv[2]), signal.SIGTERM)
+reply = s.recv(64)
+print(reply.hex(" "))
+assert reply == struct.pack(">HHHB", 7, 0, 3, 4) + bytes([0x83, 0x0B]), "no 0Bh reply after SIGTERM"
+PY
+if [[ $? -eq 0 ]]; then count_pass; else count_failure sigterm-drains "$WORK_DIR/drain.out"; fi
+wait "$LAST_PID"
+gateway_status=$?
+if [[ $gateway_status -eq 0 ]]; then count_pass; else echo "FAIL sigterm-exit-status: $gateway_status"; failures=$((failures + 1)); fi
 if grep -qE "line furnace-line .*: [1-9][0-9]* sent, [1-9][0-9]* answered, [1-9][0-9]* timeout" "$WORK_DIR/gateway.log"; then count_pass
 else count_failure statistics-at-exit "$WORK_DIR/gateway.log"; fi
 
@@ -114,6 +128,55 @@ check read-only-gateway-reads 0 '"value":150' "$loopwire" read --link "$read_onl
 check read-only-gateway-refuses-writes 5 "exception 1" "$loopwire" write --link "$read_only" --device tc10@3 set_point=160
 check refused-write-was-not-made 0 '"value":150' "$loopwire" read --link "$read_only" --device tc10@3 set_point --json
 if grep -q "read-only" "$WORK_DIR/read-only.log"; then count_pass; else count_failure refused-write-is-logged "$WORK_DIR/read-only.log"; fi
+
+# SIGHUP re-reads the file: writes allowed now. Port 0 in the file: the reloaded gateway listens
+# on a new port, which it names like the first.
+read_only_pid=$(pgrep -P "$LAST_PID")  # the gateway itself, not `timeout` around it (which forwards one signal only)
+last_port() { grep -oE 'listening on port [0-9]+' "$WORK_DIR/read-only.log" | tail -1 | grep -oE '[0-9]+$'; }
+write_config "$WORK_DIR/read-only.toml" true
+kill -HUP "$read_only_pid"
+wait_for 10 "the reload" grep -q "configuration .*read-only.toml reloaded" "$WORK_DIR/read-only.log"
+wait_for 10 "the reloaded gateway's port" test "$(grep -c 'listening on port' "$WORK_DIR/read-only.log")" -ge 2
+reloaded="tcp://127.0.0.1:$(last_port)"
+check reloaded-gateway-takes-writes 0 "" "$loopwire" write --link "$reloaded" --device tc10@3 set_point=160
+check reloaded-gateway-wrote 0 '"value":160' "$loopwire" read --link "$reloaded" --device tc10@3 set_point --json
+# A broken file on SIGHUP: said why, and the running gateway goes on serving.
+printf '[[lines]]\nname = "x"\nlink = 7\n' >"$WORK_DIR/read-only.toml"
+kill -HUP "$read_only_pid"
+wait_for 10 "the refused reload" grep -q "configuration not reloaded, the running one is kept: .*read-only.toml:3: lines\[0\].link" "$WORK_DIR/read-only.log"
+check still-serving-after-a-bad-reload 0 '"value":160' "$loopwire" read --link "$reloaded" --device tc10@3 set_point --json
+write_config "$WORK_DIR/read-only.toml" false
+
+kill -TERM "$LAST_PID"  # the line is the gateway's alone: free it for the next one
+wait "$LAST_PID" 2>/dev/null
+
+# Under systemd (Type=notify): READY=1 once serving, STOPPING=1 on SIGTERM, exit status 0.
+notify="$WORK_DIR/notify.sock"
+$python - "$notify" >"$WORK_DIR/notify.out" 2>&1 <<'PY' &
+import socket, sys
+sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+sock.bind(sys.argv[1])
+sock.settimeout(30)
+for _ in range(2):
+    print(sock.recv(4096).decode().replace("\n", " "), flush=True)
+PY
+listener=$!
+wait_for_path "$notify"
+NOTIFY_SOCKET="$notify" "$loopwire" gateway --config "$WORK_DIR/read-only.toml" >"$WORK_DIR/notified.log" 2>&1 &
+notified=$!
+wait_for 10 "READY=1 from the gateway" grep -q "READY=1" "$WORK_DIR/notify.out"
+kill -TERM "$notified"
+wait "$notified"
+status=$?
+wait "$listener"
+if [[ $status -eq 0 ]] && grep -q "STATUS=serving 1 line(s), 3 device(s)" "$WORK_DIR/notify.out" && grep -q "STOPPING=1" "$WORK_DIR/notify.out"
+then count_pass; else echo "FAIL systemd-notify (exit $status)"; cat "$WORK_DIR/notify.out" "$WORK_DIR/notified.log"; failures=$((failures + 1)); fi
+
+# The unit file systemd would load, with ExecStart pointed at the binary under test.
+sed "s#^ExecStart=/usr/local/bin/loopwire #ExecStart=$(realpath "$loopwire") #" "$(dirname "$0")/../../packaging/loopwire-gateway.service" \
+  >"$WORK_DIR/loopwire-gateway.service"
+verify_out=$(timeout 20 systemd-analyze verify "$WORK_DIR/loopwire-gateway.service" 2>&1); verify_status=$?
+if [[ $verify_status -eq 0 && -z $verify_out ]]; then count_pass; else echo "FAIL unit-file-verifies (exit $verify_status)"; echo "$verify_out" | sed 's/^/    /'; failures=$((failures + 1)); fi
 
 # A broken configuration: refused before anything opens, naming file, line and key.
 cat >"$WORK_DIR/broken.toml" <<TOML

@@ -133,6 +133,21 @@ protected:
     std::unique_ptr<LineScheduler> scheduler = std::make_unique<LineScheduler>(master, backoff_options(), clock);
 };
 
+// Utilisation: the time requests were on the line, against the time the line has been open.
+TEST_F(LineSchedulerTest, CountsTheTimeTheLineCarriesRequests) {
+    clock->sleep_for(5ms);
+    submit(1);
+    clock->sleep_for(12ms);
+    master->complete(normal_reply());
+    clock->sleep_for(20ms);
+    submit(2);
+    clock->sleep_for(3ms);
+    master->complete(make_error(ErrorKind::timeout, "silence"));
+    const auto stats = scheduler->statistics();
+    EXPECT_EQ(stats.busy, 15ms);
+    EXPECT_EQ(stats.open, 40ms);
+}
+
 TEST_F(LineSchedulerTest, SendsOneRequestAtATime) {
     for (int tag = 1; tag <= 5; ++tag) submit(tag);
     EXPECT_EQ(master->sent_tags(), (std::vector<int>{1}));
