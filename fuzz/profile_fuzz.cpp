@@ -15,8 +15,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (!profile.ok()) {
         fuzz::check(profile.error().kind == ErrorKind::usage, "a bad profile is a usage error");
         fuzz::check(profile.error().message.find("fuzz.json") != std::string::npos, "a bad profile's error names the file");
-        fuzz::check(profile.error().message.find(device::profile_type_gap_message) == std::string::npos,
-                    "the schema refuses every type the conversion cannot use");
+        // A syntax error quotes the input around it: an input holding the phrase itself can
+        // bring it into the message without any gap in the schema.
+        if (text.find(device::profile_type_gap_message) == std::string::npos) {
+            fuzz::check(profile.error().message.find(device::profile_type_gap_message) == std::string::npos,
+                        "the schema refuses every type the conversion cannot use");
+        }
         return 0;
     }
     fuzz::check(!profile->id.empty(), "a loaded profile has an id");
