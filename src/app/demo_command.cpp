@@ -1,10 +1,11 @@
-// loopwire demo: the embedded default behind the README's first command. Three simulated
-// controllers (AC20 at unit 1, ramp/soak at unit 2, TC10 at unit 3) share one RTU line on a
-// virtual bus inside the process; the live monitor polls them there, while the same
-// simulators also answer Modbus/TCP on loopback so the commands the demo suggests can be tried
-// from another terminal against the very devices on screen.
+// loopwire demo: the embedded default behind the README's first command. The gateway runs on
+// its embedded plant: three simulated controllers (AC20 at unit 1, ramp/soak at unit 2, TC10 at
+// unit 3) on one virtual 19200-baud RTU line inside the process, polled by the gateway, whose
+// samples are shown live, and shared over Modbus TCP on loopback, so the commands the demo
+// prints reach the very devices on screen through the gateway (docs/DESIGN.md, gateway).
 #include <unistd.h>
 
+#include <atomic>
 #include <thread>
 
 #include <fmt/format.h>
@@ -13,14 +14,10 @@
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
 #include "app/monitor_output.hpp"
-#include "client/monitor_loop.hpp"
-#include "client/monitor_names.hpp"
-#include "app/simulated_units.hpp"
 #include "app/stop_signal.hpp"
 #include "client/device_client.hpp"
-#include "session/slave.hpp"
-#include "transport/tcp.hpp"
-#include "transport/virtual_bus.hpp"
+#include "gateway/gateway.hpp"
+#include "transport/link_url.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -33,7 +30,33 @@ struct DemoOptions {
     bool verbose = false;
 };
 
-const std::vector<std::string> demo_devices{"ac20@1", "rampsoak@2", "tc10@3"};
+// The embedded plant, in the gateway's own configuration language: what `loopwire gateway
+// --config` would run for the same plant (examples/plant.toml has a real one).
+std::string demo_config(double speed, int port) {
+    return fmt::format(R"toml(
+[[lines]]
+name = "plant"
+link = "rtu:virtual?baud=19200&parity=none"
+timeout = "500ms"
+retries = 1            # a loaded machine can stretch a frame on the virtual line
+speed = {}
+
+[[lines.devices]]
+name = "furnace"
+device = "ac20@1"
+
+[[lines.devices]]
+name = "kiln"
+device = "rampsoak@2"
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+
+[modbus_tcp]
+listen = "127.0.0.1:{}"
+)toml", speed, port);
+}
 
 // Set points that make the process move from the first sample on (each model starts cold).
 // The AC20 takes writes only in remote (Note 5), so bit 218 goes first.
@@ -43,6 +66,7 @@ const std::vector<std::pair<std::string, std::vector<std::string>>> demo_setting
     {"tc10@3", {"set_point=150"}},
 };
 
+// Written through the gateway's Modbus TCP front, as any client would.
 void apply_demo_settings(session::Master& master) {
     for (const auto& [address_text, assignments] : demo_settings) {
         auto address = device::parse_device_address(address_text);
@@ -58,6 +82,19 @@ void apply_demo_settings(session::Master& master) {
     }
 }
 
+// Passes samples on once opened: the live table starts below the hint, not mixed into it.
+class SinkOpenedLater final : public device::SampleSink {
+public:
+    explicit SinkOpenedLater(device::SampleSink& sink) : sink_(sink) {}
+    void open() { open_ = true; }
+    void write(const device::SampleView& sample) override {
+        if (open_) sink_.write(sample);
+    }
+
+private:
+    device::SampleSink& sink_;
+    std::atomic<bool> open_{false};
+};
 
 Result<std::optional<std::chrono::microseconds>> demo_duration(const DemoOptions& options) {
     if (options.duration.empty()) {
@@ -69,24 +106,34 @@ Result<std::optional<std::chrono::microseconds>> demo_duration(const DemoOptions
     return std::optional<std::chrono::microseconds>{*parsed};
 }
 
-// Port 1502 when free (the commands shown stay the same from run to run), else any free port.
-Result<std::unique_ptr<transport::TcpListener>> demo_listener(int port) {
-    auto listener = transport::TcpListener::listen("127.0.0.1", static_cast<std::uint16_t>(port));
-    if (listener || port == 0) return listener;
-    return transport::TcpListener::listen("127.0.0.1", 0);
+Result<gateway::GatewayConfig> demo_gateway_config(double speed, int port) {
+    auto builtins = device::ProfileRegistry::builtins();  // the demo's devices are built-in ones
+    if (!builtins) return builtins.error();
+    return gateway::parse_gateway_config(demo_config(speed, port), "the demo's embedded plant", *builtins);
+}
+
+// On port 1502 when free (the commands shown stay the same from run to run), else any free port.
+Result<std::unique_ptr<gateway::Gateway>> open_demo_gateway(const DemoOptions& options, gateway::GatewayOptions gateway_options) {
+    auto config = demo_gateway_config(options.speed, options.port);
+    if (!config) return config.error();
+    auto opened = gateway::Gateway::open(*config, gateway_options);
+    if (opened || options.port == 0) return opened;
+    config = demo_gateway_config(options.speed, 0);
+    if (!config) return config.error();
+    return gateway::Gateway::open(*config, gateway_options);
 }
 
 void print_hint(std::uint16_t port, bool bounded, double speed) {
     const std::string link = fmt::format("tcp://127.0.0.1:{}", port);
     fmt::print(stderr,
-               "loopwire demo: an AC20 (unit 1), a ramp/soak controller (unit 2) and a TC10 (unit 3) simulated on one "
-               "RTU line, process time x{}.\n"
-               "The same simulators answer on {} - try, from another terminal:\n"
-               "  loopwire read  --link {} --device tc10@3 PV SP rV\n"
+               "loopwire demo: the gateway owns one simulated RTU line (19200 baud) with an AC20 (unit 1), a ramp/soak "
+               "controller (unit 2) and a TC10 (unit 3), process time x{}; below, what its polls read.\n"
+               "It shares the line over Modbus TCP on {} - try, from another terminal:\n"
+               "  loopwire read  --link {} --device tc10@3 measured_value SP\n"
                "  loopwire write --link {} --device tc10@3 SP=200\n"
                "  loopwire read  --link {} --device ac20@1 St.Pn\n"
                "  loopwire dump  --link {} --device rampsoak@2 --output rampsoak.json\n"
-               "  loopwire monitor --link {} --device tc10@3 --device rampsoak@2\n"
+               "  loopwire monitor --link {} --device tc10@3 --device rampsoak@2 --count 5\n"
                "{}\n",
                speed, link, link, link, link, link, link, bounded ? "" : "Ctrl-C stops the demo.");
 }
@@ -96,43 +143,30 @@ int run_demo(const DemoOptions& options) {
     if (!format) return report_error(format.error());
     auto duration = demo_duration(options);
     if (!duration) return report_error(duration.error());
-    auto link = transport::parse_link_url("rtu:virtual?baud=19200&parity=none");
-    if (!link) return report_error(link.error());
-    device::SimulationEnvironment environment;
-    environment.speed = options.speed;
-    // The demo's devices are built-in ones: no profile files needed.
-    auto builtins = device::ProfileRegistry::builtins();
-    if (!builtins) return report_error(builtins.error());
-    auto units = build_simulated_units(*builtins, {}, demo_devices, *link, environment);
-    if (!units) return report_error(units.error());
-    auto listener = demo_listener(options.port);
-    if (!listener) return report_error(listener.error());
 
     StopSignal stop(*duration);  // before any thread starts, so they inherit the blocked signals
-    auto bus = transport::VirtualBus::create(link->serial.baud, 10);
-    auto slave_port = bus->attach("simulators");
-    session::Slave line_slave(*link, units->units);
-    session::Slave tcp_slave(*transport::parse_link_url("tcp://127.0.0.1:0"), units->units);
-    std::jthread line_server([&](std::stop_token) { (void)line_slave.serve_stream(*slave_port, stop.token()); });
-    std::jthread tcp_server([&](std::stop_token) { (void)tcp_slave.serve_listener(**listener, stop.token()); });
+    StreamSampleSink table(stdout, *format);
+    SinkOpenedLater sink(table);
+    gateway::GatewayOptions gateway_options;
+    gateway_options.samples = &sink;
+    gateway_options.log = [](const std::string& line) { fmt::print(stderr, "loopwire demo: gateway: {}\n", line); };
+    if (options.verbose) gateway_options.trace = stderr_trace();
+    auto running = open_demo_gateway(options, gateway_options);
+    if (!running) return report_error(running.error());
+    const std::uint16_t port = (*running)->modbus_tcp_port();
 
-    session::MasterOptions master_options;
-    master_options.timeout = std::chrono::milliseconds(500);
-    master_options.retries = 1;  // a loaded machine can stretch a frame on the virtual line
-    if (options.verbose) master_options.trace = stderr_trace();
-    auto master = session::make_serial_master(bus->attach("monitor"), *link, master_options);
-    apply_demo_settings(*master);
-
-    print_hint((*listener)->port(), duration->has_value(), options.speed);
-    std::vector<device::MonitorTarget> targets;
-    for (const std::string& text : demo_devices) {
-        auto address = device::parse_device_address(text);
-        if (!address) return report_error(address.error());
-        targets.push_back(device::MonitorTarget{master.get(), *address, device::default_watch_list(*address->profile)});
-    }
-    StreamSampleSink sink(stdout, *format);
-    device::run_monitor(targets, device::MonitorSettings{}, sink, stop.token());
-    stop.request_stop();
+    Result<void> served;
+    std::thread server([&] { served = (*running)->serve(stop.token()); });
+    session::MasterOptions client_options;
+    client_options.timeout = std::chrono::seconds(2);
+    auto client = session::open_master(*transport::parse_link_url(fmt::format("tcp://127.0.0.1:{}", port)), client_options);
+    if (client) apply_demo_settings(**client);
+    else fmt::print(stderr, "loopwire demo: could not reach the gateway to set the set points: {}\n", client.error().message);
+    client = make_error(ErrorKind::link, "closed");  // one client less on the front while it runs
+    print_hint(port, duration->has_value(), options.speed);
+    sink.open();
+    server.join();
+    if (!served) return report_error(served.error());
     return exit_ok;
 }
 

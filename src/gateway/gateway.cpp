@@ -8,6 +8,7 @@
 
 #include <fmt/format.h>
 
+#include "devices/registry.hpp"
 #include "session/master.hpp"
 #include "session/slave.hpp"
 #include "transport/tcp.hpp"
@@ -19,9 +20,17 @@ namespace {
 // this gateway leads to.
 constexpr std::uint8_t gateway_path_unavailable = 0x0A;
 
+// The simulated devices of a virtual line, answering on their end of its bus.
+struct SimulatedLine {
+    std::unique_ptr<transport::ByteStream> port;
+    std::unique_ptr<session::Slave> devices;
+    std::jthread thread;  // last: stops and joins before the port and the devices go
+};
+
 struct OpenLine {
     std::string name;
     std::string link;
+    std::unique_ptr<SimulatedLine> simulation;  // virtual lines only
     // Held here as well as by the scheduler, and declared first so that it goes last: a serial
     // master joins its own thread when destroyed, which must not be the thread that destroys the
     // scheduler from a completion (line_scheduler.hpp, ownership).
@@ -29,18 +38,51 @@ struct OpenLine {
     std::shared_ptr<LineScheduler> scheduler;
 };
 
+// A virtual line's devices: each simulated from its profile, as `loopwire simulate` would.
+session::UnitMap simulated_devices(const LineConfig& line) {
+    device::SimulationEnvironment environment;
+    environment.speed = line.simulation->speed;
+    environment.seed = line.simulation->seed;
+    session::UnitMap units;
+    for (const DeviceConfig& device : line.devices) {
+        const std::uint8_t unit = device.address.unit;
+        units[unit] = device::models::make_simulated_device(
+            device.address.profile, environment.for_unit(unit, transport::framing_name(line.link.framing)));
+    }
+    return units;
+}
+
+// The bus of a virtual line with its simulated devices serving on it; the master's end of it.
+std::unique_ptr<transport::ByteStream> open_virtual_line(const LineConfig& line, const GatewayOptions& options,
+                                                         OpenLine& opened) {
+    auto bus = transport::VirtualBus::create(line.link.serial.baud, line.link.serial.bits_per_character());
+    if (options.virtual_bus_faults) bus->set_fault_injector(options.virtual_bus_faults);
+    auto simulation = std::make_unique<SimulatedLine>();
+    simulation->port = bus->attach("simulated devices");
+    simulation->devices = std::make_unique<session::Slave>(line.link, simulated_devices(line));
+    simulation->thread = std::jthread([s = simulation.get()](std::stop_token stop) {
+        (void)s->devices->serve_stream(*s->port, std::move(stop));
+    });
+    opened.simulation = std::move(simulation);
+    return bus->attach("gateway");
+}
+
 Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options) {
     session::MasterOptions master_options;
     master_options.timeout = line.timeout;
     master_options.retries = line.retries;
     master_options.trace = options.trace;
-    auto master = session::open_master(line.link, master_options);
+    OpenLine opened{line.name, line.link.to_string(), nullptr, nullptr, nullptr};
+    Result<std::unique_ptr<session::Master>> master =
+        line.simulation ? Result<std::unique_ptr<session::Master>>(session::make_serial_master(
+                              open_virtual_line(line, options, opened), line.link, master_options))
+                        : session::open_master(line.link, master_options);
     if (!master) {
         return make_error(master.error().kind, fmt::format("line {} ({}): {}", line.name, line.link.to_string(), master.error().message));
     }
-    std::shared_ptr<session::Master> shared_master(std::move(*master));
-    auto scheduler = std::make_shared<LineScheduler>(shared_master);
-    return OpenLine{line.name, line.link.to_string(), std::move(shared_master), std::move(scheduler)};
+    opened.master = std::shared_ptr<session::Master>(std::move(*master));
+    opened.scheduler = std::make_shared<LineScheduler>(opened.master);
+    return opened;
 }
 
 }  // namespace
@@ -77,7 +119,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
     }
     std::map<std::string, std::shared_ptr<LineScheduler>> schedulers;
     for (const auto& line : parts->lines) schedulers[line.name] = line.scheduler;
-    parts->polls = std::make_unique<PollGroups>(config, schedulers, parts->cache, options.log);
+    parts->polls = std::make_unique<PollGroups>(config, schedulers, parts->cache, options.log, options.samples);
     if (config.modbus_tcp.enabled) {
         auto listener = transport::TcpListener::listen(config.modbus_tcp.host, config.modbus_tcp.port);
         if (!listener) {

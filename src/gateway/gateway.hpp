@@ -12,12 +12,18 @@
 #include "gateway/line_scheduler.hpp"
 #include "gateway/poll_groups.hpp"
 #include "session/trace.hpp"
+#include "transport/virtual_bus.hpp"
 
 namespace loopwire::gateway {
 
 struct GatewayOptions {
     session::TraceSink trace;  // every frame on the lines and the front (-v)
     GatewayLog log;            // refused requests and other events worth a line
+    // Faults on the simulated (virtual-bus) lines' frames, for tests and benchmarks.
+    transport::FaultInjector virtual_bus_faults;
+    // Also given every sample the gateway's polls take, on the poll group's thread (one thread
+    // per poll interval): the demo's live table. Must outlive the gateway.
+    device::SampleSink* samples = nullptr;
 };
 
 struct LineReport {

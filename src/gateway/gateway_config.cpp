@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <fstream>
 #include <initializer_list>
+#include <limits>
 #include <map>
 #include <optional>
 #include <set>
@@ -109,6 +110,21 @@ Result<std::optional<long long>> optional_integer(const Context& ctx, const toml
         return ctx.fail(source_of(table, key), key_path(path, key), fmt::format("{} is out of range (expected {})", **value, expected));
     }
     return std::optional<long long>{**value};
+}
+
+Result<std::optional<double>> optional_number(const Context& ctx, const toml::table& table, const std::string& path,
+                                              std::string_view key, double min, double max) {
+    const std::string expected = fmt::format("a number {}..{}", min, max);
+    const toml::node* node = table.get(key);
+    if (!node) return std::optional<double>{};
+    std::optional<double> value;
+    if (const auto* real = node->as_floating_point()) value = real->get();
+    if (const auto* integer = node->as_integer()) value = static_cast<double>(integer->get());
+    if (!value) return ctx.fail(node->source(), key_path(path, key), fmt::format("expected {}", expected));
+    if (!(*value >= min && *value <= max)) {
+        return ctx.fail(node->source(), key_path(path, key), fmt::format("{} is out of range (expected {})", *value, expected));
+    }
+    return value;
 }
 
 // An array of tables ([[lines]], [[lines.devices]]); absent is an empty list.
@@ -271,6 +287,28 @@ Result<void> parse_devices(const Context& ctx, const toml::table& table, const s
 // ---------------------------------------------------------------------------------------------
 // Lines
 
+// `speed` and `seed` set the simulation of a virtual line and mean nothing on a real one.
+Result<void> parse_line_simulation(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
+    auto speed = optional_number(ctx, table, path, "speed", 0.001, 100000.0);
+    if (!speed) return speed.error();
+    auto seed = optional_integer(ctx, table, path, "seed", 0, std::numeric_limits<std::int64_t>::max());
+    if (!seed) return seed.error();
+    if (!is_virtual_bus(line.link)) {
+        for (std::string_view key : {"speed", "seed"}) {
+            if (!table.contains(key)) continue;
+            return ctx.fail(source_of(table, key), key_path(path, key),
+                            fmt::format("{} applies to a simulated line only (link = \"rtu:virtual?baud=19200\"); "
+                                        "remove it for a line with a real device", key));
+        }
+        return {};
+    }
+    LineSimulation simulation;
+    if (*speed) simulation.speed = **speed;
+    if (*seed) simulation.seed = static_cast<std::uint64_t>(**seed);
+    line.simulation = simulation;
+    return {};
+}
+
 Result<void> parse_line_settings(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
     auto link_text = required_string(ctx, table, path, "link", "\"rtu:/dev/ttyUSB0?baud=19200\"");
     if (!link_text) return link_text.error();
@@ -283,11 +321,11 @@ Result<void> parse_line_settings(const Context& ctx, const toml::table& table, c
     auto retries = optional_integer(ctx, table, path, "retries", 0, max_retries);
     if (!retries) return retries.error();
     if (*retries) line.retries = static_cast<unsigned>(**retries);  // 0..10, checked
-    return {};
+    return parse_line_simulation(ctx, table, path, line);
 }
 
 Result<LineConfig> parse_line(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry) {
-    if (auto keys = check_keys(ctx, table, path, {"name", "link", "timeout", "retries", "devices"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, table, path, {"name", "link", "timeout", "retries", "speed", "seed", "devices"}); !keys) return keys.error();
     LineConfig line;
     auto name = checked_name(ctx, table, path);
     if (!name) return name.error();
@@ -421,6 +459,8 @@ Result<toml::table> parse_toml(std::string_view text, const std::string& source)
 
 }  // namespace
 
+
+bool is_virtual_bus(const transport::LinkUrl& link) { return link.is_serial() && link.path == "virtual"; }
 
 Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::string& source,
                                            const device::ProfileRegistry& profiles) {

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -24,9 +25,18 @@ struct DeviceConfig {
     std::vector<std::string> parameters;    // empty: the profile's default watch list
 };
 
+// A line with no hardware behind it (link "rtu:virtual?baud=19200", or ascii:virtual): the
+// gateway simulates its devices on an in-process virtual bus that spends wire time as a real
+// line at that speed would (transport/virtual_bus.hpp). For trying the gateway, demos and tests.
+struct LineSimulation {
+    double speed = 1.0;      // process seconds per real second, as `simulate --speed`
+    std::uint64_t seed = 1;  // measurement noise, as `simulate --seed`
+};
+
 struct LineConfig {
     std::string name;
     transport::LinkUrl link;
+    std::optional<LineSimulation> simulation;  // set exactly when the link is a virtual bus
     std::chrono::milliseconds timeout{1000};
     unsigned retries = 0;
     std::vector<DeviceConfig> devices;
@@ -44,6 +54,9 @@ struct GatewayConfig {
     std::vector<LineConfig> lines;
     ModbusTcpConfig modbus_tcp;
 };
+
+// Whether `link` names the in-process virtual bus rather than a device file.
+bool is_virtual_bus(const transport::LinkUrl& link);
 
 // Parses and checks a configuration; `source` names it in errors ("plant.toml").
 Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::string& source,

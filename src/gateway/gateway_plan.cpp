@@ -99,6 +99,10 @@ void describe_load(std::ostringstream& out, const transport::LinkUrl& link, doub
 void describe_line(std::ostringstream& out, const LineConfig& line) {
     out << fmt::format("line {}: {} (timeout {}, {})\n", line.name, line.link.to_string(), duration_text(line.timeout),
                        plural(line.retries, "retry", "retries"));
+    if (line.simulation) {
+        out << fmt::format("  simulated on a virtual bus inside the gateway: process time x{}, seed {}\n",
+                           line.simulation->speed, line.simulation->seed);
+    }
     if (line.devices.empty()) out << "  no devices\n";
     double load = 0;
     for (const DeviceConfig& device : line.devices) {

@@ -30,8 +30,8 @@ namespace {
 // people.
 class CachingSink final : public device::SampleSink {
 public:
-    CachingSink(std::vector<std::string> names, ValueCache& cache, GatewayLog log)
-        : names_(std::move(names)), answering_(names_.size()), cache_(cache), log_(std::move(log)) {}
+    CachingSink(std::vector<std::string> names, ValueCache& cache, GatewayLog log, device::SampleSink* also)
+        : names_(std::move(names)), answering_(names_.size()), cache_(cache), log_(std::move(log)), also_(also) {}
 
     void write(const device::SampleView& sample) override {
         const auto& devices = *sample.devices;
@@ -39,6 +39,7 @@ public:
             cache_.update(names_[i], devices[i], sample.time);
             note_answering(i, devices[i]);
         }
+        if (also_) also_->write(sample);
     }
 
 private:
@@ -60,6 +61,7 @@ private:
     std::vector<std::optional<bool>> answering_;
     ValueCache& cache_;
     GatewayLog log_;
+    device::SampleSink* also_;
 };
 
 }  // namespace
@@ -73,7 +75,7 @@ struct PollGroups::Group {
 };
 
 PollGroups::PollGroups(const GatewayConfig& config, const std::map<std::string, std::shared_ptr<LineScheduler>>& lines,
-                       ValueCache& cache, GatewayLog log) {
+                       ValueCache& cache, GatewayLog log, device::SampleSink* also) {
     std::map<std::chrono::milliseconds, std::unique_ptr<Group>> by_interval;
     std::map<std::chrono::milliseconds, std::vector<std::string>> names;
     for (const auto& line : config.lines) {
@@ -89,7 +91,7 @@ PollGroups::PollGroups(const GatewayConfig& config, const std::map<std::string, 
     }
     for (auto& [interval, group] : by_interval) {
         group->settings.interval = interval;
-        group->sink = std::make_unique<CachingSink>(std::move(names[interval]), cache, log);
+        group->sink = std::make_unique<CachingSink>(std::move(names[interval]), cache, log, also);
         group->thread = std::jthread([g = group.get()](std::stop_token stop) {
             device::run_monitor(g->targets, g->settings, *g->sink, std::move(stop));
         });

@@ -38,9 +38,10 @@ private:
 
 class PollGroups {
 public:
-    // `lines`: the scheduler of each configured line, by line name.
+    // `lines`: the scheduler of each configured line, by line name. `also`, when given, gets
+    // every sample too, on the group's thread.
     PollGroups(const GatewayConfig& config, const std::map<std::string, std::shared_ptr<LineScheduler>>& lines,
-               ValueCache& cache, GatewayLog log);
+               ValueCache& cache, GatewayLog log, device::SampleSink* also = nullptr);
     ~PollGroups();  // stops every group; a poll on the wire is finished first
     PollGroups(const PollGroups&) = delete;
     PollGroups& operator=(const PollGroups&) = delete;

@@ -63,6 +63,11 @@ writes = true
 enabled = true            # optional
 )toml";
 
+std::string tc10_line_for_simulation() {
+    return "[[lines]]\nname = \"l1\"\nlink = \"rtu:/dev/ttyUSB0?baud=19200\"\n[[lines.devices]]\nname = \"oven1\"\n"
+           "device = \"tc10@3\"\n";
+}
+
 // One line with one tc10 device, and `extra` appended to the device table (line 7 on).
 std::string one_device(const std::string& extra) {
     return "[[lines]]\n"                   // 1
@@ -143,7 +148,7 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(device, "plant.toml:8: lines[0].devices[0].pol: unknown key (allowed here: name, device, poll, parameters, tcp_unit)");
 
     const std::string line = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\ntimout = \"1s\"\n");
-    EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, devices)");
+    EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, speed, seed, devices)");
 
     const std::string top = error_of(one_device("device = \"tc10@3\"\n") + "[modbus]\nlisten = \"127.0.0.1:1502\"\n");
     EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: lines, modbus_tcp)");
@@ -270,6 +275,40 @@ TEST(GatewayConfig, IntegersAndBooleansAreRangeAndTypeChecked) {
               "plant.toml:8: lines[0].devices[0].tcp_unit: 0 is out of range (expected an integer 1..247)");
     EXPECT_EQ(error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrites = \"yes\"\n"),
               "plant.toml:9: modbus_tcp.writes: expected true or false");
+}
+
+TEST(GatewayConfig, AVirtualLinkIsASimulatedLineWithItsSpeedAndSeed) {
+    auto config = parse(one_device("device = \"tc10@3\"\n"));
+    ASSERT_TRUE(config) << config.error().message;
+    ASSERT_TRUE(config->lines[0].simulation.has_value());
+    EXPECT_EQ(config->lines[0].simulation->speed, 1.0);
+    EXPECT_EQ(config->lines[0].simulation->seed, 1u);
+
+    auto fast = parse("[[lines]]\nname = \"l1\"\nlink = \"ascii:virtual?baud=9600\"\nspeed = 30\nseed = 7\n");
+    ASSERT_TRUE(fast) << fast.error().message;
+    ASSERT_TRUE(fast->lines[0].simulation.has_value());
+    EXPECT_EQ(fast->lines[0].simulation->speed, 30.0);
+    EXPECT_EQ(fast->lines[0].simulation->seed, 7u);
+    EXPECT_EQ(parse("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nspeed = 0.5\n")->lines[0].simulation->speed, 0.5);
+
+    auto real = parse(tc10_line_for_simulation());
+    ASSERT_TRUE(real) << real.error().message;
+    EXPECT_FALSE(real->lines[0].simulation.has_value());
+}
+
+TEST(GatewayConfig, SpeedAndSeedAreRefusedOnARealLineAndRangeChecked) {
+    EXPECT_EQ(error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:/dev/ttyUSB0\"\nspeed = 30\n"),
+              "plant.toml:4: lines[0].speed: speed applies to a simulated line only (link = \"rtu:virtual?baud=19200\"); "
+              "remove it for a line with a real device");
+    EXPECT_EQ(error_of("[[lines]]\nname = \"l1\"\nlink = \"tcp://127.0.0.1:502\"\nseed = 3\n"),
+              "plant.toml:4: lines[0].seed: seed applies to a simulated line only (link = \"rtu:virtual?baud=19200\"); "
+              "remove it for a line with a real device");
+    EXPECT_EQ(error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nspeed = 0\n"),
+              "plant.toml:4: lines[0].speed: 0 is out of range (expected a number 0.001..100000)");
+    EXPECT_EQ(error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nspeed = \"fast\"\n"),
+              "plant.toml:4: lines[0].speed: expected a number 0.001..100000");
+    EXPECT_EQ(error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nseed = -1\n"),
+              "plant.toml:4: lines[0].seed: -1 is out of range (expected an integer 0..9223372036854775807)");
 }
 
 // --- The plan ---------------------------------------------------------------------------------

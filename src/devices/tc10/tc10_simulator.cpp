@@ -58,13 +58,13 @@ Tc10Simulator::Tc10Simulator(std::shared_ptr<const Profile> profile, SimulationE
 }
 
 // The manual lists no factory values. The simulator's: a PID tuned for the oven above (Pb 20
-// units, ti 120 s, td 30 s, tcH 20.0 s), output 1 heating, output 2 the alarm-1 relay, set-point
+// units, ti 120 s, td 10 s, tcH 20.0 s; with td 30 s the 10 s dead time makes the loop cycle), output 1 heating, output 2 the alarm-1 relay, set-point
 // ramps off (inF), identification word 20 = protocol family 1, parameter table 2 (§5.1 20A:
 // high byte family, low byte table version).
 void Tc10Simulator::apply_factory_settings() {
     set_value("proportional_band", 20, Persistence::saved);
     set_value("integral_time", 120, Persistence::saved);
-    set_value("derivative_time", 30, Persistence::saved);
+    set_value("derivative_time", 10, Persistence::saved);
     set_value("heating_cycle_time", 200, Persistence::saved);
     set_value("output_1_function", 1, Persistence::saved);
     set_value("output_2_function", 3, Persistence::saved);

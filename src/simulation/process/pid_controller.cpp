@@ -1,11 +1,23 @@
 #include "simulation/process/pid_controller.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace loopwire::device::process {
 namespace {
 
 double gain_of(const PidSettings& settings) { return 100.0 / (settings.proportional_band * settings.span / 100.0); }
+
+// The derivative filter's time constant is Td / derivative_filter_ratio.
+constexpr double derivative_filter_ratio = 8.0;
+
+// The measured rate after a first-order filter of time constant Td / 8, stepped over `seconds`
+// (exact for a rate held constant over the step, so the result does not depend on step size).
+double filtered_rate(double previous, double raw, double seconds, double derivative_time) {
+    const double time_constant = derivative_time / derivative_filter_ratio;
+    if (time_constant <= 0) return raw;
+    return raw + (previous - raw) * std::exp(-seconds / time_constant);
+}
 
 }  // namespace
 
@@ -20,10 +32,10 @@ double PidController::step(double seconds, double sp, double pv) {
         return output_;
     }
     const double gain = gain_of(settings_);
-    const double rate = (started_ && seconds > 0) ? (pv - last_pv_) / seconds : 0.0;
+    if (started_ && seconds > 0) rate_ = filtered_rate(rate_, (pv - last_pv_) / seconds, seconds, settings_.derivative_time);
     last_pv_ = pv;
     started_ = true;
-    const double derivative = settings_.derivative_time * rate;
+    const double derivative = settings_.derivative_time * rate_;
     double candidate_integral = integral_;
     if (settings_.integral_time > 0 && seconds > 0) candidate_integral += error * seconds / settings_.integral_time;
     const double unclamped = gain * (error + candidate_integral - derivative);
@@ -38,6 +50,7 @@ double PidController::step(double seconds, double sp, double pv) {
 void PidController::track(double output, double sp, double pv) {
     output_ = output;
     last_pv_ = pv;
+    rate_ = 0;
     started_ = true;
     if (settings_.proportional_band > 0) integral_ = output / gain_of(settings_) - (sp - pv);
 }

@@ -8,6 +8,10 @@
 //     e = SP - PV,   Kp = 100 / (PB% * span / 100)   (% output per engineering unit)
 //     out% = Kp * (e + I - Td * dPV/dt),   dI/dt = e / Ti
 //
+// The derivative is filtered over Td / 8 (the usual first-order filter of industrial PIDs; none
+// of the manuals gives one): unfiltered, a measurement that moves in display counts turns every
+// one-count step into a spike that drives the output to a limit, and the loop cycles.
+//
 // With PB = 0 the controller is on/off with a hysteresis below SP.
 namespace loopwire::device::process {
 
@@ -39,6 +43,7 @@ private:
     PidSettings settings_;
     double integral_ = 0;  // in engineering units (error × s / Ti)
     double last_pv_ = 0;
+    double rate_ = 0;      // dPV/dt after the derivative filter, units per second
     bool started_ = false;
     double output_ = 0;
 };

@@ -1,7 +1,7 @@
 #pragma once
 // Shared by the TC10 model tests: the addresses they use and a write that must be accepted.
 // The oven starts at 25 °C with the heater off; the factory settings are the simulator's
-// (Pb 20, ti 120 s, td 30 s, output 1 heating, output 2 = alarm 1 relay, dP = 0), since the
+// (Pb 20, ti 120 s, td 10 s, output 1 heating, output 2 = alarm 1 relay, dP = 0), since the
 // manual lists none.
 #include <gtest/gtest.h>
 
