@@ -13,6 +13,7 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "app/gateway_log.hpp"
 #include "app/stop_signal.hpp"
 #include "gateway/gateway.hpp"
 
@@ -25,7 +26,13 @@ struct GatewayCommandOptions {
     bool verbose = false;
 };
 
-void log_line(const std::string& line) { fmt::print(stderr, "loopwire: gateway: {}\n", line); }
+spdlog::logger& gateway_log() {
+    static const std::shared_ptr<spdlog::logger> logger = make_gateway_logger();
+    return *logger;
+}
+
+void log_line(const std::string& line) { gateway_log().info(line); }
+void log_warning(const std::string& line) { gateway_log().warn(line); }
 
 // What SIGHUP hands over to the serving loop: a configuration that loaded, and the request to
 // stop the gateway running now so that the loop opens the new one.
@@ -37,7 +44,7 @@ public:
     void hangup() {
         auto loaded = gateway::load_gateway_config(file_, profiles_);
         if (!loaded) {
-            log_line(fmt::format("configuration not reloaded, the running one is kept: {}", loaded.error().message));
+            log_warning(fmt::format("configuration not reloaded, the running one is kept: {}", loaded.error().message));
             return;
         }
         std::lock_guard lock(mutex_);
@@ -69,11 +76,10 @@ void announce(const gateway::GatewayConfig& config, const gateway::Gateway& runn
     std::size_t devices = 0;
     for (const auto& line : config.lines) devices += line.devices.size();
     if (config.modbus_tcp.enabled) {
-        fmt::print(stderr, "loopwire: gateway: {} line(s), {} device(s); Modbus TCP on {} (listening on port {}); Ctrl-C to stop\n",
-                   config.lines.size(), devices, config.modbus_tcp.host, running.modbus_tcp_port());
+        log_line(fmt::format("{} line(s), {} device(s); Modbus TCP on {} (listening on port {}); Ctrl-C to stop",
+                             config.lines.size(), devices, config.modbus_tcp.host, running.modbus_tcp_port()));
     } else {
-        fmt::print(stderr, "loopwire: gateway: {} line(s), {} device(s); Modbus TCP front disabled; Ctrl-C to stop\n",
-                   config.lines.size(), devices);
+        log_line(fmt::format("{} line(s), {} device(s); Modbus TCP front disabled; Ctrl-C to stop", config.lines.size(), devices));
     }
     // Under systemd (Type=notify, packaging/loopwire-gateway.service) the unit is up once the
     // lines and the listener are open; without $NOTIFY_SOCKET these calls do nothing.
@@ -83,6 +89,7 @@ void announce(const gateway::GatewayConfig& config, const gateway::Gateway& runn
 // Serves `config` until `stop` or `reload` is requested; the error when it cannot be opened.
 Result<void> serve_round(const gateway::GatewayConfig& config, const gateway::GatewayOptions& options,
                          const std::stop_token& stop, std::stop_token reload) {
+    set_log_level(gateway_log(), config.log.level);
     auto running = gateway::Gateway::open(config, options);
     if (!running) return running.error();
     announce(config, **running);
@@ -116,7 +123,7 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
         if (!served) {
             // The new configuration loaded but could not be opened (a port missing, an address
             // taken): back to the one that ran.
-            log_line(fmt::format("the reloaded configuration cannot be served ({}); going back to the previous one",
+            log_warning(fmt::format("the reloaded configuration cannot be served ({}); going back to the previous one",
                                  served.error().message));
             current = std::move(*std::exchange(previous, std::nullopt));
             continue;

@@ -38,6 +38,12 @@ StopSignal::StopSignal(std::optional<std::chrono::microseconds> limit, std::func
 StopSignal::~StopSignal() {
     waiter_.request_stop();
     waiter_.join();
+    // A stop signal sent twice (timeout(1) signals its child and then its whole process group)
+    // would otherwise stay pending and kill the process the moment it is unblocked, at the end
+    // of a clean shutdown: the stop was asked for and done, so the repeats are consumed here.
+    const timespec now{0, 0};
+    while (sigtimedwait(&signals_, nullptr, &now) > 0) {
+    }
     pthread_sigmask(SIG_UNBLOCK, &signals_, nullptr);
 }
 

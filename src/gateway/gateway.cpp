@@ -1,6 +1,7 @@
 #include "gateway/gateway.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <condition_variable>
 #include <thread>
 #include <map>
@@ -30,6 +31,7 @@ struct SimulatedLine {
 struct OpenLine {
     std::string name;
     std::string link;
+    std::shared_ptr<std::atomic<std::uint64_t>> garbled;  // counted from the master's trace
     std::unique_ptr<SimulatedLine> simulation;  // virtual lines only
     // Held here as well as by the scheduler, and declared first so that it goes last: a serial
     // master joins its own thread when destroyed, which must not be the thread that destroys the
@@ -67,12 +69,20 @@ std::unique_ptr<transport::ByteStream> open_virtual_line(const LineConfig& line,
     return bus->attach("gateway");
 }
 
+// The master's trace, counting the runs of bytes it discards, and passed on to -v's.
+session::TraceSink counting_trace(std::shared_ptr<std::atomic<std::uint64_t>> garbled, session::TraceSink trace) {
+    return [garbled = std::move(garbled), trace = std::move(trace)](const session::TraceEvent& event) {
+        if (event.direction == session::TraceDirection::discarded) garbled->fetch_add(1, std::memory_order_relaxed);
+        if (trace) trace(event);
+    };
+}
+
 Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options) {
+    OpenLine opened{line.name, line.link.to_string(), std::make_shared<std::atomic<std::uint64_t>>(0), nullptr, nullptr, nullptr};
     session::MasterOptions master_options;
     master_options.timeout = line.timeout;
     master_options.retries = line.retries;
-    master_options.trace = options.trace;
-    OpenLine opened{line.name, line.link.to_string(), nullptr, nullptr, nullptr};
+    master_options.trace = counting_trace(opened.garbled, options.trace);
     Result<std::unique_ptr<session::Master>> master =
         line.simulation ? Result<std::unique_ptr<session::Master>>(session::make_serial_master(
                               open_virtual_line(line, options, opened), line.link, master_options))
@@ -88,6 +98,8 @@ Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options
 }  // namespace
 
 struct Gateway::Parts {
+    std::chrono::milliseconds statistics_interval{0};
+    GatewayLog log;
     // The front is destroyed first, then the polls (members go in reverse order): no request
     // reaches a line scheduler that is gone.
     std::vector<OpenLine> lines;
@@ -102,6 +114,8 @@ Gateway::~Gateway() = default;
 
 Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, GatewayOptions options) {
     auto parts = std::make_unique<Parts>();
+    parts->statistics_interval = config.log.statistics;
+    parts->log = options.log;
     session::UnitMap units;
     auto clock = steady_clock();
     for (const auto& line : config.lines) {
@@ -167,9 +181,41 @@ void stop_after_drain(const std::vector<OpenLine>& lines, const std::stop_token&
     front.request_stop();
 }
 
+LineReport report_of(const OpenLine& line) {
+    return {line.name, line.link, line.scheduler->statistics(), line.garbled->load(std::memory_order_relaxed)};
+}
+
+// Every `interval` until `stop`, each line's figures, its busy share over the interval.
+void log_statistics(const std::vector<OpenLine>& lines, std::chrono::milliseconds interval, const GatewayLog& log,
+                    const std::stop_token& stop) {
+    std::vector<LineReport> previous;
+    for (const auto& line : lines) previous.push_back(report_of(line));
+    std::mutex mutex;
+    std::condition_variable_any woken;
+    std::unique_lock lock(mutex);
+    for (;;) {
+        woken.wait_for(lock, stop, interval, [] { return false; });
+        if (stop.stop_requested()) return;
+        for (std::size_t i = 0; i < lines.size(); ++i) {
+            LineReport now = report_of(lines[i]);
+            log(describe(now, &previous[i]));
+            previous[i] = std::move(now);
+        }
+    }
+}
+
 }  // namespace
 
 Result<void> Gateway::serve(std::stop_token stop) {
+    std::jthread statistics;
+    if (parts_->log && parts_->statistics_interval.count() > 0) {
+        statistics = std::jthread([this, stop](std::stop_token own) {
+            std::stop_source either;
+            std::stop_callback on_stop(stop, [&either] { either.request_stop(); });
+            std::stop_callback on_own(own, [&either] { either.request_stop(); });
+            log_statistics(parts_->lines, parts_->statistics_interval, parts_->log, either.get_token());
+        });
+    }
     std::stop_source front;
     // Also ended by its own token: when the front fails, the jthread's destructor stops it.
     std::jthread drain([this, &front, stop](std::stop_token own) {
@@ -189,19 +235,22 @@ Result<void> Gateway::serve(std::stop_token stop) {
 
 std::vector<LineReport> Gateway::report() const {
     std::vector<LineReport> reports;
-    for (const auto& line : parts_->lines) reports.push_back({line.name, line.link, line.scheduler->statistics()});
+    for (const auto& line : parts_->lines) reports.push_back(report_of(line));
     return reports;
 }
 
 std::vector<CachedDevice> Gateway::values() const { return parts_->cache.snapshot(); }
 
-std::string describe(const LineReport& report) {
+std::string describe(const LineReport& report, const LineReport* since) {
     const auto& s = report.statistics;
-    const double busy = s.open.count() > 0 ? 100.0 * static_cast<double>(s.busy.count()) / static_cast<double>(s.open.count()) : 0.0;
-    return fmt::format("line {} ({}): {} sent, {} answered, {} timeout(s), {} bad repl{}, {} expired in the queue, "
-                       "{} refused while the unit backed off; busy {:.1f} % of the time",
+    const auto busy_time = s.busy - (since ? since->statistics.busy : std::chrono::microseconds(0));
+    const auto open_time = s.open - (since ? since->statistics.open : std::chrono::microseconds(0));
+    const double busy = open_time.count() > 0 ? 100.0 * static_cast<double>(busy_time.count()) / static_cast<double>(open_time.count()) : 0.0;
+    const std::string period = since ? fmt::format("over the last {:.0f} s", static_cast<double>(open_time.count()) / 1e6) : "of the time";
+    return fmt::format("line {} ({}): {} sent, {} answered, {} timeout(s), {} bad repl{}, {} garbled frame(s), {} expired in "
+                       "the queue, {} refused while the unit backed off; busy {:.1f} % {}",
                        report.name, report.link, s.sent, s.answered, s.timeouts, s.bad_replies,
-                       s.bad_replies == 1 ? "y" : "ies", s.expired, s.backed_off, busy);
+                       s.bad_replies == 1 ? "y" : "ies", report.garbled, s.expired, s.backed_off, busy, period);
 }
 
 }  // namespace loopwire::gateway

@@ -30,6 +30,8 @@ struct LineReport {
     std::string name;
     std::string link;
     LineStatistics statistics;
+    // Runs of bytes the line's master threw away: bad CRC or LRC, broken frames, noise.
+    std::uint64_t garbled = 0;
 };
 
 class Gateway {
@@ -45,7 +47,8 @@ public:
     std::uint16_t modbus_tcp_port() const;
 
     // Serves until `stop` is requested, then drains: the requests already taken are answered
-    // (5 s at most) before the front closes.
+    // (5 s at most) before the front closes. Logs each line's statistics every
+    // `log.statistics` of the configuration meanwhile.
     Result<void> serve(std::stop_token stop);
 
     std::vector<LineReport> report() const;
@@ -59,7 +62,9 @@ private:
     std::unique_ptr<Parts> parts_;
 };
 
-// "tcp: 1234 sent, 1230 answered, 4 timeouts, ..." for the log and the exit summary.
-std::string describe(const LineReport& report);
+// "line tcp (...): 1234 sent, 1230 answered, 4 timeout(s), ...; busy 12.5 % of the time" for
+// the log and the exit summary. With `since`, an earlier report of the same line, the busy
+// share is the one since then.
+std::string describe(const LineReport& report, const LineReport* since = nullptr);
 
 }  // namespace loopwire::gateway

@@ -380,6 +380,54 @@ Result<std::vector<LineConfig>> parse_lines(const Context& ctx, const toml::tabl
 }
 
 // ---------------------------------------------------------------------------------------------
+// [log]
+
+Result<LogConfig::Level> log_level(const Context& ctx, const toml::table& table) {
+    auto text = optional_value<std::string>(ctx, table, "log", "level", "a string: \"debug\", \"info\", \"warning\" or \"error\"");
+    if (!text) return text.error();
+    if (!*text) return LogConfig::Level::info;
+    constexpr std::pair<std::string_view, LogConfig::Level> levels[] = {
+        {"debug", LogConfig::Level::debug}, {"info", LogConfig::Level::info},
+        {"warning", LogConfig::Level::warning}, {"error", LogConfig::Level::error}};
+    for (const auto& [name, level] : levels) {
+        if (**text == name) return level;
+    }
+    return ctx.fail(source_of(table, "level"), "log.level",
+                    fmt::format("\"{}\" is not a log level (expected \"debug\", \"info\", \"warning\" or \"error\")", **text));
+}
+
+// `statistics = "60s"` logs each line's figures that often; "off" only at exit. Less than a
+// second apart would bury everything else in the log.
+Result<std::chrono::milliseconds> statistics_interval(const Context& ctx, const toml::table& table) {
+    const toml::node* node = table.get("statistics");
+    if (node && node->value<std::string>() == "off") return milliseconds(0);
+    auto interval = optional_duration(ctx, table, "log", "statistics");
+    if (!interval) return interval.error();
+    if (!*interval) return LogConfig{}.statistics;
+    if (**interval < std::chrono::seconds(1)) {
+        return ctx.fail(source_of(table, "statistics"), "log.statistics",
+                        "less than 1s apart would bury the log in figures (give e.g. \"60s\", or \"off\" for only at exit)");
+    }
+    return **interval;
+}
+
+Result<LogConfig> parse_log(const Context& ctx, const toml::table& root) {
+    LogConfig config;
+    const toml::node* node = root.get("log");
+    if (!node) return config;
+    const auto* table = node->as_table();
+    if (!table) return ctx.fail(node->source(), "log", "expected a [log] table");
+    if (auto keys = check_keys(ctx, *table, "log", {"level", "statistics"}); !keys) return keys.error();
+    auto level = log_level(ctx, *table);
+    if (!level) return level.error();
+    config.level = *level;
+    auto interval = statistics_interval(ctx, *table);
+    if (!interval) return interval.error();
+    config.statistics = *interval;
+    return config;
+}
+
+// ---------------------------------------------------------------------------------------------
 // [modbus_tcp]
 
 struct HostPort {
@@ -467,7 +515,7 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto root = parse_toml(text, source);
     if (!root) return root.error();
     const Context ctx{source, profiles};
-    if (auto keys = check_keys(ctx, *root, "", {"lines", "modbus_tcp"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, *root, "", {"lines", "modbus_tcp", "log"}); !keys) return keys.error();
     GatewayConfig config;
     config.source = source;
     Registry registry;
@@ -477,6 +525,9 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto modbus_tcp = parse_modbus_tcp(ctx, *root);
     if (!modbus_tcp) return modbus_tcp.error();
     config.modbus_tcp = std::move(*modbus_tcp);
+    auto log = parse_log(ctx, *root);
+    if (!log) return log.error();
+    config.log = *log;
     return config;
 }
 

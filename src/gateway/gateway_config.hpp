@@ -49,10 +49,18 @@ struct ModbusTcpConfig {
     bool writes = true;              // false: writes are refused with exception 1 and logged
 };
 
+struct LogConfig {
+    enum class Level { debug, info, warning, error };
+    Level level = Level::info;
+    // How often each line's statistics are logged; zero: only when the gateway stops.
+    std::chrono::milliseconds statistics{60000};
+};
+
 struct GatewayConfig {
     std::string source;  // the file it came from, for messages
     std::vector<LineConfig> lines;
     ModbusTcpConfig modbus_tcp;
+    LogConfig log;
 };
 
 // Whether `link` names the in-process virtual bus rather than a device file.

@@ -56,6 +56,8 @@ public:
 
     void start();
     void close();
+    // Stops reading, sends the replies still owed, then closes; `reason` is traced unless empty.
+    void close_after_replies(const std::string& reason);
 
 private:
     void read();
@@ -70,8 +72,6 @@ private:
     void on_written(const boost::system::error_code& error);
     void arm_timer();
     void on_timer(const boost::system::error_code& error);
-    // Stops reading, sends the replies still owed, then closes; `reason` is traced unless empty.
-    void close_after_replies(const std::string& reason);
     void after_turn();
     bool may_read() const;
     std::size_t queued_bytes() const { return queued_.size() + writing_.size(); }

@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include <boost/asio/io_context.hpp>
+#include <boost/asio/post.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/steady_timer.hpp>
 
@@ -38,12 +39,16 @@ public:
     ~TcpSlaveServer() override { shut_down(); }
 
     Result<void> serve(transport::TcpListener& listener, std::stop_token stop);
-    void forget(const void* connection) override { connections_.erase(connection); }
+    void forget(const void* connection) override {
+        connections_.erase(connection);
+        if (stopping_ && connections_.empty()) loop_.stop();
+    }
 
 private:
     Result<void> adopt(const transport::TcpListener& listener);
     void accept();
     void on_accept(const error_code& error, tcp::socket socket);
+    void stop_gracefully();
     void shut_down();
 
     Slave& slave_;
@@ -51,6 +56,8 @@ private:
     asio::io_context loop_{1};
     tcp::acceptor acceptor_{loop_};
     asio::steady_timer accept_pause_{loop_};
+    asio::steady_timer stop_limit_{loop_};
+    bool stopping_ = false;
     std::shared_ptr<detail::ReplyMailbox> mailbox_ = std::make_shared<detail::ReplyMailbox>(loop_);
     std::unordered_map<const void*, std::shared_ptr<detail::TcpSlaveConnection>> connections_;
 };
@@ -79,9 +86,9 @@ Result<void> TcpSlaveServer::serve(transport::TcpListener& listener, std::stop_t
     if (auto adopted = adopt(listener); !adopted) return adopted.error();
     accept();
     {
-        // io_context::stop() is thread-safe; the callback may run on the stopping thread, or
-        // here at once if stop was requested already (then run() returns immediately).
-        std::stop_callback on_stop(stop, [this] { loop_.stop(); });
+        // The callback may run on the stopping thread, or here at once if stop was requested
+        // already; post() is thread-safe and the loop runs the graceful stop on its own thread.
+        std::stop_callback on_stop(stop, [this] { asio::post(loop_, [this] { stop_gracefully(); }); });
         loop_.run();
     }
     shut_down();
@@ -114,6 +121,28 @@ void TcpSlaveServer::on_accept(const error_code& error, tcp::socket socket) {
     accept_pause_.expires_after(slave_.options().tcp.accept_retry_delay);
     accept_pause_.async_wait([this](const error_code& waited) {
         if (!waited) accept();
+    });
+}
+
+// No new connections; each open one stops reading, sends the replies it owes (a reply on its
+// way from a slow handler, such as a gateway's serial line, still reaches the client that asked
+// before stop was requested) and closes. The loop ends when the last has closed, or after a
+// bound, as a client that does not read must not hold the stop up.
+void TcpSlaveServer::stop_gracefully() {
+    if (stopping_) return;
+    stopping_ = true;
+    error_code ignored;
+    acceptor_.close(ignored);
+    accept_pause_.cancel();
+    if (connections_.empty()) {
+        loop_.stop();
+        return;
+    }
+    auto open = connections_;  // closing may call forget() and change the map
+    for (auto& [key, connection] : open) connection->close_after_replies({});
+    stop_limit_.expires_after(std::chrono::seconds(3));
+    stop_limit_.async_wait([this](const error_code& error) {
+        if (!error) loop_.stop();
     });
 }
 

@@ -151,7 +151,7 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, speed, seed, devices)");
 
     const std::string top = error_of(one_device("device = \"tc10@3\"\n") + "[modbus]\nlisten = \"127.0.0.1:1502\"\n");
-    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: lines, modbus_tcp)");
+    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: lines, modbus_tcp, log)");
 
     const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
     EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: listen, writes, enabled)");
@@ -309,6 +309,33 @@ TEST(GatewayConfig, SpeedAndSeedAreRefusedOnARealLineAndRangeChecked) {
               "plant.toml:4: lines[0].speed: expected a number 0.001..100000");
     EXPECT_EQ(error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nseed = -1\n"),
               "plant.toml:4: lines[0].seed: -1 is out of range (expected an integer 0..9223372036854775807)");
+}
+
+TEST(GatewayConfig, LogLevelAndStatisticsIntervalAreRead) {
+    auto defaults = parse(one_device("device = \"tc10@3\"\n"));
+    ASSERT_TRUE(defaults) << defaults.error().message;
+    EXPECT_EQ(defaults->log.level, LogConfig::Level::info);
+    EXPECT_EQ(defaults->log.statistics, std::chrono::seconds(60));
+
+    auto set = parse(one_device("device = \"tc10@3\"\n") + "[log]\nlevel = \"warning\"\nstatistics = \"5m\"\n");
+    ASSERT_TRUE(set) << set.error().message;
+    EXPECT_EQ(set->log.level, LogConfig::Level::warning);
+    EXPECT_EQ(set->log.statistics, std::chrono::minutes(5));
+    auto off = parse(one_device("device = \"tc10@3\"\n") + "[log]\nstatistics = \"off\"\n");
+    ASSERT_TRUE(off) << off.error().message;
+    EXPECT_EQ(off->log.statistics, std::chrono::milliseconds(0));
+}
+
+TEST(GatewayConfig, BadLogSettingsSayWhatIsExpected) {
+    EXPECT_EQ(error_of(one_device("device = \"tc10@3\"\n") + "[log]\nlevel = \"loud\"\n"),
+              "plant.toml:9: log.level: \"loud\" is not a log level (expected \"debug\", \"info\", \"warning\" or \"error\")");
+    EXPECT_EQ(error_of(one_device("device = \"tc10@3\"\n") + "[log]\nstatistics = \"100ms\"\n"),
+              "plant.toml:9: log.statistics: less than 1s apart would bury the log in figures (give e.g. \"60s\", or \"off\" "
+              "for only at exit)");
+    EXPECT_THAT(error_of(one_device("device = \"tc10@3\"\n") + "[log]\nstatistics = \"often\"\n"),
+                StartsWith("plant.toml:9: log.statistics: 'often' is not a duration"));
+    EXPECT_EQ(error_of(one_device("device = \"tc10@3\"\n") + "[log]\nfile = \"x\"\n"),
+              "plant.toml:9: log.file: unknown key (allowed here: level, statistics)");
 }
 
 // --- The plan ---------------------------------------------------------------------------------

@@ -37,6 +37,9 @@ device = "tc10@4"
 [modbus_tcp]
 listen = "127.0.0.1:0"
 writes = $2
+
+[log]
+statistics = "1s"
 TOML
 }
 write_config "$WORK_DIR/plant.toml" true
@@ -99,6 +102,10 @@ if [[ $? -eq 0 ]]; then count_pass; else count_failure any-function-code-passes-
 wait_for 10 "oven1 polled" grep -q "device oven1 (tc10@3) answers" "$WORK_DIR/gateway.log"
 wait_for 10 "kiln polled" grep -q "device kiln (rampsoak@5) answers" "$WORK_DIR/gateway.log"
 wait_for 10 "the silent unit noticed" grep -q "device absent (tc10@4) does not answer" "$WORK_DIR/gateway.log"
+count_pass
+# Statistics every second ([log] statistics = "1s"), each line's busy share over that second,
+# every log line stamped with its UTC time and level.
+wait_for 10 "periodic statistics" grep -qE "^[0-9]{4}-[0-9]{2}-[0-9]{2}T[0-9:.]+Z info .*line furnace-line .* sent, .* garbled frame\(s\), .*busy [0-9.]+ % over the last 1 s" "$WORK_DIR/gateway.log"
 count_pass
 
 # SIGTERM drains: a request sent just before it (to the silent unit: 300 ms of waiting on the

@@ -3,6 +3,8 @@
 // rtu+tcp silence, stopping, and an idle server that costs no CPU.
 #include <gtest/gtest.h>
 
+#include <atomic>
+
 #include <sys/resource.h>
 #include <time.h>
 
@@ -203,6 +205,31 @@ TEST(TcpSlaveDeferred, AReplyAfterTheServerStoppedIsDropped) {
     ASSERT_EQ(held.size(), 1u);
     std::thread late([&] { held[0].second(hex("03 02 00 00")); });
     late.join();
+}
+
+// A gateway stopping (SIGTERM) still answers what it took: a reply on its way from a slow
+// handler when stop is requested reaches the client, then the connection closes.
+TEST(TcpSlaveDeferred, AReplyOwedWhenStopIsRequestedStillReachesTheClient) {
+    auto unit = std::make_shared<DeferringUnit>();
+    ServedSlave served(UnitMap{{1, unit}});
+    RawClient client(served.port());
+    ASSERT_TRUE(client.send(testing::read_one_register(1, 0)));
+    auto held = unit->take(1);
+    ASSERT_EQ(held.size(), 1u);
+    std::atomic<bool> stopped{false};
+    std::thread stopper([&] {
+        served.stop();
+        stopped = true;
+    });
+    // Time for the stop to reach the server's loop, which must now wait for the reply owed.
+    std::this_thread::sleep_for(200ms);
+    EXPECT_FALSE(stopped) << "the server stopped with a reply still owed";
+    held[0].second(hex("03 02 00 2A"));
+    EXPECT_EQ(client.receive(11), hex("00 01 00 00 00 05 01 03 02 00 2A"));
+    EXPECT_TRUE(client.closed_by_server_within(1000ms));
+    stopper.join();
+    EXPECT_TRUE(stopped);
+    EXPECT_TRUE(served.served_ok());
 }
 
 TEST(TcpSlaveServer, StopsPromptlyWithClientsConnected) {
