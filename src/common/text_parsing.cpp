@@ -18,7 +18,7 @@ std::optional<std::uint64_t> parse_decimal_digits(std::string_view text) {
 
 Result<std::chrono::microseconds> parse_duration(std::string_view text, std::string_view option, std::chrono::microseconds least) {
     const auto bad = [&] {
-        return make_error(ErrorKind::usage, fmt::format("{} '{}' is not a duration: write it like 500ms, 2s, 1.5s or 1m", option, text));
+        return make_error(ErrorKind::usage, fmt::format("{} '{}' is not a duration: write it like 500ms, 2s, 1.5s, 1m or 1h", option, text));
     };
     std::size_t whole_end = 0;
     while (whole_end < text.size() && text[whole_end] >= '0' && text[whole_end] <= '9') ++whole_end;
@@ -40,6 +40,7 @@ Result<std::chrono::microseconds> parse_duration(std::string_view text, std::str
     else if (unit == "s") scale = 1e6;
     else if (unit == "us") scale = 1;
     else if (unit == "m" || unit == "min") scale = 60e6;
+    else if (unit == "h") scale = 3600e6;  // poll intervals of a slow plant, and the day limit below
     else return bad();
     const double micros = number * scale;
     if (!std::isfinite(micros) || micros > 86400e6) {
@@ -49,7 +50,7 @@ Result<std::chrono::microseconds> parse_duration(std::string_view text, std::str
     if (duration < least) {
         const std::string shortest = least.count() % 1000 == 0 ? fmt::format("{}ms", least.count() / 1000)
                                                                : fmt::format("{}us", least.count());
-        return make_error(ErrorKind::usage, fmt::format("{} '{}' is too short: give at least {}, written like 500ms, 2s, 1.5s or 1m",
+        return make_error(ErrorKind::usage, fmt::format("{} '{}' is too short: give at least {}, written like 500ms, 2s, 1.5s, 1m or 1h",
                                                         option, text, shortest));
     }
     return duration;

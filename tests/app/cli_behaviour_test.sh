@@ -13,7 +13,7 @@ check bad-table 2 "unknown table 'holdings'" "$loopwire" read --link "rtu:$WORK_
 check bad-address 2 "address 70000 is out of range" "$loopwire" read --link "rtu:$WORK_DIR/none" --unit 1 holding 70000 1
 check bad-timeout 2 "not a duration" "$loopwire" read --link "rtu:$WORK_DIR/none" --timeout soon --unit 1 holding 0 1
 # Durations are parsed strictly, where they are typed: no "1.2 s" out of "1.2.3s", no 1 ms out of 0.
-check timeout-two-points 2 "--timeout '1.2.3s' is not a duration: write it like 500ms, 2s, 1.5s or 1m" \
+check timeout-two-points 2 "--timeout '1.2.3s' is not a duration: write it like 500ms, 2s, 1.5s, 1m or 1h" \
   "$loopwire" read --link "rtu:$WORK_DIR/none" --timeout 1.2.3s --unit 1 holding 0 1
 check timeout-zero 2 "--timeout '0' is too short: give at least 1ms" "$loopwire" read --link "rtu:$WORK_DIR/none" --timeout 0 --unit 1 holding 0 1
 check timeout-zero-seconds 2 "--timeout '0s' is too short" "$loopwire" dump --link "rtu:$WORK_DIR/none" --device tc10@3 --timeout 0s

@@ -17,16 +17,18 @@ TEST(ParseDuration, AcceptsTheUnitsPeopleWrite) {
     EXPECT_EQ(*parse_duration("250us"), microseconds(250));
     EXPECT_EQ(*parse_duration("300"), microseconds(300'000));  // bare numbers are milliseconds
     EXPECT_EQ(*parse_duration("0.1s"), microseconds(100'000));
+    EXPECT_EQ(*parse_duration("1h"), microseconds(3'600'000'000));
+    EXPECT_EQ(*parse_duration("24h"), microseconds(86'400'000'000));  // what the day limit's message suggests
 }
 
 TEST(ParseDuration, RejectsGarbageWithAnExample) {
-    for (const char* bad : {"", "fast", "5 parsecs", "-1s", "2h", "1e9s", "1.2.3s", "1..2s", "1.s", ".5s", "1.5.s", "+2s",
+    for (const char* bad : {"", "fast", "5 parsecs", "-1s", "2d", "1e9s", "1.2.3s", "1..2s", "1.s", ".5s", "1.5.s", "+2s",
                             " 2s", "2s ", "0x10ms", "1,5s", "nan", "infs"}) {
         auto parsed = parse_duration(bad, "--timeout");
         ASSERT_FALSE(parsed.ok()) << bad;
         EXPECT_EQ(parsed.error().kind, ErrorKind::usage);
         EXPECT_NE(parsed.error().message.find(std::string("--timeout '") + bad + "'"), std::string::npos) << parsed.error().message;
-        EXPECT_NE(parsed.error().message.find("500ms, 2s, 1.5s or 1m"), std::string::npos) << parsed.error().message;
+        EXPECT_NE(parsed.error().message.find("500ms, 2s, 1.5s, 1m or 1h"), std::string::npos) << parsed.error().message;
     }
 }
 
@@ -43,6 +45,9 @@ TEST(ParseDuration, ZeroIsRefusedWhereALeastIsGiven) {
 
 TEST(ParseDuration, LongerThanADayIsRefused) {
     EXPECT_FALSE(parse_duration("1441m").ok());
+    auto longer = parse_duration("25h", "--interval");
+    ASSERT_FALSE(longer.ok());
+    EXPECT_EQ(longer.error().message, "--interval '25h' is longer than a day; give at most 24h, e.g. 1440m");
     EXPECT_FALSE(parse_duration("99999999999999999999999s").ok());
 }
 
