@@ -24,6 +24,23 @@ Bytes exception_reply(std::uint8_t function, std::uint8_t code) {
     return Bytes{static_cast<std::uint8_t>(function | exception_flag), code};
 }
 
+// What the end of a request on the line does to the unit's read cache, before the client has
+// the reply: a read's reply is kept; a write, answered or not, empties the cache, since the
+// device may have taken it, and a client reading after its write must see the new value.
+struct CacheUpdate {
+    std::shared_ptr<ReadCache> cache;  // null: no cache
+    std::shared_ptr<Clock> clock;
+    Bytes request;  // a cacheable read's PDU, else empty
+    std::uint64_t generation = 0;
+    bool write = false;
+
+    void operator()(const Result<Bytes>& answered) const {
+        if (!cache) return;
+        if (write) return cache->forget();
+        if (!request.empty() && answered) cache->store(request, *answered, clock->now(), generation);
+    }
+};
+
 }  // namespace
 
 bool only_reads(std::uint8_t function) {
@@ -36,7 +53,11 @@ Bytes failure_reply(std::uint8_t function, const Error& why) {
 
 ForwardingUnit::ForwardingUnit(std::shared_ptr<LineScheduler> line, ForwardingSettings settings,
                                std::shared_ptr<Clock> clock, GatewayLog log)
-    : line_(std::move(line)), settings_(settings), clock_(std::move(clock)), log_(std::move(log)) {}
+    : line_(std::move(line)), settings_(settings), clock_(std::move(clock)), log_(std::move(log)) {
+    if (settings_.max_age > std::chrono::milliseconds::zero()) {
+        cache_ = std::make_shared<ReadCache>(settings_.max_age, settings_.cache_entries);
+    }
+}
 
 std::optional<Bytes> ForwardingUnit::refusal(ByteView request_pdu) const {
     if (settings_.writes_allowed || only_reads(request_pdu[0])) return std::nullopt;
@@ -47,22 +68,42 @@ std::optional<Bytes> ForwardingUnit::refusal(ByteView request_pdu) const {
     return exception_reply(request_pdu[0], illegal_function);
 }
 
-void ForwardingUnit::handle_async(Bytes request_pdu, bool broadcast, Origin origin, ReplyCallback reply) {
-    if (request_pdu.empty()) return reply(std::nullopt);
-    if (auto refused = refusal(request_pdu)) return reply(broadcast ? std::nullopt : std::move(refused));
-    if (broadcast && !settings_.carries_broadcasts) return reply(std::nullopt);
+std::optional<Bytes> ForwardingUnit::cached(ByteView request_pdu, bool broadcast) const {
+    if (!cache_ || broadcast) return std::nullopt;
+    return cache_->find(request_pdu, clock_->now());
+}
+
+LineRequest ForwardingUnit::line_request(Bytes request_pdu, bool broadcast, Origin origin, ReplyCallback reply) const {
     const std::uint8_t function = request_pdu[0];
+    const bool write = !only_reads(function);
+    CacheUpdate update{cache_, clock_, {}, 0, write};
+    if (cache_ && !broadcast && ReadCache::cacheable(request_pdu)) {
+        update.request = request_pdu;
+        update.generation = cache_->generation();
+    }
     LineRequest request;
     request.unit = broadcast ? std::uint8_t{0} : settings_.line_unit;
-    request.priority = only_reads(function) ? Priority::client : Priority::write;
+    request.priority = write ? Priority::write : Priority::client;
     request.pdu = std::move(request_pdu);
     request.client = origin;
     request.deadline = clock_->now() + settings_.queue_limit;
-    request.done = [function, broadcast, reply = std::move(reply)](Result<Bytes> answered) {
+    request.done = [function, broadcast, update = std::move(update), reply = std::move(reply)](Result<Bytes> answered) {
+        update(answered);
         if (broadcast) return reply(std::nullopt);  // nobody answers a broadcast (2.1 of the serial spec)
         reply(answered ? std::move(*answered) : failure_reply(function, answered.error()));
     };
-    line_->submit(std::move(request));
+    return request;
+}
+
+void ForwardingUnit::handle_async(Bytes request_pdu, bool broadcast, Origin origin, ReplyCallback reply) {
+    if (request_pdu.empty()) return reply(std::nullopt);
+    if (auto refused = refusal(request_pdu)) return reply(broadcast ? std::nullopt : std::move(refused));
+    // What was kept may be out of date once a write is taken. A broadcast write reaches this
+    // device too, even when another unit carries it to the line.
+    if (cache_ && !only_reads(request_pdu[0])) cache_->forget();
+    if (broadcast && !settings_.carries_broadcasts) return reply(std::nullopt);
+    if (auto kept = cached(request_pdu, broadcast)) return reply(std::move(kept));
+    line_->submit(line_request(std::move(request_pdu), broadcast, origin, std::move(reply)));
 }
 
 std::optional<Bytes> ForwardingUnit::handle(ByteView request_pdu, bool broadcast) {

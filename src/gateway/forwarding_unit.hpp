@@ -2,7 +2,8 @@
 // The Modbus TCP front's view of one device: a unit handler that passes each request's PDU, of
 // any function code, to the line the device is on and answers with what the device answered
 // (Modbus Messaging on TCP/IP Implementation Guide V1.0b, 4.4.2: a gateway's unit id selects
-// the device behind it).
+// the device behind it). With a max_age, reads the line answered recently are answered from the
+// unit's ReadCache instead (gateway/read_cache.hpp).
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -11,6 +12,7 @@
 
 #include "common/clock.hpp"
 #include "gateway/line_scheduler.hpp"
+#include "gateway/read_cache.hpp"
 #include "session/unit_handler.hpp"
 
 namespace loopwire::gateway {
@@ -22,6 +24,10 @@ struct ForwardingSettings {
     // A request not on the wire within this is answered 0Bh instead: the client has long given
     // up on it (Modbus TCP clients wait 1-3 s), and sending it would only delay the others.
     std::chrono::milliseconds queue_limit{3000};
+    // Reads of function codes 1-4 answered from the line's reply to the same request up to this
+    // old; 0: every request goes to the line.
+    std::chrono::milliseconds max_age{0};
+    std::size_t cache_entries = ReadCache::default_capacity;
 };
 
 // What the gateway says of refused or failed requests (for its log).
@@ -38,11 +44,15 @@ public:
 
 private:
     std::optional<Bytes> refusal(ByteView request_pdu) const;
+    std::optional<Bytes> cached(ByteView request_pdu, bool broadcast) const;
+    LineRequest line_request(Bytes request_pdu, bool broadcast, Origin origin, ReplyCallback reply) const;
 
     std::shared_ptr<LineScheduler> line_;
     ForwardingSettings settings_;
     std::shared_ptr<Clock> clock_;
     GatewayLog log_;
+    // Shared with the completions of requests on the line, which may end after the unit has gone.
+    std::shared_ptr<ReadCache> cache_;  // null without a max_age
 };
 
 // Modbus application protocol V1.1b3, 7: the reply a gateway gives for a request it could not

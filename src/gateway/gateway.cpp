@@ -127,6 +127,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
             settings.line_unit = device.address.unit;
             settings.writes_allowed = config.modbus_tcp.writes;
             settings.carries_broadcasts = std::exchange(first, false);
+            settings.max_age = config.modbus_tcp.max_age;
             units[device.tcp_unit] = std::make_shared<ForwardingUnit>(opened->scheduler, settings, clock, options.log);
         }
         parts->lines.push_back(std::move(*opened));
@@ -240,6 +241,8 @@ std::vector<LineReport> Gateway::report() const {
 }
 
 std::vector<CachedDevice> Gateway::values() const { return parts_->cache.snapshot(); }
+
+ValueSubscription Gateway::subscribe(ValueCallback callback) { return parts_->cache.subscribe(std::move(callback)); }
 
 std::string describe(const LineReport& report, const LineReport* since) {
     const auto& s = report.statistics;

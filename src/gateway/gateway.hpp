@@ -11,6 +11,7 @@
 #include "gateway/gateway_config.hpp"
 #include "gateway/line_scheduler.hpp"
 #include "gateway/poll_groups.hpp"
+#include "gateway/value_cache.hpp"
 #include "session/trace.hpp"
 #include "transport/virtual_bus.hpp"
 
@@ -55,6 +56,11 @@ public:
 
     // The last values the gateway's polls read, per device.
     std::vector<CachedDevice> values() const;
+
+    // The changes the polls find, for the fronts that publish them (gateway/value_cache.hpp):
+    // first the state of every device polled so far, then each change, on the poll group's
+    // thread. The callback must be quick; the subscription may outlive the gateway.
+    [[nodiscard]] ValueSubscription subscribe(ValueCallback callback);
 
 private:
     struct Parts;

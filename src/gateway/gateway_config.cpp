@@ -464,7 +464,8 @@ Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& 
     if (!node) return config;
     const auto* table = node->as_table();
     if (!table) return ctx.fail(node->source(), "modbus_tcp", "expected a [modbus_tcp] table");
-    if (auto keys = check_keys(ctx, *table, "modbus_tcp", {"listen", "writes", "enabled"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, *table, "modbus_tcp", {"listen", "writes", "enabled", "max_age"}); !keys)
+        return keys.error();
     auto listen = optional_value<std::string>(ctx, *table, "modbus_tcp", "listen", "a string such as \"127.0.0.1:1502\"");
     if (!listen) return listen.error();
     if (*listen) {
@@ -483,6 +484,9 @@ Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& 
     auto enabled = optional_value<bool>(ctx, *table, "modbus_tcp", "enabled", "true or false");
     if (!enabled) return enabled.error();
     config.enabled = enabled->value_or(config.enabled);
+    auto max_age = optional_duration(ctx, *table, "modbus_tcp", "max_age");
+    if (!max_age) return max_age.error();
+    config.max_age = max_age->value_or(config.max_age);
     return config;
 }
 

@@ -47,6 +47,9 @@ struct ModbusTcpConfig {
     std::string host = "127.0.0.1";  // loopback unless the file names another address
     std::uint16_t port = 1502;
     bool writes = true;              // false: writes are refused with exception 1 and logged
+    // Reads (function codes 1-4) answered from the line's reply to the same request up to this
+    // old (gateway/read_cache.hpp); 0: off, every request goes to the line.
+    std::chrono::milliseconds max_age{0};
 };
 
 struct LogConfig {

@@ -123,6 +123,12 @@ void describe_modbus_tcp(std::ostringstream& out, const ModbusTcpConfig& config)
     const bool ipv6 = config.host.find(':') != std::string::npos;
     out << fmt::format("Modbus TCP: listening on {}{}{}:{}, writes {}\n", ipv6 ? "[" : "", config.host, ipv6 ? "]" : "",
                        config.port, config.writes ? "allowed" : "refused");
+    if (config.max_age.count() > 0) {
+        out << fmt::format(
+            "  reads (function codes 1-4) answered from cache up to {} old; a write through a unit empties "
+            "its cache\n",
+            duration_text(config.max_age));
+    }
 }
 
 }  // namespace

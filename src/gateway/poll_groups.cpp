@@ -1,28 +1,10 @@
 #include "gateway/poll_groups.hpp"
 
-#include <algorithm>
+#include <optional>
 
 #include <fmt/format.h>
 
 namespace loopwire::gateway {
-
-void ValueCache::update(const std::string& name, const device::WatchedDevice& state,
-                        std::chrono::system_clock::time_point sampled) {
-    std::lock_guard lock(mutex_);
-    auto it = std::find_if(devices_.begin(), devices_.end(), [&](const CachedDevice& cached) { return cached.name == name; });
-    if (it == devices_.end()) {
-        devices_.push_back({name, state, sampled});
-        return;
-    }
-    it->state = state;
-    it->sampled = sampled;
-}
-
-std::vector<CachedDevice> ValueCache::snapshot() const {
-    std::lock_guard lock(mutex_);
-    return devices_;
-}
-
 namespace {
 
 // Hands each sample of one group to the cache, and logs a device whose answering changes: the

@@ -2,12 +2,11 @@
 // The gateway's own polling. Devices polled at the same interval form a poll group; each group
 // runs the client's poller (client/monitor_loop.hpp) on its own thread, through the lines'
 // schedulers at poll priority, so polls take the line only when no write or client waits.
-// What each poll finds goes into the value cache, and a device that stops or starts answering
-// is logged.
+// What each poll finds goes into the value cache (gateway/value_cache.hpp), and a device that
+// stops or starts answering is logged.
 #include <chrono>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -16,25 +15,9 @@
 #include "gateway/forwarding_unit.hpp"
 #include "gateway/gateway_config.hpp"
 #include "gateway/scheduled_master.hpp"
+#include "gateway/value_cache.hpp"
 
 namespace loopwire::gateway {
-
-// The last values read from every device, with their status and age: what every front reads.
-struct CachedDevice {
-    std::string name;               // the configured device name
-    device::WatchedDevice state;    // values, status ("ok", "no-reply", ...), errors
-    std::chrono::system_clock::time_point sampled;
-};
-
-class ValueCache {
-public:
-    void update(const std::string& name, const device::WatchedDevice& state, std::chrono::system_clock::time_point sampled);
-    std::vector<CachedDevice> snapshot() const;  // in the order devices were first seen
-
-private:
-    mutable std::mutex mutex_;
-    std::vector<CachedDevice> devices_;
-};
 
 class PollGroups {
 public:

@@ -168,6 +168,159 @@ TEST(ForwardingUnit, ASerialFrontWaitsForTheLine) {
     EXPECT_EQ(to_hex(*reply), "03 02 00 2A");
 }
 
+// --- The read cache (max_age) ----------------------------------------------------------------
+
+using namespace std::chrono_literals;
+
+// A front on virtual time, its units caching reads for 500 ms.
+struct CachingFront {
+    // First, so that it goes last: the scheduler fails what is still queued when it goes, and
+    // those requests reply here.
+    Replies replies;
+    std::shared_ptr<VirtualClock> clock = std::make_shared<VirtualClock>();
+    std::shared_ptr<HandAnsweredLine> line = std::make_shared<HandAnsweredLine>();
+    std::shared_ptr<LineScheduler> scheduler = std::make_shared<LineScheduler>(line, LineSchedulerOptions{}, clock);
+
+    std::shared_ptr<ForwardingUnit> unit(ForwardingSettings settings = {.line_unit = 3, .max_age = 500ms}) {
+        return std::make_shared<ForwardingUnit>(scheduler, settings, clock);
+    }
+};
+
+TEST(ForwardingUnitCache, ARepeatedReadWithinMaxAgeIsAnsweredWithoutTheLine) {
+    CachingFront front;
+    auto unit = front.unit();
+    auto& replies = front.replies;
+    unit->handle_async(hex("03 00 19 00 02"), false, 1, replies.collect());
+    front.line->answer(hex("03 04 00 0A 00 14"));
+    front.clock->advance(500ms);
+    unit->handle_async(hex("03 00 19 00 02"), false, 2, replies.collect());
+    EXPECT_EQ(front.line->sent(), 1u) << "the second read went to the line";
+    ASSERT_EQ(replies.got.size(), 2u);
+    EXPECT_EQ(to_hex(*replies.got[1]), "03 04 00 0A 00 14");
+    EXPECT_EQ(front.scheduler->statistics().sent, 1u);
+}
+
+TEST(ForwardingUnitCache, AReadPastMaxAgeGoesToTheLine) {
+    CachingFront front;
+    auto unit = front.unit();
+    auto& replies = front.replies;
+    unit->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+    front.line->answer(hex("03 02 00 0A"));
+    front.clock->advance(501ms);
+    unit->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+    ASSERT_EQ(front.line->sent(), 2u);
+    front.line->answer(hex("03 02 00 0B"));
+    ASSERT_EQ(replies.got.size(), 2u);
+    EXPECT_EQ(to_hex(*replies.got[1]), "03 02 00 0B");
+}
+
+TEST(ForwardingUnitCache, ADifferentRequestGoesToTheLine) {
+    CachingFront front;
+    auto unit = front.unit();
+    auto& replies = front.replies;
+    unit->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+    front.line->answer(hex("03 02 00 0A"));
+    unit->handle_async(hex("03 00 1A 00 01"), false, 1, replies.collect());
+    unit->handle_async(hex("04 00 19 00 01"), false, 1, replies.collect());
+    EXPECT_EQ(front.line->sent(), 2u);
+}
+
+TEST(ForwardingUnitCache, EachDeviceHasItsOwnCache) {
+    CachingFront front;
+    auto oven = front.unit({.line_unit = 3, .max_age = 500ms});
+    auto kiln = front.unit({.line_unit = 4, .max_age = 500ms});
+    auto& replies = front.replies;
+    oven->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+    front.line->answer(hex("03 02 00 0A"));
+    kiln->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+    ASSERT_EQ(front.line->sent(), 2u);
+    EXPECT_EQ(front.line->answer(hex("03 02 00 0B")).unit, 4);
+}
+
+// A client that reads after its own write must see what it wrote.
+TEST(ForwardingUnitCache, AWriteEmptiesTheCacheOfItsUnit) {
+    for (const char* write : {"06 00 19 00 07", "10 00 19 00 01 02 00 07", "05 00 00 FF 00", "41 00"}) {
+        CachingFront front;
+        auto unit = front.unit();
+        auto& replies = front.replies;
+        unit->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+        front.line->answer(hex("03 02 00 0A"));
+        unit->handle_async(hex(write), false, 1, replies.collect());
+        front.line->answer(hex(write));
+        unit->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+        ASSERT_EQ(front.line->sent(), 3u) << write;
+        front.line->answer(hex("03 02 00 07"));
+        EXPECT_EQ(to_hex(*replies.got.back()), "03 02 00 07") << write;
+    }
+}
+
+// A read on the wire when a write is taken may carry the value from before the write: its reply
+// is not kept, so a read taken after the write waits for the line.
+TEST(ForwardingUnitCache, AReadAnsweredAroundAWriteIsNotKept) {
+    CachingFront front;
+    auto unit = front.unit();
+    auto& replies = front.replies;
+    unit->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());  // on the wire
+    unit->handle_async(hex("06 00 19 00 07"), false, 2, replies.collect());  // queued
+    front.line->answer(hex("03 02 00 0A"));
+    unit->handle_async(hex("03 00 19 00 01"), false, 2, replies.collect());
+    EXPECT_EQ(replies.got.size(), 1u) << "the read taken after the write was answered with the value from before it";
+    front.line->answer(hex("06 00 19 00 07"));
+    ASSERT_EQ(front.line->sent(), 3u);
+    front.line->answer(hex("03 02 00 07"));
+    ASSERT_EQ(replies.got.size(), 3u);
+    EXPECT_EQ(to_hex(*replies.got[2]), "03 02 00 07");
+}
+
+TEST(ForwardingUnitCache, ABroadcastWriteEmptiesTheCachesOfUnitsThatDoNotCarryIt) {
+    CachingFront front;
+    auto carrier = front.unit({.line_unit = 3, .carries_broadcasts = true, .max_age = 500ms});
+    auto other = front.unit({.line_unit = 4, .max_age = 500ms});
+    auto& replies = front.replies;
+    other->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+    front.line->answer(hex("03 02 00 0A"));
+    carrier->handle_async(hex("06 00 19 00 07"), true, 1, replies.collect());
+    other->handle_async(hex("06 00 19 00 07"), true, 1, replies.collect());
+    front.line->answer(Bytes{});
+    other->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+    EXPECT_EQ(front.line->sent(), 3u);
+}
+
+TEST(ForwardingUnitCache, ExceptionsAndFailuresAreNotKept) {
+    CachingFront front;
+    auto unit = front.unit();
+    auto& replies = front.replies;
+    unit->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+    front.line->answer(hex("83 02"));
+    unit->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+    ASSERT_EQ(front.line->sent(), 2u) << "an exception reply was kept";
+    front.line->answer(make_error(ErrorKind::timeout, "no reply"));
+    unit->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+    ASSERT_EQ(front.line->sent(), 3u) << "a failure was kept";
+    ASSERT_EQ(replies.got.size(), 2u);
+    EXPECT_EQ(to_hex(*replies.got[1]), "83 0B");
+}
+
+TEST(ForwardingUnitCache, OtherReadingFunctionsAlwaysGoToTheLine) {
+    CachingFront front;
+    auto unit = front.unit();
+    auto& replies = front.replies;
+    unit->handle_async(hex("07"), false, 1, replies.collect());
+    front.line->answer(hex("07 00"));
+    unit->handle_async(hex("07"), false, 1, replies.collect());
+    EXPECT_EQ(front.line->sent(), 2u);
+}
+
+TEST(ForwardingUnitCache, WithoutMaxAgeEveryReadGoesToTheLine) {
+    CachingFront front;
+    auto unit = front.unit({.line_unit = 3});
+    auto& replies = front.replies;
+    unit->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+    front.line->answer(hex("03 02 00 0A"));
+    unit->handle_async(hex("03 00 19 00 01"), false, 1, replies.collect());
+    EXPECT_EQ(front.line->sent(), 2u);
+}
+
 TEST(ForwardingUnit, OnlyReadingFunctionsCountAsReads) {
     for (int f : {1, 2, 3, 4, 7, 11, 12, 17, 20, 24, 43}) EXPECT_TRUE(only_reads(static_cast<std::uint8_t>(f))) << f;
     for (int f : {5, 6, 8, 15, 16, 21, 22, 23, 65, 100}) EXPECT_FALSE(only_reads(static_cast<std::uint8_t>(f))) << f;

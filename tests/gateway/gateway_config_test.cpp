@@ -137,6 +137,29 @@ TEST(GatewayConfig, ModbusTcpSettingsAreRead) {
     EXPECT_EQ(ipv6->modbus_tcp.port, 1502);
 }
 
+TEST(GatewayConfig, TheReadCacheIsOffUnlessAMaxAgeIsGiven) {
+    auto off = parse(one_device("device = \"tc10@3\"\n"));
+    ASSERT_TRUE(off) << off.error().message;
+    EXPECT_EQ(off->modbus_tcp.max_age.count(), 0);
+
+    auto on = parse(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nmax_age = \"500ms\"\n");
+    ASSERT_TRUE(on) << on.error().message;
+    EXPECT_EQ(on->modbus_tcp.max_age, std::chrono::milliseconds(500));
+    auto seconds = parse(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nmax_age = \"1.5s\"\n");
+    ASSERT_TRUE(seconds) << seconds.error().message;
+    EXPECT_EQ(seconds->modbus_tcp.max_age, std::chrono::milliseconds(1500));
+}
+
+TEST(GatewayConfig, ABadMaxAgeNamesTheKeyAndTheForm) {
+    const std::string word = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nmax_age = \"recent\"\n");
+    EXPECT_THAT(word, StartsWith("plant.toml:9: modbus_tcp.max_age: 'recent' is not a duration: write it like 500ms"))
+        << word;
+    const std::string zero = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nmax_age = \"0ms\"\n");
+    EXPECT_THAT(zero, StartsWith("plant.toml:9: modbus_tcp.max_age: '0ms' is too short: give at least 1ms")) << zero;
+    const std::string number = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nmax_age = 500\n");
+    EXPECT_THAT(number, StartsWith("plant.toml:9: modbus_tcp.max_age: expected a duration string")) << number;
+}
+
 TEST(GatewayConfig, ASyntaxErrorGivesLineColumnAndTheParsersWords) {
     const std::string message = error_of("[[lines]]\nname = \"a\"\nlink = = \"rtu:virtual\"\n");
     EXPECT_THAT(message, StartsWith("plant.toml:3:8: TOML syntax error: ")) << message;
@@ -154,7 +177,7 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: lines, modbus_tcp, log)");
 
     const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
-    EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: listen, writes, enabled)");
+    EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: listen, writes, enabled, max_age)");
 }
 
 TEST(GatewayConfig, ABadDurationNamesTheKeyAndTheForm) {
@@ -429,6 +452,18 @@ TEST(GatewayConfigPlan, ShowsTheLineSettingsAndTheTcpFront) {
     EXPECT_THAT(plan, HasSubstr("Modbus TCP unit 13")) << plan;
     const std::string off = plan_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nenabled = false\n");
     EXPECT_THAT(off, HasSubstr("Modbus TCP: disabled")) << off;
+    EXPECT_THAT(plan, Not(HasSubstr("cache"))) << plan;
+}
+
+TEST(GatewayConfigPlan, ShowsTheReadCache) {
+    const std::string plan = plan_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nmax_age = \"500ms\"\n");
+    EXPECT_THAT(plan,
+                HasSubstr("Modbus TCP: listening on 127.0.0.1:1502, writes allowed\n"
+                          "  reads (function codes 1-4) answered from cache up to 500ms old; a write through a unit "
+                          "empties its cache\n"))
+        << plan;
+    const std::string seconds = plan_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nmax_age = \"2s\"\n");
+    EXPECT_THAT(seconds, HasSubstr("answered from cache up to 2s old")) << seconds;
 }
 
 // --- Loading a file ---------------------------------------------------------------------------

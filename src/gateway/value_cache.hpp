@@ -1,0 +1,101 @@
+#pragma once
+// The gateway's value cache: the last values its polls read from every device, with status and
+// sample time, which every front reads (snapshot), and a stream of the changes (subscribe),
+// which MQTT, HTTP and the history store consume (docs/DESIGN.md, gateway).
+//
+// Threads: each device is updated by its poll group's thread (gateway/poll_groups.hpp), several
+// groups at once. A subscriber's callback runs on the thread of the group whose sample changed
+// something, so it must be quick (copy the change, queue it, return): the group's next poll
+// waits for it. Callbacks of one subscriber never run at the same time, and the changes of one
+// device reach it in the order they happened. A callback may read snapshot(), subscribe, and
+// end its own subscription; it must not throw.
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "client/monitor_state.hpp"
+
+namespace loopwire::gateway {
+
+// One device as the last poll found it.
+struct CachedDevice {
+    std::string name;             // the configured device name
+    device::WatchedDevice state;  // values, status ("ok", "no-reply", ...), errors
+    std::chrono::system_clock::time_point sampled;
+};
+
+// A parameter whose value or status changed, or a device whose status changed.
+struct ValueChange {
+    std::string device;     // the configured device name
+    std::string parameter;  // the parameter's name; empty when this is the device's own status
+    // The value read in this sample; none when it was not read (status and error say why).
+    std::optional<device::EngineeringValue> value;
+    std::string text;  // the value as people read it ("137.0", an enum label); empty with no value
+    std::string unit;  // "°C"; empty for the device's status
+    // A value's: "ok", its special state ("under-range", ...), "no-reply" or "error". The
+    // device's: "ok", "partial" (some values failed) or "no-reply".
+    std::string status;
+    // Why there is no value, or why the device is not "ok".
+    std::string error;
+    std::chrono::system_clock::time_point sampled;  // when the sample that found it started
+
+    bool about_device() const { return parameter.empty(); }
+};
+
+using ValueCallback = std::function<void(const ValueChange&)>;
+
+namespace detail {
+struct ValueHub;
+struct ValueSubscriber;
+}  // namespace detail
+
+// Ends its subscription when destroyed or reset: from then on the callback is not called, and
+// a call running on another thread has returned. It may outlive the cache.
+class ValueSubscription {
+public:
+    ValueSubscription() = default;
+    ~ValueSubscription();
+    ValueSubscription(ValueSubscription&& other) noexcept = default;
+    ValueSubscription& operator=(ValueSubscription&& other) noexcept;
+    ValueSubscription(const ValueSubscription&) = delete;
+    ValueSubscription& operator=(const ValueSubscription&) = delete;
+
+    void reset();
+    bool active() const { return subscriber_ != nullptr; }
+
+private:
+    friend class ValueCache;
+    ValueSubscription(std::weak_ptr<detail::ValueHub> hub, std::shared_ptr<detail::ValueSubscriber> subscriber);
+
+    std::weak_ptr<detail::ValueHub> hub_;
+    std::shared_ptr<detail::ValueSubscriber> subscriber_;
+};
+
+class ValueCache {
+public:
+    ValueCache();
+    ~ValueCache();
+    ValueCache(const ValueCache&) = delete;
+    ValueCache& operator=(const ValueCache&) = delete;
+
+    // One sample of the device named `name`. Changes against its last polled state go to the
+    // subscribers, on this thread: on its first sample every parameter and the device's status.
+    // A device in back-off ("waiting": not polled this sample) changes nothing but the snapshot.
+    void update(const std::string& name, const device::WatchedDevice& state,
+                std::chrono::system_clock::time_point sampled);
+
+    std::vector<CachedDevice> snapshot() const;  // in the order devices were first seen
+
+    // Calls `callback` with the state of every device polled so far (its status, then each
+    // parameter), on this thread before returning, then with every change after it: a
+    // subscriber that starts empty holds the full picture whenever it joins.
+    [[nodiscard]] ValueSubscription subscribe(ValueCallback callback);
+
+private:
+    std::shared_ptr<detail::ValueHub> hub_;
+};
+
+}  // namespace loopwire::gateway

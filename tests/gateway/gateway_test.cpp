@@ -1,0 +1,146 @@
+// The running gateway (gateway/gateway.hpp) in this process, on a simulated line: its change
+// stream reaches a subscriber as a later front (MQTT, HTTP) will consume it, and
+// `[modbus_tcp] max_age` reaches the Modbus TCP front.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <condition_variable>
+#include <mutex>
+#include <thread>
+
+#include <fmt/format.h>
+
+#include "gateway/gateway.hpp"
+#include "session/master.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+using namespace std::chrono_literals;
+
+const device::ProfileRegistry& profiles() {
+    static const device::ProfileRegistry registry = [] {
+        auto built = device::ProfileRegistry::builtins();
+        if (!built) throw std::runtime_error(built.error().message);
+        return std::move(built).value();
+    }();
+    return registry;
+}
+
+// One TC10 simulated on a virtual line inside the gateway; no Modbus TCP front.
+const char* const simulated_plant = R"toml(
+[[lines]]
+name = "sim"
+link = "rtu:virtual?baud=115200&parity=none"
+timeout = "500ms"
+retries = 1
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@3"
+poll = "100ms"
+parameters = ["measured_value", "set_point"]
+
+[modbus_tcp]
+enabled = false
+)toml";
+
+struct Collected {
+    std::mutex mutex;
+    std::condition_variable arrived;
+    std::vector<ValueChange> changes;
+
+    ValueCallback collect() {
+        return [this](const ValueChange& change) {
+            std::lock_guard lock(mutex);
+            changes.push_back(change);
+            arrived.notify_all();
+        };
+    }
+    // Until a value of `parameter` was read (a loaded machine may lose the first polls).
+    bool wait_for_value(const std::string& parameter) {
+        std::unique_lock lock(mutex);
+        return arrived.wait_for(lock, 10s, [&] {
+            return std::any_of(changes.begin(), changes.end(), [&](const ValueChange& change) {
+                return change.parameter == parameter && change.value;
+            });
+        });
+    }
+};
+
+TEST(Gateway, ASubscriberIsToldWhatThePollsRead) {
+    auto config = parse_gateway_config(simulated_plant, "plant.toml", profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    auto gateway = Gateway::open(*config);
+    ASSERT_TRUE(gateway) << gateway.error().message;
+    Collected collected;
+    auto subscription = (*gateway)->subscribe(collected.collect());
+    ASSERT_TRUE(collected.wait_for_value("measured_value")) << "no value of the simulated device arrived";
+
+    subscription.reset();
+    std::lock_guard lock(collected.mutex);
+    const auto& changes = collected.changes;
+    // The first sample (or the picture, when a poll came first) tells the device, then each parameter.
+    ASSERT_GE(changes.size(), 3u);
+    EXPECT_EQ(changes[0].device, "oven1");
+    EXPECT_TRUE(changes[0].about_device());
+    EXPECT_EQ(changes[1].parameter, "measured_value");
+    EXPECT_EQ(changes[2].parameter, "set_point");
+    EXPECT_EQ(changes[1].unit, changes[2].unit);
+    ASSERT_EQ((*gateway)->values().size(), 1u);
+}
+
+// A poll once a minute, so that after the first one only the clients' requests use the line.
+const char* const cached_plant = R"toml(
+[[lines]]
+name = "sim"
+link = "rtu:virtual?baud=115200&parity=none"
+timeout = "500ms"
+retries = 1
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@3"
+poll = "1m"
+parameters = ["measured_value", "set_point"]
+
+[modbus_tcp]
+listen = "127.0.0.1:0"
+max_age = "1m"
+)toml";
+
+std::uint64_t sent_on_the_line(const Gateway& gateway) { return gateway.report().at(0).statistics.sent; }
+
+TEST(Gateway, WithAMaxAgeARepeatedReadIsAnsweredWithoutTheLine) {
+    auto config = parse_gateway_config(cached_plant, "plant.toml", profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    auto opened = Gateway::open(*config);
+    ASSERT_TRUE(opened) << opened.error().message;
+    Gateway& gateway = **opened;
+    std::jthread serving([&gateway](std::stop_token stop) { (void)gateway.serve(std::move(stop)); });
+    Collected collected;
+    auto subscription = gateway.subscribe(collected.collect());
+    ASSERT_TRUE(collected.wait_for_value("measured_value")) << "the first poll did not read the device";
+
+    auto link = transport::parse_link_url(fmt::format("tcp://127.0.0.1:{}", gateway.modbus_tcp_port()));
+    ASSERT_TRUE(link) << link.error().message;
+    auto master = session::open_master(*link, {});
+    ASSERT_TRUE(master) << master.error().message;
+    const DeviceConfig& oven = config->lines[0].devices[0];
+    device::DeviceClient client(**master, oven.address);
+    const auto before = sent_on_the_line(gateway);
+    const auto first = client.read(polled_parameters(oven));
+    ASSERT_FALSE(first.first_error) << first.first_error->message;
+    const auto after_first = sent_on_the_line(gateway);
+    EXPECT_GT(after_first, before);
+    const auto second = client.read(polled_parameters(oven));
+    ASSERT_FALSE(second.first_error) << second.first_error->message;
+    EXPECT_EQ(sent_on_the_line(gateway), after_first) << "the repeated read went to the line";
+    ASSERT_EQ(second.readings.size(), first.readings.size());
+    for (std::size_t i = 0; i < first.readings.size(); ++i) {
+        EXPECT_EQ(second.readings[i].value->raw, first.readings[i].value->raw) << i;
+    }
+}
+
+}  // namespace
+}  // namespace loopwire::gateway
