@@ -80,7 +80,9 @@ int run_describe(const device::ProfileRegistry& profiles, const std::string& id,
     if (json) {
         nlohmann::ordered_json list = nlohmann::ordered_json::array();
         for (const auto* parameter : shown) list.push_back(parameter_json(*parameter));
-        fmt::print("{}\n", nlohmann::ordered_json{{"id", p.id}, {"title", p.title}, {"parameters", list}}.dump());
+        nlohmann::ordered_json aliases = nlohmann::ordered_json::object();
+        for (const auto& [alias, name] : p.aliases) aliases[alias] = name;
+        fmt::print("{}\n", nlohmann::ordered_json{{"id", p.id}, {"title", p.title}, {"aliases", aliases}, {"parameters", list}}.dump());
         return exit_ok;
     }
     fmt::print("{} — {}\n{:<34} {:<8} {:<8} {:>5} {:<3} {:<6} {:<24} {}\n", p.id, p.title, "name", "mnemonic", "table", "addr", "acc", "unit", "range", "meaning");
@@ -88,6 +90,11 @@ int run_describe(const device::ProfileRegistry& profiles, const std::string& id,
         const std::string range = (q->min || q->max) ? bound_text(q->min) + ".." + bound_text(q->max) : "";
         fmt::print("{:<34} {:<8} {:<8} {:>5} {:<3} {:<6} {:<24} {}\n", q->name, q->mnemonic, device::table_name(q->table), q->address,
                    device::access_text(*q), q->unit, range, q->description.substr(0, 60));
+    }
+    if (!p.aliases.empty() && group.empty()) {
+        std::vector<std::string> aliases;
+        for (const auto& [alias, name] : p.aliases) aliases.push_back(fmt::format("{} = {}", alias, name));
+        fmt::print("also named: {}\n", fmt::join(aliases, ", "));
     }
     return exit_ok;
 }

@@ -23,6 +23,13 @@ Found by_name(const Profile& profile, const std::string& name) {
     return {};
 }
 
+Found by_alias(const Profile& profile, const std::string& text) {
+    for (const auto& [alias, name] : profile.aliases) {
+        if (equal_ignoring_case(alias, text)) return {profile.find(name)};  // the checks made sure it exists
+    }
+    return {};
+}
+
 Found matching(const Profile& profile, const std::string& text, const std::string Parameter::*field,
                bool readable_only) {
     Found found;
@@ -77,6 +84,7 @@ Result<Found> resolve_one(const Profile& profile, const std::string& text) {
                                                         profile.id, group));
     }
     if (Found found = by_name(profile, text); !found.empty()) return found;
+    if (Found found = by_alias(profile, text); !found.empty()) return found;
     if (Found found = matching(profile, text, &Parameter::mnemonic, false); !found.empty()) {
         if (found.size() > 1) return ambiguous(text, found);
         return found;

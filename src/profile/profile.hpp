@@ -125,6 +125,9 @@ struct Profile {
     // Per mode, what a master can read to tell that it holds (AC20: bit 218 = remote).
     std::map<std::string, std::vector<IdentificationCheck>> mode_requirements;
     std::vector<std::string> identification_report;
+    // Words people type for a parameter (PV, SP, OUT; a primary for an ambiguous mnemonic):
+    // alias -> parameter name, every name checked to exist.
+    std::map<std::string, std::string> aliases;
     std::vector<Parameter> parameters;
 
     const Parameter* find(std::string_view name) const;  // exact name

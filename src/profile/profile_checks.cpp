@@ -1,5 +1,7 @@
 #include "profile/profile_checks.hpp"
 
+#include <algorithm>
+
 #include <charconv>
 #include <map>
 #include <optional>
@@ -99,6 +101,14 @@ void check_parameter_references(const Json& parameters, ReferenceCheck& referenc
     }
 }
 
+// What a command line can carry as one name: no spaces, no '=' (NAME=VALUE), no ':' (DEVICE:NAME).
+bool alias_word(const std::string& alias) {
+    const auto word_character = [](char c) {
+        return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '_' || c == '-';
+    };
+    return !alias.empty() && alias.front() != '-' && std::all_of(alias.begin(), alias.end(), word_character);
+}
+
 void check_top_level_references(const Json& document, ReferenceCheck& references,
                                  std::vector<DocumentProblem>& problems) {
     const Json& identification = document.at("identification");
@@ -120,6 +130,13 @@ void check_top_level_references(const Json& document, ReferenceCheck& references
                 references.check(checks[k].at("parameter"), pointer + "/parameter");
                 if (!checks[k].contains("equals")) problems.push_back({pointer, "a mode requirement needs \"equals\""});
             }
+        }
+    }
+    const Json aliases = document.value("aliases", Json::object());  // held: items() refers to it
+    for (const auto& [alias, name] : aliases.items()) {
+        references.check(name, "/aliases/" + alias);
+        if (!alias_word(alias)) {
+            problems.push_back({"/aliases/" + alias, "an alias is one word as people type it: letters, digits, '.', '_' or '-'"});
         }
     }
     const Json& addressing = document.at("addressing");

@@ -134,6 +134,11 @@ void read_identification(const Json& identification, Profile& profile) {
     profile.identification_report = identification.value("report", std::vector<std::string>());
 }
 
+void read_aliases(const Json& document, Profile& profile) {
+    const Json aliases = document.value("aliases", Json::object());  // held: items() refers to it
+    for (const auto& [alias, name] : aliases.items()) profile.aliases.emplace(alias, name.get<std::string>());
+}
+
 void read_mode_requirements(const Json& document, Profile& profile) {
     const auto requirements = document.find("mode_requirements");
     if (requirements == document.end()) return;
@@ -167,6 +172,7 @@ Profile profile_from_document(const Json& document) {
     read_addressing(document.at("addressing"), profile);
     read_identification(document.at("identification"), profile);
     read_mode_requirements(document, profile);
+    read_aliases(document, profile);
     const auto word_specials = specials_from(document.value("word_specials", Json::array()));
     for (const Json& entry : document.at("parameters")) profile.parameters.push_back(parameter_from(entry, word_specials));
     for (Parameter& parameter : profile.parameters) describe_bound_sources(profile, parameter);

@@ -53,7 +53,8 @@ std::vector<WriteBlock> plan_writes(const Profile& profile, const std::vector<Pl
 // Names or unique mnemonics (case-insensitive), group names, or "all" (every readable
 // parameter) to parameters, in the order given, without duplicates. Errors name what was not
 // found, or list the candidates of an ambiguous mnemonic.
-// Each text is tried as: exact name; name ignoring case; mnemonic ignoring case (one match, or
+// Each text is tried as: exact name; name ignoring case; the profile's aliases ignoring case (PV,
+// SP, OUT; the primary of an ambiguous mnemonic); mnemonic ignoring case (one match, or
 // an error listing "name (mnemonic, table address)" of every candidate); group ignoring case
 // (its readable members, hidden ones included: naming the group asks for them); "all" (every
 // readable parameter not marked hidden). "group:NAME" names a group directly, for groups a

@@ -2,6 +2,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <map>
+
 #include "profile/request_planner.hpp"
 #include "support/profile_test_support.hpp"
 
@@ -43,7 +45,25 @@ TEST(ParameterResolution, AmbiguousMnemonicListsTheCandidates) {
     EXPECT_THAT(message, HasSubstr("mnemonic \"ssc\" is ambiguous"));
     EXPECT_THAT(message, HasSubstr("linear_scale_low (SSC, holding "));
     EXPECT_THAT(message, HasSubstr("output_1_analog_type (SSC, holding 651)"));
-    EXPECT_THAT(error_of(resolve_parameters(*tc10, {"rV"})), HasSubstr("measured_value_b (rV, holding 512)"));
+}
+
+// PV, SP and OUT on every device, whatever its manual calls them; an alias comes before the
+// mnemonics, so the TC10's rV (words 1 and 512) names its primary, word 1 (profile note).
+TEST(ParameterResolution, AliasesNameTheSameRolesOnEveryDevice) {
+    const std::map<std::string, std::vector<std::string>> expected{
+        {"tc10", {"measured_value", "set_point", "output_power"}},
+        {"rampsoak", {"process_value", "set_value", "output_percentage"}},
+        {"ac20", {"carbon_potential", "main_set_point", "main_output_value"}},
+    };
+    for (const auto& [id, names] : expected) {
+        const auto profile = builtin(id);
+        ASSERT_TRUE(profile) << id;
+        EXPECT_EQ(names_of(resolve_parameters(*profile, {"PV", "SP", "OUT"})), names) << id;
+        EXPECT_EQ(names_of(resolve_parameters(*profile, {"pv", "sp", "out"})), names) << id << ", lower case";
+    }
+    const auto tc10 = builtin("tc10");
+    EXPECT_EQ(names_of(resolve_parameters(*tc10, {"rV"})), std::vector<std::string>{"measured_value"});
+    EXPECT_EQ(names_of(resolve_parameters(*tc10, {"measured_value_b"})), std::vector<std::string>{"measured_value_b"});
 }
 
 TEST(ParameterResolution, GroupsGiveTheirReadableMembersInProfileOrder) {

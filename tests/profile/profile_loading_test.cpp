@@ -208,6 +208,15 @@ TEST(ProfileLoading, DanglingRangeIdentificationAndSelectorReferencesAreRefused)
     EXPECT_THAT(message, HasSubstr("/addressing/alternatives/0/selected_by/parameter: no parameter named \"protocol\""));
 }
 
+TEST(ProfileLoading, AnAliasMustNameAParameterAndBeAWord) {
+    Json document = tc10_document();
+    document["aliases"]["PV"] = "process_variable";
+    EXPECT_THAT(load_error(document), HasSubstr("broken/tc10.json: /aliases/PV: no parameter named \"process_variable\""));
+    Json spaced = tc10_document();
+    spaced["aliases"]["the pv"] = "measured_value";
+    EXPECT_THAT(load_error(spaced), HasSubstr("broken/tc10.json: /aliases/the pv: an alias is one word as people type it"));
+}
+
 TEST(ProfileLoading, SelfReferenceIsRefused) {
     Json document = tc10_document();
     document["parameters"][0]["decimals"] = Json{{"parameter", document["parameters"][0]["name"]}};

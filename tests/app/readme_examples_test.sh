@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# The README's examples of devices by name, run as written against simulated devices: only the
+# link (a serial port or an address of the reader's plant) is replaced by a simulator's. An
+# example that names a parameter no profile has, or writes a value the device refuses, fails
+# here. Left out, with the reason: the synopsis (placeholders), scan (minutes of timeouts on a
+# line that answers only some units), simulate, demo and gateway (run by their own tests), and
+# examples that need the reader's own files (kiln.json, ac20.json, a copied profile).
+set -u
+loopwire=${1:?usage: readme_examples_test.sh path/to/loopwire}
+readme=${2:?usage: readme_examples_test.sh path/to/loopwire path/to/README.md}
+source "$(dirname "$0")/../support/test_lib.sh"
+
+start_background sim.log timeout 90 "$loopwire" simulate --pty "$WORK_DIR/ttyR" \
+  --device tc10@3 --device tc10@4 --device rampsoak@5 --device ac20@1 --unit 29 --duration 80s
+wait_for_text "$WORK_DIR/sim.log" "Ctrl-C to stop"
+start_tcp_server tcp.log timeout 90 "$loopwire" simulate --link tcp://127.0.0.1:0 --unit 1 --duration 80s
+serial="rtu:$WORK_DIR/ttyR?parity=none"
+tcp="tcp://127.0.0.1:$PORT"
+
+# The README's sh blocks, continuation lines joined, one command a line.
+mapfile -t examples < <(awk '/^```sh/{f=1;next} /^```/{f=0} f' "$readme" | sed -e ':a' -e '/\\$/N; s/\\\n *//; ta' |
+  grep -E '^loopwire (read|write|monitor|dump|restore|decode|describe) ' | grep -vE ' URL |\[|DEVICE' |
+  grep -vE 'kiln\.json|ac20\.json|oven-x')
+((${#examples[@]} >= 10)) || fail "found only ${#examples[@]} README examples: $(printf '\n  %s' "${examples[@]}")"
+
+cd "$WORK_DIR" || fail "no work dir"
+ran=0
+for example in "${examples[@]}"; do
+    command=${example%%#*}  # a trailing comment explains the example
+    command=$(sed -E -e "s#--link 'rtu:[^']*'#--link '$serial'#" -e "s#--link tcp://[^ ]*#--link $tcp#" <<<"$command")
+    eval "words=($command)"
+    status=0
+    case ${words[1]} in
+        monitor)  # runs until Ctrl-C: it must still be sampling after 4 s
+            timeout 4 "$loopwire" "${words[@]:1}" >"out.txt" 2>&1 || status=$?
+            if [[ $status -eq 124 && ( -s out.txt || -s plant.csv ) ]]; then status=0; fi ;;
+        decode)  # the README's example frame is one whose CRC is wrong: it must say so (exit 1)
+            timeout 30 "$loopwire" "${words[@]:1}" >"out.txt" 2>&1 || status=$?
+            if [[ $status -eq 1 ]] && grep -q "CRC mismatch" out.txt; then status=0; fi ;;
+        *) timeout 30 "$loopwire" "${words[@]:1}" >"out.txt" 2>&1 || status=$? ;;
+    esac
+    ran=$((ran + 1))
+    if [[ $status -eq 0 ]]; then count_pass; else count_failure "README: $example (exit $status)" out.txt; fi
+done
+echo "ran $ran README examples"
+check readme-write-took 0 "150" "$loopwire" read --link "$serial" --device tc10@3 SP
+finish
