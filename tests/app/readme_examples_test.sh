@@ -6,7 +6,7 @@
 # line that answers only some units), simulate, demo and gateway (run by their own tests), and
 # examples that need the reader's own files (kiln.json, ac20.json, a copied profile).
 set -u
-loopwire=${1:?usage: readme_examples_test.sh path/to/loopwire}
+loopwire=$(realpath "${1:?usage: readme_examples_test.sh path/to/loopwire path/to/README.md}")
 readme=${2:?usage: readme_examples_test.sh path/to/loopwire path/to/README.md}
 source "$(dirname "$0")/../support/test_lib.sh"
 
