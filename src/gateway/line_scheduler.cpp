@@ -46,7 +46,7 @@ Error backing_off_error(std::uint8_t unit, const device::RetryBackoff& backoff, 
 }
 
 // Requests of one priority from many clients: each client has its own FIFO and the clients take
-// turns, so a client with a long queue delays another's request by at most one request.
+// turns, so a client with a long queue delays another's request by at most the one on the wire.
 class FairLane {
 public:
     void push(LineRequest request) {
@@ -57,17 +57,23 @@ public:
     }
 
     std::optional<LineRequest> pop() {
+        // The client served last goes to the back of the turns only now, behind every client that
+        // queued while its request was on the wire. Most clients send their next request only
+        // once they have the reply, so they are never queued when the line frees: put back at
+        // once, a busy client would be ahead of such a one every time, taking two turns to its
+        // one and making it wait for two requests, not one (with a unit that does not answer,
+        // two timeouts).
+        if (served_last_) turns_.push_back(*std::exchange(served_last_, std::nullopt));
         if (turns_.empty()) return std::nullopt;
         const auto client = turns_.front();
         turns_.pop_front();
         auto found = queues_.find(client);
         LineRequest request = std::move(found->second.front());
         found->second.pop_front();
-        // To the back of the turns: every other client with something queued goes first.
         if (found->second.empty()) {
             queues_.erase(found);
         } else {
-            turns_.push_back(client);
+            served_last_ = client;
         }
         --size_;
         return request;
@@ -82,6 +88,7 @@ public:
 private:
     std::unordered_map<std::uint64_t, std::deque<LineRequest>> queues_;
     std::deque<std::uint64_t> turns_;  // clients with something queued, next first
+    std::optional<std::uint64_t> served_last_;  // still has something queued; not in turns_ yet
     std::size_t size_ = 0;
 };
 

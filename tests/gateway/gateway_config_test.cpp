@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 
 #include "gateway/gateway_config.hpp"
+#include "support/profile_test_support.hpp"
 
 namespace loopwire::gateway {
 namespace {
@@ -21,14 +22,7 @@ using ::testing::HasSubstr;
 using ::testing::Not;
 using ::testing::StartsWith;
 
-const device::ProfileRegistry& profiles() {
-    static const device::ProfileRegistry registry = [] {
-        auto built = device::ProfileRegistry::builtins();
-        if (!built) throw std::runtime_error(built.error().message);
-        return std::move(built).value();
-    }();
-    return registry;
-}
+const device::ProfileRegistry& profiles() { return device::testing::builtin_registry(); }
 
 Result<GatewayConfig> parse(const std::string& text) { return parse_gateway_config(text, "plant.toml", profiles()); }
 

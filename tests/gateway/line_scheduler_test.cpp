@@ -194,6 +194,25 @@ TEST_F(LineSchedulerTest, BusyClientDelaysAnotherByAtMostOneRequest) {
     EXPECT_TRUE(std::is_sorted(tags.begin() + position + 1, tags.end()));
 }
 
+// Most clients send their next request only once they have the reply, so they have nothing
+// queued when the line frees. Such a client still gets every other turn against a busy one:
+// its request waits for the one on the wire only (with a dead unit, one timeout, not two).
+TEST_F(LineSchedulerTest, ClientAskingOneAtATimeWaitsOnlyForTheRequestOnTheWire) {
+    const std::uint64_t busy = 1;
+    const std::uint64_t one_at_a_time = 2;
+    for (int tag = 1; tag <= 10; ++tag) submit(tag, Priority::client, 1, busy);  // 1 on the wire
+    master->complete(normal_reply());  // 2 on the wire
+    for (int round = 0; round < 4; ++round) {
+        submit(100 + round, Priority::client, 1, one_at_a_time);  // while one of the busy's is on the wire
+        master->complete(normal_reply());
+        EXPECT_EQ(master->sent_tags().back(), 100 + round)
+            << "round " << round << ": waited behind another of the busy's";
+        master->complete(normal_reply());  // the reply; the busy client's next goes on the wire
+    }
+    complete_all();
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 2, 100, 3, 101, 4, 102, 5, 103, 6, 7, 8, 9, 10}));
+}
+
 TEST_F(LineSchedulerTest, ClientsTakeTurnsWithinWritesToo) {
     submit(0, Priority::poll);  // on the wire
     for (int tag : {11, 12, 13}) submit(tag, Priority::write, 1, 1);

@@ -3,6 +3,7 @@
 #include <fstream>
 #include <memory>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -10,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "profile/profile.hpp"
+#include "profile/profile_registry.hpp"
 
 namespace loopwire::device::testing {
 
@@ -44,6 +46,16 @@ inline std::shared_ptr<const Profile> builtin(const std::string& id) {
     auto profile = builtin_profile(id);
     EXPECT_TRUE(profile.ok()) << (profile.ok() ? "" : profile.error().message);
     return profile.ok() ? *profile : nullptr;
+}
+
+// The built-in profiles as a registry, loaded once (what a configuration is parsed against).
+inline const ProfileRegistry& builtin_registry() {
+    static const ProfileRegistry registry = [] {
+        auto built = ProfileRegistry::builtins();
+        if (!built) throw std::runtime_error(built.error().message);
+        return std::move(built).value();
+    }();
+    return registry;
 }
 
 inline const Parameter& parameter(const Profile& profile, const std::string& name) {
