@@ -534,6 +534,7 @@ TEST(GatewayConfig, MqttSettingsAreRead) {
     EXPECT_EQ(config->mqtt->prefix, "loopwire/plant1");
     EXPECT_TRUE(config->mqtt->writes);
     EXPECT_EQ(config->mqtt->client_id, "gw1");
+    EXPECT_THAT(describe_plan(*config), HasSubstr("MQTT: mqtt://127.0.0.1:1884 under loopwire/plant1/, writes allowed"));
 }
 
 TEST(GatewayConfig, MqttDefaultsApplyToWhatIsLeftOut) {

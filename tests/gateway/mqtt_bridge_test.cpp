@@ -290,6 +290,8 @@ TEST(MqttBridge, WritesGoToTheDeviceAndBadOnesAreRefused) {
     // A command left retained on the broker before the gateway starts: replayed to it on
     // subscription, and ignored.
     watcher.publish(prefix + "/oven/set_point/set", "300", true);
+    // Back to the watcher: the broker holds it before the gateway subscribes.
+    ASSERT_TRUE(watcher.nth(prefix + "/oven/set_point/set", 1)) << "the retained command did not reach the broker";
     auto gateway = open_gateway(broker.port(), true);
     const std::string value = prefix + "/oven/set_point";
     const std::string result = prefix + "/oven/set_point/set/result";
