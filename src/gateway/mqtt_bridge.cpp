@@ -91,6 +91,7 @@ struct MqttBridge::State {
     // The network thread's own: every retained topic's payload, republished on each connection.
     std::map<std::string, std::string> retained;
     bool told_unreachable = false;
+    bool just_connected = false;  // set by on_connect, acted on by the network loop
 
     std::jthread worker;
     std::jthread network;
@@ -156,11 +157,20 @@ struct MqttBridge::State {
         }
     }
 
+    // In mosquitto_loop, holding libmosquitto's callback lock: only notes the connection.
+    // Publishing from here would take the client's other locks in the opposite order to a
+    // publish outside a callback (ThreadSanitizer reports the inversion); announce() does it.
     void on_connect(int code) {
         if (code != 0) {
             say(fmt::format("the broker refused the connection: {}", mosquitto_connack_string(code)));
             return;
         }
+        just_connected = true;
+    }
+
+    // After a connection was made: the gateway's status, the commands' subscription, and every
+    // retained topic again (the broker may have lost them, or this is its first connection).
+    void announce() {
         send_queued();  // not connected yet: brings the retained picture up to date, sends nothing
         is_connected.store(true);
         told_unreachable = false;
@@ -219,7 +229,10 @@ struct MqttBridge::State {
             }
             send_queued();
             const int rc = mosquitto_loop(client, loop_timeout_ms, 1);
-            if (is_connected.load()) delay = timing.reconnect_first;
+            if (std::exchange(just_connected, false)) {
+                announce();
+                delay = timing.reconnect_first;
+            }
             if (rc != MOSQ_ERR_SUCCESS) {
                 if (is_connected.exchange(false)) say(fmt::format("connection lost ({})", mosquitto_strerror(rc)));
                 have_socket = false;
@@ -309,9 +322,6 @@ MqttBridge::MqttBridge(MqttConfig config, std::vector<MqttDevice> devices, Value
     // Called on the network thread, inside mosquitto_loop.
     mosquitto_connect_callback_set(s.client, [](mosquitto*, void* state, int code) {
         static_cast<State*>(state)->on_connect(code);
-    });
-    mosquitto_disconnect_callback_set(s.client, [](mosquitto*, void* state, int) {
-        static_cast<State*>(state)->is_connected.store(false);
     });
     mosquitto_message_callback_set(s.client, [](mosquitto*, void* state, const mosquitto_message* message) {
         if (message) static_cast<State*>(state)->on_message(*message);

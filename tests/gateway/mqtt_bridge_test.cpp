@@ -127,9 +127,6 @@ public:
     explicit Watcher(std::uint16_t port) {
         mosquitto_lib_init();
         client_ = mosquitto_new(nullptr, true, this);
-        mosquitto_connect_callback_set(client_, [](mosquitto* client, void*, int code) {
-            if (code == 0) mosquitto_subscribe(client, nullptr, (prefix + "/#").c_str(), 1);
-        });
         mosquitto_subscribe_callback_set(client_, [](mosquitto*, void* self, int, int, const int*) {
             auto& watcher = *static_cast<Watcher*>(self);
             std::lock_guard lock(watcher.mutex_);
@@ -149,6 +146,11 @@ public:
         while (mosquitto_connect(client_, "127.0.0.1", port, 30) != MOSQ_ERR_SUCCESS) {
             if (std::chrono::steady_clock::now() > give_up) throw std::runtime_error("the broker did not start");
             std::this_thread::sleep_for(50ms);
+        }
+        // Before the loop's thread starts, and not from a callback: libmosquitto calls those
+        // holding a lock that a subscribe or publish there would take out of order.
+        if (mosquitto_subscribe(client_, nullptr, (prefix + "/#").c_str(), 1) != MOSQ_ERR_SUCCESS) {
+            throw std::runtime_error("cannot subscribe");
         }
         mosquitto_loop_start(client_);
         std::unique_lock lock(mutex_);
