@@ -10,6 +10,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <string_view>
 #include <stop_token>
 #include <thread>
 
@@ -327,7 +328,9 @@ MqttBridge::MqttBridge(MqttConfig config, std::vector<MqttDevice> devices, Value
         if (message) static_cast<State*>(state)->on_message(*message);
     });
     const std::string status = s.config.prefix + "/status";
-    (void)mosquitto_will_set(s.client, status.c_str(), 7, "offline", qos_at_least_once, true);
+    constexpr std::string_view offline = "offline";
+    (void)mosquitto_will_set(s.client, status.c_str(), static_cast<int>(offline.size()), offline.data(), qos_at_least_once,
+                             true);
     s.worker = std::jthread([&s](std::stop_token stop) { s.run_worker(stop); });
     s.network = std::jthread([&s](std::stop_token stop) { s.run_network(stop); });
     s.subscription = cache.subscribe([&s](const ValueChange& change) { s.on_change(change); });
