@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "devices/registry.hpp"
+#include "gateway/mqtt_bridge.hpp"
 #include "session/master.hpp"
 #include "session/slave.hpp"
 #include "transport/tcp.hpp"
@@ -107,6 +108,8 @@ struct Gateway::Parts {
     std::unique_ptr<PollGroups> polls;
     std::unique_ptr<transport::TcpListener> listener;
     std::unique_ptr<session::Slave> front;
+    // Last, so destroyed first: it subscribes to the cache and writes through the schedulers.
+    std::unique_ptr<MqttBridge> mqtt;
 };
 
 Gateway::Gateway(std::unique_ptr<Parts> parts) : parts_(std::move(parts)) {}
@@ -150,6 +153,19 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         slave_options.trace = options.trace;
         slave_options.unserved_unit_exception = gateway_path_unavailable;
         parts->front = std::make_unique<session::Slave>(*link, std::move(units), slave_options);
+    }
+    if (config.mqtt) {
+        // The Gateway builds the bridge rather than handing its line schedulers out: the
+        // schedulers stay the Gateway's own, and the bridge goes before them (Parts, last).
+        // Started here, not in serve(): it needs nothing from the TCP front, and a broker
+        // that cannot be reached is retried in the background, never an error.
+        std::vector<MqttDevice> devices;
+        for (std::size_t i = 0; i < config.lines.size(); ++i) {
+            for (const auto& device : config.lines[i].devices) {
+                devices.push_back({device.name, device.address, parts->lines[i].scheduler});
+            }
+        }
+        parts->mqtt = std::make_unique<MqttBridge>(*config.mqtt, std::move(devices), parts->cache, options.log);
     }
     return std::unique_ptr<Gateway>(new Gateway(std::move(parts)));
 }

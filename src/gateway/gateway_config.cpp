@@ -490,6 +490,90 @@ Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& 
     return config;
 }
 
+// ---------------------------------------------------------------------------------------------
+// [mqtt]
+
+// "mqtt://HOST[:PORT]"; the port defaults to MQTT's 1883.
+std::optional<HostPort> split_broker(std::string_view text) {
+    constexpr std::string_view scheme = "mqtt://";
+    if (text.substr(0, scheme.size()) != scheme) return std::nullopt;
+    text.remove_prefix(scheme.size());
+    if (!text.empty() && text.back() == '/') text.remove_suffix(1);
+    if (text.empty() || text.find('/') != std::string_view::npos) return std::nullopt;
+    const bool bracketed = text.front() == '[';
+    const bool has_port = bracketed ? text.find("]:") != std::string_view::npos
+                                    : text.find(':') != std::string_view::npos && text.find(':') == text.rfind(':');
+    if (!has_port) {
+        if (!bracketed && text.find(':') != std::string_view::npos) return std::nullopt;  // a bare IPv6 address
+        std::string host(text);
+        if (bracketed) {
+            if (host.back() != ']') return std::nullopt;
+            host = host.substr(1, host.size() - 2);
+        }
+        if (host.empty()) return std::nullopt;
+        return HostPort{std::move(host), 1883};
+    }
+    auto address = split_listen(text);
+    if (!address || address->port == 0) return std::nullopt;
+    return address;
+}
+
+// Topic levels joined by '/': none empty, no wildcards, no NUL (MQTT 3.1.1, 4.7).
+bool valid_prefix(std::string_view prefix) {
+    if (prefix.empty() || prefix.front() == '/' || prefix.back() == '/') return false;
+    if (prefix.find("//") != std::string_view::npos) return false;
+    return std::none_of(prefix.begin(), prefix.end(), [](char c) { return c == '+' || c == '#' || c == '\0'; });
+}
+
+Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::table& root) {
+    const toml::node* node = root.get("mqtt");
+    if (!node) return std::optional<MqttConfig>{};
+    const auto* table = node->as_table();
+    if (!table) return ctx.fail(node->source(), "mqtt", "expected an [mqtt] table");
+    if (auto keys = check_keys(ctx, *table, "mqtt", {"broker", "prefix", "writes", "client_id"}); !keys)
+        return keys.error();
+    MqttConfig config;
+    auto broker = required_string(ctx, *table, "mqtt", "broker", "\"mqtt://127.0.0.1:1883\"");
+    if (!broker) return broker.error();
+    if (broker->rfind("mqtts://", 0) == 0) {
+        return ctx.fail(source_of(*table, "broker"), "mqtt.broker",
+                        fmt::format("\"{}\": mqtts:// (MQTT over TLS) is not supported yet; only mqtt:// (plain TCP, "
+                                    "e.g. to a broker on the same machine or a trusted network)", *broker));
+    }
+    auto address = split_broker(*broker);
+    if (!address) {
+        return ctx.fail(source_of(*table, "broker"), "mqtt.broker",
+                        fmt::format("\"{}\" is not a broker address (expected mqtt://HOST or mqtt://HOST:PORT with a "
+                                    "port 1..65535, e.g. \"mqtt://127.0.0.1:1883\")", *broker));
+    }
+    config.broker = *broker;
+    config.host = std::move(address->host);
+    config.port = address->port;
+    auto prefix = optional_value<std::string>(ctx, *table, "mqtt", "prefix", "a string such as \"loopwire/plant1\"");
+    if (!prefix) return prefix.error();
+    if (*prefix) {
+        if (!valid_prefix(**prefix)) {
+            return ctx.fail(source_of(*table, "prefix"), "mqtt.prefix",
+                            fmt::format("\"{}\" is not a topic prefix (expected levels joined by '/', none empty, "
+                                        "without '+' or '#', e.g. \"loopwire/plant1\")", **prefix));
+        }
+        config.prefix = std::move(**prefix);
+    }
+    auto writes = optional_value<bool>(ctx, *table, "mqtt", "writes", "true or false");
+    if (!writes) return writes.error();
+    config.writes = writes->value_or(config.writes);
+    auto client_id = optional_value<std::string>(ctx, *table, "mqtt", "client_id", "a string such as \"gateway-plant1\"");
+    if (!client_id) return client_id.error();
+    if (*client_id) {
+        // MQTT 3.1.1 (3.1.3.1): brokers must accept 1..23 characters; most take more.
+        if ((*client_id)->empty() || (*client_id)->size() > 256) {
+            return ctx.fail(source_of(*table, "client_id"), "mqtt.client_id", "expected 1..256 characters");
+        }
+        config.client_id = std::move(**client_id);
+    }
+    return std::optional<MqttConfig>{std::move(config)};
+}
+
 Result<toml::table> parse_toml(std::string_view text, const std::string& source) {
 #if TOML_EXCEPTIONS
     try {
@@ -519,7 +603,7 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto root = parse_toml(text, source);
     if (!root) return root.error();
     const Context ctx{source, profiles};
-    if (auto keys = check_keys(ctx, *root, "", {"lines", "modbus_tcp", "log"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, *root, "", {"lines", "modbus_tcp", "log", "mqtt"}); !keys) return keys.error();
     GatewayConfig config;
     config.source = source;
     Registry registry;
@@ -532,6 +616,9 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto log = parse_log(ctx, *root);
     if (!log) return log.error();
     config.log = *log;
+    auto mqtt = parse_mqtt(ctx, *root);
+    if (!mqtt) return mqtt.error();
+    config.mqtt = std::move(*mqtt);
     return config;
 }
 

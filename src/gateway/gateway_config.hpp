@@ -59,11 +59,23 @@ struct LogConfig {
     std::chrono::milliseconds statistics{60000};
 };
 
+// [mqtt]: the gateway publishes its values to a broker and takes writes from it
+// (gateway/mqtt_bridge.hpp). Plain MQTT over TCP only for now (no TLS).
+struct MqttConfig {
+    std::string broker;               // as written, "mqtt://127.0.0.1:1883", for messages
+    std::string host;
+    std::uint16_t port = 1883;
+    std::string prefix = "loopwire/gateway";  // topic levels without '+', '#' or empty levels
+    bool writes = false;              // `PREFIX/DEVICE/PARAMETER/set` refused unless true
+    std::string client_id;            // empty: the broker gets "loopwire-" and the prefix
+};
+
 struct GatewayConfig {
     std::string source;  // the file it came from, for messages
     std::vector<LineConfig> lines;
     ModbusTcpConfig modbus_tcp;
     LogConfig log;
+    std::optional<MqttConfig> mqtt;  // absent [mqtt] table: no MQTT
 };
 
 // Whether `link` names the in-process virtual bus rather than a device file.

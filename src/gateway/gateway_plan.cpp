@@ -131,6 +131,12 @@ void describe_modbus_tcp(std::ostringstream& out, const ModbusTcpConfig& config)
     }
 }
 
+void describe_mqtt(std::ostringstream& out, const std::optional<MqttConfig>& config) {
+    if (!config) return;
+    out << fmt::format("MQTT: {} under {}/, writes {}\n", config->broker, config->prefix,
+                       config->writes ? "allowed" : "refused");
+}
+
 }  // namespace
 
 // What one poll asks for: the configured names, or the profile's default watch list.
@@ -146,6 +152,7 @@ std::string describe_plan(const GatewayConfig& config) {
     out << fmt::format("{}: {}\n", config.source, plural(config.lines.size(), "line", "lines"));
     for (const LineConfig& line : config.lines) describe_line(out, line);
     describe_modbus_tcp(out, config.modbus_tcp);
+    describe_mqtt(out, config.mqtt);
     return out.str();
 }
 

@@ -168,7 +168,7 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, speed, seed, devices)");
 
     const std::string top = error_of(one_device("device = \"tc10@3\"\n") + "[modbus]\nlisten = \"127.0.0.1:1502\"\n");
-    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: lines, modbus_tcp, log)");
+    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: lines, modbus_tcp, log, mqtt)");
 
     const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
     EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: listen, writes, enabled, max_age)");
@@ -505,6 +505,66 @@ TEST_F(GatewayConfigFile, MissingDirectoryAndOversizedFilesAreRefused) {
     auto large = load_gateway_config(huge, profiles());
     ASSERT_FALSE(large);
     EXPECT_THAT(large.error().message, HasSubstr("too large"));
+}
+
+// ---------------------------------------------------------------------------------------------
+// [mqtt]
+
+TEST(GatewayConfig, WithoutAnMqttTableThereIsNoMqtt) {
+    auto config = parse(one_device("device = \"tc10@3\"\n"));
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_FALSE(config->mqtt);
+}
+
+TEST(GatewayConfig, MqttSettingsAreRead) {
+    auto config = parse(one_device("device = \"tc10@3\"\n") +
+                        "[mqtt]\nbroker = \"mqtt://127.0.0.1:1884\"\nprefix = \"loopwire/plant1\"\nwrites = true\n"
+                        "client_id = \"gw1\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    ASSERT_TRUE(config->mqtt);
+    EXPECT_EQ(config->mqtt->broker, "mqtt://127.0.0.1:1884");
+    EXPECT_EQ(config->mqtt->host, "127.0.0.1");
+    EXPECT_EQ(config->mqtt->port, 1884);
+    EXPECT_EQ(config->mqtt->prefix, "loopwire/plant1");
+    EXPECT_TRUE(config->mqtt->writes);
+    EXPECT_EQ(config->mqtt->client_id, "gw1");
+    EXPECT_THAT(describe_plan(*config), HasSubstr("MQTT: mqtt://127.0.0.1:1884 under loopwire/plant1/, writes allowed"));
+}
+
+TEST(GatewayConfig, MqttDefaultsApplyToWhatIsLeftOut) {
+    auto config = parse(one_device("device = \"tc10@3\"\n") + "[mqtt]\nbroker = \"mqtt://broker.local\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    ASSERT_TRUE(config->mqtt);
+    EXPECT_EQ(config->mqtt->host, "broker.local");
+    EXPECT_EQ(config->mqtt->port, 1883);
+    EXPECT_EQ(config->mqtt->prefix, "loopwire/gateway");
+    EXPECT_FALSE(config->mqtt->writes);  // writes from MQTT are opt-in
+    EXPECT_EQ(config->mqtt->client_id, "");
+
+    auto ipv6 = parse(one_device("device = \"tc10@3\"\n") + "[mqtt]\nbroker = \"mqtt://[::1]:1883\"\n");
+    ASSERT_TRUE(ipv6) << ipv6.error().message;
+    EXPECT_EQ(ipv6->mqtt->host, "::1");
+}
+
+TEST(GatewayConfig, ABadBrokerNamesTheKeyAndTheForm) {
+    const std::string device = one_device("device = \"tc10@3\"\n");
+    EXPECT_THAT(error_of(device + "[mqtt]\nbroker = \"tcp://127.0.0.1:1883\"\n"),
+                StartsWith("plant.toml:9: mqtt.broker: \"tcp://127.0.0.1:1883\" is not a broker address (expected mqtt://"));
+    EXPECT_THAT(error_of(device + "[mqtt]\nbroker = \"mqtt://127.0.0.1:99999\"\n"), HasSubstr("is not a broker address"));
+    EXPECT_THAT(error_of(device + "[mqtt]\nbroker = \"mqtt://\"\n"), HasSubstr("is not a broker address"));
+    EXPECT_THAT(error_of(device + "[mqtt]\nbroker = \"mqtts://127.0.0.1:8883\"\n"),
+                StartsWith("plant.toml:9: mqtt.broker: \"mqtts://127.0.0.1:8883\": mqtts:// (MQTT over TLS) is not supported yet"));
+    EXPECT_THAT(error_of(device + "[mqtt]\nprefix = \"a\"\n"), StartsWith("plant.toml:8: mqtt: missing `broker`"));
+}
+
+TEST(GatewayConfig, ABadMqttPrefixOrAnUnknownMqttKeyIsRefused) {
+    const std::string device = one_device("device = \"tc10@3\"\n") + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\n";
+    EXPECT_THAT(error_of(device + "prefix = \"plant/#\"\n"), StartsWith("plant.toml:10: mqtt.prefix: \"plant/#\" is not a topic prefix"));
+    EXPECT_THAT(error_of(device + "prefix = \"plant//a\"\n"), HasSubstr("is not a topic prefix"));
+    EXPECT_THAT(error_of(device + "prefix = \"/plant\"\n"), HasSubstr("is not a topic prefix"));
+    EXPECT_THAT(error_of(device + "writes = \"yes\"\n"), StartsWith("plant.toml:10: mqtt.writes: expected true or false"));
+    EXPECT_THAT(error_of(device + "qos = 2\n"), StartsWith("plant.toml:10: mqtt.qos: unknown key (allowed here: broker, prefix, writes, client_id)"));
+    EXPECT_THAT(error_of("mqtt = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected an [mqtt] table"));
 }
 
 }  // namespace

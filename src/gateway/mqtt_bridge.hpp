@@ -1,0 +1,70 @@
+#pragma once
+// The gateway's MQTT front (docs/DESIGN.md, gateway): publishes what the polls read to a broker,
+// retained, and takes writes from it.
+//
+// Topics (PREFIX from [mqtt] prefix; DEVICE and PARAMETER are configured names, which the
+// configuration restricts to [A-Za-z0-9_-], so they are single topic levels that never need
+// escaping and never hold a wildcard):
+//   PREFIX/status                      "online"; "offline" on a clean stop and as the last will
+//   PREFIX/DEVICE/status               "online", "offline" (no reply) or "error" (partial)
+//   PREFIX/DEVICE/PARAMETER            the value in engineering units, or its status when none
+//   PREFIX/DEVICE/PARAMETER/meta       JSON: unit, writable, min/max, status, error
+//   PREFIX/DEVICE/PARAMETER/set        subscribed (QoS 1): a value to write; retained ones ignored
+//   PREFIX/DEVICE/PARAMETER/set/result {"ok":true,"value":"..."} or {"ok":false,"error":"..."}
+// All but set/result are retained.
+//
+// Threads: the value stream's callback (on the poll threads) only queues. One network thread
+// owns the libmosquitto client: it connects, reconnects with back-off, publishes what was queued,
+// and republishes every retained topic whenever a connection is made (the broker may have lost
+// them). Writes run on a worker thread of their own, through the device's line scheduler at
+// Priority::write, so a slow line never holds up the network thread.
+#include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "client/device_client.hpp"
+#include "gateway/forwarding_unit.hpp"
+#include "gateway/gateway_config.hpp"
+#include "gateway/line_scheduler.hpp"
+#include "gateway/value_cache.hpp"
+
+namespace loopwire::gateway {
+
+// A device the bridge may write to: its name, profile and unit, and the line it is on.
+struct MqttDevice {
+    std::string name;
+    device::DeviceAddress address;
+    std::shared_ptr<LineScheduler> line;
+};
+
+struct MqttTiming {
+    // Waits between attempts to reach the broker: doubling from the first to the last.
+    std::chrono::milliseconds reconnect_first{500};
+    std::chrono::milliseconds reconnect_last{10000};
+    // How long a write may wait for its line before it is given up.
+    std::chrono::milliseconds write_limit{10000};
+};
+
+class MqttBridge {
+public:
+    // Starts at once and never fails for want of a broker: it keeps trying in the background
+    // (logging each failure once until it connects), while the gateway's lines work on.
+    // Subscribes to `cache` for the values; the bridge must be destroyed before `devices`'
+    // schedulers stop.
+    MqttBridge(MqttConfig config, std::vector<MqttDevice> devices, ValueCache& cache, GatewayLog log,
+               MqttTiming timing = {});
+    // Publishes PREFIX/status "offline", disconnects cleanly, joins its threads.
+    ~MqttBridge();
+    MqttBridge(const MqttBridge&) = delete;
+    MqttBridge& operator=(const MqttBridge&) = delete;
+
+    // Whether the bridge is connected to the broker now.
+    bool connected() const;
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
+
+}  // namespace loopwire::gateway
