@@ -12,20 +12,14 @@
 
 #include "gateway/gateway.hpp"
 #include "session/master.hpp"
+#include "support/profile_test_support.hpp"
 
 namespace loopwire::gateway {
 namespace {
 
 using namespace std::chrono_literals;
 
-const device::ProfileRegistry& profiles() {
-    static const device::ProfileRegistry registry = [] {
-        auto built = device::ProfileRegistry::builtins();
-        if (!built) throw std::runtime_error(built.error().message);
-        return std::move(built).value();
-    }();
-    return registry;
-}
+const device::ProfileRegistry& profiles() { return device::testing::builtin_registry(); }
 
 // One TC10 simulated on a virtual line inside the gateway; no Modbus TCP front.
 const char* const simulated_plant = R"toml(

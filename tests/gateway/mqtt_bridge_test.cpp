@@ -26,6 +26,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gateway/gateway.hpp"
+#include "support/profile_test_support.hpp"
 
 extern char** environ;
 
@@ -40,14 +41,7 @@ constexpr const char* broker_program = "/usr/sbin/mosquitto";
 constexpr auto deadline = 30s;
 const std::string prefix = "test/plant1";
 
-const device::ProfileRegistry& profiles() {
-    static const device::ProfileRegistry registry = [] {
-        auto built = device::ProfileRegistry::builtins();
-        if (!built) throw std::runtime_error(built.error().message);
-        return std::move(built).value();
-    }();
-    return registry;
-}
+const device::ProfileRegistry& profiles() { return device::testing::builtin_registry(); }
 
 // A port nothing listens on now: bound to port 0 and let go. Another process could take it
 // before the broker does (a small race, accepted for a test; the broker would then fail to
