@@ -98,6 +98,9 @@ Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options
 
 }  // namespace
 
+// How long a write from a front (MQTT, HTTP) may wait for its line before it is given up.
+constexpr std::chrono::milliseconds write_limit{10000};
+
 struct Gateway::Parts {
     std::chrono::milliseconds statistics_interval{0};
     GatewayLog log;
@@ -108,7 +111,9 @@ struct Gateway::Parts {
     std::unique_ptr<PollGroups> polls;
     std::unique_ptr<transport::TcpListener> listener;
     std::unique_ptr<session::Slave> front;
-    // Last, so destroyed first: it subscribes to the cache and writes through the schedulers.
+    // Writes by name for the fronts below, through the lines' schedulers.
+    std::unique_ptr<DeviceWriter> writer;
+    // Last, so destroyed first: it subscribes to the cache and writes through the writer.
     std::unique_ptr<MqttBridge> mqtt;
 };
 
@@ -154,18 +159,17 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         slave_options.unserved_unit_exception = gateway_path_unavailable;
         parts->front = std::make_unique<session::Slave>(*link, std::move(units), slave_options);
     }
-    if (config.mqtt) {
-        // The Gateway builds the bridge rather than handing its line schedulers out: the
-        // schedulers stay the Gateway's own, and the bridge goes before them (Parts, last).
-        // Started here, not in serve(): it needs nothing from the TCP front, and a broker
-        // that cannot be reached is retried in the background, never an error.
-        std::vector<MqttDevice> devices;
-        for (std::size_t i = 0; i < config.lines.size(); ++i) {
-            for (const auto& device : config.lines[i].devices) {
-                devices.push_back({device.name, device.address, parts->lines[i].scheduler});
-            }
+    std::vector<WritableDevice> writable;
+    for (std::size_t i = 0; i < config.lines.size(); ++i) {
+        for (const auto& device : config.lines[i].devices) {
+            writable.push_back({device.name, device.address, parts->lines[i].scheduler});
         }
-        parts->mqtt = std::make_unique<MqttBridge>(*config.mqtt, std::move(devices), parts->cache, options.log);
+    }
+    parts->writer = std::make_unique<DeviceWriter>(std::move(writable), write_limit);
+    if (config.mqtt) {
+        // Started here, not in serve(): it needs nothing from the TCP front, and a broker that
+        // cannot be reached is retried in the background, never an error.
+        parts->mqtt = std::make_unique<MqttBridge>(*config.mqtt, *parts->writer, parts->cache, options.log);
     }
     return std::unique_ptr<Gateway>(new Gateway(std::move(parts)));
 }

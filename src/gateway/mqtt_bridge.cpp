@@ -18,7 +18,6 @@
 #include <mosquitto.h>
 #include <nlohmann/json.hpp>
 
-#include "gateway/scheduled_master.hpp"
 
 namespace loopwire::gateway {
 namespace {
@@ -68,18 +67,13 @@ struct WriteCommand {
     std::string text;
 };
 
-struct WritableDevice {
-    MqttDevice device;
-    std::unique_ptr<ScheduledMaster> master;  // at Priority::write on the device's line
-};
-
 }  // namespace
 
 struct MqttBridge::State {
     MqttConfig config;
     MqttTiming timing;
     GatewayLog log;
-    std::map<std::string, WritableDevice> devices;
+    const DeviceWriter* writer = nullptr;
 
     mosquitto* client = nullptr;
     std::atomic<bool> is_connected{false};
@@ -121,8 +115,8 @@ struct MqttBridge::State {
         }
         const std::string base = topic(change.device, change.parameter);
         nlohmann::json meta{{"unit", change.unit}, {"status", change.status}, {"error", change.error}};
-        if (const auto found = devices.find(change.device); found != devices.end()) {
-            if (const device::Parameter* parameter = found->second.device.address.profile->find(change.parameter)) {
+        if (const WritableDevice* device = writer->find(change.device)) {
+            if (const device::Parameter* parameter = device->address.profile->find(change.parameter)) {
                 meta["writable"] = parameter->writable;
                 if (parameter->min) meta["min"] = bound_json(*parameter->min);
                 if (parameter->max) meta["max"] = bound_json(*parameter->max);
@@ -257,26 +251,13 @@ struct MqttBridge::State {
 
     // --- the worker thread ----------------------------------------------------------------------
 
-    std::string refuse(const WriteCommand& command) const {
-        if (!config.writes) return "writes are off ([mqtt] writes = false)";
-        const auto found = devices.find(command.device);
-        if (found == devices.end()) return fmt::format("no device \"{}\" on this gateway", command.device);
-        if (!found->second.device.address.profile->find(command.parameter)) {
-            return fmt::format("device \"{}\" has no parameter \"{}\"", command.device, command.parameter);
-        }
-        if (command.text.empty()) return "no value given";
-        return {};
-    }
-
     void execute(const WriteCommand& command) {
         nlohmann::json result;
-        std::string error = refuse(command);
-        if (error.empty()) {
-            WritableDevice& target = devices.at(command.device);
-            device::DeviceClient device_client(*target.master, target.device.address);
-            const device::Parameter* parameter = target.device.address.profile->find(command.parameter);
-            auto written = device_client.write({{parameter, command.text}});
-            if (!written) error = device_client.explain(written.error()).message;
+        std::string error;
+        if (!config.writes) {
+            error = "writes are off ([mqtt] writes = false)";
+        } else if (auto written = writer->write(command.device, {{command.parameter, command.text}}); !written) {
+            error = written.error().message;
         }
         if (error.empty()) {
             result = {{"ok", true}, {"value", command.text}};
@@ -303,20 +284,14 @@ struct MqttBridge::State {
     }
 };
 
-MqttBridge::MqttBridge(MqttConfig config, std::vector<MqttDevice> devices, ValueCache& cache, GatewayLog log,
-                       MqttTiming timing)
+MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache& cache, GatewayLog log, MqttTiming timing)
     : state_(std::make_unique<State>()) {
     init_library_once();
     State& s = *state_;
     s.config = std::move(config);
     s.timing = timing;
     s.log = std::move(log);
-    for (auto& device : devices) {
-        assert(topic_level(device.name));
-        auto master = std::make_unique<ScheduledMaster>(device.line, "mqtt " + device.name, Priority::write, timing.write_limit);
-        const std::string name = device.name;
-        s.devices.emplace(name, WritableDevice{std::move(device), std::move(master)});
-    }
+    s.writer = &writer;
     const std::string id = s.config.client_id.empty() ? "loopwire-" + s.config.prefix : s.config.client_id;
     s.client = mosquitto_new(id.c_str(), true, &s);
     if (!s.client) throw std::bad_alloc();

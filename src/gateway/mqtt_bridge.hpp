@@ -16,44 +16,33 @@
 // Threads: the value stream's callback (on the poll threads) only queues. One network thread
 // owns the libmosquitto client: it connects, reconnects with back-off, publishes what was queued,
 // and republishes every retained topic whenever a connection is made (the broker may have lost
-// them). Writes run on a worker thread of their own, through the device's line scheduler at
-// Priority::write, so a slow line never holds up the network thread.
+// them). Writes run on a worker thread of their own, through the gateway's DeviceWriter, so a
+// slow line never holds up the network thread.
 #include <chrono>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "client/device_client.hpp"
+#include "gateway/device_writer.hpp"
 #include "gateway/forwarding_unit.hpp"
 #include "gateway/gateway_config.hpp"
-#include "gateway/line_scheduler.hpp"
 #include "gateway/value_cache.hpp"
 
 namespace loopwire::gateway {
-
-// A device the bridge may write to: its name, profile and unit, and the line it is on.
-struct MqttDevice {
-    std::string name;
-    device::DeviceAddress address;
-    std::shared_ptr<LineScheduler> line;
-};
 
 struct MqttTiming {
     // Waits between attempts to reach the broker: doubling from the first to the last.
     std::chrono::milliseconds reconnect_first{500};
     std::chrono::milliseconds reconnect_last{10000};
-    // How long a write may wait for its line before it is given up.
-    std::chrono::milliseconds write_limit{10000};
 };
 
 class MqttBridge {
 public:
     // Starts at once and never fails for want of a broker: it keeps trying in the background
     // (logging each failure once until it connects), while the gateway's lines work on.
-    // Subscribes to `cache` for the values; the bridge must be destroyed before `devices`'
-    // schedulers stop.
-    MqttBridge(MqttConfig config, std::vector<MqttDevice> devices, ValueCache& cache, GatewayLog log,
-               MqttTiming timing = {});
+    // Subscribes to `cache` for the values and writes through `writer` (its devices are the
+    // ones the bridge knows); both must outlive the bridge.
+    MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache& cache, GatewayLog log, MqttTiming timing = {});
     // Publishes PREFIX/status "offline", disconnects cleanly, joins its threads.
     ~MqttBridge();
     MqttBridge(const MqttBridge&) = delete;
