@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include "app/exit_codes.hpp"
+#include "app/json_errors.hpp"
 
 namespace loopwire::app {
 
@@ -29,6 +30,10 @@ session::TraceSink stderr_trace() {
 
 int report_error(const Error& error) {
     fmt::print(stderr, "loopwire: error: {}\n", error.message);
+    if (json_errors_on()) {
+        fmt::print("{}\n", error_json(error).dump());
+        std::fflush(stdout);
+    }
     return exit_code_for(error);
 }
 

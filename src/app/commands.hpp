@@ -19,5 +19,6 @@ void add_restore_command(CLI::App& app, int& exit_code, const ProfileOptions& pr
 void add_monitor_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
 void add_dump_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
 void add_gateway_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
+void add_help_command(CLI::App& app, int& exit_code);  // help [COMMAND]: add it last, it lists the others
 
 }  // namespace loopwire::app

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "app/command_line.hpp"
+#include "app/json_errors.hpp"
 #include "app/exit_codes.hpp"
 #include "profile/value_format.hpp"
 #include "client/device_client.hpp"
@@ -33,6 +34,10 @@ void print_readings(const MasterCommandOptions& options, const device::DeviceAdd
                                                             : nlohmann::ordered_json{{"value", nullptr}, {"raw", nullptr}, {"unit", reading.parameter->unit}, {"status", "error"}, {"error", reading.error}};
         }
         nlohmann::ordered_json out{{"unit", device.unit}, {"device", device.profile->id}, {"values", values}};
+        if (report.first_error) {  // the one JSON document says it failed, as error_json would
+            out["error"] = error_json(*report.first_error)["error"];
+            out["kind"] = error_json(*report.first_error)["kind"];
+        }
         fmt::print("{}\n", out.dump());
         return;
     }
@@ -61,7 +66,10 @@ int run_device_read(const device::ProfileRegistry& profiles, const MasterCommand
     device::DeviceClient client(*connected->master, connected->device);
     const auto report = client.read(*parameters);
     print_readings(options, connected->device, report);
-    if (report.first_error) return report_error(*report.first_error);
+    if (report.first_error) {
+        const JsonErrors already_in_the_output(false);
+        return report_error(*report.first_error);
+    }
     return exit_ok;
 }
 

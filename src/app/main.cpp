@@ -1,9 +1,11 @@
 // loopwire: read, write, simulate and explain Modbus traffic of process controllers.
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 #include <loopwire/version.hpp>
 
+#include "app/argument_order.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
 
@@ -12,7 +14,8 @@ int main(int argc, char** argv) {
     CLI::App app{"loopwire: talk to, simulate and bridge process controllers over Modbus RTU, ASCII, TCP and Linking"};
     app.set_version_flag("--version", "loopwire " + std::string(loopwire::version()));
     app.require_subcommand(1);
-    app.footer(exit_code_help);
+    app.footer(std::string("Options may come before or after the command's name: `loopwire -v read ...` is `loopwire read -v ...`. "
+                           "`loopwire help COMMAND` shows a command's options.\n\n") + exit_code_help);
     int exit_code = exit_ok;
     // Before the subcommands, which inherit the fallthrough that lets --profile follow them.
     ProfileOptions profiles;
@@ -28,8 +31,14 @@ int main(int argc, char** argv) {
     add_monitor_command(app, exit_code, profiles);
     add_dump_command(app, exit_code, profiles);
     add_gateway_command(app, exit_code, profiles);
+    add_help_command(app, exit_code);
     try {
-        app.parse(argc, argv);
+        // Options may also precede the command's name (`loopwire -v read ...`).
+        std::vector<std::string> arguments(argv + 1, argv + argc);
+        arguments = options_after_command(app, arguments);
+        std::vector<char*> reordered{argv[0]};
+        for (auto& argument : arguments) reordered.push_back(argument.data());
+        app.parse(static_cast<int>(reordered.size()), reordered.data());
     } catch (const CLI::ParseError& error) {
         const int printed = app.exit(error);
         return printed == 0 ? exit_ok : exit_usage;

@@ -7,6 +7,7 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "app/json_errors.hpp"
 #include "app/device_read_write.hpp"
 #include "app/master_options.hpp"
 
@@ -123,7 +124,10 @@ void add_read_command(CLI::App& app, int& exit_code, const ProfileOptions& profi
                         "TABLE ADDRESS [COUNT]: holding|input|coils|discrete, first 0-based wire address (decimal, 0x.. or ..h), "
                         "how many (split into several requests where needed). With --device: parameter names, mnemonics, groups or all");
     command->footer(exit_code_help);
-    command->callback([options, &exit_code, &profiles] { exit_code = run_read(*options, profiles); });
+    command->callback([options, &exit_code, &profiles] {
+        const JsonErrors json_errors(options->master.json);
+        exit_code = run_read(*options, profiles);
+    });
 }
 
 }  // namespace loopwire::app

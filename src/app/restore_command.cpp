@@ -8,6 +8,7 @@
 
 #include <cstdio>
 #include <iostream>
+#include <string_view>
 
 #include <fmt/format.h>
 
@@ -87,6 +88,17 @@ Result<device::RawValues> read_current(device::DeviceClient& client, const devic
     return report.raw;
 }
 
+std::string counted(std::size_t count, std::string_view one, std::string_view many) {
+    return fmt::format("{} {}", count, count == 1 ? one : many);
+}
+
+// Which side is which, so "25.0 -> 30.0" cannot be read backwards: the device's present value
+// on the left, the file's (what a restore writes) on the right.
+std::string differences_title(std::size_t count, const std::string& device, const std::string& file) {
+    return fmt::format("{} between the device {} and the file {} (device now -> file, what restore writes):",
+                       counted(count, "difference", "differences"), device, file);
+}
+
 void print_differences(const device::RestorePlan& plan, const device::RawValues& current, const device::RawValues& saved) {
     if (plan.changes.empty()) fmt::print("the device already holds every value of the dump\n");
     for (const auto& change : plan.changes) {
@@ -101,7 +113,7 @@ Result<void> confirm(const RestoreCommandOptions& options, std::size_t changes) 
     if (!::isatty(STDIN_FILENO)) {
         return make_error(ErrorKind::usage, "not asking on a pipe: add --yes to write, or --dry-run to only show the differences");
     }
-    fmt::print("write {} change(s) to {}? [y/N] ", changes, options.master.device);
+    fmt::print("write {} to {}? [y/N] ", counted(changes, "change", "changes"), options.master.device);
     std::fflush(stdout);
     std::string answer;
     std::getline(std::cin, answer);
@@ -133,7 +145,7 @@ int run_restore(const RestoreCommandOptions& options, const ProfileOptions& prof
     auto plan = device::plan_restore(*device->profile, dump->values, *current, restore_options,
                                      device::models::restore_procedure_for(*device->profile));
     if (!plan) return report_error(plan.error());
-    fmt::print("{} differences between {} and {}:\n", plan->changes.size(), options.file, options.master.device);
+    fmt::print("{}\n", differences_title(plan->changes.size(), options.master.device, options.file));
     print_differences(*plan, *current, dump->values);
     if (options.dry_run || plan->changes.empty()) {
         if (options.dry_run) fmt::print("dry run: nothing written\n");
@@ -145,7 +157,7 @@ int run_restore(const RestoreCommandOptions& options, const ProfileOptions& prof
         device::print_restore_failure(outcome, stderr);
         return exit_code_for(*outcome.error);
     }
-    fmt::print("restored {} parameter(s); every value read back as written\n", plan->changes.size());
+    fmt::print("restored {}; every value read back as written\n", counted(plan->changes.size(), "parameter", "parameters"));
     return exit_ok;
 }
 

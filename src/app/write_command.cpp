@@ -9,6 +9,7 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "app/json_errors.hpp"
 #include "app/device_read_write.hpp"
 #include "app/master_options.hpp"
 
@@ -127,7 +128,10 @@ void add_write_command(CLI::App& app, int& exit_code, const ProfileOptions& prof
                         "-32768..-1, decimal, 0x.. or ..h; coils 0/1/on/off). With --device: NAME=VALUE in engineering units or enum labels");
     command->add_flag("--multiple", options->multiple, "Use function 16/15 even for a single value");
     command->footer(exit_code_help);
-    command->callback([options, &exit_code, &profiles] { exit_code = run_write(*options, profiles); });
+    command->callback([options, &exit_code, &profiles] {
+        const JsonErrors json_errors(options->master.json);
+        exit_code = run_write(*options, profiles);
+    });
 }
 
 }  // namespace loopwire::app

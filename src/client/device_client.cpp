@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include "codec/pdu.hpp"
 #include "common/text_parsing.hpp"
 
 namespace loopwire::device {
@@ -91,6 +92,12 @@ Error DeviceClient::explain(Error error) const {
     if (error.kind != ErrorKind::exception) return error;
     auto it = device_.profile->exception_names.find(static_cast<std::uint8_t>(error.code));
     if (it != device_.profile->exception_names.end()) {
+        // A device may give a standard code its own meaning (the AC20's 10, "cannot be
+        // modified", is the standard's "gateway path unavailable"): its manual's word wins.
+        if (const auto standard = codec::exception_name(static_cast<std::uint8_t>(error.code))) {
+            const std::string shown = " (" + *standard + ")";
+            if (const auto at = error.message.find(shown); at != std::string::npos) error.message.erase(at, shown.size());
+        }
         error.message += fmt::format(" — {} manual: {}", device_.profile->id, it->second);
     }
     return error;

@@ -451,6 +451,8 @@ std::string function_name(std::uint8_t function) {
     }
 }
 
+// Modbus application protocol V1.1b3, 7 "MODBUS Exception Responses": every code the
+// specification defines; others are device-specific (profiles name them).
 std::optional<std::string> exception_name(std::uint8_t code) {
     switch (code) {
         case 1: return "illegal function";
@@ -459,6 +461,9 @@ std::optional<std::string> exception_name(std::uint8_t code) {
         case 4: return "server device failure";
         case 5: return "acknowledge";
         case 6: return "server device busy";
+        case 8: return "memory parity error";
+        case 0x0A: return "gateway path unavailable";
+        case 0x0B: return "gateway target device failed to respond";
         default: return std::nullopt;
     }
 }

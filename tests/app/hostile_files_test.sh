@@ -61,7 +61,7 @@ restore_refuses restore-raw-fraction 'd["parameters"]["set_point"]["raw"] = [1.5
 restore_refuses restore-raw-two-words 'd["parameters"]["set_point"]["raw"] = [1, 2]' 'parameter set_point: expected one raw word, an integer 0..65535 in a list like [150], found 2 words'
 restore_refuses restore-raw-none-but-ok 'd["parameters"]["set_point"]["raw"] = []' 'only an "unread" parameter has none'
 restore_refuses restore-identification-string 'd["identification"] = {k: str(v) for k, v in d["identification"].items()}' 'at /identification/'
-check restore-good-dump-still-reads 0 "differences between" "$loopwire" restore --link "$link" --device tc10@3 "$WORK_DIR/good.json" --dry-run
+check restore-good-dump-still-reads 0 "between the device" "$loopwire" restore --link "$link" --device tc10@3 "$WORK_DIR/good.json" --dry-run
 
 state_refuses() {  # name, file text, expected text
   printf '%s' "$2" >"$WORK_DIR/bad-state.json"
@@ -130,6 +130,6 @@ sp = p["main_set_point"]
 assert sp["status"] == "undecodable" and len(sp["raw"]) == 1 and sp["value"] is None and "primary_variable_decimals" in sp["error"], sp
 assert p["primary_variable_decimals"]["raw"] == [65535], p["primary_variable_decimals"]
 ' "$WORK_DIR/ac20.json"
-check restore-reads-undecodable-dump 0 "differences between" "$loopwire" restore --link "$link" --device ac20@1 "$WORK_DIR/ac20.json" --dry-run
+check restore-reads-undecodable-dump 0 "between the device" "$loopwire" restore --link "$link" --device ac20@1 "$WORK_DIR/ac20.json" --dry-run
 
 finish

@@ -76,6 +76,11 @@ TEST(PduNames, FunctionNamesAndUnknownCodes) {
 TEST(PduNames, ExceptionNamesOnlyForStandardCodes) {
     EXPECT_EQ(exception_name(2), "illegal data address");
     EXPECT_EQ(exception_name(6), "server device busy");
+    EXPECT_EQ(exception_name(8), "memory parity error");
+    EXPECT_EQ(exception_name(0x0A), "gateway path unavailable");
+    EXPECT_EQ(exception_name(0x0B), "gateway target device failed to respond");
+    EXPECT_EQ(describe_exception(0x0B), "11 (gateway target device failed to respond)");
+    EXPECT_EQ(exception_name(7), std::nullopt);  // not defined by the specification
     EXPECT_EQ(exception_name(101), std::nullopt);  // AC20 device-specific code
     EXPECT_EQ(describe_exception(2), "2 (illegal data address)");
     EXPECT_EQ(describe_exception(101), "101");
