@@ -13,7 +13,10 @@
 
 namespace loopwire::app {
 
-// Prints each traced frame to stderr: "12:03:04.123456 TX 01 03 ...  note".
+// One traced frame as a line (no newline): "12:03:04.123456 TX 01 03 ...  note".
+std::string trace_line(const session::TraceEvent& event);
+
+// Prints each traced frame to stderr as trace_line does.
 session::TraceSink stderr_trace();
 
 // "loopwire: error: <message>" on stderr; returns the exit code for the error.

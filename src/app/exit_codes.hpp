@@ -12,6 +12,7 @@ enum ExitCode : int {
     exit_timeout = 4,         // no reply
     exit_exception = 5,       // the device answered with a Modbus exception
     exit_bad_reply = 6,       // a reply that is malformed or does not answer the request
+    exit_interrupted = 130,   // scan stopped by Ctrl-C (128 + SIGINT, as shells report it); what it found is printed
 };
 
 inline int exit_code_for(const Error& error) {
@@ -34,6 +35,7 @@ inline constexpr const char* exit_code_help =
     "  3  link error: the port or connection cannot be opened, or failed\n"
     "  4  timeout: the device did not answer\n"
     "  5  the device answered with a Modbus exception (code and name printed)\n"
-    "  6  a reply that is malformed or does not answer the request\n";
+    "  6  a reply that is malformed or does not answer the request\n"
+    "  130  scan interrupted by Ctrl-C (the units found so far are printed)\n";
 
 }  // namespace loopwire::app

@@ -19,7 +19,7 @@ void MasterCommandOptions::add_to(CLI::App& command, bool with_device) {
     command.add_flag("--json", json, "Print the result as JSON");
 }
 
-Result<std::unique_ptr<session::Master>> MasterCommandOptions::open() const {
+Result<std::unique_ptr<session::Master>> MasterCommandOptions::open(session::TraceSink trace) const {
     auto url = transport::parse_link_url(link);
     if (!url) return url.error();
     auto wait = parse_duration(timeout, "--timeout", std::chrono::milliseconds(1));
@@ -27,7 +27,7 @@ Result<std::unique_ptr<session::Master>> MasterCommandOptions::open() const {
     session::MasterOptions options;
     options.timeout = std::chrono::ceil<std::chrono::milliseconds>(*wait);  // 1.5ms waits 2ms, never less than asked
     options.retries = retries;
-    if (verbose) options.trace = stderr_trace();
+    if (verbose) options.trace = trace ? std::move(trace) : stderr_trace();
     return session::open_master(*url, std::move(options));
 }
 

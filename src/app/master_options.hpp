@@ -22,8 +22,9 @@ struct MasterCommandOptions {
 
     // `with_device`: also --device DEVICE@UNIT and --numbering (named read/write).
     void add_to(CLI::App& command, bool with_device = false);
-    // Parses the link URL and the durations, opens the link and builds the master.
-    Result<std::unique_ptr<session::Master>> open() const;
+    // Parses the link URL and the durations, opens the link and builds the master. With -v,
+    // frames are traced to `trace`, or to stderr when it is empty.
+    Result<std::unique_ptr<session::Master>> open(session::TraceSink trace = {}) const;
 };
 
 }  // namespace loopwire::app

@@ -1,5 +1,6 @@
 // loopwire monitor --link URL --device DEVICE@UNIT [--device ...] [NAMES...] [--interval 1s]
-//                  [--format table|csv|jsonl] [--count N] [--output FILE]
+//                  [--format table|csv|jsonl] [--count N] [--output FILE [--append] [--rotate-size 10MB]
+//                  [--rotate daily]] [--utc]
 #include <unistd.h>
 
 #include <cerrno>
@@ -10,7 +11,9 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "app/monitor_file.hpp"
 #include "app/monitor_output.hpp"
+#include "app/monitor_screen.hpp"
 #include "app/master_options.hpp"
 #include "client/monitor_loop.hpp"
 #include "client/monitor_names.hpp"
@@ -27,15 +30,43 @@ struct MonitorOptions {
     std::string format;  // empty: table on a terminal, jsonl otherwise
     unsigned count = 0;  // 0: until stopped
     std::string output;
+    bool append = false;
+    std::string rotate_size;
+    std::string rotate;
+    bool utc = false;
 };
 
 Result<MonitorFormat> choose_format(const MonitorOptions& options) {
     const bool terminal = options.output.empty() && ::isatty(STDOUT_FILENO) == 1;
-    auto format = monitor_format(options.format, terminal);
-    if (format && *format == MonitorFormat::table && !options.output.empty()) {
-        return make_error(ErrorKind::usage, "the table redraws a terminal; write files as --format csv or jsonl");
+    return choose_monitor_format(options.format, options.output, terminal);
+}
+
+TimeStyle time_style(const MonitorOptions& options) { return options.utc ? TimeStyle::utc : TimeStyle::local; }
+
+Result<MonitorFileOptions> file_options(const MonitorOptions& options) {
+    if (options.output.empty() && (options.append || !options.rotate_size.empty() || !options.rotate.empty())) {
+        return make_error(ErrorKind::usage, "--append, --rotate-size and --rotate apply to a log file: add --output FILE");
     }
-    return format;
+    MonitorFileOptions file{options.output, options.append, std::nullopt, false, time_style(options)};
+    if (!options.rotate_size.empty()) {
+        auto size = parse_byte_size(options.rotate_size, "--rotate-size");
+        if (!size) return size.error();
+        file.rotate_size = *size;
+    }
+    if (!options.rotate.empty() && options.rotate != "daily") {
+        return make_error(ErrorKind::usage, fmt::format("--rotate '{}': the one period is daily (or use --rotate-size)", options.rotate));
+    }
+    file.rotate_daily = options.rotate == "daily";
+    return file;
+}
+
+// The columns the CSV of these devices has, known before the first sample (--append checks them).
+std::string planned_csv_header(const std::vector<device::DeviceAddress>& devices, const std::vector<std::vector<const device::Parameter*>>& lists) {
+    std::vector<device::WatchedDevice> watched;
+    for (std::size_t i = 0; i < devices.size(); ++i) {
+        watched.push_back(device::watch(fmt::format("{}@{}", devices[i].profile->id, devices[i].unit), lists[i]));
+    }
+    return csv_header(watched);
 }
 
 Result<device::MonitorSettings> settings_of(const MonitorOptions& options) {
@@ -61,33 +92,40 @@ Result<std::vector<device::DeviceAddress>> parse_devices(const device::ProfileRe
     return devices;
 }
 
-struct FileCloser {
-    void operator()(std::FILE* file) const { std::fclose(file); }
-};
-
 int run_monitor_command(const MonitorOptions& options, const ProfileOptions& profiles) {
     auto settings = settings_of(options);
     if (!settings) return report_error(settings.error());
     auto format = choose_format(options);
     if (!format) return report_error(format.error());
+    auto file_settings = file_options(options);
+    if (!file_settings) return report_error(file_settings.error());
     auto registry = profiles.load();
     if (!registry) return report_error(registry.error());
     auto devices = parse_devices(*registry, options.devices);
     if (!devices) return report_error(devices.error());
     auto lists = device::watch_lists(*devices, options.names);
     if (!lists) return report_error(lists.error());
-    std::unique_ptr<std::FILE, FileCloser> file;
+    std::unique_ptr<device::SampleSink> sink;
     if (!options.output.empty()) {
-        file.reset(std::fopen(options.output.c_str(), "w"));
-        if (!file) return report_error(make_error(ErrorKind::usage, fmt::format("cannot write {}: {}", options.output, std::strerror(errno))));
+        auto file = FileSampleSink::open(*file_settings, *format, *format == MonitorFormat::csv ? planned_csv_header(*devices, *lists) : "");
+        if (!file) return report_error(file.error());
+        sink = std::move(*file);
+    } else if (*format != MonitorFormat::table) {
+        sink = std::make_unique<StreamSampleSink>(stdout, *format, time_style(options));
+    }
+    std::unique_ptr<TableScreen> screen;
+    session::TraceSink trace;
+    if (!sink) {  // the live table on stdout's terminal; -v traces above it when stderr is a terminal too
+        screen = std::make_unique<TableScreen>(stdout);
+        sink = std::make_unique<TerminalTableSink>(*screen, STDOUT_FILENO, time_style(options));
+        if (::isatty(STDERR_FILENO) == 1) trace = screen->trace_sink();
     }
     StopSignal stop;  // before the master's threads start, so they inherit the blocked signals
-    auto master = options.master.open();
+    auto master = options.master.open(trace);
     if (!master) return report_error(master.error());
     std::vector<device::MonitorTarget> targets;
     for (std::size_t i = 0; i < devices->size(); ++i) targets.push_back(device::MonitorTarget{master->get(), (*devices)[i], (*lists)[i]});
-    StreamSampleSink sink(file ? file.get() : stdout, *format);
-    device::run_monitor(targets, *settings, sink, stop.token());
+    device::run_monitor(targets, *settings, *sink, stop.token());
     return exit_ok;
 }
 
@@ -107,13 +145,19 @@ void add_monitor_command(CLI::App& app, int& exit_code, const ProfileOptions& pr
                         "process value, set point, output, alarm/status");
     command->add_option("--interval", options->interval, "Time between samples: 500ms, 2s, ...")->capture_default_str();
     command->add_option("--format", options->format,
-                        "table (live, redrawn in place), csv or jsonl (one line per sample, ISO 8601 UTC time). "
-                        "Default: table when stdout is a terminal, jsonl otherwise");
+                        "table (live, redrawn in place), csv or jsonl (one line per sample, ISO 8601 time). "
+                        "Default: from --output's extension (.csv, .jsonl, .ndjson); else table when stdout is a terminal, jsonl otherwise");
     command->add_option("--count", options->count, "Stop after N samples (default: until Ctrl-C)");
-    command->add_option("--output", options->output, "Write samples to FILE (csv or jsonl) instead of stdout");
+    command->add_option("--output", options->output, "Write samples to FILE (csv or jsonl, chosen by its extension) instead of stdout; it is replaced unless --append");
+    command->add_flag("--append", options->append, "Add to FILE instead of replacing it (a CSV file must have the same columns; its header is kept)");
+    command->add_option("--rotate-size", options->rotate_size, "Start a new FILE before it would pass this size (10MB, 500kB, 1GiB); the full one is renamed FILE-STEM.DATE-TIME.EXT");
+    command->add_option("--rotate", options->rotate, "daily: start a new FILE on each new day; the finished one is renamed FILE-STEM.DATE.EXT");
+    command->add_flag("--utc", options->utc, "Write times in UTC (...Z) instead of local time with its offset (...+01:00)");
     command->add_option("--timeout", options->master.timeout, "Time to wait for each reply")->capture_default_str();
     command->add_option("--retries", options->master.retries, "Extra tries after a timeout")->capture_default_str();
-    command->add_flag("-v,--verbose", options->master.verbose, "Print every frame sent and received, with timestamps, on stderr");
+    command->add_flag("-v,--verbose", options->master.verbose,
+                      "Print every frame sent and received, with timestamps, on stderr (above the table, which is redrawn "
+                      "under them, when both are on the terminal)");
     command->footer(std::string("A unit that stops answering shows status no-reply (then waiting) and is retried after one "
                                 "interval, doubling up to 30s; values not read in a sample are shown with their age, "
                                 "never as current.\n") + exit_code_help);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <variant>
 
 #include <fmt/format.h>
 
@@ -36,6 +37,12 @@ std::string csv_field(const std::string& text) {
     return quoted + "\"";
 }
 
+// A value in a special state is logged by the state's name: a number would pass for a reading.
+std::string csv_value(const device::Parameter& parameter, const device::EngineeringValue& value) {
+    if (std::holds_alternative<std::monostate>(value.value) && value.status != "ok") return value.status;
+    return device::value_text(parameter, value);
+}
+
 std::string age_text(const device::WatchedValue& value, device::MonitorClock::time_point now) {
     const auto age = device::age_seconds(value, now);
     if (!age) return "never";
@@ -58,7 +65,7 @@ std::string device_line(const device::WatchedDevice& device, device::MonitorCloc
 
 }  // namespace
 
-nlohmann::ordered_json sample_json(const device::SampleView& sample) {
+nlohmann::ordered_json sample_json(const device::SampleView& sample, TimeStyle time) {
     nlohmann::ordered_json devices = nlohmann::ordered_json::object();
     for (const auto& device : *sample.devices) {
         nlohmann::ordered_json values = nlohmann::ordered_json::object();
@@ -68,7 +75,7 @@ nlohmann::ordered_json sample_json(const device::SampleView& sample) {
         if (const auto retry = retry_in(device, sample.now)) devices[device.label]["retry_in"] = *retry;
         devices[device.label]["values"] = values;
     }
-    return {{"time", iso8601_utc(sample.time)}, {"sample", sample.index}, {"devices", devices}};
+    return {{"time", iso8601(sample.time, time == TimeStyle::utc)}, {"sample", sample.index}, {"devices", devices}};
 }
 
 std::string csv_header(const std::vector<device::WatchedDevice>& devices) {
@@ -76,27 +83,30 @@ std::string csv_header(const std::vector<device::WatchedDevice>& devices) {
     for (const auto& device : devices) {
         columns.push_back(csv_field(device.label + " status"));
         columns.push_back(csv_field(device.label + " errors"));
-        for (const auto& value : device.values) columns.push_back(csv_field(device.label + ":" + value.parameter->name));
+        for (const auto& value : device.values) {
+            const auto& unit = value.parameter->unit;
+            columns.push_back(csv_field(device.label + ":" + value.parameter->name + (unit.empty() ? "" : " [" + unit + "]")));
+        }
     }
     return fmt::format("{}\n", fmt::join(columns, ","));
 }
 
-std::string csv_row(const device::SampleView& sample) {
-    std::vector<std::string> fields{iso8601_utc(sample.time), std::to_string(sample.index)};
+std::string csv_row(const device::SampleView& sample, TimeStyle time) {
+    std::vector<std::string> fields{iso8601(sample.time, time == TimeStyle::utc), std::to_string(sample.index)};
     for (const auto& device : *sample.devices) {
         fields.push_back(device.status);
         fields.push_back(std::to_string(device.errors));
         for (const auto& value : device.values) {
-            fields.push_back(value.fresh ? csv_field(device::value_text(*value.parameter, *value.last)) : "");
+            fields.push_back(value.fresh ? csv_field(csv_value(*value.parameter, *value.last)) : "");
         }
     }
     return fmt::format("{}\n", fmt::join(fields, ","));
 }
 
-std::vector<std::string> table_lines(const device::SampleView& sample) {
+std::vector<std::string> table_lines(const device::SampleView& sample, TimeStyle time, std::size_t name_width) {
     std::vector<std::string> lines;
-    lines.push_back(fmt::format("loopwire monitor  {}  sample {}  (Ctrl-C to stop)", iso8601_utc(sample.time), sample.index));
-    lines.push_back(fmt::format("  {:<34} {:>14} {:<6} {:<14} {:>8}", "PARAMETER", "VALUE", "UNIT", "STATUS", "AGE"));
+    lines.push_back(fmt::format("loopwire monitor  {}  sample {}  (Ctrl-C to stop)", iso8601(sample.time, time == TimeStyle::utc), sample.index));
+    lines.push_back(fmt::format("  {:<{}} {:>14} {:<6} {:<14} {:>8}", "PARAMETER", name_width, "VALUE", "UNIT", "STATUS", "AGE"));
     for (const auto& device : *sample.devices) {
         lines.push_back(device_line(device, sample.now));
         for (const auto& value : device.values) {
@@ -105,7 +115,8 @@ std::vector<std::string> table_lines(const device::SampleView& sample) {
             // Bold for a value that just changed; dim for one not read this sample (its status
             // and age say why), so an old value never passes for a current one.
             const char* style = value.changed ? "\x1b[1m" : value.fresh ? "" : "\x1b[2m";
-            lines.push_back(fmt::format("  {:<34} {}{:>14}\x1b[0m {:<6} {:<14} {:>8}", p.name, style, text, p.unit,
+            const std::string name = p.name.size() > name_width ? p.name.substr(0, name_width - 1) + "~" : p.name;
+            lines.push_back(fmt::format("  {:<{}} {}{:>14}\x1b[0m {:<6} {:<14} {:>8}", name, name_width, style, text, p.unit,
                                         device::value_status(device, value), age_text(value, sample.now)));
         }
     }
@@ -134,12 +145,17 @@ StreamSampleSink::~StreamSampleSink() {
     }
 }
 
+std::string sample_line(const device::SampleView& sample, MonitorFormat format, TimeStyle time, bool with_csv_header) {
+    if (format == MonitorFormat::jsonl) return sample_json(sample, time).dump() + "\n";
+    if (format == MonitorFormat::csv) return (with_csv_header ? csv_header(*sample.devices) : "") + csv_row(sample, time);
+    return table_frame(table_lines(sample, time), 0);
+}
+
 void StreamSampleSink::write(const device::SampleView& sample) {
     std::string text;
-    if (format_ == MonitorFormat::jsonl) text = sample_json(sample).dump() + "\n";
-    else if (format_ == MonitorFormat::csv) text = (sample.index == 1 ? csv_header(*sample.devices) : "") + csv_row(sample);
+    if (format_ != MonitorFormat::table) text = sample_line(sample, format_, time_, sample.index == 1);
     else {
-        const auto lines = table_lines(sample);
+        const auto lines = table_lines(sample, time_);
         text = table_frame(lines, shown_lines_);
         shown_lines_ = lines.size();
     }

@@ -13,6 +13,10 @@ namespace loopwire::app {
 
 enum class MonitorFormat { table, csv, jsonl };
 
+// How sample times are written: local time with its offset (the monitor's default) or UTC
+// (--utc), both ISO 8601.
+enum class TimeStyle { local, utc };
+
 // The format a --format option names; empty chooses the table on a terminal, JSON lines otherwise.
 Result<MonitorFormat> monitor_format(std::string_view option, bool terminal);
 
@@ -23,17 +27,23 @@ Result<MonitorFormat> monitor_format(std::string_view option, bool terminal);
 // "age" says how old the last good reading is (null: never read), "status" why it is missing.
 // A device whose status is not "ok" also has "error" (the last failure) and, while in back-off,
 // "retry_in" (seconds until it is tried again).
-nlohmann::ordered_json sample_json(const device::SampleView& sample);
+nlohmann::ordered_json sample_json(const device::SampleView& sample, TimeStyle time = TimeStyle::utc);
 
 // CSV: time,sample, then per device "DEVICE status","DEVICE errors", and one column
-// "DEVICE:NAME" per value holding its text, empty when not read in this sample.
+// "DEVICE:NAME [UNIT]" per value ("tc10@3:measured_value [°C]"; no brackets for a value without
+// unit) holding its text, or the name of its special state ("out-of-range", "under-range": the
+// state, not an empty cell, reaches the log); empty when not read in this sample.
 std::string csv_header(const std::vector<device::WatchedDevice>& devices);
-std::string csv_row(const device::SampleView& sample);
+std::string csv_row(const device::SampleView& sample, TimeStyle time = TimeStyle::utc);
+// The text a sample adds to a stream: a JSON line, a CSV row (after the header when asked),
+// or a table frame.
+std::string sample_line(const device::SampleView& sample, MonitorFormat format, TimeStyle time, bool with_csv_header);
 
 // The table for one sample, one line per element (no newlines, no cursor movement): a title,
 // a header, then per device a line with its status and error count and a line per value with
 // value, unit, status and age. Changed values are bold; values not read this sample are dim.
-std::vector<std::string> table_lines(const device::SampleView& sample);
+// `name_width` is the PARAMETER column's width; a longer name is cut, ending in "~".
+std::vector<std::string> table_lines(const device::SampleView& sample, TimeStyle time = TimeStyle::utc, std::size_t name_width = 34);
 
 // Terminal control around table_lines: the first frame hides the cursor; each later frame moves
 // back up over the previous one and overwrites it line by line, so the screen never scrolls.
@@ -45,7 +55,8 @@ inline constexpr const char* terminal_restore = "\x1b[0m\x1b[?25h";
 // table format leaves the cursor shown and attributes reset when the sink is destroyed.
 class StreamSampleSink final : public device::SampleSink {
 public:
-    StreamSampleSink(std::FILE* out, MonitorFormat format) : out_(out), format_(format) {}
+    StreamSampleSink(std::FILE* out, MonitorFormat format, TimeStyle time = TimeStyle::utc)
+        : out_(out), format_(format), time_(time) {}
     ~StreamSampleSink() override;
     StreamSampleSink(const StreamSampleSink&) = delete;
     StreamSampleSink& operator=(const StreamSampleSink&) = delete;
@@ -55,6 +66,7 @@ public:
 private:
     std::FILE* out_;
     MonitorFormat format_;
+    TimeStyle time_;
     std::size_t shown_lines_ = 0;
 };
 

@@ -1,6 +1,7 @@
 // loopwire scan --link URL [--units 1-247] [--bauds 9600,19200] [--parities none,even,odd] [--json]
 // Finds the units that answer on a link, optionally sweeping line settings, and identifies each
-// by the profiles' identification words.
+// by the profiles' identification words. Each unit is printed as it is found; Ctrl-C ends the
+// scan with what it found so far (exit 130).
 #include <unistd.h>
 
 #include <fmt/format.h>
@@ -10,6 +11,8 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "app/scan_report.hpp"
+#include "app/stop_signal.hpp"
 #include "client/device_client.hpp"
 #include "transport/serial_port.hpp"
 
@@ -141,19 +144,38 @@ void identify(session::Master& master, FoundUnit& found) {
     }
 }
 
-class Progress {
-public:
-    Progress() : enabled_(::isatty(STDERR_FILENO) == 1) {}
-    void show(const std::string& line, int unit, std::size_t index, std::size_t total, std::size_t found) const {
-        if (enabled_) fmt::print(stderr, "\r  {}: unit {:>3} ({}/{}), {} found   ", line, unit, index, total, found);
-    }
-    void done() const {
-        if (enabled_) fmt::print(stderr, "\r{:60}\r", "");
-    }
+std::string units_text(const std::vector<int>& units) { return fmt::format("{}", fmt::join(units, ", ")); }
 
-private:
-    bool enabled_;
-};
+// Prints a unit on stdout as soon as it is found, so a long scan shows its results as it goes
+// and a scan stopped early has already shown them.
+void print_found(const FoundUnit& f, bool json) {
+    if (json) return;  // one JSON document at the end
+    fmt::print("unit {:>3}  {:<10} {:<12} {}\n", f.unit, f.device.empty() ? "(unknown Modbus device)" : f.device, f.line,
+               f.identification.empty() ? "" : f.identification.dump());
+    std::fflush(stdout);
+}
+
+std::string settings_text(const std::vector<transport::LinkUrl>& settings) {
+    std::vector<std::string> texts;
+    for (const auto& url : settings) texts.push_back(line_text(url));
+    return fmt::format("{}", fmt::join(texts, ", "));
+}
+
+void print_summary(const std::vector<FoundUnit>& found, bool json, bool interrupted) {
+    if (json) {
+        nlohmann::ordered_json list = nlohmann::ordered_json::array();
+        for (const auto& f : found) {
+            list.push_back({{"unit", f.unit}, {"device", f.device.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(f.device)},
+                            {"identification", f.identification}, {"line", f.line}});
+        }
+        nlohmann::ordered_json out{{"units", list}};
+        if (interrupted) out["interrupted"] = true;
+        fmt::print("{}\n", out.dump());
+    } else {
+        fmt::print("{} unit(s) answered{}\n", found.size(), interrupted ? " before the scan was interrupted (not every unit was tried)" : "");
+    }
+    std::fflush(stdout);
+}
 
 int run_scan(const ScanOptions& options) {
     auto units = parse_units(options.units);
@@ -163,9 +185,12 @@ int run_scan(const ScanOptions& options) {
     auto wait = parse_duration(options.timeout, "--timeout", std::chrono::milliseconds(1));
     if (!wait) return report_error(wait.error());
 
+    StopSignal stop;  // before any link's threads start, so only its thread takes Ctrl-C
     std::vector<FoundUnit> found;
-    Progress progress;
+    std::vector<std::vector<int>> found_per_line;  // for the check that the line ignores its settings
+    ScanProgress progress(::isatty(STDERR_FILENO) == 1);
     for (const auto& url : *settings) {
+        if (stop.token().stop_requested()) break;
         auto garbled = std::make_shared<unsigned>(0);
         session::MasterOptions master_options;
         master_options.timeout = std::chrono::ceil<std::chrono::milliseconds>(*wait);
@@ -177,7 +202,8 @@ int run_scan(const ScanOptions& options) {
         auto master = session::open_master(url, master_options);
         if (!master) return report_error(master.error());
         const std::size_t before = found.size();
-        for (std::size_t i = 0; i < units->size(); ++i) {
+        found_per_line.emplace_back();
+        for (std::size_t i = 0; i < units->size() && !stop.token().stop_requested(); ++i) {
             const int unit = (*units)[i];
             progress.show(line_text(url), unit, i + 1, units->size(), found.size());
             // Any answer proves a unit is there, an exception included (the TC10 refuses
@@ -186,42 +212,40 @@ int run_scan(const ScanOptions& options) {
             if (!reply && reply.error().kind != ErrorKind::exception) continue;
             FoundUnit unit_found{unit, line_text(url), {}, nlohmann::ordered_json::object()};
             identify(**master, unit_found);
+            progress.clear();
+            print_found(unit_found, options.json);
+            found_per_line.back().push_back(unit);
             found.push_back(std::move(unit_found));
         }
-        progress.done();
+        progress.clear();
         if (found.size() == before && *garbled > 0) {
             fmt::print(stderr, "loopwire: {} garbled replies at {} and no unit answered cleanly: the usual cause of CRC errors is a wrong baud rate or parity; try --bauds and --parities\n",
                        *garbled, line_text(url));
         }
     }
-    if (options.json) {
-        nlohmann::ordered_json list = nlohmann::ordered_json::array();
-        for (const auto& f : found) {
-            list.push_back({{"unit", f.unit}, {"device", f.device.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(f.device)},
-                            {"identification", f.identification}, {"line", f.line}});
-        }
-        fmt::print("{}\n", nlohmann::ordered_json{{"units", list}}.dump());
-    } else {
-        for (const auto& f : found) {
-            fmt::print("unit {:>3}  {:<10} {:<12} {}\n", f.unit, f.device.empty() ? "(unknown Modbus device)" : f.device, f.line,
-                       f.identification.empty() ? "" : f.identification.dump());
-        }
-        fmt::print("{} unit(s) answered\n", found.size());
+    const bool interrupted = stop.token().stop_requested();
+    if (!interrupted && ignores_line_settings(found_per_line)) {
+        fmt::print(stderr,
+                   "loopwire: warning: every line setting found the same units ({}) at {}: the line probably ignores line "
+                   "settings (a pseudo-terminal, or a converter that sets its own speed and parity), so these results do not "
+                   "tell which setting the devices use\n",
+                   units_text(found_per_line.front()), settings_text(*settings));
     }
-    return exit_ok;
+    print_summary(found, options.json, interrupted);
+    return interrupted ? exit_interrupted : exit_ok;
 }
 
 }  // namespace
 
 void add_scan_command(CLI::App& app, int& exit_code) {
     auto options = std::make_shared<ScanOptions>();
-    auto* command = app.add_subcommand("scan", "Find the units that answer on a link and identify them");
+    auto* command = app.add_subcommand("scan", "Find the units that answer on a link and identify them (Ctrl-C keeps what was found)");
     command->add_option("--link", options->link, "Link URL to scan")->required();
     command->add_option("--units", options->units, "Units to try: 1-247, or a list like 1,3,7-9")->capture_default_str();
     command->add_option("--bauds", options->bauds, "Serial: baud rates to sweep, e.g. 9600,19200,38400");
     command->add_option("--parities", options->parities, "Serial: parities to sweep, e.g. none,even,odd");
     command->add_option("--timeout", options->timeout, "Time to wait for each unit")->capture_default_str();
-    command->add_flag("--json", options->json, "Print the result as JSON");
+    command->add_flag("--json", options->json, "Print the result as JSON (at the end; without it each unit is printed as it is found)");
     command->add_flag("-v,--verbose", options->verbose, "Print every frame, with timestamps, on stderr");
     command->footer(exit_code_help);
     command->callback([options, &exit_code] { exit_code = run_scan(*options); });

@@ -21,7 +21,7 @@ tcp="tcp://127.0.0.1:$PORT"
 jcheck() {  # name, file, python body using `rows` (list of parsed lines)
   local name=$1 file=$2 body=$3
   if $python - "$file" <<PY >"$WORK_DIR/why" 2>&1
-import json, sys
+import json, re, sys
 rows = [json.loads(line) for line in open(sys.argv[1]) if line.strip()]
 $body
 PY
@@ -36,7 +36,8 @@ assert len(rows) == 3, len(rows)
 names = {"tc10@3": ["measured_value", "operating_set_point", "output_power", "alarm_status"],
          "rampsoak@5": ["process_value", "set_value", "output_percentage", "controller_status"]}
 for i, row in enumerate(rows, 1):
-    assert row["sample"] == i and row["time"].endswith("Z") and "T" in row["time"], row
+    # Local time with its offset by default (--utc gives ...Z).
+    assert row["sample"] == i and re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}[+-]\d\d:\d\d", row["time"]), row
     for device, wanted in names.items():
         d = row["devices"][device]
         assert d["status"] == "ok" and d["errors"] == 0, d
@@ -48,7 +49,7 @@ for i, row in enumerate(rows, 1):
 # Named selection: a plain name for every device that has it, DEVICE@UNIT:NAME for one.
 timeout 20 "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@5 --count 1 --format csv \
   output_power rampsoak@5:SV >"$WORK_DIR/rows.csv" 2>"$WORK_DIR/mon.err" || count_failure "monitor-csv exit status" "$WORK_DIR/mon.err"
-if [ "$(head -1 "$WORK_DIR/rows.csv")" = "time,sample,tc10@3 status,tc10@3 errors,tc10@3:output_power,rampsoak@5 status,rampsoak@5 errors,rampsoak@5:set_value" ] \
+if [ "$(head -1 "$WORK_DIR/rows.csv")" = "time,sample,tc10@3 status,tc10@3 errors,tc10@3:output_power [%],rampsoak@5 status,rampsoak@5 errors,rampsoak@5:set_value" ] \
    && [ "$(wc -l <"$WORK_DIR/rows.csv")" -eq 2 ]; then count_pass; else count_failure monitor-csv-columns "$WORK_DIR/rows.csv"; fi
 
 # A value written between samples shows up changed in the following ones. 30 samples give the
@@ -111,7 +112,7 @@ assert tries == dead[-1]['errors'] == $dead_tries and 2 <= tries <= 5, (tries, d
 for r in rows:
     for name in ('tc10@3', 'rampsoak@5'):
         assert r['devices'][name]['status'] == 'ok', r['devices'][name]
-times = [datetime.strptime(r['time'], '%Y-%m-%dT%H:%M:%S.%fZ') for r in rows]
+times = [datetime.fromisoformat(r['time']) for r in rows]
 gaps = [(b - a).total_seconds() for a, b in zip(times, times[1:])]
 assert all(0.2 <= g <= 0.45 for g in gaps), gaps
 "

@@ -138,8 +138,8 @@ TEST(MonitorOutput, CsvHasOneColumnPerDeviceValueAndLeavesUnreadCellsEmpty) {
     device::record_poll(devices[1], report_of(*p, {{"output_percentage", 300}}), true, {}, t0);
     device::record_poll(devices[1], device::ReadReport{}, false, "no reply", t0 + 1s);
     EXPECT_EQ(csv_header(devices),
-              "time,sample,rampsoak@5 status,rampsoak@5 errors,rampsoak@5:output_percentage,"
-              "rampsoak@6 status,rampsoak@6 errors,rampsoak@6:output_percentage\n");
+              "time,sample,rampsoak@5 status,rampsoak@5 errors,rampsoak@5:output_percentage [%],"
+              "rampsoak@6 status,rampsoak@6 errors,rampsoak@6:output_percentage [%]\n");
     const auto time = std::chrono::system_clock::time_point(std::chrono::milliseconds(1795426262000));
     EXPECT_EQ(csv_row(device::SampleView{3, time, t0 + 1s, &devices}), "2026-11-23T09:31:02.000Z,3,ok,0,12.5,no-reply,1,\n");
 }
