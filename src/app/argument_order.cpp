@@ -1,5 +1,7 @@
 #include "app/argument_order.hpp"
 
+#include <algorithm>
+#include <cstddef>
 #include <optional>
 
 namespace loopwire::app {

@@ -19,7 +19,7 @@ tcp="tcp://127.0.0.1:$PORT"
 
 # The README's sh blocks, continuation lines joined, one command a line.
 mapfile -t examples < <(awk '/^```sh/{f=1;next} /^```/{f=0} f' "$readme" | sed -e ':a' -e '/\\$/N; s/\\\n *//; ta' |
-  grep -E '^loopwire (read|write|monitor|dump|restore|decode|describe) ' | grep -vE ' URL |\[|DEVICE' |
+  grep -E '^loopwire (-v )?(read|write|monitor|dump|restore|decode|describe|help) ' | grep -vE ' URL |\[|DEVICE' |
   grep -vE 'kiln\.json|ac20\.json|oven-x')
 ((${#examples[@]} >= 10)) || fail "found only ${#examples[@]} README examples: $(printf '\n  %s' "${examples[@]}")"
 
@@ -31,9 +31,12 @@ for example in "${examples[@]}"; do
     eval "words=($command)"
     status=0
     case ${words[1]} in
-        monitor)  # runs until Ctrl-C: it must still be sampling after 4 s
+        monitor)  # runs until Ctrl-C: it must still be sampling after 4 s, into its --output if it has one
+            output=out.txt
+            for ((i = 2; i < ${#words[@]}; i++)); do [[ ${words[i - 1]} == --output ]] && output=${words[i]}; done
+            rm -f "$output"
             timeout 4 "$loopwire" "${words[@]:1}" >"out.txt" 2>&1 || status=$?
-            if [[ $status -eq 124 && ( -s out.txt || -s plant.csv ) ]]; then status=0; fi ;;
+            if [[ $status -eq 124 && -s $output ]]; then status=0; fi ;;
         decode)  # the README's example frame is one whose CRC is wrong: it must say so (exit 1)
             timeout 30 "$loopwire" "${words[@]:1}" >"out.txt" 2>&1 || status=$?
             if [[ $status -eq 1 ]] && grep -q "CRC mismatch" out.txt; then status=0; fi ;;
