@@ -185,8 +185,15 @@ int main(int argc, char** argv) {
     for (const auto& bucket : buckets) {
         const auto index = (ms(bucket.start) - plan.origin) / plan.width;
         const auto found = naive.find(index);
-        if (found == naive.end() || found->second.count != bucket.count || found->second.min != bucket.min ||
-            found->second.max != bucket.max || std::abs(found->second.mean - bucket.mean) > 1e-6 * std::abs(bucket.mean)) {
+        // The shell prints 15 significant digits: equal to that.
+        const auto near = [](double a, double b) { return std::abs(a - b) <= 1e-12 * std::max(std::abs(a), std::abs(b)); };
+        if (found == naive.end() || found->second.count != bucket.count || !near(found->second.min, bucket.min) ||
+            !near(found->second.max, bucket.max) || !near(found->second.mean, bucket.mean)) {
+            if (agree && found != naive.end()) {
+                std::fprintf(stderr, "history_query: bucket %lld: loopwire min %.17g max %.17g mean %.17g count %zu; GROUP BY min %.17g "
+                             "max %.17g mean %.17g count %zu\n", static_cast<long long>(index), bucket.min, bucket.max, bucket.mean,
+                             bucket.count, found->second.min, found->second.max, found->second.mean, found->second.count);
+            }
             agree = false;
         }
     }
@@ -194,6 +201,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "history_query: the store's %zu buckets differ from the plain GROUP BY's %zu\n", buckets.size(), naive.size());
         return 1;
     }
+    store->reset();  // closing checkpoints the WAL into the file
     std::error_code error;
     const auto size = std::filesystem::file_size(file, error);
     std::printf("history: %llu rows written (%d day(s) of one parameter at 1 s, %d more each minute) in %.1f s: %.0f rows/s; "
@@ -203,7 +211,6 @@ int main(int argc, char** argv) {
     std::printf("history query of %d day(s) at 1 s into %zu points: loopwire %.2f ms (median of %zu), sqlite3 shell GROUP BY "
                 "%.2f ms (median of %zu), naive/loopwire: %.1f; buckets agree\n",
                 days, buckets.size(), ours, times.size(), peer, naive_times.size(), peer / ours);
-    store->reset();
     if (temporary) std::filesystem::remove_all(folder);
     return 0;
 }
