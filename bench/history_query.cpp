@@ -5,6 +5,7 @@
 // samples, on the same file in the same run, and checks that both give the same buckets.
 //
 //   history_query [DAYS] [FOLDER]      DAYS 30 by default; FOLDER: a temporary one
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -44,6 +45,13 @@ ValueChange change(const std::string& parameter, double value, SystemTime sample
     return c;
 }
 
+// The CPU time this thread used: what a query costs whatever else the machine runs.
+double thread_cpu_ms() {
+    timespec now{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
+    return static_cast<double>(now.tv_sec) * 1e3 + static_cast<double>(now.tv_nsec) / 1e6;
+}
+
 double elapsed_ms(Clock::time_point since) { return std::chrono::duration<double, std::milli>(Clock::now() - since).count(); }
 
 double median(std::vector<double> values) {
@@ -59,7 +67,7 @@ struct NaiveBucket {
 // The sqlite3 shell's answer and its own timing of the query ("Run Time: real S"), which
 // leaves out the shell's start.
 bool run_naive(const std::filesystem::path& file, const std::filesystem::path& folder, const std::string& sql,
-               std::map<std::int64_t, NaiveBucket>& buckets, double& ms) {
+               std::map<std::int64_t, NaiveBucket>& buckets, double& ms, double& cpu_ms) {
     const auto script = folder / "naive.sql";
     const auto output = folder / "naive.out";
     std::ofstream(script) << ".timer on\n.mode list\n" << sql << "\n";
@@ -73,9 +81,10 @@ bool run_naive(const std::filesystem::path& file, const std::filesystem::path& f
     buckets.clear();
     ms = -1;
     while (std::getline(in, line)) {
-        double real = 0;
-        if (std::sscanf(line.c_str(), "Run Time: real %lf", &real) == 1) {
+        double real = 0, user = 0, sys = 0;
+        if (std::sscanf(line.c_str(), "Run Time: real %lf user %lf sys %lf", &real, &user, &sys) == 3) {
             ms = real * 1000;
+            cpu_ms = (user + sys) * 1000;
             continue;
         }
         long long index = 0;
@@ -150,11 +159,14 @@ int main(int argc, char** argv) {
     query.to = start + std::chrono::seconds(seconds) - 1ms;
     query.points = points;
     std::vector<double> times;
+    std::vector<double> cpu_times;
     std::vector<HistorySeries> answer;
     for (int i = 0; i < 15; ++i) {
         const auto began = Clock::now();
+        const double cpu_began = thread_cpu_ms();
         auto series = (*store)->query(query);
         times.push_back(elapsed_ms(began));
+        cpu_times.push_back(thread_cpu_ms() - cpu_began);
         if (!series) {
             std::fprintf(stderr, "history_query: %s\n", series.error().message.c_str());
             return 1;
@@ -162,6 +174,7 @@ int main(int argc, char** argv) {
         answer = std::move(*series);
     }
     const double ours = median(times);
+    const double ours_cpu = median(cpu_times);
 
     // The same buckets as a plain GROUP BY over every sample in the range.
     const auto ms = [](SystemTime t) { return std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count(); };
@@ -172,13 +185,16 @@ int main(int argc, char** argv) {
         "AND t >= {2} AND t <= {3} GROUP BY 1;",
         plan.origin, plan.width, ms(query.from), ms(query.to));
     std::vector<double> naive_times;
+    std::vector<double> naive_cpu_times;
     std::map<std::int64_t, NaiveBucket> naive;
     for (int i = 0; i < 3; ++i) {
-        double naive_ms = 0;
-        if (!run_naive(file, folder, sql, naive, naive_ms)) return 1;
+        double naive_ms = 0, naive_cpu_ms = 0;
+        if (!run_naive(file, folder, sql, naive, naive_ms, naive_cpu_ms)) return 1;
         naive_times.push_back(naive_ms);
+        naive_cpu_times.push_back(naive_cpu_ms);
     }
     const double peer = median(naive_times);
+    const double peer_cpu = median(naive_cpu_times);
 
     const auto& buckets = answer.at(0).buckets;
     bool agree = buckets.size() == naive.size() && !buckets.empty();
@@ -208,9 +224,9 @@ int main(int argc, char** argv) {
                 "file %.1f MB\n",
                 static_cast<unsigned long long>(rows), days, others, fill_ms / 1000, static_cast<double>(rows) / (fill_ms / 1000),
                 error ? 0.0 : static_cast<double>(size) / 1e6);
-    std::printf("history query of %d day(s) at 1 s into %zu points: loopwire %.2f ms (median of %zu), sqlite3 shell GROUP BY "
-                "%.2f ms (median of %zu), naive/loopwire: %.1f; buckets agree\n",
-                days, buckets.size(), ours, times.size(), peer, naive_times.size(), peer / ours);
+    std::printf("history query of %d day(s) at 1 s into %zu points: loopwire %.2f ms (CPU %.2f ms; median of %zu), sqlite3 "
+                "shell GROUP BY %.2f ms (CPU %.2f ms; median of %zu), naive/loopwire: %.1f; buckets agree\n",
+                days, buckets.size(), ours, ours_cpu, times.size(), peer, peer_cpu, naive_times.size(), peer / ours);
     if (temporary) std::filesystem::remove_all(folder);
     return 0;
 }

@@ -61,46 +61,44 @@ struct Aggregate {
 
 using Buckets = std::map<std::int64_t, Aggregate>;
 
-// Rows of (bucket, min, max, sum, count) added to the buckets.
-Result<void> gather(sqlite::Statement& statement, Buckets& buckets) {
-    for (;;) {
-        auto row = statement.step();
-        if (!row) return row.error();
-        if (!*row) return {};
-        if (statement.is_null(1)) continue;  // only rows without a value: nothing to show
-        buckets[statement.integer(0)].add(statement.real(1), statement.real(2), statement.real(3), statement.integer(4));
-    }
-}
+// The rows come in key order (time), so each is added to its bucket as it is read: no sort,
+// which a GROUP BY on the bucket number would need (and which cost more than the reading).
+std::int64_t bucket_of(const BucketPlan& plan, std::int64_t t) { return (t - plan.origin) / plan.width; }
 
 Result<void> gather_samples(sqlite::Connection& db, std::int64_t series, const BucketPlan& plan, std::int64_t from,
                             std::int64_t to, Buckets& buckets) {
     if (from > to) return {};
-    // count(value) and min/max/sum skip the NULLs: special states and missed replies are rows,
-    // but no part of a bucket.
+    // Special states and missed replies are rows without a value: no part of a bucket.
     auto statement = db.prepare(
-        "SELECT (t - ?1) / ?2, min(value), max(value), sum(value), count(value) FROM samples "
-        "WHERE series_id = ?3 AND t >= ?4 AND t <= ?5 GROUP BY 1");
+        "SELECT t, value FROM samples WHERE series_id = ?1 AND t >= ?2 AND t <= ?3 AND value IS NOT NULL ORDER BY t");
     if (!statement) return statement.error();
-    statement->bind(1, plan.origin);
-    statement->bind(2, plan.width);
-    statement->bind(3, series);
-    statement->bind(4, from);
-    statement->bind(5, to);
-    return gather(*statement, buckets);
+    statement->bind(1, series);
+    statement->bind(2, from);
+    statement->bind(3, to);
+    for (;;) {
+        auto row = statement->step();
+        if (!row) return row.error();
+        if (!*row) return {};
+        const double value = statement->real(1);
+        buckets[bucket_of(plan, statement->integer(0))].add(value, value, value, 1);
+    }
 }
 
 Result<void> gather_minutes(sqlite::Connection& db, std::int64_t series, const BucketPlan& plan, std::int64_t first,
                             std::int64_t end, Buckets& buckets) {
     auto statement = db.prepare(
-        "SELECT (minute * 60000 - ?1) / ?2, min(lo), max(hi), sum(total), sum(n) FROM minutes "
-        "WHERE series_id = ?3 AND minute >= ?4 AND minute < ?5 GROUP BY 1");
+        "SELECT minute, lo, hi, total, n FROM minutes WHERE series_id = ?1 AND minute >= ?2 AND minute < ?3 ORDER BY minute");
     if (!statement) return statement.error();
-    statement->bind(1, plan.origin);
-    statement->bind(2, plan.width);
-    statement->bind(3, series);
-    statement->bind(4, first);
-    statement->bind(5, end);
-    return gather(*statement, buckets);
+    statement->bind(1, series);
+    statement->bind(2, first);
+    statement->bind(3, end);
+    for (;;) {
+        auto row = statement->step();
+        if (!row) return row.error();
+        if (!*row) return {};
+        buckets[bucket_of(plan, statement->integer(0) * minute_ms)].add(statement->real(1), statement->real(2),
+                                                                        statement->real(3), statement->integer(4));
+    }
 }
 
 Result<std::vector<HistoryBucket>> buckets_of(sqlite::Connection& db, std::int64_t series, std::int64_t from, std::int64_t to,

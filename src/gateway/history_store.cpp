@@ -40,7 +40,8 @@ struct HistoryStore::Writer {
     sqlite::Statement add_minute;
     sqlite::Statement expire_samples;
     sqlite::Statement expire_minutes;
-    std::map<std::tuple<std::string, std::string, std::string>, std::int64_t> series_ids;
+    // Looked up with std::tie of the row's strings (std::less<>): no copies per row.
+    std::map<std::tuple<std::string, std::string, std::string>, std::int64_t, std::less<>> series_ids;
     // Retention: the series still to sweep in this pass, and when the next pass is due.
     std::vector<std::int64_t> to_sweep;
     std::optional<SystemTime> next_sweep;
@@ -172,8 +173,7 @@ void HistoryStore::run(std::stop_token stop) {
 
 Result<std::int64_t> HistoryStore::series_id(const std::string& device, const std::string& parameter, const std::string& unit) {
     Writer& w = *writer_;
-    auto key = std::make_tuple(device, parameter, unit);
-    if (auto known = w.series_ids.find(key); known != w.series_ids.end()) return known->second;
+    if (auto known = w.series_ids.find(std::tie(device, parameter, unit)); known != w.series_ids.end()) return known->second;
     w.find_series.bind(1, std::string_view(device));
     w.find_series.bind(2, std::string_view(parameter));
     w.find_series.bind(3, std::string_view(unit));
@@ -191,7 +191,7 @@ Result<std::int64_t> HistoryStore::series_id(const std::string& device, const st
         if (!added) return added.error();
         id = w.db.last_insert_id();
     }
-    w.series_ids.emplace(std::move(key), *id);
+    w.series_ids.emplace(std::make_tuple(device, parameter, unit), *id);
     return *id;
 }
 
