@@ -81,6 +81,7 @@ void announce(const gateway::GatewayConfig& config, const gateway::Gateway& runn
     } else {
         log_line(fmt::format("{} line(s), {} device(s); Modbus TCP front disabled; Ctrl-C to stop", config.lines.size(), devices));
     }
+    if (config.history) log_line(fmt::format("history: recording to {}", config.history->database.string()));
     // Under systemd (Type=notify, packaging/loopwire-gateway.service) the unit is up once the
     // lines and the listener are open; without $NOTIFY_SOCKET these calls do nothing.
     sd_notifyf(0, "READY=1\nSTATUS=serving %zu line(s), %zu device(s)", config.lines.size(), devices);

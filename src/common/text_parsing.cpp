@@ -56,6 +56,32 @@ Result<std::chrono::microseconds> parse_duration(std::string_view text, std::str
     return duration;
 }
 
+Result<std::chrono::seconds> parse_period(std::string_view text, std::string_view option) {
+    const auto bad = [&] {
+        return make_error(ErrorKind::usage, fmt::format("{} '{}' is not a period: write it like 90d, 12h, 30m or 3600s", option, text));
+    };
+    std::size_t number_end = 0;
+    while (number_end < text.size() && ((text[number_end] >= '0' && text[number_end] <= '9') || text[number_end] == '.')) ++number_end;
+    if (number_end == 0 || text[0] == '.' || text[number_end - 1] == '.') return bad();
+    double number = 0;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + number_end, number, std::chars_format::fixed);
+    if (ec != std::errc() || end != text.data() + number_end) return bad();  // also "1.2.3d"
+    const std::string_view unit = text.substr(number_end);
+    double scale = 0;
+    if (unit == "s") scale = 1;
+    else if (unit == "m" || unit == "min") scale = 60;
+    else if (unit == "h") scale = 3600;
+    else if (unit == "d") scale = 86400;
+    else return bad();
+    const double seconds = number * scale;
+    constexpr double most = 100.0 * 366 * 86400;
+    if (!std::isfinite(seconds) || seconds > most) {
+        return make_error(ErrorKind::usage, fmt::format("{} '{}' is longer than 100 years; give e.g. 3650d", option, text));
+    }
+    if (seconds < 1) return make_error(ErrorKind::usage, fmt::format("{} '{}' is too short: give at least 1s", option, text));
+    return std::chrono::seconds(std::llround(seconds));
+}
+
 Result<long long> parse_integer(std::string_view text, long long min, long long max, std::string_view what) {
     std::string_view digits = text;
     bool negative = false;

@@ -18,6 +18,11 @@ namespace loopwire {
 Result<std::chrono::microseconds> parse_duration(std::string_view text, std::string_view option = "duration",
                                                  std::chrono::microseconds least = std::chrono::microseconds::zero());
 
+// A span of days, for how long records are kept: "90d", "12h", "30m" (or "30min"), "3600s",
+// a whole or decimal number ("1.5d") and its unit, which is required; at most 100 years, at
+// least a second. `option` names it in errors, as for parse_duration.
+Result<std::chrono::seconds> parse_period(std::string_view text, std::string_view option = "period");
+
 // Decimal, 0x-prefixed hex or h-suffixed hex ("1Fh", as the manuals write); optionally signed.
 Result<long long> parse_integer(std::string_view text, long long min, long long max, std::string_view what);
 

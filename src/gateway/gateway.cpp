@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "devices/registry.hpp"
+#include "gateway/history_store.hpp"
 #include "gateway/mqtt_bridge.hpp"
 #include "session/master.hpp"
 #include "session/slave.hpp"
@@ -96,6 +97,25 @@ Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options
     return opened;
 }
 
+// The history database, with every parameter the polls read declared as a series.
+Result<std::unique_ptr<HistoryStore>> open_history(const HistoryConfig& history, const GatewayConfig& config,
+                                                   const GatewayLog& log) {
+    HistoryOptions options;
+    options.database = history.database;
+    options.keep = history.keep;
+    options.heartbeat = history.heartbeat;
+    options.log = log;
+    std::vector<HistorySeriesName> declared;
+    for (const auto& line : config.lines) {
+        for (const auto& device : line.devices) {
+            for (const device::Parameter* parameter : polled_parameters(device)) {
+                declared.push_back({device.name, parameter->name, parameter->unit});
+            }
+        }
+    }
+    return HistoryStore::open(std::move(options), declared);
+}
+
 }  // namespace
 
 // How long a write from a front (MQTT, HTTP) may wait for its line before it is given up.
@@ -108,6 +128,9 @@ struct Gateway::Parts {
     // reaches a line scheduler that is gone.
     std::vector<OpenLine> lines;
     ValueCache cache;
+    // Before the polls, so destroyed after them: the last changes they find are written.
+    std::unique_ptr<HistoryStore> history;
+    ValueSubscription history_subscription;
     std::unique_ptr<PollGroups> polls;
     std::unique_ptr<transport::TcpListener> listener;
     std::unique_ptr<session::Slave> front;
@@ -142,6 +165,13 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
     }
     std::map<std::string, std::shared_ptr<LineScheduler>> schedulers;
     for (const auto& line : parts->lines) schedulers[line.name] = line.scheduler;
+    if (config.history) {
+        auto history = open_history(*config.history, config, options.log);
+        if (!history) return history.error();
+        parts->history = std::move(*history);
+        parts->history_subscription =
+            parts->cache.subscribe([store = parts->history.get()](const ValueChange& change) { store->record(change); });
+    }
     parts->polls = std::make_unique<PollGroups>(config, schedulers, parts->cache, options.log, options.samples);
     if (config.modbus_tcp.enabled) {
         auto listener = transport::TcpListener::listen(config.modbus_tcp.host, config.modbus_tcp.port);
@@ -263,6 +293,8 @@ std::vector<LineReport> Gateway::report() const {
 std::vector<CachedDevice> Gateway::values() const { return parts_->cache.snapshot(); }
 
 ValueSubscription Gateway::subscribe(ValueCallback callback) { return parts_->cache.subscribe(std::move(callback)); }
+
+const HistorySource* Gateway::history() const { return parts_->history.get(); }
 
 std::string describe(const LineReport& report, const LineReport* since) {
     const auto& s = report.statistics;

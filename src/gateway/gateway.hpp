@@ -9,6 +9,7 @@
 #include "common/result.hpp"
 #include "gateway/forwarding_unit.hpp"
 #include "gateway/gateway_config.hpp"
+#include "gateway/history_source.hpp"
 #include "gateway/line_scheduler.hpp"
 #include "gateway/poll_groups.hpp"
 #include "gateway/value_cache.hpp"
@@ -61,6 +62,10 @@ public:
     // first the state of every device polled so far, then each change, on the poll group's
     // thread. The callback must be quick; the subscription may outlive the gateway.
     [[nodiscard]] ValueSubscription subscribe(ValueCallback callback);
+
+    // The recorded values ([history]) for the HTTP API; nullptr when the configuration has no
+    // [history] table. Safe to query from any thread while the gateway runs.
+    const HistorySource* history() const;
 
 private:
     struct Parts;

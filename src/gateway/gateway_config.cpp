@@ -574,6 +574,61 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
     return std::optional<MqttConfig>{std::move(config)};
 }
 
+// ---------------------------------------------------------------------------------------------
+// [history]
+
+// `keep = "90d"`: how long rows are kept. Less than a minute would delete what the charts of
+// the last minutes show.
+Result<std::chrono::seconds> history_keep(const Context& ctx, const toml::table& table) {
+    auto text = optional_value<std::string>(ctx, table, "history", "keep", "a period string such as \"90d\" or \"12h\"");
+    if (!text) return text.error();
+    if (!*text) return HistoryConfig{}.keep;
+    auto keep = parse_period(**text, "");
+    if (!keep) return ctx.fail(source_of(table, "keep"), "history.keep", without_option_name(keep.error().message));
+    if (*keep < std::chrono::minutes(1)) {
+        return ctx.fail(source_of(table, "keep"), "history.keep", fmt::format("\"{}\" is too short: keep at least 1m (e.g. \"90d\")", **text));
+    }
+    return *keep;
+}
+
+// `heartbeat = "60s"`: every value is written at least this often, so a value that holds
+// still draws a line, not a gap.
+Result<std::chrono::milliseconds> history_heartbeat(const Context& ctx, const toml::table& table) {
+    auto heartbeat = optional_duration(ctx, table, "history", "heartbeat");
+    if (!heartbeat) return heartbeat.error();
+    if (!*heartbeat) return HistoryConfig{}.heartbeat;
+    if (**heartbeat < std::chrono::seconds(1)) {
+        return ctx.fail(source_of(table, "heartbeat"), "history.heartbeat",
+                        "less than 1s apart would write rows nobody needs (give e.g. \"60s\", at most \"24h\")");
+    }
+    return **heartbeat;
+}
+
+Result<std::optional<HistoryConfig>> parse_history(const Context& ctx, const toml::table& root) {
+    const toml::node* node = root.get("history");
+    if (!node) return std::optional<HistoryConfig>{};
+    const auto* table = node->as_table();
+    if (!table) return ctx.fail(node->source(), "history", "expected a [history] table");
+    if (auto keys = check_keys(ctx, *table, "history", {"database", "keep", "heartbeat"}); !keys) return keys.error();
+    HistoryConfig config;
+    auto database = required_string(ctx, *table, "history", "database", "\"plant.db\"");
+    if (!database) return database.error();
+    if (database->empty()) {
+        return ctx.fail(source_of(*table, "database"), "history.database",
+                        "expected the database file's path, e.g. \"plant.db\" (relative to this file's folder)");
+    }
+    config.database_as_written = *database;
+    const std::filesystem::path path(*database);
+    config.database = path.is_absolute() ? path : std::filesystem::path(ctx.source).parent_path() / path;
+    auto keep = history_keep(ctx, *table);
+    if (!keep) return keep.error();
+    config.keep = *keep;
+    auto heartbeat = history_heartbeat(ctx, *table);
+    if (!heartbeat) return heartbeat.error();
+    config.heartbeat = *heartbeat;
+    return std::optional<HistoryConfig>{std::move(config)};
+}
+
 Result<toml::table> parse_toml(std::string_view text, const std::string& source) {
 #if TOML_EXCEPTIONS
     try {
@@ -603,7 +658,7 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto root = parse_toml(text, source);
     if (!root) return root.error();
     const Context ctx{source, profiles};
-    if (auto keys = check_keys(ctx, *root, "", {"lines", "modbus_tcp", "log", "mqtt"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, *root, "", {"lines", "modbus_tcp", "log", "mqtt", "history"}); !keys) return keys.error();
     GatewayConfig config;
     config.source = source;
     Registry registry;
@@ -619,6 +674,9 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto mqtt = parse_mqtt(ctx, *root);
     if (!mqtt) return mqtt.error();
     config.mqtt = std::move(*mqtt);
+    auto history = parse_history(ctx, *root);
+    if (!history) return history.error();
+    config.history = std::move(*history);
     return config;
 }
 

@@ -70,12 +70,24 @@ struct MqttConfig {
     std::string client_id;            // empty: the broker gets "loopwire-" and the prefix
 };
 
+// [history]: every change of a polled value, and a heartbeat sample of each, kept in an SQLite
+// file for the HTTP API's charts (gateway/history_store.hpp).
+struct HistoryConfig {
+    // As written; a relative path is taken from the configuration file's folder, so the
+    // gateway finds the same file whatever folder it is started from (`~` is not expanded).
+    std::string database_as_written;
+    std::filesystem::path database;  // resolved
+    std::chrono::seconds keep = std::chrono::hours(24 * 90);
+    std::chrono::milliseconds heartbeat{60000};
+};
+
 struct GatewayConfig {
     std::string source;  // the file it came from, for messages
     std::vector<LineConfig> lines;
     ModbusTcpConfig modbus_tcp;
     LogConfig log;
     std::optional<MqttConfig> mqtt;  // absent [mqtt] table: no MQTT
+    std::optional<HistoryConfig> history;  // absent [history] table: no history
 };
 
 // Whether `link` names the in-process virtual bus rather than a device file.

@@ -137,6 +137,21 @@ void describe_mqtt(std::ostringstream& out, const std::optional<MqttConfig>& con
                        config->writes ? "allowed" : "refused");
 }
 
+// Days, hours or minutes, whichever is whole ("90d", "36h").
+std::string period_text(std::chrono::seconds period) {
+    const auto s = period.count();
+    if (s % 86400 == 0) return fmt::format("{}d", s / 86400);
+    if (s % 3600 == 0) return fmt::format("{}h", s / 3600);
+    if (s % 60 == 0) return fmt::format("{}m", s / 60);
+    return fmt::format("{}s", s);
+}
+
+void describe_history(std::ostringstream& out, const std::optional<HistoryConfig>& config) {
+    if (!config) return;
+    out << fmt::format("history: {} (SQLite, WAL mode), every change and a heartbeat each {}, kept {}\n",
+                       config->database.string(), duration_text(config->heartbeat), period_text(config->keep));
+}
+
 }  // namespace
 
 // What one poll asks for: the configured names, or the profile's default watch list.
@@ -153,6 +168,7 @@ std::string describe_plan(const GatewayConfig& config) {
     for (const LineConfig& line : config.lines) describe_line(out, line);
     describe_modbus_tcp(out, config.modbus_tcp);
     describe_mqtt(out, config.mqtt);
+    describe_history(out, config.history);
     return out.str();
 }
 

@@ -51,6 +51,26 @@ TEST(ParseDuration, LongerThanADayIsRefused) {
     EXPECT_FALSE(parse_duration("99999999999999999999999s").ok());
 }
 
+TEST(ParsePeriod, DaysHoursMinutesSeconds) {
+    using std::chrono::seconds;
+    EXPECT_EQ(*parse_period("90d"), seconds(90 * 86400));
+    EXPECT_EQ(*parse_period("1.5d"), seconds(129600));
+    EXPECT_EQ(*parse_period("12h"), seconds(43200));
+    EXPECT_EQ(*parse_period("30m"), seconds(1800));
+    EXPECT_EQ(*parse_period("30min"), seconds(1800));
+    EXPECT_EQ(*parse_period("3600s"), seconds(3600));
+}
+
+TEST(ParsePeriod, RejectsGarbageAndExtremes) {
+    for (const char* bad : {"", "90", "d", "90 d", "-1d", "1..5d", "1.d", ".5d", "1.2.3d", "90days", "1e3d", "nan"}) {
+        auto parsed = parse_period(bad, "history.keep");
+        ASSERT_FALSE(parsed.ok()) << bad;
+        EXPECT_EQ(parsed.error().message, std::string("history.keep '") + bad + "' is not a period: write it like 90d, 12h, 30m or 3600s");
+    }
+    EXPECT_NE(parse_period("40000d").error().message.find("longer than 100 years"), std::string::npos);
+    EXPECT_NE(parse_period("0d").error().message.find("too short: give at least 1s"), std::string::npos);
+}
+
 TEST(ParseInteger, DecimalHexAndManualStyleHex) {
     EXPECT_EQ(*parse_integer("201", 0, 65535, "address"), 201);
     EXPECT_EQ(*parse_integer("0xC9", 0, 65535, "address"), 201);

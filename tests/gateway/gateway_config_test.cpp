@@ -168,7 +168,7 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, speed, seed, devices)");
 
     const std::string top = error_of(one_device("device = \"tc10@3\"\n") + "[modbus]\nlisten = \"127.0.0.1:1502\"\n");
-    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: lines, modbus_tcp, log, mqtt)");
+    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: lines, modbus_tcp, log, mqtt, history)");
 
     const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
     EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: listen, writes, enabled, max_age)");
@@ -565,6 +565,61 @@ TEST(GatewayConfig, ABadMqttPrefixOrAnUnknownMqttKeyIsRefused) {
     EXPECT_THAT(error_of(device + "writes = \"yes\"\n"), StartsWith("plant.toml:10: mqtt.writes: expected true or false"));
     EXPECT_THAT(error_of(device + "qos = 2\n"), StartsWith("plant.toml:10: mqtt.qos: unknown key (allowed here: broker, prefix, writes, client_id)"));
     EXPECT_THAT(error_of("mqtt = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected an [mqtt] table"));
+}
+
+// ---------------------------------------------------------------------------------------------
+// [history]
+
+TEST(GatewayConfig, WithoutAHistoryTableThereIsNoHistory) {
+    auto config = parse(one_device("device = \"tc10@3\"\n"));
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_FALSE(config->history);
+}
+
+TEST(GatewayConfig, HistorySettingsAreRead) {
+    auto config = parse_gateway_config(one_device("device = \"tc10@3\"\n") +
+                                           "[history]\ndatabase = \"data/plant.db\"\nkeep = \"30d\"\nheartbeat = \"10s\"\n",
+                                       "/etc/loopwire/plant.toml", profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    ASSERT_TRUE(config->history);
+    EXPECT_EQ(config->history->database_as_written, "data/plant.db");
+    // Relative to the configuration file's folder, not to where the gateway was started.
+    EXPECT_EQ(config->history->database, std::filesystem::path("/etc/loopwire/data/plant.db"));
+    EXPECT_EQ(config->history->keep, std::chrono::hours(24 * 30));
+    EXPECT_EQ(config->history->heartbeat, std::chrono::seconds(10));
+    EXPECT_THAT(describe_plan(*config),
+                HasSubstr("history: /etc/loopwire/data/plant.db (SQLite, WAL mode), every change and a heartbeat each 10s, kept 30d"));
+}
+
+TEST(GatewayConfig, HistoryDefaultsApplyToWhatIsLeftOut) {
+    auto config = parse(one_device("device = \"tc10@3\"\n") + "[history]\ndatabase = \"/var/lib/loopwire/plant.db\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    ASSERT_TRUE(config->history);
+    EXPECT_EQ(config->history->database, std::filesystem::path("/var/lib/loopwire/plant.db"));  // absolute: as written
+    EXPECT_EQ(config->history->keep, std::chrono::hours(24 * 90));
+    EXPECT_EQ(config->history->heartbeat, std::chrono::seconds(60));
+    EXPECT_THAT(describe_plan(*config), HasSubstr("a heartbeat each 1m, kept 90d"));
+    // "~" is a shell's, not a path's: it stays a folder named "~" beside the file.
+    auto tilde = parse(one_device("device = \"tc10@3\"\n") + "[history]\ndatabase = \"~/plant.db\"\n");
+    ASSERT_TRUE(tilde) << tilde.error().message;
+    EXPECT_EQ(tilde->history->database, std::filesystem::path("~/plant.db"));
+}
+
+TEST(GatewayConfig, BadHistorySettingsAreRefusedWithTheKey) {
+    const std::string device = one_device("device = \"tc10@3\"\n") + "[history]\n";
+    EXPECT_THAT(error_of(device + "keep = \"90d\"\n"), StartsWith("plant.toml:8: history: missing `database` (e.g. database = \"plant.db\")"));
+    EXPECT_THAT(error_of(device + "database = \"\"\n"), StartsWith("plant.toml:9: history.database: expected the database file's path"));
+    EXPECT_THAT(error_of(device + "database = 5\n"), StartsWith("plant.toml:9: history.database: expected a string such as \"plant.db\""));
+    const std::string with_file = device + "database = \"plant.db\"\n";
+    EXPECT_EQ(error_of(with_file + "keep = \"90 days\"\n"),
+              "plant.toml:10: history.keep: '90 days' is not a period: write it like 90d, 12h, 30m or 3600s");
+    EXPECT_THAT(error_of(with_file + "keep = \"30s\"\n"), StartsWith("plant.toml:10: history.keep: \"30s\" is too short: keep at least 1m"));
+    EXPECT_THAT(error_of(with_file + "keep = 90\n"), StartsWith("plant.toml:10: history.keep: expected a period string such as \"90d\""));
+    EXPECT_THAT(error_of(with_file + "heartbeat = \"500ms\"\n"), StartsWith("plant.toml:10: history.heartbeat: less than 1s apart"));
+    EXPECT_THAT(error_of(with_file + "heartbeat = \"2d\"\n"), StartsWith("plant.toml:10: history.heartbeat: '2d' is not a duration"));
+    EXPECT_THAT(error_of(with_file + "path = \"x\"\n"),
+                StartsWith("plant.toml:10: history.path: unknown key (allowed here: database, keep, heartbeat)"));
+    EXPECT_THAT(error_of("history = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected a [history] table"));
 }
 
 }  // namespace

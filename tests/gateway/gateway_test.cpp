@@ -1,9 +1,12 @@
 // The running gateway (gateway/gateway.hpp) in this process, on a simulated line: its change
 // stream reaches a subscriber as a later front (MQTT, HTTP) will consume it, and
 // `[modbus_tcp] max_age` reaches the Modbus TCP front.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
+#include <fstream>
 #include <condition_variable>
 #include <mutex>
 #include <thread>
@@ -134,6 +137,48 @@ TEST(Gateway, WithAMaxAgeARepeatedReadIsAnsweredWithoutTheLine) {
     for (std::size_t i = 0; i < first.readings.size(); ++i) {
         EXPECT_EQ(second.readings[i].value->raw, first.readings[i].value->raw) << i;
     }
+}
+
+// The polls' values reach the history: the gateway opens the database and answers for it.
+TEST(Gateway, WithAHistoryThePolledValuesAreRecorded) {
+    std::string pattern = (std::filesystem::temp_directory_path() / "loopwire-gateway-history-XXXXXX").string();
+    ASSERT_NE(mkdtemp(pattern.data()), nullptr);
+    const std::filesystem::path folder = pattern;
+    const std::string text = std::string(simulated_plant) + fmt::format("\n[history]\ndatabase = \"{}\"\n", (folder / "plant.db").string());
+    auto config = parse_gateway_config(text, "plant.toml", profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    {
+        auto opened = Gateway::open(*config);
+        ASSERT_TRUE(opened) << opened.error().message;
+        const HistorySource* history = (*opened)->history();
+        ASSERT_NE(history, nullptr);
+        const auto give_up = std::chrono::steady_clock::now() + 10s;
+        while (history->rows_written() < 2 && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(20ms);
+        ASSERT_GE(history->rows_written(), 2u) << "no values were recorded in 10 s";
+        HistoryQuery query;
+        query.device = "oven1";
+        query.from = std::chrono::system_clock::now() - 1min;
+        query.to = std::chrono::system_clock::now() + 1s;
+        query.points = 10;
+        auto series = history->query(query);
+        ASSERT_TRUE(series) << series.error().message;
+        ASSERT_EQ(series->size(), 2u);
+        EXPECT_EQ((*series)[0].parameter, "measured_value");
+        EXPECT_EQ((*series)[1].parameter, "set_point");
+    }
+    // A file that is not a history database stops the gateway at its start, saying which.
+    std::filesystem::resize_file(folder / "plant.db", 0);
+    std::filesystem::remove(folder / "plant.db-wal");
+    std::filesystem::remove(folder / "plant.db-shm");
+    { std::ofstream(folder / "plant.db") << "not a database, but a long enough line of text to fill a header and then some more\n"; }
+    auto refused = Gateway::open(*config);
+    ASSERT_FALSE(refused);
+    EXPECT_THAT(refused.error().message, ::testing::HasSubstr((folder / "plant.db").string() + ": cannot be read as an SQLite database"));
+    std::filesystem::remove_all(folder);
+
+    auto plain = Gateway::open(*parse_gateway_config(simulated_plant, "plant.toml", profiles()));
+    ASSERT_TRUE(plain) << plain.error().message;
+    EXPECT_EQ((*plain)->history(), nullptr);
 }
 
 }  // namespace

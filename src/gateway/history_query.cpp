@@ -1,0 +1,227 @@
+#include "gateway/history_query.hpp"
+
+#include <algorithm>
+#include <map>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+namespace loopwire::gateway {
+
+namespace {
+
+constexpr std::int64_t minute_ms = 60000;
+
+std::int64_t floor_div(std::int64_t a, std::int64_t b) { return a / b - ((a % b != 0) && ((a < 0) != (b < 0)) ? 1 : 0); }
+std::int64_t ceil_div(std::int64_t a, std::int64_t b) { return -floor_div(-a, b); }
+
+}  // namespace
+
+// Buckets narrower than a minute are computed from the samples. Wider ones are rounded up to
+// whole minutes and start on a minute, so that every minute lies in one bucket and the minute
+// table answers for all of those inside [from, to]; the minutes cut by `from` or `to` are read
+// from the samples. Rounding up keeps the count at most `points`.
+BucketPlan plan_buckets(std::int64_t from, std::int64_t to, std::size_t points) {
+    const auto count = static_cast<std::int64_t>(points == 0 ? 1 : points);
+    const std::int64_t span = to - from + 1;
+    BucketPlan plan;
+    plan.origin = from;
+    plan.width = std::max<std::int64_t>(1, ceil_div(span, count));
+    if (plan.width < minute_ms) return plan;
+    plan.minutes = true;
+    plan.origin = floor_div(from, minute_ms) * minute_ms;
+    plan.width = ceil_div(plan.width, minute_ms) * minute_ms;
+    while (ceil_div(to + 1 - plan.origin, plan.width) > count) plan.width += minute_ms;
+    return plan;
+}
+
+namespace history {
+namespace {
+
+using std::chrono::milliseconds;
+
+std::int64_t to_ms(std::chrono::system_clock::time_point time) {
+    return std::chrono::duration_cast<milliseconds>(time.time_since_epoch()).count();
+}
+
+struct Aggregate {
+    double min = 0;
+    double max = 0;
+    double sum = 0;
+    std::int64_t count = 0;
+
+    void add(double lo, double hi, double total, std::int64_t n) {
+        if (n <= 0) return;
+        if (count == 0 || lo < min) min = lo;
+        if (count == 0 || hi > max) max = hi;
+        sum += total;
+        count += n;
+    }
+};
+
+using Buckets = std::map<std::int64_t, Aggregate>;
+
+// The rows come in key order (time), so each is added to its bucket as it is read: no sort,
+// which a GROUP BY on the bucket number would need (and which cost more than the reading).
+std::int64_t bucket_of(const BucketPlan& plan, std::int64_t t) { return (t - plan.origin) / plan.width; }
+
+Result<void> gather_samples(sqlite::Connection& db, std::int64_t series, const BucketPlan& plan, std::int64_t from,
+                            std::int64_t to, Buckets& buckets) {
+    if (from > to) return {};
+    // Special states and missed replies are rows without a value: no part of a bucket.
+    auto statement = db.prepare(
+        "SELECT t, value FROM samples WHERE series_id = ?1 AND t >= ?2 AND t <= ?3 AND value IS NOT NULL ORDER BY t");
+    if (!statement) return statement.error();
+    statement->bind(1, series);
+    statement->bind(2, from);
+    statement->bind(3, to);
+    for (;;) {
+        auto row = statement->step();
+        if (!row) return row.error();
+        if (!*row) return {};
+        const double value = statement->real(1);
+        buckets[bucket_of(plan, statement->integer(0))].add(value, value, value, 1);
+    }
+}
+
+Result<void> gather_minutes(sqlite::Connection& db, std::int64_t series, const BucketPlan& plan, std::int64_t first,
+                            std::int64_t end, Buckets& buckets) {
+    auto statement = db.prepare(
+        "SELECT minute, lo, hi, total, n FROM minutes WHERE series_id = ?1 AND minute >= ?2 AND minute < ?3 ORDER BY minute");
+    if (!statement) return statement.error();
+    statement->bind(1, series);
+    statement->bind(2, first);
+    statement->bind(3, end);
+    for (;;) {
+        auto row = statement->step();
+        if (!row) return row.error();
+        if (!*row) return {};
+        buckets[bucket_of(plan, statement->integer(0) * minute_ms)].add(statement->real(1), statement->real(2),
+                                                                        statement->real(3), statement->integer(4));
+    }
+}
+
+Result<std::vector<HistoryBucket>> buckets_of(sqlite::Connection& db, std::int64_t series, std::int64_t from, std::int64_t to,
+                                              std::size_t points) {
+    const BucketPlan plan = plan_buckets(from, to, points);
+    Buckets buckets;
+    if (!plan.minutes) {
+        if (auto done = gather_samples(db, series, plan, from, to, buckets); !done) return done.error();
+    } else {
+        const std::int64_t first = ceil_div(from, minute_ms);  // the first minute wholly inside
+        const std::int64_t end = floor_div(to + 1, minute_ms);   // past the last one
+        if (first < end) {
+            if (auto done = gather_samples(db, series, plan, from, first * minute_ms - 1, buckets); !done) return done.error();
+            if (auto done = gather_minutes(db, series, plan, first, end, buckets); !done) return done.error();
+            if (auto done = gather_samples(db, series, plan, end * minute_ms, to, buckets); !done) return done.error();
+        } else if (auto done = gather_samples(db, series, plan, from, to, buckets); !done) {
+            return done.error();
+        }
+    }
+    std::vector<HistoryBucket> result;
+    result.reserve(buckets.size());
+    for (const auto& [index, aggregate] : buckets) {
+        HistoryBucket bucket;
+        bucket.start = std::chrono::system_clock::time_point(milliseconds(plan.origin + index * plan.width));
+        bucket.min = aggregate.min;
+        bucket.max = aggregate.max;
+        bucket.mean = aggregate.sum / static_cast<double>(aggregate.count);
+        bucket.count = static_cast<std::size_t>(aggregate.count);
+        result.push_back(bucket);
+    }
+    return result;
+}
+
+struct SeriesRow {
+    std::int64_t id = 0;
+    std::string parameter;
+    std::string unit;
+};
+
+Result<std::vector<std::string>> recorded_devices(sqlite::Connection& db) {
+    auto statement = db.prepare("SELECT DISTINCT device FROM series ORDER BY device");
+    if (!statement) return statement.error();
+    std::vector<std::string> devices;
+    for (;;) {
+        auto row = statement->step();
+        if (!row) return row.error();
+        if (!*row) return devices;
+        devices.push_back(statement->text(0));
+    }
+}
+
+// The device's series, one per parameter in the order first recorded; of a parameter recorded
+// under several units (its profile changed), the latest.
+Result<std::vector<SeriesRow>> series_of(sqlite::Connection& db, const std::string& device) {
+    auto statement = db.prepare("SELECT id, parameter, unit FROM series WHERE device = ?1 ORDER BY id");
+    if (!statement) return statement.error();
+    statement->bind(1, std::string_view(device));
+    std::vector<SeriesRow> series;
+    for (;;) {
+        auto row = statement->step();
+        if (!row) return row.error();
+        if (!*row) return series;
+        SeriesRow found{statement->integer(0), statement->text(1), statement->text(2)};
+        auto same = std::find_if(series.begin(), series.end(), [&](const SeriesRow& s) { return s.parameter == found.parameter; });
+        if (same != series.end()) *same = std::move(found);
+        else series.push_back(std::move(found));
+    }
+}
+
+std::string names_of(const std::vector<SeriesRow>& series) {
+    std::vector<std::string> names;
+    for (const auto& s : series) names.push_back(s.parameter);
+    return fmt::format("{}", fmt::join(names, ", "));
+}
+
+Result<std::vector<SeriesRow>> chosen_series(sqlite::Connection& db, const HistoryQuery& query) {
+    auto all = series_of(db, query.device);
+    if (!all) return all.error();
+    if (all->empty()) {
+        auto devices = recorded_devices(db);
+        if (!devices) return devices.error();
+        return make_error(ErrorKind::usage,
+                          fmt::format("no history of a device named \"{}\" (devices recorded: {})", query.device,
+                                      devices->empty() ? "none yet" : fmt::format("{}", fmt::join(*devices, ", "))));
+    }
+    if (query.parameters.empty()) return all;
+    std::vector<SeriesRow> chosen;
+    for (const auto& name : query.parameters) {
+        auto found = std::find_if(all->begin(), all->end(), [&](const SeriesRow& s) { return s.parameter == name; });
+        if (found == all->end()) {
+            return make_error(ErrorKind::usage, fmt::format("device \"{}\" has no history of a parameter named \"{}\" (recorded: {})",
+                                                            query.device, name, names_of(*all)));
+        }
+        chosen.push_back(*found);
+    }
+    return chosen;
+}
+
+}  // namespace
+
+Result<std::vector<HistorySeries>> run_query(sqlite::Connection& db, const HistoryQuery& query) {
+    const std::int64_t from = to_ms(query.from);
+    const std::int64_t to = to_ms(query.to);
+    if (from > to) return make_error(ErrorKind::usage, "the history query's `from` is after its `to`; give from <= to");
+    if (query.points == 0 || query.points > max_points) {
+        return make_error(ErrorKind::usage, fmt::format("{} points: ask for 1 to {} points per parameter", query.points, max_points));
+    }
+    auto chosen = chosen_series(db, query);
+    if (!chosen) return chosen.error();
+    // One read transaction: every series is read from the same snapshot of the file.
+    if (auto begun = db.execute("BEGIN"); !begun) return begun.error();
+    std::vector<HistorySeries> result;
+    for (const auto& series : *chosen) {
+        auto buckets = buckets_of(db, series.id, from, to, query.points);
+        if (!buckets) {
+            (void)db.execute("ROLLBACK");
+            return buckets.error();
+        }
+        result.push_back({series.parameter, series.unit, std::move(*buckets)});
+    }
+    (void)db.execute("COMMIT");
+    return result;
+}
+
+}  // namespace history
+}  // namespace loopwire::gateway

@@ -1,0 +1,18 @@
+#pragma once
+// The history's downsampled series: one parameter over [from, to] cut into at most `points`
+// buckets with min, max and mean (gateway/history_source.hpp).
+#include <vector>
+
+#include "common/result.hpp"
+#include "gateway/history_source.hpp"
+#include "gateway/history_store.hpp"
+#include "gateway/sqlite_database.hpp"
+
+namespace loopwire::gateway::history {
+
+// The most buckets one query may ask for: a chart has at most a few thousand pixels.
+constexpr std::size_t max_points = 10000;
+
+Result<std::vector<HistorySeries>> run_query(sqlite::Connection& db, const HistoryQuery& query);
+
+}  // namespace loopwire::gateway::history

@@ -1,0 +1,121 @@
+#include "gateway/history_schema.hpp"
+
+#include <fmt/format.h>
+
+namespace loopwire::gateway::history {
+namespace {
+
+constexpr std::string_view create_tables = R"sql(
+BEGIN IMMEDIATE;
+CREATE TABLE series(
+  id INTEGER PRIMARY KEY,
+  device TEXT NOT NULL,
+  parameter TEXT NOT NULL,
+  unit TEXT NOT NULL,
+  UNIQUE(device, parameter, unit));
+-- value: the number (an enum's or bit field's raw word); NULL in a special state or with no
+-- reply, when status says why. text: the label of an enum or bit field. status: NULL for "ok".
+CREATE TABLE samples(
+  series_id INTEGER NOT NULL,
+  t INTEGER NOT NULL,
+  value REAL,
+  text TEXT,
+  status TEXT,
+  PRIMARY KEY(series_id, t)) WITHOUT ROWID;
+-- minute: ms since the epoch / 60000; the samples with a value in it.
+CREATE TABLE minutes(
+  series_id INTEGER NOT NULL,
+  minute INTEGER NOT NULL,
+  lo REAL NOT NULL,
+  hi REAL NOT NULL,
+  total REAL NOT NULL,
+  n INTEGER NOT NULL,
+  PRIMARY KEY(series_id, minute)) WITHOUT ROWID;
+PRAGMA application_id = 1280788585;
+PRAGMA user_version = 1;
+COMMIT;
+)sql";
+static_assert(application_id == 1280788585);
+
+Error refuse(const std::filesystem::path& file, const std::string& what) {
+    return make_error(ErrorKind::usage, fmt::format("history database {}: {}", file.string(), what));
+}
+
+// What is wrong with the path itself, before SQLite is asked (its own message would only say
+// "unable to open database file").
+Result<void> check_path(const std::filesystem::path& file) {
+    std::error_code error;
+    if (std::filesystem::is_directory(file, error)) {
+        return refuse(file, "is a folder; name a file in it, e.g. [history] database = \"plant.db\"");
+    }
+    const auto folder = file.parent_path().empty() ? std::filesystem::path(".") : file.parent_path();
+    if (!std::filesystem::is_directory(folder, error)) {
+        return refuse(file, fmt::format("the folder {} does not exist; create it or name another file in [history] database",
+                                        folder.string()));
+    }
+    return {};
+}
+
+// Whether the file is a loopwire history database already (true), an empty one to set up
+// (false), or something else (the error).
+Result<bool> recognise(sqlite::Connection& db, const std::filesystem::path& file) {
+    auto id = db.query_integer("PRAGMA application_id");
+    if (!id) {
+        return refuse(file, fmt::format("cannot be read as an SQLite database ({}); if it is not the history, name another "
+                                        "file in [history] database, else move the damaged file away and start a new one",
+                                        id.error().message));
+    }
+    if (*id == application_id) {
+        auto version = db.query_integer("PRAGMA user_version");
+        if (!version) return version.error();
+        if (*version != schema_version) {
+            return refuse(file, fmt::format("was written by another version of loopwire (schema {}, this one reads {}); "
+                                            "name another file in [history] database", *version, schema_version));
+        }
+        return true;
+    }
+    auto tables = db.query_integer("SELECT count(*) FROM sqlite_schema");
+    if (!tables) return tables.error();
+    if (*id != 0 || *tables != 0) {
+        return refuse(file, "is an SQLite database of another program, not a loopwire history; name another file in "
+                            "[history] database");
+    }
+    return false;
+}
+
+}  // namespace
+
+Result<sqlite::Connection> open_for_writing(const std::filesystem::path& file) {
+    if (auto path = check_path(file); !path) return path.error();
+    auto db = sqlite::Connection::open(file.string(), sqlite::Connection::Mode::read_write_create);
+    if (!db) return refuse(file, fmt::format("cannot be opened ({}); check the gateway may write to its folder", db.error().message));
+    auto known = recognise(*db, file);
+    if (!known) return known.error();
+    // WAL: a crash leaves every committed transaction whole, and readers (the HTTP API) never
+    // wait for the writer. It needs the -wal and -shm files beside the database.
+    auto mode = db->query_text("PRAGMA journal_mode = WAL");
+    if (!mode || *mode != "wal") {
+        return refuse(file, fmt::format("cannot be switched to WAL mode ({}); the gateway needs to write the file and create "
+                                        "its -wal and -shm files in its folder",
+                                        mode ? "journal mode " + *mode : mode.error().message));
+    }
+    // NORMAL in WAL mode: a process crash loses nothing committed (the WAL is in the OS's
+    // cache); only a power cut may lose the last commits, never the file's consistency.
+    if (auto synchronous = db->execute("PRAGMA synchronous = NORMAL"); !synchronous) return synchronous.error();
+    if (!*known) {
+        if (auto created = db->execute(create_tables); !created) {
+            (void)db->execute("ROLLBACK");
+            return refuse(file, fmt::format("cannot be written ({}); check the gateway may write to it and its folder",
+                                            created.error().message));
+        }
+    }
+    return db;
+}
+
+Result<sqlite::Connection> open_for_reading(const std::filesystem::path& file) {
+    auto db = sqlite::Connection::open(file.string(), sqlite::Connection::Mode::read_write_create);
+    if (!db) return db.error();
+    return db;
+}
+
+}  // namespace loopwire::gateway::history
