@@ -125,7 +125,8 @@ Result<RawScale> parse_scale(std::string_view text) {
     digits.erase(0, std::min(digits.find_first_not_of('0'), digits.size()));
     if (digits.empty()) return make_error(ErrorKind::usage, "--scale 0 would turn every value into 0: give the factor the values are multiplied by");
     if (digits.size() > most_scale_digits || fraction.size() > most_scale_digits) {
-        return make_error(ErrorKind::usage, fmt::format("--scale '{}' has more than {} digits after its leading zeros or its point", text, most_scale_digits));
+        return make_error(ErrorKind::usage, fmt::format("--scale '{}' is too precise: give at most {} significant digits and {} "
+                                                        "decimals", text, most_scale_digits, most_scale_digits));
     }
     const auto mantissa = static_cast<std::int64_t>(std::strtoll(digits.c_str(), nullptr, 10));
     return RawScale{negative ? -mantissa : mantissa, static_cast<unsigned>(fraction.size())};

@@ -1,5 +1,7 @@
 // resolve_parameters (request_planner.hpp): what a user names on the command line to profile
-// entries.
+// entries. Beyond what request_planner.hpp says: aliases, mnemonics and groups also match with
+// the manuals' non-ASCII letters typed in ASCII (AC20 "m.OLL" for "ñ.OLL": folded_name), and a
+// miss offers up to three nearest names (name_matching.hpp).
 #include <algorithm>
 
 #include <cctype>

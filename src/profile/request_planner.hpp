@@ -52,9 +52,7 @@ std::vector<WriteBlock> plan_writes(const Profile& profile, const std::vector<Pl
 
 // Names or unique mnemonics (case-insensitive), group names, or "all" (every readable
 // parameter) to parameters, in the order given, without duplicates. Errors name what was not
-// found with up to three nearest names (name_matching.hpp), or list the candidates of an
-// ambiguous mnemonic. Aliases, mnemonics and groups also match with the manuals' non-ASCII
-// letters typed in ASCII (AC20 "m.OLL" for "ñ.OLL": folded_name).
+// found, or list the candidates of an ambiguous mnemonic.
 // Each text is tried as: exact name; name ignoring case; the profile's aliases ignoring case (PV,
 // SP, OUT; the primary of an ambiguous mnemonic); mnemonic ignoring case (one match, or
 // an error listing "name (mnemonic, table address)" of every candidate); group ignoring case
