@@ -15,7 +15,7 @@ link="rtu:$WORK_DIR/ttyN?parity=none"
 check miss-suggests 2 'no parameter "sett_point" on tc10; did you mean set_point (SP)?' \
   "$loopwire" read --link "$link" --device tc10@3 sett_point
 check miss-suggests-on-write 2 'did you mean set_point (SP)?' "$loopwire" write --link "$link" --device tc10@3 sett_point=10
-check miss-swapped-letters 2 'did you mean set_point_high_limit (SP.HL), set_point_low_limit (SP.LL)?' \
+check miss-swapped-letters 2 'did you mean set_point_low_limit (SP.LL) or set_point_high_limit (SP.HL)?' \
   "$loopwire" read --link "$link" --device tc10@3 SP.LH
 check miss-nothing-close 2 '`loopwire describe tc10` lists its names' "$loopwire" read --link "$link" --device tc10@3 qqqqqqqqqq
 check miss-ascii-offers-manual-spelling 2 'did you mean main_output_low_limit (ñ.OLL)' \
@@ -26,7 +26,7 @@ check ascii-mnemonic 0 '"main_output_low_limit"' "$loopwire" read --link "$link"
 check manual-mnemonic 0 '"main_output_low_limit"' "$loopwire" read --link "$link" --device ac20@1 ñ.OLL --json
 check ascii-mnemonic-lower 0 'main_output_low_limit' "$loopwire" read --link "$link" --device ac20@1 M.oll
 check ascii-group-read 0 '"alarm_1_threshold"' "$loopwire" read --link "$link" --device ac20@1 Alrm --json
-check ascii-group-describe 0 'Alrñ' "$loopwire" describe ac20 --group alrm
+check ascii-group-describe 0 'alarm_1_threshold' "$loopwire" describe ac20 --group alrm
 
 # describe lists the groups; a wrong --group lists them too.
 check describe-groups 0 'groups (--group G shows one): ' "$loopwire" describe tc10

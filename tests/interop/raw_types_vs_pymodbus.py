@@ -23,10 +23,10 @@ import interop_support as support  # noqa: E402  pylint: disable=wrong-import-po
 
 UNIT = 5
 
-# (type, struct format, values): each type's values are exactly representable in it, so the
-# text loopwire prints must be the shortest decimal of each.
+# (type, struct format, values). loopwire shows a float32 as the shortest decimal that reads back
+# as the same float32: 0.1 (packed as 0x3DCCCCCD) must come back as 0.1, not 0.100000001490116.
 VALUES = [
-    ("float32", "f", [12.5, -3.25, 1e10, -0.0, 3.0517578125e-05]),
+    ("float32", "f", [12.5, -3.25, 1e10, -0.0, 0.1, 273.15]),
     ("int32", "i", [123456789, -2, 2147483647, -2147483648, 0]),
     ("uint32", "I", [4000000000, 1, 65536]),
     ("float64", "d", [3.141592653589793, -1e-300, 0.1, 6.02214076e23]),

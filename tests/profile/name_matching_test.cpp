@@ -61,7 +61,7 @@ TEST(NameMatching, AMissOffersTheNearestNames) {
     ASSERT_FALSE(missed);
     EXPECT_EQ(missed.error().kind, ErrorKind::usage);
     EXPECT_EQ(missed.error().message, "no parameter \"sett_point\" on tc10; did you mean set_point (SP)?");
-    EXPECT_THAT(nearest_names(*tc10, "SP.LH"), ElementsAre("set_point_high_limit (SP.HL)", "set_point_low_limit (SP.LL)"));
+    EXPECT_THAT(nearest_names(*tc10, "SP.LH"), ElementsAre("set_point_low_limit (SP.LL)", "set_point_high_limit (SP.HL)"));
     // Never more than three, nearest first.
     EXPECT_LE(nearest_names(*tc10, "x").size(), 3u);
     EXPECT_LE(nearest_names(*tc10, "SP.LH", 1).size(), 1u);
