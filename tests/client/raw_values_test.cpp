@@ -117,7 +117,9 @@ TEST(RawValues, ScaleIsExactToTheDecimal) {
     for (const char* bad : {"", "abc", "1e3", ".5", "5.", "0", "0.000", "1,5", "--1", "0x10", "1.0000000000000001"}) {
         auto refused = parse_scale(bad);
         EXPECT_FALSE(refused) << bad;
-        if (!refused) EXPECT_EQ(refused.error().kind, ErrorKind::usage) << bad;
+        if (!refused) {
+            EXPECT_EQ(refused.error().kind, ErrorKind::usage) << bad;
+        }
     }
 }
 
