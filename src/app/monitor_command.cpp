@@ -1,6 +1,7 @@
 // loopwire monitor --link URL --device DEVICE@UNIT [--device ...] [NAMES...] [--interval 1s]
 //                  [--format table|csv|jsonl] [--count N] [--output FILE [--append] [--rotate-size 10MB]
 //                  [--rotate daily]] [--utc]
+//                  --link URL --unit N TABLE ADDRESS [COUNT] [--type T ...] (raw_monitor.hpp)
 #include <unistd.h>
 
 #include <cerrno>
@@ -15,6 +16,7 @@
 #include "app/monitor_output.hpp"
 #include "app/monitor_screen.hpp"
 #include "app/master_options.hpp"
+#include "app/raw_monitor.hpp"
 #include "client/monitor_loop.hpp"
 #include "client/monitor_names.hpp"
 #include "app/stop_signal.hpp"
@@ -24,8 +26,9 @@ namespace {
 
 struct MonitorOptions {
     MasterCommandOptions master;
+    RawTypeOptions typing;  // raw registers, without --device
     std::vector<std::string> devices;
-    std::vector<std::string> names;
+    std::vector<std::string> names;  // or TABLE ADDRESS [COUNT] without --device
     std::string interval = "1s";
     std::string format;  // empty: table on a terminal, jsonl otherwise
     unsigned count = 0;  // 0: until stopped
@@ -99,6 +102,14 @@ int run_monitor_command(const MonitorOptions& options, const ProfileOptions& pro
     if (!format) return report_error(format.error());
     auto file_settings = file_options(options);
     if (!file_settings) return report_error(file_settings.error());
+    if (options.devices.empty()) {
+        if (options.append || !options.rotate_size.empty() || !options.rotate.empty()) {
+            return report_error(make_error(ErrorKind::usage, "--append, --rotate-size and --rotate work with --device; "
+                                                             "raw registers (--unit) write a new FILE each run"));
+        }
+        return run_raw_monitor(options.master, options.typing, options.names, *settings, *format, options.output, options.utc);
+    }
+    if (options.typing.any_given()) return report_error(RawTypeOptions::not_with_names());
     auto registry = profiles.load();
     if (!registry) return report_error(registry.error());
     auto devices = parse_devices(*registry, options.devices);
@@ -133,16 +144,21 @@ int run_monitor_command(const MonitorOptions& options, const ProfileOptions& pro
 
 void add_monitor_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles) {
     auto options = std::make_shared<MonitorOptions>();
-    options->master.timeout = "500ms";  // below the default interval, so a dead unit does not stretch a sample
+    options->master.timeout = "500ms";
+    options->master.unit = 0;  // not given: raw registers need --unit  // below the default interval, so a dead unit does not stretch a sample
     auto* command = app.add_subcommand("monitor", "Poll devices on one link and show their values live, or stream them as CSV / JSON lines");
     command->add_option("--link", options->master.link, "Link URL (see `loopwire read --help`); all devices share it")->required();
-    command->add_option("--device", options->devices, "DEVICE@UNIT to poll (repeat for several units on the link)")
-        ->required()
-        ->allow_extra_args(false);  // one value per --device, so NAMES after it stay NAMES
+    auto* device = command->add_option("--device", options->devices, "DEVICE@UNIT to poll (repeat for several units on the link)")
+                       ->allow_extra_args(false);  // one value per --device, so NAMES after it stay NAMES
+    command->add_option("--unit", options->master.unit, "Unit id of a device without a profile: poll raw registers TABLE ADDRESS [COUNT]")
+        ->check(CLI::Range(1, 247))
+        ->excludes(device);
     command->add_option("names", options->names,
-                        "What to watch: NAME (a name, mnemonic, group or all) for every device that has it, or "
-                        "DEVICE@UNIT:NAME for one device. A device no NAME applies to shows its default set: "
-                        "process value, set point, output, alarm/status");
+                        "What to watch: NAME (a name, mnemonic, group or all) on every device, an error where one has no "
+                        "such name, or DEVICE@UNIT:NAME for one device. A device no NAME applies to shows its default set: "
+                        "process value, set point, output, alarm/status. With --unit instead of --device: " +
+                            std::string(raw_count_help));
+    options->typing.add_to(*command);
     command->add_option("--interval", options->interval, "Time between samples: 500ms, 2s, ...")->capture_default_str();
     command->add_option("--format", options->format,
                         "table (live, redrawn in place), csv or jsonl (one line per sample, ISO 8601 time). "

@@ -1,5 +1,6 @@
 // loopwire devices [--json] and loopwire describe DEVICE [--group G] [--json]: what loopwire
 // knows about each device, straight from its profile.
+#include <algorithm>
 #include <functional>
 
 #include <fmt/format.h>
@@ -9,6 +10,7 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "profile/name_matching.hpp"
 #include "profile/value_format.hpp"
 #include "profile/profile.hpp"
 #include "profile/profile_registry.hpp"
@@ -62,10 +64,20 @@ nlohmann::ordered_json parameter_json(const device::Parameter& p) {
     return out;
 }
 
+// Ignoring case, and with the manual's non-ASCII letters typed in ASCII (ac20 --group Alrm).
 bool in_group(const device::Parameter& p, const std::string& group) {
-    if (group.empty()) return true;
-    return std::equal(p.group.begin(), p.group.end(), group.begin(), group.end(),
-                      [](char a, char b) { return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b)); });
+    return group.empty() || device::same_name(group, p.group);
+}
+
+// "St.Pn (5), Alrñ (10), ...": every group with how many parameters it holds.
+std::string groups_text(const device::Profile& p) {
+    std::vector<std::string> listed;
+    for (const auto& group : device::group_names(p)) {
+        const auto members = std::count_if(p.parameters.begin(), p.parameters.end(),
+                                           [&](const device::Parameter& q) { return q.group == group; });
+        listed.push_back(fmt::format("{} ({})", group, members));
+    }
+    return fmt::format("{}", fmt::join(listed, ", "));
 }
 
 int run_describe(const device::ProfileRegistry& profiles, const std::string& id, const std::string& group, bool json) {
@@ -76,13 +88,17 @@ int run_describe(const device::ProfileRegistry& profiles, const std::string& id,
     for (const auto& parameter : p.parameters) {
         if (in_group(parameter, group)) shown.push_back(&parameter);
     }
-    if (shown.empty()) return report_error(make_error(ErrorKind::usage, fmt::format("{} has no group '{}'", id, group)));
+    if (shown.empty()) {
+        return report_error(make_error(ErrorKind::usage, fmt::format("{} has no group '{}'; its groups: {}", id, group,
+                                                                     fmt::join(device::group_names(p), ", "))));
+    }
     if (json) {
         nlohmann::ordered_json list = nlohmann::ordered_json::array();
         for (const auto* parameter : shown) list.push_back(parameter_json(*parameter));
         nlohmann::ordered_json aliases = nlohmann::ordered_json::object();
         for (const auto& [alias, name] : p.aliases) aliases[alias] = name;
-        fmt::print("{}\n", nlohmann::ordered_json{{"id", p.id}, {"title", p.title}, {"aliases", aliases}, {"parameters", list}}.dump());
+        fmt::print("{}\n", nlohmann::ordered_json{{"id", p.id}, {"title", p.title}, {"aliases", aliases},
+                                                  {"groups", device::group_names(p)}, {"parameters", list}}.dump());
         return exit_ok;
     }
     fmt::print("{} — {}\n{:<34} {:<8} {:<8} {:>5} {:<3} {:<6} {:<24} {}\n", p.id, p.title, "name", "mnemonic", "table", "addr", "acc", "unit", "range", "meaning");
@@ -96,6 +112,7 @@ int run_describe(const device::ProfileRegistry& profiles, const std::string& id,
         for (const auto& [alias, name] : p.aliases) aliases.push_back(fmt::format("{} = {}", alias, name));
         fmt::print("also named: {}\n", fmt::join(aliases, ", "));
     }
+    if (group.empty()) fmt::print("groups (--group G shows one): {}\n", groups_text(p));
     return exit_ok;
 }
 

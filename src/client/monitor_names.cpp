@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <map>
+#include <optional>
 
 #include <fmt/format.h>
 
@@ -22,6 +23,8 @@ const std::map<std::string, std::vector<std::string>>& builtin_defaults() {
     };
     return defaults;
 }
+
+std::string label_of(const device::DeviceAddress& device) { return fmt::format("{}@{}", device.profile->id, device.unit); }
 
 bool same_device(const device::DeviceAddress& a, const device::DeviceName& b) {
     return a.profile->id == b.id && a.unit == b.unit;
@@ -57,20 +60,36 @@ Result<void> apply_to_one(const std::vector<device::DeviceAddress>& devices, con
     return make_error(ErrorKind::usage, fmt::format("'{}:{}' names {}, which is not one of the --device options", target, name, target));
 }
 
+// A plain NAME must name something on every device: one it matches nothing on is an error (a
+// typo there would otherwise leave that device on its defaults without a word). The error
+// names the device, suggests the nearest names there, and where the NAME does match on others,
+// how to name it for those alone.
 Result<void> apply_to_all(const std::vector<device::DeviceAddress>& devices, const std::string& name,
                           std::vector<std::vector<const device::Parameter*>>& lists) {
-    std::optional<Error> first_error;
-    bool applied = false;
+    std::vector<std::vector<const device::Parameter*>> found_per_device;
+    std::vector<std::string> matched_on;
+    std::optional<std::pair<std::size_t, Error>> first_miss;
     for (std::size_t i = 0; i < devices.size(); ++i) {
         auto found = device::resolve_parameters(*devices[i].profile, {name});
         if (!found) {
-            if (!first_error) first_error = found.error();
+            if (!first_miss) first_miss.emplace(i, found.error());
+            found_per_device.emplace_back();
             continue;
         }
-        append_new(lists[i], *found);
-        applied = true;
+        found_per_device.push_back(std::move(*found));
+        matched_on.push_back(label_of(devices[i]));
     }
-    if (!applied && first_error) return *first_error;
+    if (first_miss) {
+        const auto& [index, error] = *first_miss;
+        if (devices.size() == 1) return error;
+        std::string message = fmt::format("{}: {}", label_of(devices[index]), error.message);
+        if (!matched_on.empty()) {
+            message += fmt::format("; a NAME without DEVICE@UNIT: must match on every --device: write {}:{} to watch it on {} alone",
+                                   matched_on.front(), name, matched_on.front());
+        }
+        return make_error(error.kind, message);
+    }
+    for (std::size_t i = 0; i < devices.size(); ++i) append_new(lists[i], found_per_device[i]);
     return {};
 }
 

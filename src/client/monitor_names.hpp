@@ -15,8 +15,8 @@ namespace loopwire::device {
 std::vector<const device::Parameter*> default_watch_list(const device::Profile& profile);
 
 // NAMES as given on the command line, to a watch list per device (same order as `devices`):
-//   NAME               every device whose profile resolves NAME (a name, mnemonic, group or
-//                      "all", as in `loopwire read`); an error when none does
+//   NAME               every device (a name, mnemonic, group or "all", as in `loopwire read`);
+//                      an error, naming the device, when it matches nothing on one of them
 //   DEVICE@UNIT:NAME   only that device (an error when it is not one of `devices`)
 // A device no NAME applies to gets default_watch_list.
 Result<std::vector<std::vector<const device::Parameter*>>> watch_lists(const std::vector<device::DeviceAddress>& devices,

@@ -1,5 +1,7 @@
 // resolve_parameters (request_planner.hpp): what a user names on the command line to profile
-// entries.
+// entries. Beyond what request_planner.hpp says: aliases, mnemonics and groups also match with
+// the manuals' non-ASCII letters typed in ASCII (AC20 "m.OLL" for "ñ.OLL": folded_name), and a
+// miss offers up to three nearest names (name_matching.hpp).
 #include <algorithm>
 
 #include <cctype>
@@ -7,6 +9,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "profile/name_matching.hpp"
 #include "profile/request_planner.hpp"
 #include "profile/value_text.hpp"
 
@@ -25,7 +28,7 @@ Found by_name(const Profile& profile, const std::string& name) {
 
 Found by_alias(const Profile& profile, const std::string& text) {
     for (const auto& [alias, name] : profile.aliases) {
-        if (equal_ignoring_case(alias, text)) return {profile.find(name)};  // the checks made sure it exists
+        if (same_name(text, alias)) return {profile.find(name)};  // the checks made sure it exists
     }
     return {};
 }
@@ -36,7 +39,7 @@ Found matching(const Profile& profile, const std::string& text, const std::strin
     for (const Parameter& parameter : profile.parameters) {
         if (readable_only && !parameter.readable) continue;
         const std::string& value = parameter.*field;
-        if (!value.empty() && equal_ignoring_case(value, text)) found.push_back(&parameter);
+        if (!value.empty() && same_name(text, value)) found.push_back(&parameter);
     }
     return found;
 }
@@ -61,18 +64,17 @@ Error ambiguous(const std::string& text, const Found& candidates) {
                       fmt::format("mnemonic \"{}\" is ambiguous: {}; use the name instead", text, listed));
 }
 
+// "no parameter "sett_point" on tc10; did you mean set_point (SP)?": the nearest names,
+// mnemonics, aliases and groups (name_matching.hpp), or where to look them up.
 Error not_found(const Profile& profile, const std::string& text) {
-    std::string lowered = text;
-    std::transform(lowered.begin(), lowered.end(), lowered.begin(), [](unsigned char c) { return std::tolower(c); });
-    std::vector<std::string> similar;
-    for (const Parameter& parameter : profile.parameters) {
-        if (similar.size() < 5 && !lowered.empty() && parameter.name.find(lowered) != std::string::npos) {
-            similar.push_back(parameter.name);
-        }
+    const auto nearest = nearest_names(profile, text);
+    if (nearest.empty()) {
+        return make_error(ErrorKind::usage, fmt::format("no parameter \"{}\" on {}; `loopwire describe {}` lists its names, "
+                                                        "mnemonics and groups", text, profile.id, profile.id));
     }
-    return make_error(ErrorKind::usage,
-                      fmt::format("profile {} has no parameter, mnemonic or group \"{}\"{}", profile.id, text,
-                                  similar.empty() ? "" : fmt::format(" (did you mean {}?)", fmt::join(similar, ", "))));
+    std::string listed = nearest.front();
+    for (std::size_t i = 1; i < nearest.size(); ++i) listed += (i + 1 == nearest.size() ? " or " : ", ") + nearest[i];
+    return make_error(ErrorKind::usage, fmt::format("no parameter \"{}\" on {}; did you mean {}?", text, profile.id, listed));
 }
 
 Result<Found> resolve_one(const Profile& profile, const std::string& text) {
@@ -80,8 +82,8 @@ Result<Found> resolve_one(const Profile& profile, const std::string& text) {
     if (text.size() > group_prefix.size() && equal_ignoring_case(text.substr(0, group_prefix.size()), group_prefix)) {
         const std::string group = text.substr(group_prefix.size());
         if (Found found = matching(profile, group, &Parameter::group, true); !found.empty()) return found;
-        return make_error(ErrorKind::usage, fmt::format("profile {} has no group \"{}\" with readable parameters",
-                                                        profile.id, group));
+        return make_error(ErrorKind::usage, fmt::format("profile {} has no group \"{}\" with readable parameters; its groups: {}",
+                                                        profile.id, group, fmt::join(group_names(profile), ", ")));
     }
     if (Found found = by_name(profile, text); !found.empty()) return found;
     if (Found found = by_alias(profile, text); !found.empty()) return found;

@@ -46,9 +46,9 @@ for i, row in enumerate(rows, 1):
             assert d["values"][name]["text"] is not None and d["values"][name]["age"] < 0.2, (name, d["values"][name])
 '
 
-# Named selection: a plain name for every device that has it, DEVICE@UNIT:NAME for one.
+# Named selection: DEVICE@UNIT:NAME for one device (a plain name must match on every device).
 timeout 20 "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@5 --count 1 --format csv \
-  output_power rampsoak@5:SV >"$WORK_DIR/rows.csv" 2>"$WORK_DIR/mon.err" || count_failure "monitor-csv exit status" "$WORK_DIR/mon.err"
+  tc10@3:output_power rampsoak@5:SV >"$WORK_DIR/rows.csv" 2>"$WORK_DIR/mon.err" || count_failure "monitor-csv exit status" "$WORK_DIR/mon.err"
 if [ "$(head -1 "$WORK_DIR/rows.csv")" = "time,sample,tc10@3 status,tc10@3 errors,tc10@3:output_power [%],rampsoak@5 status,rampsoak@5 errors,rampsoak@5:set_value" ] \
    && [ "$(wc -l <"$WORK_DIR/rows.csv")" -eq 2 ]; then count_pass; else count_failure monitor-csv-columns "$WORK_DIR/rows.csv"; fi
 

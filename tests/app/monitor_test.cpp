@@ -199,12 +199,28 @@ TEST(MonitorNames, DefaultWatchListsNameReadableParametersOfEveryBuiltInProfile)
               (std::vector<std::string>{"measured_value", "operating_set_point", "output_power", "alarm_status"}));
 }
 
-TEST(MonitorNames, PlainNameAppliesToDevicesThatHaveItOthersKeepTheirDefaults) {
+TEST(MonitorNames, PlainNameAppliesToEveryDevice) {
+    const auto devices = devices_of({"tc10@3", "rampsoak@5"});
+    auto lists = device::watch_lists(devices, {"OUT"});
+    ASSERT_TRUE(lists) << lists.error().message;
+    EXPECT_EQ(names_of((*lists)[0]), (std::vector<std::string>{"output_power"}));
+    EXPECT_EQ(names_of((*lists)[1]), (std::vector<std::string>{"output_percentage"}));
+}
+
+// A name that matches nothing on one of the devices is an error naming that device, not a
+// silently shorter watch list there.
+TEST(MonitorNames, PlainNameMissingOnOneDeviceIsAnErrorNamingIt) {
     const auto devices = devices_of({"tc10@3", "rampsoak@5"});
     auto lists = device::watch_lists(devices, {"output_power"});
-    ASSERT_TRUE(lists);
-    EXPECT_EQ(names_of((*lists)[0]), (std::vector<std::string>{"output_power"}));
-    EXPECT_EQ(names_of((*lists)[1]), names_of(device::default_watch_list(*devices[1].profile)));
+    ASSERT_FALSE(lists);
+    EXPECT_EQ(lists.error().kind, ErrorKind::usage);
+    EXPECT_NE(lists.error().message.find("rampsoak@5: no parameter \"output_power\" on rampsoak"), std::string::npos)
+        << lists.error().message;
+    EXPECT_NE(lists.error().message.find("write tc10@3:output_power"), std::string::npos) << lists.error().message;
+    auto qualified = device::watch_lists(devices, {"tc10@3:output_power"});
+    ASSERT_TRUE(qualified) << qualified.error().message;
+    EXPECT_EQ(names_of((*qualified)[0]), (std::vector<std::string>{"output_power"}));
+    EXPECT_EQ(names_of((*qualified)[1]), names_of(device::default_watch_list(*devices[1].profile)));
 }
 
 TEST(MonitorNames, DeviceQualifiedNameAppliesToThatDeviceOnly) {

@@ -47,4 +47,9 @@ for example in "${examples[@]}"; do
 done
 echo "ran $ran README examples"
 check readme-write-took 0 "150" "$loopwire" read --link "$serial" --device tc10@3 SP
+# The generic Modbus examples print what their comments say, from the words the README wrote.
+check readme-float32-big 0 "12.5" "$loopwire" read --link "$tcp" --unit 1 holding 200 --type float32
+check readme-float32-little 0 "12.5" "$loopwire" read --link "$tcp" --unit 1 holding 202 --type float32 --word-order little
+check readme-int32-json 0 '"values":[-2]' "$loopwire" read --link "$tcp" --unit 1 holding 204 --type int32 --json
+check readme-scale-base 0 "1671.2" "$loopwire" read --link "$tcp" --unit 1 holding 201 1 --type uint16 --scale 0.1 --base 1
 finish

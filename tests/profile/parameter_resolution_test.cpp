@@ -115,7 +115,7 @@ TEST(ParameterResolution, UnknownNameSaysSoAndSuggests) {
     const auto tc10 = builtin("tc10");
     ASSERT_TRUE(tc10);
     const std::string message = error_of(resolve_parameters(*tc10, {"set_point", "point_low"}));
-    EXPECT_THAT(message, HasSubstr("profile tc10 has no parameter, mnemonic or group \"point_low\""));
+    EXPECT_THAT(message, HasSubstr("no parameter \"point_low\" on tc10"));
     EXPECT_THAT(message, HasSubstr("did you mean set_point_low_limit"));
 }
 

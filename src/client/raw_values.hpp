@@ -1,0 +1,66 @@
+#pragma once
+// Registers of a device loopwire has no profile for, read as the numbers they hold: 16-, 32- and
+// 64-bit integers and IEEE 754 floats spread over consecutive registers, in either word order,
+// with or without the bytes of each register swapped, optionally scaled. Pure: no I/O.
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include "common/result.hpp"
+
+namespace loopwire::device {
+
+enum class RawType { int16, uint16, int32, uint32, float32, float64 };
+
+// Which register of a 32/64-bit value comes first: big = the most significant (the Modbus
+// convention, "ABCD"), little = the least significant ("CDAB").
+enum class WordOrder { big, little };
+
+struct RawLayout {
+    RawType type = RawType::uint16;
+    WordOrder word_order = WordOrder::big;
+    bool byte_swap = false;  // the two bytes of every register swapped ("BADC", or "DCBA" with little)
+};
+
+inline constexpr std::string_view raw_type_choices = "int16, uint16, int32, uint32, float32 or float64";
+
+// "float32" -> RawType::float32; anything else is a usage error listing the choices.
+Result<RawType> parse_raw_type(std::string_view text);
+// "big" or "little".
+Result<WordOrder> parse_word_order(std::string_view text);
+std::string_view raw_type_name(RawType type);
+std::string_view word_order_name(WordOrder order);
+
+// Registers one value of the type takes: 1, 2 or 4.
+unsigned registers_per_value(RawType type);
+
+// A decoded value: integer types exactly; floats as doubles. A float32 becomes the double
+// nearest to its shortest decimal form (0x3DCCCCCD is 0.1, not 0.10000000149011612), which is
+// the number the device meant and what every text and JSON output shows.
+using RawNumber = std::variant<std::int64_t, double>;
+
+// One value from exactly registers_per_value(layout.type) registers, in the order read.
+RawNumber decode_value(std::span<const std::uint16_t> registers, const RawLayout& layout);
+
+// Every value of `registers`, in order; a usage error when they do not make whole values
+// ("3 registers do not make whole float32 values: each takes 2").
+Result<std::vector<RawNumber>> decode_values(std::span<const std::uint16_t> registers, const RawLayout& layout);
+
+// A factor as typed ("0.1", "2", "-0.25"): kept as a decimal so that 1234 * 0.1 is 123.4 to the
+// last digit (1234 / 10, one rounding) rather than 123.40000000000001.
+struct RawScale {
+    std::int64_t mantissa = 1;  // 1234 for 12.34
+    unsigned decimals = 0;      // 2 for 12.34
+};
+// [+-]digits[.digits], not zero, at most 15 significant digits.
+Result<RawScale> parse_scale(std::string_view text);
+// value * scale, as a double.
+double scaled(const RawNumber& value, const RawScale& scale);
+
+// The shortest text that reads back as the same number: "-3", "12.5", "0.1", "nan", "inf".
+std::string number_text(const RawNumber& value);
+
+}  // namespace loopwire::device

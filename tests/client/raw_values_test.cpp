@@ -1,0 +1,127 @@
+// Registers as the numbers they hold (client/raw_values.hpp), on IEEE 754 and two's complement
+// bit patterns worked out by hand: 12.5f = 0x41480000 (sign 0, exponent 130, mantissa 1.5625),
+// -3.25f = 0xC0500000, 0.1f = 0x3DCCCCCD, 1.5 = 0x3FF8000000000000, pi = 0x400921FB54442D18.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "client/raw_values.hpp"
+
+namespace loopwire::device {
+namespace {
+
+RawNumber one(std::vector<std::uint16_t> registers, RawType type, WordOrder order = WordOrder::big, bool swap = false) {
+    return decode_value(registers, RawLayout{type, order, swap});
+}
+
+double as_double(const RawNumber& number) {
+    EXPECT_TRUE(std::holds_alternative<double>(number));
+    return std::holds_alternative<double>(number) ? std::get<double>(number) : std::nan("");
+}
+
+std::int64_t as_integer(const RawNumber& number) {
+    EXPECT_TRUE(std::holds_alternative<std::int64_t>(number));
+    return std::holds_alternative<std::int64_t>(number) ? std::get<std::int64_t>(number) : -999;
+}
+
+TEST(RawValues, Float32InEveryWordAndByteOrder) {
+    EXPECT_EQ(as_double(one({0x4148, 0x0000}, RawType::float32)), 12.5);
+    EXPECT_EQ(as_double(one({0x0000, 0x4148}, RawType::float32, WordOrder::little)), 12.5);
+    EXPECT_EQ(as_double(one({0x4841, 0x0000}, RawType::float32, WordOrder::big, true)), 12.5);
+    EXPECT_EQ(as_double(one({0x0000, 0x4841}, RawType::float32, WordOrder::little, true)), 12.5);
+    EXPECT_EQ(as_double(one({0xC050, 0x0000}, RawType::float32)), -3.25);
+    // The wrong order gives another number: the test can tell the orders apart.
+    EXPECT_NE(as_double(one({0x4148, 0x0000}, RawType::float32, WordOrder::little)), 12.5);
+}
+
+TEST(RawValues, Float32IsTheNumberItsShortestDecimalSays) {
+    const RawNumber tenth = one({0x3DCC, 0xCCCD}, RawType::float32);
+    EXPECT_EQ(as_double(tenth), 0.1);  // not 0.100000001490116...
+    EXPECT_EQ(number_text(tenth), "0.1");
+    EXPECT_EQ(number_text(one({0x4148, 0x0000}, RawType::float32)), "12.5");
+}
+
+TEST(RawValues, Float32SpecialPatterns) {
+    EXPECT_TRUE(std::isnan(as_double(one({0x7FC0, 0x0000}, RawType::float32))));
+    EXPECT_EQ(as_double(one({0x7F80, 0x0000}, RawType::float32)), std::numeric_limits<double>::infinity());
+    EXPECT_EQ(number_text(one({0xFF80, 0x0000}, RawType::float32)), "-inf");
+    EXPECT_EQ(number_text(one({0x7FC0, 0x0000}, RawType::float32)), "nan");
+    EXPECT_TRUE(std::signbit(as_double(one({0x8000, 0x0000}, RawType::float32))));  // -0
+}
+
+TEST(RawValues, Float64InBothWordOrders) {
+    EXPECT_EQ(as_double(one({0x3FF8, 0, 0, 0}, RawType::float64)), 1.5);
+    EXPECT_EQ(as_double(one({0x4009, 0x21FB, 0x5444, 0x2D18}, RawType::float64)), 3.141592653589793);
+    EXPECT_EQ(as_double(one({0x2D18, 0x5444, 0x21FB, 0x4009}, RawType::float64, WordOrder::little)), 3.141592653589793);
+    EXPECT_EQ(as_double(one({0x182D, 0x4454, 0xFB21, 0x0940}, RawType::float64, WordOrder::little, true)), 3.141592653589793);
+    EXPECT_EQ(number_text(one({0x4009, 0x21FB, 0x5444, 0x2D18}, RawType::float64)), "3.141592653589793");
+}
+
+TEST(RawValues, IntegersSignedAndUnsigned) {
+    EXPECT_EQ(as_integer(one({0xFFFF}, RawType::int16)), -1);
+    EXPECT_EQ(as_integer(one({0xFFFF}, RawType::uint16)), 65535);
+    EXPECT_EQ(as_integer(one({0x8000}, RawType::int16)), -32768);
+    EXPECT_EQ(as_integer(one({0x3412}, RawType::uint16, WordOrder::big, true)), 0x1234);
+    EXPECT_EQ(as_integer(one({0x075B, 0xCD15}, RawType::int32)), 123456789);
+    EXPECT_EQ(as_integer(one({0xCD15, 0x075B}, RawType::int32, WordOrder::little)), 123456789);
+    EXPECT_EQ(as_integer(one({0xFFFF, 0xFFFE}, RawType::int32)), -2);
+    EXPECT_EQ(as_integer(one({0xFFFE, 0xFFFF}, RawType::int32, WordOrder::little)), -2);
+    EXPECT_EQ(as_integer(one({0xFFFF, 0xFFFE}, RawType::uint32)), 4294967294);
+    EXPECT_EQ(as_integer(one({0xEE6B, 0x2800}, RawType::uint32)), 4000000000);
+    EXPECT_EQ(as_integer(one({0x8000, 0x0000}, RawType::int32)), -2147483648LL);
+}
+
+TEST(RawValues, ManyValuesNeedWholeOnes) {
+    const std::vector<std::uint16_t> registers{0x4148, 0x0000, 0xC050, 0x0000};
+    auto values = decode_values(registers, RawLayout{RawType::float32});
+    ASSERT_TRUE(values) << values.error().message;
+    ASSERT_EQ(values->size(), 2u);
+    EXPECT_EQ(as_double((*values)[0]), 12.5);
+    EXPECT_EQ(as_double((*values)[1]), -3.25);
+    const std::vector<std::uint16_t> odd{0x4148, 0x0000, 0xC050};
+    auto refused = decode_values(odd, RawLayout{RawType::int32});
+    ASSERT_FALSE(refused);
+    EXPECT_EQ(refused.error().kind, ErrorKind::usage);
+    EXPECT_EQ(refused.error().message, "3 registers do not make whole int32 values: each takes 2");
+    EXPECT_FALSE(decode_values(std::vector<std::uint16_t>{1, 2, 3, 4, 5}, RawLayout{RawType::float64}));
+}
+
+TEST(RawValues, TypeNamesAndTheirErrors) {
+    for (auto type : {RawType::int16, RawType::uint16, RawType::int32, RawType::uint32, RawType::float32, RawType::float64}) {
+        auto parsed = parse_raw_type(raw_type_name(type));
+        ASSERT_TRUE(parsed);
+        EXPECT_EQ(*parsed, type);
+    }
+    EXPECT_EQ(registers_per_value(RawType::int16), 1u);
+    EXPECT_EQ(registers_per_value(RawType::float32), 2u);
+    EXPECT_EQ(registers_per_value(RawType::float64), 4u);
+    auto unknown = parse_raw_type("float");
+    ASSERT_FALSE(unknown);
+    EXPECT_EQ(unknown.error().message, "unknown type 'float': choose int16, uint16, int32, uint32, float32 or float64");
+    EXPECT_FALSE(parse_raw_type("Float32"));
+    EXPECT_TRUE(parse_word_order("little"));
+    auto order = parse_word_order("middle");
+    ASSERT_FALSE(order);
+    EXPECT_NE(order.error().message.find("choose big"), std::string::npos);
+}
+
+TEST(RawValues, ScaleIsExactToTheDecimal) {
+    auto tenth = parse_scale("0.1");
+    ASSERT_TRUE(tenth) << tenth.error().message;
+    EXPECT_EQ(number_text(scaled(std::int64_t{1234}, *tenth)), "123.4");
+    EXPECT_EQ(scaled(std::int64_t{1234}, *tenth), 123.4);
+    EXPECT_EQ(scaled(std::int64_t{-5}, *parse_scale("2")), -10.0);
+    EXPECT_EQ(scaled(12.5, *parse_scale("-0.25")), -3.125);
+    EXPECT_EQ(scaled(std::int64_t{7}, *parse_scale("+0.010")), 0.07);
+    for (const char* bad : {"", "abc", "1e3", ".5", "5.", "0", "0.000", "1,5", "--1", "0x10", "1.0000000000000001"}) {
+        auto refused = parse_scale(bad);
+        EXPECT_FALSE(refused) << bad;
+        if (!refused) {
+            EXPECT_EQ(refused.error().kind, ErrorKind::usage) << bad;
+        }
+    }
+}
+
+}  // namespace
+}  // namespace loopwire::device
