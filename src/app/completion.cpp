@@ -27,7 +27,7 @@ std::string lower(std::string_view text) {
 
 bool starts_with(std::string_view text, std::string_view prefix) { return text.substr(0, prefix.size()) == prefix; }
 
-bool takes_value(const CLI::Option& option) { return option.get_type_size_max() > 0; }
+bool takes_value(const CLI::Option& option) { return option.get_items_expected_max() > 0; }  // flags expect 0
 
 // `name` (--long or -s) among the options of `command` and of the commands it falls through to
 // (--profile and --help follow every subcommand's name).
@@ -161,18 +161,29 @@ struct Candidates {
         }
         return names;
     }
+
+    std::vector<std::string> groups(const std::string& device) const {
+        std::vector<std::string> names;
+        auto registry = load(profile_files);
+        if (!registry) return names;
+        auto profile = registry->find(device_id(device));
+        if (!profile) return names;
+        for (const auto& parameter : (*profile)->parameters) {
+            if (!parameter.group.empty()) names.push_back(parameter.group);
+        }
+        return names;
+    }
 };
 
 bool has_upper(std::string_view text) {
     return std::any_of(text.begin(), text.end(), [](unsigned char c) { return std::isupper(c) != 0; });
 }
 
-Completion complete_value(const CLI::Option& option, const LineState& state, const std::string& current, const Candidates& candidates) {
+Completion complete_value(const CLI::Option& option, const LineState& state, const Candidates& candidates) {
     if (option.check_lname("device")) return {false, candidates.device_ids("@")};
-    if (option.check_lname("group")) {
-        const auto devices = state.devices.empty() ? state.positionals : state.devices;
-        auto groups = candidates.parameters(devices, false, has_upper(current));
-        return {false, groups};
+    if (option.check_lname("group")) {  // describe DEVICE --group G
+        const auto& devices = state.devices.empty() ? state.positionals : state.devices;
+        return {false, devices.empty() ? std::vector<std::string>{} : candidates.groups(devices.front())};
     }
     if (wants_path(option)) return {true, {}};
     return {false, member_choices(option)};
@@ -188,14 +199,17 @@ const CLI::Option* positional_at(const CLI::App& command, std::size_t index) {
     return nullptr;
 }
 
+Completion command_names(const CLI::App& root) {
+    Completion out;
+    for (const CLI::App* sub : visible_subcommands(root)) out.words.push_back(sub->get_name());
+    return out;
+}
+
 Completion complete_positional(const CLI::App& root, const LineState& state, const std::string& current, const Candidates& candidates) {
-    if (state.command == &root) {
-        Completion out;
-        for (const CLI::App* sub : visible_subcommands(root)) out.words.push_back(sub->get_name());
-        return out;
-    }
+    if (state.command == &root) return command_names(root);
     const CLI::Option* positional = positional_at(*state.command, state.positionals.size());
     if (positional == nullptr) return {};
+    if (positional->check_name("command")) return command_names(root);  // a command about commands
     if (positional->check_name("device")) return {false, candidates.device_ids("")};
     if (positional->check_name("file")) return {true, {}};
     if (state.devices.empty()) return {};
@@ -217,7 +231,7 @@ Completion complete_command_line(const CLI::App& root, const std::vector<std::st
     const Candidates candidates{state.profile_files, load_profiles};
     Completion out;
     if (state.awaiting != nullptr) {
-        out = complete_value(*state.awaiting, state, current, candidates);
+        out = complete_value(*state.awaiting, state, candidates);
     } else if (!current.empty() && current[0] == '-') {
         out.words = option_names(state.command);
     } else {

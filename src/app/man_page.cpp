@@ -31,6 +31,13 @@ std::string upper(std::string_view text) {
 std::string bold(std::string_view text) { return "\\fB" + roff_escape(text) + "\\fR"; }
 std::string italic(std::string_view text) { return "\\fI" + roff_escape(text) + "\\fR"; }
 
+// A help text as a sentence: escaped, ending with a full stop.
+std::string sentence(std::string_view text) {
+    std::string out = roff_escape(text);
+    if (!out.empty() && out.back() != '.') out += '.';
+    return out;
+}
+
 bool visible(const CLI::Option& option) { return !option.get_group().empty(); }
 
 // What an option's value is called: the choices of a CLI::IsMember check ("rtu|ascii"), a type
@@ -62,7 +69,7 @@ std::string option_usage(const CLI::Option& option, bool all_names) {
     for (const auto& name : option.get_lnames()) names.push_back(bold("--" + name));
     if (!all_names) names = {names.back()};
     std::string usage = fmt::format("{}", fmt::join(names, ", "));
-    if (option.get_type_size_max() > 0) usage += " " + italic(value_name(option));
+    if (option.get_items_expected_max() > 0) usage += " " + italic(value_name(option));  // flags expect 0
     return usage;
 }
 
@@ -92,11 +99,11 @@ std::string synopsis(const std::string& program, const CLI::App& command, const 
 }
 
 std::string option_item(const CLI::Option& option) {
-    std::string text = option.get_description();
-    if (!option.get_default_str().empty()) text += fmt::format(" (default: {})", option.get_default_str());
+    std::string text = sentence(option.get_description());
+    if (!option.get_default_str().empty()) text += " Default: " + roff_escape(option.get_default_str()) + ".";
     if (option.get_required()) text += " Required.";
     if (repeatable(option) && !option.get_positional()) text += " May be given more than once.";
-    return ".TP\n" + option_usage(option, true) + "\n" + roff_escape(text) + "\n";
+    return ".TP\n" + option_usage(option, true) + "\n" + text + "\n";
 }
 
 std::string options_section(const CLI::App& command, const CLI::App* root) {
@@ -151,7 +158,8 @@ std::string see_also(const CLI::App& root, const std::string& self) {
 }
 
 std::string header(const std::string& page, std::string_view summary, std::string_view version) {
-    return fmt::format(".TH {} 1 \"\" \"loopwire {}\" \"loopwire manual\"\n.SH NAME\n{} \\- {}\n", roff_escape(upper(page)),
+    // Not hyphenated, not justified: option names and URLs stay whole and evenly spaced.
+    return fmt::format(".TH {} 1 \"\" \"loopwire {}\" \"loopwire manual\"\n.nh\n.ad l\n.SH NAME\n{} \\- {}\n", roff_escape(upper(page)),
                        roff_escape(version), roff_escape(page), roff_escape(summary));
 }
 
@@ -159,7 +167,7 @@ std::string command_page(const CLI::App& root, const CLI::App& command, std::str
     const std::string page = "loopwire-" + command.get_name();
     std::string out = header(page, command.get_description(), version);
     out += synopsis("loopwire " + command.get_name(), command, &root);
-    out += ".SH DESCRIPTION\n" + roff_escape(command.get_description()) + ".\n";
+    out += ".SH DESCRIPTION\n" + sentence(command.get_description()) + "\n";
     out += options_section(command, &root);
     out += footer_section(command);
     if (const auto found = examples.find(command.get_name()); found != examples.end()) out += examples_section(found->second);
@@ -171,10 +179,10 @@ std::string main_page(const CLI::App& root, std::string_view version, const Exam
     if (summary.rfind("loopwire: ", 0) == 0) summary.erase(0, 10);
     std::string out = header("loopwire", summary, version);
     out += ".SH SYNOPSIS\n.B loopwire\n" + italic("COMMAND") + " [" + italic("OPTIONS") + "]\n.br\n.B loopwire \\-\\-version\n";
-    out += ".SH DESCRIPTION\nloopwire " + roff_escape(summary) + ".\nEach command has its own page, " + bold("loopwire-COMMAND") + "(1).\n";
+    out += ".SH DESCRIPTION\n" + sentence(root.get_description()) + "\nEach command has its own page, " + bold("loopwire-COMMAND") + "(1).\n";
     out += ".SH COMMANDS\n";
     for (const CLI::App* command : root.get_subcommands([](const CLI::App* sub) { return !sub->get_group().empty(); })) {
-        out += ".TP\n" + bold("loopwire " + command->get_name()) + "\n" + roff_escape(command->get_description()) + ".\n";
+        out += ".TP\n" + bold("loopwire " + command->get_name()) + "\n" + sentence(command->get_description()) + "\n";
     }
     out += options_section(root, nullptr);
     out += footer_section(root);

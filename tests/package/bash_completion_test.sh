@@ -85,6 +85,6 @@ done
 mode=bare
 for command in $(loopwire --help | awk '/^SUBCOMMANDS:|^Subcommands:/{f=1; next} f && /^  [a-z]/{print $1} f && /^$/{f=0}'); do
     # shellcheck disable=SC2046  # one word per option
-    offers "every option of $command" "loopwire $command --" $(loopwire "$command" --help | grep -oE '^ +(-[a-zA-Z], )?--[a-z][a-z-]*' | grep -oE -- '--[a-z-]+$')
+    offers "every option of $command" "loopwire $command --" $(loopwire "$command" --help | grep -oE '^ +(-[a-zA-Z], ?)?--[a-z][a-z-]*' | grep -oE -- '--[a-z-]+$')
 done
 finish

@@ -42,7 +42,7 @@ for page in "$man1"/loopwire*.1; do
     done
 done
 for command in "${commands[@]}"; do
-    for option in $("$loopwire" "$command" --help | grep -oE '^ +(-[a-zA-Z], )?--[a-z][a-z-]*' | grep -oE -- '--[a-z-]+$'); do
+    for option in $("$loopwire" "$command" --help | grep -oE '^ +(-[a-zA-Z], ?)?--[a-z][a-z-]*' | grep -oE -- '--[a-z-]+$'); do
         expect "loopwire-$command(1) documents $option" grep -q -- "$option" "$WORK_DIR/loopwire-$command.txt"
     done
 done
