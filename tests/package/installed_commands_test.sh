@@ -36,7 +36,7 @@ for page in "$man1"/loopwire*.1; do
     check "$name: groff -man -ww -z prints no warning" 0 "" bash -c '! groff -man -ww -z "$1" 2>&1 | grep .' _ "$page"
     check "$name: man --warnings prints no warning" 0 "" bash -c \
         'out=$(MANWIDTH=80 man --warnings -l "$1" 2>&1 >/dev/null); [[ -z $out ]] || { echo "$out"; false; }' _ "$page"
-    MANWIDTH=200 man -l "$page" 2>/dev/null | col -b >"$WORK_DIR/$name.txt"
+    MANWIDTH=200 man -l "$page" 2>/dev/null >"$WORK_DIR/$name.txt"  # plain text: not a terminal
     for section in NAME SYNOPSIS DESCRIPTION OPTIONS "SEE ALSO"; do
         expect "$name has $section" grep -qx "$section" "$WORK_DIR/$name.txt"
     done
