@@ -45,3 +45,5 @@ write_basic_package_version_file(${PROJECT_BINARY_DIR}/loopwireConfigVersion.cma
   VERSION ${PROJECT_VERSION} COMPATIBILITY SameMinorVersion)
 install(FILES ${PROJECT_BINARY_DIR}/loopwireConfig.cmake ${PROJECT_BINARY_DIR}/loopwireConfigVersion.cmake
   DESTINATION ${loopwire_package_dir})
+
+include(${CMAKE_CURRENT_LIST_DIR}/man_pages_and_completion.cmake)

@@ -20,5 +20,7 @@ void add_monitor_command(CLI::App& app, int& exit_code, const ProfileOptions& pr
 void add_dump_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
 void add_gateway_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
 void add_help_command(CLI::App& app, int& exit_code);  // help [COMMAND]: add it last, it lists the others
+// __complete and __man-pages (hidden): they read the other commands' definitions when they run.
+void add_hidden_commands(CLI::App& app, int& exit_code);
 
 }  // namespace loopwire::app

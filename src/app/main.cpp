@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
     // Before the subcommands, which inherit the fallthrough that lets --profile follow them.
     ProfileOptions profiles;
     profiles.add_to(app);
+    add_hidden_commands(app, exit_code);  // completion and man pages, from the commands added below
     add_read_command(app, exit_code, profiles);
     add_write_command(app, exit_code, profiles);
     add_simulate_command(app, exit_code, profiles);

@@ -63,7 +63,7 @@ check unit-not-served 5 'exception 11' "$loopwire" read "${link[@]}" --unit 9 ho
 
 # monitor of raw registers: one line per sample, typed as read types them.
 timeout 20 "$loopwire" monitor "${link[@]}" --unit 5 holding 102 2 --type int32 --word-order little --interval 100ms --count 3 \
-  --format jsonl >"$WORK_DIR/m.jsonl" 2>"$WORK_DIR/m.err" || count_failure monitor-jsonl-exit "$WORK_DIR/m.err"
+  --format jsonl --utc >"$WORK_DIR/m.jsonl" 2>"$WORK_DIR/m.err" || count_failure monitor-jsonl-exit "$WORK_DIR/m.err"
 if /usr/bin/python3 - "$WORK_DIR/m.jsonl" >"$WORK_DIR/why" 2>&1 <<'PY'
 import json, sys
 rows = [json.loads(line) for line in open(sys.argv[1]) if line.strip()]

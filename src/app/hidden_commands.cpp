@@ -1,0 +1,87 @@
+// Commands for the build and the shell, not for people (hidden from --help):
+//   loopwire __complete -- WORDS...          what to offer for the last word (completion scripts)
+//   loopwire __man-pages --output-dir DIR    loopwire.1 and loopwire-COMMAND.1 (the build)
+// Both read the other commands' definitions from the app when they run, after every command
+// has been added, so new commands and options appear in completion and man pages by themselves.
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+#include <fmt/format.h>
+#include <loopwire/version.hpp>
+
+#include "app/command_line.hpp"
+#include "app/commands.hpp"
+#include "app/completion.hpp"
+#include "app/exit_codes.hpp"
+#include "app/man_page.hpp"
+
+namespace loopwire::app {
+namespace {
+
+const CLI::App& root_of(const CLI::App& command) {
+    const CLI::App* root = &command;
+    while (root->get_parent() != nullptr) root = root->get_parent();
+    return *root;
+}
+
+// First line "files" (complete file names) or "words"; then one candidate a line.
+int run_complete(const CLI::App& root, const std::vector<std::string>& words) {
+    const ProfileLoader load = [](const std::vector<std::string>& files) {
+        ProfileOptions profiles;
+        profiles.files = files;
+        return profiles.load();
+    };
+    const Completion completion = complete_command_line(root, words, load);
+    fmt::print("{}\n", completion.files ? "files" : "words");
+    for (const auto& word : completion.words) fmt::print("{}\n", word);
+    return exit_ok;
+}
+
+Result<std::string> read_text(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return make_error(ErrorKind::usage, fmt::format("cannot read '{}': give the README's path with --readme", path));
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+int run_man_pages(const CLI::App& root, const std::string& output_dir, const std::string& readme_path) {
+    std::string readme;
+    if (!readme_path.empty()) {
+        auto text = read_text(readme_path);
+        if (!text) return report_error(text.error());
+        readme = std::move(*text);
+    }
+    std::error_code error;
+    std::filesystem::create_directories(output_dir, error);
+    if (error) return report_error(make_error(ErrorKind::usage, fmt::format("cannot create '{}': {}", output_dir, error.message())));
+    for (const ManPage& page : man_pages(root, loopwire::version(), readme)) {
+        const auto path = std::filesystem::path(output_dir) / page.file_name;
+        std::ofstream out(path, std::ios::binary | std::ios::trunc);
+        out << page.text;
+        if (!out.flush()) return report_error(make_error(ErrorKind::usage, fmt::format("cannot write '{}'", path.string())));
+    }
+    return exit_ok;
+}
+
+}  // namespace
+
+void add_hidden_commands(CLI::App& app, int& exit_code) {
+    auto words = std::make_shared<std::vector<std::string>>();
+    auto* complete = app.add_subcommand("__complete", "Shell completion: the candidates for the last of WORDS");
+    complete->group("");
+    complete->add_option("words", *words, "The words after `loopwire`, the one being completed last (after --)");
+    complete->callback([words, complete, &exit_code] { exit_code = run_complete(root_of(*complete), *words); });
+
+    struct ManOptions {
+        std::string output_dir;
+        std::string readme;
+    };
+    auto options = std::make_shared<ManOptions>();
+    auto* man = app.add_subcommand("__man-pages", "Write loopwire.1 and loopwire-COMMAND.1 for every command");
+    man->group("");
+    man->add_option("--output-dir", options->output_dir, "Folder to write the pages to")->required();
+    man->add_option("--readme", options->readme, "README.md, whose examples of each command go on its page");
+    man->callback([options, man, &exit_code] { exit_code = run_man_pages(root_of(*man), options->output_dir, options->readme); });
+}
+
+}  // namespace loopwire::app
