@@ -286,6 +286,7 @@ Result<void> Gateway::serve(std::stop_token stop) {
     }
     auto served = parts_->front->serve_listener(*parts_->listener, front.get_token());
     if (!served) front.request_stop();
+    drain.request_stop();  // when the front failed rather than stopped
     drain.join();
     if (parts_->http) parts_->http->stop();
     return served;

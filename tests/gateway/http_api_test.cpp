@@ -50,8 +50,10 @@ const device::ProfileRegistry& profiles() { return device::testing::builtin_regi
 
 class Socket {
 public:
-    explicit Socket(std::uint16_t port) : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
+    // `receive_buffer`: a small one makes a client that does not read fall behind sooner.
+    explicit Socket(std::uint16_t port, int receive_buffer = 0) : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
         if (fd_ < 0) throw std::runtime_error("socket");
+        if (receive_buffer > 0) ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
         sockaddr_in address{};
         address.sin_family = AF_INET;
         address.sin_port = htons(port);
@@ -622,6 +624,99 @@ TEST_F(HttpHistoryTest, BadQueriesAreRefusedSayingWhatIsWrong) {
 TEST_F(HttpHistoryTest, MetricsCountTheHistoryRows) {
     const Reply reply = get(server_->port(), "/metrics");
     EXPECT_THAT(reply.body, HasSubstr("loopwire_history_rows_written_total 1234\n"));
+}
+
+// --- limits, on a server whose values the test feeds itself --------------------------------------
+
+class HttpLimitsTest : public ::testing::Test {
+protected:
+    void start(HttpServerSettings settings) {
+        auto config = parse_gateway_config(R"toml(
+[[lines]]
+name = "sim"
+link = "rtu:virtual?baud=115200&parity=none"
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+)toml", "plant.toml", profiles());
+        if (!config) throw std::runtime_error(config.error().message);
+        HttpApiSources sources;
+        sources.cache = &cache_;
+        sources.writer = &writer_;
+        sources.lines = [] { return std::vector<LineReport>{}; };
+        api_ = std::make_unique<HttpApi>(*config, std::move(sources));
+        auto server = HttpServer::open(settings, *api_);
+        if (!server) throw std::runtime_error(server.error().message);
+        server_ = std::move(*server);
+    }
+
+    // One sample of the oven whose measured value is `value`: a change for every subscriber.
+    void sample(double value) {
+        auto profile = profiles().find("tc10");
+        ASSERT_TRUE(profile);
+        const device::Parameter* measured = (*profile)->find("measured_value");
+        ASSERT_NE(measured, nullptr);
+        device::WatchedDevice state = device::watch("tc10@3", {measured});
+        state.status = "ok";
+        state.values[0].last = device::EngineeringValue{value, "ok", 0};
+        state.values[0].fresh = true;
+        state.values[0].read_at = device::MonitorClock::now();
+        cache_.update("oven", state, std::chrono::system_clock::now());
+    }
+
+    ValueCache cache_;
+    DeviceWriter writer_{{}, 1s};
+    std::unique_ptr<HttpApi> api_;
+    std::unique_ptr<HttpServer> server_;
+};
+
+TEST_F(HttpLimitsTest, AnEventClientThatDoesNotReadIsDroppedWithoutSlowingThePolls) {
+    HttpServerSettings settings;
+    settings.event_queue_limit = 4096;
+    start(settings);
+    Socket slow(server_->port(), 4096);
+    slow.send("GET /api/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");  // and never reads
+    Socket fine(server_->port());
+    fine.send("GET /api/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+    std::this_thread::sleep_for(200ms);  // both subscribed
+    // Far more than the socket buffers and the queue hold: each sample only queues.
+    const auto before = std::chrono::steady_clock::now();
+    for (int i = 0; i < 100000; ++i) {
+        sample(i);
+        if (i % 1000 == 0) {
+            // The reading client keeps up, and so stays.
+            while (auto some = fine.receive(0ms)) {
+                if (some->empty()) break;
+            }
+        }
+    }
+    EXPECT_LT(std::chrono::steady_clock::now() - before, 20s) << "the samples waited for a client";
+    // The slow one was dropped: once what reached its socket is read, the connection ends.
+    std::optional<std::string> received = std::string();
+    const auto give_up = std::chrono::steady_clock::now() + deadline;
+    while (received && std::chrono::steady_clock::now() < give_up) received = slow.receive(100ms);
+    EXPECT_FALSE(received) << "the client that did not read was not dropped";
+    // Others are still served.
+    EXPECT_EQ(get(server_->port(), "/api/devices").status, 200u);
+}
+
+TEST_F(HttpLimitsTest, ConnectionsBeyondTheLimitAreAnswered503) {
+    HttpServerSettings settings;
+    settings.max_connections = 2;
+    start(settings);
+    Socket first(server_->port());
+    Socket second(server_->port());
+    std::this_thread::sleep_for(200ms);  // both accepted
+    const Reply refused = get(server_->port(), "/api/devices");
+    EXPECT_EQ(refused.status, 503u);
+    EXPECT_THAT(refused.json().at("error").get<std::string>(), HasSubstr("too many connections"));
+}
+
+TEST_F(HttpLimitsTest, OversizedHeadersAreAnswered431) {
+    start(HttpServerSettings{});
+    const Reply reply = request(server_->port(), "GET", "/api/devices", {}, {"X-Padding: " + std::string(20000, 'x')});
+    EXPECT_EQ(reply.status, 431u);
 }
 
 }  // namespace
