@@ -28,7 +28,7 @@ token_file = "$token_file"
 TOML
 
 start_background gateway.log timeout 60 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
-port=$(wait_for_log gateway.log 'HTTP API and dashboard on http://127\.0\.0\.1:([0-9]+)/' 20)
+port=$(wait_for_log gateway.log 'HTTP API and dashboard on http:..127\.0\.0\.1:([0-9]+)' 20)
 
 mapfile -t examples < <(awk '/^```sh/{f=1;next} /^```/{f=0} f' "$readme" | grep -E '^curl ')
 expect_equal "${#examples[@]}" 4 "curl commands in the README"
