@@ -1,8 +1,9 @@
 // loopwire demo: the embedded default behind the README's first command. The gateway runs on
 // its embedded plant: three simulated controllers (AC20 at unit 1, ramp/soak at unit 2, TC10 at
 // unit 3) on one virtual 19200-baud RTU line inside the process, polled by the gateway, whose
-// samples are shown live, and shared over Modbus TCP on loopback, so the commands the demo
-// prints reach the very devices on screen through the gateway (docs/DESIGN.md, gateway).
+// samples are shown live, and shared over Modbus TCP and HTTP (the API and the dashboard) on
+// loopback, so the commands the demo prints reach the very devices on screen through the
+// gateway (docs/DESIGN.md, gateway).
 #include <unistd.h>
 
 #include <atomic>
@@ -26,13 +27,14 @@ struct DemoOptions {
     std::string duration;  // empty: until Ctrl-C on a terminal, 5 s otherwise
     double speed = 30.0;
     int port = 1502;
+    int http_port = 8080;
     std::string format;
     bool verbose = false;
 };
 
 // The embedded plant, in the gateway's own configuration language: what `loopwire gateway
 // --config` would run for the same plant (examples/plant.toml has a real one).
-std::string demo_config(double speed, int port) {
+std::string demo_config(double speed, int port, int http_port) {
     return fmt::format(R"toml(
 [[lines]]
 name = "plant"
@@ -55,7 +57,10 @@ device = "tc10@3"
 
 [modbus_tcp]
 listen = "127.0.0.1:{}"
-)toml", speed, port);
+
+[http]
+listen = "127.0.0.1:{}"
+)toml", speed, port, http_port);
 }
 
 // Set points that make the process move from the first sample on (each model starts cold).
@@ -106,25 +111,29 @@ Result<std::optional<std::chrono::microseconds>> demo_duration(const DemoOptions
     return std::optional<std::chrono::microseconds>{*parsed};
 }
 
-Result<gateway::GatewayConfig> demo_gateway_config(double speed, int port) {
+Result<gateway::GatewayConfig> demo_gateway_config(double speed, int port, int http_port) {
     auto builtins = device::ProfileRegistry::builtins();  // the demo's devices are built-in ones
     if (!builtins) return builtins.error();
-    return gateway::parse_gateway_config(demo_config(speed, port), "the demo's embedded plant", *builtins);
+    return gateway::parse_gateway_config(demo_config(speed, port, http_port), "the demo's embedded plant", *builtins);
 }
 
-// On port 1502 when free (the commands shown stay the same from run to run), else any free port.
+// On ports 1502 and 8080 when free (the commands shown stay the same from run to run), else on
+// any free ones.
 Result<std::unique_ptr<gateway::Gateway>> open_demo_gateway(const DemoOptions& options, gateway::GatewayOptions gateway_options) {
-    auto config = demo_gateway_config(options.speed, options.port);
-    if (!config) return config.error();
-    auto opened = gateway::Gateway::open(*config, gateway_options);
-    if (opened || options.port == 0) return opened;
-    config = demo_gateway_config(options.speed, 0);
-    if (!config) return config.error();
-    return gateway::Gateway::open(*config, gateway_options);
+    const std::pair<int, int> tries[] = {{options.port, options.http_port}, {options.port, 0}, {0, 0}};
+    Result<std::unique_ptr<gateway::Gateway>> opened = make_error(ErrorKind::usage, "not opened");
+    for (const auto& [port, http_port] : tries) {
+        auto config = demo_gateway_config(options.speed, port, http_port);
+        if (!config) return config.error();
+        opened = gateway::Gateway::open(*config, gateway_options);
+        if (opened) return opened;
+    }
+    return opened;
 }
 
-void print_hint(std::uint16_t port, bool bounded, double speed) {
+void print_hint(std::uint16_t port, std::uint16_t http_port, bool bounded, double speed) {
     const std::string link = fmt::format("tcp://127.0.0.1:{}", port);
+    const std::string web = fmt::format("http://127.0.0.1:{}", http_port);
     fmt::print(stderr,
                "loopwire demo: the gateway owns one simulated RTU line (19200 baud) with an AC20 (unit 1), a ramp/soak "
                "controller (unit 2) and a TC10 (unit 3), process time x{}; below, what its polls read.\n"
@@ -134,8 +143,11 @@ void print_hint(std::uint16_t port, bool bounded, double speed) {
                "  loopwire read  --link {} --device ac20@1 St.Pn\n"
                "  loopwire dump  --link {} --device rampsoak@2 --output rampsoak.json\n"
                "  loopwire monitor --link {} --device tc10@3 --device rampsoak@2 --count 5\n"
+               "Its dashboard is at {}/ and its HTTP API answers, e.g.:\n"
+               "  curl -s {}/api/devices\n"
+               "  curl -s {}/api/devices/oven\n"
                "{}\n",
-               speed, link, link, link, link, link, link, bounded ? "" : "Ctrl-C stops the demo.");
+               speed, link, link, link, link, link, link, web, web, web, bounded ? "" : "Ctrl-C stops the demo.");
 }
 
 int run_demo(const DemoOptions& options) {
@@ -163,7 +175,7 @@ int run_demo(const DemoOptions& options) {
     if (client) apply_demo_settings(**client);
     else fmt::print(stderr, "loopwire demo: could not reach the gateway to set the set points: {}\n", client.error().message);
     client = make_error(ErrorKind::link, "closed");  // one client less on the front while it runs
-    print_hint(port, duration->has_value(), options.speed);
+    print_hint(port, (*running)->http_port(), duration->has_value(), options.speed);
     sink.open();
     server.join();
     if (!served) return report_error(served.error());
@@ -178,6 +190,8 @@ void add_demo_command(CLI::App& app, int& exit_code) {
     command->add_option("--duration", options->duration, "End by itself after this long (default: until Ctrl-C on a terminal, 5s otherwise)");
     command->add_option("--speed", options->speed, "Process time per real second")->check(CLI::Range(0.001, 100000.0))->capture_default_str();
     command->add_option("--port", options->port, "Loopback TCP port where the same simulators answer (another if busy; 0 = any)")
+        ->check(CLI::Range(0, 65535))->capture_default_str();
+    command->add_option("--http-port", options->http_port, "Loopback port of the dashboard and HTTP API (another if busy; 0 = any)")
         ->check(CLI::Range(0, 65535))->capture_default_str();
     command->add_option("--format", options->format, "table, csv or jsonl (default: table on a terminal, jsonl otherwise)");
     command->add_flag("-v,--verbose", options->verbose, "Print every frame on the demo's line, with timestamps, on stderr");

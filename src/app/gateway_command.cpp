@@ -82,6 +82,12 @@ void announce(const gateway::GatewayConfig& config, const gateway::Gateway& runn
         log_line(fmt::format("{} line(s), {} device(s); Modbus TCP front disabled; Ctrl-C to stop", config.lines.size(), devices));
     }
     if (config.history) log_line(fmt::format("history: recording to {}", config.history->database.string()));
+    if (config.http) {
+        const bool ipv6 = config.http->host.find(':') != std::string::npos;
+        log_line(fmt::format("HTTP API and dashboard on http://{}{}{}:{}/ (writes {})", ipv6 ? "[" : "", config.http->host,
+                             ipv6 ? "]" : "", running.http_port(),
+                             config.http->token.empty() ? "refused: no http.token_file" : "with the token"));
+    }
     // Under systemd (Type=notify, packaging/loopwire-gateway.service) the unit is up once the
     // lines and the listener are open; without $NOTIFY_SOCKET these calls do nothing.
     sd_notifyf(0, "READY=1\nSTATUS=serving %zu line(s), %zu device(s)", config.lines.size(), devices);

@@ -150,6 +150,13 @@ void describe_history(std::ostringstream& out, const std::optional<HistoryConfig
     if (!config) return;
     out << fmt::format("history: {} (SQLite, WAL mode), every change and a heartbeat each {}, kept {}\n",
                        config->database.string(), duration_text(config->heartbeat), period_text(config->keep));
+void describe_http(std::ostringstream& out, const std::optional<HttpConfig>& config) {
+    if (!config) return;
+    const bool ipv6 = config->host.find(':') != std::string::npos;
+    out << fmt::format("HTTP API and dashboard: http://{}{}{}:{}/, reads {}, writes {}\n", ipv6 ? "[" : "", config->host,
+                       ipv6 ? "]" : "", config->port, config->loopback() ? "open on loopback" : "need the token",
+                       config->token.empty() ? "refused (no http.token_file)"
+                                             : fmt::format("need the token in {}", config->token_file));
 }
 
 }  // namespace
@@ -169,6 +176,7 @@ std::string describe_plan(const GatewayConfig& config) {
     describe_modbus_tcp(out, config.modbus_tcp);
     describe_mqtt(out, config.mqtt);
     describe_history(out, config.history);
+    describe_http(out, config.http);
     return out.str();
 }
 

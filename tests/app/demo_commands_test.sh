@@ -38,6 +38,30 @@ import sys
 rows = [line for line in open(sys.argv[1]) if line.startswith("{")]
 assert len(rows) == 5, rows' "$WORK_DIR/command-4.out"
 
+# The HTTP API's commands, run exactly as printed: the devices' list and one device, in JSON.
+mapfile -t web_commands < <(sed -nE 's/^  (curl .*)$/\1/p' "$WORK_DIR/demo.log")
+expect_equal "${#web_commands[@]}" 2 "HTTP commands the demo prints"
+dashboard=$(sed -nE 's/^Its dashboard is at (http:[^ ]+) .*$/\1/p' "$WORK_DIR/demo.log")
+[[ $dashboard =~ ^http://127\.0\.0\.1:[0-9]+/$ ]] && count_pass || count_failure "no dashboard address in the demo's hint"
+for i in "${!web_commands[@]}"; do
+    printed=${web_commands[$i]}
+    read -r -a words <<<"$printed"
+    [[ $printed == *"$dashboard"* ]] || count_failure "HTTP command $i names the dashboard's address $dashboard: $printed"
+    status=0
+    timeout 30 "${words[@]}" >"$WORK_DIR/web-$i.out" 2>&1 || status=$?
+    if [[ $status -eq 0 ]]; then count_pass; else count_failure "'$printed' exited $status" "$WORK_DIR/web-$i.out"; fi
+done
+check demo-http-devices 0 "" /usr/bin/python3 -c '
+import json, sys
+devices = json.load(open(sys.argv[1]))
+assert [d["name"] for d in devices] == ["furnace", "kiln", "oven"], devices' "$WORK_DIR/web-0.out"
+check demo-http-device 0 "" /usr/bin/python3 -c '
+import json, sys
+device = json.load(open(sys.argv[1]))
+assert device["name"] == "oven" and device["device"] == "tc10", device
+assert any(p["name"] == "measured_value" and p["value"] is not None for p in device["parameters"]), device' "$WORK_DIR/web-1.out"
+check demo-dashboard-page 0 "<html" curl -s "$dashboard"
+
 # The demo is still running, and stops cleanly when told to (SIGTERM: a background job of a
 # script has SIGINT ignored).
 # (the demo itself, not `timeout` around it, which would answer for it)

@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# The README's HTTP API commands (the curl lines of its sh blocks), run as written against
+# `loopwire gateway` with an [http] table: only the port (the kernel's choice, not 8080) and the
+# token file's path (a temporary one, not /etc/loopwire/token) are replaced.
+set -u
+loopwire=${1:?usage: http_readme_test.sh path/to/loopwire path/to/README.md}
+readme=${2:?usage: http_readme_test.sh path/to/loopwire path/to/README.md}
+source "$(dirname "$0")/../support/test_lib.sh"
+
+token_file="$WORK_DIR/token"
+head -c 24 /dev/urandom | base64 >"$token_file"
+chmod 600 "$token_file"
+cat >"$WORK_DIR/plant.toml" <<TOML
+[[lines]]
+name = "plant"
+link = "rtu:virtual?baud=19200&parity=none"
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+
+[modbus_tcp]
+enabled = false
+
+[http]
+listen = "127.0.0.1:0"
+token_file = "$token_file"
+TOML
+
+start_background gateway.log timeout 60 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+port=$(wait_for_log gateway.log 'HTTP API and dashboard on http:..127\.0\.0\.1:([0-9]+)' 20)
+
+mapfile -t examples < <(awk '/^```sh/{f=1;next} /^```/{f=0} f' "$readme" | grep -E '^curl ')
+expect_equal "${#examples[@]}" 4 "curl commands in the README"
+cd "$WORK_DIR" || fail "no work dir"
+for i in "${!examples[@]}"; do
+    command=${examples[$i]//127.0.0.1:8080/127.0.0.1:$port}
+    command=${command//\/etc\/loopwire\/token/$token_file}
+    status=0
+    timeout 30 bash -c "set -o pipefail; $command" >"out-$i.txt" 2>&1 || status=$?
+    if [[ $status -eq 0 ]]; then count_pass; else count_failure "README: ${examples[$i]} (exit $status)" "out-$i.txt"; fi
+done
+
+check readme-devices 0 '"name":"oven"' cat out-0.txt
+check readme-device 0 '"parameters"' cat out-1.txt
+check readme-write 0 '{"written":{"set_point":"150"}}' cat out-2.txt
+check readme-metrics 0 'loopwire_line_requests_total{line="plant"}' cat out-3.txt
+finish
