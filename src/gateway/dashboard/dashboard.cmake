@@ -1,11 +1,19 @@
 # Included by src/gateway/CMakeLists.txt. The gateway's web dashboard (docs/DESIGN.md, gateway): the files in web/ and uPlot's dist
 # files from npm (package.json at the top of the repository) are embedded into the program at
 # build time, so the dashboard works offline and the gateway needs no files beside it.
+# LOOPWIRE_DASHBOARD=OFF builds a gateway without it (dashboard_assets_placeholder.cpp: a page
+# pointing at the API), for a machine without npm.
+option(LOOPWIRE_DASHBOARD "Embed the web dashboard (needs uPlot from npm: scripts/setup runs npm ci)" ON)
+if(NOT LOOPWIRE_DASHBOARD)
+  set(LOOPWIRE_DASHBOARD_SOURCE ${CMAKE_CURRENT_LIST_DIR}/../dashboard_assets_placeholder.cpp)
+  return()
+endif()
 set(dashboard_web ${CMAKE_CURRENT_LIST_DIR}/web)
 set(uplot_dist ${PROJECT_SOURCE_DIR}/node_modules/uplot/dist)
 if(NOT EXISTS ${uplot_dist}/uPlot.iife.min.js OR NOT EXISTS ${uplot_dist}/uPlot.min.css)
   message(FATAL_ERROR "The dashboard embeds uPlot from ${PROJECT_SOURCE_DIR}/node_modules, which is missing: "
-    "run scripts/setup (or `npm ci` in ${PROJECT_SOURCE_DIR}) and configure again")
+    "run scripts/setup (or `npm ci` in ${PROJECT_SOURCE_DIR}) and configure again, or configure with "
+    "-DLOOPWIRE_DASHBOARD=OFF for a gateway without its dashboard")
 endif()
 
 # URL path = file; "/" is served as /index.html, everything else lives under /assets/.
