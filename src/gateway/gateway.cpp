@@ -10,6 +10,8 @@
 #include <fmt/format.h>
 
 #include "devices/registry.hpp"
+#include "gateway/http_api.hpp"
+#include "gateway/http_server.hpp"
 #include "gateway/mqtt_bridge.hpp"
 #include "session/master.hpp"
 #include "session/slave.hpp"
@@ -96,6 +98,8 @@ Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options
     return opened;
 }
 
+LineReport report_of(const OpenLine& line);  // below
+
 }  // namespace
 
 // How long a write from a front (MQTT, HTTP) may wait for its line before it is given up.
@@ -113,8 +117,11 @@ struct Gateway::Parts {
     std::unique_ptr<session::Slave> front;
     // Writes by name for the fronts below, through the lines' schedulers.
     std::unique_ptr<DeviceWriter> writer;
-    // Last, so destroyed first: it subscribes to the cache and writes through the writer.
+    // After the writer and the cache, so destroyed before them: they subscribe to the cache
+    // and write through the writer.
     std::unique_ptr<MqttBridge> mqtt;
+    std::unique_ptr<HttpApi> http_api;
+    std::unique_ptr<HttpServer> http;  // last: stopped (its threads joined) before the API goes
 };
 
 Gateway::Gateway(std::unique_ptr<Parts> parts) : parts_(std::move(parts)) {}
@@ -171,10 +178,36 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         // cannot be reached is retried in the background, never an error.
         parts->mqtt = std::make_unique<MqttBridge>(*config.mqtt, *parts->writer, parts->cache, options.log);
     }
+    if (config.http) {
+        if (auto opened = open_http(*config.http, config, *parts); !opened) return opened.error();
+    }
     return std::unique_ptr<Gateway>(new Gateway(std::move(parts)));
 }
 
+Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& config, Parts& parts) {
+    HttpApiSources sources;
+    sources.cache = &parts.cache;
+    sources.writer = parts.writer.get();
+    sources.lines = [&parts] {
+        std::vector<LineReport> reports;
+        for (const auto& line : parts.lines) reports.push_back(report_of(line));
+        return reports;
+    };
+    parts.http_api = std::make_unique<HttpApi>(config, std::move(sources));
+    HttpServerSettings settings;
+    settings.host = http.host;
+    settings.port = http.port;
+    settings.read_timeout = http.read_timeout;
+    settings.max_connections = http.max_connections;
+    auto server = HttpServer::open(settings, *parts.http_api);
+    if (!server) return server.error();
+    parts.http = std::move(*server);
+    return {};
+}
+
 std::uint16_t Gateway::modbus_tcp_port() const { return parts_->listener ? parts_->listener->port() : 0; }
+
+std::uint16_t Gateway::http_port() const { return parts_->http ? parts_->http->port() : 0; }
 
 namespace {
 
@@ -245,12 +278,16 @@ Result<void> Gateway::serve(std::stop_token stop) {
         std::stop_callback on_own(own, [&either] { either.request_stop(); });
         stop_after_drain(parts_->lines, either.get_token(), front);
     });
+    // The HTTP front closes with the Modbus TCP one, after the drain: writes under way answer.
     if (!parts_->front) {
         drain.join();
+        if (parts_->http) parts_->http->stop();
         return {};
     }
     auto served = parts_->front->serve_listener(*parts_->listener, front.get_token());
     if (!served) front.request_stop();
+    drain.join();
+    if (parts_->http) parts_->http->stop();
     return served;
 }
 

@@ -47,6 +47,9 @@ public:
     // front is disabled.
     std::uint16_t modbus_tcp_port() const;
 
+    // The port the HTTP API listens on (the one the kernel chose for port 0); 0 without [http].
+    std::uint16_t http_port() const;
+
     // Serves until `stop` is requested, then drains: the requests already taken are answered
     // (5 s at most) before the front closes. Logs each line's statistics every
     // `log.statistics` of the configuration meanwhile.
@@ -65,6 +68,7 @@ public:
 private:
     struct Parts;
     explicit Gateway(std::unique_ptr<Parts> parts);
+    static Result<void> open_http(const HttpConfig& http, const GatewayConfig& config, Parts& parts);
     std::unique_ptr<Parts> parts_;
 };
 

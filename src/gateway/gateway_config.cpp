@@ -1,6 +1,7 @@
 #include "gateway/gateway_config.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <fstream>
 #include <initializer_list>
 #include <limits>
@@ -9,6 +10,8 @@
 #include <set>
 #include <sstream>
 #include <system_error>
+
+#include <sys/stat.h>
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
@@ -574,6 +577,93 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
     return std::optional<MqttConfig>{std::move(config)};
 }
 
+// ---------------------------------------------------------------------------------------------
+// [http]
+
+// The token's file: a regular file, not readable by every user (the token guards the writes),
+// whose first line is the token.
+Result<std::string> read_token(const Context& ctx, const toml::table& table, const std::string& file) {
+    const auto& where = source_of(table, "token_file");
+    struct stat status {};
+    if (::stat(file.c_str(), &status) != 0) {
+        return ctx.fail(where, "http.token_file",
+                        fmt::format("cannot read \"{}\": {} (create it with one line, the token, readable by the gateway "
+                                    "alone: e.g. `head -c 24 /dev/urandom | base64 > {} && chmod 600 {}`)",
+                                    file, std::error_code(errno, std::generic_category()).message(), file, file));
+    }
+    if (!S_ISREG(status.st_mode)) return ctx.fail(where, "http.token_file", fmt::format("\"{}\" is not a regular file", file));
+    if ((status.st_mode & S_IROTH) != 0) {
+        return ctx.fail(where, "http.token_file",
+                        fmt::format("\"{}\" is readable by every user (mode {:04o}); the token guards the writes: "
+                                    "`chmod 600 {}`", file, status.st_mode & 07777, file));
+    }
+    std::ifstream in(file, std::ios::binary);
+    std::string token;
+    if (!in || !std::getline(in, token)) {
+        return ctx.fail(where, "http.token_file", fmt::format("\"{}\" is empty or cannot be read (expected one line, the token)", file));
+    }
+    const auto first = token.find_first_not_of(" \t\r");
+    const auto last = token.find_last_not_of(" \t\r");
+    token = first == std::string::npos ? std::string() : token.substr(first, last - first + 1);
+    if (token.empty()) {
+        return ctx.fail(where, "http.token_file", fmt::format("\"{}\" is empty (expected one line, the token)", file));
+    }
+    if (token.size() < 8 || token.size() > 1024 ||
+        std::any_of(token.begin(), token.end(), [](char c) { return c <= ' ' || c == 0x7f; })) {
+        return ctx.fail(where, "http.token_file",
+                        fmt::format("the token in \"{}\" must be 8..1024 printable characters without spaces", file));
+    }
+    return token;
+}
+
+Result<std::optional<HttpConfig>> parse_http(const Context& ctx, const toml::table& root) {
+    const toml::node* node = root.get("http");
+    if (!node) return std::optional<HttpConfig>{};
+    const auto* table = node->as_table();
+    if (!table) return ctx.fail(node->source(), "http", "expected an [http] table");
+    if (auto keys = check_keys(ctx, *table, "http", {"listen", "token_file", "read_timeout", "max_connections"}); !keys)
+        return keys.error();
+    HttpConfig config;
+    auto listen = optional_value<std::string>(ctx, *table, "http", "listen", "a string such as \"127.0.0.1:8080\"");
+    if (!listen) return listen.error();
+    if (*listen) {
+        auto address = split_listen(**listen);
+        if (!address) {
+            return ctx.fail(source_of(*table, "listen"), "http.listen",
+                            fmt::format("\"{}\" is not an address to listen on (expected HOST:PORT with a port 0..65535, "
+                                        "0 for any free one, e.g. \"127.0.0.1:8080\" or \"[::1]:8080\")", **listen));
+        }
+        config.host = std::move(address->host);
+        config.port = address->port;
+    }
+    auto token_file = optional_value<std::string>(ctx, *table, "http", "token_file", "a string such as \"/etc/loopwire/token\"");
+    if (!token_file) return token_file.error();
+    if (*token_file) {
+        if ((*token_file)->empty()) return ctx.fail(source_of(*table, "token_file"), "http.token_file", "expected a file name");
+        auto token = read_token(ctx, *table, **token_file);
+        if (!token) return token.error();
+        config.token_file = std::move(**token_file);
+        config.token = std::move(*token);
+    }
+    auto read_timeout = optional_duration(ctx, *table, "http", "read_timeout");
+    if (!read_timeout) return read_timeout.error();
+    if (*read_timeout) {
+        if (**read_timeout < milliseconds(100) || **read_timeout > std::chrono::minutes(10)) {
+            return ctx.fail(source_of(*table, "read_timeout"), "http.read_timeout", "expected 100ms..10min (e.g. \"10s\")");
+        }
+        config.read_timeout = **read_timeout;
+    }
+    auto max_connections = optional_integer(ctx, *table, "http", "max_connections", 1, 10000);
+    if (!max_connections) return max_connections.error();
+    if (*max_connections) config.max_connections = static_cast<unsigned>(**max_connections);  // 1..10000, checked
+    if (!config.loopback() && config.token.empty()) {
+        return ctx.fail(source_of(*table, "listen"), "http.listen",
+                        fmt::format("\"{}\" is not a loopback address, so every request needs the token: set "
+                                    "http.token_file too (or listen on 127.0.0.1)", config.host));
+    }
+    return std::optional<HttpConfig>{std::move(config)};
+}
+
 Result<toml::table> parse_toml(std::string_view text, const std::string& source) {
 #if TOML_EXCEPTIONS
     try {
@@ -596,6 +686,10 @@ Result<toml::table> parse_toml(std::string_view text, const std::string& source)
 }  // namespace
 
 
+bool HttpConfig::loopback() const {
+    return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+}
+
 bool is_virtual_bus(const transport::LinkUrl& link) { return link.is_serial() && link.path == "virtual"; }
 
 Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::string& source,
@@ -603,7 +697,7 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto root = parse_toml(text, source);
     if (!root) return root.error();
     const Context ctx{source, profiles};
-    if (auto keys = check_keys(ctx, *root, "", {"lines", "modbus_tcp", "log", "mqtt"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, *root, "", {"lines", "modbus_tcp", "log", "mqtt", "http"}); !keys) return keys.error();
     GatewayConfig config;
     config.source = source;
     Registry registry;
@@ -619,6 +713,9 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto mqtt = parse_mqtt(ctx, *root);
     if (!mqtt) return mqtt.error();
     config.mqtt = std::move(*mqtt);
+    auto http = parse_http(ctx, *root);
+    if (!http) return http.error();
+    config.http = std::move(*http);
     return config;
 }
 

@@ -70,12 +70,28 @@ struct MqttConfig {
     std::string client_id;            // empty: the broker gets "loopwire-" and the prefix
 };
 
+// [http]: the HTTP API and the dashboard (gateway/http_server.hpp). Reads need no token on a
+// loopback address; writes always need one, and without `token_file` they are refused.
+struct HttpConfig {
+    std::string host = "127.0.0.1";  // loopback unless the file names another address
+    std::uint16_t port = 8080;       // 0: any free port (tests)
+    std::string token_file;          // empty: writes refused
+    std::string token;               // the file's first line, read when the configuration is
+    // A client that has not sent a whole request this long after it began is closed.
+    std::chrono::milliseconds read_timeout{10000};
+    unsigned max_connections = 64;
+
+    // Whether the address is loopback (127.0.0.0/8, ::1, localhost): only then are reads open.
+    bool loopback() const;
+};
+
 struct GatewayConfig {
     std::string source;  // the file it came from, for messages
     std::vector<LineConfig> lines;
     ModbusTcpConfig modbus_tcp;
     LogConfig log;
     std::optional<MqttConfig> mqtt;  // absent [mqtt] table: no MQTT
+    std::optional<HttpConfig> http;  // absent [http] table: no HTTP API
 };
 
 // Whether `link` names the in-process virtual bus rather than a device file.

@@ -137,6 +137,15 @@ void describe_mqtt(std::ostringstream& out, const std::optional<MqttConfig>& con
                        config->writes ? "allowed" : "refused");
 }
 
+void describe_http(std::ostringstream& out, const std::optional<HttpConfig>& config) {
+    if (!config) return;
+    const bool ipv6 = config->host.find(':') != std::string::npos;
+    out << fmt::format("HTTP API and dashboard: http://{}{}{}:{}/, reads {}, writes {}\n", ipv6 ? "[" : "", config->host,
+                       ipv6 ? "]" : "", config->port, config->loopback() ? "open on loopback" : "need the token",
+                       config->token.empty() ? "refused (no http.token_file)"
+                                             : fmt::format("need the token in {}", config->token_file));
+}
+
 }  // namespace
 
 // What one poll asks for: the configured names, or the profile's default watch list.
@@ -153,6 +162,7 @@ std::string describe_plan(const GatewayConfig& config) {
     for (const LineConfig& line : config.lines) describe_line(out, line);
     describe_modbus_tcp(out, config.modbus_tcp);
     describe_mqtt(out, config.mqtt);
+    describe_http(out, config.http);
     return out.str();
 }
 

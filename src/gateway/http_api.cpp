@@ -1,0 +1,401 @@
+#include "gateway/http_api.hpp"
+
+#include <algorithm>
+#include <map>
+#include <set>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "client/monitor_state.hpp"
+#include "gateway/dashboard_assets.hpp"
+#include "gateway/http_text.hpp"
+#include "gateway/metrics.hpp"
+#include "profile/value_format.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+HttpResponse json_response(unsigned status, const Json& body) {
+    HttpResponse response;
+    response.status = status;
+    // Replaced, not thrown on: a device's text is the device's, and may not be valid UTF-8.
+    response.body = body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+    response.headers.emplace_back("Cache-Control", "no-store");
+    return response;
+}
+
+HttpResponse error(unsigned status, const std::string& message) { return json_response(status, Json{{"error", message}}); }
+
+HttpResponse not_allowed(const std::string& allowed) {
+    HttpResponse response = error(405, fmt::format("method not allowed here (allowed: {})", allowed));
+    response.headers.emplace_back("Allow", allowed);
+    return response;
+}
+
+Json bound_json(const std::optional<device::Bound>& bound) {
+    if (!bound) return nullptr;
+    if (const auto* number = std::get_if<double>(&*bound)) return *number;
+    return Json{{"parameter", std::get<std::string>(*bound)}};
+}
+
+Json value_json(const device::EngineeringValue& value) {
+    return std::visit(
+        [](const auto& v) -> Json {
+            using T = std::decay_t<decltype(v)>;
+            if constexpr (std::is_same_v<T, std::monostate>) {
+                return nullptr;
+            } else if constexpr (std::is_same_v<T, std::map<std::string, bool>>) {
+                Json bits = Json::object();
+                for (const auto& [name, on] : v) bits[name] = on;
+                return bits;
+            } else {
+                return v;
+            }
+        },
+        value.value);
+}
+
+Json change_json(const ValueChange& change) {
+    Json out{{"device", change.device}, {"parameter", change.parameter}};
+    out["value"] = change.value ? value_json(*change.value) : Json(nullptr);
+    out["text"] = change.text;
+    out["unit"] = change.unit;
+    out["status"] = change.status;
+    out["error"] = change.error;
+    out["time"] = iso_time(change.sampled);
+    return out;
+}
+
+// The ETag of an asset: a hash of its bytes (FNV-1a), so it changes exactly when they do.
+std::string etag_of(std::string_view body) {
+    std::uint64_t hash = 14695981039346656037ull;
+    for (const char c : body) {
+        hash ^= static_cast<unsigned char>(c);
+        hash *= 1099511628211ull;
+    }
+    return fmt::format("\"{:016x}\"", hash);
+}
+
+// Compares without stopping at the first difference, so the time taken says nothing of how much
+// of a guessed token was right.
+bool same_token(std::string_view given, std::string_view token) {
+    unsigned char differ = given.size() == token.size() ? 0 : 1;
+    for (std::size_t i = 0; i < given.size(); ++i) {
+        differ |= static_cast<unsigned char>(given[i] ^ token[i % std::max<std::size_t>(token.size(), 1)]);
+    }
+    return differ == 0;
+}
+
+struct ConfiguredDevice {
+    std::string name;
+    std::string line;
+    device::DeviceAddress address;
+    std::vector<const device::Parameter*> polled;
+};
+
+}  // namespace
+
+struct HttpApi::State {
+    std::vector<ConfiguredDevice> devices;
+    HttpApiSources sources;
+    std::string token;        // empty: writes refused
+    bool reads_need_token = false;
+    struct Asset {
+        const StaticAsset* asset;
+        std::string etag;
+    };
+    std::map<std::string, Asset, std::less<>> assets;
+
+    const ConfiguredDevice* find(const std::string& name) const {
+        for (const auto& device : devices) {
+            if (device.name == name) return &device;
+        }
+        return nullptr;
+    }
+
+    std::optional<CachedDevice> cached(const std::string& name) const {
+        for (auto& device : sources.cache->snapshot()) {
+            if (device.name == name) return std::move(device);
+        }
+        return std::nullopt;
+    }
+
+    // None when the request may go on; else the refusal.
+    std::optional<HttpResponse> check_token(const HttpRequest& request) const {
+        constexpr std::string_view bearer = "Bearer ";
+        const std::string& given = request.authorization;
+        if (given.size() <= bearer.size() || !std::equal(bearer.begin(), bearer.end(), given.begin(),
+                                                         [](char a, char b) { return std::tolower(a) == std::tolower(b); })) {
+            HttpResponse refusal = error(401, "this needs the gateway's token: send the header \"Authorization: Bearer TOKEN\" "
+                                              "with the token of the file [http] token_file names");
+            refusal.headers.emplace_back("WWW-Authenticate", "Bearer");
+            return refusal;
+        }
+        if (!same_token(std::string_view(given).substr(bearer.size()), token)) {
+            HttpResponse refusal = error(401, "wrong token (it is the first line of the file [http] token_file names)");
+            refusal.headers.emplace_back("WWW-Authenticate", "Bearer error=\"invalid_token\"");
+            return refusal;
+        }
+        return std::nullopt;
+    }
+
+    HttpOutcome route(const HttpRequest& request);
+    HttpResponse devices_list() const;
+    HttpResponse device_detail(const ConfiguredDevice& device) const;
+    HttpOutcome write(const ConfiguredDevice& device, const HttpRequest& request) const;
+    HttpOutcome events(const HttpRequest& request) const;
+    HttpResponse history(const HttpRequest& request) const;
+    HttpResponse metrics() const;
+    HttpResponse asset(const HttpRequest& request) const;
+};
+
+HttpApi::HttpApi(const GatewayConfig& config, HttpApiSources sources) : state_(std::make_unique<State>()) {
+    for (const auto& line : config.lines) {
+        for (const auto& device : line.devices) {
+            state_->devices.push_back({device.name, line.name, device.address, polled_parameters(device)});
+        }
+    }
+    state_->sources = std::move(sources);
+    if (config.http) {
+        state_->token = config.http->token;
+        state_->reads_need_token = !config.http->loopback();
+    }
+    for (const StaticAsset& asset : dashboard_assets()) {
+        state_->assets[std::string(asset.path)] = {&asset, etag_of(asset.body)};
+    }
+}
+
+HttpApi::~HttpApi() = default;
+
+HttpOutcome HttpApi::handle(const HttpRequest& request) { return state_->route(request); }
+
+HttpOutcome HttpApi::State::route(const HttpRequest& request) {
+    const std::string& path = request.path;
+    const bool get = request.method == "GET";
+    const bool api = path.rfind("/api/", 0) == 0 || path == "/metrics";
+    if (api && reads_need_token) {
+        // Not on loopback: everyone on the network could read otherwise.
+        if (auto refusal = check_token(request)) return {*refusal, {}, {}};
+    }
+    if (path == "/api/devices") return {get ? devices_list() : not_allowed("GET"), {}, {}};
+    if (path == "/api/events") return get ? events(request) : HttpOutcome{not_allowed("GET"), {}, {}};
+    if (path == "/api/history") return {get ? history(request) : not_allowed("GET"), {}, {}};
+    if (path == "/metrics") return {get ? metrics() : not_allowed("GET"), {}, {}};
+    constexpr std::string_view prefix = "/api/devices/";
+    if (path.rfind(prefix, 0) == 0) {
+        std::string rest = path.substr(prefix.size());
+        constexpr std::string_view write_suffix = "/write";
+        const bool is_write = rest.size() > write_suffix.size() &&
+                              rest.compare(rest.size() - write_suffix.size(), write_suffix.size(), write_suffix) == 0;
+        if (is_write) rest.resize(rest.size() - write_suffix.size());
+        auto name = percent_decode(rest);
+        if (!name || name->empty() || name->find('/') != std::string::npos) {
+            return {error(404, fmt::format("no such resource: {}", path)), {}, {}};
+        }
+        const ConfiguredDevice* device = find(*name);
+        if (!device) return {error(404, fmt::format("no device \"{}\" on this gateway (GET /api/devices lists them)", *name)), {}, {}};
+        if (is_write) return request.method == "POST" ? write(*device, request) : HttpOutcome{not_allowed("POST"), {}, {}};
+        return {get ? device_detail(*device) : not_allowed("GET"), {}, {}};
+    }
+    if (!api && (path == "/" || assets.count(path) != 0)) return {get ? asset(request) : not_allowed("GET"), {}, {}};
+    return {error(404, fmt::format("no such resource: {} (the API is under /api/: devices, events, history; and /metrics)", path)),
+            {}, {}};
+}
+
+HttpResponse HttpApi::State::devices_list() const {
+    Json list = Json::array();
+    const auto snapshot = sources.cache->snapshot();
+    for (const auto& device : devices) {
+        auto cached = std::find_if(snapshot.begin(), snapshot.end(), [&](const CachedDevice& c) { return c.name == device.name; });
+        list.push_back(Json{{"name", device.name},
+                            {"device", device.address.profile->id},
+                            {"title", device.address.profile->title},
+                            {"line", device.line},
+                            {"unit", device.address.unit},
+                            {"status", cached != snapshot.end() ? cached->state.status : std::string("waiting")}});
+    }
+    return json_response(200, list);
+}
+
+HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const {
+    const auto cached = this->cached(device.name);
+    const auto now = device::MonitorClock::now();
+    const device::Profile& profile = *device.address.profile;
+    Json out{{"name", device.name}, {"device", profile.id}, {"title", profile.title}, {"line", device.line},
+             {"unit", device.address.unit}};
+    out["status"] = cached ? cached->state.status : std::string("waiting");
+    out["error"] = cached && cached->state.status != "ok" ? cached->state.last_error : std::string();
+    out["sampled"] = cached ? Json(iso_time(cached->sampled)) : Json(nullptr);
+    Json groups = Json::array();
+    Json parameters = Json::array();
+    for (const device::Parameter& parameter : profile.parameters) {
+        const device::WatchedValue* watched = nullptr;
+        if (cached) {
+            for (const auto& value : cached->state.values) {
+                if (value.parameter == &parameter) watched = &value;
+            }
+        }
+        const bool polled = std::find(device.polled.begin(), device.polled.end(), &parameter) != device.polled.end();
+        if (parameter.hidden && !polled) continue;
+        if (std::find(groups.begin(), groups.end(), parameter.group) == groups.end()) groups.push_back(parameter.group);
+        Json p{{"name", parameter.name}, {"mnemonic", parameter.mnemonic}, {"group", parameter.group},
+               {"description", parameter.description}, {"unit", parameter.unit}, {"polled", polled}};
+        if (watched && watched->last) {
+            p["value"] = value_json(*watched->last);
+            p["text"] = device::value_text(parameter, *watched->last);
+        } else {
+            p["value"] = nullptr;
+            p["text"] = "";
+        }
+        p["status"] = watched ? device::value_status(cached->state, *watched) : std::string(polled ? "waiting" : "not-polled");
+        const auto age = watched ? device::age_seconds(*watched, now) : std::nullopt;
+        p["age"] = age ? Json(*age) : Json(nullptr);
+        p["error"] = watched && !watched->fresh ? watched->error : std::string();
+        p["readable"] = parameter.readable;
+        p["writable"] = parameter.writable;
+        p["min"] = bound_json(parameter.min);
+        p["max"] = bound_json(parameter.max);
+        if (const auto* fixed = std::get_if<int>(&parameter.decimals)) {
+            p["decimals"] = *fixed;
+        } else {
+            p["decimals"] = Json{{"parameter", std::get<std::string>(parameter.decimals)}};
+        }
+        if (!parameter.enum_labels.empty()) {
+            Json labels = Json::object();
+            for (const auto& [raw, label] : parameter.enum_labels) labels[std::to_string(raw)] = label;
+            p["enum"] = labels;
+        }
+        if (!parameter.write_modes.empty()) p["write_modes"] = parameter.write_modes;
+        parameters.push_back(std::move(p));
+    }
+    out["groups"] = std::move(groups);
+    out["parameters"] = std::move(parameters);
+    return json_response(200, out);
+}
+
+HttpOutcome HttpApi::State::write(const ConfiguredDevice& device, const HttpRequest& request) const {
+    if (token.empty()) {
+        return {error(403, "writes over HTTP are off: give the gateway a token with [http] token_file = \"FILE\" (a file "
+                           "readable by the gateway alone whose first line is the token), then send it as "
+                           "\"Authorization: Bearer TOKEN\""),
+                {}, {}};
+    }
+    if (auto refusal = check_token(request)) return {*refusal, {}, {}};
+    const auto body = nlohmann::json::parse(request.body, nullptr, false);
+    if (body.is_discarded()) {
+        return {error(400, "the body is not JSON; send an object of parameter names and values as text, e.g. "
+                           "{\"set_point\": \"150\"}"),
+                {}, {}};
+    }
+    if (!body.is_object() || body.empty()) {
+        return {error(400, "expected a JSON object of parameter names and values as text, e.g. {\"set_point\": \"150\"}"), {}, {}};
+    }
+    std::vector<WriteAssignment> assignments;
+    for (const auto& [name, value] : body.items()) {
+        if (!value.is_string()) {
+            return {error(400, fmt::format("the value of \"{}\" must be a string, as it would be typed (\"150\", \"on\"), "
+                                           "not {}", name, value.type_name())),
+                    {}, {}};
+        }
+        assignments.push_back({name, value.get<std::string>()});
+    }
+    // Blocks until the line has answered: on a worker, off the network thread.
+    auto blocking = [writer = sources.writer, name = device.name, assignments = std::move(assignments)] {
+        auto written = writer->write(name, assignments);
+        if (!written) {
+            const Error& failure = written.error();
+            // The device's mode (AC20 in local: Note 5) is a state to change first: a conflict.
+            const bool mode = failure.message.find("can be written only in") != std::string::npos;
+            const unsigned status = failure.kind == ErrorKind::timeout || failure.kind == ErrorKind::link ? 504u
+                                    : mode                                                              ? 409u
+                                                                                                        : 422u;
+            return error(status, failure.message);
+        }
+        Json values = Json::object();
+        for (const auto& [parameter, text] : written->values) values[parameter] = text;
+        return json_response(200, Json{{"written", values}});
+    };
+    return {{}, std::move(blocking), {}};
+}
+
+HttpOutcome HttpApi::State::events(const HttpRequest& request) const {
+    const auto query = parse_query(request.query);
+    std::string only;
+    if (auto it = query.find("device"); it != query.end()) {
+        if (!find(it->second)) return {error(404, fmt::format("no device \"{}\" on this gateway", it->second)), {}, {}};
+        only = it->second;
+    }
+    auto start = [cache = sources.cache, only](EventSender send) {
+        return cache->subscribe([send = std::move(send), only](const ValueChange& change) {
+            if (!only.empty() && change.device != only) return;
+            send(fmt::format("data: {}\n\n", change_json(change).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)));
+        });
+    };
+    return {{}, {}, std::move(start)};
+}
+
+HttpResponse HttpApi::State::metrics() const {
+    std::vector<std::string> names;
+    for (const auto& device : devices) names.push_back(device.name);
+    HttpResponse response;
+    response.content_type = "text/plain; version=0.0.4; charset=utf-8";
+    response.body = prometheus_text(sources.lines(), names, sources.cache->snapshot(), sources.history);
+    response.headers.emplace_back("Cache-Control", "no-store");
+    return response;
+}
+
+HttpResponse HttpApi::State::asset(const HttpRequest& request) const {
+    const std::string path = request.path == "/" ? "/index.html" : request.path;
+    auto it = assets.find(path);
+    if (it == assets.end()) {
+        return error(404, "the dashboard is not part of this build (the API answers under /api/)");
+    }
+    HttpResponse response;
+    // Revalidated each time: a new build's dashboard is seen at once, an unchanged one costs 304.
+    response.headers.emplace_back("ETag", it->second.etag);
+    response.headers.emplace_back("Cache-Control", "no-cache");
+    if (request.if_none_match == it->second.etag) {
+        response.status = 304;
+        response.content_type = std::string(it->second.asset->content_type);
+        return response;
+    }
+    response.content_type = std::string(it->second.asset->content_type);
+    response.body = std::string(it->second.asset->body);
+    return response;
+}
+
+HttpResponse HttpApi::State::history(const HttpRequest& request) const {
+    if (!sources.history) {
+        return error(404, "no [history] configured: add a [history] table to the gateway's configuration to record values");
+    }
+    auto query = history_query(request.query, std::chrono::system_clock::now());
+    if (!query) return error(400, query.error().message);
+    if (!find(query->query.device)) {
+        return error(404, fmt::format("no device \"{}\" on this gateway (GET /api/devices lists them)", query->query.device));
+    }
+    auto series = sources.history->query(query->query);
+    if (!series) return error(400, series.error().message);
+    HttpResponse response;
+    response.headers.emplace_back("Cache-Control", "no-store");
+    if (query->csv) {
+        response.content_type = "text/csv; charset=utf-8";
+        response.body = history_csv(*series);
+        return response;
+    }
+    Json list = Json::array();
+    for (const auto& one : *series) {
+        Json buckets = Json::array();
+        for (const auto& bucket : one.buckets) {
+            buckets.push_back(Json{{"time", iso_time(bucket.start)}, {"min", bucket.min}, {"max", bucket.max},
+                                   {"mean", bucket.mean}, {"count", bucket.count}});
+        }
+        list.push_back(Json{{"parameter", one.parameter}, {"unit", one.unit}, {"buckets", std::move(buckets)}});
+    }
+    return json_response(200, Json{{"device", query->query.device}, {"from", iso_time(query->query.from)},
+                                   {"to", iso_time(query->query.to)}, {"series", std::move(list)}});
+}
+
+}  // namespace loopwire::gateway

@@ -1,0 +1,45 @@
+#pragma once
+// The gateway's HTTP API (docs/DESIGN.md, gateway): what each route answers, in JSON, on the
+// server of gateway/http_server.hpp.
+//   GET  /api/devices                 the devices, with their line, unit and status
+//   GET  /api/devices/NAME            one device: its parameters with values, units and ranges
+//   POST /api/devices/NAME/write      {"PARAMETER": "text", ...} with the token; as `write` checks
+//   GET  /api/events                  server-sent events: the full picture, then each change
+//   GET  /api/history?device=...      downsampled series from the history store, JSON or CSV
+//   GET  /metrics                     Prometheus text: the lines' and devices' figures
+//   GET  /, /assets/*                 the dashboard (gateway/dashboard_assets.hpp)
+// Errors are {"error": "..."} with a status that fits.
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gateway/device_writer.hpp"
+#include "gateway/gateway.hpp"
+#include "gateway/gateway_config.hpp"
+#include "gateway/history_source.hpp"
+#include "gateway/http_server.hpp"
+#include "gateway/value_cache.hpp"
+
+namespace loopwire::gateway {
+
+// What the API reads and writes through; each must outlive it.
+struct HttpApiSources {
+    ValueCache* cache = nullptr;
+    const DeviceWriter* writer = nullptr;
+    std::function<std::vector<LineReport>()> lines;  // the lines' figures, for /metrics
+    const HistorySource* history = nullptr;           // none: /api/history answers 404
+};
+
+class HttpApi final : public HttpHandler {
+public:
+    HttpApi(const GatewayConfig& config, HttpApiSources sources);
+    ~HttpApi() override;
+    HttpOutcome handle(const HttpRequest& request) override;
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
+
+}  // namespace loopwire::gateway

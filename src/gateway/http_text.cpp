@@ -1,0 +1,191 @@
+#include "gateway/http_text.hpp"
+
+#include <charconv>
+
+#include <fmt/format.h>
+
+#include "common/text_parsing.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+using namespace std::chrono;
+
+std::optional<int> digits(std::string_view text, std::size_t at, std::size_t count) {
+    if (at + count > text.size()) return std::nullopt;
+    int value = 0;
+    for (std::size_t i = at; i < at + count; ++i) {
+        if (text[i] < '0' || text[i] > '9') return std::nullopt;
+        value = value * 10 + (text[i] - '0');
+    }
+    return value;
+}
+
+int hex_digit(char c) {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+}
+
+// A CSV field: quoted when it holds a comma, a quote or a line break (RFC 4180, 2).
+std::string csv_field(const std::string& text) {
+    if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+    std::string quoted = "\"";
+    for (const char c : text) {
+        if (c == '"') quoted += '"';
+        quoted += c;
+    }
+    return quoted + "\"";
+}
+
+}  // namespace
+
+std::string iso_time(system_clock::time_point time) {
+    const auto ms = floor<milliseconds>(time);
+    const auto day = floor<days>(ms);
+    const year_month_day date{day};
+    const hh_mm_ss clock{ms - day};
+    return fmt::format("{:04}-{:02}-{:02}T{:02}:{:02}:{:02}.{:03}Z", static_cast<int>(date.year()),
+                       static_cast<unsigned>(date.month()), static_cast<unsigned>(date.day()), clock.hours().count(),
+                       clock.minutes().count(), clock.seconds().count(), clock.subseconds().count());
+}
+
+std::optional<system_clock::time_point> parse_iso_time(std::string_view text) {
+    const auto y = digits(text, 0, 4), mo = digits(text, 5, 2), d = digits(text, 8, 2);
+    const auto h = digits(text, 11, 2), mi = digits(text, 14, 2), s = digits(text, 17, 2);
+    if (!y || !mo || !d || !h || !mi || !s || text[4] != '-' || text[7] != '-' || text[13] != ':' || text[16] != ':') return std::nullopt;
+    if (text[10] != 'T' && text[10] != 't' && text[10] != ' ') return std::nullopt;
+    const year_month_day date{year{*y}, month{static_cast<unsigned>(*mo)}, day{static_cast<unsigned>(*d)}};
+    if (!date.ok() || *h > 23 || *mi > 59 || *s > 60) return std::nullopt;
+    std::size_t at = 19;
+    nanoseconds fraction{0};
+    if (at < text.size() && (text[at] == '.' || text[at] == ',')) {
+        ++at;
+        long long scale = 100000000;
+        const std::size_t first = at;
+        while (at < text.size() && text[at] >= '0' && text[at] <= '9') {
+            fraction += nanoseconds((text[at] - '0') * scale);
+            scale /= 10;
+            ++at;
+        }
+        if (at == first) return std::nullopt;
+    }
+    minutes offset{0};
+    if (at < text.size() && (text[at] == 'Z' || text[at] == 'z')) {
+        ++at;
+    } else if (at < text.size() && (text[at] == '+' || text[at] == '-')) {
+        const auto oh = digits(text, at + 1, 2), om = digits(text, at + 4, 2);
+        if (!oh || !om || text[at + 3] != ':' || *oh > 23 || *om > 59) return std::nullopt;
+        offset = hours(*oh) + minutes(*om);
+        if (text[at] == '-') offset = -offset;
+        at += 6;
+    } else {
+        return std::nullopt;  // no zone
+    }
+    if (at != text.size()) return std::nullopt;
+    const auto local = sys_days{date} + hours(*h) + minutes(*mi) + seconds(*s) + fraction;
+    return time_point_cast<system_clock::duration>(local - offset);
+}
+
+std::optional<std::string> percent_decode(std::string_view text, bool plus_is_space) {
+    std::string out;
+    out.reserve(text.size());
+    for (std::size_t i = 0; i < text.size(); ++i) {
+        if (text[i] == '%') {
+            if (i + 2 >= text.size()) return std::nullopt;
+            const int high = hex_digit(text[i + 1]), low = hex_digit(text[i + 2]);
+            if (high < 0 || low < 0) return std::nullopt;
+            out += static_cast<char>(high * 16 + low);
+            i += 2;
+        } else if (plus_is_space && text[i] == '+') {
+            out += ' ';
+        } else {
+            out += text[i];
+        }
+    }
+    return out;
+}
+
+std::map<std::string, std::string> parse_query(std::string_view query) {
+    std::map<std::string, std::string> values;
+    while (!query.empty()) {
+        const auto amp = query.find('&');
+        const std::string_view pair = query.substr(0, amp);
+        query = amp == std::string_view::npos ? std::string_view() : query.substr(amp + 1);
+        if (pair.empty()) continue;
+        const auto equals = pair.find('=');
+        auto name = percent_decode(pair.substr(0, equals), true);
+        auto value = percent_decode(equals == std::string_view::npos ? std::string_view() : pair.substr(equals + 1), true);
+        if (name && value) values[*name] = *value;
+    }
+    return values;
+}
+
+Result<ParsedHistoryQuery> history_query(std::string_view text, system_clock::time_point now) {
+    const auto values = parse_query(text);
+    for (const auto& [name, value] : values) {
+        if (name != "device" && name != "parameters" && name != "from" && name != "to" && name != "points" && name != "format") {
+            return make_error(ErrorKind::usage, fmt::format("unknown query parameter \"{}\" (allowed: device, parameters, from, to, "
+                                                            "points, format)", name));
+        }
+    }
+    ParsedHistoryQuery parsed;
+    auto device = values.find("device");
+    if (device == values.end() || device->second.empty()) {
+        return make_error(ErrorKind::usage, "missing device=NAME (e.g. /api/history?device=furnace&parameters=measured_value)");
+    }
+    parsed.query.device = device->second;
+    if (auto list = values.find("parameters"); list != values.end()) {
+        std::string_view rest = list->second;
+        while (!rest.empty()) {
+            const auto comma = rest.find(',');
+            const std::string_view one = rest.substr(0, comma);
+            if (!one.empty()) parsed.query.parameters.emplace_back(one);
+            rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
+        }
+    }
+    parsed.query.to = now;
+    for (const char* name : {"from", "to"}) {
+        auto it = values.find(name);
+        if (it == values.end()) continue;
+        auto time = parse_iso_time(it->second);
+        if (!time) {
+            return make_error(ErrorKind::usage, fmt::format("{}=\"{}\" is not a time in ISO 8601 with its zone (e.g. "
+                                                            "2026-12-02T08:00:00Z or 2026-12-02T09:00:00+01:00)", name, it->second));
+        }
+        (std::string_view(name) == "from" ? parsed.query.from : parsed.query.to) = *time;
+    }
+    if (values.find("from") == values.end()) parsed.query.from = parsed.query.to - hours(1);
+    if (parsed.query.from >= parsed.query.to) {
+        return make_error(ErrorKind::usage, fmt::format("from ({}) must be before to ({})", iso_time(parsed.query.from),
+                                                        iso_time(parsed.query.to)));
+    }
+    if (auto points = values.find("points"); points != values.end()) {
+        const auto number = parse_decimal_digits(points->second);
+        if (!number || *number < 1 || *number > 10000) {
+            return make_error(ErrorKind::usage, fmt::format("points=\"{}\" must be a whole number 1..10000", points->second));
+        }
+        parsed.query.points = static_cast<std::size_t>(*number);
+    }
+    if (auto format = values.find("format"); format != values.end()) {
+        if (format->second != "csv" && format->second != "json") {
+            return make_error(ErrorKind::usage, fmt::format("format=\"{}\": expected json (the default) or csv", format->second));
+        }
+        parsed.csv = format->second == "csv";
+    }
+    return parsed;
+}
+
+std::string history_csv(const std::vector<HistorySeries>& series) {
+    std::string out = "parameter,unit,time,min,max,mean,count\r\n";
+    for (const auto& one : series) {
+        for (const auto& bucket : one.buckets) {
+            out += fmt::format("{},{},{},{},{},{},{}\r\n", csv_field(one.parameter), csv_field(one.unit), iso_time(bucket.start),
+                               bucket.min, bucket.max, bucket.mean, bucket.count);
+        }
+    }
+    return out;
+}
+
+}  // namespace loopwire::gateway

@@ -1,0 +1,42 @@
+#pragma once
+// The small texts of the HTTP API: times in ISO 8601, URL query strings, the history query
+// they carry and its CSV form.
+#include <chrono>
+#include <map>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/result.hpp"
+#include "gateway/history_source.hpp"
+
+namespace loopwire::gateway {
+
+// "2026-12-02T01:39:56.123Z": UTC, to the millisecond.
+std::string iso_time(std::chrono::system_clock::time_point time);
+
+// "2026-12-02T01:39:56Z", with optional fractions of a second, or an offset ("+01:00") instead
+// of Z. A time without a zone is refused: it would be read in some zone the caller did not mean.
+std::optional<std::chrono::system_clock::time_point> parse_iso_time(std::string_view text);
+
+// %XX and '+' (a space, in a query) decoded; none when a % is not followed by two hex digits.
+std::optional<std::string> percent_decode(std::string_view text, bool plus_is_space = false);
+
+// "a=1&b=two": each name's (last) value, decoded; names or values that do not decode are left out.
+std::map<std::string, std::string> parse_query(std::string_view query);
+
+struct ParsedHistoryQuery {
+    HistoryQuery query;
+    bool csv = false;
+};
+
+// GET /api/history's query: device (required), parameters=a,b (default every one recorded),
+// from and to in ISO 8601 (default the last hour up to `now`), points 1..10000 (default 500),
+// format=json|csv. The error says which is wrong and how it should look.
+Result<ParsedHistoryQuery> history_query(std::string_view query, std::chrono::system_clock::time_point now);
+
+// parameter,unit,time,min,max,mean,count: one row a bucket, with a header line.
+std::string history_csv(const std::vector<HistorySeries>& series);
+
+}  // namespace loopwire::gateway

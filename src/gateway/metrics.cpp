@@ -1,0 +1,106 @@
+#include "gateway/metrics.hpp"
+
+#include <algorithm>
+#include <functional>
+
+#include <fmt/format.h>
+
+namespace loopwire::gateway {
+namespace {
+
+// A label value with backslash, double quote and line feed escaped (exposition format, "Text
+// format details").
+std::string label(const std::string& text) {
+    std::string out;
+    for (const char c : text) {
+        if (c == '\\') out += "\\\\";
+        else if (c == '"') out += "\\\"";
+        else if (c == '\n') out += "\\n";
+        else out += c;
+    }
+    return out;
+}
+
+void family(std::string& out, const char* name, const char* type, const char* help) {
+    out += fmt::format("# HELP loopwire_{} {}\n# TYPE loopwire_{} {}\n", name, help, name, type);
+}
+
+template <typename Value>
+void sample(std::string& out, const char* name, const std::string& labels, Value value) {
+    out += fmt::format("loopwire_{}{{{}}} {}\n", name, labels, value);
+}
+
+double seconds(std::chrono::microseconds time) { return static_cast<double>(time.count()) / 1e6; }
+
+// The statuses a device can have (client/monitor_state.hpp): each gets its sample, 1 for the
+// current one, so that a query can select on status without the series coming and going.
+constexpr const char* device_statuses[] = {"ok", "partial", "no-reply", "waiting"};
+
+}  // namespace
+
+std::string prometheus_text(const std::vector<LineReport>& lines, const std::vector<std::string>& devices,
+                            const std::vector<CachedDevice>& values, const HistorySource* history) {
+    std::string out;
+    struct LineCounter {
+        const char* name;
+        const char* help;
+        std::function<std::uint64_t(const LineReport&)> value;
+    };
+    const LineCounter counters[] = {
+        {"line_requests_total", "Requests put on the line.", [](const LineReport& r) { return r.statistics.sent; }},
+        {"line_answered_total", "Replies received, exception replies included.", [](const LineReport& r) { return r.statistics.answered; }},
+        {"line_timeouts_total", "Requests that got no reply in time.", [](const LineReport& r) { return r.statistics.timeouts; }},
+        {"line_bad_replies_total", "Malformed or mismatched replies.", [](const LineReport& r) { return r.statistics.bad_replies; }},
+        {"line_garbled_total", "Runs of bytes the master discarded: bad CRC or LRC, broken frames, noise.",
+         [](const LineReport& r) { return r.garbled; }},
+        {"line_expired_total", "Requests dropped unsent because their deadline passed.", [](const LineReport& r) { return r.statistics.expired; }},
+        {"line_backed_off_total", "Requests refused unsent while their unit backed off.",
+         [](const LineReport& r) { return r.statistics.backed_off; }},
+    };
+    for (const auto& counter : counters) {
+        family(out, counter.name, "counter", counter.help);
+        for (const auto& line : lines) sample(out, counter.name, fmt::format("line=\"{}\"", label(line.name)), counter.value(line));
+    }
+    family(out, "line_busy_seconds_total", "counter", "Time the line carried a request, from sending to its outcome.");
+    for (const auto& line : lines) {
+        sample(out, "line_busy_seconds_total", fmt::format("line=\"{}\"", label(line.name)), seconds(line.statistics.busy));
+    }
+    family(out, "line_open_seconds_total", "counter", "Time the line has been open.");
+    for (const auto& line : lines) {
+        sample(out, "line_open_seconds_total", fmt::format("line=\"{}\"", label(line.name)), seconds(line.statistics.open));
+    }
+    family(out, "line_busy_ratio", "gauge", "Share of the open time the line was busy, since the gateway started.");
+    for (const auto& line : lines) {
+        const auto open = line.statistics.open.count();
+        const double ratio = open > 0 ? static_cast<double>(line.statistics.busy.count()) / static_cast<double>(open) : 0.0;
+        sample(out, "line_busy_ratio", fmt::format("line=\"{}\"", label(line.name)), ratio);
+    }
+    family(out, "line_queued", "gauge", "Requests waiting for the line now.");
+    for (const auto& line : lines) sample(out, "line_queued", fmt::format("line=\"{}\"", label(line.name)), line.statistics.queued);
+
+    family(out, "device_status", "gauge", "1 for the device's status now (ok, partial, no-reply, waiting), 0 for the others.");
+    std::vector<const CachedDevice*> found;
+    for (const auto& name : devices) {
+        auto it = std::find_if(values.begin(), values.end(), [&](const CachedDevice& c) { return c.name == name; });
+        found.push_back(it == values.end() ? nullptr : &*it);
+        const std::string status = it == values.end() ? "waiting" : it->state.status;
+        for (const char* candidate : device_statuses) {
+            sample(out, "device_status", fmt::format("device=\"{}\",status=\"{}\"", label(name), candidate), status == candidate ? 1 : 0);
+        }
+    }
+    family(out, "device_polls_total", "counter", "Polls of the device.");
+    for (std::size_t i = 0; i < devices.size(); ++i) {
+        sample(out, "device_polls_total", fmt::format("device=\"{}\"", label(devices[i])), found[i] ? found[i]->state.polls : 0u);
+    }
+    family(out, "device_poll_errors_total", "counter", "Polls of the device that failed.");
+    for (std::size_t i = 0; i < devices.size(); ++i) {
+        sample(out, "device_poll_errors_total", fmt::format("device=\"{}\"", label(devices[i])), found[i] ? found[i]->state.errors : 0u);
+    }
+    if (history) {
+        family(out, "history_rows_written_total", "counter", "Rows the history store committed since the gateway started.");
+        out += fmt::format("loopwire_history_rows_written_total {}\n", history->rows_written());
+    }
+    return out;
+}
+
+}  // namespace loopwire::gateway

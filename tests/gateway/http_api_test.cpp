@@ -1,0 +1,628 @@
+// The gateway's HTTP API (gateway/http_api.hpp, gateway/http_server.hpp): an in-process gateway
+// on a simulated line, asked over real sockets on 127.0.0.1 by a small client written here, as
+// curl or a browser would: every route, the refusals (token, range, mode, malformed bodies,
+// sizes), a stalled client that must not hold up others, the event stream seeing a write, and
+// /metrics read by Prometheus's own parser. The history route is checked against a history
+// source written here that records the question it was asked.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <stdlib.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "gateway/gateway.hpp"
+#include "gateway/http_api.hpp"
+#include "gateway/http_server.hpp"
+#include "support/profile_test_support.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+using Json = nlohmann::json;
+
+// Generous: CI runs this under ASan and TSan on two loaded cores.
+constexpr auto deadline = 30s;
+const std::string token = "test-token-5f1c2a9b";
+
+const device::ProfileRegistry& profiles() { return device::testing::builtin_registry(); }
+
+// --- a small HTTP client --------------------------------------------------------------------
+
+class Socket {
+public:
+    explicit Socket(std::uint16_t port) : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
+        if (fd_ < 0) throw std::runtime_error("socket");
+        sockaddr_in address{};
+        address.sin_family = AF_INET;
+        address.sin_port = htons(port);
+        address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        if (::connect(fd_, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) throw std::runtime_error("connect");
+    }
+    ~Socket() { ::close(fd_); }
+    Socket(const Socket&) = delete;
+    Socket& operator=(const Socket&) = delete;
+
+    void send(const std::string& bytes) {
+        std::size_t sent = 0;
+        while (sent < bytes.size()) {
+            const auto n = ::send(fd_, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
+            if (n <= 0) return;  // the server closed: what it answered is still there to read
+            sent += static_cast<std::size_t>(n);
+        }
+    }
+
+    // Whatever arrives within `wait`; none when the server closed the connection with nothing
+    // more to read, "" when nothing came in time.
+    std::optional<std::string> receive(std::chrono::milliseconds wait) {
+        pollfd ready{fd_, POLLIN, 0};
+        if (::poll(&ready, 1, static_cast<int>(wait.count())) <= 0) return std::string();
+        char buffer[65536];
+        const auto n = ::recv(fd_, buffer, sizeof buffer, 0);
+        if (n <= 0) return std::nullopt;
+        return std::string(buffer, static_cast<std::size_t>(n));
+    }
+
+    // Everything until the server closes (the requests below ask it to), within the deadline.
+    std::string receive_all() {
+        std::string all;
+        const auto give_up = std::chrono::steady_clock::now() + deadline;
+        while (std::chrono::steady_clock::now() < give_up) {
+            auto some = receive(100ms);
+            if (!some) return all;
+            all += *some;
+        }
+        ADD_FAILURE() << "the server did not close the connection within " << deadline.count() << " s; got:\n" << all;
+        return all;
+    }
+
+private:
+    int fd_;
+};
+
+struct Reply {
+    unsigned status = 0;
+    std::map<std::string, std::string> headers;  // names in lower case
+    std::string body;
+
+    Json json() const {
+        auto parsed = Json::parse(body, nullptr, false);
+        EXPECT_FALSE(parsed.is_discarded()) << "not JSON: " << body;
+        return parsed;
+    }
+    std::string header(const std::string& name) const {
+        auto it = headers.find(name);
+        return it == headers.end() ? std::string() : it->second;
+    }
+};
+
+Reply parse_reply(const std::string& raw) {
+    Reply reply;
+    const auto end = raw.find("\r\n\r\n");
+    if (end == std::string::npos || raw.size() < 12) {
+        ADD_FAILURE() << "not an HTTP response: " << raw;
+        return reply;
+    }
+    reply.status = static_cast<unsigned>(std::stoul(raw.substr(9, 3)));
+    std::size_t at = raw.find("\r\n") + 2;
+    while (at < end) {
+        const auto line_end = raw.find("\r\n", at);
+        const std::string line = raw.substr(at, line_end - at);
+        const auto colon = line.find(':');
+        std::string name = line.substr(0, colon);
+        for (auto& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        reply.headers[name] = line.substr(line.find_first_not_of(' ', colon + 1));
+        at = line_end + 2;
+    }
+    reply.body = raw.substr(end + 4);
+    return reply;
+}
+
+Reply request(std::uint16_t port, const std::string& method, const std::string& target, const std::string& body = {},
+              const std::vector<std::string>& headers = {}) {
+    Socket socket(port);
+    std::string text = fmt::format("{} {} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n", method, target);
+    for (const auto& header : headers) text += header + "\r\n";
+    if (!body.empty() || method == "POST") text += fmt::format("Content-Type: application/json\r\nContent-Length: {}\r\n", body.size());
+    text += "\r\n" + body;
+    socket.send(text);
+    return parse_reply(socket.receive_all());
+}
+
+Reply get(std::uint16_t port, const std::string& target) { return request(port, "GET", target); }
+
+Reply post_write(std::uint16_t port, const std::string& device, const std::string& body, const std::string& with_token = token) {
+    std::vector<std::string> headers;
+    if (!with_token.empty()) headers.push_back("Authorization: Bearer " + with_token);
+    return request(port, "POST", "/api/devices/" + device + "/write", body, headers);
+}
+
+// --- the gateway ----------------------------------------------------------------------------
+
+class TokenFile {
+public:
+    explicit TokenFile(const std::string& content, fs::perms perms = fs::perms::owner_read | fs::perms::owner_write) {
+        std::string pattern = (fs::temp_directory_path() / "loopwire-http-XXXXXX").string();
+        if (!::mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp");
+        directory_ = pattern;
+        std::ofstream(directory_ / "token") << content << "\n";
+        fs::permissions(path(), perms);
+    }
+    ~TokenFile() {
+        std::error_code ignored;
+        fs::remove_all(directory_, ignored);
+    }
+    fs::path path() const { return directory_ / "token"; }
+
+private:
+    fs::path directory_;
+};
+
+std::unique_ptr<Gateway> open_gateway(const std::string& http_table) {
+    const std::string text = R"toml(
+[[lines]]
+name = "sim"
+link = "rtu:virtual?baud=115200&parity=none"
+timeout = "500ms"
+retries = 1
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+poll = "100ms"
+parameters = ["measured_value", "set_point"]
+
+[[lines.devices]]
+name = "furnace"
+device = "ac20@1"
+poll = "200ms"
+
+[modbus_tcp]
+enabled = false
+
+)toml" + http_table;
+    auto config = parse_gateway_config(text, "plant.toml", profiles());
+    if (!config) throw std::runtime_error(config.error().message);
+    auto gateway = Gateway::open(*config);
+    if (!gateway) throw std::runtime_error(gateway.error().message);
+    return std::move(*gateway);
+}
+
+class HttpApiTest : public ::testing::Test {
+protected:
+    HttpApiTest()
+        : gateway_(open_gateway(fmt::format("[http]\nlisten = \"127.0.0.1:0\"\ntoken_file = \"{}\"\nread_timeout = \"1s\"\n",
+                                            token_file_.path().string()))),
+          port_(gateway_->http_port()) {}
+
+    // Asks until `done` holds for the reply (the polls take a moment to find values).
+    Reply get_until(const std::string& target, const std::function<bool(const Reply&)>& done) {
+        const auto give_up = std::chrono::steady_clock::now() + deadline;
+        Reply reply;
+        while (std::chrono::steady_clock::now() < give_up) {
+            reply = get(port_, target);
+            if (done(reply)) return reply;
+            std::this_thread::sleep_for(50ms);
+        }
+        ADD_FAILURE() << "GET " << target << " never gave what was waited for; last: " << reply.status << " " << reply.body;
+        return reply;
+    }
+
+    static Json parameter(const Json& device, const std::string& name) {
+        for (const auto& p : device.at("parameters")) {
+            if (p.at("name") == name) return p;
+        }
+        ADD_FAILURE() << "no parameter " << name;
+        return Json::object();
+    }
+
+    TokenFile token_file_{token};
+    std::unique_ptr<Gateway> gateway_;
+    std::uint16_t port_;
+};
+
+TEST_F(HttpApiTest, ListsTheDevicesWithProfileLineUnitAndStatus) {
+    ASSERT_NE(port_, 0);
+    const Reply reply = get_until("/api/devices", [](const Reply& r) {
+        auto list = Json::parse(r.body, nullptr, false);
+        return r.status == 200 && list.is_array() && list.size() == 2 && list[0].value("status", "") == "ok";
+    });
+    EXPECT_THAT(reply.header("content-type"), HasSubstr("application/json"));
+    const Json list = reply.json();
+    ASSERT_EQ(list.size(), 2u);
+    EXPECT_EQ(list[0].at("name"), "oven");
+    EXPECT_EQ(list[0].at("device"), "tc10");
+    EXPECT_EQ(list[0].at("line"), "sim");
+    EXPECT_EQ(list[0].at("unit"), 3);
+    EXPECT_EQ(list[1].at("name"), "furnace");
+    EXPECT_EQ(list[1].at("device"), "ac20");
+    EXPECT_EQ(list[1].at("unit"), 1);
+}
+
+TEST_F(HttpApiTest, ADeviceShowsItsParametersWithValuesUnitsRangesAndGroups) {
+    const Reply reply = get_until("/api/devices/oven", [](const Reply& r) {
+        auto device = Json::parse(r.body, nullptr, false);
+        if (r.status != 200 || device.is_discarded()) return false;
+        for (const auto& p : device.at("parameters")) {
+            if (p.at("name") == "measured_value") return p.at("value").is_number();
+        }
+        return false;
+    });
+    const Json device = reply.json();
+    EXPECT_EQ(device.at("name"), "oven");
+    EXPECT_EQ(device.at("device"), "tc10");
+    EXPECT_EQ(device.at("status"), "ok");
+    EXPECT_FALSE(device.at("groups").empty());
+    const Json measured = parameter(device, "measured_value");
+    EXPECT_EQ(measured.at("status"), "ok");
+    EXPECT_EQ(measured.at("writable"), false);
+    EXPECT_TRUE(measured.at("polled").get<bool>());
+    EXPECT_FALSE(measured.at("text").get<std::string>().empty());
+    EXPECT_TRUE(measured.at("age").is_number());
+    EXPECT_LT(measured.at("age").get<double>(), 10.0);
+    EXPECT_TRUE(measured.contains("unit"));
+    EXPECT_TRUE(measured.contains("mnemonic"));
+    EXPECT_TRUE(measured.contains("group"));
+    const Json set_point = parameter(device, "set_point");
+    EXPECT_EQ(set_point.at("writable"), true);
+    EXPECT_EQ(set_point.at("max").at("parameter"), "set_point_high_limit");
+    EXPECT_TRUE(set_point.contains("decimals"));
+    // Parameters not polled are listed too, to be written, without a value.
+    bool unpolled = false;
+    for (const auto& p : device.at("parameters")) {
+        if (!p.at("polled").get<bool>()) {
+            unpolled = true;
+            EXPECT_TRUE(p.at("value").is_null()) << p;
+            EXPECT_EQ(p.at("status"), "not-polled") << p;
+        }
+    }
+    EXPECT_TRUE(unpolled);
+
+    const Reply unknown = get(port_, "/api/devices/kiln");
+    EXPECT_EQ(unknown.status, 404u);
+    EXPECT_THAT(unknown.json().at("error").get<std::string>(), HasSubstr("no device \"kiln\""));
+}
+
+TEST_F(HttpApiTest, AWriteWithTheTokenReachesTheDevice) {
+    const Reply written = post_write(port_, "oven", R"({"set_point": "200"})");
+    ASSERT_EQ(written.status, 200u) << written.body;
+    EXPECT_EQ(written.json(), Json::parse(R"({"written": {"set_point": "200"}})"));
+    get_until("/api/devices/oven", [](const Reply& r) {
+        auto device = Json::parse(r.body, nullptr, false);
+        if (device.is_discarded() || !device.contains("parameters")) return false;
+        for (const auto& p : device.at("parameters")) {
+            if (p.at("name") == "set_point") return p.at("value") == 200.0;
+        }
+        return false;
+    });
+}
+
+TEST_F(HttpApiTest, WritesWithoutTheRightTokenAreRefused) {
+    const Reply none = post_write(port_, "oven", R"({"set_point": "200"})", "");
+    EXPECT_EQ(none.status, 401u);
+    EXPECT_THAT(none.json().at("error").get<std::string>(), HasSubstr("Authorization: Bearer"));
+    EXPECT_EQ(none.header("www-authenticate"), "Bearer");
+    const Reply wrong = post_write(port_, "oven", R"({"set_point": "200"})", "not-the-token");
+    EXPECT_EQ(wrong.status, 401u);
+    EXPECT_THAT(wrong.json().at("error").get<std::string>(), HasSubstr("wrong token"));
+}
+
+TEST_F(HttpApiTest, WritesTheDeviceWouldRefuseAreRefusedInWords) {
+    const Reply range = post_write(port_, "oven", R"({"set_point": "99999"})");
+    EXPECT_EQ(range.status, 422u) << range.body;
+    EXPECT_FALSE(range.json().at("error").get<std::string>().empty());
+    const Reply read_only = post_write(port_, "oven", R"({"measured_value": "1"})");
+    EXPECT_EQ(read_only.status, 422u) << read_only.body;
+    const Reply unknown = post_write(port_, "oven", R"({"no_such_parameter": "1"})");
+    EXPECT_EQ(unknown.status, 422u) << unknown.body;
+    // The AC20 starts in local mode and takes its set point only in remote (AC20 manual, Note 5).
+    const Reply mode = post_write(port_, "furnace", R"({"main_set_point": "1.00"})");
+    EXPECT_EQ(mode.status, 409u) << mode.body;
+    EXPECT_THAT(mode.json().at("error").get<std::string>(), HasSubstr("remote"));
+    const Reply no_device = post_write(port_, "kiln", R"({"set_point": "1"})");
+    EXPECT_EQ(no_device.status, 404u) << no_device.body;
+}
+
+TEST_F(HttpApiTest, MalformedAndOversizedBodiesAreRefused) {
+    const Reply not_json = post_write(port_, "oven", R"({"set_point": )");
+    EXPECT_EQ(not_json.status, 400u);
+    EXPECT_THAT(not_json.json().at("error").get<std::string>(), HasSubstr("not JSON"));
+    const Reply number = post_write(port_, "oven", R"({"set_point": 200})");
+    EXPECT_EQ(number.status, 400u);
+    EXPECT_THAT(number.json().at("error").get<std::string>(), HasSubstr("must be a string"));
+    EXPECT_EQ(post_write(port_, "oven", R"(["set_point", "200"])").status, 400u);
+    EXPECT_EQ(post_write(port_, "oven", "{}").status, 400u);
+    const Reply large = post_write(port_, "oven", R"({"set_point": ")" + std::string(70000, '1') + "\"}");
+    EXPECT_EQ(large.status, 413u);
+    EXPECT_THAT(large.json().at("error").get<std::string>(), HasSubstr("larger than"));
+    // The gateway goes on answering.
+    EXPECT_EQ(get(port_, "/api/devices").status, 200u);
+}
+
+TEST_F(HttpApiTest, MethodsAndPathsOutsideTheApiAreRefused) {
+    for (const char* method : {"DELETE", "HEAD", "OPTIONS", "PUT"}) {
+        const Reply reply = request(port_, method, "/api/devices");
+        EXPECT_EQ(reply.status, 405u) << method;
+        EXPECT_EQ(reply.header("allow"), "GET") << method;
+    }
+    EXPECT_EQ(request(port_, "GET", "/api/devices/oven/write").status, 405u);
+    EXPECT_EQ(request(port_, "GET", "/api/devices/oven/write").header("allow"), "POST");
+    const Reply unknown = get(port_, "/api/nothing");
+    EXPECT_EQ(unknown.status, 404u);
+    EXPECT_THAT(unknown.json().at("error").get<std::string>(), HasSubstr("no such resource"));
+    Socket garbage(port_);
+    garbage.send("NOT HTTP AT ALL\r\n\r\n");
+    EXPECT_EQ(parse_reply(garbage.receive_all()).status, 400u);
+}
+
+TEST_F(HttpApiTest, TheDashboardIsServedWithItsTypeAndETag) {
+    const Reply page = get(port_, "/");
+    ASSERT_EQ(page.status, 200u);
+    EXPECT_EQ(page.header("content-type"), "text/html; charset=utf-8");
+    EXPECT_THAT(page.body, HasSubstr("<html"));
+    const std::string etag = page.header("etag");
+    ASSERT_FALSE(etag.empty());
+    EXPECT_EQ(page.header("cache-control"), "no-cache");
+    const Reply again = request(port_, "GET", "/", {}, {"If-None-Match: " + etag});
+    EXPECT_EQ(again.status, 304u);
+    EXPECT_TRUE(again.body.empty());
+    EXPECT_EQ(get(port_, "/assets/nothing.js").status, 404u);
+}
+
+TEST_F(HttpApiTest, AStalledClientIsClosedWithoutHoldingUpOthers) {
+    Socket stalled(port_);
+    stalled.send("GET /api/devices HTTP/1.1\r\nHost: 127.0.0.1\r\n");  // and no more
+    const auto before = std::chrono::steady_clock::now();
+    EXPECT_EQ(get(port_, "/api/devices").status, 200u);
+    EXPECT_LT(std::chrono::steady_clock::now() - before, 5s);
+    // read_timeout = "1s": closed after it, with nothing sent.
+    std::optional<std::string> received = std::string();
+    const auto give_up = std::chrono::steady_clock::now() + deadline;
+    while (received && received->empty() && std::chrono::steady_clock::now() < give_up) received = stalled.receive(100ms);
+    EXPECT_FALSE(received) << "the stalled connection was not closed";
+    EXPECT_GT(std::chrono::steady_clock::now() - before, 900ms);
+}
+
+// Reads server-sent events until one satisfies `wanted`.
+std::optional<Json> next_event(Socket& stream, std::string& buffer, const std::function<bool(const Json&)>& wanted) {
+    const auto give_up = std::chrono::steady_clock::now() + deadline;
+    while (std::chrono::steady_clock::now() < give_up) {
+        for (auto end = buffer.find("\n\n"); end != std::string::npos; end = buffer.find("\n\n")) {
+            const std::string event = buffer.substr(0, end);
+            buffer.erase(0, end + 2);
+            if (event.rfind("data: ", 0) != 0) continue;
+            auto json = Json::parse(event.substr(6), nullptr, false);
+            EXPECT_FALSE(json.is_discarded()) << event;
+            if (!json.is_discarded() && wanted(json)) return json;
+        }
+        auto some = stream.receive(100ms);
+        if (!some) return std::nullopt;
+        buffer += *some;
+    }
+    return std::nullopt;
+}
+
+TEST_F(HttpApiTest, TheEventStreamGivesTheFullPictureThenAWritesChange) {
+    Socket stream(port_);
+    stream.send("GET /api/events HTTP/1.1\r\nHost: 127.0.0.1\r\nAccept: text/event-stream\r\n\r\n");
+    std::string buffer;
+    const auto first = stream.receive(deadline);
+    ASSERT_TRUE(first && !first->empty());
+    buffer = *first;
+    const auto headers_end = buffer.find("\r\n\r\n");
+    ASSERT_NE(headers_end, std::string::npos);
+    const Reply head = parse_reply(buffer.substr(0, headers_end + 4));
+    EXPECT_EQ(head.status, 200u);
+    EXPECT_EQ(head.header("content-type"), "text/event-stream");
+    buffer.erase(0, headers_end + 4);
+
+    const auto set_point = next_event(stream, buffer, [](const Json& e) {
+        return e.at("device") == "oven" && e.at("parameter") == "set_point" && e.at("value").is_number();
+    });
+    ASSERT_TRUE(set_point) << "no set_point in the stream";
+    for (const char* key : {"device", "parameter", "value", "text", "unit", "status", "error", "time"}) {
+        EXPECT_TRUE(set_point->contains(key)) << key << " in " << *set_point;
+    }
+    const double before = set_point->at("value").get<double>();
+    const std::string target = before == 180.0 ? "170" : "180";
+    ASSERT_EQ(post_write(port_, "oven", fmt::format(R"({{"set_point": "{}"}})", target)).status, 200u);
+    const auto changed = next_event(stream, buffer, [&](const Json& e) {
+        return e.at("device") == "oven" && e.at("parameter") == "set_point" && e.at("value") == std::stod(target);
+    });
+    ASSERT_TRUE(changed) << "the write's change did not come through the stream";
+    EXPECT_EQ(changed->at("status"), "ok");
+    EXPECT_THAT(changed->at("time").get<std::string>(), ::testing::EndsWith("Z"));
+}
+
+TEST_F(HttpApiTest, MetricsAreInPrometheusTextFormat) {
+    const Reply metrics = get_until("/metrics", [](const Reply& r) {
+        return r.body.find("loopwire_device_status{device=\"oven\",status=\"ok\"} 1") != std::string::npos;
+    });
+    EXPECT_THAT(metrics.header("content-type"), HasSubstr("text/plain; version=0.0.4"));
+    EXPECT_THAT(metrics.body, HasSubstr("loopwire_line_requests_total{line=\"sim\"}"));
+    EXPECT_THAT(metrics.body, HasSubstr("# TYPE loopwire_line_busy_ratio gauge"));
+    // Read by the Prometheus client library's own parser, which refuses what is not the format.
+    const fs::path file = fs::temp_directory_path() / fmt::format("loopwire-metrics-{}.txt", ::getpid());
+    std::ofstream(file) << metrics.body;
+    const std::string check = fmt::format(
+        "/usr/bin/python3 -c 'import sys\n"
+        "try:\n from prometheus_client.parser import text_string_to_metric_families\n"
+        "except ImportError:\n sys.exit(77)\n"
+        "families = {{f.name: f for f in text_string_to_metric_families(open(sys.argv[1]).read())}}\n"
+        "assert families[\"loopwire_line_requests\"].type == \"counter\", families.keys()\n"
+        "assert any(s.value > 0 for s in families[\"loopwire_line_requests\"].samples)\n"
+        "statuses = [s for s in families[\"loopwire_device_status\"].samples if s.value == 1]\n"
+        "assert len(statuses) == 2, statuses\n"
+        "assert families[\"loopwire_line_busy_ratio\"].type == \"gauge\"\n' {}",
+        file.string());
+    const int status = std::system(check.c_str());
+    fs::remove(file);
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 77) GTEST_SKIP() << "python3-prometheus-client is not installed";
+    EXPECT_EQ(status, 0) << "Prometheus's parser refused /metrics:\n" << metrics.body;
+}
+
+TEST_F(HttpApiTest, WithoutHistoryTheHistoryRouteSaysSo) {
+    const Reply reply = get(port_, "/api/history?device=oven");
+    EXPECT_EQ(reply.status, 404u);
+    EXPECT_THAT(reply.json().at("error").get<std::string>(), HasSubstr("no [history] configured"));
+}
+
+TEST(HttpApiWithoutToken, WritesAreRefusedSayingHowToEnableThem) {
+    auto gateway = open_gateway("[http]\nlisten = \"127.0.0.1:0\"\n");
+    const Reply reply = post_write(gateway->http_port(), "oven", R"({"set_point": "200"})");
+    EXPECT_EQ(reply.status, 403u);
+    EXPECT_THAT(reply.json().at("error").get<std::string>(), HasSubstr("token_file"));
+    EXPECT_EQ(get(gateway->http_port(), "/api/devices").status, 200u);  // reads on loopback need none
+}
+
+TEST(HttpApiWithoutHttp, AGatewayWithoutAnHttpTableListensOnNoPort) {
+    auto gateway = open_gateway("");
+    EXPECT_EQ(gateway->http_port(), 0);
+}
+
+// --- history, against a source that records the question ------------------------------------
+
+class RecordingHistory final : public HistorySource {
+public:
+    Result<std::vector<HistorySeries>> query(const HistoryQuery& query) const override {
+        std::lock_guard lock(mutex_);
+        asked_.push_back(query);
+        if (!query.parameters.empty() && query.parameters.front() == "nonsense") {
+            return make_error(ErrorKind::usage, "device \"oven\" has no parameter \"nonsense\"");
+        }
+        const auto start = query.from;
+        HistorySeries series{"measured_value", "°C", {}};
+        series.buckets.push_back({start, 20.5, 22.0, 21.25, 4});
+        series.buckets.push_back({start + std::chrono::seconds(60), 22.0, 25.5, 23.0, 3});
+        return std::vector<HistorySeries>{series};
+    }
+    std::uint64_t rows_written() const override { return 1234; }
+
+    std::vector<HistoryQuery> asked() const {
+        std::lock_guard lock(mutex_);
+        return asked_;
+    }
+
+private:
+    mutable std::mutex mutex_;
+    mutable std::vector<HistoryQuery> asked_;
+};
+
+class HttpHistoryTest : public ::testing::Test {
+protected:
+    HttpHistoryTest() {
+        auto config = parse_gateway_config(R"toml(
+[[lines]]
+name = "sim"
+link = "rtu:virtual?baud=115200&parity=none"
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+)toml", "plant.toml", profiles());
+        if (!config) throw std::runtime_error(config.error().message);
+        HttpApiSources sources;
+        sources.cache = &cache_;
+        sources.writer = &writer_;
+        sources.lines = [] { return std::vector<LineReport>{}; };
+        sources.history = &history_;
+        api_ = std::make_unique<HttpApi>(*config, std::move(sources));
+        auto server = HttpServer::open(HttpServerSettings{}, *api_);
+        if (!server) throw std::runtime_error(server.error().message);
+        server_ = std::move(*server);
+    }
+
+    ValueCache cache_;
+    DeviceWriter writer_{{}, 1s};
+    RecordingHistory history_;
+    std::unique_ptr<HttpApi> api_;
+    std::unique_ptr<HttpServer> server_;
+};
+
+TEST_F(HttpHistoryTest, TheQueryIsPassedOnAndTheSeriesComeBackAsJson) {
+    const Reply reply = get(server_->port(), "/api/history?device=oven&parameters=measured_value,set_point"
+                                             "&from=2026-12-02T08:00:00Z&to=2026-12-02T09:30:00%2B01:00&points=60");
+    ASSERT_EQ(reply.status, 200u) << reply.body;
+    const auto asked = history_.asked();
+    ASSERT_EQ(asked.size(), 1u);
+    EXPECT_EQ(asked[0].device, "oven");
+    EXPECT_EQ(asked[0].parameters, (std::vector<std::string>{"measured_value", "set_point"}));
+    EXPECT_EQ(asked[0].points, 60u);
+    EXPECT_EQ(asked[0].to - asked[0].from, std::chrono::minutes(30));  // 09:30+01:00 is 08:30Z
+    const Json json = reply.json();
+    EXPECT_EQ(json.at("from"), "2026-12-02T08:00:00.000Z");
+    EXPECT_EQ(json.at("to"), "2026-12-02T08:30:00.000Z");
+    ASSERT_EQ(json.at("series").size(), 1u);
+    const Json& series = json.at("series")[0];
+    EXPECT_EQ(series.at("parameter"), "measured_value");
+    EXPECT_EQ(series.at("unit"), "°C");
+    ASSERT_EQ(series.at("buckets").size(), 2u);
+    EXPECT_EQ(series.at("buckets")[1], Json::parse(R"({"time": "2026-12-02T08:01:00.000Z", "min": 22.0, "max": 25.5,
+                                                       "mean": 23.0, "count": 3})"));
+}
+
+TEST_F(HttpHistoryTest, CsvHasAHeaderAndARowABucket) {
+    const Reply reply = get(server_->port(), "/api/history?device=oven&from=2026-12-02T08:00:00.5Z&to=2026-12-02T09:00:00Z&format=csv");
+    ASSERT_EQ(reply.status, 200u) << reply.body;
+    EXPECT_EQ(reply.header("content-type"), "text/csv; charset=utf-8");
+    EXPECT_EQ(reply.body,
+              "parameter,unit,time,min,max,mean,count\r\n"
+              "measured_value,°C,2026-12-02T08:00:00.500Z,20.5,22,21.25,4\r\n"
+              "measured_value,°C,2026-12-02T08:01:00.500Z,22,25.5,23,3\r\n");
+}
+
+TEST_F(HttpHistoryTest, DefaultsAreTheLastHourAndFiveHundredPoints) {
+    ASSERT_EQ(get(server_->port(), "/api/history?device=oven").status, 200u);
+    const auto asked = history_.asked();
+    ASSERT_EQ(asked.size(), 1u);
+    EXPECT_EQ(asked[0].to - asked[0].from, std::chrono::hours(1));
+    EXPECT_EQ(asked[0].points, 500u);
+    EXPECT_TRUE(asked[0].parameters.empty());
+}
+
+TEST_F(HttpHistoryTest, BadQueriesAreRefusedSayingWhatIsWrong) {
+    const auto port = server_->port();
+    const auto error_of = [&](const std::string& query, unsigned status) {
+        const Reply reply = get(port, "/api/history?" + query);
+        EXPECT_EQ(reply.status, status) << query << ": " << reply.body;
+        return reply.json().value("error", std::string());
+    };
+    EXPECT_THAT(error_of("from=2026-12-02T08:00:00Z", 400), HasSubstr("missing device"));
+    EXPECT_THAT(error_of("device=oven&from=yesterday", 400), HasSubstr("ISO 8601"));
+    EXPECT_THAT(error_of("device=oven&from=2026-12-02T08:00:00", 400), HasSubstr("with its zone"));
+    EXPECT_THAT(error_of("device=oven&from=2026-02-30T08:00:00Z", 400), HasSubstr("ISO 8601"));
+    EXPECT_THAT(error_of("device=oven&from=2026-12-02T09:00:00Z&to=2026-12-02T08:00:00Z", 400), HasSubstr("must be before"));
+    EXPECT_THAT(error_of("device=oven&points=0", 400), HasSubstr("1..10000"));
+    EXPECT_THAT(error_of("device=oven&points=many", 400), HasSubstr("1..10000"));
+    EXPECT_THAT(error_of("device=oven&format=xml", 400), HasSubstr("csv"));
+    EXPECT_THAT(error_of("device=oven&colour=red", 400), HasSubstr("unknown query parameter"));
+    EXPECT_THAT(error_of("device=kiln", 404), HasSubstr("no device \"kiln\""));
+    EXPECT_THAT(error_of("device=oven&parameters=nonsense", 400), HasSubstr("no parameter \"nonsense\""));
+}
+
+TEST_F(HttpHistoryTest, MetricsCountTheHistoryRows) {
+    const Reply reply = get(server_->port(), "/metrics");
+    EXPECT_THAT(reply.body, HasSubstr("loopwire_history_rows_written_total 1234\n"));
+}
+
+}  // namespace
+}  // namespace loopwire::gateway
