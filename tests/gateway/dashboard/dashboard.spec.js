@@ -28,10 +28,11 @@ test.describe.configure({ mode: "serial" });
 
 test.beforeAll(async ({ request }) => {
   gateway = await startGateway();
-  // Set points that make the process move (each simulated controller starts cold); the AC20
+  // Set points that make the process move (each simulated controller starts cold; the oven's
+  // is far enough above ambient to keep it rising through the whole run); the AC20
   // takes writes only in remote (its manual, Note 5), so that goes first.
   for (const [device, values] of [["furnace", { local_remote: "remote" }], ["furnace", { main_set_point: "1.00" }],
-    ["kiln", { set_value: "180.0" }], ["oven", { set_point: "150" }]]) {
+    ["kiln", { set_value: "180.0" }], ["oven", { set_point: "800" }]]) {
     const answer = await api(request, "POST", `/api/devices/${device}/write`, values);
     expect(answer.status, `writing ${JSON.stringify(values)} to ${device}: ${JSON.stringify(answer.body)}`).toBe(200);
   }
@@ -83,18 +84,18 @@ test("a write from the form changes the device, and a refused write shows the re
   await expect(row.locator(".param-value")).toContainText("°C", { timeout: 10_000 });
   await row.getByRole("button", { name: "Change" }).click();
   const form = page.locator('tr.write-row[data-write="set_point"] form');
-  await form.locator("input").fill("160");
+  await form.locator("input").fill("750");
   await form.getByRole("button", { name: "Write" }).click();
-  await expect(form.locator(".write-result")).toHaveText(/Written: 160/);
-  await expect.poll(async () => (await parameter(request, "oven", "set_point")).text, { timeout: 5_000 }).toMatch(/^160(\.0+)?$/);
-  await expect(row.locator(".param-value")).toContainText("160", { timeout: 5_000 });
+  await expect(form.locator(".write-result")).toHaveText(/Written: 750/);
+  await expect.poll(async () => (await parameter(request, "oven", "set_point")).text, { timeout: 5_000 }).toMatch(/^750(\.0+)?$/);
+  await expect(row.locator(".param-value")).toContainText("750", { timeout: 5_000 });
 
   await form.locator("input").fill("99999");
   await form.getByRole("button", { name: "Write" }).click();
   const refusal = form.locator(".write-result");
   await expect(refusal).toHaveClass(/error/);
   await expect(refusal).toContainText(/Refused: .*(range|maximum|above|most|limit)/i);
-  expect((await parameter(request, "oven", "set_point")).text).toMatch(/^160(\.0+)?$/);
+  expect((await parameter(request, "oven", "set_point")).text).toMatch(/^750(\.0+)?$/);
 
   await page.screenshot({ path: path.join(artifacts, "device-desktop.png"), fullPage: false });
   await page.setViewportSize(PHONE);

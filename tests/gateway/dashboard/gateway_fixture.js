@@ -1,21 +1,22 @@
 // The real gateway for the browser tests: `loopwire gateway` on a TOML with a simulated line
 // (rtu:virtual) holding the three simulated controllers, its HTTP front on a port the kernel
-// chooses (read back from the log), and a token file for writes.
+// chooses, and a token file for writes.
 const { spawn } = require("node:child_process");
+const net = require("node:net");
 const fs = require("node:fs");
 const os = require("node:os");
 const path = require("node:path");
 
 const TOKEN = "dashboard-test-token";
 
-function plantToml(tokenFile) {
+function plantToml(tokenFile, httpPort) {
   return `
 [[lines]]
 name = "plant"
 link = "rtu:virtual?baud=19200&parity=none"
 timeout = "500ms"
 retries = 1
-speed = 60
+speed = 10
 
 [[lines.devices]]
 name = "furnace"
@@ -36,25 +37,36 @@ poll = "500ms"
 listen = "127.0.0.1:0"
 
 [http]
-listen = "127.0.0.1:0"
+listen = "127.0.0.1:${httpPort}"
 token_file = "${tokenFile}"
 `;
 }
 
-// Resolves with the first match of PATTERN in the growing text of the process's output, or
-// rejects after TIMEOUT ms naming what it waited for, with the output so far.
-function waitForOutput(output, pattern, timeout, what) {
+// A port the kernel chose for a listener closed at once: free for the gateway's HTTP front
+// (the gateway logs only its Modbus TCP port).
+function freePort() {
   return new Promise((resolve, reject) => {
-    const deadline = Date.now() + timeout;
-    const poll = () => {
-      const match = output.text.match(pattern);
-      if (match) return resolve(match);
-      if (output.exited) return reject(new Error(`the gateway exited before ${what}:\n${output.text}`));
-      if (Date.now() > deadline) return reject(new Error(`waited ${timeout} ms for ${what}; the gateway said:\n${output.text}`));
-      setTimeout(poll, 25);
-    };
-    poll();
+    const server = net.createServer();
+    server.once("error", reject);
+    server.listen(0, "127.0.0.1", () => {
+      const { port } = server.address();
+      server.close(() => resolve(port));
+    });
   });
+}
+
+// Until GET /api/devices answers 200, or rejects after TIMEOUT ms with the gateway's output.
+async function waitForApi(base, output, timeout) {
+  const deadline = Date.now() + timeout;
+  for (;;) {
+    if (output.exited) throw new Error(`the gateway exited before its HTTP API answered:\n${output.text}`);
+    try {
+      const response = await fetch(`${base}/api/devices`);
+      if (response.ok) return;
+    } catch { /* not listening yet */ }
+    if (Date.now() > deadline) throw new Error(`waited ${timeout} ms for the gateway's HTTP API at ${base}; it said:\n${output.text}`);
+    await new Promise((resolve) => setTimeout(resolve, 50));
+  }
 }
 
 async function startGateway() {
@@ -64,15 +76,16 @@ async function startGateway() {
   const tokenFile = path.join(dir, "token");
   fs.writeFileSync(tokenFile, `${TOKEN}\n`, { mode: 0o600 });
   const config = path.join(dir, "plant.toml");
-  fs.writeFileSync(config, plantToml(tokenFile));
+  const httpPort = await freePort();
+  fs.writeFileSync(config, plantToml(tokenFile, httpPort));
   const env = { ...process.env, XDG_CONFIG_HOME: path.join(dir, "config") };
   const child = spawn(loopwire, ["gateway", "--config", config], { env, stdio: ["ignore", "pipe", "pipe"] });
   const output = { text: "", exited: false };
   child.stdout.on("data", (chunk) => { output.text += chunk; });
   child.stderr.on("data", (chunk) => { output.text += chunk; });
   child.on("exit", () => { output.exited = true; });
-  const match = await waitForOutput(output, /HTTP[^\n]*?(?:port |:)(\d{2,5})\b/, 15_000, "its HTTP port in the log");
-  const base = `http://127.0.0.1:${match[1]}`;
+  const base = `http://127.0.0.1:${httpPort}`;
+  await waitForApi(base, output, 15_000);
   return {
     base,
     token: TOKEN,
