@@ -42,7 +42,7 @@ test.afterAll(async () => {
   if (gateway) await gateway.stop();
 });
 
-test("the overview shows the three simulated devices with values and units", async ({ page }) => {
+test("the overview shows the three simulated devices with values and units", async ({ page, request }) => {
   await page.goto(gateway.base);
   const cards = page.locator("article.card");
   await expect(cards).toHaveCount(3);
@@ -50,12 +50,17 @@ test("the overview shows the three simulated devices with values and units", asy
     const card = page.locator(`article.card[data-device="${name}"]`);
     await expect(card.locator(".card-title")).toHaveText(name);
     await expect(card.locator(".device-status")).toHaveText("online", { timeout: 10_000 });
-    // The first key value has a number and a unit.
-    const first = card.locator(".key-value").first();
-    await expect(first.locator(".reading .num")).toHaveText(/\d/, { timeout: 10_000 });
-    await expect(first.locator(".reading .unit")).not.toBeEmpty();
+    // PV, SP and OUT (the profile's aliases), each a number with the unit the API gives it.
+    const tiles = card.locator(".key-value[data-param]");
+    await expect(tiles).toHaveCount(3);
+    for (const tile of await tiles.all()) {
+      const param = await tile.getAttribute("data-param");
+      const { unit } = await parameter(request, name, param);
+      await expect(tile.locator(".reading .num"), `${name} ${param}`).toHaveText(/\d/, { timeout: 10_000 });
+      if (unit) await expect(tile.locator(".reading .unit"), `${name} ${param}`).toHaveText(unit);
+    }
   }
-  await expect(page.locator('article.card[data-device="oven"] .key-value .unit').first()).toHaveText("°C");
+  await expect(page.locator('article.card[data-device="oven"] .key-value[data-param="output_power"] .unit')).toHaveText("%");
   await page.screenshot({ path: path.join(artifacts, "overview-desktop.png"), fullPage: true });
   await page.setViewportSize(PHONE);
   await expect(cards.first()).toBeVisible();

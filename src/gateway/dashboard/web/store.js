@@ -93,6 +93,7 @@ function applyParameter(deviceName, update) {
   const device = deviceEntry(deviceName);
   const previous = device.params.get(update.name) || {};
   const merged = { ...previous, ...update };
+  if (!merged.unit && previous.unit) merged.unit = previous.unit;
   device.params.set(update.name, merged);
   const number = numericValue(merged);
   if (number !== null && merged.time) recordSample(deviceName, update.name, merged.time, number);
