@@ -22,6 +22,7 @@ speed = 10
 name = "furnace"
 device = "ac20@1"
 poll = "500ms"
+parameters = ["carbon_potential", "main_set_point", "main_output_value"]
 
 [[lines.devices]]
 name = "kiln"
@@ -32,6 +33,7 @@ poll = "500ms"
 name = "oven"
 device = "tc10@3"
 poll = "500ms"
+parameters = ["measured_value", "set_point", "output_power", "alarm_status"]
 
 [modbus_tcp]
 listen = "127.0.0.1:0"

@@ -198,7 +198,7 @@ export function showDevice(view, name) {
     const keys = keyParameters(device);
     keysBox.innerHTML = keys.map(({ label, name: param }) => {
       const entry = device.params.get(param);
-      return `<div class="key-value" data-param="${escapeHtml(param)}" data-status="${escapeHtml(entry?.status || "")}">
+      return `<div class="key-value" data-param="${escapeHtml(param)}" data-status="${escapeHtml(entry?.time ? entry.status || "" : "")}">
           <div class="label"><span>${escapeHtml(label || param)}</span><span class="param">${escapeHtml(label ? param.replaceAll("_", " ") : "")}</span></div>
           <div class="reading">${readingHtml(entry)}</div></div>`;
     }).join("");

@@ -9,7 +9,7 @@ export function keyParameters(device) {
   if (aliases && typeof aliases === "object") {
     for (const alias of KEY_ALIASES) {
       const name = aliases[alias];
-      if (name && params.has(name) && !picked.some((p) => p.name === name)) picked.push({ label: alias, name });
+      if (name && params.has(name) && params.get(name).polled !== false && !picked.some((p) => p.name === name)) picked.push({ label: alias, name });
     }
   }
   if (!picked.length) {

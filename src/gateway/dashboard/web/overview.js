@@ -35,7 +35,7 @@ function renderCard(card, device) {
   tiles.innerHTML = keys.length
     ? keys.map(({ label, name }) => {
       const entry = device.params.get(name);
-      return `<div class="key-value" data-param="${escapeHtml(name)}" data-status="${escapeHtml(entry?.status || "")}">
+      return `<div class="key-value" data-param="${escapeHtml(name)}" data-status="${escapeHtml(entry?.time ? entry.status || "" : "")}">
           <div class="label"><span>${escapeHtml(label || name)}</span><span class="param" title="${escapeHtml(name)}">${escapeHtml(label ? name.replaceAll("_", " ") : "")}</span></div>
           <div class="reading">${readingHtml(entry)}</div>
         </div>`;
