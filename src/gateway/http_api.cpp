@@ -271,6 +271,8 @@ HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const
         if (!parameter.write_modes.empty()) p["write_modes"] = parameter.write_modes;
         parameters.push_back(std::move(p));
     }
+    // The profile's PV, SP, OUT (and other) aliases: which values the dashboard shows first.
+    out["aliases"] = profile.aliases;
     out["groups"] = std::move(groups);
     out["parameters"] = std::move(parameters);
     return json_response(200, out);

@@ -1,0 +1,81 @@
+// The gateway's HTTP API as the dashboard uses it: JSON reads, writes with the bearer token
+// kept in this browser, and the history query (absent when the gateway records no history).
+
+const TOKEN_KEY = "loopwire.token";
+
+export function storedToken() {
+  try { return localStorage.getItem(TOKEN_KEY) || ""; } catch { return ""; }
+}
+
+export function storeToken(token) {
+  try {
+    if (token) localStorage.setItem(TOKEN_KEY, token);
+    else localStorage.removeItem(TOKEN_KEY);
+  } catch { /* storage disabled: the token lasts this page only */ }
+}
+
+// The words a failed response carries ({"error": "..."}), or its status line.
+async function errorWords(response) {
+  try {
+    const body = await response.json();
+    if (body && typeof body.error === "string" && body.error) return body.error;
+  } catch { /* not JSON */ }
+  return `${response.status} ${response.statusText || "error"}`.trim();
+}
+
+export class ApiError extends Error {
+  constructor(status, message) {
+    super(message);
+    this.status = status;
+  }
+}
+
+export async function getJson(path) {
+  let response;
+  try {
+    response = await fetch(path, { headers: { Accept: "application/json" }, cache: "no-store" });
+  } catch (error) {
+    throw new ApiError(0, `the gateway did not answer (${error.message})`);
+  }
+  if (!response.ok) throw new ApiError(response.status, await errorWords(response));
+  return response.json();
+}
+
+export function listDevices() {
+  return getJson("/api/devices");
+}
+
+export function getDevice(name) {
+  return getJson(`/api/devices/${encodeURIComponent(name)}`);
+}
+
+// Writes one parameter as text ("150", "remote"); resolves to the gateway's answer, rejects
+// with ApiError carrying the device's or the gateway's refusal in words.
+export async function writeParameter(device, parameter, text) {
+  const headers = { "Content-Type": "application/json", Accept: "application/json" };
+  const token = storedToken();
+  if (token) headers.Authorization = `Bearer ${token}`;
+  let response;
+  try {
+    response = await fetch(`/api/devices/${encodeURIComponent(device)}/write`, {
+      method: "POST", headers, body: JSON.stringify({ [parameter]: text }),
+    });
+  } catch (error) {
+    throw new ApiError(0, `the gateway did not answer (${error.message})`);
+  }
+  if (!response.ok) throw new ApiError(response.status, await errorWords(response));
+  return response.json();
+}
+
+// Downsampled history, or null when the gateway keeps none (404).
+export async function getHistory(device, parameters, from, to, points) {
+  const query = new URLSearchParams({
+    device, parameters: parameters.join(","), from: from.toISOString(), to: to.toISOString(), points: String(points),
+  });
+  try {
+    return await getJson(`/api/history?${query}`);
+  } catch (error) {
+    if (error.status === 404) return null;
+    throw error;
+  }
+}

@@ -1,0 +1,239 @@
+// A device's trend: uPlot over the values seen live since the page opened, preceded by the
+// gateway's recorded history when it keeps one. Drag to zoom, double-click (or "Live") to go
+// back to following the process; the range buttons choose how far back the window reaches.
+import { getHistory } from "./api.js";
+import { samplesOf } from "./store.js";
+import { currentTheme } from "./ui.js";
+
+const PALETTE = ["--series-1", "--series-2", "--series-3", "--series-4", "--series-5", "--series-6"];
+const HISTORY_POINTS = 600;
+
+function cssVar(name) {
+  return getComputedStyle(document.documentElement).getPropertyValue(name).trim();
+}
+
+function formatNumber(value, decimals) {
+  if (value === null || value === undefined || Number.isNaN(value)) return "—";
+  return Number.isInteger(decimals) ? value.toFixed(decimals) : String(Math.round(value * 1000) / 1000);
+}
+
+// History answers come as a list of series, or wrapped in {series: [...]}.
+function seriesList(answer) {
+  if (!answer) return [];
+  if (Array.isArray(answer)) return answer;
+  if (Array.isArray(answer.series)) return answer.series;
+  return [];
+}
+
+function bucketTime(bucket) {
+  const start = bucket.time ?? bucket.start;
+  if (typeof start === "number") return start > 1e12 ? start : start * 1000;
+  return Date.parse(start);
+}
+
+export class Trend {
+  constructor(container, note, deviceName) {
+    this.container = container;
+    this.note = note;
+    this.device = deviceName;
+    this.parameters = [];       // [{ name, unit, decimals, label }]
+    this.rangeSeconds = 5 * 60;
+    this.zoomed = false;
+    this.history = new Map();   // parameter -> { t: [ms], v: [] }
+    this.historyState = "unknown";
+    this.plot = null;
+    this.frame = 0;
+    this.historyRequest = 0;
+    this.resizeObserver = new ResizeObserver(() => this.resize());
+    this.resizeObserver.observe(container);
+    this.onTheme = () => this.rebuild();
+    window.addEventListener("themechange", this.onTheme);
+  }
+
+  destroy() {
+    this.resizeObserver.disconnect();
+    window.removeEventListener("themechange", this.onTheme);
+    if (this.frame) cancelAnimationFrame(this.frame);
+    if (this.plot) this.plot.destroy();
+    this.plot = null;
+  }
+
+  setParameters(parameters) {
+    const before = this.parameters.map((p) => p.name).join(",");
+    this.parameters = parameters;
+    if (parameters.map((p) => p.name).join(",") !== before) {
+      this.rebuild();
+      this.loadHistory();
+    }
+  }
+
+  setRange(seconds) {
+    this.rangeSeconds = seconds;
+    this.zoomed = false;
+    this.loadHistory();
+    this.update();
+  }
+
+  followLive() {
+    this.zoomed = false;
+    this.update();
+  }
+
+  async loadHistory() {
+    const request = ++this.historyRequest;
+    const names = this.parameters.map((p) => p.name);
+    if (!names.length) return;
+    const to = new Date();
+    const from = new Date(to.getTime() - this.rangeSeconds * 1000);
+    try {
+      const answer = await getHistory(this.device, names, from, to, HISTORY_POINTS);
+      if (request !== this.historyRequest) return;
+      this.history.clear();
+      if (answer === null) {
+        this.historyState = "absent";
+      } else {
+        this.historyState = "loaded";
+        for (const series of seriesList(answer)) {
+          const t = [];
+          const v = [];
+          for (const bucket of series.buckets || []) {
+            const time = bucketTime(bucket);
+            if (Number.isFinite(time) && typeof bucket.mean === "number") { t.push(time); v.push(bucket.mean); }
+          }
+          this.history.set(series.parameter, { t, v });
+        }
+      }
+    } catch (error) {
+      if (request !== this.historyRequest) return;
+      this.historyState = `failed: ${error.message}`;
+    }
+    this.describe();
+    this.update();
+  }
+
+  describe() {
+    if (!this.note) return;
+    if (this.historyState === "absent") this.note.textContent = "No history is recorded: the trend shows the values received since this page opened.";
+    else if (this.historyState === "loaded") this.note.textContent = "Recorded history, then live values.";
+    else if (this.historyState.startsWith("failed")) this.note.textContent = `History could not be loaded (${this.historyState.slice(8)}): live values only.`;
+    else this.note.textContent = "";
+  }
+
+  // The aligned columns uPlot draws: times in seconds, then one column per parameter.
+  data() {
+    const now = Date.now();
+    const from = now - this.rangeSeconds * 1000;
+    const columns = this.parameters.map((p) => {
+      const live = samplesOf(this.device, p.name);
+      const past = this.history.get(p.name) || { t: [], v: [] };
+      const firstLive = live.t.length ? live.t[0] : Infinity;
+      const points = new Map();
+      for (let i = 0; i < past.t.length; i++) if (past.t[i] >= from && past.t[i] < firstLive) points.set(past.t[i], past.v[i]);
+      for (let i = 0; i < live.t.length; i++) if (live.t[i] >= from) points.set(live.t[i], live.v[i]);
+      return points;
+    });
+    const times = [...new Set(columns.flatMap((c) => [...c.keys()]))].sort((a, b) => a - b);
+    return [times.map((t) => t / 1000), ...columns.map((c) => times.map((t) => (c.has(t) ? c.get(t) : null)))];
+  }
+
+  height() {
+    return window.matchMedia("(max-width: 640px)").matches ? 220 : 300;
+  }
+
+  rebuild() {
+    if (this.plot) this.plot.destroy();
+    this.plot = null;
+    this.container.innerHTML = "";
+    if (!this.parameters.length) {
+      this.container.innerHTML = '<div class="trend-empty">Choose parameters to plot with the chart buttons below.</div>';
+      return;
+    }
+    if (typeof window.uPlot !== "function") {
+      this.container.innerHTML = '<div class="trend-empty">The chart library did not load.</div>';
+      return;
+    }
+    const text = cssVar("--text-2");
+    const grid = cssVar("--grid");
+    const units = [...new Set(this.parameters.map((p) => p.unit || ""))];
+    const scales = { x: { time: true } };
+    for (const unit of units) scales[unit || "value"] = { auto: true };
+    const axis = (unit, side) => ({
+      scale: unit || "value",
+      side,
+      label: unit || undefined,
+      labelSize: unit ? 18 : 0,
+      stroke: text,
+      grid: { stroke: grid, width: 1, show: side === 3 },
+      ticks: { stroke: grid, width: 1 },
+      size: 56,
+    });
+    const axes = [{ stroke: text, grid: { stroke: grid, width: 1 }, ticks: { stroke: grid, width: 1 } }];
+    units.slice(0, 2).forEach((unit, i) => axes.push(axis(unit, i === 0 ? 3 : 1)));
+    const series = [{}];
+    this.parameters.forEach((p, i) => {
+      series.push({
+        label: p.label ? `${p.label} (${p.name})` : p.name,
+        scale: p.unit || "value",
+        stroke: cssVar(PALETTE[i % PALETTE.length]),
+        width: 2,
+        spanGaps: true,
+        points: { show: false },
+        value: (u, v) => (v === null || v === undefined ? "—" : `${formatNumber(v, p.decimals)}${p.unit ? ` ${p.unit}` : ""}`),
+      });
+    });
+    const trend = this;
+    const options = {
+      width: Math.max(200, this.container.clientWidth),
+      height: this.height(),
+      scales,
+      axes,
+      series,
+      legend: { live: true },
+      cursor: {
+        drag: { x: true, y: false, setScale: true },
+        bind: {
+          dblclick: () => () => { trend.followLive(); return null; },
+        },
+      },
+      hooks: {
+        setSelect: [(u) => { if (u.select.width > 0) trend.zoomed = true; }],
+      },
+    };
+    this.plot = new window.uPlot(options, this.data(), this.container);
+    this.container.dataset.theme = currentTheme();
+    this.update();
+  }
+
+  resize() {
+    if (!this.plot) return;
+    const width = Math.max(200, this.container.clientWidth);
+    if (width !== this.plot.width || this.height() !== this.plot.height) this.plot.setSize({ width, height: this.height() });
+  }
+
+  // Redraws on the next frame: many events of one poll become one redraw.
+  update() {
+    if (this.frame) return;
+    this.frame = requestAnimationFrame(() => {
+      this.frame = 0;
+      this.draw();
+    });
+  }
+
+  draw() {
+    if (!this.plot) return;
+    const data = this.data();
+    this.plot.setData(data, false);
+    if (!this.zoomed) {
+      const now = Date.now() / 1000;
+      this.plot.setScale("x", { min: now - this.rangeSeconds, max: now });
+    }
+    const times = data[0];
+    this.container.dataset.points = String(times.length);
+    this.container.dataset.lastTime = times.length ? String(times[times.length - 1]) : "";
+    this.container.dataset.lastValues = data.slice(1).map((column) => {
+      for (let i = column.length - 1; i >= 0; i--) if (column[i] !== null) return column[i];
+      return "";
+    }).join(",");
+    this.container.dataset.zoomed = String(this.zoomed);
+  }
+}

@@ -1,0 +1,123 @@
+// The dashboard in a real browser against a real gateway and its simulated devices: the
+// overview shows every device with values and units, a trend follows the moving process, the
+// write form changes a device and shows a refusal in words, and screenshots are kept.
+const { test, expect } = require("@playwright/test");
+const path = require("node:path");
+const { startGateway } = require("./gateway_fixture.js");
+
+const artifacts = process.env.LOOPWIRE_ARTIFACTS || "test-results";
+const PHONE = { width: 390, height: 844 };
+let gateway;
+
+async function api(request, method, url, body) {
+  const response = await request.fetch(`${gateway.base}${url}`, {
+    method,
+    headers: { Authorization: `Bearer ${gateway.token}`, "Content-Type": "application/json" },
+    data: body ? JSON.stringify(body) : undefined,
+  });
+  return { status: response.status(), body: await response.json().catch(() => null) };
+}
+
+async function parameter(request, device, name) {
+  const { status, body } = await api(request, "GET", `/api/devices/${device}`);
+  expect(status).toBe(200);
+  return body.parameters.find((p) => p.name === name);
+}
+
+test.describe.configure({ mode: "serial" });
+
+test.beforeAll(async ({ request }) => {
+  gateway = await startGateway();
+  // Set points that make the process move (each simulated controller starts cold; the oven's
+  // is far enough above ambient to keep it rising through the whole run); the AC20
+  // takes writes only in remote (its manual, Note 5), so that goes first.
+  for (const [device, values] of [["furnace", { local_remote: "remote" }], ["furnace", { main_set_point: "1.00" }],
+    ["kiln", { set_value: "180.0" }], ["oven", { set_point: "800" }]]) {
+    const answer = await api(request, "POST", `/api/devices/${device}/write`, values);
+    expect(answer.status, `writing ${JSON.stringify(values)} to ${device}: ${JSON.stringify(answer.body)}`).toBe(200);
+  }
+});
+
+test.afterAll(async () => {
+  if (gateway) await gateway.stop();
+});
+
+test("the overview shows the three simulated devices with values and units", async ({ page, request }) => {
+  await page.goto(gateway.base);
+  const cards = page.locator("article.card");
+  await expect(cards).toHaveCount(3);
+  for (const name of ["furnace", "kiln", "oven"]) {
+    const card = page.locator(`article.card[data-device="${name}"]`);
+    await expect(card.locator(".card-title")).toHaveText(name);
+    await expect(card.locator(".device-status")).toHaveText("online", { timeout: 10_000 });
+    // PV, SP and OUT (the profile's aliases), each a number with the unit the API gives it.
+    const tiles = card.locator(".key-value[data-param]");
+    await expect(tiles).toHaveCount(3);
+    for (const tile of await tiles.all()) {
+      const param = await tile.getAttribute("data-param");
+      const { unit } = await parameter(request, name, param);
+      await expect(tile.locator(".reading .num"), `${name} ${param}`).toHaveText(/\d/, { timeout: 10_000 });
+      if (unit) await expect(tile.locator(".reading .unit"), `${name} ${param}`).toHaveText(unit);
+    }
+  }
+  await expect(page.locator('article.card[data-device="oven"] .key-value[data-param="output_power"] .unit')).toHaveText("%");
+  await page.screenshot({ path: path.join(artifacts, "overview-desktop.png"), fullPage: true });
+  await page.setViewportSize(PHONE);
+  await expect(cards.first()).toBeVisible();
+  const width = await page.evaluate(() => document.documentElement.scrollWidth);
+  expect(width, "the overview fits a phone's width without scrolling sideways").toBeLessThanOrEqual(PHONE.width);
+  await page.screenshot({ path: path.join(artifacts, "overview-phone.png"), fullPage: true });
+});
+
+test("a trend updates within 2 s as the process moves", async ({ page }) => {
+  await page.goto(`${gateway.base}/#/devices/oven`);
+  const chart = page.locator("#trend");
+  await expect(chart.locator("canvas")).toBeVisible();
+  await expect(chart).toHaveAttribute("data-last-time", /\d/, { timeout: 5_000 });
+  const before = { time: await chart.getAttribute("data-last-time"), values: await chart.getAttribute("data-last-values") };
+  await expect.poll(async () => chart.getAttribute("data-last-time"), { timeout: 2_000, message: "a new sample on the trend" })
+    .not.toBe(before.time);
+  // The measured value (the first series) moves towards the set point.
+  await expect.poll(async () => (await chart.getAttribute("data-last-values")).split(",")[0], { timeout: 2_000, message: "the measured value moving" })
+    .not.toBe(before.values.split(",")[0]);
+});
+
+test("a write from the form changes the device, and a refused write shows the reason", async ({ page, request }) => {
+  await page.addInitScript((token) => localStorage.setItem("loopwire.token", token), gateway.token);
+  await page.goto(`${gateway.base}/#/devices/oven`);
+  const row = page.locator('tr.param-row[data-param="set_point"]');
+  await expect(row.locator(".param-value .num")).toHaveText(/\d/, { timeout: 10_000 });
+  await row.getByRole("button", { name: "Change" }).click();
+  const form = page.locator('tr.write-row[data-write="set_point"] form');
+  await form.locator("input").fill("750");
+  await form.getByRole("button", { name: "Write" }).click();
+  await expect(form.locator(".write-result")).toHaveText(/Written: 750/);
+  await expect.poll(async () => (await parameter(request, "oven", "set_point")).text, { timeout: 5_000 }).toMatch(/^750(\.0+)?$/);
+  await expect(row.locator(".param-value")).toContainText("750", { timeout: 5_000 });
+
+  await form.locator("input").fill("99999");
+  await form.getByRole("button", { name: "Write" }).click();
+  const refusal = form.locator(".write-result");
+  await expect(refusal).toHaveClass(/error/);
+  await expect(refusal).toContainText(/Refused: .*(range|maximum|above|most|limit)/i);
+  expect((await parameter(request, "oven", "set_point")).text).toMatch(/^750(\.0+)?$/);
+
+  await page.screenshot({ path: path.join(artifacts, "device-desktop.png"), fullPage: false });
+  await page.setViewportSize(PHONE);
+  await page.evaluate(() => window.scrollTo(0, 0));
+  await expect(page.locator("#trend canvas")).toBeVisible();
+  const width = await page.evaluate(() => document.documentElement.scrollWidth);
+  expect(width, "the device page fits a phone's width without scrolling sideways").toBeLessThanOrEqual(PHONE.width);
+  await page.screenshot({ path: path.join(artifacts, "device-phone.png"), fullPage: false });
+});
+
+test("without the token a write is refused and says what to do", async ({ page }) => {
+  await page.goto(`${gateway.base}/#/devices/kiln`);
+  const row = page.locator('tr.param-row[data-param="set_value"]');
+  await row.getByRole("button", { name: "Change" }).click();
+  const form = page.locator('tr.write-row[data-write="set_value"] form');
+  await form.locator("input").fill("170");
+  await form.getByRole("button", { name: "Write" }).click();
+  await expect(form.locator(".write-result")).toContainText(/Refused: .*token/i);
+  await expect(page.locator("#token-dialog")).toBeVisible();
+});
