@@ -22,7 +22,7 @@ std::optional<std::size_t> option_span(const CLI::App& owner, const std::vector<
     const CLI::Option* option = owner.get_option_no_throw(name);
     if (option == nullptr) return std::nullopt;
     const bool inline_value = name.size() != arguments[at].size();
-    if (option->get_type_size_max() == 0 || inline_value) return 1;
+    if (option->get_expected_max() == 0 || inline_value) return 1;  // a flag expects no value
     return at + 1 < arguments.size() ? 2 : 1;
 }
 
