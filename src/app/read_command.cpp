@@ -84,7 +84,7 @@ int run_raw_read(const ReadOptions& options) {
     auto count = parse_integer(options.count, 1, 0x10000 - *address, "count");
     if (!count) return report_error(count.error());
     if (options.master.unit == 0) {
-        return report_error(make_error(ErrorKind::usage, "unit 0 is broadcast, which nobody answers: reads need a unit id 1..247"));
+        return report_error(make_error(ErrorKind::usage, "unit 0 is broadcast, which nobody answers: reads need a unit id 1..255"));
     }
     auto url = transport::parse_link_url(options.master.link);
     if (!url) return report_error(url.error());

@@ -13,7 +13,7 @@ namespace loopwire::device {
 std::string value_text(const Parameter& parameter, const EngineeringValue& value);
 
 // {"value":V,"raw":R,"unit":"°C","status":"ok"}: V a number, a label, an object of named bits,
-// or null when the status names a special state.
+// or null when the status names a special state. The unit is the value's own (unit_of when read).
 nlohmann::ordered_json value_json(const Parameter& parameter, const EngineeringValue& value);
 
 // "r", "w" or "rw".
