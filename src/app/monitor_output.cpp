@@ -13,7 +13,7 @@ namespace {
 
 nlohmann::ordered_json value_entry(const device::WatchedDevice& device, const device::WatchedValue& value, device::MonitorClock::time_point now) {
     const auto& p = *value.parameter;
-    nlohmann::ordered_json entry{{"value", nullptr}, {"text", nullptr}, {"unit", value.last ? value.last->unit : p.unit}, {"status", device::value_status(device, value)}};
+    nlohmann::ordered_json entry{{"value", nullptr}, {"text", nullptr}, {"unit", device::shown_unit(p, value.last ? &*value.last : nullptr)}, {"status", device::value_status(device, value)}};
     if (value.fresh) {
         entry["value"] = device::value_json(p, *value.last)["value"];
         entry["text"] = device::value_text(p, *value.last);
@@ -105,7 +105,7 @@ std::vector<std::string> table_lines(const device::SampleView& sample) {
             // Bold for a value that just changed; dim for one not read this sample (its status
             // and age say why), so an old value never passes for a current one.
             const char* style = value.changed ? "\x1b[1m" : value.fresh ? "" : "\x1b[2m";
-            lines.push_back(fmt::format("  {:<34} {}{:>14}\x1b[0m {:<6} {:<14} {:>8}", p.name, style, text, value.last ? value.last->unit : p.unit,
+            lines.push_back(fmt::format("  {:<34} {}{:>14}\x1b[0m {:<6} {:<14} {:>8}", p.name, style, text, device::shown_unit(p, value.last ? &*value.last : nullptr),
                                         device::value_status(device, value), age_text(value, sample.now)));
         }
     }

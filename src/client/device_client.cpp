@@ -57,7 +57,7 @@ Result<DeviceAddress> device_address(const Result<std::shared_ptr<const Profile>
     if (!profile) return profile.error();
     // Each manual's own address range, not Modbus's 1..247 (AC20 Introduction and ramp/soak
     // §4.2: 1-255; TC10 #131 Add: up to 254).
-    if (name.unit < (*profile)->first_unit || name.unit > (*profile)->last_unit) {
+    if (unsigned{name.unit} < (*profile)->first_unit || unsigned{name.unit} > (*profile)->last_unit) {
         return make_error(ErrorKind::usage, fmt::format("{}@{}: a {} is set to a unit {}..{}", name.id, name.unit, name.id,
                                                         (*profile)->first_unit, (*profile)->last_unit));
     }

@@ -60,7 +60,7 @@ ValueChange value_change(const std::string& name, const device::WatchedDevice& s
     ValueChange change;
     change.device = name;
     change.parameter = parameter.name;
-    change.unit = value.last ? value.last->unit : parameter.unit;  // unit_from: as the device was configured
+    change.unit = device::shown_unit(parameter, value.last ? &*value.last : nullptr);  // as the device is configured
     change.status = device::value_status(state, value);
     change.sampled = sampled;
     if (value.fresh) {

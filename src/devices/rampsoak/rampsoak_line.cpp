@@ -26,7 +26,7 @@ std::optional<std::uint16_t> baud_code(std::uint32_t baud) {
 // codes 0-3 in that order (§7 BITS 0~3). No parity and 7 data bits are not offered.
 std::optional<std::uint16_t> bits_code(const transport::SerialSettings& serial) {
     if (serial.data_bits != 8 || serial.parity == transport::Parity::none) return std::nullopt;
-    const std::uint16_t two_stop = serial.stop_bits == 2 ? 1 : 0;
+    const int two_stop = serial.stop_bits == 2 ? 1 : 0;
     return static_cast<std::uint16_t>((serial.parity == transport::Parity::odd ? 0 : 2) + two_stop);
 }
 
