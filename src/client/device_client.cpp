@@ -23,15 +23,18 @@ codec::Request write_request(const WriteBlock& block) {
                 : codec::write_multiple_registers(block.wire_address, block.values);
 }
 
-// The parameters to read so that every wanted one can be decoded (decimals from other words).
+// The parameters to read so that every wanted one can be decoded and shown (decimals and units
+// from other words).
 std::vector<const Parameter*> with_dependencies(const Profile& profile, const std::vector<const Parameter*>& wanted) {
     std::vector<const Parameter*> all = wanted;
     std::set<const Parameter*> seen(wanted.begin(), wanted.end());
+    const auto add = [&](const std::string& name) {
+        const Parameter* dependency = profile.find(name);
+        if (dependency && dependency->readable && seen.insert(dependency).second) all.push_back(dependency);
+    };
     for (const Parameter* parameter : wanted) {
-        if (const auto* source = std::get_if<std::string>(&parameter->decimals)) {
-            const Parameter* dependency = profile.find(*source);
-            if (dependency && dependency->readable && seen.insert(dependency).second) all.push_back(dependency);
-        }
+        if (const auto* source = std::get_if<std::string>(&parameter->decimals)) add(*source);
+        for (const UnitRule& rule : parameter->unit_from) add(rule.parameter);  // the unit read with the value
     }
     return all;
 }
