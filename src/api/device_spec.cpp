@@ -26,7 +26,7 @@ Result<device::DeviceAddress> resolve_device(const std::string& text) {
     if (!loaded) return loaded.error();
     device::DeviceAddress address{std::make_shared<const device::Profile>(std::move(*loaded)), 1, 0};
     if (at != std::string::npos) {
-        auto unit = parse_integer(text.substr(at + 1), 1, 247, fmt::format("the unit after '@' in '{}'", text));
+        auto unit = parse_integer(text.substr(at + 1), address.profile->first_unit, address.profile->last_unit, fmt::format("the unit after '@' in '{}'", text));
         if (!unit) return unit.error();
         address.unit = static_cast<std::uint8_t>(*unit);
     }

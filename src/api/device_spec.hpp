@@ -9,7 +9,7 @@ namespace loopwire::api {
 
 // A name with a '/' or ending in ".json" before the '@' is a profile file, loaded and checked
 // like the built-in ones; anything else is a built-in profile id. The unit after '@' is
-// 1..247, and 1 when there is no '@'.
+// within the profile's unit_ids (1..255 at most), and 1 when there is no '@'.
 Result<device::DeviceAddress> resolve_device(const std::string& text);
 
 }  // namespace loopwire::api

@@ -43,7 +43,7 @@ session::UnitMap simulated_units(const std::vector<std::string>& devices, const 
                                                             address.unit, text));
         }
         units[address.unit] = device::models::make_simulated_device(
-            address.profile, environment.for_unit(address.unit, transport::framing_name(link.framing)));
+            address.profile, environment.on_line(address.unit, link));
     }
     return units;
 }

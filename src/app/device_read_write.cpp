@@ -48,7 +48,7 @@ void print_readings(const MasterCommandOptions& options, const device::DeviceAdd
             continue;
         }
         const auto& v = *reading.value;
-        fmt::print("{:<34} {:<8} {:>12} {:<6} {}{}\n", p.name, p.mnemonic, device::value_text(p, v), p.unit,
+        fmt::print("{:<34} {:<8} {:>12} {:<6} {}{}\n", p.name, p.mnemonic, device::value_text(p, v), device::shown_unit(p, &v),
                    v.status == "ok" ? "" : v.status + " ", fmt::format("(raw {})", v.raw));
     }
 }

@@ -14,7 +14,7 @@ namespace {
 
 nlohmann::ordered_json value_entry(const device::WatchedDevice& device, const device::WatchedValue& value, device::MonitorClock::time_point now) {
     const auto& p = *value.parameter;
-    nlohmann::ordered_json entry{{"value", nullptr}, {"text", nullptr}, {"unit", p.unit}, {"status", device::value_status(device, value)}};
+    nlohmann::ordered_json entry{{"value", nullptr}, {"text", nullptr}, {"unit", device::shown_unit(p, value.last ? &*value.last : nullptr)}, {"status", device::value_status(device, value)}};
     if (value.fresh) {
         entry["value"] = device::value_json(p, *value.last)["value"];
         entry["text"] = device::value_text(p, *value.last);
@@ -84,7 +84,8 @@ std::string csv_header(const std::vector<device::WatchedDevice>& devices) {
         columns.push_back(csv_field(device.label + " status"));
         columns.push_back(csv_field(device.label + " errors"));
         for (const auto& value : device.values) {
-            const auto& unit = value.parameter->unit;
+            // A unit that follows a configuration word (unit_from) is the one the first sample read.
+            const std::string unit = device::shown_unit(*value.parameter, value.last ? &*value.last : nullptr);
             columns.push_back(csv_field(device.label + ":" + value.parameter->name + (unit.empty() ? "" : " [" + unit + "]")));
         }
     }
@@ -116,7 +117,8 @@ std::vector<std::string> table_lines(const device::SampleView& sample, TimeStyle
             // and age say why), so an old value never passes for a current one.
             const char* style = value.changed ? "\x1b[1m" : value.fresh ? "" : "\x1b[2m";
             const std::string name = p.name.size() > name_width ? p.name.substr(0, name_width - 1) + "~" : p.name;
-            lines.push_back(fmt::format("  {:<{}} {}{:>14}\x1b[0m {:<6} {:<14} {:>8}", name, name_width, style, text, p.unit,
+            lines.push_back(fmt::format("  {:<{}} {}{:>14}\x1b[0m {:<6} {:<14} {:>8}", name, name_width, style, text,
+                                        device::shown_unit(p, value.last ? &*value.last : nullptr),
                                         device::value_status(device, value), age_text(value, sample.now)));
         }
     }

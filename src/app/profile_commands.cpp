@@ -58,6 +58,16 @@ nlohmann::ordered_json parameter_json(const device::Parameter& p) {
         for (const auto& [raw, label] : p.enum_labels) labels[std::to_string(raw)] = label;
         out["enum"] = labels;
     }
+    if (!p.unit_from.empty()) {
+        nlohmann::ordered_json rules = nlohmann::ordered_json::array();
+        for (const auto& rule : p.unit_from) {
+            nlohmann::ordered_json units = nlohmann::ordered_json::object();
+            for (const auto& [raw, unit] : rule.units) units[std::to_string(raw)] = unit;
+            rules.push_back({{"parameter", rule.parameter}, {"units", units}});
+        }
+        out["unit_from"] = rules;
+    }
+    if (!p.unitless.empty()) out["unitless"] = p.unitless;
     if (!p.write_modes.empty()) out["write_modes"] = p.write_modes;
     if (p.ram_only) out["storage"] = "ram";
     if (!p.note.empty()) out["note"] = p.note;

@@ -65,7 +65,7 @@ int run_raw_read(const ReadOptions& options) {
     auto request = parse_raw_request(options.arguments, options.typing);
     if (!request) return report_error(request.error());
     if (options.master.unit == 0) {
-        return report_error(make_error(ErrorKind::usage, "unit 0 is broadcast, which nobody answers: reads need a unit id 1..247"));
+        return report_error(make_error(ErrorKind::usage, "unit 0 is broadcast, which nobody answers: reads need a unit id 1..255"));
     }
     auto per_request = per_request_on(options.master.link, *request);
     if (!per_request) return report_error(per_request.error());

@@ -40,7 +40,7 @@ std::string shown(const device::Parameter& parameter, std::uint16_t raw, const d
     auto value = device::decode_value(parameter, raw, known);
     if (!value) return fmt::format("raw {}", raw);
     auto text = device::format_value(parameter, *value, known);
-    return fmt::format("{}{} (raw {})", text ? *text : "?", parameter.unit.empty() ? "" : " " + parameter.unit, raw);
+    return fmt::format("{}{} (raw {})", text ? *text : "?", value->unit.empty() ? "" : " " + value->unit, raw);
 }
 
 // The dump must come from this kind of device, and from this very device where the profile

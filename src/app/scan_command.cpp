@@ -49,14 +49,14 @@ std::vector<std::string> split(const std::string& text) {
     return parts;
 }
 
-// "1-247", "1,3,5-7".
+// "1-247", "1,3,5-7"; up to 255, where the AC20 and the ramp/soak controller may be set.
 Result<std::vector<int>> parse_units(const std::string& text) {
     std::vector<int> units;
     for (const auto& part : split(text)) {
         const auto dash = part.find('-');
-        auto first = parse_integer(part.substr(0, dash), 1, 247, "unit");
+        auto first = parse_integer(part.substr(0, dash), 1, 255, "unit");
         if (!first) return first.error();
-        auto last = dash == std::string::npos ? first : parse_integer(part.substr(dash + 1), *first, 247, "last unit of '" + part + "'");
+        auto last = dash == std::string::npos ? first : parse_integer(part.substr(dash + 1), *first, 255, "last unit of '" + part + "'");
         if (!last) return last.error();
         for (long long unit = *first; unit <= *last; ++unit) units.push_back(static_cast<int>(unit));
     }
@@ -241,7 +241,7 @@ void add_scan_command(CLI::App& app, int& exit_code) {
     auto options = std::make_shared<ScanOptions>();
     auto* command = app.add_subcommand("scan", "Find the units that answer on a link and identify them (Ctrl-C keeps what was found)");
     command->add_option("--link", options->link, "Link URL to scan")->required();
-    command->add_option("--units", options->units, "Units to try: 1-247, or a list like 1,3,7-9")->capture_default_str();
+    command->add_option("--units", options->units, "Units to try: 1-247, or a list like 1,3,7-9 (up to 255)")->capture_default_str();
     command->add_option("--bauds", options->bauds, "Serial: baud rates to sweep, e.g. 9600,19200,38400");
     command->add_option("--parities", options->parities, "Serial: parities to sweep, e.g. none,even,odd");
     command->add_option("--timeout", options->timeout, "Time to wait for each unit")->capture_default_str();

@@ -62,7 +62,7 @@ Result<SimulatedUnits> build_simulated_units(const device::ProfileRegistry& prof
         if (!device) return device.error();
         if (auto free = claim(result, device->unit); !free) return free.error();
         auto simulated = device::models::make_simulated_device(
-            device->profile, environment.for_unit(device->unit, transport::framing_name(link.framing)));
+            device->profile, environment.on_line(device->unit, link));
         result.units[device->unit] = simulated;
         result.devices[device->unit] = simulated;
         result.descriptions.push_back(fmt::format("{}: {} ({})", device->unit, device->profile->id, device->profile->title));

@@ -24,15 +24,18 @@ codec::Request write_request(const WriteBlock& block) {
                 : codec::write_multiple_registers(block.wire_address, block.values);
 }
 
-// The parameters to read so that every wanted one can be decoded (decimals from other words).
+// The parameters to read so that every wanted one can be decoded and shown (decimals and units
+// from other words).
 std::vector<const Parameter*> with_dependencies(const Profile& profile, const std::vector<const Parameter*>& wanted) {
     std::vector<const Parameter*> all = wanted;
     std::set<const Parameter*> seen(wanted.begin(), wanted.end());
+    const auto add = [&](const std::string& name) {
+        const Parameter* dependency = profile.find(name);
+        if (dependency && dependency->readable && seen.insert(dependency).second) all.push_back(dependency);
+    };
     for (const Parameter* parameter : wanted) {
-        if (const auto* source = std::get_if<std::string>(&parameter->decimals)) {
-            const Parameter* dependency = profile.find(*source);
-            if (dependency && dependency->readable && seen.insert(dependency).second) all.push_back(dependency);
-        }
+        if (const auto* source = std::get_if<std::string>(&parameter->decimals)) add(*source);
+        for (const UnitRule& rule : parameter->unit_from) add(rule.parameter);  // the unit read with the value
     }
     return all;
 }
@@ -44,10 +47,10 @@ Result<DeviceName> split_device_address(const std::string& text) {
     DeviceName name{text.substr(0, at), 1};
     if (at == std::string::npos) return name;
     const auto unit = parse_decimal_digits(std::string_view(text).substr(at + 1));
-    if (!unit || *unit < 1 || *unit > 247) {
-        return make_error(ErrorKind::usage, fmt::format("'{}': the unit after '@' must be 1..247 (e.g. {}@3)", text, name.id));
+    if (!unit || *unit < 1 || *unit > 255) {
+        return make_error(ErrorKind::usage, fmt::format("'{}': the unit after '@' must be 1..255 (e.g. {}@3)", text, name.id));
     }
-    name.unit = static_cast<std::uint8_t>(*unit);  // 1..247, checked above
+    name.unit = static_cast<std::uint8_t>(*unit);  // 1..255, checked above; the profile's unit_ids next
     return name;
 }
 
@@ -56,6 +59,12 @@ namespace {
 Result<DeviceAddress> device_address(const Result<std::shared_ptr<const Profile>>& profile, const DeviceName& name,
                                      const std::string& numbering) {
     if (!profile) return profile.error();
+    // Each manual's own address range, not Modbus's 1..247 (AC20 Introduction and ramp/soak
+    // §4.2: 1-255; TC10 #131 Add: up to 254).
+    if (unsigned{name.unit} < (*profile)->first_unit || unsigned{name.unit} > (*profile)->last_unit) {
+        return make_error(ErrorKind::usage, fmt::format("{}@{}: a {} is set to a unit {}..{}", name.id, name.unit, name.id,
+                                                        (*profile)->first_unit, (*profile)->last_unit));
+    }
     DeviceAddress device{*profile, name.unit, 0};
     if (!numbering.empty()) {
         const auto& choices = device.profile->numberings;

@@ -23,8 +23,8 @@ struct DeviceAddress {
     int address_offset = 0;  // numbering alternative in use (AC20 J-BUS: +1)
 };
 
-// "DEVICE@UNIT" taken apart without looking the id up: the unit must be 1..247 (1 when no
-// '@' is given).
+// "DEVICE@UNIT" taken apart without looking the id up: the unit must be 1..255 (1 when no
+// '@' is given); parse_device_address then holds it to the profile's unit_ids.
 struct DeviceName {
     std::string id;
     std::uint8_t unit = 1;

@@ -26,25 +26,26 @@ namespace {
 
 Result<nlohmann::ordered_json> parameter_entry(const device::ParameterReading& reading, const device::RawValues& known) {
     const auto& p = *reading.parameter;
+    const std::string unit = device::unit_of(p, known);  // the unit the configuration read gives
     if (!reading.value) {
         // A word read but not decoded (its decimals word reads 0xFFFF, say): the word is kept,
         // so restore can write back exactly what the device held.
         if (const auto raw = known.find(p.name); raw != known.end()) {
-            return nlohmann::ordered_json{{"value", nullptr}, {"text", nullptr}, {"unit", p.unit},
+            return nlohmann::ordered_json{{"value", nullptr}, {"text", nullptr}, {"unit", unit},
                                           {"raw", nlohmann::ordered_json::array({raw->second})}, {"status", "undecodable"},
                                           {"error", reading.error}, {"writable", p.writable}};
         }
-        return nlohmann::ordered_json{{"value", nullptr}, {"text", nullptr}, {"unit", p.unit}, {"raw", nlohmann::ordered_json::array()},
+        return nlohmann::ordered_json{{"value", nullptr}, {"text", nullptr}, {"unit", unit}, {"raw", nlohmann::ordered_json::array()},
                                       {"status", "unread"}, {"error", reading.error}, {"writable", p.writable}};
     }
     auto text = device::format_value(p, *reading.value, known);
     if (!text) {
-        return nlohmann::ordered_json{{"value", nullptr}, {"text", nullptr}, {"unit", p.unit},
+        return nlohmann::ordered_json{{"value", nullptr}, {"text", nullptr}, {"unit", unit},
                                       {"raw", nlohmann::ordered_json::array({reading.value->raw})}, {"status", "undecodable"},
                                       {"error", text.error().message}, {"writable", p.writable}};
     }
     auto entry = value_json(p, *reading.value);
-    return nlohmann::ordered_json{{"value", entry["value"]}, {"text", *text}, {"unit", p.unit},
+    return nlohmann::ordered_json{{"value", entry["value"]}, {"text", *text}, {"unit", unit},
                                   {"raw", nlohmann::ordered_json::array({reading.value->raw})},
                                   {"status", reading.value->status}, {"writable", p.writable}};
 }

@@ -53,7 +53,7 @@ session::UnitMap simulated_devices(const LineConfig& line) {
     for (const DeviceConfig& device : line.devices) {
         const std::uint8_t unit = device.address.unit;
         units[unit] = device::models::make_simulated_device(
-            device.address.profile, environment.for_unit(unit, transport::framing_name(line.link.framing)));
+            device.address.profile, environment.on_line(unit, line.link));
     }
     return units;
 }

@@ -23,15 +23,19 @@ std::string duration_text(milliseconds duration) {
 }
 
 
-// The device client also reads the words that give a parameter its decimals (DeviceClient::read),
+// The device client also reads the words that give a parameter its decimals and unit (DeviceClient::read),
 // so they count in the requests a poll costs. The planner reads duplicates once.
 std::vector<device::ReadBlock> poll_requests(const DeviceConfig& device, const std::vector<const device::Parameter*>& wanted) {
     const device::Profile& profile = *device.address.profile;
     std::vector<const device::Parameter*> words = wanted;
     for (const device::Parameter* parameter : wanted) {
-        const auto* source = std::get_if<std::string>(&parameter->decimals);
-        const device::Parameter* dependency = source ? profile.find(*source) : nullptr;
-        if (dependency && dependency->readable) words.push_back(dependency);
+        std::vector<std::string> sources;
+        if (const auto* source = std::get_if<std::string>(&parameter->decimals)) sources.push_back(*source);
+        for (const device::UnitRule& rule : parameter->unit_from) sources.push_back(rule.parameter);  // units too
+        for (const std::string& source : sources) {
+            const device::Parameter* dependency = profile.find(source);
+            if (dependency && dependency->readable) words.push_back(dependency);
+        }
     }
     return device::plan_reads(profile, words, device.address.address_offset);
 }

@@ -60,7 +60,7 @@ ValueChange value_change(const std::string& name, const device::WatchedDevice& s
     ValueChange change;
     change.device = name;
     change.parameter = parameter.name;
-    change.unit = parameter.unit;
+    change.unit = device::shown_unit(parameter, value.last ? &*value.last : nullptr);  // as the device is configured
     change.status = device::value_status(state, value);
     change.sampled = sampled;
     if (value.fresh) {
@@ -81,7 +81,7 @@ std::vector<ValueChange> state_of(const std::string& name, const device::Watched
 
 bool same_value(const std::optional<device::EngineeringValue>& a, const std::optional<device::EngineeringValue>& b) {
     if (a.has_value() != b.has_value()) return false;
-    return !a || (a->raw == b->raw && a->status == b->status && a->value == b->value);
+    return !a || (a->raw == b->raw && a->status == b->status && a->value == b->value && a->unit == b->unit);
 }
 
 // A new error message with the same status is not a change: the status says what matters.

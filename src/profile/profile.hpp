@@ -41,6 +41,14 @@ struct BoundSource {
     std::string unit;
 };
 
+// One word a unit follows (TC10 unit, AC20 PV.SL and tP.In, ramp/soak UNIT): that word's raw
+// value -> the unit ("°C", "%C", "mV"). A Parameter's rules are tried in order; the first whose
+// word holds a listed value gives the unit (AC20 dew point: PV.SL lists no unit, tP.In does).
+struct UnitRule {
+    std::string parameter;
+    std::map<std::int32_t, std::string> units;
+};
+
 struct Parameter {
     std::string name;
     std::string mnemonic;
@@ -50,7 +58,9 @@ struct Parameter {
     std::uint16_t address = 0;            // in the device's own numbering
     ValueType type = ValueType::uint16;
     std::variant<int, std::string> decimals = 0;  // fixed, or the parameter giving them
-    std::string unit;
+    std::string unit;                     // fixed; empty when unit_from decides or there is none
+    std::vector<UnitRule> unit_from;      // the unit follows the configuration (values.hpp unit_of)
+    std::string unitless;                 // why a number has no physical unit: count, code, ratio, raw
     bool readable = true;
     bool writable = false;
     std::vector<std::string> write_modes;
@@ -110,6 +120,8 @@ struct Profile {
     std::vector<std::uint8_t> function_codes;
     Limits limits;
     std::vector<std::string> parities;     // serial_defaults.parities: what the device can be set to
+    unsigned first_unit = 1;               // unit_ids: the addresses the device can be set to
+    unsigned last_unit = 247;              // (AC20, ramp/soak 1-255; TC10 1-254)
     bool broadcast = false;                // unit 0 writes are executed
     bool unmapped_reads_answered = false;  // the AC20 answers 8000h for unmapped words
     std::uint16_t unmapped_value = 0x8000; // what an unmapped word reads as, when answered

@@ -90,6 +90,10 @@ void check_parameter_references(const Json& parameters, ReferenceCheck& referenc
         if (const auto decimals = parameter.find("decimals"); decimals != parameter.end() && decimals->is_object()) {
             references.check(decimals->at("parameter"), parameter_pointer(i, "/decimals/parameter"), self);
         }
+        const Json unit_from = parameter.value("unit_from", Json::array());
+        for (std::size_t k = 0; k < unit_from.size(); ++k) {
+            references.check(unit_from[k].at("parameter"), parameter_pointer(i, fmt::format("/unit_from/{}/parameter", k)), self);
+        }
         const auto range = parameter.find("range");
         if (range == parameter.end()) continue;
         for (const char* bound : {"min", "max"}) {
@@ -195,6 +199,49 @@ void check_parameter_values(const Json& parameters, std::vector<DocumentProblem>
     }
 }
 
+// Values carry their units: a number (int16/uint16) says its unit, where its unit comes from,
+// or why it has none; the three are exclusive. Enums, bit fields and bools are not quantities.
+void check_units(const Json& parameters, std::vector<DocumentProblem>& problems) {
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+        const Json& parameter = parameters[i];
+        const bool number = parameter.at("type") == "int16" || parameter.at("type") == "uint16";
+        const bool fixed = !parameter.value("unit", std::string()).empty();
+        const bool follows = parameter.contains("unit_from");
+        const bool unitless = parameter.contains("unitless");
+        const int given = int{fixed} + int{follows} + int{unitless};
+        if (number && given == 0) {
+            problems.push_back({parameter_pointer(i), "a number needs \"unit\", \"unit_from\" (the unit follows another "
+                                                      "word) or \"unitless\" (count, code, ratio, raw)"});
+        } else if (given > 1) {
+            problems.push_back({parameter_pointer(i), "give only one of \"unit\", \"unit_from\" and \"unitless\""});
+        } else if (!number && (follows || unitless)) {
+            problems.push_back({parameter_pointer(i), "\"unit_from\" and \"unitless\" are for numbers (int16, uint16)"});
+        }
+        const Json unit_from = parameter.value("unit_from", Json::array());
+        for (std::size_t k = 0; k < unit_from.size(); ++k) {
+            for (const auto& [key, unit] : object_member(unit_from[k], "units").items()) {
+                const auto raw = integer_key(key);
+                if (!raw || *raw < -32768 || *raw > 65535) {
+                    problems.push_back({parameter_pointer(i, fmt::format("/unit_from/{}/units/{}", k, key)),
+                                        "raw value must be within -32768..65535"});
+                }
+            }
+        }
+    }
+}
+
+// unit_ids: whole addresses a serial line can carry, 1..255 (0 is broadcast).
+void check_unit_ids(const Json& document, std::vector<DocumentProblem>& problems) {
+    const auto units = document.find("unit_ids");
+    if (units == document.end()) return;
+    const Json& first = units->at("min");
+    const Json& last = units->at("max");
+    const bool whole = first.is_number_integer() && last.is_number_integer();
+    if (!whole || first.get<long long>() < 1 || last.get<long long>() > 255 || first.get<long long>() > last.get<long long>()) {
+        problems.push_back({"/unit_ids", "need whole numbers 1 <= min <= max <= 255 (0 is broadcast)"});
+    }
+}
+
 void check_codes_and_mirrors(const Json& document, std::vector<DocumentProblem>& problems) {
     for (const auto& [code, meaning] : object_member(document, "exceptions").items()) {
         const auto value = integer_key(code);
@@ -224,6 +271,8 @@ std::vector<DocumentProblem> semantic_problems(const Json& document) {
     check_top_level_references(document, references, problems);
     check_write_modes(document, problems);
     check_parameter_values(parameters, problems);
+    check_units(parameters, problems);
+    check_unit_ids(document, problems);
     check_codes_and_mirrors(document, problems);
     return problems;
 }

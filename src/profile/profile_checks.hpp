@@ -12,6 +12,10 @@
 //  - write_modes name modes of the top-level "modes";
 //  - bool entries, and only they, live in the bit tables (coils, discrete);
 //  - enum keys fit a 16-bit word (-32768..65535); fixed ranges have min <= max;
+//  - a number (int16/uint16) has exactly one of a non-empty "unit", "unit_from" (whose
+//    words exist) or "unitless"; enums, bit fields and bools have neither of the last two;
+//    unit_from keys fit a 16-bit word;
+//  - unit_ids are whole numbers 1 <= min <= max <= 255;
 //  - identification matches and numbering selectors give "equals";
 //  - exception codes are 1..255; mirrored ranges stay within 0..65535.
 #include <vector>

@@ -65,6 +65,12 @@ Parameter parameter_from(const Json& entry, const std::vector<SpecialValue>& wor
         else parameter.decimals = decimals->get<int>();
     }
     parameter.unit = entry.value("unit", std::string());
+    for (const Json& rule : entry.value("unit_from", Json::array())) {
+        UnitRule unit_rule{rule.at("parameter").get<std::string>(), {}};
+        for (const auto& [key, unit] : rule.at("units").items()) unit_rule.units.emplace(std::stoi(key), unit.get<std::string>());
+        parameter.unit_from.push_back(std::move(unit_rule));
+    }
+    parameter.unitless = entry.value("unitless", std::string());
     const auto access = entry.at("access").get<std::string>();
     parameter.readable = access.find('r') != std::string::npos;
     parameter.writable = access.find('w') != std::string::npos;
@@ -103,6 +109,10 @@ void read_line(const Json& document, Profile& profile) {
     profile.limits = limits_from(document.at("limits"));
     profile.parities = serial.value("parities", std::vector<std::string>{profile.default_parity});
     profile.broadcast = document.value("broadcast", false);
+    if (const auto units = document.find("unit_ids"); units != document.end()) {
+        profile.first_unit = units->value("min", profile.first_unit);
+        profile.last_unit = units->value("max", profile.last_unit);
+    }
     profile.unmapped_reads_answered = document.at("unmapped_reads") == "answered";
     profile.unmapped_value = document.value("unmapped_value", profile.unmapped_value);
     profile.silent_on_unsupported_function = document.value("silent_on_unsupported_function", false);

@@ -34,7 +34,11 @@ nlohmann::ordered_json value_json(const Parameter& parameter, const EngineeringV
     if (const auto* number = std::get_if<double>(&value.value)) shown = *number;
     else if (const auto* label = std::get_if<std::string>(&value.value)) shown = *label;
     else if (const auto* bits = std::get_if<std::map<std::string, bool>>(&value.value)) shown = *bits;
-    return {{"value", shown}, {"raw", value.raw}, {"unit", parameter.unit}, {"status", value.status}};
+    return {{"value", shown}, {"raw", value.raw}, {"unit", shown_unit(parameter, &value)}, {"status", value.status}};
+}
+
+std::string shown_unit(const Parameter& parameter, const EngineeringValue* value) {
+    return value != nullptr && !value->unit.empty() ? value->unit : parameter.unit;
 }
 
 std::string access_text(const Parameter& parameter) {

@@ -13,8 +13,12 @@ namespace loopwire::device {
 std::string value_text(const Parameter& parameter, const EngineeringValue& value);
 
 // {"value":V,"raw":R,"unit":"°C","status":"ok"}: V a number, a label, an object of named bits,
-// or null when the status names a special state.
+// or null when the status names a special state. The unit is the value's own (unit_of when read).
 nlohmann::ordered_json value_json(const Parameter& parameter, const EngineeringValue& value);
+
+// The unit to show with a value: the one it was decoded with (unit_of), else the parameter's
+// fixed unit (values made by hand, e.g. in tests, carry none of their own).
+std::string shown_unit(const Parameter& parameter, const EngineeringValue* value);
 
 // "r", "w" or "rw".
 std::string access_text(const Parameter& parameter);

@@ -89,6 +89,8 @@ Result<std::uint16_t> raw_of_number(const Parameter& parameter, double value, co
     return to_word(static_cast<std::int64_t>(scaled));
 }
 
+Result<EngineeringValue> decode_unitless(const Parameter& parameter, std::uint16_t raw, const RawValues& known);
+
 }  // namespace
 
 Result<int> decimals_of(const Parameter& parameter, const RawValues& known) {
@@ -108,7 +110,27 @@ Result<int> decimals_of(const Parameter& parameter, const RawValues& known) {
     return static_cast<int>(it->second);
 }
 
+std::string unit_of(const Parameter& parameter, const RawValues& known) {
+    if (parameter.unit_from.empty()) return parameter.unit;
+    for (const UnitRule& rule : parameter.unit_from) {
+        const auto word = known.find(rule.parameter);
+        if (word == known.end()) continue;
+        auto unit = rule.units.find(static_cast<std::int32_t>(word->second));
+        if (unit == rule.units.end()) unit = rule.units.find(static_cast<std::int16_t>(word->second));
+        if (unit != rule.units.end()) return unit->second;
+    }
+    return unknown_unit;
+}
+
 Result<EngineeringValue> decode_value(const Parameter& parameter, std::uint16_t raw, const RawValues& known) {
+    auto decoded = decode_unitless(parameter, raw, known);
+    if (decoded) decoded->unit = unit_of(parameter, known);
+    return decoded;
+}
+
+namespace {
+
+Result<EngineeringValue> decode_unitless(const Parameter& parameter, std::uint16_t raw, const RawValues& known) {
     if (const SpecialValue* special = special_for(parameter, raw)) return with(std::monostate{}, raw, special->state);
     switch (parameter.type) {
         case ValueType::boolean: return decode_bit(parameter, raw);
@@ -119,6 +141,8 @@ Result<EngineeringValue> decode_value(const Parameter& parameter, std::uint16_t 
     }
     return decode_number(parameter, raw, known);
 }
+
+}  // namespace
 
 Result<std::uint16_t> raw_of(const Parameter& parameter, const EngineeringValue& value, const RawValues& known) {
     if (std::holds_alternative<std::monostate>(value.value)) {
@@ -157,6 +181,7 @@ std::vector<std::string> dependencies_of(const Parameter& parameter) {
         if (name != nullptr && std::find(names.begin(), names.end(), *name) == names.end()) names.push_back(*name);
     };
     add(parameter.decimals);
+    for (const UnitRule& rule : parameter.unit_from) add(rule.parameter);
     for (const auto& bound : {parameter.min, parameter.max}) {
         const std::string* name = bound ? std::get_if<std::string>(&*bound) : nullptr;
         if (name == nullptr) continue;

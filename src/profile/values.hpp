@@ -25,13 +25,25 @@ struct EngineeringValue {
     // the number is then the value, and the status tells a reader it is not a listed code.
     std::string status = "ok";
     std::uint16_t raw = 0;
+    // The engineering unit at the time of the reading: fixed, or what the configuration words it
+    // follows said (unit_of); empty for codes, counts, labels and bits.
+    std::string unit;
 };
+
+// What unit_of says when the words a unit follows were not read, or hold a value the profile
+// does not list: the unit is not known, which is not the same as having none.
+inline constexpr const char* unknown_unit = "?";
+
+// The unit of `parameter`'s values given what is known: its fixed unit, or the first of its
+// unit_from rules whose word is known and holds a listed value (compared as int16 and uint16);
+// unknown_unit when it has rules and none applies; empty when it has no unit.
+std::string unit_of(const Parameter& parameter, const RawValues& known);
 
 // Decimals for `parameter` given what is known; an error names the parameter whose value is
 // needed but missing (or out of 0..4).
 Result<int> decimals_of(const Parameter& parameter, const RawValues& known);
 
-// Special values are checked first, the raw word compared both as int16 and as uint16 (the
+// The value carries unit_of(parameter, known). Special values are checked first, the raw word compared both as int16 and as uint16 (the
 // profile writes them -32768..65535); the first match wins, so a parameter's own specials beat
 // the profile's word_specials (AC20 8000h reads as not-available, its first meaning). Then by
 // type: int16/uint16 scaled by the decimals (a label instead where the profile gives one for
@@ -55,7 +67,8 @@ Result<std::uint16_t> encode_value(const Parameter& parameter, std::string_view 
 // Access is not checked. Simulators use it for range-checked writes, restore for write order.
 bool raw_in_range(const Parameter& parameter, std::uint16_t raw, const RawValues& known);
 
-// Which parameters a value of `parameter` depends on (decimals source, range bounds), so a
+// Which parameters a value of `parameter` depends on (decimals source, unit_from words, range
+// bounds), so a
 // caller can read them first. A bound's own decimals source is included too (from
 // Parameter::bound_sources), listed before the bound.
 std::vector<std::string> dependencies_of(const Parameter& parameter);

@@ -36,6 +36,15 @@ void Slave::trace(TraceDirection direction, ByteView bytes, std::string note) co
     if (options_.trace) options_.trace({clock_->now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
 }
 
+// The handler answering at `unit`: the one served under it, unless a request moved a handler
+// (UnitHandler::answers_as), which then answers at its new id and no longer at the old one.
+UnitMap::iterator Slave::find_unit(std::uint8_t unit) {
+    for (auto it = units_.begin(); it != units_.end(); ++it) {
+        if (it->second->answers_as().value_or(it->first) == unit) return it;
+    }
+    return units_.end();
+}
+
 Slave::Route Slave::route(const codec::Frame& frame) {
     if (frame.pdu.empty()) return {};
     if (frame.unit == 0) {
@@ -43,7 +52,7 @@ Slave::Route Slave::route(const codec::Frame& frame) {
         ++requests_;
         return {Route::Kind::broadcast, nullptr, {}};
     }
-    auto it = units_.find(frame.unit);
+    auto it = find_unit(frame.unit);
     if (it == units_.end() && frame.unit == tcp_direct_unit && link_.framing == transport::Framing::tcp && units_.size() == 1) {
         it = units_.begin();
     }
@@ -71,7 +80,9 @@ std::optional<Bytes> Slave::answer(const codec::Frame& frame, FrameCodec& codec)
     switch (where.kind) {
         case Route::Kind::silent: return std::nullopt;
         case Route::Kind::broadcast:
-            for (auto& [unit, handler] : units_) handler->handle(frame.pdu, true);
+            for (auto& [unit, handler] : units_) {
+                if (handler->answers_as() != std::uint8_t{0}) handler->handle(frame.pdu, true);  // 0: does not hear the line
+            }
             return std::nullopt;
         case Route::Kind::own_reply: reply_pdu = std::move(where.reply_pdu); break;
         case Route::Kind::unit: reply_pdu = where.handler->handle(frame.pdu, false); break;

@@ -33,6 +33,12 @@ public:
     virtual void handle_async(Bytes request_pdu, bool broadcast, Origin /*origin*/, ReplyCallback reply) {
         reply(handle(request_pdu, broadcast));
     }
+
+    // The unit id the handler answers at now when a request changed it (a simulated AC20 whose
+    // word 527 was written answers at the new address after its reply); 0 when it hears nothing
+    // on this line any more (set to another baud rate, byte format or protocol, or its serial
+    // interface switched off); nullopt: the id it is served under. May be called from any thread.
+    virtual std::optional<std::uint8_t> answers_as() const { return std::nullopt; }
 };
 
 // A handler that works on decoded requests. Requests that do not decode are answered the way

@@ -112,8 +112,18 @@ RawValues SimulatedDevice::saved_values() const {
 
 std::vector<std::string> SimulatedDevice::load_saved(const RawValues& saved) {
     std::lock_guard lock(mutex_);
-    return memory_.load_saved(saved);
+    auto problems = memory_.load_saved(saved);
+    describe_line();
+    return problems;
 }
+
+std::optional<std::uint8_t> SimulatedDevice::answers_as() const {
+    const int unit = answering_unit_.load();
+    if (unit < 0) return std::nullopt;
+    return static_cast<std::uint8_t>(unit);
+}
+
+void SimulatedDevice::answer_as(std::optional<std::uint8_t> unit) { answering_unit_.store(unit ? int{*unit} : -1); }
 
 std::uint64_t SimulatedDevice::saved_generation() const {
     std::lock_guard lock(mutex_);

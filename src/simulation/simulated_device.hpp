@@ -4,6 +4,7 @@
 // special values, broadcast, numbering alternatives). Device behaviour the data cannot express
 // (AC20 modes and locks, TC10 alarms, the ramp/soak program, the process each one controls)
 // belongs in a model subclass (devices/<id>/) that overrides the hooks below.
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -32,6 +33,10 @@ public:
 
     const Profile& profile() const { return *profile_; }
 
+    // Where the device answers now, when its own words moved it off the unit it is served under
+    // (session::UnitHandler::answers_as); nullopt until then.
+    std::optional<std::uint8_t> answers_as() const override;
+
     static constexpr double max_process_step = 0.1;  // seconds of process time per model step (the grid)
 
     // Brings the process up to the environment's clock without a request (monitors, tests).
@@ -42,7 +47,9 @@ public:
     Result<void> inject_fault(const std::string& fault);
     virtual std::vector<std::string> fault_names() const { return {}; }
 
-    // --state: non-volatile contents by parameter name, and their reload at start.
+    // --state: non-volatile contents by parameter name, and their reload at start. After a
+    // reload the words that describe the line are set from the line again (describe_line): a
+    // device answering as unit N at some settings reports those, whatever was saved.
     RawValues saved_values() const;
     std::vector<std::string> load_saved(const RawValues& saved);
     std::uint64_t saved_generation() const;
@@ -67,6 +74,14 @@ protected:
     virtual void step_process(double seconds);
     // Applies a fault named in fault_names(), or "none".
     virtual void apply_fault(const std::string& fault);
+    // Sets the words in which the device describes its line (address, baud rate, byte format,
+    // protocol) from the environment's unit, framing and serial settings. Models call it at the
+    // end of their constructor; load_saved calls it again.
+    virtual void describe_line() {}
+
+    // From the next request on, answer at `unit` (0: hear nothing on this line), or again at the
+    // unit the device is served under (nullopt).
+    void answer_as(std::optional<std::uint8_t> unit);
 
     DeviceMemory& memory() { return memory_; }
     const DeviceMemory& memory() const { return memory_; }
@@ -97,6 +112,7 @@ private:
     double process_time_ = 0;          // walked so far
     double pending_process_time_ = 0;  // elapsed but shorter than a grid step
     mutable std::mutex mutex_;  // one device, several links or TCP connections
+    std::atomic<int> answering_unit_{-1};  // answers_as(): -1 none, else 0..255 (read by the slave unlocked)
 };
 
 }  // namespace loopwire::device

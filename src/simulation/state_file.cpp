@@ -48,7 +48,7 @@ Result<void> check_document(const std::string& path, const nlohmann::json& docum
     for (const auto& [key, entry] : units->items()) {
         const std::string pointer = json_pointer("/units", key);
         const auto unit = parse_decimal_digits(key);
-        if (!unit || *unit < 1 || *unit > 247) return bad_file(path, fmt::format("at {}: expected a unit id 1..247 as the key, found \"{}\"", pointer, key));
+        if (!unit || *unit < 1 || *unit > 255) return bad_file(path, fmt::format("at {}: expected a unit id 1..255 as the key, found \"{}\"", pointer, key));
         if (!entry.is_object()) return wrong_value(path, pointer, "an object with \"profile\" and \"saved\"", &entry);
         const auto* profile = member(entry, "profile");
         if (!profile || !profile->is_string()) return wrong_value(path, json_pointer(pointer, "profile"), "a profile id as a string (e.g. \"tc10\")", profile);

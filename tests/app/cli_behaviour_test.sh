@@ -59,7 +59,7 @@ check devices-json 0 '"id":"rampsoak"' "$loopwire" devices --json
 check describe-group 0 "SP.HL" "$loopwire" describe tc10 --group SP
 check describe-unknown-group 2 "has no group 'nope'" "$loopwire" describe tc10 --group nope
 check describe-unknown-device 2 "known profiles: ac20, rampsoak, tc10" "$loopwire" describe tc99
-check device-bad-unit 2 "must be 1..247" "$loopwire" read --link "rtu:$WORK_DIR/none" --device tc10@300 SP
+check device-bad-unit 2 "must be 1..255" "$loopwire" read --link "rtu:$WORK_DIR/none" --device tc10@300 SP
 check device-unknown-name 2 '"nosuch"' "$loopwire" read --link "rtu:$WORK_DIR/none" --device tc10@3 nosuch
 check device-read-only 2 "measured_value (rV) is read-only" "$loopwire" write --link "rtu:$WORK_DIR/none" --device tc10@3 measured_value=3
 check device-not-an-assignment 2 "'SP' is not NAME=VALUE" "$loopwire" write --link "rtu:$WORK_DIR/none" --device tc10@3 SP

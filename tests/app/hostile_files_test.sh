@@ -77,7 +77,7 @@ state_refuses state-saved-string "{$header, \"units\": {\"3\": {\"profile\": \"t
   'at /units/3/saved/set_point: expected a raw word, an integer 0..65535, found a string "150"'
 state_refuses state-saved-float "{$header, \"units\": {\"3\": {\"profile\": \"tc10\", \"saved\": {\"set_point\": 150.5}}}}" \
   'at /units/3/saved/set_point: expected a raw word'
-state_refuses state-unit-key "{$header, \"units\": {\"three\": {\"profile\": \"tc10\", \"saved\": {}}}}" 'at /units/three: expected a unit id 1..247'
+state_refuses state-unit-key "{$header, \"units\": {\"three\": {\"profile\": \"tc10\", \"saved\": {}}}}" 'at /units/three: expected a unit id 1..255'
 
 # 4. A state file that cannot be saved is found at start, before anything is served. Root may
 # write anywhere, so an unprivileged user tries the read-only folder.

@@ -202,7 +202,7 @@ TEST(GatewayConfig, AnUnknownProfileOrBadUnitIsNamed) {
 
     const std::string unit = error_of(one_device("device = \"tc10@300\"\n"));
     EXPECT_THAT(unit, StartsWith("plant.toml:7: lines[0].devices[0].device: ")) << unit;
-    EXPECT_THAT(unit, HasSubstr("1..247")) << unit;
+    EXPECT_THAT(unit, HasSubstr("1..255")) << unit;
 }
 
 TEST(GatewayConfig, TwoDevicesOnALineWithOneUnitAreRefused) {

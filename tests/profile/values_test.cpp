@@ -63,7 +63,8 @@ TEST(Ac20Values, SetPointTakesItsDecimalsFromWord300) {
     EXPECT_DOUBLE_EQ(number_of(decode_value(sp, 1370, {{"primary_variable_decimals", 2}})), 13.70);
     EXPECT_DOUBLE_EQ(number_of(decode_value(sp, word(-25), {{"primary_variable_decimals", 0}})), -25.0);
     EXPECT_EQ(dependencies_of(sp),
-              (std::vector<std::string>{"primary_variable_decimals", "set_point_low_limit", "set_point_high_limit"}));
+              (std::vector<std::string>{"primary_variable_decimals", "primary_variable_selection", "temperature_input_type",
+                                                  "set_point_low_limit", "set_point_high_limit"}));
 }
 
 TEST(Ac20Values, MissingDecimalsNameTheWordToReadFirst) {
@@ -168,7 +169,7 @@ TEST(Tc10Values, UnknownBoundIsReportedAsSuch) {
     EXPECT_THAT(error_of(encode_value(sp, "100", {{"decimal_point", 1}, {"set_point_low_limit", 0}})),
                 HasSubstr("set_point: its upper limit set_point_high_limit is not known; read set_point_high_limit first"));
     EXPECT_EQ(dependencies_of(sp),
-              (std::vector<std::string>{"decimal_point", "set_point_low_limit", "set_point_high_limit"}));
+              (std::vector<std::string>{"decimal_point", "temperature_unit", "set_point_low_limit", "set_point_high_limit"}));
     // A bound the parameter does not describe (built by hand, not loaded) cannot be decoded:
     // said, not guessed.
     Parameter by_hand = sp;

@@ -54,6 +54,7 @@ Ac20Simulator::Ac20Simulator(std::shared_ptr<const Profile> profile, SimulationE
     primary_ = primary_value();
     pid_.track(pid_output_, operative_set_point_ / settings_.decimals_scale, primary_);
     update_alarms();
+    describe_line();
 }
 
 std::vector<std::string> Ac20Simulator::fault_names() const {
@@ -120,6 +121,7 @@ void Ac20Simulator::after_write(const Parameter& parameter, std::uint16_t raw) {
     after_procedure_write(parameter, raw);
     after_alarm_write(parameter, raw);
     after_error_condition_write();
+    after_line_write();
     refresh_settings();  // a read right after this write already sees the new settings
     update_alarms();
 }

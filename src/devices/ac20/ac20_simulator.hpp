@@ -43,8 +43,12 @@ protected:
     void after_write(const Parameter& parameter, std::uint16_t raw) override;
     void step_process(double seconds) override;
     void apply_fault(const std::string& fault) override;
+    void describe_line() override;  // ac20_line.cpp
 
 private:
+    // ac20_line.cpp: words 526-529 written over the line, in effect after the reply.
+    void after_line_write();
+    void follow_line_words();
     enum class Mode { control, configuration, security };
     enum class Procedure { none, burn_off, purge, probe_test };
     // The areas the error conditions name: configuration, control and security code mode words.

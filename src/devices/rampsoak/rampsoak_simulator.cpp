@@ -42,7 +42,7 @@ RampSoakSimulator::RampSoakSimulator(std::shared_ptr<const Profile> profile, Sim
     : SimulatedDevice(std::move(profile), std::move(environment)), plant_(kiln) {
     find_cells();
     set_factory_values();
-    select_protocol();
+    describe_line();
     pid_.set_settings(pid_settings());
     publish();
 }
@@ -102,12 +102,6 @@ void RampSoakSimulator::set_factory_values() {
 // only from the front panel (§7: PSL is 03H only). A device that answers on a link must be set
 // to that link's protocol, so PSL starts as the framing it is served with; on a link the
 // device does not speak (Modbus/TCP) it keeps the §1 default, RTU.
-void RampSoakSimulator::select_protocol() {
-    const std::string& framing = environment().framing;
-    const std::uint16_t code = framing == "ascii" ? 1 : framing == "linking" ? 2 : 0;
-    set_value("protocol_selection", code);
-}
-
 // §6.2: Linking M (served as FC6) modifies RAM only, "not maintained after power off"; W
 // (served as FC16 with one register) writes RAM and EEPROM. §4/§5 say nothing of where a
 // Modbus FC06/FC10 write goes; the model saves it (the profile's registers are settings kept

@@ -30,6 +30,7 @@ protected:
     Persistence persistence_of(std::uint8_t function) const override;
     void step_process(double seconds) override;
     void apply_fault(const std::string& fault) override;
+    void describe_line() override;  // rampsoak_line.cpp
 
 private:
     struct SegmentCells {
@@ -41,7 +42,6 @@ private:
 
     void find_cells();
     void set_factory_values();
-    void select_protocol();
     double scale() const;
     double engineering(const MemoryCell* cell) const;
     std::uint16_t display_raw(double engineering) const;

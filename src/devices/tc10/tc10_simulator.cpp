@@ -55,6 +55,7 @@ process::ThermalPlantSettings oven() {
 Tc10Simulator::Tc10Simulator(std::shared_ptr<const Profile> profile, SimulationEnvironment environment)
     : SimulatedDevice(std::move(profile), std::move(environment)), plant_(oven()) {
     apply_factory_settings();
+    describe_line();
 }
 
 // The manual lists no factory values. The simulator's: a PID tuned for the oven above (Pb 20
@@ -126,6 +127,7 @@ std::optional<std::uint8_t> Tc10Simulator::accept_write(const Parameter& paramet
 
 void Tc10Simulator::after_write(const Parameter& parameter, std::uint16_t raw) {
     copy_to_twin(parameter, raw);
+    after_line_write(parameter);
     const std::string_view name = parameter.name;
     if (name == "load_defaults") {
         // Any other value is accepted (no range is printed) and does nothing; the word is a

@@ -33,8 +33,12 @@ protected:
     void step_process(double seconds) override;
     std::vector<std::string> fault_names() const override;
     void apply_fault(const std::string& fault) override;
+    void describe_line() override;  // tc10_line.cpp
 
 private:
+    // tc10_line.cpp: Add and bAud written over the line, in effect after the reply.
+    void after_line_write(const Parameter& parameter);
+    void follow_line_words();
     // Control state, word 15 / oPEr 768 (§5.1 15A, §5.3.10 #130).
     enum class State : std::uint16_t { automatic = 0, manual = 1, standby = 2 };
     // Measurement errors and what word 1 answers for them (§5.1 1A).
