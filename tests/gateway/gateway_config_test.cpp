@@ -168,7 +168,7 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, speed, seed, devices)");
 
     const std::string top = error_of(one_device("device = \"tc10@3\"\n") + "[modbus]\nlisten = \"127.0.0.1:1502\"\n");
-    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: lines, modbus_tcp, log, mqtt)");
+    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt)");
 
     const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
     EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: listen, writes, enabled, max_age)");
@@ -540,6 +540,11 @@ TEST(GatewayConfig, MqttDefaultsApplyToWhatIsLeftOut) {
     EXPECT_EQ(config->mqtt->prefix, "loopwire/gateway");
     EXPECT_FALSE(config->mqtt->writes);  // writes from MQTT are opt-in
     EXPECT_EQ(config->mqtt->client_id, "");
+    EXPECT_FALSE(config->mqtt->tls);
+    EXPECT_EQ(config->mqtt->republish, std::chrono::minutes(5));
+    EXPECT_EQ(config->mqtt->discovery, MqttConfig::Discovery::none);
+    EXPECT_EQ(config->mqtt->discovery_prefix, "homeassistant");
+    EXPECT_EQ(config->mqtt->gateway_name, "gateway");
 
     auto ipv6 = parse(one_device("device = \"tc10@3\"\n") + "[mqtt]\nbroker = \"mqtt://[::1]:1883\"\n");
     ASSERT_TRUE(ipv6) << ipv6.error().message;
@@ -552,8 +557,6 @@ TEST(GatewayConfig, ABadBrokerNamesTheKeyAndTheForm) {
                 StartsWith("plant.toml:9: mqtt.broker: \"tcp://127.0.0.1:1883\" is not a broker address (expected mqtt://"));
     EXPECT_THAT(error_of(device + "[mqtt]\nbroker = \"mqtt://127.0.0.1:99999\"\n"), HasSubstr("is not a broker address"));
     EXPECT_THAT(error_of(device + "[mqtt]\nbroker = \"mqtt://\"\n"), HasSubstr("is not a broker address"));
-    EXPECT_THAT(error_of(device + "[mqtt]\nbroker = \"mqtts://127.0.0.1:8883\"\n"),
-                StartsWith("plant.toml:9: mqtt.broker: \"mqtts://127.0.0.1:8883\": mqtts:// (MQTT over TLS) is not supported yet"));
     EXPECT_THAT(error_of(device + "[mqtt]\nprefix = \"a\"\n"), StartsWith("plant.toml:8: mqtt: missing `broker`"));
 }
 
@@ -563,8 +566,100 @@ TEST(GatewayConfig, ABadMqttPrefixOrAnUnknownMqttKeyIsRefused) {
     EXPECT_THAT(error_of(device + "prefix = \"plant//a\"\n"), HasSubstr("is not a topic prefix"));
     EXPECT_THAT(error_of(device + "prefix = \"/plant\"\n"), HasSubstr("is not a topic prefix"));
     EXPECT_THAT(error_of(device + "writes = \"yes\"\n"), StartsWith("plant.toml:10: mqtt.writes: expected true or false"));
-    EXPECT_THAT(error_of(device + "qos = 2\n"), StartsWith("plant.toml:10: mqtt.qos: unknown key (allowed here: broker, prefix, writes, client_id)"));
+    EXPECT_THAT(error_of(device + "qos = 2\n"), StartsWith("plant.toml:10: mqtt.qos: unknown key (allowed here: broker, prefix, writes, client_id, ca_file, "
+                           "cert_file, key_file, username, password_file, republish, discovery, discovery_prefix)"));
     EXPECT_THAT(error_of("mqtt = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected an [mqtt] table"));
+}
+
+TEST(GatewayConfig, TheGatewayNameGivesTheMqttPrefixAndDiscoveryName) {
+    const std::string device = one_device("device = \"tc10@3\"\n");
+    auto named = parse("[gateway]\nname = \"plant-2\"\n" + device + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\n");
+    ASSERT_TRUE(named) << named.error().message;
+    EXPECT_EQ(named->name, "plant-2");
+    EXPECT_EQ(named->mqtt->prefix, "loopwire/plant-2");
+    EXPECT_EQ(named->mqtt->gateway_name, "plant-2");
+    // Without a name, the prefix's last level, made safe for object ids.
+    auto unnamed = parse(device + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\nprefix = \"site a/gw 1+x\"\n");
+    ASSERT_TRUE(unnamed) << unnamed.error().message;
+    EXPECT_EQ(unnamed->mqtt->gateway_name, "gw_1_x");
+    EXPECT_THAT(error_of("[gateway]\nname = \"my plant\"\n" + device), StartsWith("plant.toml:2: gateway.name: \"my plant\" is not a valid name"));
+    EXPECT_THAT(error_of("[gateway]\nnom = \"x\"\n" + device), StartsWith("plant.toml:2: gateway.nom: unknown key (allowed here: name)"));
+}
+
+TEST(GatewayConfig, MqttPublishingSettingsAreRead) {
+    const std::string device = one_device("device = \"tc10@3\"\n") + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\n";
+    auto config = parse(device + "republish = \"30s\"\ndiscovery = \"homeassistant\"\ndiscovery_prefix = \"ha\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->mqtt->republish, std::chrono::seconds(30));
+    EXPECT_EQ(config->mqtt->discovery, MqttConfig::Discovery::homeassistant);
+    EXPECT_EQ(config->mqtt->discovery_prefix, "ha");
+    auto off = parse(device + "republish = \"off\"\n");
+    ASSERT_TRUE(off) << off.error().message;
+    EXPECT_FALSE(off->mqtt->republish);
+    EXPECT_THAT(error_of(device + "republish = \"10ms\"\n"), StartsWith("plant.toml:10: mqtt.republish: expected at least \"100ms\""));
+    EXPECT_THAT(error_of(device + "republish = \"often\"\n"), StartsWith("plant.toml:10: mqtt.republish: "));
+    EXPECT_THAT(error_of(device + "discovery = \"openhab\"\n"),
+                StartsWith("plant.toml:10: mqtt.discovery: \"openhab\" is not a discovery scheme"));
+    EXPECT_THAT(error_of(device + "discovery_prefix = \"home assistant\"\n"),
+                StartsWith("plant.toml:10: mqtt.discovery_prefix: \"home assistant\" is not a topic prefix"));
+}
+
+// Files beside a configuration that is a file: its folder is where relative names are found.
+class MqttFiles : public ::testing::Test {
+protected:
+    void SetUp() override {
+        std::string pattern = (std::filesystem::temp_directory_path() / "loopwire-config-XXXXXX").string();
+        ASSERT_TRUE(::mkdtemp(pattern.data()));
+        directory_ = pattern;
+    }
+    void TearDown() override {
+        std::error_code ignored;
+        std::filesystem::remove_all(directory_, ignored);
+    }
+    void write(const std::string& name, const std::string& text, std::filesystem::perms perms) {
+        std::ofstream(directory_ / name) << text;
+        std::filesystem::permissions(directory_ / name, perms);
+    }
+    Result<GatewayConfig> parse_here(const std::string& mqtt) {
+        return parse_gateway_config(one_device("device = \"tc10@3\"\n") + "[mqtt]\n" + mqtt, (directory_ / "plant.toml").string(),
+                                    profiles());
+    }
+    std::string error_here(const std::string& mqtt) {
+        auto config = parse_here(mqtt);
+        return config ? std::string("(no error)") : config.error().message;
+    }
+    std::filesystem::path directory_;
+};
+
+constexpr auto owner_only = std::filesystem::perms::owner_read | std::filesystem::perms::owner_write;
+
+TEST_F(MqttFiles, TlsAndAPasswordFromAFileAreRead) {
+    write("ca.crt", "certificate", owner_only | std::filesystem::perms::others_read);
+    write("secret", "s3cret\n", owner_only);
+    auto config = parse_here("broker = \"mqtts://broker.local\"\nca_file = \"ca.crt\"\nusername = \"gw\"\npassword_file = \"secret\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->mqtt->port, 8883);  // MQTT over TLS's port
+    ASSERT_TRUE(config->mqtt->tls);
+    EXPECT_EQ(config->mqtt->tls->ca_file, directory_ / "ca.crt");
+    EXPECT_EQ(config->mqtt->username, "gw");
+    EXPECT_EQ(config->mqtt->password, "s3cret");  // without the newline
+}
+
+TEST_F(MqttFiles, ABadPasswordFileOrTlsFileIsNamed) {
+    write("open", "s3cret\n", owner_only | std::filesystem::perms::others_read);
+    write("empty", "", owner_only);
+    write("ca.crt", "certificate", owner_only);
+    const std::string plain = "broker = \"mqtt://127.0.0.1\"\nusername = \"gw\"\n";
+    EXPECT_THAT(error_here(plain + "password_file = \"missing\"\n"),
+                AllOf(HasSubstr("mqtt.password_file: cannot read"), HasSubstr("missing\" (expected a readable file)")));
+    EXPECT_THAT(error_here(plain + "password_file = \"open\"\n"),
+                AllOf(HasSubstr("mqtt.password_file: "), HasSubstr("is readable by every user; make it private (chmod 600")));
+    EXPECT_THAT(error_here(plain + "password_file = \"empty\"\n"), HasSubstr("mqtt.password_file: "));
+    EXPECT_THAT(error_here(plain + "password = \"inline\"\n"), HasSubstr("mqtt.password: unknown key"));
+    EXPECT_THAT(error_here("broker = \"mqtt://127.0.0.1\"\nca_file = \"ca.crt\"\n"), HasSubstr("mqtt.ca_file: only used over TLS"));
+    EXPECT_THAT(error_here("broker = \"mqtts://127.0.0.1\"\nca_file = \"nope.crt\"\n"), HasSubstr("mqtt.ca_file: cannot read"));
+    EXPECT_THAT(error_here("broker = \"mqtts://127.0.0.1\"\ncert_file = \"ca.crt\"\n"),
+                HasSubstr("cert_file and key_file go together: `key_file` is missing"));
 }
 
 }  // namespace
