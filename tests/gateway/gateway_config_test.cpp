@@ -18,6 +18,7 @@ namespace loopwire::gateway {
 namespace {
 
 namespace fs = std::filesystem;
+using ::testing::AllOf;
 using ::testing::HasSubstr;
 using ::testing::Not;
 using ::testing::StartsWith;
@@ -579,7 +580,7 @@ TEST(GatewayConfig, TheGatewayNameGivesTheMqttPrefixAndDiscoveryName) {
     EXPECT_EQ(named->mqtt->prefix, "loopwire/plant-2");
     EXPECT_EQ(named->mqtt->gateway_name, "plant-2");
     // Without a name, the prefix's last level, made safe for object ids.
-    auto unnamed = parse(device + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\nprefix = \"site a/gw 1+x\"\n");
+    auto unnamed = parse(device + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\nprefix = \"site a/gw 1.x\"\n");
     ASSERT_TRUE(unnamed) << unnamed.error().message;
     EXPECT_EQ(unnamed->mqtt->gateway_name, "gw_1_x");
     EXPECT_THAT(error_of("[gateway]\nname = \"my plant\"\n" + device), StartsWith("plant.toml:2: gateway.name: \"my plant\" is not a valid name"));
