@@ -19,6 +19,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -32,7 +33,7 @@
 namespace {
 
 using namespace loopwire;
-using Clock = std::chrono::steady_clock;
+using SteadyClock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 constexpr std::size_t per_device = 50;
 const std::string prefix = "bench/gw";
@@ -68,7 +69,7 @@ public:
         std::unique_lock lock(mutex_);
         return changed_.wait_for(lock, limit, [&] { return arrivals_[sample] >= count; });
     }
-    void expect(long sample, Clock::time_point sent) {
+    void expect(long sample, SteadyClock::time_point sent) {
         std::lock_guard lock(mutex_);
         sent_[sample] = sent;
     }
@@ -80,15 +81,16 @@ public:
         std::lock_guard lock(mutex_);
         latencies_.clear();
     }
-    Clock::time_point last_arrival() {
+    SteadyClock::time_point last_arrival() {
         std::lock_guard lock(mutex_);
         return last_;
     }
 
 private:
     void arrived(const mosquitto_message& message) {
-        const auto now = Clock::now();
+        const auto now = SteadyClock::now();
         const std::string text(static_cast<const char*>(message.payload), static_cast<std::size_t>(message.payloadlen));
+        if (std::string_view(message.topic).ends_with("/status")) return;  // PREFIX/DEVICE/status, not a value
         const long sample = std::lround(std::stod(text) * 10);  // the value is the sample number / 10
         std::lock_guard lock(mutex_);
         ++arrivals_[sample];
@@ -103,9 +105,9 @@ private:
     std::mutex mutex_;
     std::condition_variable changed_;
     std::map<long, std::size_t> arrivals_;
-    std::map<long, Clock::time_point> sent_;
+    std::map<long, SteadyClock::time_point> sent_;
     std::vector<double> latencies_;
-    Clock::time_point last_{};
+    SteadyClock::time_point last_{};
 };
 
 // Devices of synthetic parameters, sampled with every value set to the sample number.
@@ -132,10 +134,11 @@ public:
         for (std::size_t d = 0; d < devices_.size(); ++d) {
             device::ReadReport report;
             for (const auto& value : devices_[d].values) {
-                device::EngineeringValue engineering;
-                engineering.value = static_cast<double>(number) / 10.0;
-                engineering.raw = static_cast<std::uint16_t>(number);
-                report.readings.push_back({value.parameter, engineering, ""});
+                device::ParameterReading& reading = report.readings.emplace_back();
+                reading.parameter = value.parameter;
+                reading.value.emplace();
+                reading.value->value = static_cast<double>(number) / 10.0;
+                reading.value->raw = static_cast<std::uint16_t>(number);
             }
             device::record_poll(devices_[d], report, true, "", device::MonitorClock::now());
             cache.update(fmt::format("d{:03}", d), devices_[d], std::chrono::system_clock::now());
@@ -178,9 +181,9 @@ int main(int argc, char** argv) {
     config.republish.reset();
     config.client_id = fmt::format("loopwire-bench-{}", ::getpid());
     gateway::MqttBridge bridge(config, writer, cache, {});
-    const auto connect_by = Clock::now() + 10s;
+    const auto connect_by = SteadyClock::now() + 10s;
     while (!bridge.connected()) {
-        if (Clock::now() > connect_by) {
+        if (SteadyClock::now() > connect_by) {
             std::fprintf(stderr, "the bridge did not connect to 127.0.0.1:%d\n", port);
             return 1;
         }
@@ -200,10 +203,10 @@ int main(int argc, char** argv) {
 
     // Latency: 10 samples per second, every parameter changing in each.
     subscriber.clear();
-    const auto latency_end = Clock::now() + seconds;
-    while (Clock::now() < latency_end) {
+    const auto latency_end = SteadyClock::now() + seconds;
+    while (SteadyClock::now() < latency_end) {
         ++sample;
-        subscriber.expect(sample, Clock::now());
+        subscriber.expect(sample, SteadyClock::now());
         plant.sample(cache, sample);
         std::this_thread::sleep_for(100ms);
     }
@@ -218,8 +221,8 @@ int main(int argc, char** argv) {
 
     // Rate: samples back to back for SECONDS, then until the last has arrived.
     const long first = sample + 1;
-    const auto start = Clock::now();
-    while (Clock::now() < start + seconds) plant.sample(cache, ++sample);
+    const auto start = SteadyClock::now();
+    while (SteadyClock::now() < start + seconds) plant.sample(cache, ++sample);
     if (!subscriber.wait(sample, parameters, 120s)) {
         std::fprintf(stderr, "the rate samples did not all arrive\n");
         return 1;
