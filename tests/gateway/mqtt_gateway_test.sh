@@ -45,13 +45,14 @@ gateway_pid=$LAST_PID
 topic=loopwire/plant1/oven
 
 # sub TOPIC : the first (retained) message on TOPIC, 10 s at most.
-sub() { timeout 15 mosquitto_sub -h 127.0.0.1 -p "$port" -t "$1" -C 1 -W 10 2>&1; }
+first_message=(mosquitto_sub -h 127.0.0.1 -p "$port" -C 1 -W 10 -t)
+sub() { timeout 15 "${first_message[@]}" "$1" 2>&1; }
 
-check gateway-online 0 "online" sub loopwire/plant1/status
-check device-online 0 "online" sub "$topic/status"
+check gateway-online 0 "online" "${first_message[@]}" loopwire/plant1/status
+check device-online 0 "online" "${first_message[@]}" "$topic/status"
 value=$(sub "$topic/measured_value")
 if [[ $value =~ ^-?[0-9]+(\.[0-9]+)?$ ]]; then count_pass; else echo "FAIL measured-value-is-a-number: '$value'"; failures=$((failures + 1)); fi
-check meta-has-the-unit 0 '"unit"' sub "$topic/set_point/meta"
+check meta-has-the-unit 0 '"unit"' "${first_message[@]}" "$topic/set_point/meta"
 
 # A set from mosquitto_pub: answered on set/result, and the polls read it back.
 timeout 15 mosquitto_sub -h 127.0.0.1 -p "$port" -t "$topic/set_point/set/result" -C 1 -W 10 >"$WORK_DIR/result.out" 2>&1 &
@@ -86,6 +87,6 @@ check discovery-documents 0 "checked, 0 problems" $python "$(dirname "$0")/ha_di
 # SIGTERM: a clean stop leaves "offline" retained for the gateway and each device.
 kill -TERM "$gateway_pid"
 wait "$gateway_pid"
-check gateway-offline 0 "offline" sub loopwire/plant1/status
-check device-offline 0 "offline" sub "$topic/status"
+check gateway-offline 0 "offline" "${first_message[@]}" loopwire/plant1/status
+check device-offline 0 "offline" "${first_message[@]}" "$topic/status"
 finish
