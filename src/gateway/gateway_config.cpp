@@ -496,11 +496,14 @@ Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& 
 // ---------------------------------------------------------------------------------------------
 // [mqtt]
 
-// "mqtt://HOST[:PORT]"; the port defaults to MQTT's 1883.
-std::optional<HostPort> split_broker(std::string_view text) {
-    constexpr std::string_view scheme = "mqtt://";
-    if (text.substr(0, scheme.size()) != scheme) return std::nullopt;
-    text.remove_prefix(scheme.size());
+// "mqtt://HOST[:PORT]" or "mqtts://HOST[:PORT]"; the port defaults to MQTT's 1883, or 8883 over
+// TLS (the ports IANA assigned to MQTT).
+std::optional<HostPort> split_broker(std::string_view text, bool& tls) {
+    constexpr std::string_view plain = "mqtt://";
+    constexpr std::string_view secure = "mqtts://";
+    tls = text.substr(0, secure.size()) == secure;
+    if (!tls && text.substr(0, plain.size()) != plain) return std::nullopt;
+    text.remove_prefix(tls ? secure.size() : plain.size());
     if (!text.empty() && text.back() == '/') text.remove_suffix(1);
     if (text.empty() || text.find('/') != std::string_view::npos) return std::nullopt;
     const bool bracketed = text.front() == '[';
@@ -514,7 +517,7 @@ std::optional<HostPort> split_broker(std::string_view text) {
             host = host.substr(1, host.size() - 2);
         }
         if (host.empty()) return std::nullopt;
-        return HostPort{std::move(host), 1883};
+        return HostPort{std::move(host), static_cast<std::uint16_t>(tls ? 8883 : 1883)};
     }
     auto address = split_listen(text);
     if (!address || address->port == 0) return std::nullopt;
@@ -528,30 +531,150 @@ bool valid_prefix(std::string_view prefix) {
     return std::none_of(prefix.begin(), prefix.end(), [](char c) { return c == '+' || c == '#' || c == '\0'; });
 }
 
-Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::table& root) {
+// A file named in the configuration: relative paths are taken from the configuration's folder.
+std::filesystem::path beside_config(const Context& ctx, const std::string& file) {
+    const std::filesystem::path path(file);
+    return path.is_absolute() ? path : std::filesystem::path(ctx.source).parent_path() / path;
+}
+
+// An optional file key ([mqtt] ca_file, ...) that must name a readable regular file.
+Result<std::filesystem::path> readable_file(const Context& ctx, const toml::table& table, std::string_view key) {
+    auto name = optional_value<std::string>(ctx, table, "mqtt", key, "a file name (a string)");
+    if (!name) return name.error();
+    if (!*name) return std::filesystem::path{};
+    const auto path = beside_config(ctx, **name);
+    std::ifstream in(path, std::ios::binary);
+    std::error_code error;
+    if (!std::filesystem::is_regular_file(path, error) || !in) {
+        return ctx.fail(source_of(table, key), key_path("mqtt", key),
+                        fmt::format("cannot read \"{}\" (expected a readable file)", path.string()));
+    }
+    return path;
+}
+
+// [mqtt] password_file: the password is kept out of the TOML (which people share and paste),
+// in a file only its owner may read.
+Result<std::string> read_password(const Context& ctx, const toml::table& table) {
+    auto path = readable_file(ctx, table, "password_file");
+    if (!path) return path.error();
+    if (path->empty()) return std::string();
+    const auto where = source_of(table, "password_file");
+    std::error_code error;
+    const auto permissions = std::filesystem::status(*path, error).permissions();
+    if (!error && (permissions & std::filesystem::perms::others_read) != std::filesystem::perms::none) {
+        return ctx.fail(where, "mqtt.password_file",
+                        fmt::format("\"{}\" is readable by every user; make it private (chmod 600 {})", path->string(),
+                                    path->string()));
+    }
+    std::ifstream in(*path, std::ios::binary);
+    std::string password;
+    std::getline(in, password);  // the first line; a trailing newline is not part of it
+    if (!password.empty() && password.back() == '\r') password.pop_back();
+    if (password.empty()) {
+        return ctx.fail(where, "mqtt.password_file", fmt::format("\"{}\" is empty (expected the password on its first line)",
+                                                                path->string()));
+    }
+    return password;
+}
+
+Result<void> parse_mqtt_security(const Context& ctx, const toml::table& table, bool tls, MqttConfig& config) {
+    auto ca_file = readable_file(ctx, table, "ca_file");
+    if (!ca_file) return ca_file.error();
+    auto cert_file = readable_file(ctx, table, "cert_file");
+    if (!cert_file) return cert_file.error();
+    auto key_file = readable_file(ctx, table, "key_file");
+    if (!key_file) return key_file.error();
+    for (const auto key : {"ca_file", "cert_file", "key_file"}) {
+        if (!tls && table.get(key)) {
+            return ctx.fail(source_of(table, key), key_path("mqtt", key),
+                            fmt::format("only used over TLS; the broker is {} (write mqtts://... to use TLS)", config.broker));
+        }
+    }
+    if (cert_file->empty() != key_file->empty()) {
+        const auto* missing = cert_file->empty() ? "cert_file" : "key_file";
+        return ctx.fail(table.source(), "mqtt", fmt::format("cert_file and key_file go together: `{}` is missing", missing));
+    }
+    if (tls) config.tls = MqttTls{std::move(*ca_file), std::move(*cert_file), std::move(*key_file)};
+    auto username = optional_value<std::string>(ctx, table, "mqtt", "username", "a string such as \"gateway\"");
+    if (!username) return username.error();
+    config.username = username->value_or("");
+    auto password = read_password(ctx, table);
+    if (!password) return password.error();
+    config.password = std::move(*password);
+    if (!config.password.empty() && config.username.empty()) {
+        return ctx.fail(source_of(table, "password_file"), "mqtt.password_file", "a password needs a `username` too");
+    }
+    return {};
+}
+
+Result<void> parse_mqtt_publishing(const Context& ctx, const toml::table& table, MqttConfig& config) {
+    auto republish = optional_value<std::string>(ctx, table, "mqtt", "republish", "a duration such as \"5m\", or \"off\"");
+    if (!republish) return republish.error();
+    if (*republish == "off") {
+        config.republish.reset();
+    } else if (*republish) {
+        auto every = optional_duration(ctx, table, "mqtt", "republish");
+        if (!every) return every.error();
+        if (**every < std::chrono::milliseconds(100)) {
+            return ctx.fail(source_of(table, "republish"), "mqtt.republish",
+                            "expected at least \"100ms\" (or \"off\": values are then published only when they change)");
+        }
+        config.republish = **every;
+    }
+    auto discovery = optional_value<std::string>(ctx, table, "mqtt", "discovery", "\"homeassistant\" or \"none\"");
+    if (!discovery) return discovery.error();
+    if (*discovery == "homeassistant") {
+        config.discovery = MqttConfig::Discovery::homeassistant;
+    } else if (*discovery && **discovery != "none") {
+        return ctx.fail(source_of(table, "discovery"), "mqtt.discovery",
+                        fmt::format("\"{}\" is not a discovery scheme (expected \"homeassistant\" or \"none\")", **discovery));
+    }
+    auto discovery_prefix = optional_value<std::string>(ctx, table, "mqtt", "discovery_prefix", "a string such as \"homeassistant\"");
+    if (!discovery_prefix) return discovery_prefix.error();
+    if (*discovery_prefix) {
+        const auto& text = **discovery_prefix;
+        if (!valid_prefix(text) || text.find(' ') != std::string::npos) {
+            return ctx.fail(source_of(table, "discovery_prefix"), "mqtt.discovery_prefix",
+                            fmt::format("\"{}\" is not a topic prefix (expected levels joined by '/', none empty, "
+                                        "without '+', '#' or spaces, e.g. \"homeassistant\")", text));
+        }
+        config.discovery_prefix = text;
+    }
+    return {};
+}
+
+// The prefix's last level with anything but letters, digits, '-' and '_' made '_'.
+std::string last_level_name(const std::string& prefix) {
+    std::string name = prefix.substr(prefix.rfind('/') + 1);
+    std::replace_if(name.begin(), name.end(), [](char c) { return !name_character(c); }, '_');
+    return name;
+}
+
+Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::table& root, const std::string& gateway_name) {
     const toml::node* node = root.get("mqtt");
     if (!node) return std::optional<MqttConfig>{};
     const auto* table = node->as_table();
     if (!table) return ctx.fail(node->source(), "mqtt", "expected an [mqtt] table");
-    if (auto keys = check_keys(ctx, *table, "mqtt", {"broker", "prefix", "writes", "client_id"}); !keys)
+    if (auto keys = check_keys(ctx, *table, "mqtt",
+                               {"broker", "prefix", "writes", "client_id", "ca_file", "cert_file", "key_file", "username",
+                                "password_file", "republish", "discovery", "discovery_prefix"});
+        !keys)
         return keys.error();
     MqttConfig config;
     auto broker = required_string(ctx, *table, "mqtt", "broker", "\"mqtt://127.0.0.1:1883\"");
     if (!broker) return broker.error();
-    if (broker->rfind("mqtts://", 0) == 0) {
-        return ctx.fail(source_of(*table, "broker"), "mqtt.broker",
-                        fmt::format("\"{}\": mqtts:// (MQTT over TLS) is not supported yet; only mqtt:// (plain TCP, "
-                                    "e.g. to a broker on the same machine or a trusted network)", *broker));
-    }
-    auto address = split_broker(*broker);
+    bool tls = false;
+    auto address = split_broker(*broker, tls);
     if (!address) {
         return ctx.fail(source_of(*table, "broker"), "mqtt.broker",
-                        fmt::format("\"{}\" is not a broker address (expected mqtt://HOST or mqtt://HOST:PORT with a "
-                                    "port 1..65535, e.g. \"mqtt://127.0.0.1:1883\")", *broker));
+                        fmt::format("\"{}\" is not a broker address (expected mqtt://HOST[:PORT], or mqtts://HOST[:PORT] "
+                                    "for TLS, with a port 1..65535, e.g. \"mqtt://127.0.0.1:1883\")", *broker));
     }
     config.broker = *broker;
     config.host = std::move(address->host);
     config.port = address->port;
+    if (auto security = parse_mqtt_security(ctx, *table, tls, config); !security) return security.error();
+    if (!gateway_name.empty()) config.prefix = "loopwire/" + gateway_name;
     auto prefix = optional_value<std::string>(ctx, *table, "mqtt", "prefix", "a string such as \"loopwire/plant1\"");
     if (!prefix) return prefix.error();
     if (*prefix) {
@@ -562,6 +685,7 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
         }
         config.prefix = std::move(**prefix);
     }
+    config.gateway_name = gateway_name.empty() ? last_level_name(config.prefix) : gateway_name;
     auto writes = optional_value<bool>(ctx, *table, "mqtt", "writes", "true or false");
     if (!writes) return writes.error();
     config.writes = writes->value_or(config.writes);
@@ -574,6 +698,7 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
         }
         config.client_id = std::move(**client_id);
     }
+    if (auto publishing = parse_mqtt_publishing(ctx, *table, config); !publishing) return publishing.error();
     return std::optional<MqttConfig>{std::move(config)};
 }
 
@@ -718,6 +843,15 @@ Result<std::optional<HttpConfig>> parse_http(const Context& ctx, const toml::tab
                                     "http.token_file too (or listen on 127.0.0.1)", config.host));
     }
     return std::optional<HttpConfig>{std::move(config)};
+
+// [gateway]: the gateway's own name.
+Result<std::string> parse_gateway_name(const Context& ctx, const toml::table& root) {
+    const toml::node* node = root.get("gateway");
+    if (!node) return std::string();
+    const auto* table = node->as_table();
+    if (!table) return ctx.fail(node->source(), "gateway", "expected a [gateway] table");
+    if (auto keys = check_keys(ctx, *table, "gateway", {"name"}); !keys) return keys.error();
+    return checked_name(ctx, *table, "gateway");
 }
 
 Result<toml::table> parse_toml(std::string_view text, const std::string& source) {
@@ -753,7 +887,7 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto root = parse_toml(text, source);
     if (!root) return root.error();
     const Context ctx{source, profiles};
-    if (auto keys = check_keys(ctx, *root, "", {"lines", "modbus_tcp", "log", "mqtt", "history", "http"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, *root, "", {"gateway", "lines", "modbus_tcp", "log", "mqtt", "history", "http"}); !keys) return keys.error();
     GatewayConfig config;
     config.source = source;
     Registry registry;
@@ -766,7 +900,10 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto log = parse_log(ctx, *root);
     if (!log) return log.error();
     config.log = *log;
-    auto mqtt = parse_mqtt(ctx, *root);
+    auto name = parse_gateway_name(ctx, *root);
+    if (!name) return name.error();
+    config.name = std::move(*name);
+    auto mqtt = parse_mqtt(ctx, *root, config.name);
     if (!mqtt) return mqtt.error();
     config.mqtt = std::move(*mqtt);
     auto history = parse_history(ctx, *root);

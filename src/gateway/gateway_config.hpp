@@ -60,14 +60,31 @@ struct LogConfig {
 };
 
 // [mqtt]: the gateway publishes its values to a broker and takes writes from it
-// (gateway/mqtt_bridge.hpp). Plain MQTT over TCP only for now (no TLS).
+// (gateway/mqtt_bridge.hpp), over plain TCP (mqtt://) or TLS (mqtts://).
+struct MqttTls {
+    std::filesystem::path ca_file;    // empty: the system's certificate store (/etc/ssl/certs)
+    std::filesystem::path cert_file;  // the gateway's own certificate and key, for brokers that
+    std::filesystem::path key_file;   // ask clients for one; both or neither
+};
+
 struct MqttConfig {
     std::string broker;               // as written, "mqtt://127.0.0.1:1883", for messages
     std::string host;
     std::uint16_t port = 1883;
+    std::optional<MqttTls> tls;       // set exactly for mqtts://
+    std::string username;             // empty: no credentials sent
+    std::string password;             // read from `password_file`, never written in the TOML
     std::string prefix = "loopwire/gateway";  // topic levels without '+', '#' or empty levels
     bool writes = false;              // `PREFIX/DEVICE/PARAMETER/set` refused unless true
     std::string client_id;            // empty: the broker gets "loopwire-" and the prefix
+    // Every value is published when it changes and again at least this often; none: only on
+    // changes (and on each connection).
+    std::optional<std::chrono::milliseconds> republish = std::chrono::minutes(5);
+    enum class Discovery { none, homeassistant };
+    Discovery discovery = Discovery::none;
+    std::string discovery_prefix = "homeassistant";
+    // The gateway's name in discovery ids: [gateway] name, else the prefix's last level.
+    std::string gateway_name = "gateway";
 };
 
 // [history]: every change of a polled value, and a heartbeat sample of each, kept in an SQLite
@@ -96,6 +113,7 @@ struct HttpConfig {
 
 struct GatewayConfig {
     std::string source;  // the file it came from, for messages
+    std::string name;    // [gateway] name: in MQTT's default prefix and discovery ids; may be empty
     std::vector<LineConfig> lines;
     ModbusTcpConfig modbus_tcp;
     LogConfig log;

@@ -10,6 +10,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string_view>
 #include <stop_token>
 #include <thread>
@@ -17,6 +18,8 @@
 #include <fmt/format.h>
 #include <mosquitto.h>
 #include <nlohmann/json.hpp>
+
+#include "gateway/mqtt_documents.hpp"
 
 
 namespace loopwire::gateway {
@@ -49,16 +52,37 @@ std::string device_status_word(const std::string& status) {
     return status;
 }
 
-nlohmann::json bound_json(const device::Bound& bound) {
-    if (const auto* number = std::get_if<double>(&bound)) return *number;
-    return nlohmann::json{{"parameter", std::get<std::string>(bound)}};
-}
-
 struct Publication {
     std::string topic;
     std::string payload;
     bool retained = true;
     int qos = 0;
+    bool periodic = false;  // a value: published again every `republish` interval
+};
+
+// What the broker sent last on a retained topic, and whether it is a value.
+struct RetainedTopic {
+    std::string payload;
+    bool periodic = false;
+};
+
+// A QoS 1 command already taken in this session. The broker numbers its messages to a client
+// with packet identifiers it does not reuse until they are acknowledged; a message redelivered
+// after a reconnect (MQTT 3.1.1, 4.4: the DUP flag) carries the same identifier, topic and
+// payload. libmosquitto acknowledges and passes on every copy (it does not expose the DUP flag),
+// so the bridge remembers the last ones.
+struct TakenCommand {
+    int mid = 0;
+    std::string topic;
+    std::string payload;
+    bool operator==(const TakenCommand&) const = default;
+};
+constexpr std::size_t remembered_commands = 1024;
+
+// What the last poll said about a device.
+struct DeviceSeen {
+    std::string status;  // "ok", "partial", "no-reply"
+    std::string error;
 };
 
 struct WriteCommand {
@@ -78,15 +102,23 @@ struct MqttBridge::State {
     mosquitto* client = nullptr;
     std::atomic<bool> is_connected{false};
 
-    std::mutex mutex;  // guards the two queues
+    std::mutex mutex;  // guards the two queues and what the polls said about the devices
     std::condition_variable_any commands_arrived;
     std::deque<Publication> outgoing;  // from the value stream and the writes
     std::deque<WriteCommand> commands;  // from the broker, for the worker
+    std::map<std::string, DeviceSeen> devices;  // by configured name
+    // The poll threads' own (one subscriber's callbacks never overlap): each parameter's last
+    // error, and the parameters announced to Home Assistant.
+    std::map<std::string, std::string> last_errors;
+    std::set<std::string> discovered;
 
     // The network thread's own: every retained topic's payload, republished on each connection.
-    std::map<std::string, std::string> retained;
+    std::map<std::string, RetainedTopic> retained;
+    std::deque<TakenCommand> taken;  // the last commands of this session, oldest first
     bool told_unreachable = false;
+    bool told_refused = false;
     bool just_connected = false;  // set by on_connect, acted on by the network loop
+    std::chrono::steady_clock::time_point next_republish{};
 
     std::jthread worker;
     std::jthread network;
@@ -110,21 +142,46 @@ struct MqttBridge::State {
     void on_change(const ValueChange& change) {
         assert(topic_level(change.device) && (change.about_device() || topic_level(change.parameter)));
         if (change.about_device()) {
-            queue({topic(change.device, "status"), device_status_word(change.status), true, qos_at_least_once});
+            std::lock_guard lock(mutex);
+            devices[change.device] = {change.status, change.error};
+            outgoing.push_back({topic(change.device, "status"), device_status_word(change.status), true, qos_at_least_once});
             return;
         }
         const std::string base = topic(change.device, change.parameter);
-        nlohmann::json meta{{"unit", change.unit}, {"status", change.status}, {"error", change.error}};
-        if (const WritableDevice* device = writer->find(change.device)) {
-            if (const device::Parameter* parameter = device->address.profile->find(change.parameter)) {
-                meta["writable"] = parameter->writable;
-                if (parameter->min) meta["min"] = bound_json(*parameter->min);
-                if (parameter->max) meta["max"] = bound_json(*parameter->max);
-            }
+        const WritableDevice* device = writer->find(change.device);
+        const device::Parameter* parameter = device ? device->address.profile->find(change.parameter) : nullptr;
+        std::string& last_error = last_errors[base];
+        if (!change.error.empty()) last_error = change.error;
+        const nlohmann::json meta = meta_document(change, parameter, last_error);
+        std::optional<DiscoveryDocument> discovery;
+        if (config.discovery == MqttConfig::Discovery::homeassistant && parameter && discovered.insert(base).second) {
+            discovery = discovery_document(config, change.device, *device->address.profile, *parameter);
         }
         std::lock_guard lock(mutex);
-        outgoing.push_back({base, change.value ? change.text : change.status, true, 0});
+        outgoing.push_back({base, change.value ? change.text : change.status, true, 0, true});
         outgoing.push_back({base + "/meta", meta.dump(), true, 0});
+        if (discovery) outgoing.push_back({discovery->topic, discovery->config.dump(), true, qos_at_least_once});
+    }
+
+    // TLS (mqtts://) and credentials. The files were checked when the configuration was read; a
+    // failure here (a certificate libmosquitto cannot use) is reported and the bridge keeps trying,
+    // as with a broker that cannot be reached.
+    void configure_security() {
+            State& s = *this;
+        if (s.config.tls) {
+            const auto& tls = *s.config.tls;
+            const std::string ca = tls.ca_file.string();
+            const std::string cert = tls.cert_file.string();
+            const std::string key = tls.key_file.string();
+            const int rc = mosquitto_tls_set(s.client, ca.empty() ? nullptr : ca.c_str(), ca.empty() ? "/etc/ssl/certs" : nullptr,
+                                             cert.empty() ? nullptr : cert.c_str(), key.empty() ? nullptr : key.c_str(), nullptr);
+            if (rc != MOSQ_ERR_SUCCESS) s.say(fmt::format("cannot use the TLS files: {}", mosquitto_strerror(rc)));
+        }
+        if (!s.config.username.empty()) {
+            const int rc = mosquitto_username_pw_set(s.client, s.config.username.c_str(),
+                                                     s.config.password.empty() ? nullptr : s.config.password.c_str());
+            if (rc != MOSQ_ERR_SUCCESS) s.say(fmt::format("cannot use the credentials: {}", mosquitto_strerror(rc)));
+        }
     }
 
     // --- the network thread ---------------------------------------------------------------------
@@ -136,6 +193,8 @@ struct MqttBridge::State {
                                 publication.payload.data(), publication.qos, publication.retained);
     }
 
+    // Sends what was queued. While the broker is away only the retained picture is brought up
+    // to date: the last value of each topic wins, and goes out on the next connection.
     void send_queued() {
         std::deque<Publication> batch;
         {
@@ -145,21 +204,43 @@ struct MqttBridge::State {
         for (auto& publication : batch) {
             if (publication.retained) {
                 auto& last = retained[publication.topic];
-                if (last == publication.payload) continue;  // a meta or status that did not change
-                last = publication.payload;
+                // A meta or status that did not change; a value the polls found again unchanged
+                // never arrives here (the value cache only passes changes).
+                if (last.payload == publication.payload && !publication.periodic) continue;
+                last = {publication.payload, publication.periodic};
             }
             if (is_connected.load()) publish(publication);
+        }
+    }
+
+    // Every value again, at least once per `republish`: a subscriber that missed a retained
+    // message, or a broker that lost it, catches up without waiting for a change.
+    void republish_when_due() {
+        if (!config.republish || !is_connected.load()) return;
+        const auto now = std::chrono::steady_clock::now();
+        if (now < next_republish) return;
+        next_republish = now + *config.republish;
+        for (const auto& [name, topic_state] : retained) {
+            if (topic_state.periodic) publish({name, topic_state.payload, true, 0});
         }
     }
 
     // In mosquitto_loop, holding libmosquitto's callback lock: only notes the connection.
     // Publishing from here would take the client's other locks in the opposite order to a
     // publish outside a callback (ThreadSanitizer reports the inversion); announce() does it.
-    void on_connect(int code) {
+    void on_connect(int code, int flags) {
         if (code != 0) {
-            say(fmt::format("the broker refused the connection: {}", mosquitto_connack_string(code)));
+            // Said once until a connection succeeds; the loop keeps trying with back-off (the
+            // broker's password file may be fixed meanwhile).
+            if (!std::exchange(told_refused, true)) {
+                say(fmt::format("the broker refused the connection: {}; retrying in the background",
+                                mosquitto_connack_string(code)));
+            }
             return;
         }
+        // CONNACK's session-present flag (MQTT 3.1.1, 3.2.2.2): a new session cannot redeliver
+        // anything, and the broker numbers its messages afresh.
+        if ((flags & 1) == 0) taken.clear();
         just_connected = true;
     }
 
@@ -169,12 +250,24 @@ struct MqttBridge::State {
         send_queued();  // not connected yet: brings the retained picture up to date, sends nothing
         is_connected.store(true);
         told_unreachable = false;
+        told_refused = false;
         say("connected");
         const std::string status = config.prefix + "/status";
         publish({status, "online", true, qos_at_least_once});
         const std::string commands_topic = config.prefix + "/+/+/set";
         (void)mosquitto_subscribe(client, nullptr, commands_topic.c_str(), qos_at_least_once);
-        for (const auto& [topic, payload] : retained) publish({topic, payload, true, 0});
+        for (const auto& [name, topic_state] : retained) publish({name, topic_state.payload, true, 0});
+        if (config.republish) next_republish = std::chrono::steady_clock::now() + *config.republish;
+    }
+
+    // Whether the command is a copy of one taken earlier in this session; remembers it if not.
+    bool redelivered(const mosquitto_message& message, const std::string& payload) {
+        if (message.qos == 0) return false;  // QoS 0 has no identifier and is never sent twice
+        TakenCommand command{message.mid, message.topic, payload};
+        if (std::find(taken.begin(), taken.end(), command) != taken.end()) return true;
+        taken.push_back(std::move(command));
+        if (taken.size() > remembered_commands) taken.pop_front();
+        return false;
     }
 
     void on_message(const mosquitto_message& message) {
@@ -188,9 +281,13 @@ struct MqttBridge::State {
         const auto first = rest.find('/');
         const auto second = first == std::string::npos ? first : rest.find('/', first + 1);
         if (second == std::string::npos || rest.substr(second) != "/set") return;
-        WriteCommand command{rest.substr(0, first), rest.substr(first + 1, second - first - 1),
-                             std::string(static_cast<const char*>(message.payload),
-                                         static_cast<std::size_t>(std::max(message.payloadlen, 0)))};
+        std::string payload(static_cast<const char*>(message.payload), static_cast<std::size_t>(std::max(message.payloadlen, 0)));
+        if (redelivered(message, payload)) {
+            say(fmt::format("{} = {} delivered again (message {}): already taken, not written twice", topic, payload,
+                            message.mid));
+            return;
+        }
+        WriteCommand command{rest.substr(0, first), rest.substr(first + 1, second - first - 1), std::move(payload)};
         std::lock_guard lock(mutex);
         commands.push_back(std::move(command));
         commands_arrived.notify_all();
@@ -223,6 +320,7 @@ struct MqttBridge::State {
                 have_socket = true;
             }
             send_queued();
+            republish_when_due();
             const int rc = mosquitto_loop(client, loop_timeout_ms, 1);
             if (std::exchange(just_connected, false)) {
                 announce();
@@ -237,9 +335,19 @@ struct MqttBridge::State {
             }
         }
         if (!have_socket || !is_connected.load()) return;
-        // A clean disconnect does not fire the will: say so ourselves, then give the broker a
-        // moment to take it.
+        say_goodbye();
+    }
+
+    // A clean disconnect does not fire the will: the gateway and each of its devices say
+    // "offline" themselves, then the broker gets a moment to take it.
+    void say_goodbye() {
         send_queued();
+        std::vector<std::string> names;
+        {
+            std::lock_guard lock(mutex);
+            for (const auto& [name, seen] : devices) names.push_back(name);
+        }
+        for (const auto& name : names) publish({topic(name, "status"), "offline", true, qos_at_least_once});
         publish({config.prefix + "/status", "offline", true, qos_at_least_once});
         (void)mosquitto_disconnect(client);
         const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(2);
@@ -251,11 +359,24 @@ struct MqttBridge::State {
 
     // --- the worker thread ----------------------------------------------------------------------
 
+    // Why a write to `device` cannot go now: its polls find it silent, so the line scheduler has
+    // it in back-off. Answered at once rather than left to time out on the line.
+    std::optional<std::string> not_answering(const std::string& device) {
+        std::lock_guard lock(mutex);
+        const auto found = devices.find(device);
+        if (found == devices.end() || found->second.status != "no-reply") return std::nullopt;
+        return fmt::format("device {} does not answer ({}); nothing was sent: write again once {} is \"online\"", device,
+                           found->second.error.empty() ? "its polls time out" : found->second.error,
+                           topic(device, "status"));
+    }
+
     void execute(const WriteCommand& command) {
         nlohmann::json result;
         std::string error;
         if (!config.writes) {
             error = "writes are off ([mqtt] writes = false)";
+        } else if (auto silent = writer->find(command.device) ? not_answering(command.device) : std::nullopt) {
+            error = *silent;
         } else if (auto written = writer->write(command.device, {{command.parameter, command.text}}); !written) {
             error = written.error().message;
         }
@@ -293,11 +414,15 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
     s.log = std::move(log);
     s.writer = &writer;
     const std::string id = s.config.client_id.empty() ? "loopwire-" + s.config.prefix : s.config.client_id;
-    s.client = mosquitto_new(id.c_str(), true, &s);
+    // A persistent session (clean session off, MQTT 3.1.1, 3.1.2.4): the broker keeps the
+    // subscription and the QoS 1 commands sent while the connection is down, and redelivers the
+    // ones not yet acknowledged; on_message takes each only once.
+    s.client = mosquitto_new(id.c_str(), false, &s);
     if (!s.client) throw std::bad_alloc();
+    s.configure_security();
     // Called on the network thread, inside mosquitto_loop.
-    mosquitto_connect_callback_set(s.client, [](mosquitto*, void* state, int code) {
-        static_cast<State*>(state)->on_connect(code);
+    mosquitto_connect_with_flags_callback_set(s.client, [](mosquitto*, void* state, int code, int flags) {
+        static_cast<State*>(state)->on_connect(code, flags);
     });
     mosquitto_message_callback_set(s.client, [](mosquitto*, void* state, const mosquitto_message* message) {
         if (message) static_cast<State*>(state)->on_message(*message);

@@ -8,10 +8,15 @@
 //   PREFIX/status                      "online"; "offline" on a clean stop and as the last will
 //   PREFIX/DEVICE/status               "online", "offline" (no reply) or "error" (partial)
 //   PREFIX/DEVICE/PARAMETER            the value in engineering units, or its status when none
-//   PREFIX/DEVICE/PARAMETER/meta       JSON: unit, writable, min/max, status, error
-//   PREFIX/DEVICE/PARAMETER/set        subscribed (QoS 1): a value to write; retained ones ignored
+//   PREFIX/DEVICE/PARAMETER/meta       JSON: unit, decimals, writable, min, max, enum labels,
+//                                      mnemonic, status, error, last_error (mqtt_documents.hpp)
+//   PREFIX/DEVICE/PARAMETER/set        subscribed (QoS 1): a value to write; retained ones and
+//                                      redeliveries of one already taken are ignored
 //   PREFIX/DEVICE/PARAMETER/set/result {"ok":true,"value":"..."} or {"ok":false,"error":"..."}
-// All but set/result are retained.
+//   DISCOVERY/COMPONENT/ID/config      with discovery = "homeassistant": Home Assistant's documents
+// All but set/result are retained. Values go out when they change and again every `republish`.
+// On a clean stop every PREFIX/DEVICE/status and PREFIX/status say "offline"; a write to a
+// device whose polls find it silent is refused at once (it would only wait out the line).
 //
 // Threads: the value stream's callback (on the poll threads) only queues. One network thread
 // owns the libmosquitto client: it connects, reconnects with back-off, publishes what was queued,

@@ -110,6 +110,10 @@ struct IdentificationCheck {
 struct Profile {
     std::string id;
     std::string title;
+    // Who makes the device and its model name (Home Assistant's device block); empty when the
+    // manual does not say.
+    std::string manufacturer;
+    std::string model;
     std::string manual_file;
     std::string manual_document;
     std::vector<std::string> protocols;

@@ -176,6 +176,8 @@ Profile profile_from_document(const Json& document) {
     Profile profile;
     profile.id = document.at("id").get<std::string>();
     profile.title = document.at("title").get<std::string>();
+    profile.manufacturer = document.value("manufacturer", std::string());
+    profile.model = document.value("model", std::string());
     profile.manual_file = document.at("manual").at("file").get<std::string>();
     profile.manual_document = document.at("manual").at("document").get<std::string>();
     read_line(document, profile);

@@ -169,7 +169,7 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, speed, seed, devices)");
 
     const std::string top = error_of(one_device("device = \"tc10@3\"\n") + "[modbus]\nlisten = \"127.0.0.1:1502\"\n");
-    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: lines, modbus_tcp, log, mqtt, history, http)");
+    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt, history, http)");
 
     const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
     EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: listen, writes, enabled, max_age)");
@@ -541,6 +541,11 @@ TEST(GatewayConfig, MqttDefaultsApplyToWhatIsLeftOut) {
     EXPECT_EQ(config->mqtt->prefix, "loopwire/gateway");
     EXPECT_FALSE(config->mqtt->writes);  // writes from MQTT are opt-in
     EXPECT_EQ(config->mqtt->client_id, "");
+    EXPECT_FALSE(config->mqtt->tls);
+    EXPECT_EQ(config->mqtt->republish, std::chrono::minutes(5));
+    EXPECT_EQ(config->mqtt->discovery, MqttConfig::Discovery::none);
+    EXPECT_EQ(config->mqtt->discovery_prefix, "homeassistant");
+    EXPECT_EQ(config->mqtt->gateway_name, "gateway");
 
     auto ipv6 = parse(one_device("device = \"tc10@3\"\n") + "[mqtt]\nbroker = \"mqtt://[::1]:1883\"\n");
     ASSERT_TRUE(ipv6) << ipv6.error().message;
@@ -553,8 +558,6 @@ TEST(GatewayConfig, ABadBrokerNamesTheKeyAndTheForm) {
                 StartsWith("plant.toml:9: mqtt.broker: \"tcp://127.0.0.1:1883\" is not a broker address (expected mqtt://"));
     EXPECT_THAT(error_of(device + "[mqtt]\nbroker = \"mqtt://127.0.0.1:99999\"\n"), HasSubstr("is not a broker address"));
     EXPECT_THAT(error_of(device + "[mqtt]\nbroker = \"mqtt://\"\n"), HasSubstr("is not a broker address"));
-    EXPECT_THAT(error_of(device + "[mqtt]\nbroker = \"mqtts://127.0.0.1:8883\"\n"),
-                StartsWith("plant.toml:9: mqtt.broker: \"mqtts://127.0.0.1:8883\": mqtts:// (MQTT over TLS) is not supported yet"));
     EXPECT_THAT(error_of(device + "[mqtt]\nprefix = \"a\"\n"), StartsWith("plant.toml:8: mqtt: missing `broker`"));
 }
 
@@ -564,152 +567,12 @@ TEST(GatewayConfig, ABadMqttPrefixOrAnUnknownMqttKeyIsRefused) {
     EXPECT_THAT(error_of(device + "prefix = \"plant//a\"\n"), HasSubstr("is not a topic prefix"));
     EXPECT_THAT(error_of(device + "prefix = \"/plant\"\n"), HasSubstr("is not a topic prefix"));
     EXPECT_THAT(error_of(device + "writes = \"yes\"\n"), StartsWith("plant.toml:10: mqtt.writes: expected true or false"));
-    EXPECT_THAT(error_of(device + "qos = 2\n"), StartsWith("plant.toml:10: mqtt.qos: unknown key (allowed here: broker, prefix, writes, client_id)"));
+    EXPECT_THAT(error_of(device + "qos = 2\n"), StartsWith("plant.toml:10: mqtt.qos: unknown key (allowed here: broker, prefix, writes, client_id, ca_file, "
+                           "cert_file, key_file, username, password_file, republish, discovery, discovery_prefix)"));
     EXPECT_THAT(error_of("mqtt = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected an [mqtt] table"));
 }
 
-// ---------------------------------------------------------------------------------------------
-// [history]
-
-TEST(GatewayConfig, WithoutAHistoryTableThereIsNoHistory) {
-    auto config = parse(one_device("device = \"tc10@3\"\n"));
-    ASSERT_TRUE(config) << config.error().message;
-    EXPECT_FALSE(config->history);
-}
-
-TEST(GatewayConfig, HistorySettingsAreRead) {
-    auto config = parse_gateway_config(one_device("device = \"tc10@3\"\n") +
-                                           "[history]\ndatabase = \"data/plant.db\"\nkeep = \"30d\"\nheartbeat = \"10s\"\n",
-                                       "/etc/loopwire/plant.toml", profiles());
-    ASSERT_TRUE(config) << config.error().message;
-    ASSERT_TRUE(config->history);
-    EXPECT_EQ(config->history->database_as_written, "data/plant.db");
-    // Relative to the configuration file's folder, not to where the gateway was started.
-    EXPECT_EQ(config->history->database, std::filesystem::path("/etc/loopwire/data/plant.db"));
-    EXPECT_EQ(config->history->keep, std::chrono::hours(24 * 30));
-    EXPECT_EQ(config->history->heartbeat, std::chrono::seconds(10));
-    EXPECT_THAT(describe_plan(*config),
-                HasSubstr("history: /etc/loopwire/data/plant.db (SQLite, WAL mode), every change and a heartbeat each 10s, kept 30d"));
-}
-
-TEST(GatewayConfig, HistoryDefaultsApplyToWhatIsLeftOut) {
-    auto config = parse(one_device("device = \"tc10@3\"\n") + "[history]\ndatabase = \"/var/lib/loopwire/plant.db\"\n");
-    ASSERT_TRUE(config) << config.error().message;
-    ASSERT_TRUE(config->history);
-    EXPECT_EQ(config->history->database, std::filesystem::path("/var/lib/loopwire/plant.db"));  // absolute: as written
-    EXPECT_EQ(config->history->keep, std::chrono::hours(24 * 90));
-    EXPECT_EQ(config->history->heartbeat, std::chrono::seconds(60));
-    EXPECT_THAT(describe_plan(*config), HasSubstr("a heartbeat each 1m, kept 90d"));
-    // "~" is a shell's, not a path's: it stays a folder named "~" beside the file.
-    auto tilde = parse(one_device("device = \"tc10@3\"\n") + "[history]\ndatabase = \"~/plant.db\"\n");
-    ASSERT_TRUE(tilde) << tilde.error().message;
-    EXPECT_EQ(tilde->history->database, std::filesystem::path("~/plant.db"));
-}
-
-TEST(GatewayConfig, BadHistorySettingsAreRefusedWithTheKey) {
-    const std::string device = one_device("device = \"tc10@3\"\n") + "[history]\n";
-    EXPECT_THAT(error_of(device + "keep = \"90d\"\n"), StartsWith("plant.toml:8: history: missing `database` (e.g. database = \"plant.db\")"));
-    EXPECT_THAT(error_of(device + "database = \"\"\n"), StartsWith("plant.toml:9: history.database: expected the database file's path"));
-    EXPECT_THAT(error_of(device + "database = 5\n"), StartsWith("plant.toml:9: history.database: expected a string such as \"plant.db\""));
-    const std::string with_file = device + "database = \"plant.db\"\n";
-    EXPECT_EQ(error_of(with_file + "keep = \"90 days\"\n"),
-              "plant.toml:10: history.keep: '90 days' is not a period: write it like 90d, 12h, 30m or 3600s");
-    EXPECT_THAT(error_of(with_file + "keep = \"30s\"\n"), StartsWith("plant.toml:10: history.keep: \"30s\" is too short: keep at least 1m"));
-    EXPECT_THAT(error_of(with_file + "keep = 90\n"), StartsWith("plant.toml:10: history.keep: expected a period string such as \"90d\""));
-    EXPECT_THAT(error_of(with_file + "heartbeat = \"500ms\"\n"), StartsWith("plant.toml:10: history.heartbeat: less than 1s apart"));
-    EXPECT_THAT(error_of(with_file + "heartbeat = \"2d\"\n"), StartsWith("plant.toml:10: history.heartbeat: '2d' is not a duration"));
-    EXPECT_THAT(error_of(with_file + "path = \"x\"\n"),
-                StartsWith("plant.toml:10: history.path: unknown key (allowed here: database, keep, heartbeat)"));
-    EXPECT_THAT(error_of("history = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected a [history] table"));
-// [http]
-
-// A token file in its own temporary directory, with the permissions given.
-class TokenFile {
-public:
-    TokenFile(const std::string& content, fs::perms perms) {
-        std::string pattern = (fs::temp_directory_path() / "loopwire-token-XXXXXX").string();
-        if (!::mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp");
-        directory_ = pattern;
-        std::ofstream(path()) << content;
-        fs::permissions(path(), perms);
-    }
-    ~TokenFile() {
-        std::error_code ignored;
-        fs::remove_all(directory_, ignored);
-    }
-    std::string path() const { return (directory_ / "token").string(); }
-
-private:
-    fs::path directory_;
-};
-
-constexpr auto owner_only = fs::perms::owner_read | fs::perms::owner_write;
-
-TEST(GatewayConfig, WithoutAnHttpTableThereIsNoHttp) {
-    auto config = parse(one_device("device = \"tc10@3\"\n"));
-    ASSERT_TRUE(config) << config.error().message;
-    EXPECT_FALSE(config->http);
-}
-
-TEST(GatewayConfig, HttpDefaultsAreLoopbackPort8080AndNoWrites) {
-    auto config = parse(one_device("device = \"tc10@3\"\n") + "[http]\n");
-    ASSERT_TRUE(config) << config.error().message;
-    ASSERT_TRUE(config->http);
-    EXPECT_EQ(config->http->host, "127.0.0.1");
-    EXPECT_EQ(config->http->port, 8080);
-    EXPECT_TRUE(config->http->loopback());
-    EXPECT_TRUE(config->http->token.empty());
-    EXPECT_EQ(config->http->read_timeout, std::chrono::seconds(10));
-    EXPECT_THAT(describe_plan(*config),
-                HasSubstr("HTTP API and dashboard: http://127.0.0.1:8080/, reads open on loopback, writes refused (no http.token_file)"));
-}
-
-TEST(GatewayConfig, HttpSettingsAndTheTokenAreRead) {
-    TokenFile token("s3cret-token-value\n", owner_only);
-    auto config = parse(one_device("device = \"tc10@3\"\n") +
-                        fmt::format("[http]\nlisten = \"0.0.0.0:0\"\ntoken_file = \"{}\"\nread_timeout = \"2s\"\n"
-                                    "max_connections = 8\n", token.path()));
-    ASSERT_TRUE(config) << config.error().message;
-    ASSERT_TRUE(config->http);
-    EXPECT_EQ(config->http->host, "0.0.0.0");
-    EXPECT_EQ(config->http->port, 0);
-    EXPECT_FALSE(config->http->loopback());
-    EXPECT_EQ(config->http->token, "s3cret-token-value");
-    EXPECT_EQ(config->http->token_file, token.path());
-    EXPECT_EQ(config->http->read_timeout, std::chrono::seconds(2));
-    EXPECT_EQ(config->http->max_connections, 8u);
-    EXPECT_THAT(describe_plan(*config), HasSubstr(fmt::format("reads need the token, writes need the token in {}", token.path())));
-}
-
-TEST(GatewayConfig, ABadTokenFileNamesTheKeyAndSaysWhatToDo) {
-    const std::string device = one_device("device = \"tc10@3\"\n");
-    const auto with_file = [&](const std::string& file) {
-        return device + fmt::format("[http]\nlisten = \"127.0.0.1:0\"\ntoken_file = \"{}\"\n", file);
-    };
-    EXPECT_THAT(error_of(with_file("/nonexistent/token")),
-                StartsWith("plant.toml:10: http.token_file: cannot read \"/nonexistent/token\": No such file or directory"));
-    TokenFile readable("s3cret-token-value\n", owner_only | fs::perms::group_read | fs::perms::others_read);
-    EXPECT_THAT(error_of(with_file(readable.path())),
-                AllOf(StartsWith("plant.toml:10: http.token_file:"), HasSubstr("readable by every user (mode 0644)"),
-                      HasSubstr("chmod 600")));
-    TokenFile empty("\n", owner_only);
-    EXPECT_THAT(error_of(with_file(empty.path())), HasSubstr("is empty"));
-    TokenFile spaces("two words\n", owner_only);
-    EXPECT_THAT(error_of(with_file(spaces.path())), HasSubstr("without spaces"));
-}
-
-TEST(GatewayConfig, ListeningBeyondLoopbackNeedsAToken) {
-    EXPECT_THAT(error_of(one_device("device = \"tc10@3\"\n") + "[http]\nlisten = \"0.0.0.0:8080\"\n"),
-                AllOf(StartsWith("plant.toml:9: http.listen: \"0.0.0.0\" is not a loopback address"), HasSubstr("http.token_file")));
-}
-
-TEST(GatewayConfig, BadHttpSettingsSayWhatIsExpected) {
-    const std::string device = one_device("device = \"tc10@3\"\n") + "[http]\n";
-    EXPECT_THAT(error_of(device + "listen = \"8080\"\n"), StartsWith("plant.toml:9: http.listen: \"8080\" is not an address"));
-    EXPECT_THAT(error_of(device + "read_timeout = \"1ms\"\n"), StartsWith("plant.toml:9: http.read_timeout: expected 100ms..10min"));
-    EXPECT_THAT(error_of(device + "max_connections = 0\n"), StartsWith("plant.toml:9: http.max_connections: 0 is out of range"));
-    EXPECT_THAT(error_of(device + "token = \"abc\"\n"), HasSubstr("http.token: unknown key (allowed here: listen, token_file"));
-    EXPECT_THAT(error_of("http = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected an [http] table"));
+    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt, history, http)");
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
+#include <poll.h>
 #include <netinet/in.h>
 #include <signal.h>
 #include <spawn.h>
@@ -13,6 +14,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
@@ -26,6 +29,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gateway/gateway.hpp"
+#include "gateway/mqtt_documents.hpp"
 #include "support/profile_test_support.hpp"
 
 extern char** environ;
@@ -62,15 +66,23 @@ std::uint16_t free_port() {
     return ntohs(address.sin_port);
 }
 
-// A mosquitto broker on 127.0.0.1:port, anonymous, nothing kept on disk.
+// Readable by all: mosquitto started as root reads its files as the user it drops to.
+fs::path temporary_directory() {
+    std::string pattern = (fs::temp_directory_path() / "loopwire-mqtt-XXXXXX").string();
+    if (!::mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp");
+    fs::permissions(pattern, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec | fs::perms::others_read |
+                                 fs::perms::others_exec);
+    return pattern;
+}
+
+// A mosquitto broker on 127.0.0.1:port, nothing kept on disk: anonymous, or with the listener
+// settings `settings` (TLS files, a password file) written into its configuration.
 class Broker {
 public:
-    explicit Broker(std::uint16_t port) : port_(port) {
-        std::string pattern = (fs::temp_directory_path() / "loopwire-mqtt-XXXXXX").string();
-        if (!::mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp");
-        directory_ = pattern;
+    explicit Broker(std::uint16_t port, const std::string& settings = "allow_anonymous true\n")
+        : port_(port), directory_(temporary_directory()) {
         std::ofstream(directory_ / "mosquitto.conf") << fmt::format(
-            "listener {} 127.0.0.1\nallow_anonymous true\npersistence false\n", port);
+            "per_listener_settings true\npersistence false\nlistener {} 127.0.0.1\n{}", port, settings);
         start();
     }
     ~Broker() {
@@ -102,7 +114,13 @@ public:
         ::waitpid(pid_, nullptr, 0);
         pid_ = -1;
     }
+    // SIGHUP: mosquitto reads its password file again.
+    void reload() const { ::kill(pid_, SIGHUP); }
     std::uint16_t port() const { return port_; }
+    std::string log() const {
+        std::ifstream in(directory_ / "broker.log");
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    }
 
 private:
     std::uint16_t port_;
@@ -116,11 +134,23 @@ struct Message {
 };
 
 // A subscriber to PREFIX/# that keeps every message, and publishes for the test.
+struct WatcherOptions {
+    std::string topics = prefix + "/#";
+    std::string ca_file;  // set: TLS
+    std::string username;
+    std::string password;
+};
+
 class Watcher {
 public:
-    explicit Watcher(std::uint16_t port) {
+    explicit Watcher(std::uint16_t port, const WatcherOptions& options = {}) {
         mosquitto_lib_init();
         client_ = mosquitto_new(nullptr, true, this);
+        if (!options.ca_file.empty() &&
+            mosquitto_tls_set(client_, options.ca_file.c_str(), nullptr, nullptr, nullptr, nullptr) != MOSQ_ERR_SUCCESS) {
+            throw std::runtime_error("cannot set TLS");
+        }
+        if (!options.username.empty()) mosquitto_username_pw_set(client_, options.username.c_str(), options.password.c_str());
         mosquitto_subscribe_callback_set(client_, [](mosquitto*, void* self, int, int, const int*) {
             auto& watcher = *static_cast<Watcher*>(self);
             std::lock_guard lock(watcher.mutex_);
@@ -143,7 +173,7 @@ public:
         }
         // Before the loop's thread starts, and not from a callback: libmosquitto calls those
         // holding a lock that a subscribe or publish there would take out of order.
-        if (mosquitto_subscribe(client_, nullptr, (prefix + "/#").c_str(), 1) != MOSQ_ERR_SUCCESS) {
+        if (mosquitto_subscribe(client_, nullptr, options.topics.c_str(), 1) != MOSQ_ERR_SUCCESS) {
             throw std::runtime_error("cannot subscribe");
         }
         mosquitto_loop_start(client_);
@@ -188,6 +218,15 @@ public:
         std::lock_guard lock(mutex_);
         return messages_[topic].size();
     }
+    // Every topic seen that starts with `head`.
+    std::vector<std::string> topics(const std::string& head) {
+        std::lock_guard lock(mutex_);
+        std::vector<std::string> found;
+        for (const auto& [topic, list] : messages_) {
+            if (topic.rfind(head, 0) == 0 && !list.empty()) found.push_back(topic);
+        }
+        return found;
+    }
 
 private:
     mosquitto* client_ = nullptr;
@@ -209,7 +248,11 @@ bool is_number(const std::string& text) {
 
 bool equals_number(const std::string& text, double value) { return is_number(text) && std::stod(text) == value; }
 
-std::unique_ptr<Gateway> open_gateway(std::uint16_t port, bool writes) {
+// A gateway with the simulated TC10 "oven" on a virtual line; `mqtt` is the [mqtt] table's
+// further keys, `broker` its address.
+std::unique_ptr<Gateway> open_gateway(const std::string& broker, bool writes, const std::string& mqtt,
+                                      GatewayOptions options = {}, const std::string& source = "plant.toml",
+                                      const std::string& parameters = R"("measured_value", "set_point")") {
     const std::string text = fmt::format(R"toml(
 [[lines]]
 name = "sim"
@@ -221,21 +264,26 @@ retries = 1
 name = "oven"
 device = "tc10@3"
 poll = "100ms"
-parameters = ["measured_value", "set_point"]
+parameters = [{}]
 
 [modbus_tcp]
 enabled = false
 
 [mqtt]
-broker = "mqtt://127.0.0.1:{}"
+broker = "{}"
 prefix = "{}"
 writes = {}
-)toml", port, prefix, writes);
-    auto config = parse_gateway_config(text, "plant.toml", profiles());
+{}
+)toml", parameters, broker, prefix, writes, mqtt);
+    auto config = parse_gateway_config(text, source, profiles());
     if (!config) throw std::runtime_error(config.error().message);
-    auto gateway = Gateway::open(*config);
+    auto gateway = Gateway::open(*config, std::move(options));
     if (!gateway) throw std::runtime_error(gateway.error().message);
     return std::move(*gateway);
+}
+
+std::unique_ptr<Gateway> open_gateway(std::uint16_t port, bool writes) {
+    return open_gateway(fmt::format("mqtt://127.0.0.1:{}", port), writes, "");
 }
 
 #define REQUIRE_BROKER()                                                                  \
@@ -274,9 +322,10 @@ TEST(MqttBridge, PublishesTheGatewayStatusEachDeviceAndItsValues) {
     EXPECT_EQ(nlohmann::json::parse(*refused).at("ok"), false) << *refused;
     EXPECT_NE(refused->find("writes are off"), std::string::npos) << *refused;
 
-    // A clean stop says "offline".
+    // A clean stop says "offline", for the gateway and for each device.
     gateway.reset();
     EXPECT_TRUE(watcher.wait_for(prefix + "/status", "offline")) << "no offline on a clean stop";
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "offline")) << "no device offline on a clean stop";
 }
 
 TEST(MqttBridge, WritesGoToTheDeviceAndBadOnesAreRefused) {
@@ -352,6 +401,480 @@ TEST(MqttBridge, AGatewayStartsWithoutItsBroker) {
     Watcher watcher(port);
     EXPECT_TRUE(watcher.wait_for(prefix + "/status", "online")) << "the gateway did not connect once the broker came";
     EXPECT_TRUE(watcher.wait_for(prefix + "/oven/measured_value", is_number));
+}
+
+// Runs a program to its end; its output goes to `log`. True when it exits 0.
+bool run(const std::vector<std::string>& words, const fs::path& log) {
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+    std::vector<std::string> copy = words;
+    std::vector<char*> argv;
+    for (auto& word : copy) argv.push_back(word.data());
+    argv.push_back(nullptr);
+    pid_t pid = -1;
+    const int rc = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    int status = 0;
+    return rc == 0 && ::waitpid(pid, &status, 0) == pid && WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+// Lines a gateway logs, kept for the test to look through.
+struct LogLines {
+    std::mutex mutex;
+    std::vector<std::string> lines;
+    GatewayLog sink() {
+        return [this](const std::string& line) {
+            std::lock_guard lock(mutex);
+            lines.push_back(line);
+        };
+    }
+    bool has(const std::string& part) {
+        std::lock_guard lock(mutex);
+        return std::any_of(lines.begin(), lines.end(), [&](const std::string& line) { return line.find(part) != std::string::npos; });
+    }
+    bool wait_for(const std::string& part) {
+        const auto give_up = std::chrono::steady_clock::now() + deadline;
+        while (!has(part)) {
+            if (std::chrono::steady_clock::now() > give_up) return false;
+            std::this_thread::sleep_for(20ms);
+        }
+        return true;
+    }
+};
+
+TEST(MqttBridge, MetaAndHomeAssistantDiscoveryDescribeEveryPolledParameter) {
+    REQUIRE_BROKER();
+    Broker broker(free_port());
+    WatcherOptions everything;
+    everything.topics = "#";
+    Watcher watcher(broker.port(), everything);
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), true, "discovery = \"homeassistant\"", {},
+                                "plant.toml", R"("measured_value", "set_point", "control_state", "alarm_1_state")");
+    const auto any = [](const std::string&) { return true; };
+
+    const auto meta_text = watcher.wait_for(prefix + "/oven/set_point/meta", any);
+    ASSERT_TRUE(meta_text);
+    const auto meta = nlohmann::json::parse(*meta_text);
+    for (const char* key : {"unit", "decimals", "writable", "min", "max", "enum", "mnemonic", "status", "error", "last_error"}) {
+        EXPECT_TRUE(meta.contains(key)) << key << " missing in " << *meta_text;
+    }
+    EXPECT_TRUE(meta.at("decimals").is_number_integer()) << *meta_text;
+    EXPECT_FALSE(meta.at("mnemonic").get<std::string>().empty()) << *meta_text;
+    const auto state_meta = watcher.wait_for(prefix + "/oven/control_state/meta", any);
+    ASSERT_TRUE(state_meta);
+    EXPECT_EQ(nlohmann::json::parse(*state_meta).at("enum"),
+              (nlohmann::json{{"0", "auto"}, {"1", "manual"}, {"2", "standby"}}))
+        << *state_meta;
+
+    // One document per parameter, in the component that fits it; the gateway's name is the
+    // prefix's last level.
+    const std::string head = "homeassistant/";
+    const auto number_text = watcher.wait_for(head + "number/plant1_oven_set_point/config", any);
+    ASSERT_TRUE(number_text) << "no number for the writable set_point";
+    const auto number = nlohmann::json::parse(*number_text);
+    EXPECT_EQ(number.at("unique_id"), "plant1_oven_set_point");
+    EXPECT_EQ(number.at("state_topic"), prefix + "/oven/set_point");
+    EXPECT_EQ(number.at("command_topic"), prefix + "/oven/set_point/set");
+    EXPECT_TRUE(number.at("min").is_number() && number.at("max").is_number() && number.at("step").is_number()) << *number_text;
+    EXPECT_EQ(number.at("device").at("manufacturer"), "Yokogawa");
+    EXPECT_EQ(number.at("device").at("model"), "TC10");
+    EXPECT_EQ(number.at("device").at("identifiers"), nlohmann::json::array({"plant1_oven"}));
+    EXPECT_EQ(number.at("availability_mode"), "all");
+    ASSERT_EQ(number.at("availability").size(), 2u);
+    EXPECT_EQ(number.at("availability")[0].at("topic"), prefix + "/status");
+    EXPECT_EQ(number.at("availability")[1].at("topic"), prefix + "/oven/status");
+    EXPECT_EQ(number.at("availability")[1].at("payload_available"), "online");
+
+    const auto sensor_text = watcher.wait_for(head + "sensor/plant1_oven_measured_value/config", any);
+    ASSERT_TRUE(sensor_text) << "no sensor for the read-only measured_value";
+    EXPECT_FALSE(nlohmann::json::parse(*sensor_text).contains("command_topic")) << *sensor_text;
+    const auto binary_text = watcher.wait_for(head + "binary_sensor/plant1_oven_alarm_1_state/config", any);
+    ASSERT_TRUE(binary_text) << "no binary_sensor for the on/off alarm_1_state";
+    EXPECT_EQ(nlohmann::json::parse(*binary_text).at("payload_on"), "on");
+    const auto select_text = watcher.wait_for(head + "select/plant1_oven_control_state/config", any);
+    ASSERT_TRUE(select_text) << "no select for the writable enum control_state";
+    const auto select = nlohmann::json::parse(*select_text);
+    EXPECT_EQ(select.at("options"), nlohmann::json::array({"auto", "manual", "standby"}));
+
+    // What Home Assistant would send on the select's command topic goes to the device.
+    watcher.publish(select.at("command_topic").get<std::string>(), "standby");
+    const auto result = watcher.nth(prefix + "/oven/control_state/set/result", 1);
+    ASSERT_TRUE(result);
+    EXPECT_EQ(nlohmann::json::parse(*result).at("ok"), true) << *result;
+    EXPECT_TRUE(watcher.wait_for(select.at("state_topic").get<std::string>(), "standby"));
+    for (const auto& topic : watcher.topics("")) {
+        EXPECT_EQ(topic.find_first_of(" +#"), std::string::npos) << topic;
+    }
+}
+
+TEST(MqttDocuments, DiscoveryIdsAndTopicsNeverHoldWildcardsSlashesOrSpaces) {
+    const auto config = parse_gateway_config(R"toml(
+[[lines]]
+name = "sim"
+link = "rtu:virtual?baud=19200"
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+[mqtt]
+broker = "mqtt://127.0.0.1"
+prefix = "site a/gw #1+x"
+discovery = "homeassistant"
+discovery_prefix = "ha/x"
+)toml", "plant.toml", profiles());
+    ASSERT_FALSE(config) << "a prefix with '#' or '+' was taken";
+    auto mqtt = MqttConfig{};
+    mqtt.prefix = "site a/gw 1";
+    mqtt.gateway_name = "gw 1/+#";  // as if given unchecked
+    mqtt.discovery_prefix = "ha";
+    const auto found = profiles().find("tc10");
+    ASSERT_TRUE(found);
+    const device::Profile& tc10 = **found;
+    const auto document = discovery_document(mqtt, "oven", tc10, *tc10.find("set_point"));
+    EXPECT_EQ(document.topic, "ha/sensor/gw_1____oven_set_point/config");
+    EXPECT_EQ(document.config.at("unique_id"), "gw_1____oven_set_point");
+    EXPECT_EQ(sanitized_level("a b/c+d#e"), "a_b_c_d_e");
+    EXPECT_EQ(sanitized_level(""), "_");
+}
+
+TEST(MqttBridge, RepublishesUnchangedValuesEveryInterval) {
+    REQUIRE_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port());
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), false, "republish = \"300ms\"", {},
+                                "plant.toml", R"("set_point")");
+    const std::string topic = prefix + "/oven/set_point";
+    const auto first = watcher.nth(topic, 1);
+    ASSERT_TRUE(first);
+    // The set point does not move by itself: later copies are the republishing.
+    const auto fourth = watcher.nth(topic, 4);
+    ASSERT_TRUE(fourth) << "an unchanged value was not published again every 300 ms";
+    EXPECT_EQ(*fourth, *first);
+}
+
+TEST(MqttBridge, AWriteToADeviceThatDoesNotAnswerIsRefusedAtOnce) {
+    REQUIRE_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port());
+    auto silent = std::make_shared<std::atomic<bool>>(false);
+    GatewayOptions options;
+    // Every frame to or from unit 3 dropped once `silent` is set (an RTU frame starts with its unit).
+    options.virtual_bus_faults = [silent](const std::string&, ByteView bytes) {
+        transport::BusFault fault;
+        fault.drop = silent->load() && !bytes.empty() && bytes[0] == 3;
+        return fault;
+    };
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), true, "", std::move(options));
+    ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "online"));
+    *silent = true;
+    ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "offline")) << "the polls never found the oven silent";
+    watcher.publish(prefix + "/oven/set_point/set", "210");
+    const auto result = watcher.nth(prefix + "/oven/set_point/set/result", 1);
+    ASSERT_TRUE(result) << "no answer to a write while the device is silent";
+    const auto answer = nlohmann::json::parse(*result);
+    EXPECT_EQ(answer.at("ok"), false) << *result;
+    EXPECT_NE(answer.at("error").get<std::string>().find("does not answer"), std::string::npos) << *result;
+}
+
+TEST(MqttBridge, WhatChangedWhileTheBrokerWasAwayIsPublishedOnReturn) {
+    REQUIRE_BROKER();
+    Broker broker(free_port());
+    auto silent = std::make_shared<std::atomic<bool>>(false);
+    GatewayOptions options;
+    options.virtual_bus_faults = [silent](const std::string&, ByteView bytes) {
+        transport::BusFault fault;
+        fault.drop = silent->load() && !bytes.empty() && bytes[0] == 3;
+        return fault;
+    };
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), false, "", std::move(options));
+    const std::string topic = prefix + "/oven/measured_value";
+    std::mutex mutex;
+    std::string latest;  // what the polls found last: a value, or why there is none
+    auto subscription = gateway->subscribe([&](const ValueChange& change) {
+        if (change.parameter != "measured_value") return;
+        std::lock_guard lock(mutex);
+        latest = change.value ? change.text : change.status;
+    });
+    std::string before;
+    {
+        Watcher watcher(broker.port());
+        const auto seen = watcher.wait_for(topic, is_number);
+        ASSERT_TRUE(seen);
+        before = *seen;
+    }
+    broker.stop();
+    // While the broker is away the oven stops answering: its value becomes "no-reply".
+    *silent = true;
+    const auto give_up = std::chrono::steady_clock::now() + deadline;
+    for (;;) {
+        {
+            std::lock_guard lock(mutex);
+            if (latest == "no-reply") break;
+        }
+        ASSERT_LT(std::chrono::steady_clock::now(), give_up) << "the polls never found the oven silent";
+        std::this_thread::sleep_for(50ms);
+    }
+    broker.start();
+    Watcher watcher(broker.port());
+    ASSERT_TRUE(watcher.wait_for(prefix + "/status", "online"));
+    // The last state wins, and the number from before the broker went away does not come back.
+    EXPECT_TRUE(watcher.wait_for(topic, "no-reply")) << "the broker never got the value's last state";
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "offline")) << "the broker never got the device's last status";
+    const auto first = watcher.nth(topic, 1);
+    ASSERT_TRUE(first);
+    EXPECT_NE(*first, before) << "the value from before the broker went away came back";
+}
+
+// --- TLS and credentials ----------------------------------------------------------------------
+
+// A throwaway certificate authority and a server certificate for 127.0.0.1, made with openssl.
+struct TestCertificates {
+    fs::path directory = temporary_directory();
+    fs::path ca = directory / "ca.crt";
+    fs::path server_cert = directory / "server.crt";
+    fs::path server_key = directory / "server.key";
+    bool made = false;
+
+    TestCertificates() {
+        const fs::path log = directory / "openssl.log";
+        const auto d = directory.string();
+        made = run({"openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "2", "-subj", "/CN=loopwire test CA",
+                    "-keyout", d + "/ca.key", "-out", ca.string()}, log) &&
+               run({"openssl", "req", "-newkey", "rsa:2048", "-nodes", "-subj", "/CN=127.0.0.1", "-addext",
+                    "subjectAltName=IP:127.0.0.1", "-keyout", server_key.string(), "-out", d + "/server.csr"}, log) &&
+               run({"openssl", "x509", "-req", "-in", d + "/server.csr", "-CA", ca.string(), "-CAkey", d + "/ca.key",
+                    "-CAcreateserial", "-days", "2", "-copy_extensions", "copy", "-out", server_cert.string()}, log);
+        fs::permissions(server_key, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read |
+                                        fs::perms::others_read);  // the broker may run as another user
+    }
+    ~TestCertificates() {
+        std::error_code ignored;
+        fs::remove_all(directory, ignored);
+    }
+};
+
+TEST(MqttBridge, TlsWithAPasswordAndAWrongPasswordRetried) {
+    REQUIRE_BROKER();
+    TestCertificates certificates;
+    ASSERT_TRUE(certificates.made) << "openssl could not make the test certificates (Debian package openssl)";
+    const fs::path passwords = certificates.directory / "passwd";
+    const fs::path log = certificates.directory / "passwd.log";
+    ASSERT_TRUE(run({"mosquitto_passwd", "-c", "-b", passwords.string(), "gateway", "right-one"}, log));
+    ASSERT_TRUE(run({"mosquitto_passwd", "-b", passwords.string(), "watcher", "watching"}, log));
+    fs::permissions(passwords, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::others_read);
+    Broker broker(free_port(), fmt::format("cafile {}\ncertfile {}\nkeyfile {}\nallow_anonymous false\npassword_file {}\n",
+                                           certificates.ca.string(), certificates.server_cert.string(),
+                                           certificates.server_key.string(), passwords.string()));
+    WatcherOptions options;
+    options.ca_file = certificates.ca.string();
+    options.username = "watcher";
+    options.password = "watching";
+    Watcher watcher(broker.port(), options);
+
+    // The gateway's password, in a file only its owner reads; a wrong one first.
+    const fs::path password_file = certificates.directory / "gateway.password";
+    std::ofstream(password_file) << "wrong-one\n";
+    fs::permissions(password_file, fs::perms::owner_read | fs::perms::owner_write);
+    const fs::path config_file = certificates.directory / "plant.toml";  // relative files are beside it
+    LogLines lines;
+    GatewayOptions gateway_options;
+    gateway_options.log = lines.sink();
+    auto gateway = open_gateway(fmt::format("mqtts://127.0.0.1:{}", broker.port()), false,
+                                "ca_file = \"ca.crt\"\nusername = \"gateway\"\npassword_file = \"gateway.password\"",
+                                std::move(gateway_options), config_file.string());
+    EXPECT_TRUE(lines.wait_for("refused the connection")) << "no log line for the refused password";
+    EXPECT_TRUE(lines.has("not authorised")) << "the log does not say why";
+    EXPECT_EQ(watcher.count(prefix + "/status"), 0u);
+
+    // The broker is told the password the gateway has: the gateway, still trying, gets in.
+    ASSERT_TRUE(run({"mosquitto_passwd", "-b", passwords.string(), "gateway", "wrong-one"}, log));
+    broker.reload();
+    EXPECT_TRUE(watcher.wait_for(prefix + "/status", "online")) << "the gateway did not connect over TLS\n" << broker.log();
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/measured_value", is_number));
+}
+
+// --- redelivered commands -----------------------------------------------------------------------
+
+// Just enough of an MQTT 3.1.1 broker, on a socket, to send the gateway what a real broker
+// sends after a reconnect in a persistent session: a QoS 1 PUBLISH again, with the DUP flag and
+// the same packet identifier. It acknowledges what the gateway publishes and keeps it.
+class ScriptedBroker {
+public:
+    ScriptedBroker() {
+        listener_ = ::socket(AF_INET, SOCK_STREAM, 0);
+        sockaddr_in address{};
+        address.sin_family = AF_INET;
+        address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        socklen_t length = sizeof address;
+        if (::bind(listener_, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0 || ::listen(listener_, 4) != 0 ||
+            ::getsockname(listener_, reinterpret_cast<sockaddr*>(&address), &length) != 0) {
+            throw std::runtime_error("cannot listen");
+        }
+        port_ = ntohs(address.sin_port);
+    }
+    ~ScriptedBroker() {
+        drop();
+        ::close(listener_);
+    }
+    ScriptedBroker(const ScriptedBroker&) = delete;
+    ScriptedBroker& operator=(const ScriptedBroker&) = delete;
+    std::uint16_t port() const { return port_; }
+
+    // Takes the gateway's next connection: CONNECT, CONNACK (with the session-present flag),
+    // SUBSCRIBE, SUBACK. False at the deadline.
+    bool accept(bool session_present) {
+        pollfd waiting{listener_, POLLIN, 0};
+        if (::poll(&waiting, 1, static_cast<int>(std::chrono::milliseconds(deadline).count())) != 1) return false;
+        client_ = ::accept(listener_, nullptr, nullptr);
+        buffer_.clear();
+        auto connect = next_packet();
+        if (!connect || (connect->first >> 4) != 1) return false;
+        send({0x20, 0x02, static_cast<std::uint8_t>(session_present ? 1 : 0), 0x00});
+        while (auto packet = next_packet()) {
+            if ((packet->first >> 4) == 8) {  // SUBSCRIBE: granted QoS 1
+                send({0x90, 0x03, packet->second[0], packet->second[1], 0x01});
+                return true;
+            }
+        }
+        return false;
+    }
+
+    void publish(std::uint16_t mid, const std::string& topic, const std::string& payload, bool dup) {
+        std::vector<std::uint8_t> body{static_cast<std::uint8_t>(topic.size() >> 8), static_cast<std::uint8_t>(topic.size() & 0xFF)};
+        body.insert(body.end(), topic.begin(), topic.end());
+        body.push_back(static_cast<std::uint8_t>(mid >> 8));
+        body.push_back(static_cast<std::uint8_t>(mid & 0xFF));
+        body.insert(body.end(), payload.begin(), payload.end());
+        std::vector<std::uint8_t> packet{static_cast<std::uint8_t>(0x32 | (dup ? 0x08 : 0x00))};  // PUBLISH, QoS 1
+        for (std::size_t left = body.size();;) {  // remaining length (MQTT 3.1.1, 2.2.3)
+            std::uint8_t digit = static_cast<std::uint8_t>(left % 128);
+            left /= 128;
+            packet.push_back(left > 0 ? static_cast<std::uint8_t>(digit | 0x80) : digit);
+            if (left == 0) break;
+        }
+        packet.insert(packet.end(), body.begin(), body.end());
+        send(packet);
+    }
+
+    // Reads what the gateway sends until it publishes on one of `topics`: that topic and its
+    // payload, or nullopt.
+    std::optional<std::pair<std::string, std::string>> published(const std::vector<std::string>& topics) {
+        while (auto packet = next_packet()) {
+            const std::uint8_t type = packet->first >> 4;
+            if (type == 12) send({0xD0, 0x00});  // PINGREQ
+            if (type != 3) continue;
+            const auto& body = packet->second;
+            const std::size_t length = static_cast<std::size_t>(body[0] << 8 | body[1]);
+            const std::string name(body.begin() + 2, body.begin() + 2 + static_cast<std::ptrdiff_t>(length));
+            std::size_t at = 2 + length;
+            if (((packet->first >> 1) & 3) > 0) {  // QoS 1: PUBACK with its identifier
+                send({0x40, 0x02, body[at], body[at + 1]});
+                at += 2;
+            }
+            if (std::find(topics.begin(), topics.end(), name) != topics.end()) {
+                return std::pair{name, std::string(body.begin() + static_cast<std::ptrdiff_t>(at), body.end())};
+            }
+        }
+        return std::nullopt;
+    }
+
+    // The connection breaks (as if the gateway's PUBACK never reached the broker).
+    void drop() {
+        if (client_ >= 0) ::close(client_);
+        client_ = -1;
+    }
+
+private:
+    void send(const std::vector<std::uint8_t>& bytes) { (void)::send(client_, bytes.data(), bytes.size(), MSG_NOSIGNAL); }
+
+    // The next whole packet: its first byte and its body; nullopt at the deadline or on EOF.
+    std::optional<std::pair<std::uint8_t, std::vector<std::uint8_t>>> next_packet() {
+        const auto give_up = std::chrono::steady_clock::now() + deadline;
+        for (;;) {
+            if (buffer_.size() >= 2) {
+                std::size_t length = 0;
+                std::size_t used = 1;
+                unsigned shift = 0;
+                bool whole = false;
+                while (used < buffer_.size() && used <= 4) {
+                    length |= static_cast<std::size_t>(buffer_[used] & 0x7F) << shift;
+                    shift += 7;
+                    if ((buffer_[used++] & 0x80) == 0) {
+                        whole = true;
+                        break;
+                    }
+                }
+                if (whole && buffer_.size() >= used + length) {
+                    std::pair<std::uint8_t, std::vector<std::uint8_t>> packet{
+                        buffer_[0], {buffer_.begin() + static_cast<std::ptrdiff_t>(used),
+                                     buffer_.begin() + static_cast<std::ptrdiff_t>(used + length)}};
+                    buffer_.erase(buffer_.begin(), buffer_.begin() + static_cast<std::ptrdiff_t>(used + length));
+                    return packet;
+                }
+            }
+            const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(give_up - std::chrono::steady_clock::now());
+            if (left.count() <= 0) return std::nullopt;
+            pollfd readable{client_, POLLIN, 0};
+            if (::poll(&readable, 1, static_cast<int>(left.count())) != 1) return std::nullopt;
+            std::uint8_t chunk[4096];
+            const auto got = ::recv(client_, chunk, sizeof chunk, 0);
+            if (got <= 0) return std::nullopt;
+            buffer_.insert(buffer_.end(), chunk, chunk + got);
+        }
+    }
+
+    int listener_ = -1;
+    int client_ = -1;
+    std::uint16_t port_ = 0;
+    std::vector<std::uint8_t> buffer_;
+};
+
+TEST(MqttBridge, ASetRedeliveredAfterAReconnectIsWrittenOnce) {
+    ScriptedBroker broker;
+    LogLines lines;
+    GatewayOptions options;
+    options.log = lines.sink();
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), true, "", std::move(options));
+    const std::string set = prefix + "/oven/set_point/set";
+    const std::string result = set + "/result";
+    const std::string probe = prefix + "/oven/no_such_parameter/set";
+
+    const std::string probe_result = probe + "/result";
+    const std::vector<std::string> results{result, probe_result};
+
+    ASSERT_TRUE(broker.accept(false)) << "the gateway did not connect";
+    broker.publish(7, set, "210", false);
+    const auto first = broker.published(results);
+    ASSERT_TRUE(first) << "no result for the first delivery";
+    EXPECT_EQ(first->first, result);
+    EXPECT_EQ(nlohmann::json::parse(first->second).at("ok"), true) << first->second;
+    broker.drop();  // before the broker saw the PUBACK, as far as the session is concerned
+
+    // The session goes on: the same message again, DUP set. Not written: the probe behind it
+    // (commands are taken in order) is the next thing answered.
+    ASSERT_TRUE(broker.accept(true)) << "the gateway did not reconnect";
+    broker.publish(7, set, "210", true);
+    broker.publish(8, probe, "1", false);
+    const auto second = broker.published(results);
+    ASSERT_TRUE(second) << "no result for the probe";
+    EXPECT_EQ(second->first, probe_result) << "the redelivered set was written again: " << second->second;
+    EXPECT_TRUE(lines.has("delivered again (message 7)"));
+
+    // The same text in a new message (a new identifier) is a new command, and is written.
+    broker.publish(9, set, "210", false);
+    const auto third = broker.published(results);
+    ASSERT_TRUE(third);
+    EXPECT_EQ(third->first, result) << "a new message with the same text was not written";
+    broker.drop();
+
+    // A new session (session present 0): the broker numbers afresh, identifier 7 is new.
+    ASSERT_TRUE(broker.accept(false)) << "the gateway did not reconnect";
+    broker.publish(7, set, "211", false);
+    const auto fourth = broker.published(results);
+    ASSERT_TRUE(fourth);
+    EXPECT_EQ(fourth->first, result) << "a command of a new session was taken for a redelivery";
+    EXPECT_EQ(nlohmann::json::parse(fourth->second).at("ok"), true) << fourth->second;
 }
 
 }  // namespace

@@ -1,0 +1,163 @@
+#include "gateway/mqtt_documents.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string_view>
+
+#include <fmt/format.h>
+
+namespace loopwire::gateway {
+namespace {
+
+bool level_character(char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' || c == '_';
+}
+
+nlohmann::json bound_json(const device::Bound& bound) {
+    if (const auto* number = std::get_if<double>(&bound)) return *number;
+    return nlohmann::json{{"parameter", std::get<std::string>(bound)}};
+}
+
+nlohmann::json decimals_json(const device::Parameter& parameter) {
+    if (const int* fixed = std::get_if<int>(&parameter.decimals)) return *fixed;
+    return nlohmann::json{{"parameter", std::get<std::string>(parameter.decimals)}};
+}
+
+// Digits after the point in a value's text ("150.5" -> 1): the decimals of the sample, for a
+// parameter whose decimals another parameter sets.
+int decimals_in(const std::string& text) {
+    const auto point = text.find('.');
+    return point == std::string::npos ? 0 : static_cast<int>(text.size() - point - 1);
+}
+
+bool two_state_labels(const device::Parameter& parameter, std::string& on, std::string& off) {
+    if (parameter.type == device::ValueType::boolean) {
+        const auto one = parameter.enum_labels.find(1);
+        const auto zero = parameter.enum_labels.find(0);
+        on = one != parameter.enum_labels.end() ? one->second : "1";
+        off = zero != parameter.enum_labels.end() ? zero->second : "0";
+        return true;
+    }
+    if (parameter.type != device::ValueType::enumeration || parameter.enum_labels.size() != 2) return false;
+    const auto one = parameter.enum_labels.find(1);
+    const auto zero = parameter.enum_labels.find(0);
+    if (one == parameter.enum_labels.end() || zero == parameter.enum_labels.end()) return false;
+    if (one->second != "on" || zero->second != "off") return false;  // a two-way choice, not a state
+    on = one->second;
+    off = zero->second;
+    return true;
+}
+
+std::vector<std::string> labels_of(const device::Parameter& parameter) {
+    std::vector<std::string> labels;
+    for (const auto& [code, label] : parameter.enum_labels) labels.push_back(label);
+    return labels;
+}
+
+// A number's limits for Home Assistant, which needs numbers (its defaults are 1..100): the
+// profile's fixed bound, else what the word can hold at the parameter's decimals (the device
+// still refuses what its live limit parameter does not allow, and set/result says so).
+double number_limit(const device::Parameter& parameter, const std::optional<device::Bound>& bound, bool upper, int decimals) {
+    if (bound) {
+        if (const auto* number = std::get_if<double>(&*bound)) return *number;
+    }
+    const double scale = std::pow(10.0, decimals);
+    if (parameter.type == device::ValueType::int16) return (upper ? 32767.0 : -32768.0) / scale;
+    return (upper ? 65535.0 : 0.0) / scale;
+}
+
+}  // namespace
+
+std::string sanitized_level(const std::string& text) {
+    std::string level = text;
+    std::replace_if(level.begin(), level.end(), [](char c) { return !level_character(c); }, '_');
+    return level.empty() ? "_" : level;
+}
+
+nlohmann::json meta_document(const ValueChange& change, const device::Parameter* parameter, const std::string& last_error) {
+    nlohmann::json meta{{"unit", change.unit}, {"status", change.status}, {"error", change.error}, {"last_error", last_error}};
+    if (!parameter) return meta;
+    meta["mnemonic"] = parameter->mnemonic;
+    meta["decimals"] = decimals_json(*parameter);
+    // Set by another parameter: the sample's own, when it holds a number.
+    if (meta["decimals"].is_object() && change.value && std::holds_alternative<double>(change.value->value)) {
+        meta["decimals"] = decimals_in(change.text);
+    }
+    meta["writable"] = parameter->writable;
+    meta["min"] = parameter->min ? bound_json(*parameter->min) : nlohmann::json(nullptr);
+    meta["max"] = parameter->max ? bound_json(*parameter->max) : nlohmann::json(nullptr);
+    nlohmann::json labels = nlohmann::json::object();
+    for (const auto& [code, label] : parameter->enum_labels) labels[std::to_string(code)] = label;
+    meta["enum"] = std::move(labels);
+    return meta;
+}
+
+DiscoveryDocument discovery_document(const MqttConfig& config, const std::string& device_name, const device::Profile& profile,
+                                     const device::Parameter& parameter) {
+    const std::string device_topic = fmt::format("{}/{}", config.prefix, device_name);
+    const std::string state_topic = fmt::format("{}/{}", device_topic, parameter.name);
+    const std::string device_id = sanitized_level(fmt::format("{}_{}", config.gateway_name, device_name));
+    const std::string object_id = sanitized_level(fmt::format("{}_{}", device_id, parameter.name));
+    const bool commands = config.writes && parameter.writable;
+
+    nlohmann::json device{{"identifiers", {device_id}}, {"name", device_name},
+                          {"model", profile.model.empty() ? profile.title : profile.model}};
+    if (!profile.manufacturer.empty()) device["manufacturer"] = profile.manufacturer;
+    nlohmann::json doc{
+        {"name", parameter.name},
+        {"unique_id", object_id},
+        {"state_topic", state_topic},
+        {"device", std::move(device)},
+        // Both the gateway's (its last will) and the device's (its polls): a value is only
+        // current when the gateway is connected and the device answers.
+        {"availability",
+         {{{"topic", config.prefix + "/status"}, {"payload_available", "online"}, {"payload_not_available", "offline"}},
+          {{"topic", device_topic + "/status"}, {"payload_available", "online"}, {"payload_not_available", "offline"}}}},
+        {"availability_mode", "all"},
+    };
+    if (!parameter.unit.empty()) doc["unit_of_measurement"] = parameter.unit;
+
+    std::string component;
+    std::string on;
+    std::string off;
+    const bool numeric = parameter.type == device::ValueType::int16 || parameter.type == device::ValueType::uint16;
+    if (numeric && commands) {
+        component = "number";
+        const int decimals = std::holds_alternative<int>(parameter.decimals) ? std::get<int>(parameter.decimals) : 0;
+        doc["command_topic"] = state_topic + "/set";
+        doc["min"] = number_limit(parameter, parameter.min, false, decimals);
+        doc["max"] = number_limit(parameter, parameter.max, true, decimals);
+        doc["step"] = std::pow(10.0, -decimals);
+        doc["mode"] = "box";
+    } else if (commands && (parameter.type == device::ValueType::enumeration || parameter.type == device::ValueType::boolean)) {
+        component = "select";
+        doc["command_topic"] = state_topic + "/set";
+        if (parameter.type == device::ValueType::boolean && two_state_labels(parameter, on, off)) {
+            doc["options"] = {off, on};
+        } else {
+            doc["options"] = labels_of(parameter);
+        }
+        doc.erase("unit_of_measurement");
+    } else if (two_state_labels(parameter, on, off)) {
+        component = "binary_sensor";
+        doc["payload_on"] = on;
+        doc["payload_off"] = off;
+        doc.erase("unit_of_measurement");
+    } else {
+        component = "sensor";
+        if (numeric) {
+            // A special state ("under-range") is text: Home Assistant shows it as unknown
+            // rather than rejecting a number sensor's non-numeric state.
+            doc["value_template"] = "{{ value if value | is_number else None }}";
+            doc["state_class"] = "measurement";
+            if (const int* fixed = std::get_if<int>(&parameter.decimals)) doc["suggested_display_precision"] = *fixed;
+        } else if (parameter.type == device::ValueType::enumeration && !parameter.enum_labels.empty()) {
+            doc["device_class"] = "enum";
+            doc["options"] = labels_of(parameter);
+            doc.erase("unit_of_measurement");
+        }
+    }
+    return {fmt::format("{}/{}/{}/config", config.discovery_prefix, component, object_id), std::move(doc)};
+}
+
+}  // namespace loopwire::gateway

@@ -1,0 +1,123 @@
+"""An independent MQTT client (paho) reads the gateway's Home Assistant discovery documents and
+checks each against what Home Assistant's MQTT integration documents for its component: the
+required keys, the type of every key used, and what the gateway promises besides (availability
+on both the gateway's and the device's status, unique ids, a device block from the profile).
+
+Written from Home Assistant's documentation pages for MQTT discovery and the MQTT sensor,
+binary sensor, number and select platforms.
+
+usage: ha_discovery_check.py PORT DISCOVERY_PREFIX STATE_PREFIX COMPONENT...
+Exits 0 when a document of each COMPONENT came and every document passed; prints what failed.
+"""
+import json
+import re
+import sys
+import threading
+import time
+
+import paho.mqtt.client as mqtt
+
+STRING = str
+NUMBER = (int, float)
+LIST = list
+DICT = dict
+
+# Keys every entity may carry (the shared "availability", "device", ... options), with types.
+COMMON = {
+    "name": STRING, "unique_id": STRING, "state_topic": STRING, "device": DICT, "availability": LIST,
+    "availability_mode": STRING, "unit_of_measurement": STRING, "value_template": STRING,
+    "device_class": STRING, "icon": STRING, "entity_category": STRING, "qos": int,
+}
+# Per component: required keys and the keys it adds.
+PLATFORMS = {
+    "sensor": ({"state_topic"}, {"state_class": STRING, "suggested_display_precision": int, "options": LIST}),
+    "binary_sensor": ({"state_topic"}, {"payload_on": STRING, "payload_off": STRING}),
+    "number": ({"command_topic"}, {"command_topic": STRING, "min": NUMBER, "max": NUMBER, "step": NUMBER,
+                                    "mode": STRING, "command_template": STRING}),
+    "select": ({"command_topic", "options"}, {"command_topic": STRING, "options": LIST, "command_template": STRING}),
+}
+DEVICE_KEYS = {"identifiers": LIST, "name": STRING, "manufacturer": STRING, "model": STRING}
+AVAILABILITY_KEYS = {"topic": STRING, "payload_available": STRING, "payload_not_available": STRING}
+OBJECT_ID = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def check_types(where, document, allowed, problems):
+    for key, value in document.items():
+        if key not in allowed:
+            problems.append(f"{where}: unknown key {key!r}")
+        elif not isinstance(value, allowed[key]) or isinstance(value, bool) and allowed[key] is not bool:
+            problems.append(f"{where}: {key} has the wrong type ({type(value).__name__})")
+
+
+def check(topic, document, state_prefix):
+    problems = []
+    parts = topic.split("/")
+    component, object_id = parts[-3], parts[-2]
+    if component not in PLATFORMS:
+        return [f"{topic}: unexpected component {component}"]
+    required, extra = PLATFORMS[component]
+    allowed = dict(COMMON, **extra)
+    check_types(topic, document, allowed, problems)
+    for key in required | {"unique_id", "state_topic", "device", "availability"}:
+        if key not in document:
+            problems.append(f"{topic}: missing {key}")
+    if not OBJECT_ID.match(object_id) or document.get("unique_id") != object_id:
+        problems.append(f"{topic}: object id {object_id!r} is not the unique_id or not [A-Za-z0-9_-]")
+    device = document.get("device", {})
+    check_types(topic + " device", device, DEVICE_KEYS, problems)
+    if not device.get("identifiers") or not device.get("model"):
+        problems.append(f"{topic}: the device block needs identifiers and a model")
+    availability = document.get("availability", [])
+    for entry in availability:
+        check_types(topic + " availability", entry, AVAILABILITY_KEYS, problems)
+        if entry.get("payload_available") != "online":
+            problems.append(f"{topic}: availability payload_available is not online")
+    topics = [entry.get("topic") for entry in availability]
+    device_status = "/".join(document.get("state_topic", "").split("/")[:-1]) + "/status"
+    if topics != [state_prefix + "/status", device_status] or document.get("availability_mode") != "all":
+        problems.append(f"{topic}: availability should be the gateway's and the device's status, mode all: {topics}")
+    if not document.get("state_topic", "").startswith(state_prefix + "/"):
+        problems.append(f"{topic}: state_topic outside {state_prefix}")
+    if component in ("number", "select") and document.get("command_topic") != document.get("state_topic") + "/set":
+        problems.append(f"{topic}: command_topic is not STATE_TOPIC/set")
+    if component == "number" and not document.get("min", 0) < document.get("max", 0):
+        problems.append(f"{topic}: min is not below max")
+    if component == "select" and not all(isinstance(option, str) for option in document.get("options", [None])):
+        problems.append(f"{topic}: options must be strings")
+    return problems
+
+
+def main():
+    port, discovery_prefix, state_prefix = int(sys.argv[1]), sys.argv[2], sys.argv[3]
+    wanted = set(sys.argv[4:])
+    documents = {}
+    done = threading.Event()
+
+    def on_message(client, userdata, message):
+        if message.retain and message.payload:
+            documents[message.topic] = json.loads(message.payload)
+        if wanted <= {topic.split("/")[-3] for topic in documents}:
+            done.set()
+
+    client = mqtt.Client()
+    client.on_message = on_message
+    client.connect("127.0.0.1", port)
+    client.subscribe(discovery_prefix + "/+/+/config", qos=1)
+    client.loop_start()
+    done.wait(20)
+    time.sleep(0.5)  # the rest of the retained documents
+    client.loop_stop()
+    problems = []
+    found = {topic.split("/")[-3] for topic in documents}
+    if not wanted <= found:
+        problems.append(f"no document for {sorted(wanted - found)} (found {sorted(found)})")
+    for topic, document in sorted(documents.items()):
+        problems += check(topic, document, state_prefix)
+    for problem in problems:
+        print("FAIL", problem)
+    print(f"{len(documents)} discovery documents checked, {len(problems)} problems")
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
