@@ -40,7 +40,7 @@ ValueChange change(const std::string& parameter, double value, SystemTime sample
     c.parameter = parameter;
     c.unit = "°C";
     c.status = "ok";
-    c.value = loopwire::device::EngineeringValue{value, "ok", 0};
+    c.value = loopwire::device::EngineeringValue{value, "ok", 0, ""};
     c.sampled = sampled;
     return c;
 }

@@ -84,8 +84,10 @@ std::string csv_header(const std::vector<device::WatchedDevice>& devices) {
         columns.push_back(csv_field(device.label + " status"));
         columns.push_back(csv_field(device.label + " errors"));
         for (const auto& value : device.values) {
-            // A unit that follows a configuration word (unit_from) is the one the first sample read.
-            const std::string unit = device::shown_unit(*value.parameter, value.last ? &*value.last : nullptr);
+            // The fixed unit only: a header is written before the first sample (and compared with an
+            // appended file's), so a unit that follows a configuration word (unit_from) is left to
+            // the JSON lines, which carry each value's unit.
+            const auto& unit = value.parameter->unit;
             columns.push_back(csv_field(device.label + ":" + value.parameter->name + (unit.empty() ? "" : " [" + unit + "]")));
         }
     }

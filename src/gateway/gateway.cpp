@@ -117,6 +117,7 @@ Result<std::unique_ptr<HistoryStore>> open_history(const HistoryConfig& history,
     }
     return HistoryStore::open(std::move(options), declared);
 }
+
 LineReport report_of(const OpenLine& line);  // below
 
 }  // namespace

@@ -755,6 +755,8 @@ Result<std::optional<HistoryConfig>> parse_history(const Context& ctx, const tom
     if (!heartbeat) return heartbeat.error();
     config.heartbeat = *heartbeat;
     return std::optional<HistoryConfig>{std::move(config)};
+}
+
 // [http]
 
 // The token's file: a regular file, not readable by every user (the token guards the writes),
@@ -843,6 +845,7 @@ Result<std::optional<HttpConfig>> parse_http(const Context& ctx, const toml::tab
                                     "http.token_file too (or listen on 127.0.0.1)", config.host));
     }
     return std::optional<HttpConfig>{std::move(config)};
+}
 
 // [gateway]: the gateway's own name.
 Result<std::string> parse_gateway_name(const Context& ctx, const toml::table& root) {

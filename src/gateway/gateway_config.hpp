@@ -96,6 +96,8 @@ struct HistoryConfig {
     std::filesystem::path database;  // resolved
     std::chrono::seconds keep = std::chrono::hours(24 * 90);
     std::chrono::milliseconds heartbeat{60000};
+};
+
 // [http]: the HTTP API and the dashboard (gateway/http_server.hpp). Reads need no token on a
 // loopback address; writes always need one, and without `token_file` they are refused.
 struct HttpConfig {

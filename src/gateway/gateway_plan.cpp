@@ -154,6 +154,8 @@ void describe_history(std::ostringstream& out, const std::optional<HistoryConfig
     if (!config) return;
     out << fmt::format("history: {} (SQLite, WAL mode), every change and a heartbeat each {}, kept {}\n",
                        config->database.string(), duration_text(config->heartbeat), period_text(config->keep));
+}
+
 void describe_http(std::ostringstream& out, const std::optional<HttpConfig>& config) {
     if (!config) return;
     const bool ipv6 = config->host.find(':') != std::string::npos;

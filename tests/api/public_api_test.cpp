@@ -135,7 +135,7 @@ TEST_F(SimulatedTc10, DevicesAreNamedByBuiltInIdOrProfileFile) {
 
     EXPECT_EQ(failure_of([&] { Device(link, "no_such_device@3"); }).kind(), Failure::Kind::usage);
     EXPECT_EQ(failure_of([&] { Device(link, "tc10@0"); }).kind(), Failure::Kind::usage);
-    EXPECT_EQ(failure_of([&] { Device(link, "tc10@248"); }).kind(), Failure::Kind::usage);
+    EXPECT_EQ(failure_of([&] { Device(link, "tc10@255"); }).kind(), Failure::Kind::usage);
     EXPECT_EQ(failure_of([&] { Device(link, LOOPWIRE_PROFILE_DIR "/tc10.json@x"); }).kind(), Failure::Kind::usage);
     EXPECT_EQ(failure_of([&] { Device(link, "no/such/profile.json@3"); }).kind(), Failure::Kind::usage);
 }

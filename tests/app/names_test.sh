@@ -43,8 +43,8 @@ check monitor-miss-says-how 2 'write tc10@3:output_power' \
   "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@5 output_power --count 1 --format csv
 check monitor-miss-suggests 2 'did you mean' \
   "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@5 set_pont --count 1 --format csv
-check monitor-on-all 0 'tc10@3:output_power,rampsoak@5 status,rampsoak@5 errors,rampsoak@5:output_percentage' \
+check monitor-on-all 0 'tc10@3:output_power [%],rampsoak@5 status,rampsoak@5 errors,rampsoak@5:output_percentage [%]' \
   "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@5 OUT --count 1 --format csv
-check monitor-qualified 0 'tc10@3:output_power,rampsoak@5 status' \
+check monitor-qualified 0 'tc10@3:output_power [%],rampsoak@5 status' \
   "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@5 tc10@3:output_power --count 1 --format csv
 finish

@@ -378,8 +378,9 @@ std::string plan_of(const std::string& text) {
 }
 
 // tc10@3 on 19200 8E1 (11 bits a character). measured_value (word 1) and set_point (717) take
-// their decimals from decimal_point (641): three single-word reads, since the TC10 refuses reads
-// across unmapped words and 16 words is its limit.
+// their decimals from decimal_point (641) and their unit from temperature_unit (644): two
+// single-word reads and one of 641-644, since the TC10 refuses reads across unmapped words and
+// 16 words is its limit.
 std::string tc10_line(const std::string& poll) {
     return "[[lines]]\nname = \"l1\"\nlink = \"rtu:/dev/ttyUSB0?baud=19200&parity=even\"\n"
            "[[lines.devices]]\nname = \"oven1\"\ndevice = \"tc10@3\"\npoll = \"" + poll + "\"\n"
@@ -387,35 +388,35 @@ std::string tc10_line(const std::string& poll) {
 }
 
 TEST(GatewayConfigPlan, LoadIsTheWireTimeOfEachPollOverItsInterval) {
-    const long long per_poll_us = 3 * rtu_read_wire_us(1, 19200, 11);
-    ASSERT_EQ(per_poll_us, 3 * ((8 + 7) * 573 + 2 * 2006));  // 573 us a character, t3.5 = 2006 us
+    const long long per_poll_us = 2 * rtu_read_wire_us(1, 19200, 11) + rtu_read_wire_us(4, 19200, 11);
+    ASSERT_EQ(per_poll_us, 2 * ((8 + 7) * 573 + 2 * 2006) + (8 + 13) * 573 + 2 * 2006);  // 573 us a character, t3.5 = 2006 us
     const std::string plan = plan_of(tc10_line("1s"));
     EXPECT_THAT(plan, HasSubstr("line l1: rtu:/dev/ttyUSB0")) << plan;
     EXPECT_THAT(plan, HasSubstr("device oven1: tc10@3, Modbus TCP unit 3, every 1s: 2 parameters in 3 requests per poll")) << plan;
     const double load = 100.0 * static_cast<double>(per_poll_us) / 1e6;
     EXPECT_THAT(plan, HasSubstr(fmt::format("estimated line load: {:.1f} % of wire time\n", load))) << plan;
-    EXPECT_THAT(plan, HasSubstr("estimated line load: 3.8 % of wire time")) << plan;
+    EXPECT_THAT(plan, HasSubstr("estimated line load: 4.1 % of wire time")) << plan;
     EXPECT_THAT(plan, Not(HasSubstr("fall behind"))) << plan;
     EXPECT_THAT(plan, HasSubstr("Modbus TCP: listening on 127.0.0.1:1502, writes allowed")) << plan;
 }
 
 TEST(GatewayConfigPlan, AnOverloadedLineIsWarnedAbout) {
-    const long long per_poll_us = 3 * rtu_read_wire_us(1, 19200, 11);
+    const long long per_poll_us = 2 * rtu_read_wire_us(1, 19200, 11) + rtu_read_wire_us(4, 19200, 11);
     const double load = 100.0 * static_cast<double>(per_poll_us) / 10e3;  // every 10 ms
     const std::string plan = plan_of(tc10_line("10ms"));
     EXPECT_THAT(plan, HasSubstr(fmt::format("estimated line load: {:.1f} % of wire time\n", load))) << plan;
-    EXPECT_THAT(plan, HasSubstr("378.2 %")) << plan;
+    EXPECT_THAT(plan, HasSubstr("412.6 %")) << plan;
     EXPECT_THAT(plan, HasSubstr("over 100 %: polls will fall behind")) << plan;
 }
 
 TEST(GatewayConfigPlan, LoadsOfDevicesOnOneLineAddUp) {
     const std::string text = tc10_line("1s") + "[[lines.devices]]\nname = \"oven2\"\ndevice = \"tc10@4\"\npoll = \"500ms\"\n"
                                                "parameters = [\"measured_value\", \"set_point\"]\n";
-    const long long per_poll_us = 3 * rtu_read_wire_us(1, 19200, 11);
+    const long long per_poll_us = 2 * rtu_read_wire_us(1, 19200, 11) + rtu_read_wire_us(4, 19200, 11);
     const double load = 100.0 * static_cast<double>(per_poll_us) / 1e6 + 100.0 * static_cast<double>(per_poll_us) / 500e3;
     const std::string plan = plan_of(text);
     EXPECT_THAT(plan, HasSubstr(fmt::format("estimated line load: {:.1f} % of wire time\n", load))) << plan;
-    EXPECT_THAT(plan, HasSubstr("11.3 %")) << plan;
+    EXPECT_THAT(plan, HasSubstr("12.4 %")) << plan;
 }
 
 TEST(GatewayConfigPlan, TheDefaultWatchListIsPolledWhenNoneIsNamed) {
@@ -431,12 +432,13 @@ TEST(GatewayConfigPlan, TcpAndAsciiLinksSayWhatTheEstimateIs) {
     EXPECT_THAT(tcp, Not(HasSubstr("estimated line load"))) << tcp;
 
     // ASCII: each RTU byte but the CRC as two characters, plus LRC (2), ':' and CR LF; 7E1 is
-    // 10 bits a character. Request 8 RTU bytes -> 17 characters, reply 7 -> 15 characters.
+    // 10 bits a character. Request 8 RTU bytes -> 17 characters, reply 7 -> 15 characters; the
+    // read of 641-644 answers 3 words more: 6 RTU bytes, 12 characters.
     const std::string ascii = plan_of("[[lines]]\nname = \"l1\"\nlink = \"ascii:/dev/ttyS1?baud=9600&parity=even&data=7\"\n"
                                       "[[lines.devices]]\nname = \"oven1\"\ndevice = \"tc10@3\"\npoll = \"1s\"\n"
                                       "parameters = [\"measured_value\", \"set_point\"]\n");
     const long long character_us = (10 * 1'000'000 + 9600 - 1) / 9600;  // 1042 us
-    const double load = 100.0 * static_cast<double>(3 * (17 + 15) * character_us) / 1e6;
+    const double load = 100.0 * static_cast<double>((3 * (17 + 15) + 12) * character_us) / 1e6;
     EXPECT_THAT(ascii, HasSubstr(fmt::format("estimated line load: {:.1f} % of wire time (approximate", load))) << ascii;
 }
 
@@ -572,7 +574,240 @@ TEST(GatewayConfig, ABadMqttPrefixOrAnUnknownMqttKeyIsRefused) {
     EXPECT_THAT(error_of("mqtt = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected an [mqtt] table"));
 }
 
-    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt, history, http)");
+// ---------------------------------------------------------------------------------------------
+// [history]
+
+TEST(GatewayConfig, WithoutAHistoryTableThereIsNoHistory) {
+    auto config = parse(one_device("device = \"tc10@3\"\n"));
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_FALSE(config->history);
+}
+
+TEST(GatewayConfig, HistorySettingsAreRead) {
+    auto config = parse_gateway_config(one_device("device = \"tc10@3\"\n") +
+                                           "[history]\ndatabase = \"data/plant.db\"\nkeep = \"30d\"\nheartbeat = \"10s\"\n",
+                                       "/etc/loopwire/plant.toml", profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    ASSERT_TRUE(config->history);
+    EXPECT_EQ(config->history->database_as_written, "data/plant.db");
+    // Relative to the configuration file's folder, not to where the gateway was started.
+    EXPECT_EQ(config->history->database, std::filesystem::path("/etc/loopwire/data/plant.db"));
+    EXPECT_EQ(config->history->keep, std::chrono::hours(24 * 30));
+    EXPECT_EQ(config->history->heartbeat, std::chrono::seconds(10));
+    EXPECT_THAT(describe_plan(*config),
+                HasSubstr("history: /etc/loopwire/data/plant.db (SQLite, WAL mode), every change and a heartbeat each 10s, kept 30d"));
+}
+
+TEST(GatewayConfig, HistoryDefaultsApplyToWhatIsLeftOut) {
+    auto config = parse(one_device("device = \"tc10@3\"\n") + "[history]\ndatabase = \"/var/lib/loopwire/plant.db\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    ASSERT_TRUE(config->history);
+    EXPECT_EQ(config->history->database, std::filesystem::path("/var/lib/loopwire/plant.db"));  // absolute: as written
+    EXPECT_EQ(config->history->keep, std::chrono::hours(24 * 90));
+    EXPECT_EQ(config->history->heartbeat, std::chrono::seconds(60));
+    EXPECT_THAT(describe_plan(*config), HasSubstr("a heartbeat each 1m, kept 90d"));
+    // "~" is a shell's, not a path's: it stays a folder named "~" beside the file.
+    auto tilde = parse(one_device("device = \"tc10@3\"\n") + "[history]\ndatabase = \"~/plant.db\"\n");
+    ASSERT_TRUE(tilde) << tilde.error().message;
+    EXPECT_EQ(tilde->history->database, std::filesystem::path("~/plant.db"));
+}
+
+TEST(GatewayConfig, BadHistorySettingsAreRefusedWithTheKey) {
+    const std::string device = one_device("device = \"tc10@3\"\n") + "[history]\n";
+    EXPECT_THAT(error_of(device + "keep = \"90d\"\n"), StartsWith("plant.toml:8: history: missing `database` (e.g. database = \"plant.db\")"));
+    EXPECT_THAT(error_of(device + "database = \"\"\n"), StartsWith("plant.toml:9: history.database: expected the database file's path"));
+    EXPECT_THAT(error_of(device + "database = 5\n"), StartsWith("plant.toml:9: history.database: expected a string such as \"plant.db\""));
+    const std::string with_file = device + "database = \"plant.db\"\n";
+    EXPECT_EQ(error_of(with_file + "keep = \"90 days\"\n"),
+              "plant.toml:10: history.keep: '90 days' is not a period: write it like 90d, 12h, 30m or 3600s");
+    EXPECT_THAT(error_of(with_file + "keep = \"30s\"\n"), StartsWith("plant.toml:10: history.keep: \"30s\" is too short: keep at least 1m"));
+    EXPECT_THAT(error_of(with_file + "keep = 90\n"), StartsWith("plant.toml:10: history.keep: expected a period string such as \"90d\""));
+    EXPECT_THAT(error_of(with_file + "heartbeat = \"500ms\"\n"), StartsWith("plant.toml:10: history.heartbeat: less than 1s apart"));
+    EXPECT_THAT(error_of(with_file + "heartbeat = \"2d\"\n"), StartsWith("plant.toml:10: history.heartbeat: '2d' is not a duration"));
+    EXPECT_THAT(error_of(with_file + "path = \"x\"\n"),
+                StartsWith("plant.toml:10: history.path: unknown key (allowed here: database, keep, heartbeat)"));
+    EXPECT_THAT(error_of("history = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected a [history] table"));
+}
+
+// [http]
+
+// A token file in its own temporary directory, with the permissions given.
+class TokenFile {
+public:
+    TokenFile(const std::string& content, fs::perms perms) {
+        std::string pattern = (fs::temp_directory_path() / "loopwire-token-XXXXXX").string();
+        if (!::mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp");
+        directory_ = pattern;
+        std::ofstream(path()) << content;
+        fs::permissions(path(), perms);
+    }
+    ~TokenFile() {
+        std::error_code ignored;
+        fs::remove_all(directory_, ignored);
+    }
+    std::string path() const { return (directory_ / "token").string(); }
+
+private:
+    fs::path directory_;
+};
+
+constexpr auto owner_only = fs::perms::owner_read | fs::perms::owner_write;
+
+TEST(GatewayConfig, WithoutAnHttpTableThereIsNoHttp) {
+    auto config = parse(one_device("device = \"tc10@3\"\n"));
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_FALSE(config->http);
+}
+
+TEST(GatewayConfig, HttpDefaultsAreLoopbackPort8080AndNoWrites) {
+    auto config = parse(one_device("device = \"tc10@3\"\n") + "[http]\n");
+    ASSERT_TRUE(config) << config.error().message;
+    ASSERT_TRUE(config->http);
+    EXPECT_EQ(config->http->host, "127.0.0.1");
+    EXPECT_EQ(config->http->port, 8080);
+    EXPECT_TRUE(config->http->loopback());
+    EXPECT_TRUE(config->http->token.empty());
+    EXPECT_EQ(config->http->read_timeout, std::chrono::seconds(10));
+    EXPECT_THAT(describe_plan(*config),
+                HasSubstr("HTTP API and dashboard: http://127.0.0.1:8080/, reads open on loopback, writes refused (no http.token_file)"));
+}
+
+TEST(GatewayConfig, HttpSettingsAndTheTokenAreRead) {
+    TokenFile token("s3cret-token-value\n", owner_only);
+    auto config = parse(one_device("device = \"tc10@3\"\n") +
+                        fmt::format("[http]\nlisten = \"0.0.0.0:0\"\ntoken_file = \"{}\"\nread_timeout = \"2s\"\n"
+                                    "max_connections = 8\n", token.path()));
+    ASSERT_TRUE(config) << config.error().message;
+    ASSERT_TRUE(config->http);
+    EXPECT_EQ(config->http->host, "0.0.0.0");
+    EXPECT_EQ(config->http->port, 0);
+    EXPECT_FALSE(config->http->loopback());
+    EXPECT_EQ(config->http->token, "s3cret-token-value");
+    EXPECT_EQ(config->http->token_file, token.path());
+    EXPECT_EQ(config->http->read_timeout, std::chrono::seconds(2));
+    EXPECT_EQ(config->http->max_connections, 8u);
+    EXPECT_THAT(describe_plan(*config), HasSubstr(fmt::format("reads need the token, writes need the token in {}", token.path())));
+}
+
+TEST(GatewayConfig, ABadTokenFileNamesTheKeyAndSaysWhatToDo) {
+    const std::string device = one_device("device = \"tc10@3\"\n");
+    const auto with_file = [&](const std::string& file) {
+        return device + fmt::format("[http]\nlisten = \"127.0.0.1:0\"\ntoken_file = \"{}\"\n", file);
+    };
+    EXPECT_THAT(error_of(with_file("/nonexistent/token")),
+                StartsWith("plant.toml:10: http.token_file: cannot read \"/nonexistent/token\": No such file or directory"));
+    TokenFile readable("s3cret-token-value\n", owner_only | fs::perms::group_read | fs::perms::others_read);
+    EXPECT_THAT(error_of(with_file(readable.path())),
+                AllOf(StartsWith("plant.toml:10: http.token_file:"), HasSubstr("readable by every user (mode 0644)"),
+                      HasSubstr("chmod 600")));
+    TokenFile empty("\n", owner_only);
+    EXPECT_THAT(error_of(with_file(empty.path())), HasSubstr("is empty"));
+    TokenFile spaces("two words\n", owner_only);
+    EXPECT_THAT(error_of(with_file(spaces.path())), HasSubstr("without spaces"));
+}
+
+TEST(GatewayConfig, ListeningBeyondLoopbackNeedsAToken) {
+    EXPECT_THAT(error_of(one_device("device = \"tc10@3\"\n") + "[http]\nlisten = \"0.0.0.0:8080\"\n"),
+                AllOf(StartsWith("plant.toml:9: http.listen: \"0.0.0.0\" is not a loopback address"), HasSubstr("http.token_file")));
+}
+
+TEST(GatewayConfig, BadHttpSettingsSayWhatIsExpected) {
+    const std::string device = one_device("device = \"tc10@3\"\n") + "[http]\n";
+    EXPECT_THAT(error_of(device + "listen = \"8080\"\n"), StartsWith("plant.toml:9: http.listen: \"8080\" is not an address"));
+    EXPECT_THAT(error_of(device + "read_timeout = \"1ms\"\n"), StartsWith("plant.toml:9: http.read_timeout: expected 100ms..10min"));
+    EXPECT_THAT(error_of(device + "max_connections = 0\n"), StartsWith("plant.toml:9: http.max_connections: 0 is out of range"));
+    EXPECT_THAT(error_of(device + "token = \"abc\"\n"), HasSubstr("http.token: unknown key (allowed here: listen, token_file"));
+    EXPECT_THAT(error_of("http = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected an [http] table"));
+}
+
+TEST(GatewayConfig, TheGatewayNameGivesTheMqttPrefixAndDiscoveryName) {
+    const std::string device = one_device("device = \"tc10@3\"\n");
+    auto named = parse("[gateway]\nname = \"plant-2\"\n" + device + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\n");
+    ASSERT_TRUE(named) << named.error().message;
+    EXPECT_EQ(named->name, "plant-2");
+    EXPECT_EQ(named->mqtt->prefix, "loopwire/plant-2");
+    EXPECT_EQ(named->mqtt->gateway_name, "plant-2");
+    // Without a name, the prefix's last level, made safe for object ids.
+    auto unnamed = parse(device + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\nprefix = \"site a/gw 1.x\"\n");
+    ASSERT_TRUE(unnamed) << unnamed.error().message;
+    EXPECT_EQ(unnamed->mqtt->gateway_name, "gw_1_x");
+    EXPECT_THAT(error_of("[gateway]\nname = \"my plant\"\n" + device), StartsWith("plant.toml:2: gateway.name: \"my plant\" is not a valid name"));
+    EXPECT_THAT(error_of("[gateway]\nnom = \"x\"\n" + device), StartsWith("plant.toml:2: gateway.nom: unknown key (allowed here: name)"));
+}
+
+TEST(GatewayConfig, MqttPublishingSettingsAreRead) {
+    const std::string device = one_device("device = \"tc10@3\"\n") + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\n";
+    auto config = parse(device + "republish = \"30s\"\ndiscovery = \"homeassistant\"\ndiscovery_prefix = \"ha\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->mqtt->republish, std::chrono::seconds(30));
+    EXPECT_EQ(config->mqtt->discovery, MqttConfig::Discovery::homeassistant);
+    EXPECT_EQ(config->mqtt->discovery_prefix, "ha");
+    auto off = parse(device + "republish = \"off\"\n");
+    ASSERT_TRUE(off) << off.error().message;
+    EXPECT_FALSE(off->mqtt->republish);
+    EXPECT_THAT(error_of(device + "republish = \"10ms\"\n"), StartsWith("plant.toml:10: mqtt.republish: expected at least \"100ms\""));
+    EXPECT_THAT(error_of(device + "republish = \"often\"\n"), StartsWith("plant.toml:10: mqtt.republish: "));
+    EXPECT_THAT(error_of(device + "discovery = \"openhab\"\n"),
+                StartsWith("plant.toml:10: mqtt.discovery: \"openhab\" is not a discovery scheme"));
+    EXPECT_THAT(error_of(device + "discovery_prefix = \"home assistant\"\n"),
+                StartsWith("plant.toml:10: mqtt.discovery_prefix: \"home assistant\" is not a topic prefix"));
+}
+
+// Files beside a configuration that is a file: its folder is where relative names are found.
+class MqttFiles : public ::testing::Test {
+protected:
+    void SetUp() override {
+        std::string pattern = (std::filesystem::temp_directory_path() / "loopwire-config-XXXXXX").string();
+        ASSERT_TRUE(::mkdtemp(pattern.data()));
+        directory_ = pattern;
+    }
+    void TearDown() override {
+        std::error_code ignored;
+        std::filesystem::remove_all(directory_, ignored);
+    }
+    void write(const std::string& name, const std::string& text, std::filesystem::perms perms) {
+        std::ofstream(directory_ / name) << text;
+        std::filesystem::permissions(directory_ / name, perms);
+    }
+    Result<GatewayConfig> parse_here(const std::string& mqtt) {
+        return parse_gateway_config(one_device("device = \"tc10@3\"\n") + "[mqtt]\n" + mqtt, (directory_ / "plant.toml").string(),
+                                    profiles());
+    }
+    std::string error_here(const std::string& mqtt) {
+        auto config = parse_here(mqtt);
+        return config ? std::string("(no error)") : config.error().message;
+    }
+    std::filesystem::path directory_;
+};
+
+
+TEST_F(MqttFiles, TlsAndAPasswordFromAFileAreRead) {
+    write("ca.crt", "certificate", owner_only | std::filesystem::perms::others_read);
+    write("secret", "s3cret\n", owner_only);
+    auto config = parse_here("broker = \"mqtts://broker.local\"\nca_file = \"ca.crt\"\nusername = \"gw\"\npassword_file = \"secret\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->mqtt->port, 8883);  // MQTT over TLS's port
+    ASSERT_TRUE(config->mqtt->tls);
+    EXPECT_EQ(config->mqtt->tls->ca_file, directory_ / "ca.crt");
+    EXPECT_EQ(config->mqtt->username, "gw");
+    EXPECT_EQ(config->mqtt->password, "s3cret");  // without the newline
+}
+
+TEST_F(MqttFiles, ABadPasswordFileOrTlsFileIsNamed) {
+    write("open", "s3cret\n", owner_only | std::filesystem::perms::others_read);
+    write("empty", "", owner_only);
+    write("ca.crt", "certificate", owner_only);
+    const std::string plain = "broker = \"mqtt://127.0.0.1\"\nusername = \"gw\"\n";
+    EXPECT_THAT(error_here(plain + "password_file = \"missing\"\n"),
+                AllOf(HasSubstr("mqtt.password_file: cannot read"), HasSubstr("missing\" (expected a readable file)")));
+    EXPECT_THAT(error_here(plain + "password_file = \"open\"\n"),
+                AllOf(HasSubstr("mqtt.password_file: "), HasSubstr("is readable by every user; make it private (chmod 600")));
+    EXPECT_THAT(error_here(plain + "password_file = \"empty\"\n"), HasSubstr("mqtt.password_file: "));
+    EXPECT_THAT(error_here(plain + "password = \"inline\"\n"), HasSubstr("mqtt.password: unknown key"));
+    EXPECT_THAT(error_here("broker = \"mqtt://127.0.0.1\"\nca_file = \"ca.crt\"\n"), HasSubstr("mqtt.ca_file: only used over TLS"));
+    EXPECT_THAT(error_here("broker = \"mqtts://127.0.0.1\"\nca_file = \"nope.crt\"\n"), HasSubstr("mqtt.ca_file: cannot read"));
+    EXPECT_THAT(error_here("broker = \"mqtts://127.0.0.1\"\ncert_file = \"ca.crt\"\n"),
+                HasSubstr("cert_file and key_file go together: `key_file` is missing"));
 }
 
 }  // namespace

@@ -28,7 +28,7 @@ int main(int argc, char** argv) {
         change.parameter = "measured_value";
         change.unit = "°C";
         change.status = "ok";
-        change.value = loopwire::device::EngineeringValue{static_cast<double>(n), "ok", 0};
+        change.value = loopwire::device::EngineeringValue{static_cast<double>(n), "ok", 0, "°C"};
         change.sampled = start + std::chrono::milliseconds(n);
         (*store)->record(change);
         if (n % 10 == 0) {

@@ -67,7 +67,7 @@ ValueChange number(const std::string& parameter, double value, SystemTime sample
     change.parameter = parameter;
     change.unit = unit;
     change.status = "ok";
-    change.value = device::EngineeringValue{value, "ok", 0};
+    change.value = device::EngineeringValue{value, "ok", 0, ""};
     change.text = fmt::format("{:.1f}", value);
     change.sampled = sampled;
     return change;
@@ -79,7 +79,7 @@ ValueChange special(const std::string& parameter, const std::string& status, Sys
     change.parameter = parameter;
     change.unit = "°C";
     change.status = status;
-    if (with_value) change.value = device::EngineeringValue{std::monostate{}, status, 0x8000};  // a special state's word
+    if (with_value) change.value = device::EngineeringValue{std::monostate{}, status, 0x8000, ""};  // a special state's word
     else change.error = "no reply";
     change.sampled = sampled;
     return change;
@@ -148,7 +148,7 @@ TEST(HistoryStore, AnEnumLabelKeepsItsRawNumberAndItsText) {
         auto store = open_store(options_at(file, wall));
         ASSERT_TRUE(store);
         ValueChange mode = number("control_mode", 0, t0, "");
-        mode.value = device::EngineeringValue{std::string("manual"), "ok", 2};
+        mode.value = device::EngineeringValue{std::string("manual"), "ok", 2, ""};
         mode.text = "manual";
         store->record(mode);
         ASSERT_TRUE(store->write_pending());

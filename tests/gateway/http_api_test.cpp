@@ -659,7 +659,7 @@ device = "tc10@3"
         ASSERT_NE(measured, nullptr);
         device::WatchedDevice state = device::watch("tc10@3", {measured});
         state.status = "ok";
-        state.values[0].last = device::EngineeringValue{value, "ok", 0};
+        state.values[0].last = device::EngineeringValue{value, "ok", 0, ""};
         state.values[0].fresh = true;
         state.values[0].read_at = device::MonitorClock::now();
         cache_.update("oven", state, std::chrono::system_clock::now());

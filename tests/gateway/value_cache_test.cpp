@@ -27,7 +27,7 @@ device::Parameter parameter(std::string name, std::string unit) {
 }
 
 device::EngineeringValue tenths(std::uint16_t raw, std::string status = "ok") {
-    return {static_cast<double>(raw) / 10.0, std::move(status), raw};
+    return {static_cast<double>(raw) / 10.0, std::move(status), raw, "°C"};
 }
 
 // A device watched for two parameters, its state folded from polls as the poller does.
@@ -130,7 +130,7 @@ TEST(ValueCache, AValuesStatusChangeTellsOne) {
     cache.update("oven1", oven.answered(tenths(250), tenths(1375)), sample_time);
     told.changes.clear();
     // The same word, now read as a special state: the status is what changed.
-    cache.update("oven1", oven.answered(device::EngineeringValue{std::monostate{}, "under-range", 250}, tenths(1375)),
+    cache.update("oven1", oven.answered(device::EngineeringValue{std::monostate{}, "under-range", 250, ""}, tenths(1375)),
                  sample_time + 1s);
     ASSERT_EQ(told.names(), std::vector<std::string>{"measured_value"});
     EXPECT_EQ(told.changes[0].status, "under-range");
