@@ -6,7 +6,7 @@ set -u
 loopwire=${1:?usage: raw_types_test.sh path/to/loopwire}
 source "$(dirname "$0")/../support/test_lib.sh"
 
-start_tcp_server sim.log timeout 60 "$loopwire" simulate --link tcp://127.0.0.1:0 --unit 5 --duration 50s
+start_tcp_server sim.log timeout 200 "$loopwire" simulate --link tcp://127.0.0.1:0 --unit 5 --duration 180s
 link=(--link "tcp://127.0.0.1:$PORT" --timeout 300ms)
 
 # 100: 12.5f big (4148 0000)        102: -3.25f little (0000 C050)   104: 123456789 big (075B CD15)

@@ -50,7 +50,7 @@ check readme-plan 0 "estimated line load" bash -c "cd '$(dirname "$0")/../..' &&
 check plan-names-the-line 0 "furnace-line" "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
 check plan-gives-the-load 0 "estimated line load" "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
 
-start_tcp_server gateway.log timeout 100 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+start_tcp_server gateway.log timeout 250 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
 gateway="tcp://127.0.0.1:$PORT"
 gateway_port=$PORT
 
