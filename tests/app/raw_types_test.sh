@@ -96,7 +96,7 @@ assert all(r["values"] == {"100": None} and "exception 11" in r["error"] for r i
 PY
 then count_pass; else count_failure monitor-dead-unit "$WORK_DIR/why" "$WORK_DIR/dead.jsonl"; fi
 # Ctrl-C ends a raw monitor cleanly (exit 0).
-timeout --preserve-status -s INT 2 "$loopwire" monitor "${link[@]}" --unit 5 holding 100 --type float32 --interval 100ms --format jsonl \
+timeout --preserve-status -s INT 6 "$loopwire" monitor "${link[@]}" --unit 5 holding 100 --type float32 --interval 100ms --format jsonl \
   >"$WORK_DIR/int.jsonl" 2>&1
 status=$?
 if [[ $status -eq 0 && -s $WORK_DIR/int.jsonl ]]; then count_pass; else count_failure "monitor-ctrl-c (exit $status)" "$WORK_DIR/int.jsonl"; fi
