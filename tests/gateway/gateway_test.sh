@@ -99,13 +99,13 @@ if [[ $? -eq 0 ]]; then count_pass; else count_failure any-function-code-passes-
 
 # The gateway's own polls (every device's default watch list, each second) share the line with
 # the clients above; a device that answers and one that does not are logged once each.
-wait_for 10 "oven1 polled" grep -q "device oven1 (tc10@3) answers" "$WORK_DIR/gateway.log"
-wait_for 10 "kiln polled" grep -q "device kiln (rampsoak@5) answers" "$WORK_DIR/gateway.log"
-wait_for 10 "the silent unit noticed" grep -q "device absent (tc10@4) does not answer" "$WORK_DIR/gateway.log"
+wait_for 30 "oven1 polled" grep -q "device oven1 (tc10@3) answers" "$WORK_DIR/gateway.log"
+wait_for 30 "kiln polled" grep -q "device kiln (rampsoak@5) answers" "$WORK_DIR/gateway.log"
+wait_for 30 "the silent unit noticed" grep -q "device absent (tc10@4) does not answer" "$WORK_DIR/gateway.log"
 count_pass
 # Statistics every second ([log] statistics = "1s"), each line's busy share over that second,
 # every log line stamped with its UTC time and level.
-wait_for 10 "periodic statistics" grep -qE "^[0-9]{4}-[0-9]{2}-[0-9]{2}T[0-9:.]+Z info .*line furnace-line .* sent, .* garbled frame\(s\), .*busy [0-9.]+ % over the last 1 s" "$WORK_DIR/gateway.log"
+wait_for 30 "periodic statistics" grep -qE "^[0-9]{4}-[0-9]{2}-[0-9]{2}T[0-9:.]+Z info .*line furnace-line .* sent, .* garbled frame\(s\), .*busy [0-9.]+ % over the last 1 s" "$WORK_DIR/gateway.log"
 count_pass
 
 # SIGTERM drains: a request sent just before it (to the silent unit: 300 ms of waiting on the
@@ -142,15 +142,15 @@ read_only_pid=$(pgrep -P "$LAST_PID")  # the gateway itself, not `timeout` aroun
 last_port() { grep -oE 'listening on port [0-9]+' "$WORK_DIR/read-only.log" | tail -1 | grep -oE '[0-9]+$'; }
 write_config "$WORK_DIR/read-only.toml" true
 kill -HUP "$read_only_pid"
-wait_for 10 "the reload" grep -q "configuration .*read-only.toml reloaded" "$WORK_DIR/read-only.log"
-wait_for 10 "the reloaded gateway's port" test "$(grep -c 'listening on port' "$WORK_DIR/read-only.log")" -ge 2
+wait_for 30 "the reload" grep -q "configuration .*read-only.toml reloaded" "$WORK_DIR/read-only.log"
+wait_for 30 "the reloaded gateway's port" test "$(grep -c 'listening on port' "$WORK_DIR/read-only.log")" -ge 2
 reloaded="tcp://127.0.0.1:$(last_port)"
 check reloaded-gateway-takes-writes 0 "" "$loopwire" write --link "$reloaded" --device tc10@3 set_point=160
 check reloaded-gateway-wrote 0 '"value":160' "$loopwire" read --link "$reloaded" --device tc10@3 set_point --json
 # A broken file on SIGHUP: said why, and the running gateway goes on serving.
 printf '[[lines]]\nname = "x"\nlink = 7\n' >"$WORK_DIR/read-only.toml"
 kill -HUP "$read_only_pid"
-wait_for 10 "the refused reload" grep -q "configuration not reloaded, the running one is kept: .*read-only.toml:3: lines\[0\].link" "$WORK_DIR/read-only.log"
+wait_for 30 "the refused reload" grep -q "configuration not reloaded, the running one is kept: .*read-only.toml:3: lines\[0\].link" "$WORK_DIR/read-only.log"
 check still-serving-after-a-bad-reload 0 '"value":160' "$loopwire" read --link "$reloaded" --device tc10@3 set_point --json
 write_config "$WORK_DIR/read-only.toml" false
 
@@ -171,7 +171,7 @@ listener=$!
 wait_for_path "$notify"
 NOTIFY_SOCKET="$notify" "$loopwire" gateway --config "$WORK_DIR/read-only.toml" >"$WORK_DIR/notified.log" 2>&1 &
 notified=$!
-wait_for 10 "READY=1 from the gateway" grep -q "READY=1" "$WORK_DIR/notify.out"
+wait_for 30 "READY=1 from the gateway" grep -q "READY=1" "$WORK_DIR/notify.out"
 kill -TERM "$notified"
 wait "$notified"
 status=$?
