@@ -100,14 +100,19 @@ int run_device_write(const device::ProfileRegistry& profiles, const MasterComman
     device::DeviceClient client(*connected->master, connected->device);
     auto written = client.write(resolved);
     if (!written) return report_error(written.error());
+    // The unit as a read would show it (unit_of): a unit that follows a configuration word
+    // (TC10 unit, AC20 PV.SL/tP.In, ramp/soak UNIT) comes from that word, which write() read
+    // with the decimals and bounds before writing, or took from this command's own assignments.
+    const auto unit = [&](const device::Parameter& p) { return device::unit_of(p, written->known); };
     if (options.json) {
         nlohmann::ordered_json values = nlohmann::ordered_json::object();
-        for (const auto& [p, raw] : written->written) values[p->name] = {{"raw", raw}};
+        for (const auto& [p, raw] : written->written) values[p->name] = {{"raw", raw}, {"unit", unit(*p)}};
         fmt::print("{}\n", nlohmann::ordered_json{{"unit", connected->device.unit}, {"device", connected->device.profile->id}, {"written", values}, {"requests", written->requests}}.dump());
     } else {
         for (const auto& [p, raw] : written->written) {
             auto given = std::find_if(resolved.begin(), resolved.end(), [p = p](const auto& r) { return r.first == p; });
-            fmt::print("wrote {} = {} {}(raw {})\n", p->name, given->second, p->unit.empty() ? "" : p->unit + " ", raw);
+            const std::string shown = unit(*p);
+            fmt::print("wrote {} = {} {}(raw {})\n", p->name, given->second, shown.empty() ? "" : shown + " ", raw);
         }
         fmt::print("{} parameter(s) in {} request(s)\n", written->written.size(), written->requests);
     }

@@ -237,7 +237,9 @@ Result<WriteReport> DeviceClient::write(const std::vector<std::pair<const Parame
         planned.push_back({parameter, *raw});
         known[parameter->name] = *raw;  // later bounds see the new value (TC10 SPLL before SP)
     }
-    return write_raw(planned);
+    auto report = write_raw(planned);
+    if (report) report->known = std::move(known);  // a unit word written here is known as written
+    return report;
 }
 
 Result<WriteReport> DeviceClient::write_raw(const std::vector<PlannedWrite>& planned) {

@@ -54,6 +54,9 @@ struct ReadReport {
 struct WriteReport {
     std::vector<std::pair<const Parameter*, std::uint16_t>> written;
     unsigned requests = 0;
+    // The words the values were checked against (decimals, bounds, unit words), as they are
+    // after the write: what unit_of needs to show a written value in the unit a read would.
+    RawValues known;
 };
 
 class DeviceClient {

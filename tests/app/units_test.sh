@@ -83,9 +83,20 @@ check tc10-celsius 0 "°C" "$loopwire" read --link "$link" --device tc10@254 rV
 check tc10-set-fahrenheit 0 "wrote temperature_unit = F" "$loopwire" write --link "$link" --device tc10@254 temperature_unit=F
 check tc10-fahrenheit 0 "°F" "$loopwire" read --link "$link" --device tc10@254 rV
 check tc10-fahrenheit-monitor 0 '"unit":"°F"' "$loopwire" monitor --link "$link" --device tc10@254 --count 1 --format jsonl rV
+# write shows the unit a read would: the configured one, not a fixed one.
+check tc10-write-fahrenheit 0 "wrote set_point = 50 °F" "$loopwire" write --link "$link" --device tc10@254 SP=50
+check tc10-write-fahrenheit-json 0 '"set_point":{"raw":50,"unit":"°F"}' \
+  "$loopwire" write --link "$link" --device tc10@254 SP=50 --json
 # Ramp/soak §7 UNIT "0000H=C 0001H=F 0002H=A".
+check rampsoak-write-celsius 0 "wrote set_value = 60.0 °C" "$loopwire" write --link "$link" --device rampsoak@250 SV=60.0
 check rampsoak-set-fahrenheit 0 "wrote unit = F" "$loopwire" write --link "$link" --device rampsoak@250 unit=F
 check rampsoak-fahrenheit 0 '"unit":"°F"' "$loopwire" read --link "$link" --device rampsoak@250 PV --json
+check rampsoak-write-fahrenheit 0 "wrote set_value = 140.0 °F" "$loopwire" write --link "$link" --device rampsoak@250 SV=140.0
+check rampsoak-write-fahrenheit-json 0 '"set_value":{"raw":1400,"unit":"°F"}' \
+  "$loopwire" write --link "$link" --device rampsoak@250 SV=140.0 --json
+# A unit word written in the same command decides the unit of the values after it.
+check rampsoak-write-unit-and-value 0 "wrote set_value = 60.0 °C" \
+  "$loopwire" write --link "$link" --device rampsoak@250 unit=C SV=60.0
 
 # Each manual's address limit: TC10 #131 Add "0 (oFF) ... 254" has no unit 255.
 check tc10-unit-255-refused 2 "1..254" "$loopwire" read --link "$link" --device tc10@255 rV

@@ -69,6 +69,10 @@ void RampSoakSimulator::find_cells() {
     derivative_time_ = cell("out1_derivative_time");
     hysteresis_ = cell("out1_hysteresis");
     decimal_point_ = cell("decimal_point");
+    lower_set_point_limit_ = cell("lower_set_point_limit");
+    upper_set_point_limit_ = cell("upper_set_point_limit");
+    pv_compensation_ = cell("pv_compensation");
+    unit_ = cell("unit");
     for (std::size_t i = 0; i < 3; ++i) {
         alarm_sets_[i] = cell(fmt::format("alarm_{}_set", i + 1));
         alarm_modes_[i] = cell(fmt::format("alarm_{}_mode", i + 1));
@@ -88,6 +92,10 @@ void RampSoakSimulator::set_factory_values() {
     set_value("baud_rate", 4);
     set_value("communication_bits", 0);
     set_value("decimal_point", 1, Persistence::saved);
+    // LSPL/USPL: the whole PV display span (§7 PV row, -1999~9999 counts), so out of the box no
+    // set point the display can show is refused.
+    set_value("lower_set_point_limit", word_of(static_cast<long>(pv_lowest)), Persistence::saved);
+    set_value("upper_set_point_limit", word_of(static_cast<long>(pv_highest)), Persistence::saved);
     set_value("output_limit", 1000, Persistence::saved);
     for (const PatternCells& cells : patterns_) {
         for (const SegmentCells& segment : cells) memory().store(*segment.output_limit, 1000, Persistence::saved);
@@ -146,9 +154,26 @@ double RampSoakSimulator::output_limit() const {
     return std::min(limit, program_.output_limit(pattern()).value_or(limit));
 }
 
+// §7 UNIT (0066H) "Unit of PV and SV", "0000H=C 0001H=F 0002H=A": the PV and SV words, and
+// every word compared with them (SV_n, AL1-AL3, LSPL/USPL, PVOS, P1, HYS1), are in that unit.
+// The chamber is modelled in °C; with F the PV reads in °F and the controller works in °F.
+// Choices (the manual says no more): a change of UNIT does not convert the stored set points
+// (SV 100.0 means 100.0 °F after the switch to F, as a number typed on the panel would), and A
+// (a linear input scaled by ANL1/ANH1, not modelled) shows the same numbers as C.
+double RampSoakSimulator::in_configured_unit(double celsius) const {
+    return unit_->raw == 1 ? celsius * 9.0 / 5.0 + 32.0 : celsius;
+}
+
+// What the controller measures and controls: the chamber temperature in the configured unit
+// plus PVOS (§7, 0065H, "PV Compensation"), an offset in PV units (DP-scaled) added to the
+// measurement. The controller acts on the compensated PV, the value it shows.
+double RampSoakSimulator::measured_value() const {
+    return in_configured_unit(plant_.temperature()) + engineering(pv_compensation_);
+}
+
 // P1 (§7, 0039H, 0~2000) is taken in PV display counts like HYS1, so with DP = 1 P1 = 400 is a
-// 40.0 °C band (span 100 makes the PID's "% of span" the band in °C); P1 = 0 is on/off
-// control with HYS1. I1 (0~3600) and D1 (0~900) are seconds.
+// 40.0 °C band (span 100 makes the PID's "% of span" the band in the PV's unit); P1 = 0 is
+// on/off control with HYS1. I1 (0~3600) and D1 (0~900) are seconds.
 process::PidSettings RampSoakSimulator::pid_settings() const {
     process::PidSettings settings;
     settings.span = 100.0;
@@ -166,8 +191,8 @@ void RampSoakSimulator::step_process(double seconds) {
     pid_.set_settings(pid_settings());
     // A broken sensor gives the controller nothing to act on: the output goes to 0 % (the safe
     // state for a heater) until the input is restored.
-    output_ = input_open_ ? 0.0 : pid_.step(seconds, set_point(), plant_.temperature());
-    if (input_open_) pid_.track(0.0, set_point(), plant_.temperature());
+    output_ = input_open_ ? 0.0 : pid_.step(seconds, set_point(), measured_value());
+    if (input_open_) pid_.track(0.0, set_point(), measured_value());
     plant_.step(seconds, output_ / 100.0);
     publish();
 }
@@ -178,7 +203,7 @@ void RampSoakSimulator::step_process(double seconds) {
 double RampSoakSimulator::shown_process_value() {
     if (input_open_) return pv_highest / scale();
     std::normal_distribution<double> noise(0.0, pv_noise);
-    return std::clamp(plant_.temperature() + noise(random()), pv_lowest / scale(), pv_highest / scale());
+    return std::clamp(measured_value() + noise(random()), pv_lowest / scale(), pv_highest / scale());
 }
 
 // OBIT (§7, 0088H): OUT1 LED while the heating output is on, AL1-AL3 LEDs per alarm, PRO LED
@@ -219,14 +244,16 @@ std::uint16_t RampSoakSimulator::on_read(const Parameter& parameter, std::uint16
 
 // PTN (§7, 0006H, 0~2): writing 1 or 2 starts that pattern from segment 1 (again, if it was
 // running), writing 0 stops the program. The map has no other program control: no run, hold
-// or reset register, so hold is out of reach over the line. A restart (power on) leaves the
-// program stopped whatever PTN holds.
+// or reset register, so hold is out of reach over the line. Nor does any register switch the
+// controller to manual: OUT% (0087H) is read-only (03H) and no A/M word is listed, so the
+// output is always the controller's and OBIT's MAN LED (bit 7) stays off. A restart (power on)
+// leaves the program stopped whatever PTN holds.
 void RampSoakSimulator::after_write(const Parameter& parameter, std::uint16_t raw) {
     if (&parameter == program_pattern_->parameter) {
         if (raw == 0) {
             program_.stop();
         } else {
-            program_.start(plant_.temperature());
+            program_.start(measured_value());
         }
     }
     publish();

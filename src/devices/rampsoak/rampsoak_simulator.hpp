@@ -8,6 +8,9 @@
 // - A heated chamber (process/thermal_plant.hpp) under PID control (P1, I1, D1, HYS1; output
 //   limited by OUTL and the running segment's OUTn) gives PV and OUT%.
 // - Alarms (rampsoak_alarms.hpp) and the OBIT LED/message word follow the process.
+// - UNIT (0066H) sets the unit of PV and SV, PVOS (0065H) offsets the PV, and LSPL/USPL
+//   (004CH/004DH) bound the set points a write may give (rampsoak_limits.cpp).
+// - No register reaches a program hold or manual output (see after_write).
 #include <array>
 #include <optional>
 
@@ -27,6 +30,8 @@ public:
 protected:
     std::uint16_t on_read(const Parameter& parameter, std::uint16_t stored) override;
     void after_write(const Parameter& parameter, std::uint16_t raw) override;
+    std::optional<std::uint8_t> accept_write(const Parameter& parameter, std::uint16_t raw,
+                                             const RawValues& known) override;  // rampsoak_limits.cpp
     Persistence persistence_of(std::uint8_t function) const override;
     void step_process(double seconds) override;
     void apply_fault(const std::string& fault) override;
@@ -47,6 +52,9 @@ private:
     std::uint16_t display_raw(double engineering) const;
     ProgramPattern pattern() const;
     double set_point() const;
+    double in_configured_unit(double celsius) const;
+    double measured_value() const;
+    bool is_set_point(const Parameter& parameter) const;
     double output_limit() const;
     process::PidSettings pid_settings() const;
     double shown_process_value();
@@ -70,6 +78,10 @@ private:
     MemoryCell* derivative_time_ = nullptr;
     MemoryCell* hysteresis_ = nullptr;
     MemoryCell* decimal_point_ = nullptr;
+    MemoryCell* lower_set_point_limit_ = nullptr;
+    MemoryCell* upper_set_point_limit_ = nullptr;
+    MemoryCell* pv_compensation_ = nullptr;
+    MemoryCell* unit_ = nullptr;
     std::array<MemoryCell*, 3> alarm_sets_{};
     std::array<MemoryCell*, 3> alarm_modes_{};
     MemoryCell* output_percentage_ = nullptr;

@@ -24,6 +24,8 @@ constexpr std::uint16_t timr = 0x0008;
 constexpr std::uint16_t pattern_1 = 0x0009;  // SV_1, TM_1, OUT1, SV_2, ...
 constexpr std::uint16_t pattern_2 = 0x0021;
 constexpr std::uint16_t p1 = 0x0039;
+constexpr std::uint16_t lspl = 0x004C;
+constexpr std::uint16_t uspl = 0x004D;
 constexpr std::uint16_t ald1 = 0x0050;
 constexpr std::uint16_t ald2 = 0x0052;
 constexpr std::uint16_t ald3 = 0x0054;
@@ -31,6 +33,8 @@ constexpr std::uint16_t psl = 0x0060;
 constexpr std::uint16_t bits = 0x0061;
 constexpr std::uint16_t idno = 0x0062;
 constexpr std::uint16_t baud = 0x0063;
+constexpr std::uint16_t pvos = 0x0065;
+constexpr std::uint16_t unit = 0x0066;
 constexpr std::uint16_t out_percent = 0x0087;
 constexpr std::uint16_t obit = 0x0088;
 constexpr std::uint16_t pv = 0x008A;
@@ -41,6 +45,7 @@ constexpr std::uint16_t al1_led = 1u << 3;
 constexpr std::uint16_t al2_led = 1u << 4;
 constexpr std::uint16_t al3_led = 1u << 5;
 constexpr std::uint16_t pro_led = 1u << 6;
+constexpr std::uint16_t man_led = 1u << 7;
 constexpr std::uint16_t in1e = 1u << 8;
 
 SimulationEnvironment served_over(const std::string& framing, double speed = 1.0) {
@@ -346,6 +351,86 @@ TEST(RampSoakSimulator, SegmentAlarmLightsDuringItsSegment_7) {
     device.wait(4.0);
     EXPECT_EQ(device.word(seg), 3);
     EXPECT_FALSE(lit(device, al1_led));
+}
+
+// --- Set point limits, unit and PV compensation (§7 rows 004CH, 004DH, 0065H, 0066H) -------
+
+// §7 LSPL "Lower Set Point Limit" and USPL "Upper Set Point Limit" bound SV and the segment set
+// points; a value outside them is §4.6 abnormal code 03, "Data value is out of setting range",
+// and is not stored. The factory limits are the whole PV span (-199.9 ... 999.9 at DP = 1).
+TEST(RampSoakSimulator, SetPointsOutsideLsplUsplAreOutOfSettingRange_4_6_7) {
+    Simulated device("rampsoak", Model::behaviour, served_over("rtu"));
+    EXPECT_EQ(device.read(lspl, 2), (Words{raw(-1999), 9999}));
+    EXPECT_EQ(device.write(sv, 9000), "06 00 00 23 28");
+    EXPECT_EQ(device.send(codec::write_multiple_registers(lspl, {0, 2000})), "10 00 4C 00 02");
+    EXPECT_EQ(device.write(sv, 2001), "86 03");
+    EXPECT_EQ(device.write(sv, raw(-1)), "86 03");
+    EXPECT_EQ(device.word(sv), 9000);  // refused, not stored; a stored SV stays as it was
+    EXPECT_EQ(device.write(sv, 2000), "06 00 00 07 D0");
+    EXPECT_EQ(device.write(sv, 0), "06 00 00 00 00");
+    // The segment set points too (pattern 1 SV_2 and pattern 2 SV_12); FC10 is all or nothing.
+    EXPECT_EQ(device.send(codec::write_multiple_registers(pattern_1, {1500, 10, 1000, 2500})), "90 03");
+    EXPECT_EQ(device.word(pattern_1), 0);
+    EXPECT_EQ(device.write(pattern_2, 2500), "86 03");
+    EXPECT_EQ(device.send(codec::write_multiple_registers(pattern_1, {1500, 10, 1000, 2000})), "10 00 09 00 04");
+}
+
+// The model's choice (the manual is silent): LSPL may not pass USPL, nor USPL fall under LSPL.
+TEST(RampSoakSimulator, LsplAndUsplCannotCross_7) {
+    Simulated device("rampsoak", Model::behaviour, served_over("rtu"));
+    EXPECT_EQ(device.send(codec::write_multiple_registers(lspl, {1000, 2000})), "10 00 4C 00 02");
+    EXPECT_EQ(device.write(lspl, 2001), "86 03");
+    EXPECT_EQ(device.write(uspl, 999), "86 03");
+    EXPECT_EQ(device.read(lspl, 2), (Words{1000, 2000}));
+    EXPECT_EQ(device.write(lspl, 2000), "06 00 4C 07 D0");  // equal limits: one set point allowed
+}
+
+// §7 UNIT "Unit of PV and SV", 0001H = F: the PV reads in °F (a 25.0 °C room is 77.0 °F) and
+// SV is taken in °F: SV 302.0 °F settles there, and back in C the same chamber reads 150.0 °C.
+// (P1 keeps its number, so in °F the loop is 1.8 times tighter and hunts a little: the PV is
+// checked to 2.0 °F.)
+TEST(RampSoakSimulator, UnitFahrenheitReadsPvAndTakesSvInFahrenheit_7) {
+    Simulated device("rampsoak", Model::behaviour, served_over("rtu", 100.0));
+    EXPECT_NEAR(signed_word(device, pv), 250, 2);
+    EXPECT_EQ(device.write(unit, 1), "06 00 66 00 01");
+    EXPECT_NEAR(signed_word(device, pv), 770, 2);
+    device.write(sv, 3020);
+    device.wait(15.0);
+    EXPECT_NEAR(signed_word(device, pv), 3020, 20);
+    // Back to C: the same chamber reads in °C again; SV keeps its number (not converted).
+    EXPECT_EQ(device.write(unit, 0), "06 00 66 00 00");
+    EXPECT_NEAR(signed_word(device, pv), 1500, 12);
+    EXPECT_EQ(device.word(sv), 3020);
+}
+
+// §7 PVOS "PV Compensation": the PV word reads the measurement plus PVOS, and the controller
+// controls that compensated PV: with PVOS = -50.0 and SV = 150.0 the chamber settles at
+// 200.0 °C, which takes about 21.9 % output (175 of 800 °C) instead of 15.6 %.
+TEST(RampSoakSimulator, PvCompensationOffsetsThePvTheControllerControls_7) {
+    Simulated device("rampsoak", Model::behaviour, served_over("rtu", 100.0));
+    EXPECT_EQ(device.write(pvos, raw(-500)), "06 00 65 FE 0C");
+    EXPECT_NEAR(signed_word(device, pv), -250, 2);
+    device.write(sv, 1500);
+    device.wait(6.0);
+    EXPECT_NEAR(signed_word(device, pv), 1500, 10);
+    EXPECT_NEAR(device.word(out_percent), 219, 15);
+    device.write(pvos, 0);
+    EXPECT_NEAR(signed_word(device, pv), 2000, 15);
+}
+
+// --- Hold and manual: out of reach over the line (§7) -----------------------------------------
+
+// §7 lists no hold, run/stop or auto/manual register; OUT% (0087H), the only output word, is
+// 03H (read-only), so the output cannot be set by hand: a write is refused with §4.6 code 02
+// and the MAN LED (OBIT bit 7) stays off while the controller runs its program.
+TEST(RampSoakSimulator, NoRegisterReachesManualOutputOrHold_4_6_7) {
+    Simulated device("rampsoak", Model::behaviour, minutes_per_second());
+    EXPECT_EQ(device.write(out_percent, 500), "86 02");
+    load_ramp_soak_ramp(device);
+    device.write(ptn, 1);
+    device.wait(1.5);
+    EXPECT_FALSE(lit(device, man_led));
+    EXPECT_EQ(device.read(seg, 2), (Words{1, 9}));  // the segment timer runs on
 }
 
 }  // namespace
