@@ -51,6 +51,7 @@ nlohmann::ordered_json parameter_json(const device::Parameter& p) {
     nlohmann::ordered_json out{{"name", p.name}, {"mnemonic", p.mnemonic}, {"group", p.group}, {"table", device::table_name(p.table)},
                                {"address", p.address}, {"access", device::access_text(p)}, {"unit", p.unit},
                                {"min", bound_json(p.min)}, {"max", bound_json(p.max)}, {"description", p.description}, {"source", p.source}};
+    if (p.range_in_counts) out["range_counts"] = true;  // fixed min/max are display counts
     if (const auto* fixed = std::get_if<int>(&p.decimals)) out["decimals"] = *fixed;
     else out["decimals"] = {{"parameter", std::get<std::string>(p.decimals)}};
     if (!p.enum_labels.empty()) {

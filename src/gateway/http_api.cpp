@@ -258,6 +258,7 @@ HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const
         p["writable"] = parameter.writable;
         p["min"] = bound_json(parameter.min);
         p["max"] = bound_json(parameter.max);
+        if (parameter.range_in_counts) p["range_counts"] = true;  // fixed min/max are display counts
         if (const auto* fixed = std::get_if<int>(&parameter.decimals)) {
             p["decimals"] = *fixed;
         } else {

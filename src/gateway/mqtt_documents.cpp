@@ -59,7 +59,10 @@ std::vector<std::string> labels_of(const device::Parameter& parameter) {
 // still refuses what its live limit parameter does not allow, and set/result says so).
 double number_limit(const device::Parameter& parameter, const std::optional<device::Bound>& bound, bool upper, int decimals) {
     if (bound) {
-        if (const auto* number = std::get_if<double>(&*bound)) return *number;
+        if (const auto* number = std::get_if<double>(&*bound)) {
+            // Display counts (range "counts") are scaled like the value itself.
+            return parameter.range_in_counts ? *number / std::pow(10.0, decimals) : *number;
+        }
     }
     const double scale = std::pow(10.0, decimals);
     if (parameter.type == device::ValueType::int16) return (upper ? 32767.0 : -32768.0) / scale;

@@ -70,6 +70,9 @@ struct Parameter {
     }
     std::optional<Bound> min;
     std::optional<Bound> max;
+    // "range": {"counts": true}: the fixed min/max are display counts, divided by 10^decimals at
+    // the current decimals (TC10 §5.3 "-1999 ... 9999" for dP values; ramp/soak §7 "follow DP").
+    bool range_in_counts = false;
     std::map<std::string, BoundSource> bound_sources;  // by name, for every parameter min/max name
     std::map<std::int32_t, std::string> enum_labels;
     std::map<unsigned, std::string> bit_names;

@@ -40,6 +40,7 @@ void read_range(const Json& entry, Parameter& parameter) {
     if (range == entry.end()) return;
     if (range->contains("min")) parameter.min = bound_from(range->at("min"));
     if (range->contains("max")) parameter.max = bound_from(range->at("max"));
+    parameter.range_in_counts = range->value("counts", false);
 }
 
 void read_labels(const Json& entry, Parameter& parameter) {

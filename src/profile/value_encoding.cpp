@@ -60,7 +60,16 @@ private:
 
     Result<BoundValue> resolve(const Bound& bound, const char* which) const {
         if (const double* fixed = std::get_if<double>(&bound)) {
-            return BoundValue{*fixed, fixed_text(*fixed, decimals_) + unit_suffix(parameter_.unit)};
+            if (!parameter_.range_in_counts) {
+                return BoundValue{*fixed, fixed_text(*fixed, decimals_) + unit_suffix(parameter_.unit)};
+            }
+            // A limit printed in display counts: its engineering value at the current decimals,
+            // with the count it comes from ("999.9 °C (9999 counts at 1 decimal)").
+            const double value = *fixed / power_of_ten(decimals_);
+            const std::string unit = unit_of(parameter_, known_);
+            return BoundValue{value, fmt::format("{}{} ({} counts at {} decimal{})", fixed_text(value, decimals_),
+                                                 unit == unknown_unit ? "" : unit_suffix(unit), fixed_text(*fixed, 0),
+                                                 decimals_, decimals_ == 1 ? "" : "s")};
         }
         const std::string& name = std::get<std::string>(bound);
         const auto described = parameter_.bound_sources.find(name);

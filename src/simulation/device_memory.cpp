@@ -59,6 +59,8 @@ std::uint16_t default_raw(const Parameter& parameter, Start start, const RawValu
     if (parameter.type != ValueType::int16 && parameter.type != ValueType::uint16) return 0;
     const auto value = start_value(parameter, start);
     if (!value) return extreme_raw(parameter, start);
+    // A range in display counts (Parameter::range_in_counts) gives the raw word itself.
+    if (parameter.range_in_counts) return static_cast<std::uint16_t>(static_cast<std::int32_t>(*value));
     EngineeringValue engineering;
     engineering.value = *value;
     const auto raw = raw_of(parameter, engineering, known);

@@ -99,6 +99,14 @@ check simulate-names-device 0 "unit 3: tc10" cat "$WORK_DIR/sim-tc10.log"
 check scan-finds-simulated-tc10 0 '{"unit":3,"device":"tc10"' "$loopwire" scan --link "rtu:$tc10_pty" --units 1-4 --timeout 200ms --json
 check read-simulated-tc10-sp 0 "SP" "$loopwire" read --link "rtu:$tc10_pty" --device tc10@3 SP
 check write-above-sp-hl-refused 5 "exception 3" "$loopwire" write --link "rtu:$tc10_pty" --unit 3 holding 717 30000
+# TC10 §4.1, §5.3.7 #62: Pb "1 ... 9999" is in display counts, so at dP = 1 the master refuses
+# 1000.0 before sending and names the limit in engineering units; 999.9 is the top. §5.3.1 #2:
+# dP 2 is not offered by the J thermocouple the simulator starts with, and the device refuses it.
+check write-dp-1 0 "wrote decimal_point = 1" "$loopwire" write --link "rtu:$tc10_pty" --device tc10@3 dp=1
+check write-pb-above-counts-refused 2 "proportional_band 1000.0 is above its upper limit 999.9 °C (9999 counts at 1 decimal)" \
+  "$loopwire" write --link "rtu:$tc10_pty" --device tc10@3 Pb=1000.0
+check write-pb-at-counts-limit 0 "wrote proportional_band = 999.9" "$loopwire" write --link "rtu:$tc10_pty" --device tc10@3 Pb=999.9
+check write-dp-2-thermocouple-refused 5 "exception 3" "$loopwire" write --link "rtu:$tc10_pty" --device tc10@3 dp=2
 check simulate-parity-warning 0 "cannot be set to parity none" \
   "$loopwire" simulate --pty "$WORK_DIR/ttyV2" --link "rtu:$WORK_DIR/ttyV2?parity=none" --device rampsoak@1 --duration 300ms
 

@@ -218,6 +218,47 @@ TEST(Tc10Values, ZeroMeansOffForNumericParameters) {
     EXPECT_THAT(error_of(encode_value(filter, "20.1", {})), HasSubstr("input_filter 20.1 is above its upper limit 20.0 s"));
 }
 
+// §4.1: dP values are fixed-point with a programmable decimal point; §5.3.7 #62 Pb "1 ... 9999
+// (ед. измерения)" is printed in display counts ("range": {"counts": true}), so at dP = 1 the
+// band ends at 999.9 and 1000.0 (raw 10000) is refused, naming the limit in engineering units.
+TEST(Tc10Values, RangesInDisplayCountsFollowTheDecimalPoint_Section4_1And5_3_7_62) {
+    const auto tc10 = builtin("tc10");
+    ASSERT_TRUE(tc10);
+    const Parameter& band = parameter(*tc10, "proportional_band");
+    EXPECT_TRUE(band.range_in_counts);
+    const RawValues dp0{{"decimal_point", 0}, {"temperature_unit", 0}};
+    const RawValues dp1{{"decimal_point", 1}, {"temperature_unit", 0}};
+    const RawValues dp3{{"decimal_point", 3}, {"temperature_unit", 0}};
+    EXPECT_EQ(raw_from(encode_value(band, "9999", dp0)), 9999);
+    EXPECT_EQ(raw_from(encode_value(band, "999.9", dp1)), 9999);
+    EXPECT_THAT(error_of(encode_value(band, "1000.0", dp1)),
+                HasSubstr("proportional_band 1000.0 is above its upper limit 999.9 °C (9999 counts at 1 decimal)"));
+    EXPECT_THAT(error_of(encode_value(band, "0.0", dp1)),
+                HasSubstr("proportional_band 0.0 is below its lower limit 0.1 °C (1 counts at 1 decimal)"));
+    EXPECT_THAT(error_of(encode_value(band, "10", dp3)), HasSubstr("above its upper limit 9.999 °C (9999 counts at 3 decimals)"));
+    // A bound that names another parameter is that parameter's value, not a count.
+    const Parameter& low = parameter(*tc10, "set_point_low_limit");
+    const RawValues limits{{"decimal_point", 1}, {"temperature_unit", 0}, {"set_point_high_limit", 5000}};
+    EXPECT_EQ(raw_from(encode_value(low, "-199.9", limits)), word(-1999));
+    EXPECT_THAT(error_of(encode_value(low, "-200.0", limits)), HasSubstr("below its lower limit -199.9 °C (-1999 counts at 1 decimal)"));
+    EXPECT_THAT(error_of(encode_value(low, "500.1", limits)), HasSubstr("above its upper limit set_point_high_limit = 500.0"));
+    // raw_in_range (the simulators' check) agrees: raw 10000 at dP = 1 is out, 9999 in.
+    EXPECT_FALSE(raw_in_range(band, 10000, dp1));
+    EXPECT_TRUE(raw_in_range(band, 9999, dp1));
+}
+
+// ramp/soak §7: PV "-1999~9999" and HYS1/HYS2 "0~1000" follow DP (0x004B) and are printed in counts.
+TEST(RampSoakValues, RangesInDisplayCountsFollowDp_Section7) {
+    const auto rampsoak = builtin("rampsoak");
+    ASSERT_TRUE(rampsoak);
+    const Parameter& hysteresis = parameter(*rampsoak, "out1_hysteresis");
+    EXPECT_TRUE(hysteresis.range_in_counts);
+    EXPECT_TRUE(parameter(*rampsoak, "process_value").range_in_counts);
+    const RawValues known{{"decimal_point", 2}, {"unit", 0}};
+    EXPECT_EQ(raw_from(encode_value(hysteresis, "10.00", known)), 1000);
+    EXPECT_THAT(error_of(encode_value(hysteresis, "10.01", known)), HasSubstr("above its upper limit 10.00 °C (1000 counts at 2 decimals)"));
+}
+
 TEST(Tc10Values, StatusWordBitsAreNamed) {
     const auto tc10 = builtin("tc10");
     ASSERT_TRUE(tc10);

@@ -73,6 +73,7 @@ void Tc10Simulator::apply_factory_settings() {
     set_value("ramp_up_rate", 9999, Persistence::saved);
     set_value("ramp_down_rate", 9999, Persistence::saved);
     set_value("parameter_table_id", 0x0102);
+    apply_code_defaults();
 }
 
 // dSPu (#128): the state the controller starts in. 0 = AS.Pr as before power-off (the saved
@@ -97,6 +98,7 @@ void Tc10Simulator::power_on() {
 // controller cannot serve in its present situation. The manual names no situation; the
 // simulator is not ready while it rewrites its parameters after word 19 = 481.
 std::optional<std::optional<Bytes>> Tc10Simulator::intercept(ByteView request_pdu, bool) {
+    staged_.clear();
     power_on();
     if (!busy_until_) return std::nullopt;
     if (environment().now() >= *busy_until_) {
@@ -122,12 +124,13 @@ std::optional<std::uint8_t> Tc10Simulator::accept_write(const Parameter& paramet
         // as for read-only words).
         if (parameter.name == remote && value(function) != 0) return illegal_data_address;
     }
-    return std::nullopt;
+    return check_rules(parameter, raw);
 }
 
 void Tc10Simulator::after_write(const Parameter& parameter, std::uint16_t raw) {
     copy_to_twin(parameter, raw);
     after_line_write(parameter);
+    after_rule_write(parameter);
     const std::string_view name = parameter.name;
     if (name == "load_defaults") {
         // Any other value is accepted (no range is printed) and does nothing; the word is a

@@ -3,9 +3,11 @@
 // alarms, load defaults, the busy answer and the heated process, beyond its profile data.
 // The class is split by concern: tc10_simulator.cpp (writes, modes, defaults, busy),
 // tc10_readings.cpp (what the computed words answer), tc10_process.cpp (plant, PID, alarms,
-// faults).
+// faults), tc10_write_rules.cpp (rules that tie words together).
 #include <array>
 #include <cstdint>
+#include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -71,6 +73,16 @@ private:
     void copy_to_twin(const Parameter& parameter, std::uint16_t raw);
     State state() const;
 
+    // tc10_write_rules.cpp: dP per input type, quick-configuration codes 22–25, limits named by
+    // other parameters (§5.1 22A–25A, §5.3.1 #2, §5.3).
+    void apply_code_defaults();
+    std::uint16_t current(std::string_view name) const;  // as staged in this request, else memory
+    std::optional<std::uint8_t> check_rules(const Parameter& parameter, std::uint16_t raw);
+    void after_rule_write(const Parameter& parameter);
+    void limit_decimal_point();
+    void apply_quick_configuration();
+    void follow_limits(const Parameter& limit);
+
     // tc10_readings.cpp
     std::optional<std::uint16_t> computed_word(std::string_view name) const;
     std::uint16_t measured_raw() const;
@@ -102,6 +114,7 @@ private:
     bool powered_on_ = false;  // dSPu applied (after --state has been loaded)
     StepSettings step_settings_;
     std::optional<double> step_settings_time_;  // process_time() they were read at
+    std::map<std::string, std::uint16_t, std::less<>> staged_;  // accepted so far in this request
 };
 
 }  // namespace loopwire::device::models

@@ -23,7 +23,8 @@ function boundText(bound) {
 function rangeText(entry) {
   const low = boundText(entry.min);
   const high = boundText(entry.max);
-  const unit = entry.unit ? ` ${entry.unit}` : "";
+  // range_counts: the fixed limits are display counts, scaled by the current decimal point.
+  const unit = entry.range_counts ? " (display counts)" : entry.unit ? ` ${entry.unit}` : "";
   if (low && high) return `${low} … ${high}${unit}`;
   if (low) return `≥ ${low}${unit}`;
   if (high) return `≤ ${high}${unit}`;
