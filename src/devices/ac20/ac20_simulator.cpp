@@ -46,7 +46,8 @@ Ac20Simulator::Ac20Simulator(std::shared_ptr<const Profile> profile, SimulationE
     main_output_ = pid_output_ = steady_output * 100.0;
     restart();
     // Note 5: "At power up, the slave will be in local mode if it was in control mode at
-    // power off" (a simulator starts as if switched off in control mode).
+    // power off": a new simulator starts as if switched off in control mode. A --state file
+    // may say otherwise (restore_condition, ac20_access.cpp).
     remote_ = false;
     set_value("local_remote", 0);
     refresh_settings();

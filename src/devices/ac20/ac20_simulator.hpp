@@ -44,6 +44,10 @@ protected:
     void step_process(double seconds) override;
     void apply_fault(const std::string& fault) override;
     void describe_line() override;  // ac20_line.cpp
+    // ac20_access.cpp: Note 5, power-up after power-off and line activity.
+    RawValues condition_at_power_off() const override;
+    void restore_condition(const RawValues& condition) override;
+    void on_line_activity() override;
 
 private:
     // ac20_line.cpp: words 526-529 written over the line, in effect after the reply.
@@ -83,6 +87,8 @@ private:
 
     // ac20_access.cpp
     void note_line_activity();
+    void set_remote(bool remote);
+    void set_mode(Mode mode);
     std::optional<std::uint8_t> access_refusal(const Parameter& parameter, std::uint16_t raw);
     std::optional<std::uint8_t> mode_entry_refusal(std::uint16_t raw) const;
     std::optional<int> control_group_of(const Parameter& parameter) const;
