@@ -195,8 +195,8 @@ void Ac20Simulator::restart() {
     quiet_since_ = clock_;  // error 52: 5 minutes from power on
     set_value("tune_status", 0);
     set_value("adaptive_status", 0);
-    operative_set_point_type_ = 1;
-    operative_set_point_ = static_cast<std::int16_t>(value("main_set_point"));
+    operative_set_point_type_ = last_selection_ = selected_set_point();
+    operative_set_point_ = static_cast<std::int16_t>(set_point_word(operative_set_point_type_));
     set_value("operative_set_point", static_cast<std::uint16_t>(operative_set_point_));
     set_value("manufacturer_trade_mark", 50);
     set_value("device_identification_code", identification_code);
