@@ -18,8 +18,8 @@ constexpr std::uint16_t selects_sp3_sp4 = 2;
 
 struct Contact {
     const char* fault;
-    const char* level_bit;       // bits 200-202 "Logic level of external contact DigN"
-    const char* function_word;   // nullptr: DIG3 has no function word (2404 is not listed)
+    const char* level_bit;      // bits 200-202 "Logic level of external contact DigN"
+    const char* function_word;  // nullptr: DIG3 has no function word (2404 is not listed)
     const char* polarity_word;
 };
 constexpr std::array<Contact, 3> contacts{{

@@ -121,6 +121,8 @@ const Row rows[] = {
     {Mode::control, 6, 4001, 5, refused, note8},           // control combination
     {Mode::control, 6, 4003, 1, refused, note8},           // protection of group 1
     {Mode::control, 6, 138, 90, accepted, note6},
+    {Mode::control, 6, 130, 250, refused, note6},          // main output value: meaningful in manual only
+    {Mode::control, 6, 131, 250, refused, note6},          // secondary output value: no secondary output
     // N.B.: control combination 1.
     {Mode::control_locked, 6, 138, 90, refused, nb_one},   // group 1 St.Pn
     {Mode::control_locked, 6, 177, 150, refused, nb_one},  // group 3 Alrm
@@ -153,6 +155,7 @@ const Row rows[] = {
     // 8000h value ... should be considered as a don't care value"; a key that is not the
     // combination is an illegal data value (3), the word itself could be modified.
     {Mode::control, 16, 120, 7, accepted, "FC16: \"The data imposed for read only words will be ignored.\""},
+    {Mode::control, 5, 210, 0, accepted, "FC15: \"The status imposed for read only bits will be ignored.\""},
     {Mode::local, 6, 138, 0x8000, accepted, "FC6: \"The 8000h value ... the value present in the device at this address will not be modified.\""},
 };
 
