@@ -63,8 +63,10 @@ void Ac20Simulator::set_mode(Mode mode) {
 // Note 5: "At power up, the slave will be in local mode if it was in control mode at power off.
 // In the other cases, it will maintain the condition it was at the power off." The condition
 // kept is the mode (0 control, 1 configuration, 2 security code, as Mode) and bit 218.
+// The fall-back to local is noticed at the next frame; a save before it already says local.
 RawValues Ac20Simulator::condition_at_power_off() const {
-    return {{"mode", static_cast<std::uint16_t>(mode_)}, {"remote", remote_ ? std::uint16_t{1} : std::uint16_t{0}}};
+    const bool remote = remote_ && environment().now() - last_activity_ <= remote_timeout;
+    return {{"mode", static_cast<std::uint16_t>(mode_)}, {"remote", remote ? std::uint16_t{1} : std::uint16_t{0}}};
 }
 
 void Ac20Simulator::restore_condition(const RawValues& condition) {

@@ -91,6 +91,20 @@ TEST_F(Ac20PowerUp, SecurityCodeModeInLocalIsKeptAcrossPowerOff_Note5) {
     EXPECT_EQ(after.write(4001, 5), "86 0A") << "local: nothing but bit 218 can be modified";
 }
 
+// Note 5: more than 3 s of a quiet line before the power-off: the device was back in local
+// ("every slave will automatically return to local mode"), and powers up so, in configuration mode.
+TEST_F(Ac20PowerUp, QuietLineBeforePowerOffMeansLocalAtPowerUp_Note5) {
+    Simulated before("ac20");
+    enter_configuration(before);
+    before.wait(3.5);
+    power_off(before);
+
+    Simulated after("ac20");
+    power_on(after);
+    EXPECT_EQ(after.word(135), 6);
+    EXPECT_FALSE(after.bit(218));
+}
+
 // Note 5: "the slave will be in local mode if it was in control mode at power off".
 TEST_F(Ac20PowerUp, ControlModeInRemoteComesBackLocal_Note5) {
     Simulated before("ac20");
