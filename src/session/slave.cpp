@@ -45,7 +45,16 @@ UnitMap::iterator Slave::find_unit(std::uint8_t unit) {
     return units_.end();
 }
 
+// Every unit that hears the line sees every frame go past, whatever its unit, and bytes that
+// failed their check (UnitHandler::line_activity).
+void Slave::line_activity() {
+    for (auto& [unit, handler] : units_) {
+        if (handler->answers_as() != std::uint8_t{0}) handler->line_activity();  // 0: does not hear the line
+    }
+}
+
 Slave::Route Slave::route(const codec::Frame& frame) {
+    line_activity();
     if (frame.pdu.empty()) return {};
     if (frame.unit == 0) {
         if (tracing()) trace(TraceDirection::received, frame.raw, "broadcast: executed by every unit, not answered");
@@ -143,6 +152,7 @@ Result<void> Slave::serve_stream(transport::ByteStream& stream, std::stop_token 
         for (const auto& event : events) {
             if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
                 if (tracing()) trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
+                line_activity();  // a bad check or noise: still bytes on the line
                 continue;
             }
             if (auto reply = answer(std::get<codec::Frame>(event), *codec)) reply_after_silence(stream, *reply, now);

@@ -86,6 +86,7 @@ private:
         Bytes reply_pdu;                 // Kind::own_reply
     };
     Route route(const codec::Frame& frame);
+    void line_activity();
     UnitMap::iterator find_unit(std::uint8_t unit);
     void reply_after_silence(transport::ByteStream& stream, const Bytes& reply, Instant request_end);
 

@@ -39,6 +39,14 @@ public:
     // on this line any more (set to another baud rate, byte format or protocol, or its serial
     // interface switched off); nullopt: the id it is served under. May be called from any thread.
     virtual std::optional<std::uint8_t> answers_as() const { return std::nullopt; }
+
+    // Something went past on the handler's line: a frame for any unit (this one, another, or
+    // none served here; broadcast too), or bytes the framer discarded (a bad check, noise).
+    // The slave session calls it on every handler of the line that hears it (answers_as() is
+    // not 0), before the frame is handled, at the time the slave received it; a device whose
+    // state lives on line activity (AC20 Note 5: "it is sufficient to detect line activity")
+    // reads its own clock. May be called from any thread.
+    virtual void line_activity() {}
 };
 
 // A handler that works on decoded requests. Requests that do not decode are answered the way

@@ -127,7 +127,22 @@ void SimulatedDevice::answer_as(std::optional<std::uint8_t> unit) { answering_un
 
 std::uint64_t SimulatedDevice::saved_generation() const {
     std::lock_guard lock(mutex_);
-    return memory_.saved_generation();
+    return memory_.saved_generation() + condition_generation_;
+}
+
+RawValues SimulatedDevice::saved_condition() const {
+    std::lock_guard lock(mutex_);
+    return condition_at_power_off();
+}
+
+void SimulatedDevice::load_condition(const RawValues& condition) {
+    std::lock_guard lock(mutex_);
+    restore_condition(condition);
+}
+
+void SimulatedDevice::line_activity() {
+    std::lock_guard lock(mutex_);
+    on_line_activity();
 }
 
 std::uint16_t SimulatedDevice::value(std::string_view name) const {

@@ -52,7 +52,16 @@ public:
     // device answering as unit N at some settings reports those, whatever was saved.
     RawValues saved_values() const;
     std::vector<std::string> load_saved(const RawValues& saved);
+    // What the device keeps at power-off besides its parameters (the AC20's mode and
+    // local/remote state, Note 5), by name; its reload at start, after load_saved. Names the
+    // model does not know are ignored. A change of it counts in saved_generation().
+    RawValues saved_condition() const;
+    void load_condition(const RawValues& condition);
     std::uint64_t saved_generation() const;
+
+    // session::UnitHandler: a frame for any unit of the line, or bytes failing their check,
+    // went past (the AC20's remote state lives on line activity, Note 5).
+    void line_activity() override;
 
 protected:
     codec::Reply serve(const codec::Request& request) override;
@@ -78,6 +87,12 @@ protected:
     // protocol) from the environment's unit, framing and serial settings. Models call it at the
     // end of their constructor; load_saved calls it again.
     virtual void describe_line() {}
+    // saved_condition() / load_condition() / line_activity(), with the device locked.
+    virtual RawValues condition_at_power_off() const { return {}; }
+    virtual void restore_condition(const RawValues& /*condition*/) {}
+    virtual void on_line_activity() {}
+    // The model's condition_at_power_off() changed: the state file is due to be saved.
+    void condition_changed() { ++condition_generation_; }
 
     // From the next request on, answer at `unit` (0: hear nothing on this line), or again at the
     // unit the device is served under (nullopt).
@@ -111,6 +126,7 @@ private:
     SimulationClock::time_point last_advance_;
     double process_time_ = 0;          // walked so far
     double pending_process_time_ = 0;  // elapsed but shorter than a grid step
+    std::uint64_t condition_generation_ = 0;  // condition_changed()
     mutable std::mutex mutex_;  // one device, several links or TCP connections
     std::atomic<int> answering_unit_{-1};  // answers_as(): -1 none, else 0..255 (read by the slave unlocked)
 };

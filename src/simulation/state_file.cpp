@@ -57,6 +57,14 @@ Result<void> check_document(const std::string& path, const nlohmann::json& docum
         for (const auto& [name, raw] : saved->items()) {
             if (!json_word(raw)) return wrong_value(path, json_pointer(json_pointer(pointer, "saved"), name), "a raw word, an integer 0..65535", &raw);
         }
+        // Optional (files written before it was kept have none): what the device was doing at
+        // power-off, besides its parameters (SimulatedDevice::saved_condition).
+        if (const auto* condition = member(entry, "condition")) {
+            if (!condition->is_object()) return wrong_value(path, json_pointer(pointer, "condition"), "an object of raw words by name", condition);
+            for (const auto& [name, raw] : condition->items()) {
+                if (!json_word(raw)) return wrong_value(path, json_pointer(json_pointer(pointer, "condition"), name), "a raw word, an integer 0..65535", &raw);
+            }
+        }
     }
     return {};
 }
@@ -124,6 +132,11 @@ Result<void> SimulatorStateFile::load(const nlohmann::json& document) {
                     warnings_.push_back(fmt::format("{}: unit {} ({}): '{}' is not a saved parameter of this profile; ignored",
                                                     path_, unit, profile, unknown));
                 }
+                device::RawValues condition;
+                if (entry.contains("condition")) {
+                    for (const auto& [name, raw] : entry["condition"].items()) condition.emplace(name, *json_word(raw));  // checked
+                }
+                device->load_condition(condition);
             }
         }
         saved_generations_[unit] = device->saved_generation();
@@ -147,7 +160,13 @@ Result<void> SimulatorStateFile::save() {
         generations[unit] = device->saved_generation();  // before reading: a later change is saved next time
         nlohmann::json saved = nlohmann::json::object();
         for (const auto& [name, raw] : device->saved_values()) saved[name] = raw;
-        document_["units"][std::to_string(unit)] = {{"profile", device->profile().id}, {"saved", saved}};
+        auto& entry = document_["units"][std::to_string(unit)];
+        entry = {{"profile", device->profile().id}, {"saved", saved}};
+        const auto condition = device->saved_condition();
+        if (!condition.empty()) {
+            entry["condition"] = nlohmann::json::object();
+            for (const auto& [name, raw] : condition) entry["condition"][name] = raw;
+        }
     }
     // Lock combinations are among the saved words: a new state file is private to its owner.
     auto written = write_file_atomically(path_, document_.dump(2) + "\n", private_file_mode);

@@ -6,6 +6,11 @@
 //   {"format": "loopwire-simulator-state", "version": 1,
 //    "units": {"3": {"profile": "tc10", "saved": {"set_point": 150, ...}}, ...}}
 //
+// A unit may also have "condition": {"mode": 1, "remote": 1}, what the device was doing at
+// power-off besides its parameters (the AC20 keeps its configuration or security code mode and
+// its local/remote state, Note 5). Files without it load as before: the device powers up as
+// it does with no file.
+//
 // Units in the file that this run does not serve are kept as they are.
 #include <cstdint>
 #include <map>

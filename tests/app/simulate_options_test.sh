@@ -27,6 +27,24 @@ check state-ram-only-lost-at-restart 0 "(raw 0)" "$loopwire" read --link "rtu:$W
 check state-file-has-no-ram-only-value 1 "" grep -q '"remote_set_point"' "$state"
 kill "$LAST_PID"; wait "$LAST_PID" 2>/dev/null
 
+# AC20 Note 5: "At power up, the slave will be in local mode if it was in control mode at power
+# off. In the other cases, it will maintain the condition it was at the power off." Configuration
+# mode, entered over the wire, is in the state file and comes back after a restart.
+ac20_state="$WORK_DIR/ac20-state.json"
+start_ac20() {  # pty-name
+  start_background "$1.log" "$loopwire" simulate --pty "$WORK_DIR/$1" --link "rtu:$WORK_DIR/$1" --device ac20@4 \
+    --state "$ac20_state" --duration 60s
+  wait_for_path "$WORK_DIR/$1"
+}
+start_ac20 ttyJ
+check ac20-state-enter-configuration 0 "wrote" "$loopwire" write --link "rtu:$WORK_DIR/ttyJ" --device ac20@4 \
+  local_remote=1 configuration_mode_code=0
+wait_for 5 "the configuration mode in the state file" grep -q '"mode": 1' "$ac20_state"
+kill "$LAST_PID"; wait "$LAST_PID" 2>/dev/null
+start_ac20 ttyK
+check ac20-state-configuration-mode-kept 0 "(raw 6)" "$loopwire" read --link "rtu:$WORK_DIR/ttyK" --device ac20@4 device_status
+kill "$LAST_PID"; wait "$LAST_PID" 2>/dev/null
+
 # Files that are not a state file are refused and left untouched.
 echo '{"format": "something-else"}' >"$WORK_DIR/other.json"
 check state-foreign-file 2 "is not a loopwire simulator state file" \

@@ -7,6 +7,7 @@
 
 #include "codec/rtu.hpp"
 #include "scripted_stream.hpp"
+#include "support/virtual_line.hpp"
 #include "session/master.hpp"
 #include "simulation/register_bank.hpp"
 #include "session/slave.hpp"
@@ -16,6 +17,7 @@ namespace loopwire::session {
 namespace {
 
 using loopwire::testing::hex;
+using loopwire::testing::VirtualLine;
 using namespace std::chrono_literals;
 
 const transport::LinkUrl rtu_link = *transport::parse_link_url("rtu:virtual?baud=38400&parity=none");
@@ -140,58 +142,6 @@ TEST_F(SlaveOnBus, SeveralThreadsShareOneMasterOnAMultiDropLine) {
     for (auto& t : threads) t.join();
     EXPECT_EQ(good.load(), 20);
 }
-
-// The slave's end of a line in virtual time: requests arrive at the instants a test gives, and
-// every write is kept with the virtual instant it was made. A read jumps the clock to the next
-// arrival, or to the end of its timeout; a read that finds nothing left to arrive asks the
-// slave to stop, so serve_stream runs on the test's thread and returns when the line is done.
-class VirtualLine final : public transport::ByteStream {
-public:
-    VirtualLine(std::shared_ptr<VirtualClock> clock, std::stop_source stop) : clock_(std::move(clock)), stop_(std::move(stop)) {}
-
-    struct Write {
-        Instant at;
-        Bytes bytes;
-    };
-
-    void arrive(Instant at, Bytes bytes) { inbox_.push_back({at, std::move(bytes)}); }
-    const std::vector<Write>& writes() const { return writes_; }
-
-    Result<void> write(ByteView bytes) override {
-        writes_.push_back({clock_->now(), Bytes(bytes.begin(), bytes.end())});
-        return {};
-    }
-
-    Result<std::size_t> read_some(std::span<std::uint8_t> buffer, std::chrono::milliseconds timeout) override {
-        const Instant until = clock_->now() + timeout;
-        if (inbox_.empty() || inbox_.front().at > until) {
-            clock_->sleep_until(until);
-            if (inbox_.empty()) stop_.request_stop();
-            return std::size_t{0};
-        }
-        clock_->sleep_until(inbox_.front().at);
-        Bytes& next = inbox_.front().bytes;
-        const std::size_t count = std::min(buffer.size(), next.size());
-        std::copy_n(next.begin(), count, buffer.begin());
-        next.erase(next.begin(), next.begin() + static_cast<std::ptrdiff_t>(count));
-        if (next.empty()) inbox_.pop_front();
-        return count;
-    }
-
-    void discard_input() override {}
-    int poll_handle() const override { return -1; }
-    std::string describe() const override { return "virtual line"; }
-
-private:
-    struct Arrival {
-        Instant at;
-        Bytes bytes;
-    };
-    std::shared_ptr<VirtualClock> clock_;
-    std::stop_source stop_;
-    std::deque<Arrival> inbox_;
-    std::vector<Write> writes_;
-};
 
 // RTU at 9600 baud, 8N1: 3.5 characters are 3.5 * 10 / 9600 s, about 3.6 ms.
 class SlaveInVirtualTime : public ::testing::Test {

@@ -36,16 +36,51 @@ std::string group_suffix(int group) { return group == 0 ? "hidden" : std::to_str
 
 }  // namespace
 
-// "Line activity" is any request this simulator receives: every frame addressed to it or
-// broadcast, answered or not (the simulator sees frames, not the bytes of other slaves' traffic).
-// The timeout is protocol time (environment().now()), never scaled by --speed.
+// "Line activity" is any frame on the line: every request this simulator receives (addressed
+// to it or broadcast, answered or not), and, through the slave session (on_line_activity), every
+// frame for the other units of its line and bytes that fail their check (bytes on the line are
+// activity; the manual does not ask for a valid frame). The timeout is protocol time
+// (environment().now()), never scaled by --speed.
 void Ac20Simulator::note_line_activity() {
     const auto now = environment().now();
-    if (remote_ && now - last_activity_ > remote_timeout) {
-        remote_ = false;
-        set_value("local_remote", 0);
-    }
+    if (remote_ && now - last_activity_ > remote_timeout) set_remote(false);
     last_activity_ = now;
+}
+
+void Ac20Simulator::on_line_activity() { note_line_activity(); }
+
+void Ac20Simulator::set_remote(bool remote) {
+    if (remote != remote_) condition_changed();
+    remote_ = remote;
+    set_value("local_remote", remote ? 1 : 0);
+}
+
+void Ac20Simulator::set_mode(Mode mode) {
+    if (mode != mode_) condition_changed();
+    mode_ = mode;
+}
+
+// Note 5: "At power up, the slave will be in local mode if it was in control mode at power off.
+// In the other cases, it will maintain the condition it was at the power off." The condition
+// kept is the mode (0 control, 1 configuration, 2 security code, as Mode) and bit 218.
+// The fall-back to local is noticed at the next frame; a save before it already says local.
+RawValues Ac20Simulator::condition_at_power_off() const {
+    const bool remote = remote_ && environment().now() - last_activity_ <= remote_timeout;
+    return {{"mode", static_cast<std::uint16_t>(mode_)}, {"remote", remote ? std::uint16_t{1} : std::uint16_t{0}}};
+}
+
+void Ac20Simulator::restore_condition(const RawValues& condition) {
+    const auto mode = condition.find("mode");
+    const auto remote = condition.find("remote");
+    if (mode == condition.end() || (mode->second != static_cast<std::uint16_t>(Mode::configuration) &&
+                                    mode->second != static_cast<std::uint16_t>(Mode::security))) {
+        // Control mode, or nothing kept (a file from before): local, whatever bit 218 was saved as.
+        set_remote(false);
+        return;
+    }
+    set_mode(static_cast<Mode>(mode->second));
+    set_remote(remote != condition.end() && remote->second != 0);
+    last_activity_ = environment().now();  // the 3 s fall-back (Note 5) counts from power-up
 }
 
 std::optional<std::uint8_t> Ac20Simulator::access_refusal(const Parameter& parameter, std::uint16_t raw) {
@@ -130,12 +165,12 @@ std::optional<std::uint16_t> Ac20Simulator::lock_word_read(const Parameter& para
 void Ac20Simulator::after_access_write(const Parameter& parameter, std::uint16_t raw) {
     const std::string& name = parameter.name;
     if (name == "local_remote") {
-        remote_ = raw != 0;
+        set_remote(raw != 0);
     } else if (name == "configuration_mode_code") {
-        mode_ = Mode::configuration;  // display "SEr COnF" (Note 7)
+        set_mode(Mode::configuration);  // display "SEr COnF" (Note 7)
         open_menu_.reset();
     } else if (name == "security_mode_code") {
-        mode_ = Mode::security;  // display "Scrt COnF" (Note 8)
+        set_mode(Mode::security);  // display "Scrt COnF" (Note 8)
     } else if (name == "control_lock_code") {
         const std::uint16_t combination = value("control_lock_combination");
         control_unlocked_ = combination >= 2 && raw == combination;
@@ -155,15 +190,15 @@ void Ac20Simulator::after_access_write(const Parameter& parameter, std::uint16_t
 // RAM-only operative set point (word 137) lost, bit 210 set "to signal the start up", and the
 // start-up error check due.
 void Ac20Simulator::restart() {
-    mode_ = Mode::control;
+    set_mode(Mode::control);
     open_menu_.reset();
     procedure_ = Procedure::none;
     tune_left_ = 0;
     quiet_since_ = clock_;  // error 52: 5 minutes from power on
     set_value("tune_status", 0);
     set_value("adaptive_status", 0);
-    operative_set_point_type_ = 1;
-    operative_set_point_ = static_cast<std::int16_t>(value("main_set_point"));
+    operative_set_point_type_ = last_selection_ = selected_set_point();
+    operative_set_point_ = static_cast<std::int16_t>(set_point_word(operative_set_point_type_));
     set_value("operative_set_point", static_cast<std::uint16_t>(operative_set_point_));
     set_value("manufacturer_trade_mark", 50);
     set_value("device_identification_code", identification_code);

@@ -73,8 +73,7 @@ void Ac20Simulator::track_error_condition() {
     const auto now = environment().now();
     if (error_condition_ && mode_ != Mode::configuration && now - error_since_ > reset_timeout) {
         restart();
-        remote_ = false;  // Note 5: powered up from control mode, so local
-        set_value("local_remote", 0);
+        set_remote(false);  // Note 5: powered up from control mode, so local
     }
     if (!start_up_check_due_) return;
     start_up_check_due_ = false;

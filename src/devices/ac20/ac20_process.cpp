@@ -97,15 +97,16 @@ double Ac20Simulator::primary_value() const {
     return reading.carbon_percent;
 }
 
-// Operative set point (words 136/137): the main set point through the gradients 1013/1014
+// Operative set point (words 136/137): the set point the contacts select (SP, SP2-SP4,
+// ac20_contacts.cpp) through the gradients 1013/1014
 // (raw units per minute; 7FFFh = step), or the value written to word 137, which "will not be
 // influenced by the gradient mechanism". PID on the primary variable; a dew point falls as
 // the atmosphere gets richer, so it is controlled reverse-acting. Manual (bit 219) holds the
 // output; a procedure holds it too; a measurement fault drops it to its low limit (no
 // enrichment: the safe side for a carburising atmosphere).
 void Ac20Simulator::control(double seconds) {
-    if (operative_set_point_type_ == 1) {
-        const double target = signed_word(value("main_set_point"));
+    if (operative_set_point_type_ != 0) {
+        const double target = signed_word(set_point_word(operative_set_point_type_));
         const double rate = target > operative_set_point_ ? settings_.rate_up : settings_.rate_down;
         const double step = rate < 0 ? std::abs(target - operative_set_point_) : rate * seconds / 60.0;
         operative_set_point_ += std::clamp(target - operative_set_point_, -step, step);
@@ -155,8 +156,9 @@ void Ac20Simulator::after_process_write(const Parameter& parameter, std::uint16_
         }
     } else if (name == "main_output_value") {
         main_output_ = pid_output_ = std::clamp(signed_word(raw) / 10.0, 0.0, 100.0);
-    } else if (name == "main_set_point") {
-        operative_set_point_type_ = 1;
+    } else if (parameter.table == Table::holding_registers && parameter.address >= 138 && parameter.address <= 141 &&
+               parameter.address - 137 == selected_set_point()) {
+        operative_set_point_type_ = selected_set_point();  // the selected set point written ends a word-137 value
     } else if (name == "operative_set_point") {
         operative_set_point_ = signed_word(raw);
         operative_set_point_type_ = 0;

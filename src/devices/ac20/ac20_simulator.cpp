@@ -46,7 +46,8 @@ Ac20Simulator::Ac20Simulator(std::shared_ptr<const Profile> profile, SimulationE
     main_output_ = pid_output_ = steady_output * 100.0;
     restart();
     // Note 5: "At power up, the slave will be in local mode if it was in control mode at
-    // power off" (a simulator starts as if switched off in control mode).
+    // power off": a new simulator starts as if switched off in control mode. A --state file
+    // may say otherwise (restore_condition, ac20_access.cpp).
     remote_ = false;
     set_value("local_remote", 0);
     refresh_settings();
@@ -59,7 +60,7 @@ Ac20Simulator::Ac20Simulator(std::shared_ptr<const Profile> profile, SimulationE
 
 std::vector<std::string> Ac20Simulator::fault_names() const {
     return {"open-probe", "open-thermocouple", "reference-junction", "auto-zero", "air-leak", "heater-failure",
-            "error-e130", "error-e140"};
+            "error-e130", "error-e140", "dig1-closed", "dig2-closed", "dig3-closed"};
 }
 
 void Ac20Simulator::apply_fault(const std::string& name) {
@@ -71,6 +72,7 @@ void Ac20Simulator::apply_fault(const std::string& name) {
     } else if (!fault(name)) {
         faults_.push_back(name);
     }
+    follow_contacts();  // dig1-closed .. dig3-closed (ac20_contacts.cpp)
 }
 
 bool Ac20Simulator::fault(const std::string& name) const {
@@ -122,6 +124,7 @@ void Ac20Simulator::after_write(const Parameter& parameter, std::uint16_t raw) {
     after_alarm_write(parameter, raw);
     after_error_condition_write();
     after_line_write();
+    follow_contacts();   // words 2400-2405 may have changed what the contacts select
     refresh_settings();  // a read right after this write already sees the new settings
     update_alarms();
 }
@@ -130,6 +133,7 @@ void Ac20Simulator::step_process(double seconds) {
     clock_ += seconds;
     if (settings_dirty_) refresh_settings();
     run_timers(seconds);
+    follow_contacts();
     measure(seconds);
     control(seconds);
     update_alarms();

@@ -10,9 +10,10 @@
 //  - Process (ac20_process.cpp): the furnace atmosphere (ac20_atmosphere.hpp) and the carbon
 //    controller. Procedures (ac20_procedures.cpp): Smart TUNE, probe test and burn-off (errors
 //    50-55, word 135), unsolicited request flags. Alarms (ac20_alarms.cpp): words 113-119,
-//    bits 204-206, 222, 233. Error conditions (ac20_error_condition.cpp): configuration and
-//    control mode errors found at start-up (101-106, 151-160), what the device still answers
-//    and accepts then, and its 30 s reset.
+//    bits 204-206, 222, 233. Contacts (ac20_contacts.cpp): DIG1-DIG3 and the set point they
+//    select (words 2400-2405, bits 200-202). Error conditions (ac20_error_condition.cpp):
+//    configuration and control mode errors found at start-up (101-106, 151-160), what the
+//    device still answers and accepts then, and its 30 s reset.
 #include <array>
 #include <deque>
 #include <optional>
@@ -44,6 +45,10 @@ protected:
     void step_process(double seconds) override;
     void apply_fault(const std::string& fault) override;
     void describe_line() override;  // ac20_line.cpp
+    // ac20_access.cpp: Note 5, power-up after power-off and line activity.
+    RawValues condition_at_power_off() const override;
+    void restore_condition(const RawValues& condition) override;
+    void on_line_activity() override;
 
 private:
     // ac20_line.cpp: words 526-529 written over the line, in effect after the reply.
@@ -83,6 +88,8 @@ private:
 
     // ac20_access.cpp
     void note_line_activity();
+    void set_remote(bool remote);
+    void set_mode(Mode mode);
     std::optional<std::uint8_t> access_refusal(const Parameter& parameter, std::uint16_t raw);
     std::optional<std::uint8_t> mode_entry_refusal(std::uint16_t raw) const;
     std::optional<int> control_group_of(const Parameter& parameter) const;
@@ -136,6 +143,12 @@ private:
     bool fault(const std::string& name) const;
     bool measurement_fault() const;
 
+    // ac20_contacts.cpp
+    bool contact_level(std::size_t index) const;
+    int selected_set_point() const;
+    std::uint16_t set_point_word(int type) const;
+    void follow_contacts();
+
     // ac20_alarms.cpp
     void read_alarm_settings(Settings& settings) const;
     void update_alarms();
@@ -163,6 +176,7 @@ private:
     bool manual_ = false;
     double operative_set_point_ = 0;    // raw units of the primary variable
     int operative_set_point_type_ = 1;  // word 136
+    int last_selection_ = 1;            // the set point the contacts selected last (1-4)
     double millivolts_ = 0;             // what the probe input reads
     double temperature_ = 0;            // °C, what the thermocouple input reads
     std::deque<std::pair<double, double>> millivolt_history_;  // (process time, mV), last minute
