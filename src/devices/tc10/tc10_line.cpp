@@ -23,7 +23,13 @@ std::optional<std::uint16_t> baud_code(std::uint32_t baud) {
 
 // Served as unit N at some rate: Add = N, bAud = that rate (one the TC10 lacks, e.g. 4800,
 // leaves bAud as it was; simulate warns about the link).
+//
+// After construction describe_line runs only when saved contents are reloaded (--state), i.e.
+// the controller is powered up again after having been powered off: §5.1 10A bit 10
+// "Индикатор сбоя питания" (power failure indicator) is then on, until an alarm reset (word 13).
+// A simulator started without saved contents is a controller's first power-up: no indication.
 void Tc10Simulator::describe_line() {
+    if (constructed_) power_failed_ = true;
     set_value("device_address", environment().unit, Persistence::saved);
     if (environment().serial) {
         if (const auto code = baud_code(environment().serial->baud)) set_value("baud_rate", *code, Persistence::saved);

@@ -47,6 +47,7 @@ process::ThermalPlantSettings oven() {
     settings.gain = 400.0;
     settings.time_constant = 300.0;
     settings.dead_time = 10.0;
+    settings.lowest_output = -1.0;  // the cooler's share is applied by the process (tc10_process.cpp)
     return settings;
 }
 
@@ -56,6 +57,7 @@ Tc10Simulator::Tc10Simulator(std::shared_ptr<const Profile> profile, SimulationE
     : SimulatedDevice(std::move(profile), std::move(environment)), plant_(oven()) {
     apply_factory_settings();
     describe_line();
+    constructed_ = true;
 }
 
 // The manual lists no factory values. The simulator's: a PID tuned for the oven above (Pb 20
@@ -139,6 +141,8 @@ void Tc10Simulator::after_write(const Parameter& parameter, std::uint16_t raw) {
         set_value("load_defaults", 0, Persistence::saved);
     } else if (name == "alarm_reset" || name == "alarm_acknowledge") {
         // §5.1 13A/14A: writing 1 resets / acknowledges; the word reads 0 again once done.
+        // The power failure indicator (§5.1 10A bit 10) goes off with an alarm reset.
+        if (name == "alarm_reset" && raw == 1) power_failed_ = false;
         for (std::size_t i = 0; i < alarms_.size() && raw == 1; ++i) {
             if (name == "alarm_reset") alarms_[i].reset();
             if (name == "alarm_acknowledge") alarms_[i].acknowledge(alarm_settings(i).function);
@@ -169,6 +173,8 @@ void Tc10Simulator::load_defaults() {
     apply_factory_settings();
     for (std::size_t i = 0; i < kept.size(); ++i) set_value(kept_by_load_defaults[i], kept[i], Persistence::saved);
     alarms_ = {};
+    ramp_ = {};
+    loop_break_ = {};
     pid_ = process::PidController(pid_.settings());
     output_ = 0;
     busy_until_ = environment().now() + std::chrono::duration_cast<SimulationClock::duration>(

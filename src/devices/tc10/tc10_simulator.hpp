@@ -13,6 +13,8 @@
 #include <vector>
 
 #include "devices/tc10/tc10_alarms.hpp"
+#include "devices/tc10/tc10_loop_break.hpp"
+#include "devices/tc10/tc10_ramp.hpp"
 #include "simulation/process/pid_controller.hpp"
 #include "simulation/process/thermal_plant.hpp"
 #include "simulation/simulated_device.hpp"
@@ -58,12 +60,14 @@ private:
     struct StepSettings {
         State state = State::automatic;
         double scale = 1;
-        double set_point = 0;
+        double final_set_point = 0;  // before the ramp (§5.3.10 #122 diSP 2 = SPF)
+        tc10::RampRates ramp;
         double manual_output = 0;  // %
         double error_output = 0;   // %
         std::uint16_t error_mode = 0;
         process::PidSettings pid;
         std::array<tc10::AlarmSettings, 3> alarms{};
+        tc10::LoopBreakSettings loop_break;
     };
 
     // tc10_simulator.cpp
@@ -91,24 +95,37 @@ private:
     std::uint16_t instrument_status() const;
     std::uint16_t controller_state() const;
     bool output_on(int output) const;
+    bool function_on(int output) const;
+    bool overload() const;
 
     // tc10_process.cpp
     double scale() const;  // 10^dP: engineering units per raw count
     double engineering(std::string_view name) const;
+    double final_set_point() const;
     double working_set_point() const;
+    tc10::RampRates ramp_rates() const;
+    bool ramp_running() const;
+    double step_ramp(double seconds, const StepSettings& settings);
     bool remote_set_point_in_use() const;
     Measurement measurement() const { return measurement(scale()); }
     Measurement measurement(double scale) const;
     const StepSettings& step_settings();
     process::PidSettings pid_settings() const;
     tc10::AlarmSettings alarm_settings(std::size_t alarm) const;
-    double next_output(double seconds, const StepSettings& settings);
-    void update_alarms(double seconds, const StepSettings& settings);
+    tc10::LoopBreakSettings loop_break_settings() const;
+    double next_output(double seconds, const StepSettings& settings, double set_point);
+    void update_alarms(double seconds, const StepSettings& settings, double set_point);
 
     process::ThermalPlant plant_;
     process::PidController pid_;
     std::array<tc10::Alarm, 3> alarms_{};
+    tc10::SetPointRamp ramp_;
+    tc10::LoopBreakAlarm loop_break_;
     InputFault fault_ = InputFault::none;
+    bool loop_open_ = false;      // fault "loop-break": the output no longer reaches the oven
+    bool overloaded_ = false;     // fault "output-4-overload"
+    bool power_failed_ = false;   // §5.1 10A bit 10, set by a restart from saved contents
+    bool constructed_ = false;    // describe_line() from now on means a reload (load_saved)
     double output_ = 0;  // % -100…100, what the controller drives now
     std::optional<SimulationClock::time_point> busy_until_;
     bool powered_on_ = false;  // dSPu applied (after --state has been loaded)

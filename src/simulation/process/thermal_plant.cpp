@@ -12,7 +12,7 @@ double ThermalPlant::delayed_output() const { return arrived_output_; }
 
 void ThermalPlant::step(double seconds, double output) {
     if (seconds <= 0) return;
-    in_transit_.emplace_back(time_, std::clamp(output, 0.0, 1.0));
+    in_transit_.emplace_back(time_, std::clamp(output, settings_.lowest_output, 1.0));
     time_ += seconds;
     // Outputs older than the dead time have reached the sensor; the newest of them acts now.
     while (!in_transit_.empty() && in_transit_.front().first <= time_ - settings_.dead_time) {

@@ -15,13 +15,14 @@ struct ThermalPlantSettings {
     double gain = 1000.0;         // °C above ambient at 100 % output, steady state
     double time_constant = 600.0; // s
     double dead_time = 20.0;      // s
+    double lowest_output = 0.0;   // below 0 a cooler draws heat out: -1 cools as hard as gain heats
 };
 
 class ThermalPlant {
 public:
     explicit ThermalPlant(ThermalPlantSettings settings = {});
 
-    // Advances by `seconds` with heating output `output` (0..1, clamped) applied from now on.
+    // Advances by `seconds` with heating output `output` (lowest_output..1, clamped) applied from now on.
     void step(double seconds, double output);
 
     double temperature() const { return temperature_; }

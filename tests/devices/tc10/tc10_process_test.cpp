@@ -100,6 +100,65 @@ TEST(Tc10Model, MeasurementErrorDrivesTheErrorOutputWhereInECoversIt_Section5_1_
     EXPECT_EQ(tc10.word(output_power), 3000);
 }
 
+// §5.3.2 #14 o1F: 1 = H.rEG "Выход нагрева" works in reverse action (more output as PV falls
+// below SP), 2 = c.rEG "Выход охлаждения" in direct action (more output as PV rises above SP).
+// Proportional only (ti, td off), read within the oven's dead time so PV stays 25.
+TEST(Tc10Model, HeatingIsReverseActionCoolingIsDirectAction_Section5_3_2_14And5_2_4B_5B) {
+    constexpr std::uint16_t cooling_power = 516;
+    Simulated tc10("tc10");
+    set(tc10, integral_time, 0);
+    set(tc10, derivative_time, 0);
+    const auto output_at = [&](int sp) {
+        set(tc10, set_point, sp);
+        tc10.wait(0.5);
+        return static_cast<int>(static_cast<std::int16_t>(tc10.word(output_power)));
+    };
+    EXPECT_EQ(output_at(30), 2500);  // heating: PV 5 below SP, Pb 20
+    EXPECT_EQ(output_at(35), 5000);
+    EXPECT_EQ(output_at(20), 0);     // PV above SP: a heater does nothing
+    set(tc10, output_1_function, 2);  // c.rEG
+    EXPECT_EQ(output_at(30), 0);      // PV below SP: a cooler does nothing
+    EXPECT_EQ(output_at(20), -2500);  // PV 5 above SP: 25 % cooling
+    EXPECT_EQ(tc10.word(cooling_power), 2500);
+    EXPECT_EQ(tc10.word(heating_power), 0);
+    EXPECT_EQ(output_at(15), -5000);  // further above: more cooling
+}
+
+TEST(Tc10Model, CoolingOutputPullsTheRunningProcessDownToTheSetPoint_Section5_3_2_14) {
+    Simulated tc10("tc10", Model::behaviour, at_speed(100));
+    set(tc10, output_1_function, 2);  // c.rEG
+    set(tc10, set_point, 15);
+    for (int i = 0; i < 30; ++i) tc10.wait(1);  // 50 minutes
+    EXPECT_NEAR(static_cast<std::int16_t>(tc10.word(measured)), 15, 1);
+    EXPECT_LT(static_cast<std::int16_t>(tc10.word(output_power)), 0);  // holding below ambient
+    set(tc10, output_1_function, 1);  // back to heating: it cannot hold 15 below ambient 25
+    for (int i = 0; i < 30; ++i) tc10.wait(1);
+    EXPECT_EQ(tc10.word(output_power), 0);
+    EXPECT_NEAR(static_cast<std::int16_t>(tc10.word(measured)), 25, 1);
+}
+
+// §5.3.2 #18 o1Ac: 0 = dir "Прямое действие", 1 = rEU "Обратное действие": a reverse output is
+// off while what drives it is on. Output 2 is the alarm 1 relay.
+TEST(Tc10Model, ReverseOutputActionInvertsTheOutput_Section5_3_2_18And21) {
+    constexpr std::uint16_t output_2_action = 659;
+    Simulated tc10("tc10");
+    set(tc10, al1_type, 2);  // HiAb 20: the oven at 25 alarms
+    set(tc10, al1, 20);
+    tc10.wait(1);
+    EXPECT_TRUE(bit(tc10.word(output_status), 1));
+    set(tc10, output_2_action, 1);  // rEU
+    EXPECT_FALSE(bit(tc10.word(output_status), 1));
+    EXPECT_EQ(tc10.word(alarm_1_state), 1);
+    set(tc10, al1, 40);
+    tc10.wait(1);
+    EXPECT_EQ(tc10.word(alarm_1_state), 0);
+    EXPECT_TRUE(bit(tc10.word(output_status), 1));
+    set(tc10, output_2_action, 3);  // ReU.r: reverse too
+    EXPECT_TRUE(bit(tc10.word(output_status), 1));
+    set(tc10, output_2_action, 2);  // dir.r: direct
+    EXPECT_FALSE(bit(tc10.word(output_status), 1));
+}
+
 // The manual's own examples write out-of-range values and show normal replies: 10 to bAud
 // (770, 0…4; §3.2) and 100 to nSP (10314, 1…4; §3.3). §4.4 B.2 states the rule, and a stated
 // rule beats an example: both are refused.
