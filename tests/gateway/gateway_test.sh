@@ -11,7 +11,7 @@ python=/usr/bin/python3
 
 pty="$WORK_DIR/ttyG0"
 start_background sim.log "$loopwire" simulate --link "rtu:/unused?baud=19200&parity=none" --pty "$pty" \
-  --device tc10@3 --device rampsoak@5 --duration 120s
+  --device tc10@3 --device rampsoak@5 --duration 280s  # the whole test, sanitized builds too (ctest: 300 s)
 wait_for_path "$pty"
 
 write_config() {  # FILE WRITES : a gateway for the line with oven1 (tc10@3), kiln (rampsoak@5),
