@@ -1,11 +1,9 @@
 // The master on a serial line (RTU, ASCII, Linking) or behind a serial device server (rtu+tcp).
-#include <condition_variable>
-#include <deque>
 #include <mutex>
-#include <thread>
 
 #include "codec/rtu.hpp"
 #include "session/frame_codec.hpp"
+#include "session/job_queue.hpp"
 #include "session/master.hpp"
 #include "session/reply_check.hpp"
 #include "session/transaction_text.hpp"
@@ -14,46 +12,6 @@ namespace loopwire::session {
 namespace {
 
 using Duration = Instant::duration;
-
-// Runs queued jobs on one thread, for execute_async. Started on first use.
-class JobQueue {
-public:
-    ~JobQueue() {
-        {
-            std::lock_guard lock(mutex_);
-            stopping_ = true;
-        }
-        ready_.notify_all();
-        if (worker_.joinable()) worker_.join();
-    }
-
-    void push(std::function<void()> job) {
-        std::lock_guard lock(mutex_);
-        if (!worker_.joinable()) worker_ = std::thread([this] { run(); });
-        jobs_.push_back(std::move(job));
-        ready_.notify_one();
-    }
-
-private:
-    void run() {
-        std::unique_lock lock(mutex_);
-        for (;;) {
-            ready_.wait(lock, [this] { return stopping_ || !jobs_.empty(); });
-            if (jobs_.empty()) return;  // stopping, nothing left
-            auto job = std::move(jobs_.front());
-            jobs_.pop_front();
-            lock.unlock();
-            job();
-            lock.lock();
-        }
-    }
-
-    std::mutex mutex_;
-    std::condition_variable ready_;
-    std::deque<std::function<void()>> jobs_;
-    bool stopping_ = false;
-    std::thread worker_;
-};
 
 class SerialMaster final : public Master {
 public:
