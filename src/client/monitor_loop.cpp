@@ -50,25 +50,39 @@ struct Polled {
 
 std::string label_of(const device::DeviceAddress& device) { return fmt::format("{}@{}", device.profile->id, device.unit); }
 
+// When the device's next poll may go, if not now: the carrier's word when it keeps the
+// back-off (MonitorTarget::held_until), else the poller's own.
+std::optional<MonitorClock::time_point> held_until(const Polled& polled, MonitorClock::time_point sample_start) {
+    if (polled.target->held_until) return polled.target->held_until();
+    if (polled.backoff.due(sample_start)) return std::nullopt;
+    return polled.backoff.next_try();
+}
+
 void poll(Polled& polled, WatchedDevice& watched, MonitorClock::time_point sample_start) {
-    if (!polled.backoff.due(sample_start)) {
+    const bool own_backoff = !polled.target->held_until;
+    if (const auto held = held_until(polled, sample_start)) {
         record_skipped(watched);
+        watched.next_try = held;
         return;
     }
     polled.guard->start_poll();
     const auto report = polled.client->read(polled.target->parameters);
     const auto now = MonitorClock::now();
+    watched.next_try.reset();
     if (const auto& failure = polled.guard->failure()) {
-        record_poll(watched, report, false, failure->message, now);
-        polled.backoff.failed(now);
+        if (failure->kind == ErrorKind::link) {
+            record_line_down(watched, failure->message);
+        } else {
+            record_poll(watched, report, false, failure->message, now);
+        }
+        if (own_backoff) {
+            polled.backoff.failed(now);
+            watched.next_try = polled.backoff.next_try();
+        }
         return;
     }
     record_poll(watched, report, true, {}, now);
     polled.backoff.succeeded();
-}
-
-void note_retry(const Polled& polled, WatchedDevice& watched) {
-    watched.next_try = polled.backoff.consecutive_failures() > 0 ? std::optional(polled.backoff.next_try()) : std::nullopt;
 }
 
 // Sleeps until `deadline` or until stop is requested; false when stopped.
@@ -98,7 +112,6 @@ void run_monitor(const std::vector<MonitorTarget>& targets, const MonitorSetting
         const auto wall = std::chrono::system_clock::now();
         for (std::size_t i = 0; i < polled.size() && !stop.stop_requested(); ++i) {
             poll(polled[i], watched[i], sample_start);
-            note_retry(polled[i], watched[i]);
         }
         if (stop.stop_requested()) break;
         sink.write(SampleView{index, wall, MonitorClock::now(), &watched});

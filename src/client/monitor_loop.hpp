@@ -3,6 +3,7 @@
 // it on simulators inside the process: it takes masters that are already open.
 #include <chrono>
 #include <cstdio>
+#include <functional>
 #include <optional>
 #include <stop_token>
 #include <vector>
@@ -17,6 +18,11 @@ struct MonitorTarget {
     session::Master* master = nullptr;  // shared by targets on the same link
     device::DeviceAddress device;
     std::vector<const device::Parameter*> parameters;
+    // When set, the device's back-off lives with whoever carries its requests (the gateway's
+    // line scheduler, gateway/line_scheduler.hpp): before each poll the poller asks this, skips
+    // the device while it names a time, and keeps no back-off of its own, so the two cannot
+    // compound. Unset (`loopwire monitor`): the poller's own back-off, as described below.
+    std::function<std::optional<MonitorClock::time_point>()> held_until;
 };
 
 // One sample as the poller hands it to its sinks: every watched device with its values.
@@ -45,8 +51,10 @@ struct MonitorSettings {
 // the slots it missed rather than bunching up), and hands each sample to `sink`. A target that
 // does not answer is retried with exponential back-off (RetryBackoff: first wait one interval,
 // doubling up to backoff_cap), and each poll of it stops at its first timeout, so a dead unit
-// costs at most one timeout per back-off period. Returns when `count` samples were taken or
-// `stop` is requested.
+// costs at most one timeout per back-off period. A poll that fails because the link failed
+// shows the device as "line-down", not "no-reply": the device is not to blame (with held_until
+// it does not back the device off either; the link has its own reopen schedule). Returns when
+// `count` samples were taken or `stop` is requested.
 void run_monitor(const std::vector<MonitorTarget>& targets, const MonitorSettings& settings, SampleSink& sink,
                  std::stop_token stop);
 

@@ -32,22 +32,27 @@ void record_value(WatchedValue& value, const device::ParameterReading* reading, 
     value.error.clear();
 }
 
+// A poll that read nothing: every value keeps its last reading, none is fresh.
+void record_failed_poll(WatchedDevice& device, std::string status, const std::string& failure) {
+    ++device.polls;
+    ++device.errors;
+    device.status = std::move(status);
+    device.last_error = failure;
+    for (auto& value : device.values) {
+        value.fresh = false;
+        value.changed = false;
+        value.error = failure;
+    }
+}
+
 }  // namespace
+
+void record_line_down(WatchedDevice& device, const std::string& failure) { record_failed_poll(device, "line-down", failure); }
 
 void record_poll(WatchedDevice& device, const device::ReadReport& report, bool answered, const std::string& failure,
                  MonitorClock::time_point now) {
+    if (!answered) return record_failed_poll(device, "no-reply", failure);
     ++device.polls;
-    if (!answered) {
-        ++device.errors;
-        device.status = "no-reply";
-        device.last_error = failure;
-        for (auto& value : device.values) {
-            value.fresh = false;
-            value.changed = false;
-            value.error = failure;
-        }
-        return;
-    }
     bool all_read = true;
     for (auto& value : device.values) {
         record_value(value, find_reading(report, value.parameter), now);
@@ -76,7 +81,7 @@ std::optional<double> age_seconds(const WatchedValue& value, MonitorClock::time_
 
 std::string value_status(const WatchedDevice& device, const WatchedValue& value) {
     if (value.fresh) return value.last->status;
-    if (device.status == "no-reply" || device.status == "waiting") return device.status;
+    if (device.status == "no-reply" || device.status == "line-down" || device.status == "waiting") return device.status;
     return "error";
 }
 

@@ -22,8 +22,9 @@ struct WatchedValue {
 };
 
 // "ok": every value read; "partial": the device answered but some values failed (exception,
-// undecodable word); "no-reply": this sample's poll timed out or the link failed; "waiting":
-// not polled this sample because the device is in back-off after failing.
+// undecodable word); "no-reply": this sample's poll timed out; "line-down": the link the device
+// is on failed or is down, so it could not be asked; "waiting": not polled this sample because
+// the device is in back-off after failing.
 struct WatchedDevice {
     std::string label;  // "tc10@3"
     std::vector<WatchedValue> values;
@@ -41,6 +42,10 @@ WatchedDevice watch(std::string label, const std::vector<const device::Parameter
 void record_poll(WatchedDevice& device, const device::ReadReport& report, bool answered, const std::string& failure,
                  MonitorClock::time_point now);
 
+// The poll could not reach the device: its link failed or is down (`failure` says which and
+// why). Like a poll without a reply, but the device is not to blame.
+void record_line_down(WatchedDevice& device, const std::string& failure);
+
 // The device was not polled this sample (back-off): nothing is fresh.
 void record_skipped(WatchedDevice& device);
 
@@ -48,7 +53,7 @@ void record_skipped(WatchedDevice& device);
 std::optional<double> age_seconds(const WatchedValue& value, MonitorClock::time_point now);
 
 // The status shown for one value: the value's own ("ok", a special state such as
-// "under-range") when fresh, else why it is not ("no-reply", "waiting", "error").
+// "under-range") when fresh, else why it is not ("no-reply", "line-down", "waiting", "error").
 std::string value_status(const WatchedDevice& device, const WatchedValue& value);
 
 }  // namespace loopwire::device

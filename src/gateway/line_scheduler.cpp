@@ -99,6 +99,7 @@ private:
 // the scheduler would wait for itself in stop()).
 struct Flight {
     std::uint8_t unit = 0;
+    Priority priority = Priority::client;
     session::Master::ForwardCompletion done;
 
     // True if the completion is for the caller to handle now; false if forward_async has not
@@ -164,6 +165,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
             }
             auto flight = std::make_shared<Flight>();
             flight->unit = request->unit;
+            flight->priority = request->priority;
             flight->done = std::move(request->done);
             if (auto early = send(**line, flight, std::move(request->pdu))) finish(*flight, std::move(*early));
         }
@@ -216,13 +218,22 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         return master.get();
     }
 
-    // Polls for a unit that stopped answering wait for its back-off; requests a person made get a
-    // real try. Once the back-off is due the next request sent, of any kind, is the probe.
+    // Polls for a unit whose last poll went unanswered wait for its back-off; requests a person
+    // made get a real try. Once the back-off is due the next poll is the probe. The poller asks
+    // hold_poll() first, so this only catches a poll that was not asked about.
     std::optional<Error> backing_off(const LineRequest& request, Instant now) const {
         if (request.priority != Priority::poll) return std::nullopt;
-        const auto found = backoffs.find(request.unit);  // only units whose last answer was none
+        const auto found = backoffs.find(request.unit);  // only units whose last poll got no answer
         if (found == backoffs.end() || found->second.due(now)) return std::nullopt;
         return backing_off_error(request.unit, found->second, now);
+    }
+
+    std::optional<Instant> hold_poll(std::uint8_t unit) {
+        std::lock_guard lock(mutex);
+        const auto found = backoffs.find(unit);
+        if (found == backoffs.end() || found->second.due(clock->now())) return std::nullopt;
+        ++stats.backed_off;
+        return found->second.next_try();
     }
 
     // Puts the request on the wire. Returns a result that came back inside forward_async, for the
@@ -258,29 +269,40 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
             std::lock_guard lock(mutex);
             in_flight = false;
             stats.busy += std::chrono::duration_cast<std::chrono::microseconds>(clock->now() - flight_started);
-            record(flight.unit, result);
+            record(flight, result);
         }
         deliver(flight.done, std::move(result));
     }
 
-    void record(std::uint8_t unit, const Result<Bytes>& result) {
+    // Every outcome is counted, but only the gateway's own polls move a unit's back-off: a
+    // client's request the unit ignores (one it cannot parse, a function it does not have) costs
+    // that client its 0Bh, not the unit its polls and its status.
+    void record(const Flight& flight, const Result<Bytes>& result) {
+        const bool poll = flight.priority == Priority::poll;
         if (result.ok()) {  // any reply, exception replies included: the unit is alive
             ++stats.answered;
-            backoffs.erase(unit);
+            if (poll) backoffs.erase(flight.unit);
             return;
         }
         switch (result.error().kind) {
             case ErrorKind::timeout:
                 ++stats.timeouts;
-                backoffs.try_emplace(unit, options.first_backoff, options.max_backoff)
-                    .first->second.failed(clock->now());
+                if (poll) {
+                    backoffs.try_emplace(flight.unit, options.first_backoff, options.max_backoff)
+                        .first->second.failed(clock->now());
+                }
                 break;
             case ErrorKind::mismatch:
             case ErrorKind::malformed:
                 // Something answered, so the unit is not silent; the back-off stays as it was.
                 ++stats.bad_replies;
                 break;
-            default:  // the link or the request itself failed: says nothing about the unit
+            case ErrorKind::link:
+                // The line failed (reopening_master.hpp): the silences before may have been the
+                // line's, not the units'. Every unit is polled again once it is back, at once.
+                backoffs.clear();
+                break;
+            default:  // the request itself was refused: says nothing about the unit
                 break;
         }
     }
@@ -331,7 +353,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
     FairLane writes;
     FairLane clients;
     std::deque<LineRequest> polls;  // FIFO: polls are all the gateway's own, no one to be fair to
-    std::map<std::uint8_t, device::RetryBackoff> backoffs;  // units whose last request timed out
+    std::map<std::uint8_t, device::RetryBackoff> backoffs;  // units whose last poll timed out
     LineStatistics stats;
     const Instant opened = clock->now();
     Instant flight_started{};
@@ -351,5 +373,7 @@ LineScheduler::~LineScheduler() { state_->stop(); }
 void LineScheduler::submit(LineRequest request) { state_->submit(std::move(request)); }
 
 LineStatistics LineScheduler::statistics() const { return state_->statistics(); }
+
+std::optional<Instant> LineScheduler::hold_poll(std::uint8_t unit) { return state_->hold_poll(unit); }
 
 }  // namespace loopwire::gateway

@@ -2,12 +2,20 @@
 // One serial line (or one-connection TCP device) shared by everything that wants it: one request
 // on the wire at a time, writes first, then clients' requests (round robin between clients, so
 // a busy one cannot starve another), then due polls. A request whose deadline has passed or
-// whose client has gone is never sent; a unit that stopped answering backs off, so it costs the
-// others at most one timeout per back-off period (docs/DESIGN.md, gateway).
+// whose client has gone is never sent; a unit that stopped answering the gateway's polls backs
+// off, so it costs the others at most one timeout per back-off period (docs/DESIGN.md, gateway).
+//
+// The back-off of a unit lives here and nowhere else: only the outcomes of Priority::poll
+// requests move it (a timeout doubles it, 1 s to 30 s; an answer clears it), so a client's
+// request the unit ignores costs that client a 0Bh and nothing more. The gateway's poller keeps
+// no back-off of its own: it asks hold_poll() before each poll (client/monitor_loop.hpp,
+// MonitorTarget::held_until). A link failure clears every unit's back-off: the line was at
+// fault, and when it is back every unit is polled at once.
 #include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 
 #include "common/bytes.hpp"
 #include "common/clock.hpp"
@@ -40,7 +48,7 @@ struct LineStatistics {
     std::uint64_t bad_replies = 0;   // malformed or mismatched replies
     std::uint64_t expired = 0;       // dropped unsent: deadline passed
     std::uint64_t abandoned = 0;     // dropped unsent: the asker had gone
-    std::uint64_t backed_off = 0;    // refused unsent: the unit is backing off
+    std::uint64_t backed_off = 0;    // polls held back or refused: the unit is backing off
     std::size_t queued = 0;          // waiting now
     bool on_wire = false;            // a request is on the line now
     // How long the line has carried a request (from sending to its outcome) and how long the
@@ -70,6 +78,10 @@ public:
     void submit(LineRequest request);
 
     LineStatistics statistics() const;
+
+    // For the poller, before it polls `unit`: when the unit's polls are backing off, when the
+    // next one may go (and the poll is counted as held back); nothing when it may go now.
+    std::optional<Instant> hold_poll(std::uint8_t unit);
 
 private:
     struct State;

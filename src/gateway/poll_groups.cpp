@@ -26,7 +26,9 @@ public:
 
 private:
     void note_answering(std::size_t i, const device::WatchedDevice& device) {
-        if (device.status == "waiting") return;  // not polled this time: nothing new
+        // Not polled this time, or the poll could not reach it (the line logs that itself):
+        // nothing new about whether the device answers.
+        if (device.status == "waiting" || device.status == "line-down") return;
         const bool answers = device.status != "no-reply";
         if (answering_[i] == answers) return;
         const bool first = !answering_[i].has_value();
@@ -67,7 +69,10 @@ PollGroups::PollGroups(const GatewayConfig& config, const std::map<std::string, 
             if (!group) group = std::make_unique<Group>();
             // A poll waiting longer than its interval would only be stale when it came back.
             group->masters.push_back(std::make_unique<ScheduledMaster>(scheduler, line.link.to_string(), Priority::poll, device.poll));
-            group->targets.push_back({group->masters.back().get(), device.address, polled_parameters(device)});
+            // The unit's back-off is the scheduler's (line_scheduler.hpp); the poller defers to it.
+            const std::uint8_t unit = device.address.unit;
+            group->targets.push_back({group->masters.back().get(), device.address, polled_parameters(device),
+                                      [scheduler, unit] { return scheduler->hold_poll(unit); }});
             names[device.poll].push_back(device.name);
         }
     }

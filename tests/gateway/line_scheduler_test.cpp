@@ -1,7 +1,7 @@
 // The line scheduler: one request on the wire at a time, writes before clients' requests before
 // polls, round robin between clients, requests past their deadline or whose asker has gone never
-// sent, a silent unit's polls held back until its back-off is due, and a scheduler that can go
-// while a request is still out.
+// sent, a silent unit's polls held back until its back-off is due (which only polls move), and a
+// scheduler that can go while a request is still out.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -10,6 +10,7 @@
 #include <deque>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -315,7 +316,7 @@ TEST_F(LineSchedulerTest, SilentUnitsPollsWaitForItsBackOffWhileOthersGoOn) {
     EXPECT_EQ(stats.sent, 5U);
 }
 
-TEST_F(LineSchedulerTest, ClientRequestsToABackingOffUnitAreStillSent) {
+TEST_F(LineSchedulerTest, ClientRequestsToABackingOffUnitAreStillSentAndDoNotMoveItsBackOff) {
     submit(1, Priority::poll, 5);
     master->complete(timed_out());
 
@@ -324,12 +325,72 @@ TEST_F(LineSchedulerTest, ClientRequestsToABackingOffUnitAreStillSent) {
     master->complete(timed_out());
     submit(3, Priority::write, 5);
     EXPECT_TRUE(was_sent(3));
-    master->complete(normal_reply());  // a real answer clears the back-off for the polls too
+    master->complete(normal_reply());  // the unit answers a write: only a poll's answer ends a back-off
 
     submit(4, Priority::poll, 5);
-    EXPECT_TRUE(was_sent(4));
+    EXPECT_FALSE(was_sent(4));
+    clock->advance(1s);  // still the first 1 s: neither the client's timeout nor the write moved it
+    submit(5, Priority::poll, 5);
+    EXPECT_TRUE(was_sent(5));
     master->complete(normal_reply());
-    EXPECT_EQ(scheduler->statistics().backed_off, 0U);
+    EXPECT_EQ(scheduler->statistics().backed_off, 1U);
+    EXPECT_EQ(scheduler->statistics().timeouts, 2U);
+}
+
+// The field's case: a client sends a request the unit ignores (a 253-byte PDU longer than its
+// buffer). The client gets its timeout (0Bh at the front); the unit's polls go on as before,
+// so its status stays what its polls find.
+TEST_F(LineSchedulerTest, ClientAndWriteTimeoutsAreCountedButDoNotBackTheUnitOff) {
+    submit(1, Priority::client, 5);
+    master->complete(timed_out());
+    submit(2, Priority::write, 5);
+    master->complete(timed_out());
+    EXPECT_EQ(scheduler->hold_poll(5), std::nullopt);
+
+    submit(3, Priority::poll, 5);  // at once, with no time passed
+    EXPECT_TRUE(was_sent(3));
+    master->complete(normal_reply());
+    EXPECT_TRUE(only_answer(3).ok());
+    EXPECT_FALSE(only_answer(1).ok());
+    EXPECT_EQ(only_answer(1).error().kind, ErrorKind::timeout);
+    const auto stats = scheduler->statistics();
+    EXPECT_EQ(stats.timeouts, 2U);
+    EXPECT_EQ(stats.backed_off, 0U);
+}
+
+// The poller asks before each poll, and keeps no back-off of its own: the times it is told are
+// the scheduler's 1 s, 2 s, 4 s ... and each poll held back is counted.
+TEST_F(LineSchedulerTest, HoldPollTellsThePollerWhenTheUnitsNextPollMayGo) {
+    const Instant start = clock->now();
+    EXPECT_EQ(scheduler->hold_poll(5), std::nullopt);
+    submit(1, Priority::poll, 5);
+    master->complete(timed_out());
+    EXPECT_EQ(scheduler->hold_poll(5), start + 1s);
+    EXPECT_EQ(scheduler->hold_poll(6), std::nullopt) << "another unit is held back too";
+    clock->advance(1s);
+    EXPECT_EQ(scheduler->hold_poll(5), std::nullopt);
+    submit(2, Priority::poll, 5);
+    master->complete(timed_out());
+    EXPECT_EQ(scheduler->hold_poll(5), start + 3s);
+    clock->advance(2s);
+    submit(3, Priority::poll, 5);
+    master->complete(timed_out());
+    EXPECT_EQ(scheduler->hold_poll(5), start + 7s);
+    EXPECT_EQ(scheduler->statistics().backed_off, 3U);
+}
+
+// A link failure (the line went down, reopening_master.hpp) says the silences before may have
+// been the line's: once it is back, every unit is polled at once.
+TEST_F(LineSchedulerTest, ALinkFailureEndsEveryUnitsBackOff) {
+    submit(1, Priority::poll, 5);
+    master->complete(timed_out());
+    submit(2, Priority::poll, 6);
+    master->complete(timed_out());
+    ASSERT_TRUE(scheduler->hold_poll(5).has_value());
+    submit(3, Priority::client, 7);
+    master->complete(make_error(ErrorKind::link, "line plant (rtu:/dev/ttyUSB0) is down: hung up; retrying in 1 s"));
+    EXPECT_EQ(scheduler->hold_poll(5), std::nullopt);
+    EXPECT_EQ(scheduler->hold_poll(6), std::nullopt);
 }
 
 TEST_F(LineSchedulerTest, BadRepliesAreCountedAndDoNotBackOff) {
