@@ -128,8 +128,9 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
         auto served = serve_round(current, gateway_options, stop.token(), reloads.start_round());
         if (!served && !previous) return report_error(served.error());
         if (!served) {
-            // The new configuration loaded but could not be opened (a port missing, an address
-            // taken): back to the one that ran.
+            // The new configuration loaded but could not be opened (an address taken, a history
+            // database it cannot read; a missing port is only a line that is down): back to the
+            // one that ran.
             log_warning(fmt::format("the reloaded configuration cannot be served ({}); going back to the previous one",
                                  served.error().message));
             current = std::move(*std::exchange(previous, std::nullopt));

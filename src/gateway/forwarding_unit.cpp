@@ -11,6 +11,7 @@ namespace {
 
 constexpr std::uint8_t exception_flag = 0x80;
 constexpr std::uint8_t illegal_function = 0x01;
+constexpr std::uint8_t gateway_path_unavailable = 0x0A;
 constexpr std::uint8_t target_failed_to_respond = 0x0B;
 
 // Modbus application protocol V1.1b3, 6: read coils, discrete inputs, holding and input
@@ -48,7 +49,15 @@ bool only_reads(std::uint8_t function) {
 }
 
 Bytes failure_reply(std::uint8_t function, const Error& why) {
-    return exception_reply(function, why.kind == ErrorKind::usage ? illegal_function : target_failed_to_respond);
+    switch (why.kind) {
+        case ErrorKind::usage: return exception_reply(function, illegal_function);
+        // The line is down or failed under the request: the gateway had no path to the device,
+        // and the device was never asked, so 0Bh ("no response was obtained from the target
+        // device") would blame a device that may be fine and send people to it rather than to
+        // the cable or the adapter.
+        case ErrorKind::link: return exception_reply(function, gateway_path_unavailable);
+        default: return exception_reply(function, target_failed_to_respond);
+    }
 }
 
 ForwardingUnit::ForwardingUnit(std::shared_ptr<LineScheduler> line, ForwardingSettings settings,

@@ -56,8 +56,9 @@ private:
 };
 
 // Modbus application protocol V1.1b3, 7: the reply a gateway gives for a request it could not
-// get answered. 0Bh (target device failed to respond) for silence and bad replies; 01h for a
-// request the line's framing cannot carry (Linking).
+// get answered. 0Bh (target device failed to respond) for silence and bad replies; 0Ah (gateway
+// path unavailable) when the line is down or failed, so the request never reached the device;
+// 01h for a request the line's framing cannot carry (Linking).
 Bytes failure_reply(std::uint8_t function, const Error& why);
 
 // Function codes that only read: what a gateway with `writes = false` still passes on.

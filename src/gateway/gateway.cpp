@@ -27,6 +27,7 @@ constexpr std::uint8_t gateway_path_unavailable = 0x0A;
 
 // The simulated devices of a virtual line, answering on their end of its bus.
 struct SimulatedLine {
+    std::shared_ptr<transport::VirtualBus> bus;  // the gateway attaches to it again on a reopen
     std::unique_ptr<transport::ByteStream> port;
     std::unique_ptr<session::Slave> devices;
     std::jthread thread;  // last: stops and joins before the port and the devices go
@@ -37,10 +38,10 @@ struct OpenLine {
     std::string link;
     std::shared_ptr<std::atomic<std::uint64_t>> garbled;  // counted from the master's trace
     std::unique_ptr<SimulatedLine> simulation;  // virtual lines only
-    // Held here as well as by the scheduler, and declared first so that it goes last: a serial
+    // Held here as well as by the scheduler, and declared first so that it goes last: the
     // master joins its own thread when destroyed, which must not be the thread that destroys the
     // scheduler from a completion (line_scheduler.hpp, ownership).
-    std::shared_ptr<session::Master> master;
+    std::shared_ptr<ReopeningMaster> master;
     std::shared_ptr<LineScheduler> scheduler;
 };
 
@@ -58,19 +59,20 @@ session::UnitMap simulated_devices(const LineConfig& line) {
     return units;
 }
 
-// The bus of a virtual line with its simulated devices serving on it; the master's end of it.
-std::unique_ptr<transport::ByteStream> open_virtual_line(const LineConfig& line, const GatewayOptions& options,
+// The bus of a virtual line with its simulated devices serving on it.
+std::shared_ptr<transport::VirtualBus> open_virtual_line(const LineConfig& line, const GatewayOptions& options,
                                                          OpenLine& opened) {
     auto bus = transport::VirtualBus::create(line.link.serial.baud, line.link.serial.bits_per_character());
     if (options.virtual_bus_faults) bus->set_fault_injector(options.virtual_bus_faults);
     auto simulation = std::make_unique<SimulatedLine>();
+    simulation->bus = bus;
     simulation->port = bus->attach("simulated devices");
     simulation->devices = std::make_unique<session::Slave>(line.link, simulated_devices(line));
     simulation->thread = std::jthread([s = simulation.get()](std::stop_token stop) {
         (void)s->devices->serve_stream(*s->port, std::move(stop));
     });
     opened.simulation = std::move(simulation);
-    return bus->attach("gateway");
+    return bus;
 }
 
 // The master's trace, counting the runs of bytes it discards, and passed on to -v's.
@@ -81,20 +83,32 @@ session::TraceSink counting_trace(std::shared_ptr<std::atomic<std::uint64_t>> ga
     };
 }
 
+// How the line's master is opened, the first time and after each failure: the port or
+// connection the link names, or a fresh attachment to the virtual line's bus.
+MasterOpener line_opener(const LineConfig& line, const GatewayOptions& options, OpenLine& opened,
+                         session::MasterOptions master_options) {
+    if (!line.simulation) {
+        return [link = line.link, master_options] { return session::open_master(link, master_options); };
+    }
+    auto bus = open_virtual_line(line, options, opened);
+    return [bus, link = line.link, master_options]() -> Result<std::unique_ptr<session::Master>> {
+        return session::make_serial_master(bus->attach("gateway"), link, master_options);
+    };
+}
+
+// A line whose port cannot be opened now is not an error: it starts down and is reopened with
+// back-off (gateway/reopening_master.hpp) while the other lines serve. Only a configuration the
+// port can never take (ErrorKind::usage) is.
 Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options) {
     OpenLine opened{line.name, line.link.to_string(), std::make_shared<std::atomic<std::uint64_t>>(0), nullptr, nullptr, nullptr};
     session::MasterOptions master_options;
     master_options.timeout = line.timeout;
     master_options.retries = line.retries;
     master_options.trace = counting_trace(opened.garbled, options.trace);
-    Result<std::unique_ptr<session::Master>> master =
-        line.simulation ? Result<std::unique_ptr<session::Master>>(session::make_serial_master(
-                              open_virtual_line(line, options, opened), line.link, master_options))
-                        : session::open_master(line.link, master_options);
-    if (!master) {
-        return make_error(master.error().kind, fmt::format("line {} ({}): {}", line.name, line.link.to_string(), master.error().message));
-    }
-    opened.master = std::shared_ptr<session::Master>(std::move(*master));
+    auto open = line_opener(line, options, opened, std::move(master_options));
+    opened.master = std::make_shared<ReopeningMaster>(line.name, opened.link, std::move(open), ReopenSchedule{},
+                                                      steady_clock(), options.log);
+    if (auto started = opened.master->start(); !started) return started.error();
     opened.scheduler = std::make_shared<LineScheduler>(opened.master);
     return opened;
 }
@@ -267,7 +281,8 @@ void stop_after_drain(const std::vector<OpenLine>& lines, const std::stop_token&
 }
 
 LineReport report_of(const OpenLine& line) {
-    return {line.name, line.link, line.scheduler->statistics(), line.garbled->load(std::memory_order_relaxed)};
+    return {line.name, line.link, line.scheduler->statistics(), line.garbled->load(std::memory_order_relaxed),
+            line.master->health()};
 }
 
 // Every `interval` until `stop`, each line's figures, its busy share over the interval.
@@ -341,10 +356,15 @@ std::string describe(const LineReport& report, const LineReport* since) {
     const auto open_time = s.open - (since ? since->statistics.open : std::chrono::microseconds(0));
     const double busy = open_time.count() > 0 ? 100.0 * static_cast<double>(busy_time.count()) / static_cast<double>(open_time.count()) : 0.0;
     const std::string period = since ? fmt::format("over the last {:.0f} s", static_cast<double>(open_time.count()) / 1e6) : "of the time";
-    return fmt::format("line {} ({}): {} sent, {} answered, {} timeout(s), {} bad repl{}, {} garbled frame(s), {} expired in "
-                       "the queue, {} refused while the unit backed off; busy {:.1f} % {}",
-                       report.name, report.link, s.sent, s.answered, s.timeouts, s.bad_replies,
-                       s.bad_replies == 1 ? "y" : "ies", report.garbled, s.expired, s.backed_off, busy, period);
+    const auto& health = report.link_health;
+    const std::string down_now = health.up ? "" : fmt::format(" is DOWN ({}; retrying in {} s)", health.reason,
+                                                               std::chrono::ceil<std::chrono::seconds>(health.retry_in).count());
+    return fmt::format("line {} ({}){}: {} sent, {} answered, {} timeout(s), {} bad repl{}, {} garbled frame(s), {} expired in "
+                       "the queue, {} polls held back while the unit backed off, down {} time(s) ({} reopen attempt(s), "
+                       "{} request(s) refused while down); busy {:.1f} % {}",
+                       report.name, report.link, down_now, s.sent, s.answered, s.timeouts, s.bad_replies,
+                       s.bad_replies == 1 ? "y" : "ies", report.garbled, s.expired, s.backed_off, health.down_periods,
+                       health.reopen_attempts, health.refused_while_down, busy, period);
 }
 
 }  // namespace loopwire::gateway

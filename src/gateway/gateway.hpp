@@ -12,6 +12,7 @@
 #include "gateway/history_source.hpp"
 #include "gateway/line_scheduler.hpp"
 #include "gateway/poll_groups.hpp"
+#include "gateway/reopening_master.hpp"
 #include "gateway/value_cache.hpp"
 #include "session/trace.hpp"
 #include "transport/virtual_bus.hpp"
@@ -34,11 +35,15 @@ struct LineReport {
     LineStatistics statistics;
     // Runs of bytes the line's master threw away: bad CRC or LRC, broken frames, noise.
     std::uint64_t garbled = 0;
+    // Whether the line is open now, and how often it went down and was reopened.
+    LinkHealth link_health;
 };
 
 class Gateway {
 public:
-    // Opens every line and the Modbus TCP listener; the error names what could not be opened.
+    // Opens every line it can and the Modbus TCP listener. A line whose port cannot be opened
+    // starts down and is reopened with back-off (gateway/reopening_master.hpp); the error names
+    // a listener that could not be opened or a line configuration no port can take.
     static Result<std::unique_ptr<Gateway>> open(const GatewayConfig& config, GatewayOptions options = {});
     ~Gateway();
     Gateway(const Gateway&) = delete;

@@ -2,7 +2,9 @@
 // line's wire time the polls will take.
 #include "gateway/gateway_config.hpp"
 
+#include <filesystem>
 #include <sstream>
+#include <system_error>
 
 #include <fmt/format.h>
 
@@ -100,9 +102,22 @@ void describe_load(std::ostringstream& out, const transport::LinkUrl& link, doub
     if (load > 100.0) out << "  warning: over 100 %: polls will fall behind\n";
 }
 
+// A serial port that is not there now is a warning, not an error: the gateway starts with that
+// line down and opens it once it appears (gateway/reopening_master.hpp), so an adapter plugged
+// in after the gateway started, or a simulator started after it, is fine.
+void warn_if_port_missing(std::ostringstream& out, const LineConfig& line) {
+    if (line.simulation || !line.link.is_serial()) return;
+    std::error_code error;
+    if (std::filesystem::exists(line.link.path, error)) return;
+    out << fmt::format("  warning: port {} does not exist now; the gateway will start with this line down and open it "
+                       "when it appears (retrying after 1 s, then with back-off up to every 30 s)\n",
+                       line.link.path);
+}
+
 void describe_line(std::ostringstream& out, const LineConfig& line) {
     out << fmt::format("line {}: {} (timeout {}, {})\n", line.name, line.link.to_string(), duration_text(line.timeout),
                        plural(line.retries, "retry", "retries"));
+    warn_if_port_missing(out, line);
     if (line.simulation) {
         out << fmt::format("  simulated on a virtual bus inside the gateway: process time x{}, seed {}\n",
                            line.simulation->speed, line.simulation->seed);

@@ -34,7 +34,7 @@ double seconds(std::chrono::microseconds time) { return static_cast<double>(time
 
 // The statuses a device can have (client/monitor_state.hpp): each gets its sample, 1 for the
 // current one, so that a query can select on status without the series coming and going.
-constexpr const char* device_statuses[] = {"ok", "partial", "no-reply", "waiting"};
+constexpr const char* device_statuses[] = {"ok", "partial", "no-reply", "line-down", "waiting"};
 
 }  // namespace
 
@@ -54,8 +54,14 @@ std::string prometheus_text(const std::vector<LineReport>& lines, const std::vec
         {"line_garbled_total", "Runs of bytes the master discarded: bad CRC or LRC, broken frames, noise.",
          [](const LineReport& r) { return r.garbled; }},
         {"line_expired_total", "Requests dropped unsent because their deadline passed.", [](const LineReport& r) { return r.statistics.expired; }},
-        {"line_backed_off_total", "Requests refused unsent while their unit backed off.",
+        {"line_backed_off_total", "Polls held back while their unit backed off after a poll timed out.",
          [](const LineReport& r) { return r.statistics.backed_off; }},
+        {"line_down_total", "Times the line went down: its port hung up or failed, or could not be opened at start.",
+         [](const LineReport& r) { return r.link_health.down_periods; }},
+        {"line_reopen_attempts_total", "Tries to open the line again while it was down, failed or not.",
+         [](const LineReport& r) { return r.link_health.reopen_attempts; }},
+        {"line_refused_while_down_total", "Requests failed at once, never sent, because the line was down.",
+         [](const LineReport& r) { return r.link_health.refused_while_down; }},
     };
     for (const auto& counter : counters) {
         family(out, counter.name, "counter", counter.help);
@@ -75,10 +81,16 @@ std::string prometheus_text(const std::vector<LineReport>& lines, const std::vec
         const double ratio = open > 0 ? static_cast<double>(line.statistics.busy.count()) / static_cast<double>(open) : 0.0;
         sample(out, "line_busy_ratio", fmt::format("line=\"{}\"", label(line.name)), ratio);
     }
+    family(out, "line_up", "gauge", "1 while the line's port is open, 0 while it is down and being reopened.");
+    for (const auto& line : lines) sample(out, "line_up", fmt::format("line=\"{}\"", label(line.name)), line.link_health.up ? 1 : 0);
+    family(out, "line_down_seconds_total", "counter", "Time the line has spent down.");
+    for (const auto& line : lines) {
+        sample(out, "line_down_seconds_total", fmt::format("line=\"{}\"", label(line.name)), seconds(line.link_health.down_time));
+    }
     family(out, "line_queued", "gauge", "Requests waiting for the line now.");
     for (const auto& line : lines) sample(out, "line_queued", fmt::format("line=\"{}\"", label(line.name)), line.statistics.queued);
 
-    family(out, "device_status", "gauge", "1 for the device's status now (ok, partial, no-reply, waiting), 0 for the others.");
+    family(out, "device_status", "gauge", "1 for the device's status now (ok, partial, no-reply, line-down, waiting), 0 for the others.");
     std::vector<const CachedDevice*> found;
     for (const auto& name : devices) {
         auto it = std::find_if(values.begin(), values.end(), [&](const CachedDevice& c) { return c.name == name; });

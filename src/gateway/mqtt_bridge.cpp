@@ -45,6 +45,8 @@ void init_library_once() {
     });
 }
 
+// "line-down" stays as it is: the device is unavailable, and the cable or adapter, not the
+// device, is what to look at (the value's meta gives the reason).
 std::string device_status_word(const std::string& status) {
     if (status == "ok") return "online";
     if (status == "no-reply") return "offline";
@@ -81,7 +83,7 @@ constexpr std::size_t remembered_commands = 1024;
 
 // What the last poll said about a device.
 struct DeviceSeen {
-    std::string status;  // "ok", "partial", "no-reply"
+    std::string status;  // "ok", "partial", "no-reply", "line-down"
     std::string error;
 };
 

@@ -112,10 +112,14 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
         {"state_topic", state_topic},
         {"device", std::move(device)},
         // Both the gateway's (its last will) and the device's (its polls): a value is only
-        // current when the gateway is connected and the device answers.
+        // current when the gateway is connected and the device answers. The device's status
+        // has more words than two (`error`, `line-down`): anything but `online` is unavailable.
         {"availability",
          {{{"topic", config.prefix + "/status"}, {"payload_available", "online"}, {"payload_not_available", "offline"}},
-          {{"topic", device_topic + "/status"}, {"payload_available", "online"}, {"payload_not_available", "offline"}}}},
+          {{"topic", device_topic + "/status"},
+           {"payload_available", "online"},
+           {"payload_not_available", "offline"},
+           {"value_template", "{{ 'online' if value == 'online' else 'offline' }}"}}}},
         {"availability_mode", "all"},
     };
     if (!parameter.unit.empty()) doc["unit_of_measurement"] = parameter.unit;

@@ -85,7 +85,7 @@ TEST(ForwardingUnit, TheRequestGoesToTheDevicesUnitOnItsLineAndItsReplyBackUncha
 }
 
 TEST(ForwardingUnit, ASilentOrWrongAnsweringDeviceIsException0Bh) {
-    for (auto kind : {ErrorKind::timeout, ErrorKind::mismatch, ErrorKind::malformed, ErrorKind::link}) {
+    for (auto kind : {ErrorKind::timeout, ErrorKind::mismatch, ErrorKind::malformed}) {
         Front front;
         auto unit = front.unit({.line_unit = 4});
         Replies replies;
@@ -94,6 +94,18 @@ TEST(ForwardingUnit, ASilentOrWrongAnsweringDeviceIsException0Bh) {
         ASSERT_EQ(replies.got.size(), 1u);
         EXPECT_EQ(to_hex(*replies.got[0]), "83 0B") << static_cast<int>(kind);
     }
+}
+
+// Modbus application protocol V1.1b3, 7: 0Ah, gateway path unavailable. The line is down (or
+// failed under the request), so the device was never asked: 0Bh would blame the device.
+TEST(ForwardingUnit, ALineThatIsDownIsException0Ah) {
+    Front front;
+    auto unit = front.unit({.line_unit = 4});
+    Replies replies;
+    unit->handle_async(hex("03 00 00 00 01"), false, 1, replies.collect());
+    front.line->answer(make_error(ErrorKind::link, "line furnace (rtu:/dev/ttyUSB0) is down: no such port; retrying in 4 s"));
+    ASSERT_EQ(replies.got.size(), 1u);
+    EXPECT_EQ(to_hex(*replies.got[0]), "83 0A");
 }
 
 TEST(ForwardingUnit, ARequestTheLinesFramingCannotCarryIsIllegalFunction) {

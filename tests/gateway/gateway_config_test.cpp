@@ -387,6 +387,17 @@ std::string tc10_line(const std::string& poll) {
            "parameters = [\"measured_value\", \"set_point\"]\n";
 }
 
+// A port that is not there is a warning in the plan, not an error: the gateway starts with that
+// line down and opens it when it appears. /dev/null exists; the second path does not.
+TEST(GatewayConfigPlan, APortMissingNowIsAWarning) {
+    const std::string missing = "/nonexistent-loopwire-port/ttyUSB9";
+    const std::string plan = plan_of("[[lines]]\nname = \"present\"\nlink = \"rtu:/dev/null\"\n"
+                                     "[[lines]]\nname = \"absent\"\nlink = \"rtu:" + missing + "\"\n");
+    EXPECT_THAT(plan, HasSubstr("warning: port " + missing + " does not exist now; the gateway will start with this line "
+                                "down and open it when it appears")) << plan;
+    EXPECT_THAT(plan, Not(HasSubstr("warning: port /dev/null"))) << plan;
+}
+
 TEST(GatewayConfigPlan, LoadIsTheWireTimeOfEachPollOverItsInterval) {
     const long long per_poll_us = 2 * rtu_read_wire_us(1, 19200, 11) + rtu_read_wire_us(4, 19200, 11);
     ASSERT_EQ(per_poll_us, 2 * ((8 + 7) * 573 + 2 * 2006) + (8 + 13) * 573 + 2 * 2006);  // 573 us a character, t3.5 = 2006 us

@@ -61,7 +61,7 @@ export function parseTime(time) {
 }
 
 // Statuses that say nothing is wrong with the value itself (or that it was not read at all).
-const QUIET_STATUSES = ["ok", "unknown-label", "no-reply", "error", "waiting", "not-polled", "stale", ""];
+const QUIET_STATUSES = ["ok", "unknown-label", "no-reply", "line-down", "error", "waiting", "not-polled", "stale", ""];
 
 const ALARM_WORDS = /alarm|error|fail|fault|break|overload|trip/i;
 
@@ -93,6 +93,7 @@ export function deviceStatusClass(status) {
 export function deviceStatusWord(status) {
   if (status === "ok") return "online";
   if (status === "no-reply") return "offline";
+  if (status === "line-down") return "line down";
   if (status === "partial") return "partial";
   return status || "waiting";
 }

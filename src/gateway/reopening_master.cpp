@@ -1,0 +1,226 @@
+#include "gateway/reopening_master.hpp"
+
+#include <algorithm>
+#include <mutex>
+#include <optional>
+#include <type_traits>
+#include <utility>
+
+#include <fmt/format.h>
+
+#include "client/monitor_backoff.hpp"
+#include "session/job_queue.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+// The reopen schedule runs on the injected clock; that only works while the back-off speaks of
+// the same time points.
+static_assert(std::is_same_v<Instant, device::RetryBackoff::Clock::time_point>);
+
+std::string seconds_text(std::chrono::microseconds time) {
+    return fmt::format("{:.1f} s", static_cast<double>(time.count()) / 1e6);
+}
+
+}  // namespace
+
+struct ReopeningMaster::State {
+    State(std::string line_name, std::string line_link, MasterOpener opener, ReopenSchedule chosen,
+          std::shared_ptr<Clock> time, LinkLog logger)
+        : name(std::move(line_name)),
+          link(std::move(line_link)),
+          open(std::move(opener)),
+          schedule(chosen),
+          clock(std::move(time)),
+          log(std::move(logger)),
+          backoff(schedule.first, schedule.max) {}
+
+    // --- carrying requests (on the worker thread, or a caller of the blocking calls) ---------
+
+    // Runs `call` on the line's master, opening it first when the line is down and a try is
+    // due; a link failure takes the line down. One request at a time: the master is never
+    // closed or replaced under a request.
+    template <typename Call>
+    auto carry(Call&& call) -> decltype(call(std::declval<session::Master&>())) {
+        std::lock_guard carrying(use);
+        auto line = ready();
+        if (!line) return line.error();
+        auto result = call(**line);
+        if (!result && result.error().kind == ErrorKind::link) return went_down(result.error());
+        return result;
+    }
+
+    // The master to send on: the open one, or one opened now if the line is down and a try is
+    // due; otherwise why not. With `use` held.
+    Result<session::Master*> ready() {
+        {
+            std::lock_guard lock(mutex);
+            if (master) return master.get();
+            if (!backoff.due(clock->now())) return refuse();
+        }
+        return reopen();
+    }
+
+    // With `use` held, so that only one thread opens; `mutex` is not held while opening, so the
+    // statistics and the refusals of requests stay quick however long an open takes.
+    Result<session::Master*> reopen() {
+        auto opened = open();
+        std::lock_guard lock(mutex);
+        ++counts.reopen_attempts;
+        const auto now = clock->now();
+        if (!opened) {
+            backoff.failed(now);
+            if (opened.error().message != reason) {
+                reason = opened.error().message;
+                say(fmt::format("line {} ({}) is still down, now because: {}", name, link, reason));
+            }
+            return refuse();
+        }
+        master = std::move(*opened);
+        ++counts.reopened;
+        const auto down_for = std::chrono::duration_cast<std::chrono::microseconds>(now - down_since);
+        counts.down_time += down_for;
+        say(fmt::format("line {} ({}) is up again after {} down ({} reopen attempt{})", name, link, seconds_text(down_for),
+                        attempts_this_period(), attempts_this_period() == 1 ? "" : "s"));
+        reason.clear();
+        backoff.succeeded();
+        return master.get();
+    }
+
+    // The request that found the link failed: the line closes and is down from now on. The
+    // master goes outside `mutex` (a TCP master joins its reader), with `use` still held.
+    Error went_down(const Error& failure) {
+        std::unique_ptr<session::Master> closed;
+        Error refused = failure;
+        {
+            std::lock_guard lock(mutex);
+            closed = std::move(master);
+            mark_down(failure.message);
+            refused = down_error();
+        }
+        closed.reset();
+        return refused;
+    }
+
+    // With `mutex` held.
+    void mark_down(std::string why) {
+        const auto now = clock->now();
+        reason = std::move(why);
+        down_since = now;
+        attempts_at_down = counts.reopen_attempts;
+        ++counts.down_periods;
+        backoff.failed(now);
+        say(fmt::format("line {} ({}) is down: {}; reopening it in {} s, then with back-off up to every {} s", name, link,
+                        reason, std::chrono::ceil<std::chrono::seconds>(backoff.current_wait()).count(),
+                        std::chrono::ceil<std::chrono::seconds>(schedule.max).count()));
+    }
+
+    // --- refusing while down ----------------------------------------------------------------
+
+    // A request that would have to wait for a reopen that is not due yet is refused without
+    // queueing for the worker: the caller hears at once.
+    std::optional<Error> refusal() {
+        std::lock_guard lock(mutex);
+        if (master || backoff.due(clock->now())) return std::nullopt;
+        return refuse();
+    }
+
+    // With `mutex` held: a request that will not be sent because the line is down.
+    Error refuse() {
+        ++counts.refused_while_down;
+        return down_error();
+    }
+
+    // With `mutex` held.
+    Error down_error() const {
+        const auto wait = backoff.next_try() - clock->now();
+        const auto retry = std::max<long long>(1, std::chrono::ceil<std::chrono::seconds>(wait).count());
+        return make_error(ErrorKind::link,
+                          fmt::format("line {} ({}) is down: {}; retrying in {} s", name, link, reason, retry));
+    }
+
+    std::uint64_t attempts_this_period() const { return counts.reopen_attempts - attempts_at_down; }
+
+    void say(const std::string& line) const {
+        if (log) log(line);
+    }
+
+    LinkHealth health() const {
+        std::lock_guard lock(mutex);
+        LinkHealth now = counts;
+        now.up = master != nullptr;
+        if (!now.up) {
+            const auto at = clock->now();
+            now.reason = reason;
+            now.retry_in = std::max(std::chrono::milliseconds(0),
+                                    std::chrono::ceil<std::chrono::milliseconds>(backoff.next_try() - at));
+            now.down_time += std::chrono::duration_cast<std::chrono::microseconds>(at - down_since);
+        }
+        return now;
+    }
+
+    const std::string name;
+    const std::string link;
+    const MasterOpener open;
+    const ReopenSchedule schedule;
+    const std::shared_ptr<Clock> clock;
+    const LinkLog log;
+
+    std::mutex use;  // held while a request is carried or the line opened
+    mutable std::mutex mutex;  // guards what follows
+    std::unique_ptr<session::Master> master;  // null while the line is down
+    device::RetryBackoff backoff;  // the reopen schedule
+    std::string reason;
+    Instant down_since{};
+    std::uint64_t attempts_at_down = 0;
+    LinkHealth counts;  // the counters; up, reason and retry_in are filled in by health()
+    session::JobQueue worker;  // last: stops (running what is queued) before the rest goes
+};
+
+ReopeningMaster::ReopeningMaster(std::string name, std::string link, MasterOpener open, ReopenSchedule schedule,
+                                 std::shared_ptr<Clock> clock, LinkLog log)
+    : link_(link),
+      state_(std::make_unique<State>(std::move(name), std::move(link), std::move(open), schedule, std::move(clock),
+                                     std::move(log))) {}
+
+ReopeningMaster::~ReopeningMaster() = default;
+
+Result<void> ReopeningMaster::start() {
+    auto opened = state_->open();
+    if (!opened && opened.error().kind == ErrorKind::usage) {
+        return make_error(ErrorKind::usage, fmt::format("line {} ({}): {}", state_->name, link_, opened.error().message));
+    }
+    std::lock_guard lock(state_->mutex);
+    if (opened) {
+        state_->master = std::move(*opened);
+    } else {
+        state_->mark_down(opened.error().message);
+    }
+    return {};
+}
+
+Result<codec::Reply> ReopeningMaster::execute(std::uint8_t unit, const codec::Request& request) {
+    return state_->carry([&](session::Master& line) { return line.execute(unit, request); });
+}
+
+void ReopeningMaster::execute_async(std::uint8_t unit, codec::Request request, Completion done) {
+    if (auto refused = state_->refusal()) return done(*refused);
+    state_->worker.push([state = state_.get(), unit, request = std::move(request), done = std::move(done)] {
+        done(state->carry([&](session::Master& line) { return line.execute(unit, request); }));
+    });
+}
+
+Result<Bytes> ReopeningMaster::forward(std::uint8_t unit, ByteView pdu) {
+    return state_->carry([&](session::Master& line) { return line.forward(unit, pdu); });
+}
+
+void ReopeningMaster::forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) {
+    if (auto refused = state_->refusal()) return done(*refused);
+    state_->worker.push([state = state_.get(), unit, pdu = std::move(pdu), done = std::move(done)] {
+        done(state->carry([&](session::Master& line) { return line.forward(unit, pdu); }));
+    });
+}
+
+LinkHealth ReopeningMaster::health() const { return state_->health(); }
+
+}  // namespace loopwire::gateway

@@ -1,0 +1,127 @@
+#!/usr/bin/env bash
+# Lines come back by themselves (gateway/reopening_master.hpp). A gateway with three lines:
+#   furnace-line, a pseudo-terminal served by `loopwire simulate`, whose simulator is killed
+#     (SIGKILL: what pulling a USB-RS485 adapter looks like to the gateway) and started again on
+#     the same path;
+#   later-line, whose port does not exist when the gateway starts and appears afterwards;
+#   virtual-line, simulated inside the gateway.
+# The gateway starts although later-line's port is missing, serves virtual-line's device,
+# reports the missing and the killed lines as down (log, /api/devices, 0Ah to Modbus TCP
+# clients), and each line comes up again by itself once its port is back.
+set -u
+loopwire=${1:?usage: line_recovery_test.sh path/to/loopwire}
+source "$(dirname "$0")/../support/test_lib.sh"
+
+furnace_pty="$WORK_DIR/ttyFurnace"
+later_pty="$WORK_DIR/ttyLater"
+
+start_furnace_simulator() {  # LOG
+  start_background "$1" "$loopwire" simulate --link "rtu:/unused?baud=19200&parity=none" --pty "$furnace_pty" \
+    --device tc10@3 --duration 100s  # the whole test (ctest: 120 s)
+  furnace_sim=$LAST_PID
+}
+start_furnace_simulator sim1.log
+wait_for_path "$furnace_pty"
+
+cat >"$WORK_DIR/plant.toml" <<TOML
+[[lines]]
+name = "furnace-line"
+link = "rtu:$furnace_pty?baud=19200&parity=none"
+timeout = "300ms"
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@3"
+poll = "500ms"
+
+[[lines]]
+name = "later-line"
+link = "rtu:$later_pty?baud=19200&parity=none"
+timeout = "300ms"
+
+[[lines.devices]]
+name = "kiln"
+device = "rampsoak@5"
+poll = "500ms"
+
+[[lines]]
+name = "virtual-line"
+link = "rtu:virtual?baud=19200&parity=none"
+
+[[lines.devices]]
+name = "furnace"
+device = "ac20@1"
+poll = "500ms"
+
+[modbus_tcp]
+listen = "127.0.0.1:0"
+
+[http]
+listen = "127.0.0.1:0"
+
+[log]
+statistics = "off"
+TOML
+
+# --check: a port missing now is a warning, not an error.
+check check-warns-of-the-missing-port 0 "warning: port $later_pty does not exist now" \
+  "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
+
+start_tcp_server gateway.log timeout 100 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+modbus="tcp://127.0.0.1:$PORT"
+http=$(wait_for_log gateway.log 'HTTP API and dashboard on http:..127\.0\.0\.1:([0-9]+)' 20)
+api="http://127.0.0.1:$http/api/devices"
+
+device_status() {  # NAME : the device's status in the HTTP API
+  curl -sf "$api/$1" | /usr/bin/python3 -c 'import json, sys; print(json.load(sys.stdin)["status"])'
+}
+status_is() {  # NAME STATUS
+  [[ $(device_status "$1") == "$2" ]]
+}
+
+# Started with later-line down: logged once, its device line-down, the others served.
+wait_for_log gateway.log "line later-line \(rtu:[^)]*\) is (down): " 20 >/dev/null
+wait_for 30 "furnace (virtual-line) ok" status_is furnace ok
+wait_for 30 "oven1 (furnace-line) ok" status_is oven1 ok
+wait_for 30 "kiln (later-line) line-down" status_is kiln line-down
+expect kiln-says-why bash -c "curl -sf '$api/kiln' | grep -q 'no such port $later_pty'"
+check down-line-gets-0Ah 5 "exception 10" "$loopwire" read --link "$modbus" --unit 5 holding 0
+
+# The missing port appears: later-line comes up and its device is served.
+start_background sim3.log "$loopwire" simulate --link "rtu:/unused?baud=19200&parity=none" --pty "$later_pty" \
+  --device rampsoak@5 --duration 100s
+wait_for_path "$later_pty"
+wait_for 45 "kiln ok once its port appeared" status_is kiln ok
+wait_for_log gateway.log "line later-line \(rtu:[^)]*\) is (up) again after" 10 >/dev/null
+
+# The furnace line's simulator dies: the line goes down, its device says so, clients get 0Ah.
+# Its link goes too, as a USB adapter's device node does when it is pulled out (a dangling link
+# could meet another program's pseudo-terminal once the kernel hands out the number again).
+kill -KILL "$furnace_sim"
+rm -f "$furnace_pty"
+wait_for 30 "oven1 line-down after the simulator died" status_is oven1 line-down
+wait_for_log gateway.log "line furnace-line \(rtu:[^)]*\) is (down): " 10 >/dev/null
+check killed-line-gets-0Ah 5 "exception 10" "$loopwire" read --link "$modbus" --unit 3 holding 0
+expect virtual-line-unaffected status_is furnace ok
+
+# Started again on the same path: the line reopens by itself within one back-off (at most 30 s
+# after the simulator is back; generous for a loaded machine) and the device is ok again.
+start_furnace_simulator sim2.log
+wait_for 45 "oven1 ok again after the simulator came back" status_is oven1 ok
+wait_for_log gateway.log "line furnace-line \(rtu:[^)]*\) is (up) again after" 10 >/dev/null
+check read-after-reopen 0 "" "$loopwire" read --link "$modbus" --device tc10@3 set_point
+
+# Logged once per change of state, not once per try: one "down" line per line that went down.
+downs=$(grep -c "line furnace-line (.*) is down: " "$WORK_DIR/gateway.log")
+expect_equal "$downs" 1 "'furnace-line is down' lines in the log"
+
+# /metrics counts the down periods and the reopen attempts.
+curl -sf "http://127.0.0.1:$http/metrics" >"$WORK_DIR/metrics.txt"
+metric() {  # REGEX : a line of /metrics matches
+  grep -qE "$1" "$WORK_DIR/metrics.txt" || { grep -E '^loopwire_line_(up|down|reopen)' "$WORK_DIR/metrics.txt"; return 1; }
+}
+expect furnace-line-down-counted metric '^loopwire_line_down_total\{line="furnace-line"\} 1$'
+expect later-line-reopen-attempts-counted metric '^loopwire_line_reopen_attempts_total\{line="later-line"\} [1-9]'
+expect later-line-up metric '^loopwire_line_up\{line="later-line"\} 1$'
+
+finish

@@ -1,0 +1,287 @@
+// A line that comes back by itself (gateway/reopening_master.hpp), in virtual time: a port that
+// cannot be opened is tried again 1 s, 2 s, 4 s ... up to every 30 s; a link that fails under a
+// request is closed and the line is down, every request failing at once with the reason, until
+// the next due request reopens it; each change of state is logged once, not each try.
+#include <gtest/gtest.h>
+#include <gmock/gmock.h>
+
+#include <atomic>
+#include <chrono>
+#include <deque>
+#include <future>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "gateway/reopening_master.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+using namespace std::chrono_literals;
+using ::testing::HasSubstr;
+
+Bytes read_pdu() { return Bytes{0x03, 0x00, 0x00, 0x00, 0x01}; }
+Bytes normal_reply() { return Bytes{0x03, 0x02, 0x00, 0x2A}; }
+
+// What one opened link does: answers every request until hung up, then fails as a port whose
+// other end went away does. Shared with the test, which outlives the master.
+struct LinkScript {
+    std::atomic<bool> hung_up{false};
+    std::atomic<bool> closed{false};
+    std::atomic<unsigned> requests{0};
+};
+
+class ScriptedLink final : public session::Master {
+public:
+    explicit ScriptedLink(std::shared_ptr<LinkScript> script) : script_(std::move(script)) {}
+    ~ScriptedLink() override { script_->closed = true; }
+
+    Result<codec::Reply> execute(std::uint8_t, const codec::Request&) override {
+        return make_error(ErrorKind::usage, "the scripted link only forwards");
+    }
+    void execute_async(std::uint8_t unit, codec::Request request, Completion done) override { done(execute(unit, request)); }
+    Result<Bytes> forward(std::uint8_t, ByteView) override {
+        ++script_->requests;
+        if (script_->hung_up) {
+            return make_error(ErrorKind::link, "serial port /dev/ttyUSB0 hung up: the adapter was unplugged (Input/output error)");
+        }
+        return normal_reply();
+    }
+    void forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) override { done(forward(unit, pdu)); }
+    std::string describe() const override { return "scripted link"; }
+
+private:
+    std::shared_ptr<LinkScript> script_;
+};
+
+// Opens links by the script the test queues: a failure (its message) or a link that answers.
+// Records the virtual time of each open.
+class ScriptedOpener {
+public:
+    explicit ScriptedOpener(std::shared_ptr<VirtualClock> clock) : clock_(std::move(clock)) {}
+
+    void fail_with(std::string message, ErrorKind kind = ErrorKind::link) {
+        std::lock_guard lock(mutex_);
+        failures_.push_back(make_error(kind, std::move(message)));
+    }
+    // From now on every open fails with `message`.
+    void always_fail(std::string message) {
+        std::lock_guard lock(mutex_);
+        always_ = make_error(ErrorKind::link, std::move(message));
+    }
+    void succeed() {
+        std::lock_guard lock(mutex_);
+        always_.reset();
+        failures_.clear();
+    }
+
+    MasterOpener opener() {
+        return [this]() -> Result<std::unique_ptr<session::Master>> {
+            std::lock_guard lock(mutex_);
+            opened_at_.push_back(clock_->now());
+            if (!failures_.empty()) {
+                auto failure = failures_.front();
+                failures_.pop_front();
+                return failure;
+            }
+            if (always_) return *always_;
+            links_.push_back(std::make_shared<LinkScript>());
+            return std::unique_ptr<session::Master>(std::make_unique<ScriptedLink>(links_.back()));
+        };
+    }
+
+    // When each open was tried, in seconds after `start`.
+    std::vector<double> tries_since(Instant start) const {
+        std::lock_guard lock(mutex_);
+        std::vector<double> seconds;
+        for (const auto at : opened_at_) seconds.push_back(std::chrono::duration<double>(at - start).count());
+        return seconds;
+    }
+
+    std::shared_ptr<LinkScript> link(std::size_t index) const {
+        std::lock_guard lock(mutex_);
+        return links_.at(index);
+    }
+
+private:
+    std::shared_ptr<VirtualClock> clock_;
+    mutable std::mutex mutex_;
+    std::deque<Error> failures_;
+    std::optional<Error> always_;
+    std::vector<Instant> opened_at_;
+    std::vector<std::shared_ptr<LinkScript>> links_;
+};
+
+class ReopeningMasterTest : public ::testing::Test {
+protected:
+    std::unique_ptr<ReopeningMaster> make_line() {
+        return std::make_unique<ReopeningMaster>("furnace", "rtu:/dev/ttyUSB0?baud=19200", opener.opener(), ReopenSchedule{},
+                                                 clock, [this](const std::string& line) {
+                                                     std::lock_guard lock(log_mutex);
+                                                     log.push_back(line);
+                                                 });
+    }
+
+    std::vector<std::string> logged() {
+        std::lock_guard lock(log_mutex);
+        return log;
+    }
+
+    std::shared_ptr<VirtualClock> clock = std::make_shared<VirtualClock>();
+    ScriptedOpener opener{clock};
+    std::mutex log_mutex;
+    std::vector<std::string> log;
+};
+
+TEST_F(ReopeningMasterTest, APortThatCannotBeOpenedIsTriedAfterOneTwoFourSecondsUpToEveryThirty) {
+    opener.always_fail("no such port /dev/ttyUSB0 — check the path; is the adapter plugged in?");
+    const Instant start = clock->now();
+    auto line = make_line();
+    ASSERT_TRUE(line->start().ok()) << "a missing port is a line that is down, not an error";
+    EXPECT_FALSE(line->health().up);
+
+    // Requests every 100 ms of virtual time for two minutes: each that finds the wait over is
+    // the one that tries to open the port; every one fails at once, saying why and when next.
+    std::vector<std::string> errors;
+    for (auto elapsed = 0ms; elapsed <= 125s; elapsed += 100ms) {
+        clock->sleep_until(start + elapsed);
+        auto reply = line->forward(3, read_pdu());
+        ASSERT_FALSE(reply.ok());
+        EXPECT_EQ(reply.error().kind, ErrorKind::link);
+        errors.push_back(reply.error().message);
+    }
+    EXPECT_EQ(opener.tries_since(start), (std::vector<double>{0, 1, 3, 7, 15, 31, 61, 91, 121}));
+    EXPECT_EQ(errors.front(),
+              "line furnace (rtu:/dev/ttyUSB0?baud=19200) is down: no such port /dev/ttyUSB0 — check the path; is the "
+              "adapter plugged in?; retrying in 1 s");
+    EXPECT_THAT(errors.at(40), HasSubstr("; retrying in 3 s"));  // at 4.0 s: tried at 3 s, next at 7 s
+
+    const auto health = line->health();
+    EXPECT_FALSE(health.up);
+    EXPECT_EQ(health.down_periods, 1u);
+    EXPECT_EQ(health.reopen_attempts, 8u);
+    EXPECT_EQ(health.reopened, 0u);
+    EXPECT_EQ(health.retry_in, 26000ms);  // at 125 s; next try at 151 s
+    EXPECT_EQ(health.down_time, 125s);
+    // Nine tries, one line in the log: the reason never changed.
+    ASSERT_EQ(logged().size(), 1u);
+    EXPECT_THAT(logged()[0], HasSubstr("line furnace (rtu:/dev/ttyUSB0?baud=19200) is down: no such port /dev/ttyUSB0"));
+    EXPECT_THAT(logged()[0], HasSubstr("reopening it in 1 s, then with back-off up to every 30 s"));
+}
+
+TEST_F(ReopeningMasterTest, ALinkThatFailsUnderARequestIsClosedAndReopenedByTheFirstRequestDueAfterIt) {
+    const Instant start = clock->now();
+    auto line = make_line();
+    ASSERT_TRUE(line->start().ok());
+    ASSERT_TRUE(line->health().up);
+    EXPECT_EQ(line->forward(3, read_pdu()).value(), normal_reply());
+
+    // The adapter is pulled out: the request that finds it fails, and the line is down.
+    const auto first = opener.link(0);
+    first->hung_up = true;
+    auto failed = line->forward(3, read_pdu());
+    ASSERT_FALSE(failed.ok());
+    EXPECT_EQ(failed.error().kind, ErrorKind::link);
+    EXPECT_THAT(failed.error().message, HasSubstr("line furnace (rtu:/dev/ttyUSB0?baud=19200) is down: serial port "
+                                                  "/dev/ttyUSB0 hung up"));
+    EXPECT_THAT(failed.error().message, HasSubstr("retrying in 1 s"));
+    EXPECT_TRUE(first->closed) << "the failed link is still open";
+    EXPECT_FALSE(line->health().up);
+
+    // Until the wait is over, requests fail at once: the port is not touched.
+    clock->advance(999ms);
+    const auto refused = line->forward(3, read_pdu());
+    ASSERT_FALSE(refused.ok());
+    EXPECT_THAT(refused.error().message, HasSubstr("retrying in 1 s"));
+    EXPECT_EQ(opener.tries_since(start).size(), 1u);
+
+    // The first request after it opens the port again and goes through.
+    clock->advance(1ms);
+    EXPECT_EQ(line->forward(3, read_pdu()).value(), normal_reply());
+    EXPECT_EQ(opener.tries_since(start), (std::vector<double>{0, 1}));
+    EXPECT_EQ(opener.link(1)->requests, 1u);
+
+    const auto health = line->health();
+    EXPECT_TRUE(health.up);
+    EXPECT_TRUE(health.reason.empty());
+    EXPECT_EQ(health.down_periods, 1u);
+    EXPECT_EQ(health.reopen_attempts, 1u);
+    EXPECT_EQ(health.reopened, 1u);
+    EXPECT_EQ(health.down_time, 1s);
+    const auto lines = logged();
+    ASSERT_EQ(lines.size(), 2u);
+    EXPECT_THAT(lines[0], HasSubstr("is down: serial port /dev/ttyUSB0 hung up"));
+    EXPECT_EQ(lines[1], "line furnace (rtu:/dev/ttyUSB0?baud=19200) is up again after 1.0 s down (1 reopen attempt)");
+}
+
+TEST_F(ReopeningMasterTest, TheWaitStartsOverAtOneSecondEachTimeTheLineGoesDown) {
+    const Instant start = clock->now();
+    auto line = make_line();
+    ASSERT_TRUE(line->start().ok());
+    opener.link(0)->hung_up = true;
+    ASSERT_FALSE(line->forward(3, read_pdu()).ok());  // down at 0 s
+    opener.fail_with("no such port /dev/ttyUSB0");
+    opener.fail_with("no such port /dev/ttyUSB0");
+    clock->advance(1s);
+    ASSERT_FALSE(line->forward(3, read_pdu()).ok());  // tried at 1 s
+    clock->advance(2s);
+    ASSERT_FALSE(line->forward(3, read_pdu()).ok());  // tried at 3 s
+    clock->advance(4s);
+    ASSERT_TRUE(line->forward(3, read_pdu()).ok());  // up at 7 s
+    opener.link(1)->hung_up = true;
+    ASSERT_FALSE(line->forward(3, read_pdu()).ok());  // down again at 7 s
+    clock->advance(1s);
+    EXPECT_TRUE(line->forward(3, read_pdu()).ok()) << "the second period did not start at 1 s";
+    EXPECT_EQ(opener.tries_since(start), (std::vector<double>{0, 1, 3, 7, 8}));
+    const auto health = line->health();
+    EXPECT_EQ(health.down_periods, 2u);
+    EXPECT_EQ(health.reopen_attempts, 4u);
+    EXPECT_EQ(health.reopened, 2u);
+    EXPECT_EQ(health.down_time, 8s);
+    // Down, still down for another reason, up, down, up: one line each.
+    const auto lines = logged();
+    ASSERT_EQ(lines.size(), 5u) << ::testing::PrintToString(lines);
+    EXPECT_THAT(lines[1], HasSubstr("is still down, now because: no such port /dev/ttyUSB0"));
+    EXPECT_THAT(lines[2], HasSubstr("is up again after 7.0 s down (3 reopen attempts)"));
+}
+
+TEST_F(ReopeningMasterTest, WhileDownAnAsynchronousRequestIsAnsweredBeforeItReturns) {
+    opener.always_fail("no such port /dev/ttyUSB0");
+    auto line = make_line();
+    ASSERT_TRUE(line->start().ok());
+    clock->advance(500ms);
+    std::optional<Result<Bytes>> answered;
+    line->forward_async(3, read_pdu(), [&](Result<Bytes> result) { answered.emplace(std::move(result)); });
+    ASSERT_TRUE(answered.has_value()) << "a request for a line that is down waited for the line's thread";
+    ASSERT_FALSE(answered->ok());
+    EXPECT_THAT(answered->error().message, HasSubstr("is down: no such port /dev/ttyUSB0; retrying in 1 s"));
+}
+
+TEST_F(ReopeningMasterTest, AnAsynchronousRequestDueForAReopenOpensTheLineOnItsThread) {
+    opener.fail_with("no such port /dev/ttyUSB0");
+    auto line = make_line();
+    ASSERT_TRUE(line->start().ok());
+    clock->advance(1s);
+    std::promise<Result<Bytes>> answered;
+    auto reply = answered.get_future();
+    line->forward_async(3, read_pdu(), [&](Result<Bytes> result) { answered.set_value(std::move(result)); });
+    ASSERT_EQ(reply.wait_for(30s), std::future_status::ready);
+    EXPECT_EQ(reply.get().value(), normal_reply());
+    EXPECT_TRUE(line->health().up);
+}
+
+TEST_F(ReopeningMasterTest, AConfigurationNoPortCanTakeIsAnErrorAtStart) {
+    opener.fail_with("serial port /dev/ttyUSB0: baud 12345 is not supported", ErrorKind::usage);
+    auto line = make_line();
+    const auto started = line->start();
+    ASSERT_FALSE(started.ok());
+    EXPECT_EQ(started.error().kind, ErrorKind::usage);
+    EXPECT_EQ(started.error().message,
+              "line furnace (rtu:/dev/ttyUSB0?baud=19200): serial port /dev/ttyUSB0: baud 12345 is not supported");
+}
+
+}  // namespace
+}  // namespace loopwire::gateway
