@@ -135,7 +135,7 @@ int run_monitor_command(const MonitorOptions& options, const ProfileOptions& pro
     auto master = options.master.open(trace);
     if (!master) return report_error(master.error());
     std::vector<device::MonitorTarget> targets;
-    for (std::size_t i = 0; i < devices->size(); ++i) targets.push_back(device::MonitorTarget{master->get(), (*devices)[i], (*lists)[i]});
+    for (std::size_t i = 0; i < devices->size(); ++i) targets.push_back(device::MonitorTarget{master->get(), (*devices)[i], (*lists)[i], {}});
     device::run_monitor(targets, *settings, *sink, stop.token());
     return exit_ok;
 }

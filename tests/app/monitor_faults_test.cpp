@@ -53,7 +53,7 @@ nlohmann::json write_constants(FaultyBusRig& rig, const std::vector<Watched>& wa
 std::vector<device::MonitorTarget> targets_of(FaultyBusRig& rig, const std::vector<Watched>& watched) {
     std::vector<device::MonitorTarget> targets;
     for (const auto& [index, values] : watched) {
-        device::MonitorTarget target{&rig.master(), rig.address(index), {}};
+        device::MonitorTarget target{&rig.master(), rig.address(index), {}, {}};
         for (const auto& [name, text] : values) target.parameters.push_back(target.device.profile->find(name));
         targets.push_back(std::move(target));
     }
