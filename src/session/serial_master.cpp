@@ -133,8 +133,9 @@ private:
     // of the frame that answers it (exception replies included), empty for a broadcast.
     Result<Bytes> exchange(std::uint8_t unit, ByteView pdu, const std::string& transaction, const ReplyCheck& answers) {
         std::lock_guard lock(line_);  // one outstanding request per serial line
-        if (unsettled_) {
-            if (auto quiet = wait_for_quiet_line(); !quiet) return quiet.error();
+        if (auto unsettled = unsettled_.find(unit); unsettled != unsettled_.end()) {
+            if (auto quiet = wait_for_quiet_line(unsettled->second); !quiet) return quiet.error();
+            unsettled_.erase(unit);
         }
         TimeoutContext context{name_, options_.timeout.count(), 0, 0};
         for (unsigned attempt = 0; attempt <= options_.retries; ++attempt) {
@@ -142,7 +143,7 @@ private:
             auto reply = attempt_once(unit, pdu, transaction, answers, context, attempt > 0);
             // A try that took no reply may still get one, late: the next request must not take it.
             // (A retry of this request may: it asks the same.)
-            if (!reply.ok() && is_unanswered(reply.error().kind)) unsettled_ = true;
+            if (!reply.ok() && is_unanswered(reply.error().kind)) unsettled_[unit] = clock_->now();
             if (reply.ok() || reply.error().kind != ErrorKind::timeout) return reply;
         }
         return timeout_error(unit, transaction, context);
@@ -158,13 +159,16 @@ private:
 
     // After a try that got no reply it could take, a reply to it may still arrive, late (a slow
     // device, a repeater): RTU has no transaction id to tell it from the next request's reply. So
-    // before the next request everything is discarded until the line has been quiet for the
-    // late-reply window since the try ended or since the last byte, whichever came later. A line
-    // that never falls quiet holds the master for at most four windows.
-    Result<void> wait_for_quiet_line() {
+    // before the next request to that unit everything is discarded until the line has been quiet
+    // for the late-reply window since the try ended or since the unit was last heard, whichever
+    // came later. Requests to other units need not wait: a late reply names its unit, which they
+    // do not take (at worst it garbles their reply: no reply, not a wrong one), so a dead unit
+    // costs the others no more than its timeouts. A line that never falls quiet holds the master
+    // for at most four windows.
+    Result<void> wait_for_quiet_line(Instant unsettled_since) {
         const Duration window = late_reply_window();
         codec_->reset();
-        Instant quiet_since = std::max(line_quiet_since_, last_heard_);
+        Instant quiet_since = unsettled_since;
         const Instant give_up = clock_->now() + 4 * window;
         std::array<std::uint8_t, 512> buffer{};
         for (;;) {
@@ -181,8 +185,7 @@ private:
         }
         discard_late(codec_->flush(clock_->now() + inter_frame_gap_));
         codec_->reset();
-        line_quiet_since_ = quiet_since;
-        unsettled_ = false;
+        line_quiet_since_ = std::max(line_quiet_since_, quiet_since);
         return {};
     }
 
@@ -312,6 +315,7 @@ private:
         auto& frame = std::get<codec::Frame>(event);
         if (frame.unit != awaited.unit) {
             awaited.clean = false;
+            heard_from(frame.unit);
             trace(TraceDirection::received, frame.raw, fmt_unit_skip(frame.unit, awaited.unit));
             return std::nullopt;
         }
@@ -337,8 +341,7 @@ private:
         const auto copied = earlier_copy(raw, awaited.request);
         if (!copied) return {};
         const auto now = clock_->now();
-        const bool late = awaited.usual > Duration::zero() &&
-                          now - awaited.sent_at > awaited.usual + inter_frame_gap_ + awaited.usual / 4;
+        const bool late = awaited.usual > Duration::zero() && now - awaited.sent_at > awaited.usual + inter_frame_gap_;
         if (!late && !line_sends_copies()) return {};
         copy_seen_at_ = now;
         return make_error(ErrorKind::mismatch,
@@ -388,7 +391,7 @@ private:
     // before the real one. The master keeps 3.5 characters of silence after a frame before it
     // sends again anyway (Modbus over serial line V1.02, 2.5.1.1); the accepted frame is handed
     // out only once that silence has passed, and no sooner than 3.5 characters after the time
-    // this unit's reply to this function usually starts (the longest of its last clean
+    // this unit's reply to this function usually has come (the longest of its last clean
     // exchanges, measured from the end of the request). A stray frame that arrived before the
     // real reply is thereby followed, inside that wait, by the real one; any frame (or damaged
     // frame) from the same unit starting inside it makes the reply ambiguous: it is discarded
@@ -397,12 +400,12 @@ private:
     // What this guarantees: one stray frame that arrives after the request was sent and before
     // the real reply is never taken, as long as the real reply comes no later than this unit
     // usually answers. What it cannot: a stray frame whose real reply never comes (lost, or far
-    // slower than usual) is indistinguishable from the reply, unless it differs in shape (the
-    // ReplyCheck); a stray frame arriving after the real reply and its silence belongs to the
-    // next exchange, where the same rule applies. On a healthy line it costs nothing: the real
-    // reply ends after the usual start, so only the 3.5 characters kept anyway are waited. On a
-    // retry the replies of the earlier tries answer the same request, so a second frame is no
-    // ambiguity there.
+    // slower than usual) is indistinguishable from the reply unless it differs in shape (the
+    // ReplyCheck) or is a copy of a recent frame (not_a_duplicate); a stray frame arriving after
+    // the real reply and its silence belongs to the next exchange, where the same rules apply.
+    // On a healthy line it costs nothing: the real reply comes at the usual time, so only the
+    // 3.5 characters kept anyway are waited. On a retry the replies of the earlier tries answer
+    // the same request, so a second frame is no ambiguity there.
     Result<Bytes> settle(Awaited& awaited, codec::Frame accepted, Instant usual_start, Instant deadline, bool retry) {
         std::optional<std::string> ambiguity;
         const Instant accepted_at = clock_->now();
@@ -433,6 +436,9 @@ private:
         }
         line_quiet_since_ = std::max(accepted_at, last_heard_);
         if (ambiguity && !retry) {
+            // The frame taken first was a copy of another request's reply, and the real one came:
+            // this line sends copies.
+            if (earlier_copy(accepted.raw, awaited.request)) copy_seen_at_ = clock_->now();
             awaited.clean = false;
             const auto why = make_error(
                 ErrorKind::mismatch,
@@ -456,6 +462,7 @@ private:
         }
         const auto& frame = std::get<codec::Frame>(event);
         if (frame.unit != unit) {
+            heard_from(frame.unit);
             trace(TraceDirection::received, frame.raw, fmt_unit_skip(frame.unit, unit));
             return std::nullopt;
         }
@@ -463,6 +470,12 @@ private:
         remember(frame.raw, ByteView{});
         trace(TraceDirection::discarded, frame.raw, "a second frame from the unit for one request");
         return fmt::format("another frame from unit {} followed it within the silence", unit);
+    }
+
+    // A frame from another unit: if that unit's last request went unanswered, this may be its
+    // late reply, and its window starts again.
+    void heard_from(std::uint8_t other) {
+        if (auto unsettled = unsettled_.find(other); unsettled != unsettled_.end()) unsettled->second = clock_->now();
     }
 
     static std::string reply_note(std::uint8_t unit, ByteView pdu) {
@@ -483,7 +496,9 @@ private:
     std::mutex line_;
     Instant line_quiet_since_{};
     Instant last_heard_{};   // when the last bytes arrived
-    bool unsettled_ = false;  // the last request got no reply it took: one may still come, late
+    // Units whose last request got no reply it took (one may still come, late), with when the
+    // try ended or the unit was last heard since.
+    std::map<std::uint8_t, Instant> unsettled_;
     std::map<LatencyKey, ReplyLatency> latencies_;
     static constexpr std::size_t recent_frames_kept = 16;
     std::deque<SeenFrame> recent_frames_;

@@ -174,6 +174,28 @@ TEST(StrayReplies, TheLateReplyWindowIsAnOptionAndCostsNothingAfterAnAnsweredReq
     EXPECT_EQ(writes[3] - writes[2], latency + t3_5);          // on time again
 }
 
+// A late reply names its unit: a request to another unit cannot take it, so it need not wait,
+// and a dead unit costs the others no more than its timeouts.
+TEST(StrayReplies, ARequestToAnotherUnitDoesNotWaitForTheWindow) {
+    TracedMaster m([](TimedLine& line, ByteView request, Instant at, unsigned n) {
+        if (n == 0) return;  // unit 1 says nothing
+        line.arrive(at + latency, codec::rtu_encode(request[0], reply_pdu(read_be16(request, 2))));
+    });
+    ASSERT_FALSE(m.master->forward(1, read_pdu(5)).ok());
+    auto other = m.master->forward(2, read_pdu(6));
+    ASSERT_TRUE(other.ok()) << other.error().message;
+    EXPECT_EQ(to_hex(*other), to_hex(reply_pdu(6)));
+    ASSERT_TRUE(m.master->forward(1, read_pdu(7)).ok());
+    const auto& writes = m.line->writes();
+    ASSERT_EQ(writes.size(), 3u);
+    const auto t3_5 = codec::CharacterTiming{19200, 11}.t3_5();
+    EXPECT_EQ(writes[1] - writes[0], 1s + t3_5);  // unit 2 at once
+    // Unit 1 again: the window (1 s) since its try ended has passed already, less the 5 ms
+    // unit 2 took and its silence; the rest is waited.
+    EXPECT_GE(writes[2] - writes[0], 2s);
+    EXPECT_LT(writes[2] - writes[0], 2s + 1ms);  // virtual time: streams wait in whole milliseconds
+}
+
 // Modbus has no transaction id on a serial line: a duplicate of the previous reply that lands
 // after the next request was sent and before its real reply looks like that reply. The real
 // one follows within this unit's usual latency, so the master sees two frames for one request
