@@ -86,6 +86,7 @@ Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options
     session::MasterOptions master_options;
     master_options.timeout = line.timeout;
     master_options.retries = line.retries;
+    master_options.late_reply_window = line.late_reply_window;
     master_options.trace = counting_trace(opened.garbled, options.trace);
     Result<std::unique_ptr<session::Master>> master =
         line.simulation ? Result<std::unique_ptr<session::Master>>(session::make_serial_master(
