@@ -104,6 +104,7 @@ Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options
     session::MasterOptions master_options;
     master_options.timeout = line.timeout;
     master_options.retries = line.retries;
+    master_options.late_reply_window = line.late_reply_window;
     master_options.trace = counting_trace(opened.garbled, options.trace);
     auto open = line_opener(line, options, opened, std::move(master_options));
     opened.master = std::make_shared<ReopeningMaster>(line.name, opened.link, std::move(open), ReopenSchedule{},

@@ -26,6 +26,8 @@ using std::chrono::milliseconds;
 
 constexpr std::uintmax_t max_file_size = 1024 * 1024;  // a real configuration is a few kilobytes
 constexpr long long max_retries = 10;
+// A late reply comes at most a few timeouts late; a longer window would only stall the line.
+constexpr std::chrono::milliseconds max_late_reply_window{60000};
 
 // ---------------------------------------------------------------------------------------------
 // Locations: every message starts "FILE:LINE: KEY.PATH: ", so an editor can jump to the spot.
@@ -324,11 +326,20 @@ Result<void> parse_line_settings(const Context& ctx, const toml::table& table, c
     auto retries = optional_integer(ctx, table, path, "retries", 0, max_retries);
     if (!retries) return retries.error();
     if (*retries) line.retries = static_cast<unsigned>(**retries);  // 0..10, checked
+    auto late_reply_window = optional_duration(ctx, table, path, "late_reply_window");
+    if (!late_reply_window) return late_reply_window.error();
+    if (*late_reply_window) {
+        if (**late_reply_window > max_late_reply_window) {
+            return ctx.fail(source_of(table, "late_reply_window"), key_path(path, "late_reply_window"),
+                            "expected 1ms..1min (e.g. \"500ms\", default: the line's timeout)");
+        }
+        line.late_reply_window = **late_reply_window;
+    }
     return parse_line_simulation(ctx, table, path, line);
 }
 
 Result<LineConfig> parse_line(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry) {
-    if (auto keys = check_keys(ctx, table, path, {"name", "link", "timeout", "retries", "speed", "seed", "devices"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, table, path, {"name", "link", "timeout", "retries", "late_reply_window", "speed", "seed", "devices"}); !keys) return keys.error();
     LineConfig line;
     auto name = checked_name(ctx, table, path);
     if (!name) return name.error();

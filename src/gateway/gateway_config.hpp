@@ -39,6 +39,9 @@ struct LineConfig {
     std::optional<LineSimulation> simulation;  // set exactly when the link is a virtual bus
     std::chrono::milliseconds timeout{1000};
     unsigned retries = 0;
+    // After a request that got no usable reply, the next waits until the line has been quiet this
+    // long, so a late reply is never taken for it (session::MasterOptions). nullopt: the timeout.
+    std::optional<std::chrono::milliseconds> late_reply_window;
     std::vector<DeviceConfig> devices;
 };
 

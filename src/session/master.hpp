@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "codec/pdu.hpp"
@@ -24,6 +25,12 @@ struct MasterOptions {
     // Silence after a broadcast before the next request, so slaves can execute it
     // (Modbus over serial line V1.02, 2.4.1: "turnaround delay", typically 100 to 200 ms).
     milliseconds turnaround{100};
+    // Serial lines: after a try that got no reply it could take (none, a wrong one, an ambiguous
+    // one), a reply to it may still arrive late, and RTU has no transaction id to tell it from the
+    // next request's. So the next request waits until the line has been quiet this long,
+    // discarding whatever arrives. nullopt: as long as `timeout`. Costs nothing while replies
+    // come in time.
+    std::optional<milliseconds> late_reply_window;
     bool linking_ram_only = false;  // Linking: single writes as M (RAM only) instead of W
     TraceSink trace;                // -v: every frame sent, received or discarded
     // What the serial master's silences, timeouts and turnarounds run on (common/clock.hpp). A

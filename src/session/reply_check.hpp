@@ -23,8 +23,13 @@ Result<codec::Reply> typed_reply(std::uint8_t unit, const codec::Request& reques
 // exception replies: Modbus application protocol V1.1b3, 6 and 7) and at most 253 bytes (4.1).
 Result<void> check_forwardable(ByteView pdu);
 
-// A reply answers a forwarded `request` when it has the same function code, or that code + 80h
-// with one exception code byte after it (Modbus application protocol V1.1b3, 7).
+// A reply answers a forwarded `request` when it is that function's exception reply (code + 80h,
+// one exception code byte: Modbus application protocol V1.1b3, 7), or a normal reply of the same
+// function code shaped as the request asks: for reads (FC1/2/3/4/23) a byte count of exactly the
+// quantity asked for and a PDU of exactly that length, for FC5/6 the echo of address and value,
+// for FC15/16 the echo of address and quantity. Other function codes are checked on the code
+// only: their replies' shape cannot be known. A stale reply to another request of the same
+// function is refused whenever it differs in shape (docs/DESIGN.md, "what answers what").
 ReplyCheck answers_forwarded(Bytes request);
 
 }  // namespace loopwire::session

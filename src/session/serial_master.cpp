@@ -1,5 +1,13 @@
 // The master on a serial line (RTU, ASCII, Linking) or behind a serial device server (rtu+tcp).
+#include <algorithm>
+#include <array>
+#include <iterator>
+#include <map>
 #include <mutex>
+#include <thread>
+#include <utility>
+
+#include <fmt/format.h>
 
 #include "codec/rtu.hpp"
 #include "session/frame_codec.hpp"
@@ -12,6 +20,24 @@ namespace loopwire::session {
 namespace {
 
 using Duration = Instant::duration;
+
+// When replies usually start after the request, per unit and function code: the longest of the
+// last few clean exchanges (a write to EEPROM takes longer than a read; a device's latency varies
+// little). Zero until one is measured.
+class ReplyLatency {
+public:
+    void record(Duration latency) {
+        samples_[next_] = latency;
+        next_ = (next_ + 1) % samples_.size();
+    }
+    Duration expected() const { return *std::max_element(samples_.begin(), samples_.end()); }
+
+private:
+    std::array<Duration, 8> samples_{};
+    std::size_t next_ = 0;
+};
+
+using LatencyKey = std::pair<std::uint8_t, std::uint8_t>;  // unit, function code
 
 class SerialMaster final : public Master {
 public:
@@ -66,17 +92,78 @@ private:
     // of the frame that answers it (exception replies included), empty for a broadcast.
     Result<Bytes> exchange(std::uint8_t unit, ByteView pdu, const std::string& transaction, const ReplyCheck& answers) {
         std::lock_guard lock(line_);  // one outstanding request per serial line
+        if (auto unsettled = unsettled_.find(unit); unsettled != unsettled_.end()) {
+            if (auto quiet = wait_for_quiet_line(unsettled->second); !quiet) return quiet.error();
+            unsettled_.erase(unit);
+        }
         TimeoutContext context{name_, options_.timeout.count(), 0, 0};
         for (unsigned attempt = 0; attempt <= options_.retries; ++attempt) {
             ++context.tries;
-            auto reply = attempt_once(unit, pdu, transaction, answers, context);
+            auto reply = attempt_once(unit, pdu, transaction, answers, context, attempt > 0);
+            // A try that took no reply may still get one, late: the next request must not take it.
+            // (A retry of this request may: it asks the same.)
+            if (!reply.ok() && is_unanswered(reply.error().kind)) unsettled_[unit] = clock_->now();
             if (reply.ok() || reply.error().kind != ErrorKind::timeout) return reply;
         }
         return timeout_error(unit, transaction, context);
     }
 
+    static bool is_unanswered(ErrorKind kind) {
+        return kind == ErrorKind::timeout || kind == ErrorKind::mismatch || kind == ErrorKind::malformed;
+    }
+
+    Duration late_reply_window() const {
+        return options_.late_reply_window ? *options_.late_reply_window : options_.timeout;
+    }
+
+    // After a try that got no reply it could take, a reply to it may still arrive, late (a slow
+    // device, a repeater): RTU has no transaction id to tell it from the next request's reply. So
+    // before the next request to that unit everything is discarded until the line has been quiet
+    // for the late-reply window since the try ended or since the unit was last heard, whichever
+    // came later. Requests to other units need not wait: a late reply names its unit, which they
+    // do not take (at worst it garbles their reply: no reply, not a wrong one), so a dead unit
+    // costs the others no more than its timeouts. A line that never falls quiet holds the master
+    // for at most four windows.
+    Result<void> wait_for_quiet_line(Instant unsettled_since) {
+        const Duration window = late_reply_window();
+        codec_->reset();
+        Instant quiet_since = unsettled_since;
+        const Instant give_up = clock_->now() + 4 * window;
+        std::array<std::uint8_t, 512> buffer{};
+        for (;;) {
+            const Instant now = clock_->now();
+            const Instant quiet_enough = quiet_since + window;
+            if (now >= quiet_enough || now >= give_up) break;
+            auto got = stream_->read_some(buffer, std::chrono::ceil<milliseconds>(std::min(quiet_enough, give_up) - now));
+            if (!got) return got.error();
+            if (*got == 0) continue;
+            quiet_since = clock_->now();
+            auto fed = codec_->feed(ByteView(buffer.data(), *got), quiet_since);
+            if (!fed) return fed.error();
+            discard_late(*fed);
+        }
+        discard_late(codec_->flush(clock_->now() + inter_frame_gap_));
+        codec_->reset();
+        line_quiet_since_ = std::max(line_quiet_since_, quiet_since);
+        return {};
+    }
+
+    void discard_late(const codec::FrameEvents& events) {
+        for (const auto& event : events) {
+            if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
+                trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
+            } else {
+                const auto& frame = std::get<codec::Frame>(event);
+                if (is_copy_of_recent(frame.raw)) copy_seen_at_ = clock_->now();
+                trace(TraceDirection::discarded, frame.raw,
+                      fmt::format("late reply from unit {}, after a try that got none: not taken for the next request",
+                                  frame.unit));
+            }
+        }
+    }
+
     Result<Bytes> attempt_once(std::uint8_t unit, ByteView pdu, const std::string& transaction,
-                               const ReplyCheck& answers, TimeoutContext& context) {
+                               const ReplyCheck& answers, TimeoutContext& context, bool retry) {
         auto frame = codec_->encode(unit, pdu, 0);
         if (!frame) return frame.error();
         clock_->sleep_until(line_quiet_since_ + inter_frame_gap_);
@@ -84,7 +171,8 @@ private:
         codec_->reset();
         trace(TraceDirection::sent, *frame, transaction);
         auto written = stream_->write(*frame);
-        line_quiet_since_ = clock_->now();
+        const Instant sent_at = clock_->now();
+        line_quiet_since_ = sent_at;
         if (!written) return written.error();
         if (unit == 0) {
             // Broadcast: nobody answers; give every slave the turnaround delay to execute it.
@@ -92,65 +180,261 @@ private:
             line_quiet_since_ = clock_->now();
             return Bytes{};
         }
-        auto reply = await_reply(unit, transaction, answers, clock_->now() + options_.timeout, context);
+        const Instant deadline = sent_at + options_.timeout;
+        const LatencyKey key{unit, pdu[0]};
+        const Duration usual = latencies_[key].expected();
+        Awaited awaited{unit, pdu, transaction, answers, context, sent_at, usual, {}, {}, true};
+        auto accepted = await_reply(awaited, deadline);
         line_quiet_since_ = clock_->now();
-        return reply;
+        if (!accepted) return accepted.error();
+        const Duration took = clock_->now() - sent_at;
+        auto settled = settle(awaited, std::move(*accepted), sent_at + usual, deadline, retry);
+        if (settled && awaited.clean) latencies_[key].record(took);
+        return settled;
     }
 
-    Result<Bytes> await_reply(std::uint8_t unit, const std::string& transaction, const ReplyCheck& answers,
-                              Instant deadline, TimeoutContext& context) {
-        std::array<std::uint8_t, 512> buffer{};
+    // What one wait for a reply has seen so far.
+    struct Awaited {
+        std::uint8_t unit;
+        ByteView request;
+        const std::string& transaction;
+        const ReplyCheck& answers;
+        TimeoutContext& context;
+        Instant sent_at;
+        Duration usual;  // how long after the request this unit's reply usually has come; 0: unknown
         std::optional<Error> wrong_reply;  // the last frame from `unit` that did not answer the request
+        codec::FrameEvents after_accepted;  // what arrived with the accepted frame, after it
+        bool clean;  // nothing but the accepted frame arrived
+    };
+
+    // Reads until a frame answers the request or the deadline passes.
+    Result<codec::Frame> await_reply(Awaited& awaited, Instant deadline) {
+        std::array<std::uint8_t, 512> buffer{};
         for (;;) {
             const auto now = clock_->now();
             // A reply that came but was wrong is what went wrong, not silence: it is reported as
             // such (exit 6, as on TCP), and not retried. The wait still runs to the deadline, as
             // the right reply may follow a stale one.
-            if (now >= deadline) return wrong_reply ? *wrong_reply : make_error(ErrorKind::timeout, "no reply");
-            auto wait = deadline - now;
-            if (auto flush_at = codec_->flush_deadline()) {
-                wait = std::min<Duration>(wait, std::max<Duration>(*flush_at - now, Duration::zero()));
-            }
-            const auto wait_ms = std::chrono::ceil<milliseconds>(wait);
-            auto got = stream_->read_some(buffer, wait_ms);
-            if (!got) return got.error();
-            codec::FrameEvents events;
-            if (*got > 0) {
-                auto fed = codec_->feed(ByteView(buffer.data(), *got), clock_->now());
-                if (!fed) return fed.error();
-                events = std::move(*fed);
-            } else {
-                events = codec_->flush(clock_->now());
-            }
-            for (auto& event : events) {
-                if (auto answer = consider(unit, transaction, answers, event, context, wrong_reply)) return std::move(*answer);
+            if (now >= deadline) return awaited.wrong_reply ? *awaited.wrong_reply : make_error(ErrorKind::timeout, "no reply");
+            auto events = read_events(buffer, deadline - now);
+            if (!events) return events.error();
+            for (std::size_t i = 0; i < events->size(); ++i) {
+                if (auto frame = consider(awaited, (*events)[i])) {
+                    awaited.after_accepted.assign(std::make_move_iterator(events->begin() + static_cast<std::ptrdiff_t>(i + 1)),
+                                                  std::make_move_iterator(events->end()));
+                    return std::move(*frame);
+                }
             }
         }
+    }
+
+    // Waits up to `limit` (or until a pending partial frame is due to be flushed) and returns the
+    // frames and discarded runs that brings. Streams wait in whole milliseconds: `limit` is
+    // rounded up, so a wait for a reply never ends before its deadline.
+    Result<codec::FrameEvents> read_events(std::span<std::uint8_t> buffer, Duration limit) {
+        const auto now = clock_->now();
+        auto wait = limit;
+        if (auto flush_at = codec_->flush_deadline()) {
+            wait = std::min<Duration>(wait, std::max<Duration>(*flush_at - now, Duration::zero()));
+        }
+        return read_events_for(buffer, std::chrono::ceil<milliseconds>(wait));
+    }
+
+    Result<codec::FrameEvents> read_events_for(std::span<std::uint8_t> buffer, milliseconds wait) {
+        auto got = stream_->read_some(buffer, wait);
+        if (!got) return got.error();
+        if (*got == 0) return codec_->flush(clock_->now());
+        last_heard_ = clock_->now();
+        auto fed = codec_->feed(ByteView(buffer.data(), *got), last_heard_);
+        if (!fed) return fed.error();
+        return std::move(*fed);
+    }
+
+    // Listens until `until` and not past it (the silence after a reply must cost no more than
+    // the 3.5 characters kept anyway): whole milliseconds on the stream, then the rest slept,
+    // then what has arrived meanwhile.
+    Result<codec::FrameEvents> listen_until(std::span<std::uint8_t> buffer, Instant until) {
+        const auto now = clock_->now();
+        const auto whole = std::chrono::floor<milliseconds>(until - now);
+        if (whole > milliseconds::zero()) return read_events_for(buffer, whole);
+        clock_->sleep_until(until);
+        return read_events_for(buffer, milliseconds::zero());
     }
 
     // A frame that answers the request ends the wait; anything else is traced and skipped, and
     // a whole frame (check bytes right) from the asked unit that is not a valid answer is kept
     // in `wrong_reply`, with its bytes.
-    std::optional<Bytes> consider(std::uint8_t unit, const std::string& transaction, const ReplyCheck& answers,
-                                  const codec::FrameEvent& event, TimeoutContext& context,
-                                  std::optional<Error>& wrong_reply) {
+    std::optional<codec::Frame> consider(Awaited& awaited, codec::FrameEvent& event) {
         if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
-            ++context.discarded_runs;
+            ++awaited.context.discarded_runs;
+            awaited.clean = false;
             trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
             return std::nullopt;
         }
+        auto& frame = std::get<codec::Frame>(event);
+        if (frame.unit != awaited.unit) {
+            awaited.clean = false;
+            heard_from(frame.unit);
+            trace(TraceDirection::received, frame.raw, fmt_unit_skip(frame.unit, awaited.unit));
+            return std::nullopt;
+        }
+        auto answered = awaited.answers(frame.pdu);
+        if (answered) answered = not_a_duplicate(awaited, frame.raw);
+        remember(frame.raw, awaited.request);
+        if (!answered) {
+            awaited.clean = false;
+            trace(TraceDirection::discarded, frame.raw, answered.error().message);
+            awaited.wrong_reply = wrong_reply_error(awaited.unit, awaited.transaction, answered.error(), frame.raw);
+            return std::nullopt;  // a stale reply, perhaps; the right one may still come
+        }
+        return std::move(frame);
+    }
+
+    // Duplicates. A frame with the same bytes as one that came for another request a moment ago
+    // may be a copy of it (a repeater sending a frame twice), or the real reply of a register
+    // that holds the same value. It is taken as the reply when it comes when this unit's replies
+    // usually come; not when it comes later than that (the real reply, usually on time, has not
+    // come: a copy is the likelier), nor at all on a line seen sending copies within the last
+    // ten minutes, where a request may fail (0Bh) rather than risk another request's value.
+    Result<void> not_a_duplicate(const Awaited& awaited, ByteView raw) {
+        const auto copied = earlier_copy(raw, awaited.request);
+        if (!copied) return {};
+        const auto now = clock_->now();
+        const bool late = awaited.usual > Duration::zero() && now - awaited.sent_at > awaited.usual + inter_frame_gap_;
+        if (!late && !line_sends_copies()) return {};
+        copy_seen_at_ = now;
+        return make_error(ErrorKind::mismatch,
+                          fmt::format("the same bytes as the reply to another request {} ms ago, {}: a duplicate, "
+                                      "probably; not taken",
+                                      std::chrono::duration_cast<milliseconds>(now - copied->at).count(),
+                                      late ? "and later than this unit answers" : "on a line that has sent copies"));
+    }
+
+    // The last frames from the units asked, with the request each came for.
+    struct SeenFrame {
+        Bytes raw;
+        Bytes request;
+        Instant at;
+    };
+
+    void remember(ByteView raw, ByteView request) {
+        if (recent_frames_.size() == recent_frames_kept) recent_frames_.pop_front();
+        recent_frames_.push_back({Bytes(raw.begin(), raw.end()), Bytes(request.begin(), request.end()), clock_->now()});
+    }
+
+    // A frame seen with the same bytes for another request (for `request` itself it would be its
+    // answer all the same), recently enough for a copy of it to be still on its way.
+    std::optional<SeenFrame> earlier_copy(ByteView raw, ByteView request) const {
+        const auto recent = clock_->now() - (options_.timeout + late_reply_window());
+        for (const auto& seen : recent_frames_) {
+            if (seen.at >= recent && std::ranges::equal(seen.raw, raw) && !std::ranges::equal(seen.request, request)) {
+                return seen;
+            }
+        }
+        return std::nullopt;
+    }
+
+    bool is_copy_of_recent(ByteView raw) const {
+        const auto recent = clock_->now() - (options_.timeout + late_reply_window());
+        return std::ranges::any_of(recent_frames_, [&](const SeenFrame& seen) {
+            return seen.at >= recent && std::ranges::equal(seen.raw, raw);
+        });
+    }
+
+    bool line_sends_copies() const {
+        return copy_seen_at_ && clock_->now() - *copy_seen_at_ < std::chrono::minutes(10);
+    }
+
+    // Ambiguity rule. RTU has no transaction id: a frame that answers the request in shape may
+    // still be a duplicate of an earlier reply, or an earlier request's late reply, that came
+    // before the real one. The master keeps 3.5 characters of silence after a frame before it
+    // sends again anyway (Modbus over serial line V1.02, 2.5.1.1); the accepted frame is handed
+    // out only once that silence has passed, and no sooner than 3.5 characters after the time
+    // this unit's reply to this function usually has come (the longest of its last clean
+    // exchanges, measured from the end of the request). A stray frame that arrived before the
+    // real reply is thereby followed, inside that wait, by the real one; any frame (or damaged
+    // frame) from the same unit starting inside it makes the reply ambiguous: it is discarded
+    // as a bad reply rather than handed out as a value that may be another request's.
+    //
+    // What this guarantees: one stray frame that arrives after the request was sent and before
+    // the real reply is never taken, as long as the real reply comes no later than this unit
+    // usually answers. What it cannot: a stray frame whose real reply never comes (lost, or far
+    // slower than usual) is indistinguishable from the reply unless it differs in shape (the
+    // ReplyCheck) or is a copy of a recent frame (not_a_duplicate); a stray frame arriving after
+    // the real reply and its silence belongs to the next exchange, where the same rules apply.
+    // On a healthy line it costs nothing: the real reply comes at the usual time, so only the
+    // 3.5 characters kept anyway are waited. On a retry the replies of the earlier tries answer
+    // the same request, so a second frame is no ambiguity there.
+    Result<Bytes> settle(Awaited& awaited, codec::Frame accepted, Instant usual_start, Instant deadline, bool retry) {
+        std::optional<std::string> ambiguity;
+        const Instant accepted_at = clock_->now();
+        Instant quiet_until = std::max(accepted_at, usual_start) + inter_frame_gap_;
+        // A line that keeps talking after the reply cannot settle the question: give up at the
+        // deadline (or a little after the silence, if the reply came that late).
+        const Instant give_up = std::max(deadline, quiet_until + inter_frame_gap_);
+        const auto examine = [&](codec::FrameEvents& events) {
+            for (auto& event : events) {
+                if (auto other = ambiguous_with(awaited.unit, event); other && !ambiguity) ambiguity = std::move(*other);
+            }
+        };
+        examine(awaited.after_accepted);
+        std::array<std::uint8_t, 512> buffer{};
+        while (!ambiguity) {
+            const auto now = clock_->now();
+            if (now >= quiet_until && !codec_->flush_deadline()) break;
+            if (now >= give_up) {
+                ambiguity = "the line did not fall silent after it";
+                break;
+            }
+            // A partial frame pending is heard out: flushed once its own silence has passed.
+            const auto flush_at = codec_->flush_deadline();
+            auto events = listen_until(buffer, flush_at ? std::max(quiet_until, *flush_at) : quiet_until);
+            if (!events) return events.error();
+            if (last_heard_ > accepted_at) quiet_until = std::max(quiet_until, last_heard_ + inter_frame_gap_);
+            examine(*events);
+        }
+        line_quiet_since_ = std::max(accepted_at, last_heard_);
+        if (ambiguity && !retry) {
+            // The frame taken first was a copy of another request's reply, and the real one came:
+            // this line sends copies.
+            if (earlier_copy(accepted.raw, awaited.request)) copy_seen_at_ = clock_->now();
+            awaited.clean = false;
+            const auto why = make_error(
+                ErrorKind::mismatch,
+                fmt::format("ambiguous reply: {}; a duplicate or a late reply to another request may have raced the "
+                            "real one, so neither is taken",
+                            *ambiguity));
+            trace(TraceDirection::discarded, accepted.raw, why.message);
+            return wrong_reply_error(awaited.unit, awaited.transaction, why, accepted.raw);
+        }
+        trace(TraceDirection::received, accepted.raw, reply_note(awaited.unit, accepted.pdu));
+        return std::move(accepted.pdu);
+    }
+
+    // Whether `event`, arriving while the accepted reply settles, is another frame from `unit`
+    // (whole, or damaged but starting with its address): the reason, traced, or nullopt.
+    std::optional<std::string> ambiguous_with(std::uint8_t unit, const codec::FrameEvent& event) {
+        if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
+            trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
+            if (discarded->bytes.empty() || discarded->bytes[0] != unit) return std::nullopt;
+            return fmt::format("a damaged frame from unit {} followed it within the silence", unit);
+        }
         const auto& frame = std::get<codec::Frame>(event);
         if (frame.unit != unit) {
+            heard_from(frame.unit);
             trace(TraceDirection::received, frame.raw, fmt_unit_skip(frame.unit, unit));
             return std::nullopt;
         }
-        if (auto answered = answers(frame.pdu); !answered) {
-            trace(TraceDirection::discarded, frame.raw, answered.error().message);
-            wrong_reply = wrong_reply_error(unit, transaction, answered.error(), frame.raw);
-            return std::nullopt;  // a stale reply, perhaps; the right one may still come
-        }
-        trace(TraceDirection::received, frame.raw, reply_note(unit, frame.pdu));
-        return frame.pdu;
+        if (is_copy_of_recent(frame.raw)) copy_seen_at_ = clock_->now();
+        remember(frame.raw, ByteView{});
+        trace(TraceDirection::discarded, frame.raw, "a second frame from the unit for one request");
+        return fmt::format("another frame from unit {} followed it within the silence", unit);
+    }
+
+    // A frame from another unit: if that unit's last request went unanswered, this may be its
+    // late reply, and its window starts again.
+    void heard_from(std::uint8_t other) {
+        if (auto unsettled = unsettled_.find(other); unsettled != unsettled_.end()) unsettled->second = clock_->now();
     }
 
     static std::string reply_note(std::uint8_t unit, ByteView pdu) {
@@ -170,6 +454,14 @@ private:
     std::string name_;
     std::mutex line_;
     Instant line_quiet_since_{};
+    Instant last_heard_{};   // when the last bytes arrived
+    // Units whose last request got no reply it took (one may still come, late), with when the
+    // try ended or the unit was last heard since.
+    std::map<std::uint8_t, Instant> unsettled_;
+    std::map<LatencyKey, ReplyLatency> latencies_;
+    static constexpr std::size_t recent_frames_kept = 16;
+    std::deque<SeenFrame> recent_frames_;
+    std::optional<Instant> copy_seen_at_;  // when a copy of a frame was last seen
     JobQueue jobs_;  // last member: its thread stops before the rest is destroyed
 };
 

@@ -28,6 +28,7 @@ struct PendingRequest {
     unsigned tries = 1;
     bool broadcast = false;
     Master::ForwardCompletion done;  // the reply PDU (empty after a broadcast), or what failed
+    std::optional<Error> wrong_reply;  // a frame with this transaction id that did not answer
 };
 
 class TcpMaster final : public Master {
@@ -59,7 +60,8 @@ public:
         submit({unit, std::move(*pdu), std::move(transaction), std::move(answers), {}, 1, unit == 0,
                 [unit, request = std::move(request), done = std::move(done)](Result<Bytes> answered) {
                     done(typed_reply(unit, request, std::move(answered)));
-                }});
+                },
+                {}});
     }
 
     Result<Bytes> forward(std::uint8_t unit, ByteView pdu) override {
@@ -70,7 +72,7 @@ public:
         if (auto forwardable = check_forwardable(pdu); !forwardable) return done(forwardable.error());
         auto transaction = describe_forwarded(unit, pdu);
         auto answers = answers_forwarded(pdu);
-        submit({unit, std::move(pdu), std::move(transaction), std::move(answers), {}, 1, unit == 0, std::move(done)});
+        submit({unit, std::move(pdu), std::move(transaction), std::move(answers), {}, 1, unit == 0, std::move(done), {}});
     }
 
     std::string describe() const override { return link_.to_string(); }
@@ -183,8 +185,12 @@ private:
         for (auto& [done, result] : finished) done(std::move(result));
     }
 
-    // Called with mutex_ held. The frame that carries an awaited transaction id ends that
-    // request: with its PDU when it answers, with what is wrong with it when it does not.
+    // Called with mutex_ held. A reply answers a request when it carries the request's
+    // transaction id, names the unit asked and has the shape the request asks for (ReplyCheck:
+    // function, byte count, length, echoes). A frame with an awaited id that is not such an
+    // answer (a very late reply whose id came round again, a server that mixed its replies up)
+    // is discarded and kept as the request's bad reply; the wait goes on to the deadline, as the
+    // right reply may still come.
     std::optional<Finished> match(codec::Frame& frame) {
         auto it = pending_.find(frame.transaction);
         if (it == pending_.end() || it->second.broadcast) {
@@ -197,14 +203,13 @@ private:
         if (answers && frame.unit != pending.unit) {
             answers = make_error(ErrorKind::mismatch, fmt::format("reply names unit {}, request went to unit {}", frame.unit, pending.unit));
         }
-        Finished finished{std::move(pending.done), Bytes{}};
-        if (answers) {
-            trace(TraceDirection::received, frame.raw, "reply");
-            finished.second = std::move(frame.pdu);
-        } else {
+        if (!answers) {
             trace(TraceDirection::discarded, frame.raw, answers.error().message);
-            finished.second = wrong_reply_error(pending.unit, pending.transaction, answers.error(), frame.raw);
+            pending.wrong_reply = wrong_reply_error(pending.unit, pending.transaction, answers.error(), frame.raw);
+            return std::nullopt;
         }
+        trace(TraceDirection::received, frame.raw, "reply");
+        Finished finished{std::move(pending.done), std::move(frame.pdu)};
         pending_.erase(it);
         return finished;
     }
@@ -220,6 +225,9 @@ private:
                 it = pending_.erase(it);
                 if (pending.broadcast) {
                     finished.emplace_back(std::move(pending.done), Bytes{});
+                } else if (pending.wrong_reply) {
+                    // The server answered, wrongly: reported as such, not retried (as on serial lines).
+                    finished.emplace_back(std::move(pending.done), std::move(*pending.wrong_reply));
                 } else if (pending.tries <= options_.retries && stream_) {
                     ++pending.tries;
                     if (auto failed = send(std::move(pending))) finished.push_back(std::move(*failed));

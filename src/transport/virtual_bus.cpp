@@ -20,6 +20,10 @@
 //   take wire time; a dropped write still occupies the wire (the sender did transmit) but
 //   reaches nobody; corrupt_bytes indexes past the end are ignored; extra_delay is latency
 //   (a slow repeater): the bytes arrive later but neither the wire nor the sender waits longer.
+//   A truncated write sends (and spends wire time on) its first truncate_to bytes only; a
+//   duplicated one is queued a second time, duplicate_after after the first copy's start, as
+//   latency: its bytes interleave with whatever else is due then, as on a real line they would
+//   collide.
 // - poll_handle() is a timerfd per port, armed for the earliest pending byte, so it becomes
 //   readable exactly when read_some() would return data.
 
@@ -104,6 +108,12 @@ Instant VirtualBus::Impl::transmit(const Station& sender, ByteView noise, ByteVi
             for (std::size_t i = 0; i < payload.size(); ++i) {
                 enqueue(*station, payload_start + wire_time(i + 1), payload[i]);
             }
+            if (fault.duplicate_after) {
+                const Instant copy_start = payload_start + *fault.duplicate_after;
+                for (std::size_t i = 0; i < payload.size(); ++i) {
+                    enqueue(*station, copy_start + wire_time(i + 1), payload[i]);
+                }
+            }
         }
         rearm(*station);
     }
@@ -173,6 +183,7 @@ Result<void> BusPort::write(ByteView bytes) {
     for (const std::size_t index : fault.corrupt_bytes) {
         if (index < payload.size()) payload[index] ^= 0xFF;
     }
+    if (fault.truncate_to && *fault.truncate_to < payload.size()) payload.resize(*fault.truncate_to);
     const Instant end = impl_.transmit(station_, fault.noise_before, payload, fault);
     std::this_thread::sleep_until(end);
     return {};

@@ -9,13 +9,15 @@
 //   for it (serialised) rather than colliding. write() returns once its last byte has left.
 // - A port never hears its own writes.
 // - A dropped write still occupies the wire; noise_before takes wire time before the write;
-//   extra_delay is latency only (the sender and the wire do not wait for it).
+//   extra_delay and duplicate_after are latency only (the sender and the wire do not wait for
+//   them); a truncated write takes the wire time of what is sent.
 // - poll_handle() is a timerfd that is readable exactly while read_some() has bytes to return.
 #include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -30,6 +32,14 @@ struct BusFault {
     std::vector<std::size_t> corrupt_bytes;   // indexes whose bits are inverted
     std::chrono::microseconds extra_delay{0}; // arrives this much later
     Bytes noise_before;                       // bytes that appear on the line before the write
+    // Only the first this many bytes go out (a sender that stops mid-frame: reset, lost power),
+    // and only they take wire time.
+    std::optional<std::size_t> truncate_to;
+    // The same bytes (after corruption and truncation) arrive a second time, this long after the
+    // first copy started: a repeater or relay that sends a frame twice. Latency only, like
+    // extra_delay: the wire and the sender do not wait for it, and its bytes land among whatever
+    // else arrives then.
+    std::optional<std::chrono::microseconds> duplicate_after;
 };
 
 // Decides the fault for a write: (sending port name, bytes written) -> fault.

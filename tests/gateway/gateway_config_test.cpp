@@ -108,6 +108,7 @@ TEST(GatewayConfig, DefaultsApplyToWhatIsLeftOut) {
     const LineConfig& line = config->lines[0];
     EXPECT_EQ(line.timeout, std::chrono::milliseconds(1000));
     EXPECT_EQ(line.retries, 0u);
+    EXPECT_EQ(line.late_reply_window, std::nullopt);  // as long as the timeout
     EXPECT_EQ(line.devices[0].tcp_unit, 5);  // the device's own unit
     EXPECT_EQ(line.devices[0].poll, std::chrono::milliseconds(1000));
     EXPECT_TRUE(line.devices[0].parameters.empty());  // the default watch list
@@ -166,13 +167,24 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(device, "plant.toml:8: lines[0].devices[0].pol: unknown key (allowed here: name, device, poll, parameters, tcp_unit)");
 
     const std::string line = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\ntimout = \"1s\"\n");
-    EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, speed, seed, devices)");
+    EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, late_reply_window, speed, seed, devices)");
 
     const std::string top = error_of(one_device("device = \"tc10@3\"\n") + "[modbus]\nlisten = \"127.0.0.1:1502\"\n");
     EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt, history, http)");
 
     const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
     EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: listen, writes, enabled, max_age)");
+}
+
+TEST(GatewayConfig, TheLateReplyWindowIsReadAndBounded) {
+    auto config = parse("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nlate_reply_window = \"750ms\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->lines[0].late_reply_window, std::chrono::milliseconds(750));
+
+    const std::string zero = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nlate_reply_window = \"0s\"\n");
+    EXPECT_THAT(zero, StartsWith("plant.toml:4: lines[0].late_reply_window: '0s' is too short: give at least 1ms")) << zero;
+    const std::string huge = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nlate_reply_window = \"2min\"\n");
+    EXPECT_EQ(huge, "plant.toml:4: lines[0].late_reply_window: expected 1ms..1min (e.g. \"500ms\", default: the line's timeout)");
 }
 
 TEST(GatewayConfig, ABadDurationNamesTheKeyAndTheForm) {

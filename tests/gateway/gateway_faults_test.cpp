@@ -60,12 +60,13 @@ struct PlantDevice {
 };
 
 // One virtual RTU line at `baud` with `devices`, all polled every `poll` (200 ms), no retries
-// (every fault reaches the code under test), and the Modbus TCP front on a free loopback port.
+// (every fault reaches the code under test), `line_keys` added to the line, and the Modbus TCP
+// front on a free loopback port.
 std::string plant_config(const std::vector<PlantDevice>& devices, milliseconds timeout, unsigned baud = 19200,
-                         milliseconds poll = poll_interval) {
+                         milliseconds poll = poll_interval, const std::string& line_keys = "") {
     std::string text = fmt::format(
-        "[[lines]]\nname = \"plant\"\nlink = \"rtu:virtual?baud={}&parity=none\"\ntimeout = \"{}ms\"\nretries = 0\n",
-        baud, timeout.count());
+        "[[lines]]\nname = \"plant\"\nlink = \"rtu:virtual?baud={}&parity=none\"\ntimeout = \"{}ms\"\nretries = 0\n{}",
+        baud, timeout.count(), line_keys);
     for (const auto& device : devices) {
         std::string names;
         for (const auto& name : device.polled) names += fmt::format("{}\"{}\"", names.empty() ? "" : ", ", name);
@@ -529,7 +530,9 @@ TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItRe
     auto dead = std::make_shared<DeadUnit>();
     SampleLog samples;
     RunningGateway running(
-        plant_config(devices, timeout), [dead](const std::string&, ByteView bytes) { return dead->decide(bytes); },
+        // After each of its timeouts the next request to the dead unit waits for the late-reply
+        // window, holding the line; a short one keeps that within the bounds asserted below.
+        plant_config(devices, timeout, 19200, poll_interval, "late_reply_window = \"50ms\"\n"), [dead](const std::string&, ByteView bytes) { return dead->decide(bytes); },
         &samples);
     const Truth truth = write_constants(running, devices);
     ASSERT_EQ(truth.size(), devices.size());
@@ -725,6 +728,160 @@ TEST(GatewayOnFaultyBus, ARequestTheDeviceIgnoresCostsItsClientA0BhNotTheDeviceI
     ASSERT_FALSE(statuses.empty());  // the subscription starts with the current state
     for (const auto& status : statuses) EXPECT_EQ(status, "ok") << ::testing::PrintToString(statuses);
     EXPECT_EQ(running.statistics().backed_off, before.backed_off) << "a poll was held back";
+}
+
+// ---------------------------------------------------------------------------------------------
+// Replies that come late, twice or damaged (issue 20): clients reading different registers of
+// one unit, each read the same shape (function 3, one register), so only the rules of
+// session/serial_master.cpp (late-reply window, ambiguity) and the ReplyCheck stand between a
+// stray reply and a wrong value.
+
+// Faults on the devices' replies only, drawn from a seeded generator: 5 % come after the
+// gateway's timeout, 5 % come a second time 5-60 ms later, 3 % have a byte inverted, 2 % are cut
+// short.
+class ReplyFaults {
+public:
+    explicit ReplyFaults(milliseconds timeout) : timeout_(timeout) {}
+
+    std::atomic<bool> on{false};
+
+    transport::BusFault decide(const std::string& from, ByteView bytes) {
+        transport::BusFault fault;
+        if (!on || from == "gateway" || bytes.size() < 2) return fault;
+        std::lock_guard lock(mutex_);
+        const unsigned roll = std::uniform_int_distribution<unsigned>(0, 99)(random_);
+        if (roll < 5) {
+            fault.extra_delay = timeout_ + milliseconds(std::uniform_int_distribution<int>(20, 100)(random_));
+            ++late_;
+        } else if (roll < 10) {
+            fault.duplicate_after = milliseconds(std::uniform_int_distribution<int>(5, 60)(random_));
+            ++duplicated_;
+        } else if (roll < 13) {
+            fault.corrupt_bytes = {std::uniform_int_distribution<std::size_t>(0, bytes.size() - 1)(random_)};
+            ++corrupted_;
+        } else if (roll < 15) {
+            fault.truncate_to = std::uniform_int_distribution<std::size_t>(1, bytes.size() - 1)(random_);
+            ++truncated_;
+        }
+        return fault;
+    }
+
+    bool each_happened(unsigned times) const {
+        std::lock_guard lock(mutex_);
+        return std::min({late_, duplicated_, corrupted_, truncated_}) >= times;
+    }
+
+    std::string describe() const {
+        std::lock_guard lock(mutex_);
+        return fmt::format("{} late, {} duplicated, {} corrupted, {} truncated replies", late_, duplicated_, corrupted_,
+                           truncated_);
+    }
+
+private:
+    const milliseconds timeout_;
+    mutable std::mutex mutex_;
+    std::mt19937 random_{20};  // the issue's number
+    unsigned late_ = 0;
+    unsigned duplicated_ = 0;
+    unsigned corrupted_ = 0;
+    unsigned truncated_ = 0;
+};
+
+// What one client saw reading its register.
+struct ClientTally {
+    unsigned right = 0;
+    unsigned target_failed = 0;  // exception 0Bh
+    std::vector<std::string> wrong;
+};
+
+TEST(GatewayOnFaultyBus, ClientsReadingDifferentRegistersNeverGetAnotherRegistersValue) {
+    constexpr milliseconds timeout{150};
+    auto faults = std::make_shared<ReplyFaults>(timeout);
+    // Four set points with distinct values, each read by a client of its own.
+    const PlantDevice oven{"oven",
+                           "tc10@3",
+                           {{"set_point", "123"}, {"proportional_band", "45"}, {"alarm_1_threshold", "60"},
+                            {"alarm_2_threshold", "77"}},
+                           {"set_point"}};
+    RunningGateway running(plant_config({oven}, timeout, 38400),
+                           [faults](const std::string& from, ByteView bytes) { return faults->decide(from, bytes); },
+                           nullptr);
+    write_constants(running, {oven});
+
+    // What each register holds, read through the gateway before any fault.
+    const auto address = address_of(oven);
+    std::vector<std::pair<std::uint16_t, Bytes>> registers;  // wire address, the reply PDU it gives
+    {
+        auto master = running.client();
+        for (const auto& [name, text] : oven.writes) {
+            const std::uint16_t wire = device::testing::parameter(*address.profile, name).address;
+            const Bytes request{0x03, static_cast<std::uint8_t>(wire >> 8), static_cast<std::uint8_t>(wire & 0xFF), 0x00, 0x01};
+            auto reply = master->forward(3, request);
+            ASSERT_TRUE(reply.ok()) << name << ": " << reply.error().message;
+            ASSERT_EQ(reply->size(), 4u) << name << ": " << to_hex(*reply);
+            for (const auto& [other, known] : registers) {
+                ASSERT_NE(known, *reply) << name << " holds the same value as register " << other;
+            }
+            registers.emplace_back(wire, *reply);
+        }
+    }
+
+    const auto before = running.statistics();
+    const auto before_garbled = running.gateway().report().at(0).garbled;
+    faults->on = true;
+    const auto start = Clock::now();
+    std::atomic<bool> stop{false};
+    std::vector<ClientTally> tallies(registers.size());
+    std::vector<std::thread> clients;
+    for (std::size_t i = 0; i < registers.size(); ++i) {
+        clients.emplace_back([&, i] {
+            auto master = running.client();
+            const auto& [wire, expected] = registers[i];
+            const Bytes request{0x03, static_cast<std::uint8_t>(wire >> 8), static_cast<std::uint8_t>(wire & 0xFF), 0x00, 0x01};
+            ClientTally& tally = tallies[i];
+            while (!stop) {
+                auto reply = master->forward(3, request);
+                if (reply.ok() && *reply == expected) {
+                    ++tally.right;
+                } else if (reply.ok() && *reply == Bytes{0x83, 0x0B}) {
+                    ++tally.target_failed;
+                } else {
+                    tally.wrong.push_back(fmt::format("register {}: {}", wire,
+                                                      reply.ok() ? "got " + to_hex(*reply) : reply.error().message));
+                }
+            }
+        });
+    }
+    // At least 4 s, and until every kind of fault has happened a few times (20 s at most).
+    while (Clock::now() - start < 4s || (!faults->each_happened(3) && Clock::now() - start < 20s)) {
+        std::this_thread::sleep_for(50ms);
+    }
+    stop = true;
+    for (auto& client : clients) client.join();
+    faults->on = false;
+    const auto after = running.statistics();
+    const auto garbled = running.gateway().report().at(0).garbled - before_garbled;
+
+    unsigned right = 0;
+    unsigned target_failed = 0;
+    std::vector<std::string> wrong;
+    for (const auto& tally : tallies) {
+        right += tally.right;
+        target_failed += tally.target_failed;
+        wrong.insert(wrong.end(), tally.wrong.begin(), tally.wrong.end());
+    }
+    std::cout << fmt::format(
+        "{:.1f} s, {}: {} answers checked, {} right, {} 0Bh, {} wrong; line: {} sent, {} answered, {} timeouts, "
+        "{} bad replies, {} frames discarded\n",
+        seconds(Clock::now() - start), faults->describe(), right + target_failed + wrong.size(), right, target_failed,
+        wrong.size(), after.sent - before.sent, after.answered - before.answered, after.timeouts - before.timeouts,
+        after.bad_replies - before.bad_replies, garbled);
+    EXPECT_TRUE(wrong.empty()) << wrong.size() << " wrong answers:\n" << first_of(wrong);
+    EXPECT_TRUE(faults->each_happened(1)) << faults->describe();
+    EXPECT_GT(right, 100u);
+    EXPECT_GT(target_failed, 0u);  // the faults reached the clients, as 0Bh
+    // The line saw the faults as what they are: no reply it could take, or a bad (ambiguous) one.
+    EXPECT_GT(after.timeouts - before.timeouts + after.bad_replies - before.bad_replies, 0u);
 }
 
 }  // namespace

@@ -163,11 +163,12 @@ TEST(MasterForward, OverTcpTheSlavesRepliesComeBackAsTheyWereSent) {
     EXPECT_EQ(to_hex(*read), "03 02 12 34");
 }
 
-// A server that answers every request with `reply` under the request's transaction id and
-// `reply_unit`, until the test ends.
+// A server that answers every request with `reply` (or each of `replies`, in order) under the
+// request's transaction id and `reply_unit`, until the test ends.
 class AnsweringServer {
 public:
-    AnsweringServer(Bytes reply, std::uint8_t reply_unit) : reply_(std::move(reply)), unit_(reply_unit) {
+    AnsweringServer(Bytes reply, std::uint8_t reply_unit) : AnsweringServer(std::vector<Bytes>{std::move(reply)}, reply_unit) {}
+    AnsweringServer(std::vector<Bytes> replies, std::uint8_t reply_unit) : replies_(std::move(replies)), unit_(reply_unit) {
         auto listener = transport::TcpListener::listen("127.0.0.1", 0);
         if (!listener) throw std::runtime_error(listener.error().message);
         listener_ = std::move(*listener);
@@ -186,11 +187,13 @@ private:
             if (!n || *n == 0) continue;
             auto frames = decoder.feed(ByteView(buffer.data(), *n));
             if (!frames) return;
-            for (const auto& frame : *frames) (void)(*client)->write(codec::mbap_encode(frame.transaction, unit_, reply_));
+            for (const auto& frame : *frames) {
+                for (const auto& reply : replies_) (void)(*client)->write(codec::mbap_encode(frame.transaction, unit_, reply));
+            }
         }
     }
 
-    Bytes reply_;
+    std::vector<Bytes> replies_;
     std::uint8_t unit_;
     std::unique_ptr<transport::TcpListener> listener_;
     std::jthread server_;
@@ -224,6 +227,28 @@ TEST(MasterForward, OverTcpAReplyOfAnotherFunctionOrUnitIsABadReplyNamingItsByte
         EXPECT_EQ(reply.error().kind, ErrorKind::mismatch) << reply.error().message;
         EXPECT_NE(reply.error().message.find("unit 3"), std::string::npos) << reply.error().message;
     }
+}
+
+// Transaction id, unit and shape: a frame with the awaited id whose byte count is not what was
+// asked is discarded, and the right reply after it is taken.
+TEST(MasterForward, OverTcpAReplyOfTheWrongShapeIsSkippedForTheRightOne) {
+    AnsweringServer server(std::vector<Bytes>{hex("03 04 00 14 00 15"), hex("03 02 03 09")}, 2);
+    auto master = tcp_master_to(server.port());
+    ASSERT_TRUE(master);
+    auto reply = master->forward(2, hex("03 03 09 00 01"));
+    ASSERT_TRUE(reply.ok()) << reply.error().message;
+    EXPECT_EQ(to_hex(*reply), "03 02 03 09");
+}
+
+TEST(MasterForward, OverTcpOnlyAReplyOfTheWrongShapeIsABadReplyAtTheDeadline) {
+    AnsweringServer server(hex("03 04 00 14 00 15"), 2);
+    auto master = tcp_master_to(server.port(), 300ms);
+    ASSERT_TRUE(master);
+    auto reply = master->forward(2, hex("03 03 09 00 01"));
+    ASSERT_FALSE(reply.ok());
+    EXPECT_EQ(reply.error().kind, ErrorKind::mismatch) << reply.error().message;
+    EXPECT_NE(reply.error().message.find("byte count 4, the request asked for 2 bytes"), std::string::npos)
+        << reply.error().message;
 }
 
 // On RTU an exception reply's length is fixed by its function code (the decoder would not find

@@ -362,6 +362,42 @@ TEST_F(VirtualBusFaults, NoiseComesFirstAndTakesWireTime) {
     EXPECT_GE(written - start, wire_time(total, baud, bits));
 }
 
+// A repeater that sends a frame twice: the same (corrupted) bytes again, the delay after the
+// first copy started, without the sender waiting for it.
+TEST_F(VirtualBusFaults, ADuplicatedWriteArrivesAgainAfterItsDelay) {
+    constexpr auto again_after = 40ms;
+    bus->set_fault_injector([&](const std::string&, ByteView) {
+        BusFault fault;
+        fault.corrupt_bytes = {1};
+        fault.duplicate_after = again_after;
+        return fault;
+    });
+    Bytes expected = frame;
+    expected[1] ^= 0xFF;
+    std::vector<Arrival> arrivals;
+    std::thread reader([&] { arrivals = read_with_times(*slave, 2 * frame.size()); });
+    const auto start = Clock::now();
+    ASSERT_TRUE(master->write(frame));
+    reader.join();
+    Bytes twice = expected;
+    twice.insert(twice.end(), expected.begin(), expected.end());
+    ASSERT_EQ(values_of(arrivals), twice);
+    EXPECT_GE(arrivals[frame.size()].at - start, wire_time(1, baud, bits) + again_after);
+}
+
+// A sender that stops mid-frame: only the first bytes go out, and only they take wire time.
+TEST_F(VirtualBusFaults, ATruncatedWriteSendsItsFirstBytesOnly) {
+    bus->set_fault_injector([&](const std::string&, ByteView bytes) {
+        BusFault fault;
+        if (bytes.size() == frame.size()) fault.truncate_to = 2;
+        return fault;
+    });
+    ASSERT_TRUE(master->write(frame));
+    ASSERT_TRUE(master->write(Bytes{0x55}));
+    EXPECT_EQ(read_exactly(*slave, 3), (Bytes{frame[0], frame[1], 0x55}));
+    EXPECT_EQ(read_nothing(*slave, 30ms), 0u);
+}
+
 TEST_F(VirtualBusFaults, FaultsApplyPerWrite) {
     int writes = 0;
     bus->set_fault_injector([&](const std::string&, ByteView) {

@@ -1,0 +1,383 @@
+// The serial master never hands out a reply that may be another request's (issue 20): replies
+// that come after the timeout, duplicated replies, cut-short and corrupted ones. First in virtual
+// time against a line whose arrivals the test schedules to the microsecond, then in wall time on
+// the virtual bus with a real slave and random faults.
+#include <gtest/gtest.h>
+
+#include <functional>
+#include <iostream>
+#include <map>
+#include <mutex>
+#include <random>
+#include <thread>
+
+#include <fmt/format.h>
+
+#include "codec/rtu.hpp"
+#include "session/master.hpp"
+#include "session/slave.hpp"
+#include "simulation/register_bank.hpp"
+#include "support/test_bytes.hpp"
+#include "transport/virtual_bus.hpp"
+
+namespace loopwire::session {
+namespace {
+
+using namespace std::chrono_literals;
+
+// A serial line in virtual time whose device is the test: on every request written it may
+// schedule any bytes at any later instant, several at once, overlapping the next request's.
+// (The scripted stream of the other tests holds one answer per request, which cannot model a
+// reply that outlives its request.)
+class TimedLine final : public transport::ByteStream {
+public:
+    using Device = std::function<void(TimedLine& line, ByteView request, Instant at)>;
+
+    TimedLine(std::shared_ptr<VirtualClock> clock, Device device) : clock_(std::move(clock)), device_(std::move(device)) {}
+
+    void arrive(Instant at, Bytes bytes) { arrivals_.emplace(at, std::move(bytes)); }
+
+    Result<void> write(ByteView bytes) override {
+        writes_.push_back(clock_->now());
+        device_(*this, bytes, clock_->now());
+        return {};
+    }
+
+    // Jumps to the first arrival within `timeout` and returns every arrival due by then.
+    Result<std::size_t> read_some(std::span<std::uint8_t> buffer, std::chrono::milliseconds timeout) override {
+        const Instant until = clock_->now() + timeout;
+        if (arrivals_.empty() || arrivals_.begin()->first > until) {
+            clock_->sleep_until(until);
+            return std::size_t{0};
+        }
+        clock_->sleep_until(arrivals_.begin()->first);
+        std::size_t count = 0;
+        while (!arrivals_.empty() && arrivals_.begin()->first <= clock_->now() &&
+               count + arrivals_.begin()->second.size() <= buffer.size()) {
+            for (std::uint8_t byte : arrivals_.begin()->second) buffer[count++] = byte;
+            arrivals_.erase(arrivals_.begin());
+        }
+        return count;
+    }
+
+    void discard_input() override {
+        while (!arrivals_.empty() && arrivals_.begin()->first <= clock_->now()) arrivals_.erase(arrivals_.begin());
+    }
+    int poll_handle() const override { return -1; }
+    std::string describe() const override { return "timed line"; }
+
+    const std::vector<Instant>& writes() const { return writes_; }
+
+private:
+    std::shared_ptr<VirtualClock> clock_;
+    Device device_;
+    std::multimap<Instant, Bytes> arrivals_;
+    std::vector<Instant> writes_;
+};
+
+constexpr std::uint8_t unit = 1;
+constexpr auto latency = 5ms;  // how long the device takes to answer, from the end of a request
+
+// What register N holds on the device: N + 1000, so every read has its own value.
+std::uint16_t value_at(std::uint16_t address) { return static_cast<std::uint16_t>(address + 1000); }
+
+Bytes read_pdu(std::uint16_t address, std::uint16_t count = 1) {
+    Bytes pdu{0x03};
+    append_be16(pdu, address);
+    append_be16(pdu, count);
+    return pdu;
+}
+
+// The device's reply PDU to read_pdu(address, count).
+Bytes reply_pdu(std::uint16_t address, std::uint16_t count = 1) {
+    Bytes pdu{0x03, static_cast<std::uint8_t>(2 * count)};
+    for (std::uint16_t i = 0; i < count; ++i) append_be16(pdu, value_at(static_cast<std::uint16_t>(address + i)));
+    return pdu;
+}
+
+// The reply frame to an RTU read request frame.
+Bytes reply_frame_to(ByteView request) {
+    const std::uint16_t address = read_be16(request, 2);
+    const std::uint16_t count = read_be16(request, 4);
+    return codec::rtu_encode(unit, reply_pdu(address, count));
+}
+
+transport::LinkUrl rtu_link() { return *transport::parse_link_url("rtu:/dev/null?baud=19200"); }
+
+struct TracedMaster {
+    std::shared_ptr<VirtualClock> clock = std::make_shared<VirtualClock>();
+    TimedLine* line = nullptr;
+    std::unique_ptr<Master> master;
+    std::vector<TraceEvent> trace;
+
+    // `device` decides, per request (counted from 0), what arrives when.
+    explicit TracedMaster(std::function<void(TimedLine&, ByteView, Instant, unsigned)> device,
+                          std::optional<std::chrono::milliseconds> late_reply_window = std::nullopt) {
+        auto counted = [device = std::move(device), n = 0u](TimedLine& l, ByteView request, Instant at) mutable {
+            device(l, request, at, n++);
+        };
+        auto stream = std::make_unique<TimedLine>(clock, std::move(counted));
+        line = stream.get();
+        MasterOptions options;
+        options.timeout = 1s;
+        options.late_reply_window = late_reply_window;
+        options.clock = clock;
+        options.trace = [this](const TraceEvent& event) { trace.push_back(event); };
+        master = make_serial_master(std::move(stream), rtu_link(), options);
+    }
+
+    std::size_t discarded_with(const std::string& words) const {
+        std::size_t count = 0;
+        for (const auto& event : trace) {
+            if (event.direction == TraceDirection::discarded && event.note.find(words) != std::string::npos) ++count;
+        }
+        return count;
+    }
+};
+
+// The field report: a read of register 777 answered with another client's value, because the
+// reply to the read before came after its timeout and both were reads of one register.
+TEST(StrayReplies, AReplyThatComesAfterTheTimeoutIsNeverTakenForTheNextRequest) {
+    TracedMaster m([](TimedLine& line, ByteView request, Instant at, unsigned n) {
+        // The first reply comes 1.5 s late; the second request's reply would come after it.
+        line.arrive(at + (n == 0 ? 1500ms : 600ms), reply_frame_to(request));
+    });
+    auto first = m.master->forward(unit, read_pdu(20));
+    ASSERT_FALSE(first.ok());
+    EXPECT_EQ(first.error().kind, ErrorKind::timeout);
+
+    auto second = m.master->forward(unit, read_pdu(777));
+    ASSERT_TRUE(second.ok()) << second.error().message;
+    EXPECT_EQ(to_hex(*second), to_hex(reply_pdu(777)));
+    // The second request left only once the line had been quiet for the window (the timeout)
+    // after the late reply.
+    ASSERT_EQ(m.line->writes().size(), 2u);
+    EXPECT_GE(m.line->writes()[1] - m.line->writes()[0], 1500ms + 1s);
+    EXPECT_EQ(m.discarded_with("late reply from unit 1"), 1u);
+}
+
+TEST(StrayReplies, TheLateReplyWindowIsAnOptionAndCostsNothingAfterAnAnsweredRequest) {
+    TracedMaster m(
+        [](TimedLine& line, ByteView request, Instant at, unsigned n) {
+            if (n != 1) line.arrive(at + latency, reply_frame_to(request));  // the second request goes unanswered
+        },
+        200ms);
+    ASSERT_TRUE(m.master->forward(unit, read_pdu(1)).ok());
+    ASSERT_FALSE(m.master->forward(unit, read_pdu(2)).ok());
+    ASSERT_TRUE(m.master->forward(unit, read_pdu(3)).ok());
+    ASSERT_TRUE(m.master->forward(unit, read_pdu(4)).ok());
+    const auto& writes = m.line->writes();
+    ASSERT_EQ(writes.size(), 4u);
+    const auto t3_5 = codec::CharacterTiming{19200, 11}.t3_5();
+    EXPECT_EQ(writes[1] - writes[0], latency + t3_5);          // on time: the silence kept anyway
+    EXPECT_EQ(writes[2] - writes[1], 1s + 200ms);              // after the timeout: the window
+    EXPECT_EQ(writes[3] - writes[2], latency + t3_5);          // on time again
+}
+
+// A late reply names its unit: a request to another unit cannot take it, so it need not wait,
+// and a dead unit costs the others no more than its timeouts.
+TEST(StrayReplies, ARequestToAnotherUnitDoesNotWaitForTheWindow) {
+    TracedMaster m([](TimedLine& line, ByteView request, Instant at, unsigned n) {
+        if (n == 0) return;  // unit 1 says nothing
+        line.arrive(at + latency, codec::rtu_encode(request[0], reply_pdu(read_be16(request, 2))));
+    });
+    ASSERT_FALSE(m.master->forward(1, read_pdu(5)).ok());
+    auto other = m.master->forward(2, read_pdu(6));
+    ASSERT_TRUE(other.ok()) << other.error().message;
+    EXPECT_EQ(to_hex(*other), to_hex(reply_pdu(6)));
+    ASSERT_TRUE(m.master->forward(1, read_pdu(7)).ok());
+    const auto& writes = m.line->writes();
+    ASSERT_EQ(writes.size(), 3u);
+    const auto t3_5 = codec::CharacterTiming{19200, 11}.t3_5();
+    EXPECT_EQ(writes[1] - writes[0], 1s + t3_5);  // unit 2 at once
+    // Unit 1 again: the window (1 s) since its try ended has passed already, less the 5 ms
+    // unit 2 took and its silence; the rest is waited.
+    EXPECT_GE(writes[2] - writes[0], 2s);
+    EXPECT_LT(writes[2] - writes[0], 2s + 1ms);  // virtual time: streams wait in whole milliseconds
+}
+
+// Modbus has no transaction id on a serial line: a duplicate of the previous reply that lands
+// after the next request was sent and before its real reply looks like that reply. The real
+// one follows within this unit's usual latency, so the master sees two frames for one request
+// and takes neither.
+TEST(StrayReplies, ADuplicateThatRacesTheRealReplyMakesItAmbiguousAndNeitherIsTaken) {
+    Bytes previous_reply;
+    TracedMaster m([&previous_reply](TimedLine& line, ByteView request, Instant at, unsigned n) {
+        if (n == 3) line.arrive(at + 1ms, previous_reply);  // a repeater sends the last reply again
+        previous_reply = reply_frame_to(request);
+        line.arrive(at + latency, previous_reply);
+    });
+    for (const std::uint16_t address : {std::uint16_t{10}, std::uint16_t{11}, std::uint16_t{12}}) {  // the master learns how soon this unit answers
+        auto reply = m.master->forward(unit, read_pdu(address));
+        ASSERT_TRUE(reply.ok()) << reply.error().message;
+        EXPECT_EQ(to_hex(*reply), to_hex(reply_pdu(address)));
+    }
+    auto raced = m.master->forward(unit, read_pdu(777));
+    ASSERT_FALSE(raced.ok()) << "took " << to_hex(*raced) << " for register 777";
+    EXPECT_EQ(raced.error().kind, ErrorKind::mismatch);
+    EXPECT_NE(raced.error().message.find("ambiguous reply"), std::string::npos) << raced.error().message;
+    EXPECT_EQ(m.discarded_with("ambiguous reply"), 1u);
+
+    auto next = m.master->forward(unit, read_pdu(778));
+    ASSERT_TRUE(next.ok()) << next.error().message;
+    EXPECT_EQ(to_hex(*next), to_hex(reply_pdu(778)));
+}
+
+// The same duplicate just after the real reply, inside the silence the master keeps after it:
+// the reply is ambiguous too (the first frame might have been the stray one).
+TEST(StrayReplies, ASecondFrameInsideTheSilenceAfterAReplyMakesItAmbiguous) {
+    TracedMaster m([](TimedLine& line, ByteView request, Instant at, unsigned n) {
+        line.arrive(at + latency, reply_frame_to(request));
+        if (n == 1) line.arrive(at + latency + 1ms, reply_frame_to(request));
+    });
+    ASSERT_TRUE(m.master->forward(unit, read_pdu(5)).ok());
+    auto doubled = m.master->forward(unit, read_pdu(6));
+    ASSERT_FALSE(doubled.ok());
+    EXPECT_NE(doubled.error().message.find("another frame from unit 1"), std::string::npos) << doubled.error().message;
+}
+
+// When the stray reply differs in shape (a read of two registers while one is asked for), it is
+// refused on its shape, and the real reply after it is taken.
+TEST(StrayReplies, AStrayReplyOfAnotherShapeIsRefusedAndTheRealOneTaken) {
+    TracedMaster m([](TimedLine& line, ByteView request, Instant at, unsigned n) {
+        if (n == 1) line.arrive(at + 1ms, codec::rtu_encode(unit, reply_pdu(20, 2)));  // the other client's reply
+        line.arrive(at + latency, reply_frame_to(request));
+    });
+    ASSERT_TRUE(m.master->forward(unit, read_pdu(1)).ok());
+    auto reply = m.master->forward(unit, read_pdu(777));
+    ASSERT_TRUE(reply.ok()) << reply.error().message;
+    EXPECT_EQ(to_hex(*reply), to_hex(reply_pdu(777)));
+    EXPECT_EQ(m.discarded_with("byte count 4, the request asked for 2 bytes"), 1u);
+}
+
+// A reply cut short (the device reset mid-frame) is not a reply: after the timeout it is a
+// request that got none, and the line is left to fall quiet before the next.
+TEST(StrayReplies, ATruncatedReplyIsNoReply) {
+    TracedMaster m([](TimedLine& line, ByteView request, Instant at, unsigned n) {
+        Bytes frame = reply_frame_to(request);
+        if (n == 0) frame.resize(4);
+        line.arrive(at + latency, frame);
+    });
+    auto cut = m.master->forward(unit, read_pdu(1));
+    ASSERT_FALSE(cut.ok());
+    EXPECT_EQ(cut.error().kind, ErrorKind::timeout);
+    auto next = m.master->forward(unit, read_pdu(2));
+    ASSERT_TRUE(next.ok()) << next.error().message;
+    EXPECT_EQ(to_hex(*next), to_hex(reply_pdu(2)));
+}
+
+// A retry asks the same again: the first try's late reply answers it as well as the second's
+// would, so two frames there are no ambiguity.
+TEST(StrayReplies, ALateReplyToAnEarlierTryOfTheSameRequestIsTaken) {
+    auto clock = std::make_shared<VirtualClock>();
+    unsigned requests = 0;
+    // The first try's reply comes 3 ms after its timeout, just after the retry left; the
+    // retry's own 2 ms after that, inside the silence after the first: two frames, one request.
+    auto stream = std::make_unique<TimedLine>(clock, [&requests](TimedLine& line, ByteView request, Instant at) {
+        line.arrive(at + (requests++ == 0 ? 1003ms : 2ms), reply_frame_to(request));
+    });
+    MasterOptions options;
+    options.timeout = 1s;
+    options.retries = 1;
+    options.clock = clock;
+    auto master = make_serial_master(std::move(stream), rtu_link(), options);
+    auto reply = master->forward(unit, read_pdu(9));
+    ASSERT_TRUE(reply.ok()) << reply.error().message;
+    EXPECT_EQ(to_hex(*reply), to_hex(reply_pdu(9)));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Wall time, the virtual bus, a RegisterBank served by the slave, and random faults on its
+// replies.
+
+struct ReplyFaults {
+    std::mt19937 random{20};  // the issue's number
+    std::map<std::string, unsigned> counts;
+    std::mutex mutex;
+
+    transport::BusFault decide(const std::string& from, ByteView bytes, std::chrono::milliseconds timeout) {
+        transport::BusFault fault;
+        if (from != "slave" || bytes.size() < 2) return fault;
+        std::lock_guard lock(mutex);
+        const unsigned roll = std::uniform_int_distribution<unsigned>(0, 99)(random);
+        const auto anywhere = std::uniform_int_distribution<std::size_t>(0, bytes.size() - 1)(random);
+        if (roll < 7) {
+            fault.extra_delay = timeout + std::chrono::milliseconds(std::uniform_int_distribution<int>(5, 40)(random));
+            ++counts["late"];
+        } else if (roll < 14) {
+            fault.duplicate_after = std::chrono::milliseconds(std::uniform_int_distribution<int>(1, 40)(random));
+            ++counts["duplicated"];
+        } else if (roll < 18) {
+            fault.truncate_to = std::uniform_int_distribution<std::size_t>(1, bytes.size() - 1)(random);
+            ++counts["truncated"];
+        } else if (roll < 22) {
+            fault.corrupt_bytes = {anywhere};
+            ++counts["bit flips"];
+        } else if (roll < 25) {
+            fault.noise_before = Bytes{0x01, 0x03, 0x02, static_cast<std::uint8_t>(roll)};
+            ++counts["garbage before"];
+        }
+        return fault;
+    }
+};
+
+TEST(StrayReplies, NeverReturnsAWrongPduUnderLateDuplicatedTruncatedCorruptedOrNoisyReplies) {
+    const auto link = *transport::parse_link_url("rtu:virtual?baud=38400&parity=none");
+    auto bus = transport::VirtualBus::create(38400, 10);
+    auto faults = std::make_shared<ReplyFaults>();
+    constexpr auto timeout = 60ms;
+    bus->set_fault_injector(
+        [faults](const std::string& from, ByteView bytes) { return faults->decide(from, bytes, timeout); });
+    auto bank = std::make_shared<RegisterBank>();
+    for (std::uint16_t address = 0; address < 64; ++address) bank->set(codec::Table::holding_registers, address, value_at(address));
+    Slave slave(link, {{unit, bank}});
+    auto slave_port = bus->attach("slave");
+    std::jthread server([&](std::stop_token stop) { (void)slave.serve_stream(*slave_port, stop); });
+
+    MasterOptions options;
+    options.timeout = timeout;
+    std::mutex trace_mutex;
+    std::vector<std::string> trace;
+    const auto t0 = std::chrono::steady_clock::now();
+    options.trace = [&](const TraceEvent& event) {
+        std::lock_guard lock(trace_mutex);
+        trace.push_back(fmt::format("{:8.3f} {} {} {}", std::chrono::duration<double, std::milli>(event.at - t0).count(),
+                                    static_cast<int>(event.direction), to_hex(event.bytes), event.note));
+    };
+    auto master = make_serial_master(bus->attach("master"), link, options);
+
+    unsigned right = 0;
+    std::map<std::string, unsigned> failures;
+    std::vector<std::string> wrong;
+    for (unsigned i = 0; i < 250; ++i) {
+        // Mostly one-register reads of distinct registers (the hard case: every reply has the
+        // same shape), some of two registers.
+        const auto address = static_cast<std::uint16_t>(i % 63);
+        const std::uint16_t count = i % 5 == 4 ? 2 : 1;
+        auto reply = master->forward(unit, read_pdu(address, count));
+        if (!reply.ok()) {
+            ++failures[reply.error().kind == ErrorKind::timeout ? "timeout" : "bad reply"];
+        } else if (*reply == reply_pdu(address, count)) {
+            ++right;
+        } else {
+            wrong.push_back(fmt::format("read {} x{}: got {}", address, count, to_hex(*reply)));
+            std::lock_guard lock(trace_mutex);
+            for (std::size_t k = trace.size() > 14 ? trace.size() - 14 : 0; k < trace.size(); ++k) std::cout << trace[k] << "\n";
+            std::cout << "----\n";
+        }
+    }
+    std::string faults_seen;
+    std::string failures_seen;
+    for (const auto& [kind, n] : faults->counts) faults_seen += fmt::format(" {} {}", kind, n);
+    for (const auto& [kind, n] : failures) failures_seen += fmt::format(" {} {}", kind, n);
+    std::cout << fmt::format("250 requests: {} right, {} wrong; failed:{}; faults:{}\n", right, wrong.size(),
+                             failures_seen, faults_seen);
+    EXPECT_TRUE(wrong.empty()) << wrong.size() << " wrong, first: " << wrong.front();
+    for (const char* kind : {"late", "duplicated", "truncated", "bit flips", "garbage before"}) {
+        EXPECT_GT(faults->counts[kind], 0u) << kind << " never happened";
+    }
+    EXPECT_GT(right, 125u);  // most requests still get through
+}
+
+}  // namespace
+}  // namespace loopwire::session
