@@ -2,6 +2,10 @@
 // One process owns every line of the configuration and shares it: Modbus TCP clients reach the
 // devices through it, their requests queued fairly with each other (docs/DESIGN.md, gateway).
 // SIGHUP re-reads the configuration: a bad one is reported and the running one kept.
+#include <sys/resource.h>
+
+#include <cerrno>
+#include <cstring>
 #include <mutex>
 #include <optional>
 #include <utility>
@@ -33,6 +37,31 @@ spdlog::logger& gateway_log() {
 
 void log_line(const std::string& line) { gateway_log().info(line); }
 void log_warning(const std::string& line) { gateway_log().warn(line); }
+void log_debug(const std::string& line) { gateway_log().debug(line); }
+
+// Every Modbus TCP and HTTP client costs a descriptor, and the default soft limit (1024) is far
+// below what the kernel lets the process have (the hard limit). Raised once at start, so that the
+// fronts' own bounds ([modbus_tcp] and [http] max_connections), not the soft limit, decide who
+// is served. systemd sets both through LimitNOFILE= (packaging/loopwire-gateway.service).
+void raise_descriptor_limit() {
+    rlimit limit{};
+    if (::getrlimit(RLIMIT_NOFILE, &limit) != 0) {
+        log_debug(fmt::format("open files: the limit cannot be read ({})", std::strerror(errno)));
+        return;
+    }
+    if (limit.rlim_cur >= limit.rlim_max) {
+        log_debug(fmt::format("open files: at most {} (already the hard limit)", limit.rlim_cur));
+        return;
+    }
+    const rlim_t before = limit.rlim_cur;
+    limit.rlim_cur = limit.rlim_max;
+    if (::setrlimit(RLIMIT_NOFILE, &limit) != 0) {
+        log_debug(fmt::format("open files: at most {}; raising it to the hard limit {} failed ({})", before, limit.rlim_max,
+                              std::strerror(errno)));
+        return;
+    }
+    log_debug(fmt::format("open files: limit raised from {} to the hard limit, {}", before, limit.rlim_max));
+}
 
 // What SIGHUP hands over to the serving loop: a configuration that loaded, and the request to
 // stop the gateway running now so that the loop opens the new one.
@@ -40,7 +69,10 @@ class Reloads {
 public:
     Reloads(std::string file, const device::ProfileRegistry& profiles) : file_(std::move(file)), profiles_(profiles) {}
 
-    // On the signal thread. A configuration that does not load changes nothing.
+    // On the signal thread, which also takes SIGTERM: loading must never wait. It reads only
+    // regular files, each examined before it is opened and opened without blocking, so a FIFO
+    // or a device named in the new file is an error here, not a hang (common/regular_file.hpp).
+    // A configuration that does not load changes nothing.
     void hangup() {
         auto loaded = gateway::load_gateway_config(file_, profiles_);
         if (!loaded) {
@@ -105,6 +137,7 @@ Result<void> serve_round(const gateway::GatewayConfig& config, const gateway::Ga
     std::stop_callback on_reload(reload, [&either] { either.request_stop(); });
     auto served = (*running)->serve(either.get_token());
     for (const auto& line : (*running)->report()) log_line(gateway::describe(line));
+    if (config.modbus_tcp.enabled) log_line(gateway::describe((*running)->front_report()));
     return served;
 }
 
@@ -117,10 +150,13 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
         fmt::print("{}", gateway::describe_plan(*config));
         return exit_ok;
     }
+    set_log_level(gateway_log(), config->log.level);
+    raise_descriptor_limit();
     Reloads reloads(options.config, *registry);
     StopSignal stop(std::nullopt, [&reloads] { reloads.hangup(); });  // before any thread starts
     gateway::GatewayOptions gateway_options;
     gateway_options.log = log_line;
+    gateway_options.debug_log = log_debug;
     if (options.verbose) gateway_options.trace = stderr_trace();
     gateway::GatewayConfig current = std::move(*config);
     std::optional<gateway::GatewayConfig> previous;

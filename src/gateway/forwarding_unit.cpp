@@ -56,6 +56,12 @@ Bytes failure_reply(std::uint8_t function, const Error& why) {
         // device") would blame a device that may be fine and send people to it rather than to
         // the cable or the adapter.
         case ErrorKind::link: return exception_reply(function, gateway_path_unavailable);
+        case ErrorKind::exception:
+            // The gateway's own refusal with a code (06h for a full queue), 1..127, checked.
+            if (why.code > 0 && why.code < exception_flag) {
+                return exception_reply(function, static_cast<std::uint8_t>(why.code));
+            }
+            return exception_reply(function, target_failed_to_respond);
         default: return exception_reply(function, target_failed_to_respond);
     }
 }
@@ -82,7 +88,7 @@ std::optional<Bytes> ForwardingUnit::cached(ByteView request_pdu, bool broadcast
     return cache_->find(request_pdu, clock_->now());
 }
 
-LineRequest ForwardingUnit::line_request(Bytes request_pdu, bool broadcast, Origin origin, ReplyCallback reply) const {
+LineRequest ForwardingUnit::line_request(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) const {
     const std::uint8_t function = request_pdu[0];
     const bool write = !only_reads(function);
     CacheUpdate update{cache_, clock_, {}, 0, write};
@@ -94,7 +100,8 @@ LineRequest ForwardingUnit::line_request(Bytes request_pdu, bool broadcast, Orig
     request.unit = broadcast ? std::uint8_t{0} : settings_.line_unit;
     request.priority = write ? Priority::write : Priority::client;
     request.pdu = std::move(request_pdu);
-    request.client = origin;
+    request.client = asker.origin;
+    request.still_wanted = asker.still_wanted;
     request.deadline = clock_->now() + settings_.queue_limit;
     request.done = [function, broadcast, update = std::move(update), reply = std::move(reply)](Result<Bytes> answered) {
         update(answered);
@@ -104,7 +111,7 @@ LineRequest ForwardingUnit::line_request(Bytes request_pdu, bool broadcast, Orig
     return request;
 }
 
-void ForwardingUnit::handle_async(Bytes request_pdu, bool broadcast, Origin origin, ReplyCallback reply) {
+void ForwardingUnit::handle_async(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) {
     if (request_pdu.empty()) return reply(std::nullopt);
     if (auto refused = refusal(request_pdu)) return reply(broadcast ? std::nullopt : std::move(refused));
     // What was kept may be out of date once a write is taken. A broadcast write reaches this
@@ -112,7 +119,7 @@ void ForwardingUnit::handle_async(Bytes request_pdu, bool broadcast, Origin orig
     if (cache_ && !only_reads(request_pdu[0])) cache_->forget();
     if (broadcast && !settings_.carries_broadcasts) return reply(std::nullopt);
     if (auto kept = cached(request_pdu, broadcast)) return reply(std::move(kept));
-    line_->submit(line_request(std::move(request_pdu), broadcast, origin, std::move(reply)));
+    line_->submit(line_request(std::move(request_pdu), broadcast, asker, std::move(reply)));
 }
 
 std::optional<Bytes> ForwardingUnit::handle(ByteView request_pdu, bool broadcast) {

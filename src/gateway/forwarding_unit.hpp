@@ -40,12 +40,14 @@ public:
 
     // For a front that cannot wait (a serial slave session): blocks until the line answered.
     std::optional<Bytes> handle(ByteView request_pdu, bool broadcast) override;
-    void handle_async(Bytes request_pdu, bool broadcast, Origin origin, ReplyCallback reply) override;
+    // The request is dropped unsent, and counted abandoned, if the asker stops wanting it while
+    // it waits for the line (a closed connection).
+    void handle_async(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) override;
 
 private:
     std::optional<Bytes> refusal(ByteView request_pdu) const;
     std::optional<Bytes> cached(ByteView request_pdu, bool broadcast) const;
-    LineRequest line_request(Bytes request_pdu, bool broadcast, Origin origin, ReplyCallback reply) const;
+    LineRequest line_request(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) const;
 
     std::shared_ptr<LineScheduler> line_;
     ForwardingSettings settings_;
@@ -58,7 +60,8 @@ private:
 // Modbus application protocol V1.1b3, 7: the reply a gateway gives for a request it could not
 // get answered. 0Bh (target device failed to respond) for silence and bad replies; 0Ah (gateway
 // path unavailable) when the line is down or failed, so the request never reached the device;
-// 01h for a request the line's framing cannot carry (Linking).
+// 01h for a request the line's framing cannot carry (Linking); the gateway's own refusal's code
+// when the line refused it with one (06h, server device busy, for a full queue: line_scheduler.hpp).
 Bytes failure_reply(std::uint8_t function, const Error& why);
 
 // Function codes that only read: what a gateway with `writes = false` still passes on.

@@ -137,6 +137,12 @@ LineReport report_of(const OpenLine& line);  // below
 
 }  // namespace
 
+// Requests one Modbus TCP connection may have waiting for the lines; a client pipelining more
+// is not read until it is below (session::TcpClientLimits). With max_connections (64 by
+// default) this bounds what the front can put in the lines' queues, which bound themselves too
+// (LineSchedulerOptions::max_queued).
+constexpr std::size_t requests_per_connection = 16;
+
 // How long a write from a front (MQTT, HTTP) may wait for its line before it is given up.
 constexpr std::chrono::milliseconds write_limit{10000};
 
@@ -209,6 +215,10 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         session::SlaveOptions slave_options;
         slave_options.trace = options.trace;
         slave_options.unserved_unit_exception = gateway_path_unavailable;
+        slave_options.connection_log = options.debug_log;
+        slave_options.tcp.max_connections = config.modbus_tcp.max_connections;
+        slave_options.tcp.idle_timeout = config.modbus_tcp.idle_timeout;
+        slave_options.tcp.max_outstanding_requests = requests_per_connection;
         parts->front = std::make_unique<session::Slave>(*link, std::move(units), slave_options);
     }
     std::vector<WritableDevice> writable;
@@ -239,6 +249,7 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
         for (const auto& line : parts.lines) reports.push_back(report_of(line));
         return reports;
     };
+    sources.front = [&parts] { return parts.front ? parts.front->tcp_statistics() : FrontReport{}; };
     parts.http_api = std::make_unique<HttpApi>(config, std::move(sources));
     HttpServerSettings settings;
     settings.host = http.host;
@@ -345,6 +356,8 @@ std::vector<LineReport> Gateway::report() const {
     return reports;
 }
 
+FrontReport Gateway::front_report() const { return parts_->front ? parts_->front->tcp_statistics() : FrontReport{}; }
+
 std::vector<CachedDevice> Gateway::values() const { return parts_->cache.snapshot(); }
 
 ValueSubscription Gateway::subscribe(ValueCallback callback) { return parts_->cache.subscribe(std::move(callback)); }
@@ -361,11 +374,19 @@ std::string describe(const LineReport& report, const LineReport* since) {
     const std::string down_now = health.up ? "" : fmt::format(" is DOWN ({}; retrying in {} s)", health.reason,
                                                                std::chrono::ceil<std::chrono::seconds>(health.retry_in).count());
     return fmt::format("line {} ({}){}: {} sent, {} answered, {} timeout(s), {} bad repl{}, {} garbled frame(s), {} expired in "
-                       "the queue, {} polls held back while the unit backed off, down {} time(s) ({} reopen attempt(s), "
-                       "{} request(s) refused while down); busy {:.1f} % {}",
+                       "the queue, {} dropped as their client had gone, {} polls held back while the unit backed off, {} "
+                       "refused with the queue full, down {} time(s) ({} reopen attempt(s), {} request(s) refused while "
+                       "down); busy {:.1f} % {}",
                        report.name, report.link, down_now, s.sent, s.answered, s.timeouts, s.bad_replies,
-                       s.bad_replies == 1 ? "y" : "ies", report.garbled, s.expired, s.backed_off, health.down_periods,
-                       health.reopen_attempts, health.refused_while_down, busy, period);
+                       s.bad_replies == 1 ? "y" : "ies", report.garbled, s.expired, s.abandoned, s.backed_off,
+                       s.refused_busy, health.down_periods, health.reopen_attempts, health.refused_while_down, busy,
+                       period);
+}
+
+std::string describe(const FrontReport& report) {
+    return fmt::format("Modbus TCP front: {} connection(s) accepted, {} closed to admit a newer one, {} refused with every "
+                       "connection busy, {} closed idle; {} open",
+                       report.accepted, report.evicted, report.refused, report.idle_closed, report.open);
 }
 
 }  // namespace loopwire::gateway

@@ -14,6 +14,7 @@
 #include "gateway/poll_groups.hpp"
 #include "gateway/reopening_master.hpp"
 #include "gateway/value_cache.hpp"
+#include "session/slave.hpp"
 #include "session/trace.hpp"
 #include "transport/virtual_bus.hpp"
 
@@ -22,6 +23,9 @@ namespace loopwire::gateway {
 struct GatewayOptions {
     session::TraceSink trace;  // every frame on the lines and the front (-v)
     GatewayLog log;            // refused requests and other events worth a line
+    // Events that come by the thousand under a flood (Modbus TCP connections closed by the
+    // front's limits): for a log at debug level.
+    GatewayLog debug_log;
     // Faults on the simulated (virtual-bus) lines' frames, for tests and benchmarks.
     transport::FaultInjector virtual_bus_faults;
     // Also given every sample the gateway's polls take, on the poll group's thread (one thread
@@ -38,6 +42,10 @@ struct LineReport {
     // Whether the line is open now, and how often it went down and was reopened.
     LinkHealth link_health;
 };
+
+// The Modbus TCP front's connections (session::TcpConnectionStatistics): accepted, evicted at
+// [modbus_tcp] max_connections, refused when every one was busy, closed after idle_timeout.
+using FrontReport = session::TcpConnectionStatistics;
 
 class Gateway {
 public:
@@ -63,6 +71,9 @@ public:
 
     std::vector<LineReport> report() const;
 
+    // The Modbus TCP front's connections so far; all zero when the front is disabled.
+    FrontReport front_report() const;
+
     // The last values the gateway's polls read, per device.
     std::vector<CachedDevice> values() const;
 
@@ -86,5 +97,9 @@ private:
 // the log and the exit summary. With `since`, an earlier report of the same line, the busy
 // share is the one since then.
 std::string describe(const LineReport& report, const LineReport* since = nullptr);
+
+// "Modbus TCP front: 1100 connection(s) accepted, 1036 closed to admit newer ones, ..." for the
+// exit summary.
+std::string describe(const FrontReport& report);
 
 }  // namespace loopwire::gateway

@@ -2,20 +2,20 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <fstream>
 #include <initializer_list>
 #include <limits>
 #include <map>
 #include <optional>
 #include <set>
-#include <sstream>
 #include <system_error>
 
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
 
+#include "common/regular_file.hpp"
 #include "common/text_parsing.hpp"
 #include "profile/request_planner.hpp"
 
@@ -472,13 +472,29 @@ std::optional<HostPort> split_listen(std::string_view text) {
     return HostPort{std::string(host), static_cast<std::uint16_t>(*number)};  // 0..65535, checked
 }
 
+// `idle_timeout = "60s"`: a Modbus TCP connection quiet this long is closed; "off": never. Under
+// a second would close clients that poll every second between two of their requests.
+Result<std::optional<milliseconds>> front_idle_timeout(const Context& ctx, const toml::table& table) {
+    const toml::node* node = table.get("idle_timeout");
+    if (node && node->value<std::string>() == "off") return std::optional<milliseconds>{milliseconds(0)};
+    auto timeout = optional_duration(ctx, table, "modbus_tcp", "idle_timeout");
+    if (!timeout) return timeout.error();
+    if (*timeout && (**timeout < std::chrono::seconds(1) || **timeout > std::chrono::hours(24))) {
+        return ctx.fail(source_of(table, "idle_timeout"), "modbus_tcp.idle_timeout",
+                        "expected 1s..24h (e.g. \"60s\"), or \"off\" to keep idle connections open");
+    }
+    return *timeout;
+}
+
 Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& root) {
     ModbusTcpConfig config;
     const toml::node* node = root.get("modbus_tcp");
     if (!node) return config;
     const auto* table = node->as_table();
     if (!table) return ctx.fail(node->source(), "modbus_tcp", "expected a [modbus_tcp] table");
-    if (auto keys = check_keys(ctx, *table, "modbus_tcp", {"listen", "writes", "enabled", "max_age"}); !keys)
+    if (auto keys = check_keys(ctx, *table, "modbus_tcp",
+                               {"listen", "writes", "enabled", "max_age", "max_connections", "idle_timeout"});
+        !keys)
         return keys.error();
     auto listen = optional_value<std::string>(ctx, *table, "modbus_tcp", "listen", "a string such as \"127.0.0.1:1502\"");
     if (!listen) return listen.error();
@@ -501,6 +517,12 @@ Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& 
     auto max_age = optional_duration(ctx, *table, "modbus_tcp", "max_age");
     if (!max_age) return max_age.error();
     config.max_age = max_age->value_or(config.max_age);
+    auto max_connections = optional_integer(ctx, *table, "modbus_tcp", "max_connections", 1, 10000);
+    if (!max_connections) return max_connections.error();
+    if (*max_connections) config.max_connections = static_cast<std::size_t>(**max_connections);  // 1..10000, checked
+    auto idle_timeout = front_idle_timeout(ctx, *table);
+    if (!idle_timeout) return idle_timeout.error();
+    config.idle_timeout = idle_timeout->value_or(config.idle_timeout);
     return config;
 }
 
@@ -548,25 +570,49 @@ std::filesystem::path beside_config(const Context& ctx, const std::string& file)
     return path.is_absolute() ? path : std::filesystem::path(ctx.source).parent_path() / path;
 }
 
-// An optional file key ([mqtt] ca_file, ...) that must name a readable regular file.
-Result<std::filesystem::path> readable_file(const Context& ctx, const toml::table& table, std::string_view key) {
+// A file named in the configuration that is not a regular file is refused before it is opened
+// (common/regular_file.hpp): a FIFO would block `--check`, and a reload on the thread that also
+// takes SIGTERM. `expected` says what the key should name.
+Error not_regular(const Context& ctx, const toml::source_region& where, const std::string& key, const std::string& what,
+                  std::string_view expected) {
+    return ctx.fail(where, key, fmt::format("{} (expected {}); name a regular file", what, expected));
+}
+
+// An optional file key of [mqtt] (ca_file, ...) that must name a readable regular file. Checked
+// with stat() and access(), without opening it.
+Result<std::filesystem::path> readable_file(const Context& ctx, const toml::table& table, std::string_view key,
+                                            std::string_view expected) {
     auto name = optional_value<std::string>(ctx, table, "mqtt", key, "a file name (a string)");
     if (!name) return name.error();
     if (!*name) return std::filesystem::path{};
     const auto path = beside_config(ctx, **name);
-    std::ifstream in(path, std::ios::binary);
-    std::error_code error;
-    if (!std::filesystem::is_regular_file(path, error) || !in) {
-        return ctx.fail(source_of(table, key), key_path("mqtt", key),
-                        fmt::format("cannot read \"{}\" (expected a readable file)", path.string()));
+    const auto where = source_of(table, key);
+    if (auto what = not_a_regular_file(path)) {
+        return not_regular(ctx, where, key_path("mqtt", key), fmt::format("\"{}\" {}", path.string(), *what), expected);
+    }
+    if (::access(path.c_str(), R_OK) != 0) {
+        return ctx.fail(where, key_path("mqtt", key),
+                        fmt::format("cannot read \"{}\" ({}); let the gateway's user read it",
+                                    path.string(), std::error_code(errno, std::generic_category()).message()));
     }
     return path;
 }
 
+// The first line of `text`, without its line end.
+std::string first_line(const std::string& text) {
+    std::string line = text.substr(0, text.find('\n'));
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    return line;
+}
+
+// Password and token files hold one short line; anything this large is the wrong file.
+constexpr std::size_t max_secret_file_size = 64 * 1024;
+
 // [mqtt] password_file: the password is kept out of the TOML (which people share and paste),
 // in a file only its owner may read.
 Result<std::string> read_password(const Context& ctx, const toml::table& table) {
-    auto path = readable_file(ctx, table, "password_file");
+    constexpr std::string_view expected = "a file whose first line is the broker password";
+    auto path = readable_file(ctx, table, "password_file", expected);
     if (!path) return path.error();
     if (path->empty()) return std::string();
     const auto where = source_of(table, "password_file");
@@ -577,10 +623,9 @@ Result<std::string> read_password(const Context& ctx, const toml::table& table) 
                         fmt::format("\"{}\" is readable by every user; make it private (chmod 600 {})", path->string(),
                                     path->string()));
     }
-    std::ifstream in(*path, std::ios::binary);
-    std::string password;
-    std::getline(in, password);  // the first line; a trailing newline is not part of it
-    if (!password.empty() && password.back() == '\r') password.pop_back();
+    auto text = read_regular_file(*path, max_secret_file_size);
+    if (!text) return not_regular(ctx, where, "mqtt.password_file", text.error().message, expected);
+    std::string password = first_line(*text);  // a trailing newline is not part of it
     if (password.empty()) {
         return ctx.fail(where, "mqtt.password_file", fmt::format("\"{}\" is empty (expected the password on its first line)",
                                                                 path->string()));
@@ -589,11 +634,11 @@ Result<std::string> read_password(const Context& ctx, const toml::table& table) 
 }
 
 Result<void> parse_mqtt_security(const Context& ctx, const toml::table& table, bool tls, MqttConfig& config) {
-    auto ca_file = readable_file(ctx, table, "ca_file");
+    auto ca_file = readable_file(ctx, table, "ca_file", "the broker's CA certificate, PEM");
     if (!ca_file) return ca_file.error();
-    auto cert_file = readable_file(ctx, table, "cert_file");
+    auto cert_file = readable_file(ctx, table, "cert_file", "the gateway's client certificate, PEM");
     if (!cert_file) return cert_file.error();
-    auto key_file = readable_file(ctx, table, "key_file");
+    auto key_file = readable_file(ctx, table, "key_file", "the private key of cert_file, PEM");
     if (!key_file) return key_file.error();
     for (const auto key : {"ca_file", "cert_file", "key_file"}) {
         if (!tls && table.get(key)) {
@@ -759,6 +804,12 @@ Result<std::optional<HistoryConfig>> parse_history(const Context& ctx, const tom
     config.database_as_written = *database;
     const std::filesystem::path path(*database);
     config.database = path.is_absolute() ? path : std::filesystem::path(ctx.source).parent_path() / path;
+    // Created when absent; when present it must be a regular file, told before SQLite opens it.
+    if (auto what = not_a_regular_file(config.database); what && *what != "does not exist") {
+        return not_regular(ctx, source_of(*table, "database"), "history.database",
+                           fmt::format("\"{}\" {}", config.database.string(), *what),
+                           "the SQLite database file, created when absent");
+    }
     auto keep = history_keep(ctx, *table);
     if (!keep) return keep.error();
     config.keep = *keep;
@@ -781,17 +832,18 @@ Result<std::string> read_token(const Context& ctx, const toml::table& table, con
                                     "alone: e.g. `head -c 24 /dev/urandom | base64 > {} && chmod 600 {}`)",
                                     file, std::error_code(errno, std::generic_category()).message(), file, file));
     }
-    if (!S_ISREG(status.st_mode)) return ctx.fail(where, "http.token_file", fmt::format("\"{}\" is not a regular file", file));
+    constexpr std::string_view expected = "a file whose first line is the token";
+    if (auto what = not_a_regular_file(file)) {
+        return not_regular(ctx, where, "http.token_file", fmt::format("\"{}\" {}", file, *what), expected);
+    }
     if ((status.st_mode & S_IROTH) != 0) {
         return ctx.fail(where, "http.token_file",
                         fmt::format("\"{}\" is readable by every user (mode {:04o}); the token guards the writes: "
                                     "`chmod 600 {}`", file, status.st_mode & 07777, file));
     }
-    std::ifstream in(file, std::ios::binary);
-    std::string token;
-    if (!in || !std::getline(in, token)) {
-        return ctx.fail(where, "http.token_file", fmt::format("\"{}\" is empty or cannot be read (expected one line, the token)", file));
-    }
+    auto text = read_regular_file(file, max_secret_file_size);
+    if (!text) return not_regular(ctx, where, "http.token_file", text.error().message, expected);
+    std::string token = first_line(*text);
     const auto first = token.find_first_not_of(" \t\r");
     const auto last = token.find_last_not_of(" \t\r");
     token = first == std::string::npos ? std::string() : token.substr(first, last - first + 1);
@@ -931,27 +983,15 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
 
 Result<GatewayConfig> load_gateway_config(const std::filesystem::path& file, const device::ProfileRegistry& profiles) {
     const std::string source = file.string();
-    std::error_code error;
-    const auto status = std::filesystem::status(file, error);
-    if (error || !std::filesystem::exists(status)) {
-        return make_error(ErrorKind::usage, fmt::format("{}: cannot read the gateway configuration: {}", source,
-                                                        error ? error.message() : "no such file"));
+    // Examined before it is opened, and opened without blocking: a FIFO given here, at start or
+    // at a reload on SIGHUP, must be an error, never a wait (common/regular_file.hpp).
+    auto text = read_regular_file(file, max_file_size);
+    if (!text) {
+        return make_error(ErrorKind::usage, fmt::format("{}: cannot read the gateway configuration: {}; give the path of "
+                                                        "the TOML file (a regular file of at most 1 MiB)",
+                                                        source, text.error().message));
     }
-    if (!std::filesystem::is_regular_file(status)) {
-        return make_error(ErrorKind::usage, fmt::format("{}: the gateway configuration must be a regular file", source));
-    }
-    const auto size = std::filesystem::file_size(file, error);
-    if (error) return make_error(ErrorKind::usage, fmt::format("{}: cannot read the gateway configuration: {}", source, error.message()));
-    // A configuration is a few kilobytes; anything far larger is the wrong file.
-    if (size > max_file_size) {
-        return make_error(ErrorKind::usage, fmt::format("{}: {} bytes is too large for a gateway configuration (at most 1 MiB)",
-                                                        source, size));
-    }
-    std::ifstream in(file, std::ios::binary);
-    std::ostringstream text;
-    text << in.rdbuf();
-    if (!in || in.bad()) return make_error(ErrorKind::usage, fmt::format("{}: cannot read the gateway configuration", source));
-    return parse_gateway_config(text.str(), source, profiles);
+    return parse_gateway_config(*text, source, profiles);
 }
 
 

@@ -53,6 +53,12 @@ struct ModbusTcpConfig {
     // Reads (function codes 1-4) answered from the line's reply to the same request up to this
     // old (gateway/read_cache.hpp); 0: off, every request goes to the line.
     std::chrono::milliseconds max_age{0};
+    // Clients connected at once: a newcomer past it is admitted by closing the idlest
+    // connection (session::TcpClientLimits), so idle sockets cannot lock out a working client.
+    std::size_t max_connections = 64;
+    // A connection with nothing received and no request in progress for this long is closed;
+    // zero ("off"): never.
+    std::chrono::milliseconds idle_timeout{60000};
 };
 
 struct LogConfig {

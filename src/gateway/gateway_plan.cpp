@@ -148,6 +148,9 @@ void describe_modbus_tcp(std::ostringstream& out, const ModbusTcpConfig& config)
             "its cache\n",
             duration_text(config.max_age));
     }
+    out << fmt::format("  at most {} client(s) at once (the idlest closed for a newcomer), idle ones closed {}\n",
+                       config.max_connections,
+                       config.idle_timeout.count() > 0 ? "after " + duration_text(config.idle_timeout) : "never");
 }
 
 void describe_mqtt(std::ostringstream& out, const std::optional<MqttConfig>& config) {

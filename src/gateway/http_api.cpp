@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <map>
+#include <optional>
 #include <set>
 
 #include <fmt/format.h>
@@ -345,7 +346,8 @@ HttpResponse HttpApi::State::metrics() const {
     for (const auto& device : devices) names.push_back(device.name);
     HttpResponse response;
     response.content_type = "text/plain; version=0.0.4; charset=utf-8";
-    response.body = prometheus_text(sources.lines(), names, sources.cache->snapshot(), sources.history);
+    const std::optional<FrontReport> front = sources.front ? std::optional(sources.front()) : std::nullopt;
+    response.body = prometheus_text(sources.lines(), names, sources.cache->snapshot(), sources.history, front ? &*front : nullptr);
     response.headers.emplace_back("Cache-Control", "no-store");
     return response;
 }

@@ -28,6 +28,7 @@ struct HttpApiSources {
     ValueCache* cache = nullptr;
     const DeviceWriter* writer = nullptr;
     std::function<std::vector<LineReport>()> lines;  // the lines' figures, for /metrics
+    std::function<FrontReport()> front;               // the Modbus TCP front's; none: not shown
     const HistorySource* history = nullptr;           // none: /api/history answers 404
 };
 

@@ -37,6 +37,14 @@ Error abandoned_error(std::uint8_t unit) {
     return make_error(ErrorKind::link, fmt::format("unit {}: the asker has gone; not sent", unit));
 }
 
+Error busy_error(std::uint8_t unit, std::size_t queued) {
+    return make_error(ErrorKind::exception,
+                      fmt::format("unit {}: the line has {} requests waiting, the most it queues; not queued: try again "
+                                  "shortly (exception 06h, server device busy)",
+                                  unit, queued),
+                      server_device_busy);
+}
+
 Error backing_off_error(std::uint8_t unit, const device::RetryBackoff& backoff, Instant now) {
     const auto failures = backoff.consecutive_failures();
     const auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(backoff.next_try() - now);
@@ -81,6 +89,31 @@ public:
 
     void take_all(std::vector<LineRequest>& into) {
         while (auto request = pop()) into.push_back(std::move(*request));
+    }
+
+    // Takes out every request `refuse` gives a reason for, with that reason; the others keep
+    // their places and the clients their turns.
+    template <typename Refuse>
+    void take_refused(Refuse refuse, std::vector<std::pair<LineRequest, Error>>& into) {
+        for (auto queue = queues_.begin(); queue != queues_.end();) {
+            auto& requests = queue->second;
+            for (auto request = requests.begin(); request != requests.end();) {
+                if (auto why = refuse(*request)) {
+                    into.emplace_back(std::move(*request), std::move(*why));
+                    request = requests.erase(request);
+                    --size_;
+                } else {
+                    ++request;
+                }
+            }
+            if (!requests.empty()) {
+                ++queue;
+                continue;
+            }
+            std::erase(turns_, queue->first);
+            if (served_last_ == queue->first) served_last_.reset();
+            queue = queues_.erase(queue);
+        }
     }
 
     std::size_t size() const { return size_; }
@@ -133,17 +166,47 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
     }
 
     void submit(LineRequest request) {
-        bool queued = false;
+        std::optional<Error> refused;
+        std::vector<std::pair<LineRequest, Error>> dropped;
         {
             std::lock_guard lock(mutex);
-            queued = !stopping;
-            if (queued) enqueue(std::move(request));
+            if (stopping) {
+                refused = stopping_error();
+            } else if (request.priority != Priority::poll && !make_room(dropped)) {
+                ++stats.refused_busy;
+                refused = busy_error(request.unit, writes.size() + clients.size());
+            } else {
+                enqueue(std::move(request));
+            }
         }
-        if (!queued) {
-            deliver(request.done, stopping_error());
+        for (auto& [gone, why] : dropped) deliver(gone.done, std::move(why));
+        if (refused) {
+            deliver(request.done, std::move(*refused));
             return;
         }
         pump();
+    }
+
+    // Under the lock: whether one more write or client request fits within max_queued, once the
+    // queued ones nobody waits for any more (gone, or past their deadline) are taken out into
+    // `dropped`, counted as they would be when their turn came.
+    bool make_room(std::vector<std::pair<LineRequest, Error>>& dropped) {
+        if (writes.size() + clients.size() < options.max_queued) return true;
+        const auto now = clock->now();
+        auto refuse = [&](const LineRequest& queued) -> std::optional<Error> {
+            if (queued.still_wanted && !queued.still_wanted()) {
+                ++stats.abandoned;
+                return abandoned_error(queued.unit);
+            }
+            if (now >= queued.deadline) {
+                ++stats.expired;
+                return expired_error(queued.unit);
+            }
+            return std::nullopt;
+        };
+        writes.take_refused(refuse, dropped);
+        clients.take_refused(refuse, dropped);
+        return writes.size() + clients.size() < options.max_queued;
     }
 
     // Sends queued requests while the line is free. Runs on whichever thread found it free: the

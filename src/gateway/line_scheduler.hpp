@@ -32,14 +32,28 @@ struct LineRequest {
     Priority priority = Priority::client;
     std::uint64_t client = 0;  // who asked; fairness is round robin between clients
     Instant deadline = Instant::max();  // not sent once this has passed
-    std::function<bool()> still_wanted;  // optional: false once the asker has gone
+    // Optional: false once the asker has gone. Called with the scheduler's lock held (when the
+    // queue is full, to make room): it must only read a flag, never call the scheduler.
+    std::function<bool()> still_wanted;
     session::Master::ForwardCompletion done;  // the reply PDU, or why there is none
 };
 
 struct LineSchedulerOptions {
     std::chrono::milliseconds first_backoff{1000};
     std::chrono::milliseconds max_backoff{30000};
+    // Writes and clients' requests queued at once (polls are the gateway's own and bounded by
+    // their groups). Past it, once requests nobody waits for any more are dropped, a request is
+    // refused at once with exception 06h, "server device busy" (Modbus application protocol
+    // V1.1b3, 7: "the client should retransmit the message later"). Not 0Bh: the device is
+    // answering, it is the gateway's queue that is full, and a client must not conclude that
+    // the device is gone. Not 0Ah either: that one is this gateway's answer for a unit no line
+    // leads to, a configuration mistake. 256 requests take a 19200-baud line some 5 s or more,
+    // past what a Modbus TCP client waits.
+    std::size_t max_queued = 256;
 };
+
+// The exception code of the refusal above; the error has ErrorKind::exception and this code.
+constexpr int server_device_busy = 0x06;
 
 struct LineStatistics {
     std::uint64_t sent = 0;          // requests put on the wire
@@ -49,6 +63,7 @@ struct LineStatistics {
     std::uint64_t expired = 0;       // dropped unsent: deadline passed
     std::uint64_t abandoned = 0;     // dropped unsent: the asker had gone
     std::uint64_t backed_off = 0;    // polls held back or refused: the unit is backing off
+    std::uint64_t refused_busy = 0;  // refused unqueued: max_queued were waiting
     std::size_t queued = 0;          // waiting now
     bool on_wire = false;            // a request is on the line now
     // How long the line has carried a request (from sending to its outcome) and how long the

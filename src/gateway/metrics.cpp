@@ -36,10 +36,32 @@ double seconds(std::chrono::microseconds time) { return static_cast<double>(time
 // current one, so that a query can select on status without the series coming and going.
 constexpr const char* device_statuses[] = {"ok", "partial", "no-reply", "line-down", "waiting"};
 
+// The Modbus TCP front's connections ([modbus_tcp] max_connections and idle_timeout at work).
+void front_connections(std::string& out, const FrontReport& front) {
+    const struct {
+        const char* name;
+        const char* help;
+        std::uint64_t value;
+    } counters[] = {
+        {"modbus_tcp_connections_accepted_total", "Modbus TCP connections accepted.", front.accepted},
+        {"modbus_tcp_connections_evicted_total", "Idle Modbus TCP connections closed to admit a new client at max_connections.",
+         front.evicted},
+        {"modbus_tcp_connections_refused_total", "New Modbus TCP clients closed at once: every connection had a request in progress.",
+         front.refused},
+        {"modbus_tcp_connections_idle_closed_total", "Modbus TCP connections closed after idle_timeout.", front.idle_closed},
+    };
+    for (const auto& counter : counters) {
+        family(out, counter.name, "counter", counter.help);
+        out += fmt::format("loopwire_{} {}\n", counter.name, counter.value);
+    }
+    family(out, "modbus_tcp_connections_open", "gauge", "Modbus TCP connections open now.");
+    out += fmt::format("loopwire_modbus_tcp_connections_open {}\n", front.open);
+}
+
 }  // namespace
 
 std::string prometheus_text(const std::vector<LineReport>& lines, const std::vector<std::string>& devices,
-                            const std::vector<CachedDevice>& values, const HistorySource* history) {
+                            const std::vector<CachedDevice>& values, const HistorySource* history, const FrontReport* front) {
     std::string out;
     struct LineCounter {
         const char* name;
@@ -62,6 +84,10 @@ std::string prometheus_text(const std::vector<LineReport>& lines, const std::vec
          [](const LineReport& r) { return r.link_health.reopen_attempts; }},
         {"line_refused_while_down_total", "Requests failed at once, never sent, because the line was down.",
          [](const LineReport& r) { return r.link_health.refused_while_down; }},
+        {"line_abandoned_total", "Requests dropped unsent because their client had gone (a closed connection).",
+         [](const LineReport& r) { return r.statistics.abandoned; }},
+        {"line_refused_busy_total", "Requests refused with exception 06h (server device busy): the line's queue was full.",
+         [](const LineReport& r) { return r.statistics.refused_busy; }},
     };
     for (const auto& counter : counters) {
         family(out, counter.name, "counter", counter.help);
@@ -112,6 +138,7 @@ std::string prometheus_text(const std::vector<LineReport>& lines, const std::vec
         family(out, "history_rows_written_total", "counter", "Rows the history store committed since the gateway started.");
         out += fmt::format("loopwire_history_rows_written_total {}\n", history->rows_written());
     }
+    if (front) front_connections(out, *front);
     return out;
 }
 

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "common/regular_file.hpp"
 #include "profile/embedded_profiles.hpp"
 #include "profile/json_document.hpp"
 #include "profile/profile_checks.hpp"
@@ -42,16 +43,19 @@ Result<Profile> load_profile_text(const std::string& json_text, const std::strin
     }
 }
 
+// A profile is a few hundred kilobytes at most; anything far larger is the wrong file.
+constexpr std::size_t max_profile_file_size = 16 * 1024 * 1024;
+
 Result<Profile> load_profile_file(const std::string& path) {
-    std::ifstream file(path, std::ios::binary);
-    if (!file) {
+    // Examined before it is opened: a FIFO or a device given as a profile must be an error, not
+    // a wait (common/regular_file.hpp).
+    auto text = read_regular_file(path, max_profile_file_size);
+    if (!text) {
         return make_error(ErrorKind::usage, fmt::format("{}: cannot open profile ({}); give the path of a "
                                                         "profile JSON file, or a built-in id ({})",
-                                                        path, std::strerror(errno), fmt::join(builtin_profile_ids(), ", ")));
+                                                        path, text.error().message, fmt::join(builtin_profile_ids(), ", ")));
     }
-    std::ostringstream text;
-    text << file.rdbuf();
-    return load_profile_text(text.str(), path);
+    return load_profile_text(*text, path);
 }
 
 const std::vector<std::string>& builtin_profile_ids() {

@@ -108,17 +108,17 @@ std::optional<Bytes> Slave::answer(const codec::Frame& frame, FrameCodec& codec)
     return std::move(*encoded);
 }
 
-void Slave::answer_async(const codec::Frame& frame, UnitHandler::Origin origin, UnitHandler::ReplyCallback reply) {
+void Slave::answer_async(const codec::Frame& frame, const UnitHandler::Asker& asker, UnitHandler::ReplyCallback reply) {
     Route where = route(frame);
     switch (where.kind) {
         case Route::Kind::silent: reply(std::nullopt); return;
         case Route::Kind::broadcast:
             // Every unit executes it; whatever they answer, and whenever, is dropped.
-            for (auto& [unit, handler] : units_) handler->handle_async(frame.pdu, true, origin, [](std::optional<Bytes>) {});
+            for (auto& [unit, handler] : units_) handler->handle_async(frame.pdu, true, asker, [](std::optional<Bytes>) {});
             reply(std::nullopt);
             return;
         case Route::Kind::own_reply: reply(std::move(where.reply_pdu)); return;
-        case Route::Kind::unit: where.handler->handle_async(frame.pdu, false, origin, std::move(reply)); return;
+        case Route::Kind::unit: where.handler->handle_async(frame.pdu, false, asker, std::move(reply)); return;
     }
 }
 
@@ -160,6 +160,27 @@ Result<void> Slave::serve_stream(transport::ByteStream& stream, std::stop_token 
         if (auto broken = codec->stream_error()) return *broken;  // after answering what came before
     }
     return {};
+}
+
+TcpConnectionStatistics Slave::tcp_statistics() const {
+    TcpConnectionStatistics statistics;
+    statistics.accepted = accepted_.load(std::memory_order_relaxed);
+    statistics.evicted = evicted_.load(std::memory_order_relaxed);
+    statistics.refused = refused_.load(std::memory_order_relaxed);
+    statistics.idle_closed = idle_closed_.load(std::memory_order_relaxed);
+    const auto closed = closed_.load(std::memory_order_relaxed);
+    statistics.open = statistics.accepted > closed ? statistics.accepted - closed : 0;  // read apart: may cross
+    return statistics;
+}
+
+void Slave::count(ConnectionEvent event) {
+    switch (event) {
+        case ConnectionEvent::accepted: ++accepted_; return;
+        case ConnectionEvent::evicted: ++evicted_; return;
+        case ConnectionEvent::refused: ++refused_; return;
+        case ConnectionEvent::idle_closed: ++idle_closed_; return;
+        case ConnectionEvent::closed: ++closed_; return;
+    }
 }
 
 Result<void> Slave::serve_listener(transport::TcpListener& listener, std::stop_token stop) {

@@ -5,9 +5,12 @@
 #include <atomic>
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <stop_token>
+#include <string>
 
 #include "common/clock.hpp"
 #include "common/result.hpp"
@@ -27,16 +30,39 @@ struct TcpClientLimits {
     // Replies queued for a client that does not read them: past this the connection is closed,
     // so a stalled or hostile client costs bounded memory and never delays anyone else.
     std::size_t max_queued_reply_bytes = 64 * 1024;
-    // Requests handed to deferring handlers and not answered yet: at this many the connection
-    // is not read until one is answered (backpressure on a pipelining client).
+    // Requests handed to deferring handlers and not answered yet: at this many, the requests
+    // that came in the same read wait in the connection (one read's worth of bytes at most) and
+    // the socket is not read again until one is answered. A pipelining client waits in its own
+    // socket buffer instead of growing a queue behind the handlers.
     std::size_t max_outstanding_requests = 32;
+    // Connections open at once; 0: no limit. A client connecting when this many are open is
+    // admitted by closing the one idle longest (a client that has ended its side first, then one
+    // that never sent a whole request, then the least recently active), so idle sockets never
+    // lock a working client out. When every connection has a request in progress, the newcomer
+    // is closed instead: each of those is a client being served.
+    std::size_t max_connections = 0;
+    // A connection that has received nothing and has had no request in progress for this long
+    // is closed; zero: never. A request waiting for a slow handler does not count as idle.
+    std::chrono::milliseconds idle_timeout{0};
     // After accept() fails for lack of resources (EMFILE, ENFILE, ENOBUFS, ENOMEM) the waiting
     // client stays queued in the kernel; retrying at once would spin, so accepting pauses.
     std::chrono::milliseconds accept_retry_delay{100};
 };
 
+// What the TCP side of a slave has done with its connections (serve_listener).
+struct TcpConnectionStatistics {
+    std::uint64_t accepted = 0;
+    std::uint64_t evicted = 0;      // closed to admit a newcomer at max_connections
+    std::uint64_t refused = 0;      // newcomers closed at once: every connection was busy
+    std::uint64_t idle_closed = 0;  // closed after idle_timeout
+    std::uint64_t open = 0;         // open now
+};
+
 struct SlaveOptions {
     TraceSink trace;
+    // One line for each connection the TCP limits close (evicted, refused, idle), for a log at
+    // debug level: under a flood these come by the thousand.
+    std::function<void(const std::string&)> connection_log;
     TcpClientLimits tcp;
     // What a TCP client addressing a unit nobody serves gets at once, instead of waiting for a
     // timeout (on a serial line other units may share the wire, so silence is the rule there).
@@ -66,10 +92,16 @@ public:
 
     // The reply PDU for one received frame through `reply` (nullopt: silence), at once or later
     // from any thread when the unit's handler defers it (UnitHandler::handle_async).
-    void answer_async(const codec::Frame& frame, UnitHandler::Origin origin, UnitHandler::ReplyCallback reply);
+    void answer_async(const codec::Frame& frame, const UnitHandler::Asker& asker, UnitHandler::ReplyCallback reply);
 
     // Requests served and replies sent so far (for status lines and tests).
     std::uint64_t requests_served() const { return requests_; }
+
+    // The TCP connections' figures so far; safe from any thread while serve_listener runs.
+    TcpConnectionStatistics tcp_statistics() const;
+    enum class ConnectionEvent { accepted, evicted, refused, idle_closed, closed };
+    // Counted by the TCP server (session/tcp_slave_server.cpp) as they happen.
+    void count(ConnectionEvent event);
 
     const transport::LinkUrl& link() const { return link_; }
     const SlaveOptions& options() const { return options_; }
@@ -95,6 +127,11 @@ private:
     SlaveOptions options_;
     std::shared_ptr<Clock> clock_;
     std::atomic<std::uint64_t> requests_{0};
+    std::atomic<std::uint64_t> accepted_{0};
+    std::atomic<std::uint64_t> evicted_{0};
+    std::atomic<std::uint64_t> refused_{0};
+    std::atomic<std::uint64_t> idle_closed_{0};
+    std::atomic<std::uint64_t> closed_{0};
 };
 
 }  // namespace loopwire::session

@@ -49,13 +49,18 @@ TcpSlaveConnection::TcpSlaveConnection(Slave& slave, ConnectionOwner& owner, std
       timer_(socket_.get_executor()),
       codec_(make_frame_codec(slave.link(), codec::Direction::request)),
       mbap_(slave.link().framing == transport::Framing::tcp),
-      origin_(++connections_made) {}
+      asker_(++connections_made, [wanted = std::shared_ptr<const std::atomic<bool>>(wanted_)] { return wanted->load(); }) {
+    error_code error;
+    const auto endpoint = socket_.remote_endpoint(error);
+    peer_ = error ? std::string("a client that has gone")
+                  : fmt::format("{}:{}", endpoint.address().to_string(), endpoint.port());
+}
 
 // Requests keep being read while replies queue up: a client that does not read its replies
 // is closed at the bound instead (queue()). Pausing reads for it would only keep its memory and
 // its descriptor busy forever. Reads pause for deferred requests, which only the handlers bound.
 bool TcpSlaveConnection::may_read() const {
-    return !closed_ && !closing_ && outstanding_ < slave_.options().tcp.max_outstanding_requests;
+    return !closed_ && !closing_ && waiting_.empty() && outstanding_ < slave_.options().tcp.max_outstanding_requests;
 }
 
 void TcpSlaveConnection::start() {
@@ -84,6 +89,16 @@ void TcpSlaveConnection::on_read(const error_code& error, std::size_t size) {
 void TcpSlaveConnection::take(const error_code& error, std::size_t size) {
     if (closed_ || closing_) return;
     if (error == asio::error::eof) {  // the client is done sending: a normal end, not traced
+        // Modbus clients end a connection with close(), which looks the same as shutdown(): the
+        // replies already on their way are still sent, but nothing more is put on a line for it
+        // (what a connect-send-close flood would otherwise queue there).
+        ended_by_client_ = true;
+        stop_wanting();
+        if (slave_.tracing() && (outstanding_ > 0 || !waiting_.empty())) {
+            slave_.trace(TraceDirection::discarded, {},
+                         fmt::format("the client ended the connection: its {} request(s) in progress are no longer wanted",
+                                     outstanding_ + waiting_.size()));
+        }
         close_after_replies({});
         return;
     }
@@ -91,6 +106,7 @@ void TcpSlaveConnection::take(const error_code& error, std::size_t size) {
         close();
         return;
     }
+    last_active_ = Clock::now();
     auto events = codec_->feed(ByteView(input_.data(), size), Clock::now());
     if (!events) {
         if (slave_.tracing()) slave_.trace(TraceDirection::discarded, ByteView(input_.data(), size), events.error().message + "; connection closed");
@@ -112,10 +128,17 @@ void TcpSlaveConnection::take(const error_code& error, std::size_t size) {
 }
 
 void TcpSlaveConnection::handle(codec::FrameEvents& events) {
+    const std::size_t limit = slave_.options().tcp.max_outstanding_requests;
     for (auto& event : events) {
         if (closed_) return;
-        if (const auto* frame = std::get_if<codec::Frame>(&event)) {
-            dispatch(*frame);
+        if (auto* frame = std::get_if<codec::Frame>(&event)) {
+            served_any_ = true;
+            // In order: once one waits, every later one waits behind it.
+            if (waiting_.empty() && outstanding_ < limit) {
+                dispatch(*frame);
+            } else {
+                waiting_.push_back(std::move(*frame));
+            }
         } else if (slave_.tracing()) {
             const auto& discarded = std::get<codec::DiscardedBytes>(event);
             slave_.trace(TraceDirection::discarded, discarded.bytes, discarded.reason);
@@ -127,7 +150,7 @@ void TcpSlaveConnection::handle(codec::FrameEvents& events) {
 // then it is posted into the loop, and dropped if the connection has gone in the meantime.
 void TcpSlaveConnection::dispatch(const codec::Frame& frame) {
     ++outstanding_;
-    slave_.answer_async(frame, origin_, [weak = weak_from_this(), mailbox = mailbox_, unit = frame.unit,
+    slave_.answer_async(frame, asker_, [weak = weak_from_this(), mailbox = mailbox_, unit = frame.unit,
                                 transaction = frame.transaction](std::optional<Bytes> pdu) mutable {
         if (mailbox->on_loop_thread()) {
             if (auto self = weak.lock()) self->deliver(unit, transaction, std::move(pdu));
@@ -139,9 +162,23 @@ void TcpSlaveConnection::dispatch(const codec::Frame& frame) {
     });
 }
 
+// Requests that waited for the outstanding ones to come down, passed on while there is room
+// (called with batching_ set: replies that come at once go out together afterwards).
+void TcpSlaveConnection::dispatch_waiting() {
+    const std::size_t limit = slave_.options().tcp.max_outstanding_requests;
+    while (!closed_ && !waiting_.empty() && outstanding_ < limit) {
+        const codec::Frame frame = std::move(waiting_.front());
+        waiting_.pop_front();
+        dispatch(frame);
+    }
+}
+
+void TcpSlaveConnection::stop_wanting() { wanted_->store(false); }
+
 void TcpSlaveConnection::deliver(std::uint8_t unit, std::uint16_t transaction, std::optional<Bytes> pdu) {
     --outstanding_;
     if (closed_) return;
+    last_active_ = Clock::now();
     if (pdu) queue(unit, transaction, *pdu);
     if (!batching_) after_turn();
 }
@@ -206,10 +243,15 @@ void TcpSlaveConnection::on_written(const error_code& error) {
 
 // What a connection does when a read, a write, a timer or a deferred reply has been handled.
 void TcpSlaveConnection::after_turn() {
+    if (!closed_ && !waiting_.empty()) {
+        batching_ = true;
+        dispatch_waiting();
+        batching_ = false;
+    }
     flush_output();
     if (closed_) return;
     if (closing_) {
-        if (write_active_ || outstanding_ > 0) return;
+        if (write_active_ || outstanding_ > 0 || !waiting_.empty()) return;
         // FIN after the last reply, so the client reads the replies before it sees the end.
         error_code ignored;
         socket_.shutdown(asio::ip::tcp::socket::shutdown_send, ignored);
@@ -265,6 +307,8 @@ void TcpSlaveConnection::close_after_replies(const std::string& reason) {
 void TcpSlaveConnection::close() {
     if (closed_) return;
     closed_ = true;
+    stop_wanting();
+    waiting_.clear();
     error_code ignored;
     socket_.close(ignored);
     timer_.cancel();

@@ -4,13 +4,18 @@
 // Reads go into one fixed buffer and through the connection's own FrameCodec (MBAP, or RTU for
 // rtu+tcp with its silence flush on a timer); every complete frame is answered, and replies are
 // appended to one queue that goes out in a single send per read. A client that
-// stops reading is closed once its queue passes TcpClientLimits::max_queued_reply_bytes.
+// stops reading is closed once its queue passes TcpClientLimits::max_queued_reply_bytes; one
+// that pipelines past TcpClientLimits::max_outstanding_requests is not read until it is below.
 #include <array>
+#include <atomic>
+#include <chrono>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <string>
 
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
@@ -59,6 +64,18 @@ public:
     // Stops reading, sends the replies still owed, then closes; `reason` is traced unless empty.
     void close_after_replies(const std::string& reason);
 
+    // For the server's limits (TcpClientLimits::max_connections, idle_timeout), on the loop.
+    // Idle: no request in progress, none waiting to be passed on.
+    bool idle() const { return outstanding_ == 0 && waiting_.empty(); }
+    // The client has ended its side: it wants nothing more.
+    bool ended_by_client() const { return ended_by_client_; }
+    // Whether a whole request ever came.
+    bool served_any() const { return served_any_; }
+    // When a byte last came in or a reply was last handed over (the accept, before either).
+    std::chrono::steady_clock::time_point last_active() const { return last_active_; }
+    // "127.0.0.1:40312", for the log.
+    const std::string& peer() const { return peer_; }
+
 private:
     void read();
     void on_read(const boost::system::error_code& error, std::size_t size);
@@ -66,6 +83,8 @@ private:
     void flush_output();
     void handle(codec::FrameEvents& events);
     void dispatch(const codec::Frame& frame);
+    void dispatch_waiting();
+    void stop_wanting();
     void deliver(std::uint8_t unit, std::uint16_t transaction, std::optional<Bytes> pdu);
     void queue(std::uint8_t unit, std::uint16_t transaction, const Bytes& pdu);
     void write();
@@ -83,11 +102,21 @@ private:
     boost::asio::steady_timer timer_;  // RTU silence flush; the last grace period when closing
     std::unique_ptr<FrameCodec> codec_;
     const bool mbap_;
-    const UnitHandler::Origin origin_;  // this connection, as the handlers see it
+    // This connection, as the handlers see it; its flag goes false when the client has gone or
+    // ended its side, and requests of it still queued for a line are dropped (UnitHandler::Asker).
+    std::shared_ptr<std::atomic<bool>> wanted_ = std::make_shared<std::atomic<bool>>(true);
+    const UnitHandler::Asker asker_;
+    std::string peer_;
     std::array<std::uint8_t, 4096> input_{};
     Bytes queued_;   // replies waiting for the write in progress to finish
     Bytes writing_;  // the write in progress
     std::size_t outstanding_ = 0;  // requests whose reply has not been delivered yet
+    // Whole requests read while max_outstanding_requests were outstanding: passed on in order as
+    // replies come. At most one read's worth, since the socket is not read while any wait.
+    std::deque<codec::Frame> waiting_;
+    std::chrono::steady_clock::time_point last_active_ = std::chrono::steady_clock::now();
+    bool served_any_ = false;
+    bool ended_by_client_ = false;
     bool reading_ = false;
     bool write_active_ = false;
     bool batching_ = false;  // answering a read: replies gather and go out in one send afterwards

@@ -1,8 +1,10 @@
 #pragma once
 // What a slave session dispatches to: one handler per unit id. The handler decides what the
 // device answers, and when it stays silent.
+#include <cstdint>
 #include <functional>
 #include <optional>
+#include <utility>
 
 #include "codec/pdu.hpp"
 #include "common/bytes.hpp"
@@ -24,13 +26,26 @@ public:
     // line fairly between the clients (docs/DESIGN.md, gateway).
     using Origin = std::uint64_t;
 
+    // The asker of one request: its origin and, for a handler that queues requests (a gateway's
+    // line), whether the answer is still wanted. A TCP connection that has closed, or whose
+    // client has ended its side of it, no longer wants what has not been sent yet: a queued
+    // request of it is dropped instead of taking the line. Empty still_wanted: always wanted.
+    // still_wanted may be called from any thread, with the caller's locks held: it only reads
+    // a flag.
+    struct Asker {
+        Asker(Origin from = 0, std::function<bool()> wanted = {})  // NOLINT: an Origin is an Asker
+            : origin(from), still_wanted(std::move(wanted)) {}
+        Origin origin;
+        std::function<bool()> still_wanted;
+    };
+
     // The same decision, for handlers that answer later: a gateway forwards the request to a
     // serial line and replies when the device has answered. `reply` may be called from any
     // thread, after handle_async() has returned; a TCP slave sends the reply with the request's
     // transaction id whenever it comes, so replies on one connection may overtake each other
     // (Modbus Messaging on TCP/IP V1.0b, 4.2: the transaction id pairs them). The default
     // answers at once through handle().
-    virtual void handle_async(Bytes request_pdu, bool broadcast, Origin /*origin*/, ReplyCallback reply) {
+    virtual void handle_async(Bytes request_pdu, bool broadcast, const Asker& /*asker*/, ReplyCallback reply) {
         reply(handle(request_pdu, broadcast));
     }
 

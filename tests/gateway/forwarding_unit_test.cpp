@@ -2,6 +2,7 @@
 // the exception replies a gateway gives (Modbus application protocol V1.1b3, 7).
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <deque>
 #include <mutex>
 
@@ -336,6 +337,43 @@ TEST(ForwardingUnitCache, WithoutMaxAgeEveryReadGoesToTheLine) {
 TEST(ForwardingUnit, OnlyReadingFunctionsCountAsReads) {
     for (int f : {1, 2, 3, 4, 7, 11, 12, 17, 20, 24, 43}) EXPECT_TRUE(only_reads(static_cast<std::uint8_t>(f))) << f;
     for (int f : {5, 6, 8, 15, 16, 21, 22, 23, 65, 100}) EXPECT_FALSE(only_reads(static_cast<std::uint8_t>(f))) << f;
+}
+
+// A line whose queue is full refuses with 06h (server device busy), which the client gets as
+// the exception reply: the device is not absent (0Bh), the gateway is busy, try again later.
+TEST(ForwardingUnit, AFullLineQueueIsAnsweredServerDeviceBusy) {
+    auto line = std::make_shared<HandAnsweredLine>();
+    LineSchedulerOptions options;
+    options.max_queued = 1;
+    auto scheduler = std::make_shared<LineScheduler>(line, options);
+    auto unit = std::make_shared<ForwardingUnit>(scheduler, ForwardingSettings{}, steady_clock());
+    Replies replies;
+    unit->handle_async(hex("03 00 00 00 01"), false, 1, replies.collect());  // on the wire
+    unit->handle_async(hex("03 00 01 00 01"), false, 2, replies.collect());  // queued
+    unit->handle_async(hex("03 00 02 00 01"), false, 3, replies.collect());  // past the bound
+    ASSERT_EQ(replies.got.size(), 1U);
+    EXPECT_EQ(replies.got[0], hex("83 06"));
+    line->answer(hex("03 02 00 01"));
+    line->answer(hex("03 02 00 02"));
+    EXPECT_EQ(line->sent(), 2U);
+}
+
+// A request whose asker no longer wants it (its connection closed while it waited) never
+// reaches the line, and the line counts it abandoned.
+TEST(ForwardingUnit, ARequestItsAskerNoLongerWantsNeverReachesTheLine) {
+    Front front;
+    auto unit = front.unit(ForwardingSettings{});
+    Replies replies;
+    unit->handle_async(hex("03 00 00 00 01"), false, 1, replies.collect());  // on the wire
+    auto open = std::make_shared<std::atomic<bool>>(true);
+    const session::UnitHandler::Asker closing(2, [open] { return open->load(); });
+    unit->handle_async(hex("03 00 01 00 01"), false, closing, replies.collect());
+    open->store(false);
+    front.line->answer(hex("03 02 00 01"));
+    EXPECT_EQ(front.line->sent(), 1U) << "the closed connection's request went on the line";
+    EXPECT_EQ(front.scheduler->statistics().abandoned, 1U);
+    ASSERT_EQ(replies.got.size(), 2U);
+    EXPECT_EQ(replies.got[1], hex("83 0B"));  // to nobody: the connection has gone
 }
 
 }  // namespace

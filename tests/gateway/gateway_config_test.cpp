@@ -5,7 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <stdlib.h>
+#include <sys/stat.h>
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -116,6 +119,29 @@ TEST(GatewayConfig, DefaultsApplyToWhatIsLeftOut) {
     EXPECT_TRUE(config->modbus_tcp.writes);
     EXPECT_EQ(config->modbus_tcp.host, "127.0.0.1");  // loopback unless written otherwise
     EXPECT_EQ(config->modbus_tcp.port, 1502);
+    EXPECT_EQ(config->modbus_tcp.max_connections, 64u);
+    EXPECT_EQ(config->modbus_tcp.idle_timeout, std::chrono::seconds(60));
+}
+
+TEST(GatewayConfig, TheFrontsConnectionLimitsAreRead) {
+    auto config = parse(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nmax_connections = 8\nidle_timeout = \"2m\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->modbus_tcp.max_connections, 8u);
+    EXPECT_EQ(config->modbus_tcp.idle_timeout, std::chrono::minutes(2));
+    auto off = parse(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nidle_timeout = \"off\"\n");
+    ASSERT_TRUE(off) << off.error().message;
+    EXPECT_EQ(off->modbus_tcp.idle_timeout.count(), 0);
+}
+
+TEST(GatewayConfig, BadConnectionLimitsSayWhatIsExpected) {
+    const std::string tcp = one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\n";
+    EXPECT_THAT(error_of(tcp + "max_connections = 0\n"),
+                StartsWith("plant.toml:9: modbus_tcp.max_connections: 0 is out of range (expected an integer 1..10000)"));
+    EXPECT_THAT(error_of(tcp + "max_connections = \"many\"\n"),
+                StartsWith("plant.toml:9: modbus_tcp.max_connections: expected an integer 1..10000"));
+    EXPECT_THAT(error_of(tcp + "idle_timeout = \"100ms\"\n"),
+                StartsWith("plant.toml:9: modbus_tcp.idle_timeout: expected 1s..24h (e.g. \"60s\"), or \"off\""));
+    EXPECT_THAT(error_of(tcp + "idle_timeout = \"forever\"\n"), StartsWith("plant.toml:9: modbus_tcp.idle_timeout: "));
 }
 
 TEST(GatewayConfig, ModbusTcpSettingsAreRead) {
@@ -173,7 +199,8 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt, history, http)");
 
     const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
-    EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: listen, writes, enabled, max_age)");
+    EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: listen, writes, enabled, max_age, "
+                   "max_connections, idle_timeout)");
 }
 
 TEST(GatewayConfig, TheLateReplyWindowIsReadAndBounded) {
@@ -470,6 +497,8 @@ TEST(GatewayConfigPlan, ShowsTheLineSettingsAndTheTcpFront) {
     EXPECT_THAT(plan, StartsWith("plant.toml: 1 line\n")) << plan;
     EXPECT_THAT(plan, HasSubstr("(timeout 300ms, 1 retry)")) << plan;
     EXPECT_THAT(plan, HasSubstr("Modbus TCP unit 13")) << plan;
+    EXPECT_THAT(plan, HasSubstr("at most 64 client(s) at once (the idlest closed for a newcomer), idle ones closed after 1m"))
+        << plan;
     const std::string off = plan_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nenabled = false\n");
     EXPECT_THAT(off, HasSubstr("Modbus TCP: disabled")) << off;
     EXPECT_THAT(plan, Not(HasSubstr("cache"))) << plan;
@@ -524,7 +553,7 @@ TEST_F(GatewayConfigFile, MissingDirectoryAndOversizedFilesAreRefused) {
 
     auto directory = load_gateway_config(dir, profiles());
     ASSERT_FALSE(directory);
-    EXPECT_THAT(directory.error().message, HasSubstr("must be a regular file"));
+    EXPECT_THAT(directory.error().message, HasSubstr("is a directory, not a regular file"));
 
     // Comments only, so it would parse if it were read: the size alone refuses it.
     const fs::path huge = write("huge.toml", std::string(1024 * 1024, '#') + "\n");
@@ -822,15 +851,82 @@ TEST_F(MqttFiles, ABadPasswordFileOrTlsFileIsNamed) {
     write("ca.crt", "certificate", owner_only);
     const std::string plain = "broker = \"mqtt://127.0.0.1\"\nusername = \"gw\"\n";
     EXPECT_THAT(error_here(plain + "password_file = \"missing\"\n"),
-                AllOf(HasSubstr("mqtt.password_file: cannot read"), HasSubstr("missing\" (expected a readable file)")));
+                AllOf(HasSubstr("mqtt.password_file: "), HasSubstr("missing\" does not exist (expected a file whose first line")));
     EXPECT_THAT(error_here(plain + "password_file = \"open\"\n"),
                 AllOf(HasSubstr("mqtt.password_file: "), HasSubstr("is readable by every user; make it private (chmod 600")));
     EXPECT_THAT(error_here(plain + "password_file = \"empty\"\n"), HasSubstr("mqtt.password_file: "));
     EXPECT_THAT(error_here(plain + "password = \"inline\"\n"), HasSubstr("mqtt.password: unknown key"));
     EXPECT_THAT(error_here("broker = \"mqtt://127.0.0.1\"\nca_file = \"ca.crt\"\n"), HasSubstr("mqtt.ca_file: only used over TLS"));
-    EXPECT_THAT(error_here("broker = \"mqtts://127.0.0.1\"\nca_file = \"nope.crt\"\n"), HasSubstr("mqtt.ca_file: cannot read"));
+    EXPECT_THAT(error_here("broker = \"mqtts://127.0.0.1\"\nca_file = \"nope.crt\"\n"),
+                AllOf(HasSubstr("mqtt.ca_file: "), HasSubstr("nope.crt\" does not exist")));
     EXPECT_THAT(error_here("broker = \"mqtts://127.0.0.1\"\ncert_file = \"ca.crt\"\n"),
                 HasSubstr("cert_file and key_file go together: `key_file` is missing"));
+}
+
+// ---- files that are not regular files ----------------------------------------------------
+//
+// A FIFO named where a file is expected must be refused before it is opened: opening it for
+// reading would wait for a writer, hanging `--check`, or a reload on the thread that also
+// takes SIGTERM. These tests would hang, not fail, if a FIFO were opened: ctest's timeout ends
+// them.
+
+class FifoInTheConfiguration : public MqttFiles {
+protected:
+    std::string fifo(const std::string& name) {
+        const auto path = directory_ / name;
+        EXPECT_EQ(::mkfifo(path.c_str(), 0600), 0) << std::strerror(errno);
+        return path.string();
+    }
+    std::string error_with(const std::string& tables) {
+        auto config = parse_gateway_config(one_device("device = \"tc10@3\"\n") + tables, (directory_ / "plant.toml").string(),
+                                           profiles());
+        return config ? std::string("(no error)") : config.error().message;
+    }
+};
+
+TEST_F(FifoInTheConfiguration, AsPasswordOrTlsFileItIsRefusedWithTheKey) {
+    fifo("secret");
+    fifo("ca.crt");
+    write("real.crt", "certificate", owner_only);
+    const std::string password = error_here("broker = \"mqtt://127.0.0.1\"\nusername = \"gw\"\npassword_file = \"secret\"\n");
+    EXPECT_THAT(password, AllOf(HasSubstr("plant.toml:11: mqtt.password_file: "),
+                                HasSubstr("secret\" is a FIFO (named pipe), not a regular file"),
+                                HasSubstr("name a regular file")))
+        << password;
+    const std::string ca = error_here("broker = \"mqtts://127.0.0.1\"\nca_file = \"ca.crt\"\n");
+    EXPECT_THAT(ca, AllOf(HasSubstr("plant.toml:10: mqtt.ca_file: "), HasSubstr("is a FIFO (named pipe), not a regular file"),
+                          HasSubstr("the broker's CA certificate")))
+        << ca;
+    fifo("client.key");
+    const std::string key = error_here("broker = \"mqtts://127.0.0.1\"\ncert_file = \"real.crt\"\nkey_file = \"client.key\"\n");
+    EXPECT_THAT(key, HasSubstr("mqtt.key_file: ")) << key;
+    EXPECT_THAT(key, HasSubstr("is a FIFO")) << key;
+    const std::string directory = error_here("broker = \"mqtts://127.0.0.1\"\nca_file = \".\"\n");
+    EXPECT_THAT(directory, HasSubstr("is a directory, not a regular file")) << directory;
+}
+
+TEST_F(FifoInTheConfiguration, AsTokenFileOrHistoryDatabaseItIsRefusedWithTheKey) {
+    const std::string token = fifo("token");
+    const std::string http = error_with(fmt::format("[http]\nlisten = \"127.0.0.1:0\"\ntoken_file = \"{}\"\n", token));
+    EXPECT_THAT(http, AllOf(HasSubstr("http.token_file: "), HasSubstr("is a FIFO (named pipe), not a regular file"))) << http;
+    fifo("plant.db");
+    const std::string history = error_with("[history]\ndatabase = \"plant.db\"\n");
+    EXPECT_THAT(history, AllOf(HasSubstr("plant.toml:9: history.database: "), HasSubstr("is a FIFO (named pipe)"),
+                               HasSubstr("created when absent")))
+        << history;
+    // Absent, it is simply created when the gateway opens.
+    const std::string absent = error_with("[history]\ndatabase = \"new.db\"\n");
+    EXPECT_EQ(absent, "(no error)");
+    const std::string character_device = error_with("[history]\ndatabase = \"/dev/null\"\n");
+    EXPECT_THAT(character_device, HasSubstr("\"/dev/null\" is a character device, not a regular file")) << character_device;
+}
+
+TEST_F(FifoInTheConfiguration, AsTheConfigurationItselfItIsRefused) {
+    const std::string config = fifo("gateway.toml");
+    auto loaded = load_gateway_config(config, profiles());
+    ASSERT_FALSE(loaded);
+    EXPECT_THAT(loaded.error().message,
+                AllOf(HasSubstr("cannot read the gateway configuration"), HasSubstr("is a FIFO (named pipe), not a regular file")));
 }
 
 }  // namespace

@@ -495,6 +495,68 @@ TEST_F(LineSchedulerTest, DoneMayDestroyTheSchedulerWhenTheMasterAnswersAtOnce) 
     EXPECT_EQ(scheduler, nullptr);
 }
 
+// ---- the queue's bound (LineSchedulerOptions::max_queued) ---------------------------------
+
+class BoundedLineSchedulerTest : public LineSchedulerTest {
+protected:
+    BoundedLineSchedulerTest() {
+        LineSchedulerOptions options = backoff_options();
+        options.max_queued = 3;
+        scheduler = std::make_unique<LineScheduler>(master, options, clock);
+    }
+};
+
+// Past the bound a client's request is refused at once with exception 06h, "server device
+// busy" (Modbus application protocol V1.1b3, 7), never queued; what was queued keeps its turn.
+TEST_F(BoundedLineSchedulerTest, PastTheBoundARequestIsRefusedBusyAtOnce) {
+    submit(1);  // on the wire: not queued
+    for (int tag = 2; tag <= 4; ++tag) submit(tag, Priority::client, 1, static_cast<std::uint64_t>(tag));
+    submit(5, Priority::write, 1, 5);
+    ASSERT_EQ(answers[5].size(), 1U) << "the refusal must come at once, not after the queue";
+    const auto& refused = answers[5].front();
+    ASSERT_FALSE(refused.ok());
+    EXPECT_EQ(refused.error().kind, ErrorKind::exception);
+    EXPECT_EQ(refused.error().code, server_device_busy);
+    EXPECT_NE(refused.error().message.find("3 requests waiting"), std::string::npos) << refused.error().message;
+    // Polls are the gateway's own and are not bounded here.
+    submit(6, Priority::poll);
+    EXPECT_TRUE(answers[6].empty());
+    complete_all();
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 2, 3, 4, 6}));
+    const auto stats = scheduler->statistics();
+    EXPECT_EQ(stats.refused_busy, 1U);
+    EXPECT_EQ(stats.queued, 0U);
+}
+
+// A full queue first drops what nobody waits for any more (a closed connection's requests, or
+// ones past their deadline), counted as when their turn would have come, and then has room.
+TEST_F(BoundedLineSchedulerTest, AFullQueueDropsRequestsNobodyWantsBeforeRefusingOne) {
+    submit(1);  // on the wire
+    auto connection_open = std::make_shared<bool>(true);
+    for (int tag = 2; tag <= 3; ++tag) {
+        auto request = ask(tag, Priority::client, 1, 7);
+        request.still_wanted = [connection_open] { return *connection_open; };
+        scheduler->submit(std::move(request));
+    }
+    auto late = ask(4, Priority::client, 1, 8);
+    late.deadline = clock->now() + 10ms;
+    scheduler->submit(std::move(late));
+    *connection_open = false;
+    clock->sleep_for(10ms);
+    submit(5, Priority::client, 1, 9);
+    EXPECT_TRUE(answers[5].empty()) << "refused although three queued requests were wanted by nobody";
+    for (int tag : {2, 3, 4}) {
+        ASSERT_EQ(answers[tag].size(), 1U) << "request " << tag << " was not dropped when room was made";
+        EXPECT_FALSE(answers[tag].front().ok());
+    }
+    complete_all();
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 5}));
+    const auto stats = scheduler->statistics();
+    EXPECT_EQ(stats.abandoned, 2U);
+    EXPECT_EQ(stats.expired, 1U);
+    EXPECT_EQ(stats.refused_busy, 0U);
+}
+
 // Completes each request on its own thread after a short wait, as a serial master does.
 class ThreadedMaster final : public session::Master {
 public:
@@ -567,7 +629,10 @@ TEST(LineSchedulerThreads, EveryDoneRunsOnceWithRealThreads) {
     std::mutex mutex;
     std::condition_variable all_done;
     int finished = 0;
-    auto scheduler = std::make_unique<LineScheduler>(master);
+    // Every request queued at once is the point here, not the queue's bound.
+    LineSchedulerOptions options;
+    options.max_queued = static_cast<std::size_t>(total);
+    auto scheduler = std::make_unique<LineScheduler>(master, options);
 
     std::vector<std::thread> threads;
     for (int thread = 0; thread < submitters; ++thread) {

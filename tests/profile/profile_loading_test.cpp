@@ -1,5 +1,10 @@
 // Loading profiles: the three real ones pass the schema and the checks beyond it; broken ones
 // are refused with the file, the JSON pointer of the offending value and what is wrong.
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <string>
 #include <thread>
 
 #include <gmock/gmock.h>
@@ -96,6 +101,19 @@ TEST(ProfileLoading, MissingFileIsNamed) {
     const auto loaded = load_profile_file("/nonexistent/profile.json");
     ASSERT_FALSE(loaded.ok());
     EXPECT_THAT(loaded.error().message, HasSubstr("/nonexistent/profile.json: cannot open profile"));
+}
+
+// A FIFO given as a profile (--profile) is refused before it is opened: opening it would wait
+// for a writer. Were it opened, this test would hang until ctest's timeout.
+TEST(ProfileLoading, AFifoIsRefusedWithoutWaitingForAWriter) {
+    const auto fifo = std::filesystem::temp_directory_path() / ("loopwire-profile-fifo-" + std::to_string(::getpid()) + ".json");
+    std::filesystem::remove(fifo);
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    const auto loaded = load_profile_file(fifo.string());
+    std::filesystem::remove(fifo);
+    ASSERT_FALSE(loaded.ok());
+    EXPECT_THAT(loaded.error().message, HasSubstr("cannot open profile"));
+    EXPECT_THAT(loaded.error().message, HasSubstr("is a FIFO (named pipe), not a regular file"));
 }
 
 TEST(ProfileLoading, WrongTypeNamesPointerExpectationAndFinding) {

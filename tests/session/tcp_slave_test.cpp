@@ -105,7 +105,7 @@ TEST(TcpSlaveRtuOverTcp, AFrameOfUnknownLengthIsAnsweredAfterTheSilence) {
 class DeferringUnit final : public UnitHandler {
 public:
     std::optional<Bytes> handle(ByteView, bool) override { return std::nullopt; }
-    void handle_async(Bytes request_pdu, bool, Origin, ReplyCallback reply) override {
+    void handle_async(Bytes request_pdu, bool, const Asker&, ReplyCallback reply) override {
         std::lock_guard lock(mutex_);
         pending_.push_back({std::move(request_pdu), std::move(reply)});
         arrived_.notify_all();
@@ -128,10 +128,10 @@ private:
 class OriginRecorder final : public UnitHandler {
 public:
     std::optional<Bytes> handle(ByteView, bool) override { return Bytes{0x03, 0x02, 0x00, 0x00}; }
-    void handle_async(Bytes request_pdu, bool broadcast, Origin origin, ReplyCallback reply) override {
+    void handle_async(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) override {
         {
             std::lock_guard lock(mutex_);
-            origins_.push_back(origin);
+            origins_.push_back(asker.origin);
         }
         reply(handle(request_pdu, broadcast));
     }
