@@ -3,9 +3,14 @@
 // `write` (access, type, decimals, range, the device's mode), then the planned requests, sent
 // through the device's line scheduler at Priority::write so they go before the polls.
 //
-// Threads: write() blocks its caller until the line has answered; call it from a front's own
-// worker, never from a network loop. Several fronts may write at once (the schedulers queue).
+// Threads: each line has a writer thread of its own, which takes that line's writes one after
+// the other (the line carries one request at a time anyway). A front hands a write over with
+// write_async() and hears the outcome from the completion, so a write waiting for a slow or
+// dead line never holds up a write to another line, nor the front's own thread. Each line's
+// queue is bounded: beyond `queue_limit` writes waiting, more are refused as busy.
 #include <chrono>
+#include <cstddef>
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -36,10 +41,21 @@ struct WrittenValues {
     std::vector<std::pair<std::string, std::string>> values;
 };
 
+// The outcome of a write; must not throw. Runs exactly once, on the line's writer thread, or at
+// once on the caller's thread when the write is refused before it is queued (an unknown device
+// or parameter, no value).
+using WriteCompletion = std::function<void(Result<WrittenValues>)>;
+
 class DeviceWriter {
 public:
-    // `write_limit`: how long a write may wait for its line before it is given up.
-    DeviceWriter(std::vector<WritableDevice> devices, std::chrono::milliseconds write_limit);
+    static constexpr std::size_t default_queue_limit = 256;
+
+    // `write_limit`: how long a write may wait for its line, from the moment it is queued,
+    // before it is given up unsent. `queue_limit`: writes that may wait for one line.
+    DeviceWriter(std::vector<WritableDevice> devices, std::chrono::milliseconds write_limit,
+                 std::size_t queue_limit = default_queue_limit);
+    // Fails the writes still queued (ErrorKind::link, "gateway stopping"); each line's write
+    // under way finishes and its completion runs first.
     ~DeviceWriter();
     DeviceWriter(const DeviceWriter&) = delete;
     DeviceWriter& operator=(const DeviceWriter&) = delete;
@@ -50,11 +66,24 @@ public:
     // Validates every assignment, then writes them in planned blocks; nothing is sent when one
     // is invalid. The error says which name or value was wrong, or how the device refused, in
     // words (the profile's meaning of the exception code).
+    //
+    // Returns false, and `done` never runs, when the device's line already has `queue_limit`
+    // writes waiting: the caller answers "busy" in its own words.
+    [[nodiscard]] bool write_async(const std::string& device, std::vector<WriteAssignment> assignments,
+                                   WriteCompletion done) const;
+
+    // The same, waiting for the outcome (a busy line is an error here). For callers that may
+    // block: never a front's network thread.
     Result<WrittenValues> write(const std::string& device, const std::vector<WriteAssignment>& assignments) const;
+
+    // Writes queued or under way on every line now.
+    std::size_t pending() const;
 
 private:
     struct Target;
+    struct LineWriter;
     std::vector<std::unique_ptr<Target>> targets_;
+    std::vector<std::unique_ptr<LineWriter>> lines_;  // one a line scheduler; stopped first
 };
 
 }  // namespace loopwire::gateway

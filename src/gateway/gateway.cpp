@@ -256,6 +256,8 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     settings.port = http.port;
     settings.read_timeout = http.read_timeout;
     settings.max_connections = http.max_connections;
+    settings.max_connections_per_client = http.max_connections_per_client;
+    settings.send_timeout = http.send_timeout;
     auto server = HttpServer::open(settings, *parts.http_api);
     if (!server) return server.error();
     parts.http = std::move(*server);

@@ -1,6 +1,7 @@
 #include "gateway/gateway_config.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <initializer_list>
 #include <limits>
@@ -15,6 +16,7 @@
 #include <fmt/format.h>
 #include <toml++/toml.h>
 
+#include "common/peer_text.hpp"
 #include "common/regular_file.hpp"
 #include "common/text_parsing.hpp"
 #include "profile/request_planner.hpp"
@@ -45,7 +47,9 @@ struct Context {
     Error fail(const toml::source_region& where, const std::string& path, const std::string& what) const {
         // Line 0 means toml++ knows no position (a node built in code); the root is line 1.
         const auto line = std::max<toml::source_index>(where.begin.line, 1);
-        return make_error(ErrorKind::usage, fmt::format("{}:{}: {}: {}", source, line, path, what));
+        // The file's strings may hold control characters (TOML's \u escapes): none reaches a
+        // terminal or the log raw, whichever message quotes them.
+        return make_error(ErrorKind::usage, fmt::format("{}:{}: {}: {}", source, line, path, without_control_bytes(what)));
     }
 };
 
@@ -159,8 +163,8 @@ Result<std::string> checked_name(const Context& ctx, const toml::table& table, c
     if (!name) return name.error();
     if (name->empty() || !std::all_of(name->begin(), name->end(), name_character)) {
         return ctx.fail(source_of(table, "name"), key_path(path, "name"),
-                        fmt::format("\"{}\" is not a valid name (expected letters, digits, '-' and '_' only: it is used "
-                                    "in MQTT topics and URLs)", *name));
+                        fmt::format("{} is not a valid name (expected letters, digits, '-' and '_' only: it is used "
+                                    "in MQTT topics and URLs)", quoted_excerpt(*name)));
     }
     return name;
 }
@@ -407,7 +411,7 @@ Result<LogConfig::Level> log_level(const Context& ctx, const toml::table& table)
         if (**text == name) return level;
     }
     return ctx.fail(source_of(table, "level"), "log.level",
-                    fmt::format("\"{}\" is not a log level (expected \"debug\", \"info\", \"warning\" or \"error\")", **text));
+                    fmt::format("{} is not a log level (expected \"debug\", \"info\", \"warning\" or \"error\")", quoted_excerpt(**text)));
 }
 
 // `statistics = "60s"` logs each line's figures that often; "off" only at exit. Less than a
@@ -502,8 +506,9 @@ Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& 
         auto address = split_listen(**listen);
         if (!address) {
             return ctx.fail(source_of(*table, "listen"), "modbus_tcp.listen",
-                            fmt::format("\"{}\" is not an address to listen on (expected HOST:PORT with a port 0..65535, "
-                                        "0 for any free one, e.g. \"127.0.0.1:1502\", \"0.0.0.0:502\" or \"[::1]:1502\")", **listen));
+                            fmt::format("{} is not an address to listen on (expected HOST:PORT with a port 0..65535, "
+                                        "0 for any free one, e.g. \"127.0.0.1:1502\", \"0.0.0.0:502\" or \"[::1]:1502\")",
+                                        quoted_excerpt(**listen)));
         }
         config.host = std::move(address->host);
         config.port = address->port;
@@ -683,7 +688,7 @@ Result<void> parse_mqtt_publishing(const Context& ctx, const toml::table& table,
         config.discovery = MqttConfig::Discovery::homeassistant;
     } else if (*discovery && **discovery != "none") {
         return ctx.fail(source_of(table, "discovery"), "mqtt.discovery",
-                        fmt::format("\"{}\" is not a discovery scheme (expected \"homeassistant\" or \"none\")", **discovery));
+                        fmt::format("{} is not a discovery scheme (expected \"homeassistant\" or \"none\")", quoted_excerpt(**discovery)));
     }
     auto discovery_prefix = optional_value<std::string>(ctx, table, "mqtt", "discovery_prefix", "a string such as \"homeassistant\"");
     if (!discovery_prefix) return discovery_prefix.error();
@@ -691,8 +696,8 @@ Result<void> parse_mqtt_publishing(const Context& ctx, const toml::table& table,
         const auto& text = **discovery_prefix;
         if (!valid_prefix(text) || text.find(' ') != std::string::npos) {
             return ctx.fail(source_of(table, "discovery_prefix"), "mqtt.discovery_prefix",
-                            fmt::format("\"{}\" is not a topic prefix (expected levels joined by '/', none empty, "
-                                        "without '+', '#' or spaces, e.g. \"homeassistant\")", text));
+                            fmt::format("{} is not a topic prefix (expected levels joined by '/', none empty, "
+                                        "without '+', '#' or spaces, e.g. \"homeassistant\")", quoted_excerpt(text)));
         }
         config.discovery_prefix = text;
     }
@@ -713,7 +718,7 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
     if (!table) return ctx.fail(node->source(), "mqtt", "expected an [mqtt] table");
     if (auto keys = check_keys(ctx, *table, "mqtt",
                                {"broker", "prefix", "writes", "client_id", "ca_file", "cert_file", "key_file", "username",
-                                "password_file", "republish", "discovery", "discovery_prefix"});
+                                "password_file", "republish", "discovery", "discovery_prefix", "max_payload"});
         !keys)
         return keys.error();
     MqttConfig config;
@@ -723,8 +728,8 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
     auto address = split_broker(*broker, tls);
     if (!address) {
         return ctx.fail(source_of(*table, "broker"), "mqtt.broker",
-                        fmt::format("\"{}\" is not a broker address (expected mqtt://HOST[:PORT], or mqtts://HOST[:PORT] "
-                                    "for TLS, with a port 1..65535, e.g. \"mqtt://127.0.0.1:1883\")", *broker));
+                        fmt::format("{} is not a broker address (expected mqtt://HOST[:PORT], or mqtts://HOST[:PORT] "
+                                    "for TLS, with a port 1..65535, e.g. \"mqtt://127.0.0.1:1883\")", quoted_excerpt(*broker)));
     }
     config.broker = *broker;
     config.host = std::move(address->host);
@@ -736,8 +741,8 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
     if (*prefix) {
         if (!valid_prefix(**prefix)) {
             return ctx.fail(source_of(*table, "prefix"), "mqtt.prefix",
-                            fmt::format("\"{}\" is not a topic prefix (expected levels joined by '/', none empty, "
-                                        "without '+' or '#', e.g. \"loopwire/plant1\")", **prefix));
+                            fmt::format("{} is not a topic prefix (expected levels joined by '/', none empty, "
+                                        "without '+' or '#', e.g. \"loopwire/plant1\")", quoted_excerpt(**prefix)));
         }
         config.prefix = std::move(**prefix);
     }
@@ -755,6 +760,10 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
         config.client_id = std::move(**client_id);
     }
     if (auto publishing = parse_mqtt_publishing(ctx, *table, config); !publishing) return publishing.error();
+    // A value is a few bytes; 64 KiB is far beyond any, and still small to hold a few hundred of.
+    auto max_payload = optional_integer(ctx, *table, "mqtt", "max_payload", 16, 64 * 1024);
+    if (!max_payload) return max_payload.error();
+    if (*max_payload) config.max_payload = static_cast<std::size_t>(**max_payload);  // 16..65536, checked
     return std::optional<MqttConfig>{std::move(config)};
 }
 
@@ -770,7 +779,7 @@ Result<std::chrono::seconds> history_keep(const Context& ctx, const toml::table&
     auto keep = parse_period(**text, "");
     if (!keep) return ctx.fail(source_of(table, "keep"), "history.keep", without_option_name(keep.error().message));
     if (*keep < std::chrono::minutes(1)) {
-        return ctx.fail(source_of(table, "keep"), "history.keep", fmt::format("\"{}\" is too short: keep at least 1m (e.g. \"90d\")", **text));
+        return ctx.fail(source_of(table, "keep"), "history.keep", fmt::format("{} is too short: keep at least 1m (e.g. \"90d\")", quoted_excerpt(**text)));
     }
     return *keep;
 }
@@ -858,12 +867,83 @@ Result<std::string> read_token(const Context& ctx, const toml::table& table, con
     return token;
 }
 
+// A name the Host header may give: a DNS name or IPv4 address ([A-Za-z0-9.-]), or an IPv6
+// address in brackets, without a port (RFC 7230, 5.4: Host is uri-host [ ":" port ]).
+bool host_name(std::string_view name) {
+    if (name.empty() || name.size() > 255) return false;
+    if (name.front() == '[') {
+        return name.size() > 2 && name.back() == ']' && std::all_of(name.begin() + 1, name.end() - 1, [](char c) {
+                   return std::isxdigit(static_cast<unsigned char>(c)) || c == ':' || c == '.';
+               });
+    }
+    return std::all_of(name.begin(), name.end(),
+                       [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '-'; });
+}
+
+// `hosts = ["gateway.plant.local", "192.168.1.10"]`: the names, in lower case (Host names are
+// compared without case, RFC 3986, 3.2.2).
+Result<std::vector<std::string>> http_hosts(const Context& ctx, const toml::table& table) {
+    std::vector<std::string> hosts;
+    const toml::node* node = table.get("hosts");
+    if (!node) return hosts;
+    const auto* array = node->as_array();
+    constexpr std::string_view example = "[\"gateway.plant.local\", \"192.168.1.10\", \"[fd00::10]\"]";
+    if (!array) return ctx.fail(node->source(), "http.hosts", fmt::format("expected a list of host names, e.g. {}", example));
+    for (std::size_t i = 0; i < array->size(); ++i) {
+        const toml::node& element = *array->get(i);
+        const auto* name = element.as_string();
+        if (!name) {
+            return ctx.fail(element.source(), index_path("http.hosts", i), fmt::format("expected a host name (a string), e.g. {}", example));
+        }
+        if (!host_name(name->get())) {
+            return ctx.fail(element.source(), index_path("http.hosts", i),
+                            fmt::format("{} is not a host name (expected a name or address as a browser's address bar has "
+                                        "it, without a port or scheme, e.g. {})", quoted_excerpt(name->get()), example));
+        }
+        std::string lower = name->get();
+        std::transform(lower.begin(), lower.end(), lower.begin(),
+                       [](char c) { return static_cast<char>(std::tolower(static_cast<unsigned char>(c))); });
+        hosts.push_back(std::move(lower));
+    }
+    return hosts;
+}
+
+// The limits that keep a few clients from taking every connection.
+Result<void> parse_http_limits(const Context& ctx, const toml::table& table, HttpConfig& config) {
+    auto read_timeout = optional_duration(ctx, table, "http", "read_timeout");
+    if (!read_timeout) return read_timeout.error();
+    if (*read_timeout) {
+        if (**read_timeout < milliseconds(100) || **read_timeout > std::chrono::minutes(10)) {
+            return ctx.fail(source_of(table, "read_timeout"), "http.read_timeout", "expected 100ms..10min (e.g. \"10s\")");
+        }
+        config.read_timeout = **read_timeout;
+    }
+    auto send_timeout = optional_duration(ctx, table, "http", "send_timeout");
+    if (!send_timeout) return send_timeout.error();
+    if (*send_timeout) {
+        if (**send_timeout < milliseconds(100) || **send_timeout > std::chrono::minutes(10)) {
+            return ctx.fail(source_of(table, "send_timeout"), "http.send_timeout", "expected 100ms..10min (e.g. \"10s\")");
+        }
+        config.send_timeout = **send_timeout;
+    }
+    auto max_connections = optional_integer(ctx, table, "http", "max_connections", 1, 10000);
+    if (!max_connections) return max_connections.error();
+    if (*max_connections) config.max_connections = static_cast<unsigned>(**max_connections);  // 1..10000, checked
+    auto per_client = optional_integer(ctx, table, "http", "max_connections_per_client", 1, 10000);
+    if (!per_client) return per_client.error();
+    if (*per_client) config.max_connections_per_client = static_cast<unsigned>(**per_client);  // 1..10000, checked
+    return {};
+}
+
 Result<std::optional<HttpConfig>> parse_http(const Context& ctx, const toml::table& root) {
     const toml::node* node = root.get("http");
     if (!node) return std::optional<HttpConfig>{};
     const auto* table = node->as_table();
     if (!table) return ctx.fail(node->source(), "http", "expected an [http] table");
-    if (auto keys = check_keys(ctx, *table, "http", {"listen", "token_file", "read_timeout", "max_connections"}); !keys)
+    if (auto keys = check_keys(ctx, *table, "http",
+                               {"listen", "token_file", "read_timeout", "max_connections", "max_connections_per_client",
+                                "send_timeout", "hosts"});
+        !keys)
         return keys.error();
     HttpConfig config;
     auto listen = optional_value<std::string>(ctx, *table, "http", "listen", "a string such as \"127.0.0.1:8080\"");
@@ -872,8 +952,8 @@ Result<std::optional<HttpConfig>> parse_http(const Context& ctx, const toml::tab
         auto address = split_listen(**listen);
         if (!address) {
             return ctx.fail(source_of(*table, "listen"), "http.listen",
-                            fmt::format("\"{}\" is not an address to listen on (expected HOST:PORT with a port 0..65535, "
-                                        "0 for any free one, e.g. \"127.0.0.1:8080\" or \"[::1]:8080\")", **listen));
+                            fmt::format("{} is not an address to listen on (expected HOST:PORT with a port 0..65535, "
+                                        "0 for any free one, e.g. \"127.0.0.1:8080\" or \"[::1]:8080\")", quoted_excerpt(**listen)));
         }
         config.host = std::move(address->host);
         config.port = address->port;
@@ -891,17 +971,10 @@ Result<std::optional<HttpConfig>> parse_http(const Context& ctx, const toml::tab
         config.token_file = file;
         config.token = std::move(*token);
     }
-    auto read_timeout = optional_duration(ctx, *table, "http", "read_timeout");
-    if (!read_timeout) return read_timeout.error();
-    if (*read_timeout) {
-        if (**read_timeout < milliseconds(100) || **read_timeout > std::chrono::minutes(10)) {
-            return ctx.fail(source_of(*table, "read_timeout"), "http.read_timeout", "expected 100ms..10min (e.g. \"10s\")");
-        }
-        config.read_timeout = **read_timeout;
-    }
-    auto max_connections = optional_integer(ctx, *table, "http", "max_connections", 1, 10000);
-    if (!max_connections) return max_connections.error();
-    if (*max_connections) config.max_connections = static_cast<unsigned>(**max_connections);  // 1..10000, checked
+    if (auto limits = parse_http_limits(ctx, *table, config); !limits) return limits.error();
+    auto hosts = http_hosts(ctx, *table);
+    if (!hosts) return hosts.error();
+    config.hosts = std::move(*hosts);
     if (!config.loopback() && config.token.empty()) {
         return ctx.fail(source_of(*table, "listen"), "http.listen",
                         fmt::format("\"{}\" is not a loopback address, so every request needs the token: set "

@@ -3,6 +3,7 @@
 // each, and the fronts it serves (docs/DESIGN.md, gateway). Every error names the file, the
 // line and the key, and says what is expected.
 #include <chrono>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -94,6 +95,8 @@ struct MqttConfig {
     std::string discovery_prefix = "homeassistant";
     // The gateway's name in discovery ids: [gateway] name, else the prefix's last level.
     std::string gateway_name = "gateway";
+    // A .../set payload longer than this many bytes is refused unread (a value is a few bytes).
+    std::size_t max_payload = 1024;
 };
 
 // [history]: every change of a polled value, and a heartbeat sample of each, kept in an SQLite
@@ -117,6 +120,14 @@ struct HttpConfig {
     // A client that has not sent a whole request this long after it began is closed.
     std::chrono::milliseconds read_timeout{10000};
     unsigned max_connections = 64;
+    // Connections one client address may hold at once: a few clients cannot take every slot.
+    unsigned max_connections_per_client = 8;
+    // An event stream whose client has taken nothing of what waits for it this long is closed.
+    std::chrono::milliseconds send_timeout{10000};
+    // Host header names answered besides the listen address, localhost, 127.0.0.1 and [::1]
+    // (the names a browser uses to reach the gateway; any other is refused 421, which keeps a
+    // page of another site from reading the API through DNS rebinding). Lower case.
+    std::vector<std::string> hosts;
 
     // Whether the address is loopback (127.0.0.0/8, ::1, localhost): only then are reads open.
     bool loopback() const;

@@ -1,6 +1,7 @@
 #include "gateway/http_api.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <map>
 #include <optional>
 #include <set>
@@ -9,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/monitor_state.hpp"
+#include "common/peer_text.hpp"
 #include "gateway/dashboard_assets.hpp"
 #include "gateway/http_text.hpp"
 #include "gateway/metrics.hpp"
@@ -22,8 +24,9 @@ using Json = nlohmann::ordered_json;
 HttpResponse json_response(unsigned status, const Json& body) {
     HttpResponse response;
     response.status = status;
-    // Replaced, not thrown on: a device's text is the device's, and may not be valid UTF-8.
-    response.body = body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+    // Replaced, not thrown on: a device's text is the device's, and a client's (a name in a
+    // path, a value in a body) the client's; either may not be valid UTF-8.
+    response.body = json_text(body);
     response.headers.emplace_back("Cache-Control", "no-store");
     return response;
 }
@@ -90,6 +93,51 @@ bool same_token(std::string_view given, std::string_view token) {
     return differ == 0;
 }
 
+std::string lower_case(std::string_view text) {
+    std::string lower(text);
+    std::transform(lower.begin(), lower.end(), lower.begin(),
+                   [](char c) { return static_cast<char>(std::tolower(static_cast<unsigned char>(c))); });
+    return lower;
+}
+
+// The name of a Host header without its port, in lower case: "[::1]:8080" -> "[::1]",
+// "Gateway.Local" -> "gateway.local". None when it is not uri-host [":" port] (RFC 7230, 5.4).
+std::optional<std::string> host_name_of(std::string_view host) {
+    std::string_view name = host;
+    std::string_view port;
+    if (host.starts_with('[')) {
+        const auto close = host.find(']');
+        if (close == std::string_view::npos) return std::nullopt;
+        name = host.substr(0, close + 1);
+        port = host.substr(close + 1);
+    } else if (const auto colon = host.rfind(':'); colon != std::string_view::npos) {
+        name = host.substr(0, colon);
+        port = host.substr(colon);
+    }
+    if (!port.empty() && (port.size() < 2 || port.size() > 6 || port.front() != ':' ||
+                          !std::all_of(port.begin() + 1, port.end(), [](char c) { return c >= '0' && c <= '9'; }))) {
+        return std::nullopt;
+    }
+    if (name.empty()) return std::nullopt;
+    return lower_case(name);
+}
+
+// The answer to a write: what was written, or why not, with a status that fits.
+HttpResponse write_response(const Result<WrittenValues>& written) {
+    if (!written) {
+        const Error& failure = written.error();
+        // The device's mode (AC20 in local: Note 5) is a state to change first: a conflict.
+        const bool mode = failure.message.find("can be written only in") != std::string::npos;
+        const unsigned status = failure.kind == ErrorKind::timeout || failure.kind == ErrorKind::link ? 504u
+                                : mode                                                              ? 409u
+                                                                                                    : 422u;
+        return error(status, failure.message);
+    }
+    Json values = Json::object();
+    for (const auto& [parameter, text] : written->values) values[parameter] = text;
+    return json_response(200, Json{{"written", values}});
+}
+
 struct ConfiguredDevice {
     std::string name;
     std::string line;
@@ -104,6 +152,7 @@ struct HttpApi::State {
     HttpApiSources sources;
     std::string token;        // empty: writes refused
     bool reads_need_token = false;
+    std::vector<std::string> hosts;  // the Host names answered, in lower case
     struct Asset {
         const StaticAsset* asset;
         std::string etag;
@@ -143,6 +192,22 @@ struct HttpApi::State {
         return std::nullopt;
     }
 
+    // None when the Host header names this gateway; else the refusal. A browser sends the name
+    // from its address bar: a page of another site whose name an attacker points at this
+    // address (DNS rebinding) sends that other name, and is not answered.
+    std::optional<HttpResponse> check_host(const HttpRequest& request) const {
+        if (request.host.empty()) {
+            return error(400, "the request has no Host header (HTTP/1.1 requires one, RFC 7230 5.4)");
+        }
+        const auto name = host_name_of(request.host);
+        if (name && std::find(hosts.begin(), hosts.end(), *name) != hosts.end()) return std::nullopt;
+        const std::string shown = name ? quoted_excerpt(*name) : quoted_excerpt(request.host);
+        return error(421, fmt::format("this gateway does not answer to the host name {} (it answers to {}); if that is a "
+                                      "name it is reached by, add it to the configuration's [http] hosts list, e.g. "
+                                      "hosts = [\"gateway.plant.local\"]",
+                                      shown, fmt::join(hosts, ", ")));
+    }
+
     HttpOutcome route(const HttpRequest& request);
     HttpResponse devices_list() const;
     HttpResponse device_detail(const ConfiguredDevice& device) const;
@@ -160,10 +225,13 @@ HttpApi::HttpApi(const GatewayConfig& config, HttpApiSources sources) : state_(s
         }
     }
     state_->sources = std::move(sources);
-    if (config.http) {
-        state_->token = config.http->token;
-        state_->reads_need_token = !config.http->loopback();
-    }
+    const HttpConfig http = config.http.value_or(HttpConfig{});
+    state_->token = http.token;
+    state_->reads_need_token = !http.loopback();
+    state_->hosts = {"localhost", "127.0.0.1", "[::1]"};
+    const std::string listen = lower_case(http.host.find(':') != std::string::npos ? "[" + http.host + "]" : http.host);
+    for (const auto& name : http.hosts) state_->hosts.push_back(name);
+    if (std::find(state_->hosts.begin(), state_->hosts.end(), listen) == state_->hosts.end()) state_->hosts.push_back(listen);
     for (const StaticAsset& asset : dashboard_assets()) {
         state_->assets[std::string(asset.path)] = {&asset, etag_of(asset.body)};
     }
@@ -174,6 +242,7 @@ HttpApi::~HttpApi() = default;
 HttpOutcome HttpApi::handle(const HttpRequest& request) { return state_->route(request); }
 
 HttpOutcome HttpApi::State::route(const HttpRequest& request) {
+    if (auto refusal = check_host(request)) return {*refusal, {}, {}};
     const std::string& path = request.path;
     const bool get = request.method == "GET";
     const bool api = path.rfind("/api/", 0) == 0 || path == "/metrics";
@@ -306,23 +375,19 @@ HttpOutcome HttpApi::State::write(const ConfiguredDevice& device, const HttpRequ
         }
         assignments.push_back({name, value.get<std::string>()});
     }
-    // Blocks until the line has answered: on a worker, off the network thread.
-    auto blocking = [writer = sources.writer, name = device.name, assignments = std::move(assignments)] {
-        auto written = writer->write(name, assignments);
-        if (!written) {
-            const Error& failure = written.error();
-            // The device's mode (AC20 in local: Note 5) is a state to change first: a conflict.
-            const bool mode = failure.message.find("can be written only in") != std::string::npos;
-            const unsigned status = failure.kind == ErrorKind::timeout || failure.kind == ErrorKind::link ? 504u
-                                    : mode                                                              ? 409u
-                                                                                                        : 422u;
-            return error(status, failure.message);
+    // Handed to the device's line; answered from its completion once the line has answered,
+    // so a write waiting for a slow line holds up no other client and no other line.
+    auto deferred = [writer = sources.writer, name = device.name, assignments = std::move(assignments)](HttpResponder respond) {
+        const bool queued = writer->write_async(
+            name, assignments, [respond](Result<WrittenValues> written) { respond(write_response(written)); });
+        if (!queued) {
+            HttpResponse busy = error(503, fmt::format("the line of device \"{}\" has too many writes waiting; nothing was "
+                                                       "sent, write again later", name));
+            busy.headers.emplace_back("Retry-After", "1");
+            respond(std::move(busy));
         }
-        Json values = Json::object();
-        for (const auto& [parameter, text] : written->values) values[parameter] = text;
-        return json_response(200, Json{{"written", values}});
     };
-    return {{}, std::move(blocking), {}};
+    return {{}, std::move(deferred), {}};
 }
 
 HttpOutcome HttpApi::State::events(const HttpRequest& request) const {
@@ -335,7 +400,7 @@ HttpOutcome HttpApi::State::events(const HttpRequest& request) const {
     auto start = [cache = sources.cache, only](EventSender send) {
         return cache->subscribe([send = std::move(send), only](const ValueChange& change) {
             if (!only.empty() && change.device != only) return;
-            send(fmt::format("data: {}\n\n", change_json(change).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)));
+            send(fmt::format("data: {}\n\n", json_text(change_json(change))));
         });
     };
     return {{}, {}, std::move(start)};

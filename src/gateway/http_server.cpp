@@ -1,6 +1,7 @@
 #include "gateway/http_server.hpp"
 
 #include <array>
+#include <atomic>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -9,7 +10,6 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
-#include <boost/asio/thread_pool.hpp>
 #include <boost/asio/write.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
@@ -36,6 +36,58 @@ HttpResponse error_response(unsigned status, std::string_view message) {
     return response;
 }
 
+HttpResponse too_large(const HttpServerSettings& settings) {
+    return error_response(413, fmt::format("the request body is larger than {} bytes", settings.body_limit));
+}
+
+// What a request that cannot be read gets: none when nothing can usefully be said (the client
+// went, or stalled past read_timeout), and the connection is just closed.
+std::optional<HttpResponse> refusal_for(const error_code& error, const HttpServerSettings& settings) {
+    if (error == http::error::body_limit) return too_large(settings);
+    if (error == http::error::header_limit) {
+        return error_response(431, fmt::format("the request's headers are larger than {} bytes", settings.header_limit));
+    }
+    if (error == http::error::end_of_stream || error == beast::error::timeout || error == asio::error::operation_aborted ||
+        error == asio::error::connection_reset || error == asio::error::eof || error == http::error::partial_message) {
+        return std::nullopt;
+    }
+    return error_response(400, "malformed HTTP request");
+}
+
+using RequestParser = http::request_parser<http::string_body>;
+
+void limit(RequestParser& parser, const HttpServerSettings& settings) {
+    parser.header_limit(static_cast<std::uint32_t>(settings.header_limit));
+    parser.body_limit(settings.body_limit);
+}
+
+// The parsed message as the handler sees it: every text exactly as sent (the handler escapes
+// what it repeats).
+HttpRequest to_request(const http::request<http::string_body>& message) {
+    HttpRequest request;
+    request.method = to_string(message.method_string());
+    request.host = to_string(message[http::field::host]);
+    const std::string_view target(message.target().data(), message.target().size());
+    const auto question = target.find('?');
+    request.path = std::string(target.substr(0, question));
+    if (question != std::string_view::npos) request.query = std::string(target.substr(question + 1));
+    request.authorization = to_string(message[http::field::authorization]);
+    request.if_none_match = to_string(message[http::field::if_none_match]);
+    request.body = message.body();
+    return request;
+}
+
+// One client address, as counted for max_connections_per_client: an IPv4 client reaching an
+// IPv6 socket is the same client as over IPv4.
+asio::ip::address client_of(const tcp::socket& socket) {
+    error_code error;
+    auto address = socket.remote_endpoint(error).address();
+    if (address.is_v6() && address.to_v6().is_v4_mapped()) {
+        return asio::ip::make_address_v4(asio::ip::v4_mapped, address.to_v6());
+    }
+    return address;
+}
+
 // The queue between the poll threads and one event stream: text waiting to be written, bounded.
 struct EventQueue {
     std::mutex mutex;
@@ -49,17 +101,17 @@ struct EventQueue {
 class Connection;
 
 struct HttpServer::State {
-    State(const HttpServerSettings& s, HttpHandler& h) : settings(s), handler(h), workers(s.workers) {}
+    State(const HttpServerSettings& s, HttpHandler& h) : settings(s), handler(h) {}
 
     HttpServerSettings settings;
     HttpHandler& handler;
     // Before the loop, so still there when the loop's pending handlers release the last
     // connections.
     std::map<Connection*, std::weak_ptr<Connection>> connections;  // the network thread's
+    std::map<asio::ip::address, std::size_t> per_client;           // open connections by address
     // Declared before what uses it, destroyed after: pending handlers (and the connections they
     // hold) go with it.
     asio::io_context loop{1};
-    asio::thread_pool workers;
     tcp::acceptor acceptor{loop};
     asio::steady_timer accept_pause{loop};
     std::uint16_t port = 0;
@@ -69,16 +121,20 @@ struct HttpServer::State {
 
     void accept();
     void on_accept(const error_code& error, tcp::socket socket);
+    static void refuse(tcp::socket& socket, unsigned status, std::string_view reason, std::string_view message);
     void shut_down();
 };
 
 // One client's connection, on the network thread only (but for its event queue).
 class Connection : public std::enable_shared_from_this<Connection> {
 public:
-    Connection(HttpServer::State& server, tcp::socket socket) : server_(server), stream_(std::move(socket)), heartbeat_(server.loop) {}
+    Connection(HttpServer::State& server, tcp::socket socket, asio::ip::address client)
+        : server_(server), client_(client), stream_(std::move(socket)), heartbeat_(server.loop) {
+        ++server_.per_client[client_];
+    }
     ~Connection() {
         subscription_.reset();
-        server_.connections.erase(this);
+        let_go();
     }
 
     void start() { read_request(); }
@@ -95,8 +151,7 @@ public:
 private:
     void read_request() {
         parser_.emplace();
-        parser_->header_limit(static_cast<std::uint32_t>(server_.settings.header_limit));
-        parser_->body_limit(server_.settings.body_limit);
+        limit(*parser_, server_.settings);
         // The whole request within the timeout: a client that sends half of one and stalls is
         // closed, as is one that trickles it a byte at a time.
         stream_.expires_after(server_.settings.read_timeout);
@@ -108,7 +163,7 @@ private:
         if (error) return refuse_unreadable(error);
         const auto& header = parser_->get();
         if (header.payload_size() && *header.payload_size() > server_.settings.body_limit) {
-            return send(too_large(), true);
+            return send(too_large(server_.settings), true);
         }
         if (beast::iequals(header[http::field::expect], "100-continue")) {
             continue_ = std::make_shared<std::string>("HTTP/1.1 100 Continue\r\n\r\n");
@@ -128,53 +183,31 @@ private:
         });
     }
 
-    HttpResponse too_large() const {
-        return error_response(413, fmt::format("the request body is larger than {} bytes", server_.settings.body_limit));
-    }
-
     // A request that could not be read: answered where the client can still use an answer.
     void refuse_unreadable(const error_code& error) {
-        if (error == http::error::body_limit) return send(too_large(), true);
-        if (error == http::error::header_limit) {
-            return send(error_response(431, fmt::format("the request's headers are larger than {} bytes",
-                                                        server_.settings.header_limit)), true);
-        }
-        if (error == http::error::end_of_stream || error == beast::error::timeout || error == asio::error::operation_aborted ||
-            error == asio::error::connection_reset || error == asio::error::eof || error == http::error::partial_message) {
-            return close();
-        }
-        send(error_response(400, "malformed HTTP request"), true);
+        if (auto refusal = refusal_for(error, server_.settings)) return send(*refusal, true);
+        close();
     }
 
     void dispatch() {
         const auto& message = parser_->get();
         keep_alive_ = message.keep_alive();
-        HttpRequest request;
-        request.method = std::string(message.method_string().data(), message.method_string().size());
-        const std::string_view target(message.target().data(), message.target().size());
-        const auto question = target.find('?');
-        request.path = std::string(target.substr(0, question));
-        if (question != std::string_view::npos) request.query = std::string(target.substr(question + 1));
-        request.authorization = to_string(message[http::field::authorization]);
-        request.if_none_match = to_string(message[http::field::if_none_match]);
-        request.body = message.body();
-        HttpOutcome outcome = server_.handler.handle(request);
+        HttpOutcome outcome = server_.handler.handle(to_request(message));
         if (outcome.events) return start_events(outcome.events);
-        if (outcome.blocking) return run_blocking(std::move(outcome.blocking));
+        if (outcome.deferred) return run_deferred(outcome.deferred);
         send(outcome.response, false);
     }
 
-    // On a worker, then back here with its response; the connection reads nothing meanwhile.
-    void run_blocking(std::function<HttpResponse()> work) {
+    // Started here, answered from whichever thread finishes it; the connection reads nothing
+    // meanwhile. The responder's guard keeps the network loop running until the response is
+    // back, even when stop() has closed everything else.
+    void run_deferred(const std::function<void(HttpResponder)>& start) {
         waiting_for_worker_ = true;
         stream_.expires_never();
-        // The guard keeps the network loop running until the response is back, even when stop()
-        // has closed everything else.
-        asio::post(server_.workers, [self = shared_from_this(), work = std::move(work),
-                                     guard = asio::make_work_guard(server_.loop)]() mutable {
-            HttpResponse response = work();
-            auto& loop = self->server_.loop;
-            asio::post(loop, [self = std::move(self), response = std::move(response)] {
+        auto answered = std::make_shared<std::atomic<bool>>(false);
+        start([self = shared_from_this(), guard = asio::make_work_guard(server_.loop), answered](HttpResponse response) {
+            if (answered->exchange(true)) return;
+            asio::post(self->server_.loop, [self, response = std::move(response)] {
                 self->waiting_for_worker_ = false;
                 self->send(response, false);
             });
@@ -226,6 +259,11 @@ private:
             "HTTP/1.1 200 OK\r\nServer: loopwire\r\nContent-Type: text/event-stream\r\nCache-Control: no-cache\r\n"
             "Connection: close\r\nX-Accel-Buffering: no\r\n\r\n";
         stream_.expires_never();
+        // A small send buffer: a client that stops reading backs the stream up into a write that
+        // waits (and is timed out by send_timeout) after kilobytes, not after megabytes the
+        // kernel would otherwise take on its behalf.
+        error_code ignored;
+        stream_.socket().set_option(asio::socket_base::send_buffer_size(event_send_buffer), ignored);
         std::weak_ptr<Connection> weak = shared_from_this();
         subscription_ = subscribe([queue = queue_, weak, &loop = server_.loop, limit = server_.settings.event_queue_limit](
                                       const std::string& event) {
@@ -261,13 +299,24 @@ private:
         if (overflowed) return close();
         if (out_.empty()) return;
         writing_ = true;
-        stream_.expires_after(server_.settings.read_timeout);
-        asio::async_write(stream_, asio::buffer(out_), [self = shared_from_this()](const error_code& error, std::size_t) {
-            self->writing_ = false;
-            if (error) return self->close();
-            self->stream_.expires_never();
-            self->flush_events();
-        });
+        write_events(0);
+    }
+
+    // Piece by piece, each given send_timeout: a client that reads, however slowly, stays; one
+    // that has taken nothing for send_timeout is dropped (its slot is for someone who reads).
+    void write_events(std::size_t from) {
+        stream_.expires_after(server_.settings.send_timeout);
+        stream_.async_write_some(asio::buffer(out_.data() + from, out_.size() - from),
+                                 [self = shared_from_this(), from](const error_code& error, std::size_t written) {
+                                     if (error) {
+                                         self->writing_ = false;
+                                         return self->close();
+                                     }
+                                     if (from + written < self->out_.size()) return self->write_events(from + written);
+                                     self->writing_ = false;
+                                     self->stream_.expires_never();
+                                     self->flush_events();
+                                 });
     }
 
     // The client sends nothing more on an event stream: a read ends only when it goes.
@@ -300,11 +349,23 @@ public:
         error_code ignored;
         stream_.socket().shutdown(tcp::socket::shutdown_both, ignored);
         stream_.close();
-        server_.connections.erase(this);
+        let_go();
     }
 
 private:
+    static constexpr int event_send_buffer = 16 * 1024;
+
+    // The connection no longer counts against the limits; once.
+    void let_go() {
+        if (std::exchange(counted_, false)) {
+            server_.connections.erase(this);
+            if (--server_.per_client[client_] == 0) server_.per_client.erase(client_);
+        }
+    }
+
     HttpServer::State& server_;
+    asio::ip::address client_;
+    bool counted_ = true;
     beast::tcp_stream stream_;
     beast::flat_buffer buffer_;
     std::optional<http::request_parser<http::string_body>> parser_;
@@ -336,23 +397,37 @@ void HttpServer::State::on_accept(const error_code& error, tcp::socket socket) {
         });
         return;
     }
+    const auto client = client_of(socket);
+    const auto from_client = per_client.find(client);
     if (connections.size() >= settings.max_connections) {
-        // Told so in one small write the socket buffer takes at once, then closed.
-        const std::string body = error_json(fmt::format("too many connections (at most {}); try again later", settings.max_connections));
-        const std::string refusal = fmt::format(
-            "HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\nContent-Length: {}\r\nRetry-After: 1\r\n"
-            "Connection: close\r\n\r\n{}", body.size(), body);
-        error_code ignored;
-        socket.non_blocking(true, ignored);
-        socket.write_some(asio::buffer(refusal), ignored);
-        socket.shutdown(tcp::socket::shutdown_both, ignored);
-        socket.close(ignored);
+        refuse(socket, 503, "Service Unavailable",
+               fmt::format("too many connections (at most {}); try again later", settings.max_connections));
+    } else if (from_client != per_client.end() && from_client->second >= settings.max_connections_per_client) {
+        // One address holding this many (a client that opens and stalls, or streams it never
+        // reads) must not take the slots everyone else needs.
+        refuse(socket, 429, "Too Many Requests",
+               fmt::format("too many connections from {} (at most {} at once from one address); close some first, or raise "
+                           "[http] max_connections_per_client", client.to_string(), settings.max_connections_per_client));
     } else {
-        auto connection = std::make_shared<Connection>(*this, std::move(socket));
+        auto connection = std::make_shared<Connection>(*this, std::move(socket), client);
         connections[connection.get()] = connection;
         connection->start();
     }
     accept();
+}
+
+// Told so in one small write the socket buffer takes at once, then closed. The messages are
+// the server's own, with nothing to escape.
+void HttpServer::State::refuse(tcp::socket& socket, unsigned status, std::string_view reason, std::string_view message) {
+    const std::string body = error_json(message);
+    const std::string refusal = fmt::format(
+        "HTTP/1.1 {} {}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nRetry-After: 1\r\n"
+        "Connection: close\r\n\r\n{}", status, reason, body.size(), body);
+    error_code ignored;
+    socket.non_blocking(true, ignored);
+    socket.write_some(asio::buffer(refusal), ignored);
+    socket.shutdown(tcp::socket::shutdown_both, ignored);
+    socket.close(ignored);
 }
 
 void HttpServer::State::shut_down() {
@@ -403,10 +478,31 @@ std::uint16_t HttpServer::port() const { return state_->port; }
 void HttpServer::stop() {
     std::call_once(state_->stopped, [this] {
         asio::post(state_->loop, [s = state_.get()] { s->shut_down(); });
-        // Returns once every connection is closed: the blocking work under way has answered.
+        // Returns once every connection is closed: the deferred work under way has answered.
         state_->thread.join();
-        state_->workers.join();
     });
+}
+
+}  // namespace loopwire::gateway
+
+namespace loopwire::gateway {
+
+ParsedHttpRequest parse_http_request(std::string_view bytes, const HttpServerSettings& settings) {
+    RequestParser parser;
+    limit(parser, settings);
+    parser.eager(true);
+    error_code error;
+    while (!bytes.empty() && !parser.is_done()) {
+        const std::size_t used = parser.put(asio::buffer(bytes.data(), bytes.size()), error);
+        if (error && error != http::error::need_more) return {std::nullopt, refusal_for(error, settings)};
+        if (used == 0) return {};  // the parser wants more than there is
+        bytes.remove_prefix(used);
+        error = {};
+    }
+    if (!parser.is_done()) return {};
+    // As the connection checks before it reads a body.
+    if (parser.content_length() && *parser.content_length() > settings.body_limit) return {std::nullopt, too_large(settings)};
+    return {to_request(parser.get()), std::nullopt};
 }
 
 }  // namespace loopwire::gateway

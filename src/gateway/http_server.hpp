@@ -3,17 +3,25 @@
 // http_server.cpp. What a request means is the handler's business (gateway/http_api.hpp); the
 // server reads requests, hands them over, and sends what comes back, on one network thread.
 //
-// Threads: handle() runs on the network thread and must not block; work that blocks (a write
-// waits for its line) comes back as HttpOutcome::blocking and runs on a small worker pool, so a
-// slow line never holds up other clients. An event stream's `send` is called from any thread
-// (the poll groups'); it only queues, bounded per client: a client that cannot keep up is
-// dropped rather than let its queue grow or slow anyone down.
+// Threads: handle() runs on the network thread and must not block; work that waits (a write
+// waits for its line) comes back as HttpOutcome::deferred, which starts it and is answered
+// through the responder from whatever thread finishes it, so a slow line never holds up other
+// clients or another line's writes. An event stream's `send` is called from any thread (the poll
+// groups'); it only queues, bounded per client: a client that cannot keep up, or takes nothing
+// for `send_timeout`, is dropped rather than let its queue grow or slow anyone down.
+//
+// Limits, so that slow or hostile clients cannot take the server: the whole of a request within
+// `read_timeout` (a client trickling a byte at a time is closed as one that stalls),
+// `max_connections` in all and `max_connections_per_client` from one address (beyond, 503 and
+// 429, and closed), header and body sizes (431, 413).
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -24,6 +32,7 @@ namespace loopwire::gateway {
 
 struct HttpRequest {
     std::string method;         // "GET", "POST", ...
+    std::string host;           // the Host header, as sent ("127.0.0.1:8080"); empty when absent
     std::string path;           // "/api/devices/furnace", as sent (still percent-encoded)
     std::string query;          // what follows '?', as sent
     std::string authorization;  // the Authorization header
@@ -41,9 +50,15 @@ struct HttpResponse {
 // Sends one server-sent event's text ("data: ...\n\n"); callable from any thread.
 using EventSender = std::function<void(const std::string& event)>;
 
+// Sends the response of deferred work; callable once, from any thread. Until it is called the
+// connection reads nothing more, and a stopping server waits for it: call it exactly once.
+using HttpResponder = std::function<void(HttpResponse)>;
+
 struct HttpOutcome {
     HttpResponse response;                      // sent at once, unless one of these is set:
-    std::function<HttpResponse()> blocking;     // runs on a worker; its response is sent
+    // Starts work that waits (on the network thread: must not block itself) and answers it
+    // through the responder once done.
+    std::function<void(HttpResponder)> deferred;
     // Starts an event stream: the server sends the headers, then every event given to the
     // sender, until the client goes or the subscription's queue overflows.
     std::function<ValueSubscription(EventSender)> events;
@@ -60,12 +75,22 @@ struct HttpServerSettings {
     std::uint16_t port = 0;
     std::chrono::milliseconds read_timeout{10000};  // for the whole of a request, and each write
     std::size_t max_connections = 64;               // more are answered 503 and closed
+    std::size_t max_connections_per_client = 8;     // from one address; more are answered 429 and closed
     std::size_t header_limit = 8 * 1024;            // 431 beyond
     std::size_t body_limit = 64 * 1024;             // 413 beyond
     std::size_t event_queue_limit = 1024 * 1024;    // bytes an event stream may have waiting
+    std::chrono::milliseconds send_timeout{10000};  // an event stream's client that takes nothing this long is dropped
     std::chrono::milliseconds event_heartbeat{15000};  // a comment line keeps idle streams alive
-    unsigned workers = 2;                           // threads for blocking work
 };
+
+// What the server makes of the bytes of one request, without a socket: the request, or the
+// response that refuses it (400 malformed, 413, 431), or neither while more bytes are needed.
+// The network code reads requests with the same parser settings and the same mapping.
+struct ParsedHttpRequest {
+    std::optional<HttpRequest> request;
+    std::optional<HttpResponse> refusal;
+};
+ParsedHttpRequest parse_http_request(std::string_view bytes, const HttpServerSettings& settings);
 
 class HttpServer {
 public:

@@ -19,6 +19,8 @@
 #include <mosquitto.h>
 #include <nlohmann/json.hpp>
 
+#include "common/peer_text.hpp"
+#include "gateway/mqtt_commands.hpp"
 #include "gateway/mqtt_documents.hpp"
 
 
@@ -72,25 +74,34 @@ struct RetainedTopic {
 // with packet identifiers it does not reuse until they are acknowledged; a message redelivered
 // after a reconnect (MQTT 3.1.1, 4.4: the DUP flag) carries the same identifier, topic and
 // payload. libmosquitto acknowledges and passes on every copy (it does not expose the DUP flag),
-// so the bridge remembers the last ones.
+// so the bridge remembers the last ones: by identifier and a hash of topic and payload, so that
+// what is remembered stays small whatever the publishers send.
 struct TakenCommand {
     int mid = 0;
-    std::string topic;
-    std::string payload;
+    std::uint64_t digest = 0;
     bool operator==(const TakenCommand&) const = default;
 };
 constexpr std::size_t remembered_commands = 1024;
+
+// FNV-1a over the topic, a separator no topic holds, and the payload.
+std::uint64_t command_digest(std::string_view topic, std::string_view payload) {
+    std::uint64_t hash = 14695981039346656037ull;
+    const auto add = [&hash](std::string_view text) {
+        for (const char c : text) {
+            hash ^= static_cast<unsigned char>(c);
+            hash *= 1099511628211ull;
+        }
+    };
+    add(topic);
+    add(std::string_view("\0", 1));
+    add(payload);
+    return hash;
+}
 
 // What the last poll said about a device.
 struct DeviceSeen {
     std::string status;  // "ok", "partial", "no-reply", "line-down"
     std::string error;
-};
-
-struct WriteCommand {
-    std::string device;
-    std::string parameter;
-    std::string text;
 };
 
 }  // namespace
@@ -104,10 +115,8 @@ struct MqttBridge::State {
     mosquitto* client = nullptr;
     std::atomic<bool> is_connected{false};
 
-    std::mutex mutex;  // guards the two queues and what the polls said about the devices
-    std::condition_variable_any commands_arrived;
-    std::deque<Publication> outgoing;  // from the value stream and the writes
-    std::deque<WriteCommand> commands;  // from the broker, for the worker
+    std::mutex mutex;  // guards the queue and what the polls said about the devices
+    std::deque<Publication> outgoing;  // from the value stream and the writes' results
     std::map<std::string, DeviceSeen> devices;  // by configured name
     // The poll threads' own (one subscriber's callbacks never overlap): each parameter's last
     // error, and the parameters announced to Home Assistant.
@@ -122,7 +131,7 @@ struct MqttBridge::State {
     bool just_connected = false;  // set by on_connect, acted on by the network loop
     std::chrono::steady_clock::time_point next_republish{};
 
-    std::jthread worker;
+    std::unique_ptr<MqttCommands> commands;  // the writes from the broker; before the network thread
     std::jthread network;
     ValueSubscription subscription;
 
@@ -161,8 +170,9 @@ struct MqttBridge::State {
         }
         std::lock_guard lock(mutex);
         outgoing.push_back({base, change.value ? change.text : change.status, true, 0, true});
-        outgoing.push_back({base + "/meta", meta.dump(), true, 0});
-        if (discovery) outgoing.push_back({discovery->topic, discovery->config.dump(), true, qos_at_least_once});
+        // A device's texts (an error, an enum label) are its own and may not be valid UTF-8.
+        outgoing.push_back({base + "/meta", json_text(meta), true, 0});
+        if (discovery) outgoing.push_back({discovery->topic, json_text(discovery->config), true, qos_at_least_once});
     }
 
     // TLS (mqtts://) and credentials. The files were checked when the configuration was read; a
@@ -263,36 +273,30 @@ struct MqttBridge::State {
     }
 
     // Whether the command is a copy of one taken earlier in this session; remembers it if not.
-    bool redelivered(const mosquitto_message& message, const std::string& payload) {
+    bool redelivered(const mosquitto_message& message, std::string_view topic, std::string_view payload) {
         if (message.qos == 0) return false;  // QoS 0 has no identifier and is never sent twice
-        TakenCommand command{message.mid, message.topic, payload};
+        const TakenCommand command{message.mid, command_digest(topic, payload)};
         if (std::find(taken.begin(), taken.end(), command) != taken.end()) return true;
-        taken.push_back(std::move(command));
+        taken.push_back(command);
         if (taken.size() > remembered_commands) taken.pop_front();
         return false;
     }
 
+    // On the network thread: never blocks (MqttCommands hands each write to its line).
     void on_message(const mosquitto_message& message) {
         // A retained command is one the broker replays at every (re)subscription: applying it
         // would write the same value again after each reconnect. Only live commands count.
-        if (message.retain) return;
-        const std::string topic = message.topic;
-        const std::string head = config.prefix + "/";
-        if (topic.rfind(head, 0) != 0) return;
-        const std::string rest = topic.substr(head.size());  // DEVICE/PARAMETER/set
-        const auto first = rest.find('/');
-        const auto second = first == std::string::npos ? first : rest.find('/', first + 1);
-        if (second == std::string::npos || rest.substr(second) != "/set") return;
-        std::string payload(static_cast<const char*>(message.payload), static_cast<std::size_t>(std::max(message.payloadlen, 0)));
-        if (redelivered(message, payload)) {
-            say(fmt::format("{} = {} delivered again (message {}): already taken, not written twice", topic, payload,
-                            message.mid));
+        if (message.retain || !message.topic) return;
+        const std::string_view topic = message.topic;
+        if (!command_topic(config.prefix, topic)) return;
+        const std::string_view payload(static_cast<const char*>(message.payload),
+                                       static_cast<std::size_t>(std::max(message.payloadlen, 0)));
+        if (redelivered(message, topic, payload)) {
+            say(fmt::format("{} = {} delivered again (message {}): already taken, not written twice", quoted_excerpt(topic),
+                            quoted_excerpt(payload), message.mid));
             return;
         }
-        WriteCommand command{rest.substr(0, first), rest.substr(first + 1, second - first - 1), std::move(payload)};
-        std::lock_guard lock(mutex);
-        commands.push_back(std::move(command));
-        commands_arrived.notify_all();
+        commands->take(topic, payload);
     }
 
     // Sleeps `delay`, or less when stopped.
@@ -359,7 +363,7 @@ struct MqttBridge::State {
         is_connected.store(false);
     }
 
-    // --- the worker thread ----------------------------------------------------------------------
+    // --- the writes ------------------------------------------------------------------------------
 
     // Why a write to `device` cannot go now: its polls find it silent, so the line scheduler has
     // it in back-off. Answered at once rather than left to time out on the line.
@@ -370,40 +374,6 @@ struct MqttBridge::State {
         return fmt::format("device {} does not answer ({}); nothing was sent: write again once {} is \"online\"", device,
                            found->second.error.empty() ? "its polls time out" : found->second.error,
                            topic(device, "status"));
-    }
-
-    void execute(const WriteCommand& command) {
-        nlohmann::json result;
-        std::string error;
-        if (!config.writes) {
-            error = "writes are off ([mqtt] writes = false)";
-        } else if (auto silent = writer->find(command.device) ? not_answering(command.device) : std::nullopt) {
-            error = *silent;
-        } else if (auto written = writer->write(command.device, {{command.parameter, command.text}}); !written) {
-            error = written.error().message;
-        }
-        if (error.empty()) {
-            result = {{"ok", true}, {"value", command.text}};
-            say(fmt::format("{}.{} = {} written", command.device, command.parameter, command.text));
-        } else {
-            result = {{"ok", false}, {"error", error}};
-            say(fmt::format("{}.{} = {} refused: {}", command.device, command.parameter, command.text, error));
-        }
-        queue({fmt::format("{}/{}/{}/set/result", config.prefix, command.device, command.parameter), result.dump(), false,
-               qos_at_least_once});
-    }
-
-    void run_worker(const std::stop_token& stop) {
-        for (;;) {
-            WriteCommand command;
-            {
-                std::unique_lock lock(mutex);
-                if (!commands_arrived.wait(lock, stop, [this] { return !commands.empty(); })) return;
-                command = std::move(commands.front());
-                commands.pop_front();
-            }
-            execute(command);
-        }
     }
 };
 
@@ -433,7 +403,13 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
     constexpr std::string_view offline = "offline";
     (void)mosquitto_will_set(s.client, status.c_str(), static_cast<int>(offline.size()), offline.data(), qos_at_least_once,
                              true);
-    s.worker = std::jthread([&s](std::stop_token stop) { s.run_worker(stop); });
+    s.commands = std::make_unique<MqttCommands>(
+        s.config, writer,
+        [&s](std::string topic, std::string payload) {
+            s.queue({std::move(topic), std::move(payload), false, qos_at_least_once});
+        },
+        [&s](const std::string& line) { s.say(line); },
+        [&s](const std::string& device) { return s.not_answering(device); });
     s.network = std::jthread([&s](std::stop_token stop) { s.run_network(stop); });
     s.subscription = cache.subscribe([&s](const ValueChange& change) { s.on_change(change); });
 }
@@ -441,10 +417,11 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
 MqttBridge::~MqttBridge() {
     State& s = *state_;
     s.subscription.reset();
-    s.worker.request_stop();
-    s.worker.join();  // a write under way finishes first: its result is still published
+    // The writes under way finish first, and the network thread still publishes their results.
+    s.commands->close();
     s.network.request_stop();
     s.network.join();
+    s.commands.reset();
     mosquitto_destroy(s.client);
 }
 

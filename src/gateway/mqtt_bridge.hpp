@@ -21,8 +21,10 @@
 // Threads: the value stream's callback (on the poll threads) only queues. One network thread
 // owns the libmosquitto client: it connects, reconnects with back-off, publishes what was queued,
 // and republishes every retained topic whenever a connection is made (the broker may have lost
-// them). Writes run on a worker thread of their own, through the gateway's DeviceWriter, so a
-// slow line never holds up the network thread.
+// them). Writes are handed to their device's line (gateway/mqtt_commands.hpp) and their results
+// published when the line has answered, so a slow line holds up neither the network thread nor
+// a write to another line. A payload over [mqtt] max_payload is refused unread, and at most a
+// bounded number of writes wait at once: whatever is published, memory stays bounded.
 #include <chrono>
 #include <memory>
 #include <string>

@@ -600,6 +600,7 @@ TEST(GatewayConfig, MqttDefaultsApplyToWhatIsLeftOut) {
     EXPECT_EQ(config->mqtt->discovery, MqttConfig::Discovery::none);
     EXPECT_EQ(config->mqtt->discovery_prefix, "homeassistant");
     EXPECT_EQ(config->mqtt->gateway_name, "gateway");
+    EXPECT_EQ(config->mqtt->max_payload, 1024u);
 
     auto ipv6 = parse(one_device("device = \"tc10@3\"\n") + "[mqtt]\nbroker = \"mqtt://[::1]:1883\"\n");
     ASSERT_TRUE(ipv6) << ipv6.error().message;
@@ -615,6 +616,16 @@ TEST(GatewayConfig, ABadBrokerNamesTheKeyAndTheForm) {
     EXPECT_THAT(error_of(device + "[mqtt]\nprefix = \"a\"\n"), StartsWith("plant.toml:8: mqtt: missing `broker`"));
 }
 
+TEST(GatewayConfig, TheMqttPayloadLimitIsReadAndRangeChecked) {
+    const std::string device = one_device("device = \"tc10@3\"\n") + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\n";
+    auto config = parse(device + "max_payload = 4096\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->mqtt->max_payload, 4096u);
+    EXPECT_THAT(error_of(device + "max_payload = 8\n"),
+                StartsWith("plant.toml:10: mqtt.max_payload: 8 is out of range (expected an integer 16..65536)"));
+    EXPECT_THAT(error_of(device + "max_payload = \"1k\"\n"), StartsWith("plant.toml:10: mqtt.max_payload: expected an integer"));
+}
+
 TEST(GatewayConfig, ABadMqttPrefixOrAnUnknownMqttKeyIsRefused) {
     const std::string device = one_device("device = \"tc10@3\"\n") + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\n";
     EXPECT_THAT(error_of(device + "prefix = \"plant/#\"\n"), StartsWith("plant.toml:10: mqtt.prefix: \"plant/#\" is not a topic prefix"));
@@ -622,7 +633,8 @@ TEST(GatewayConfig, ABadMqttPrefixOrAnUnknownMqttKeyIsRefused) {
     EXPECT_THAT(error_of(device + "prefix = \"/plant\"\n"), HasSubstr("is not a topic prefix"));
     EXPECT_THAT(error_of(device + "writes = \"yes\"\n"), StartsWith("plant.toml:10: mqtt.writes: expected true or false"));
     EXPECT_THAT(error_of(device + "qos = 2\n"), StartsWith("plant.toml:10: mqtt.qos: unknown key (allowed here: broker, prefix, writes, client_id, ca_file, "
-                           "cert_file, key_file, username, password_file, republish, discovery, discovery_prefix)"));
+                           "cert_file, key_file, username, password_file, republish, discovery, discovery_prefix, "
+                           "max_payload)"));
     EXPECT_THAT(error_of("mqtt = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected an [mqtt] table"));
 }
 
@@ -720,6 +732,10 @@ TEST(GatewayConfig, HttpDefaultsAreLoopbackPort8080AndNoWrites) {
     EXPECT_TRUE(config->http->loopback());
     EXPECT_TRUE(config->http->token.empty());
     EXPECT_EQ(config->http->read_timeout, std::chrono::seconds(10));
+    EXPECT_EQ(config->http->send_timeout, std::chrono::seconds(10));
+    EXPECT_EQ(config->http->max_connections, 64u);
+    EXPECT_EQ(config->http->max_connections_per_client, 8u);
+    EXPECT_TRUE(config->http->hosts.empty());
     EXPECT_THAT(describe_plan(*config),
                 HasSubstr("HTTP API and dashboard: http://127.0.0.1:8080/, reads open on loopback, writes refused (no http.token_file)"));
 }
@@ -728,7 +744,8 @@ TEST(GatewayConfig, HttpSettingsAndTheTokenAreRead) {
     TokenFile token("s3cret-token-value\n", owner_only);
     auto config = parse(one_device("device = \"tc10@3\"\n") +
                         fmt::format("[http]\nlisten = \"0.0.0.0:0\"\ntoken_file = \"{}\"\nread_timeout = \"2s\"\n"
-                                    "max_connections = 8\n", token.path()));
+                                    "max_connections = 8\nmax_connections_per_client = 3\nsend_timeout = \"30s\"\n"
+                                    "hosts = [\"Gateway.Plant.local\", \"192.168.1.10\", \"[FD00::10]\"]\n", token.path()));
     ASSERT_TRUE(config) << config.error().message;
     ASSERT_TRUE(config->http);
     EXPECT_EQ(config->http->host, "0.0.0.0");
@@ -738,6 +755,9 @@ TEST(GatewayConfig, HttpSettingsAndTheTokenAreRead) {
     EXPECT_EQ(config->http->token_file, token.path());
     EXPECT_EQ(config->http->read_timeout, std::chrono::seconds(2));
     EXPECT_EQ(config->http->max_connections, 8u);
+    EXPECT_EQ(config->http->max_connections_per_client, 3u);
+    EXPECT_EQ(config->http->send_timeout, std::chrono::seconds(30));
+    EXPECT_EQ(config->http->hosts, (std::vector<std::string>{"gateway.plant.local", "192.168.1.10", "[fd00::10]"}));
     EXPECT_THAT(describe_plan(*config), HasSubstr(fmt::format("reads need the token, writes need the token in {}", token.path())));
 }
 
@@ -768,6 +788,16 @@ TEST(GatewayConfig, BadHttpSettingsSayWhatIsExpected) {
     EXPECT_THAT(error_of(device + "listen = \"8080\"\n"), StartsWith("plant.toml:9: http.listen: \"8080\" is not an address"));
     EXPECT_THAT(error_of(device + "read_timeout = \"1ms\"\n"), StartsWith("plant.toml:9: http.read_timeout: expected 100ms..10min"));
     EXPECT_THAT(error_of(device + "max_connections = 0\n"), StartsWith("plant.toml:9: http.max_connections: 0 is out of range"));
+    EXPECT_THAT(error_of(device + "send_timeout = \"20min\"\n"), StartsWith("plant.toml:9: http.send_timeout: expected 100ms..10min"));
+    EXPECT_THAT(error_of(device + "max_connections_per_client = 0\n"),
+                StartsWith("plant.toml:9: http.max_connections_per_client: 0 is out of range"));
+    EXPECT_THAT(error_of(device + "hosts = \"gateway.local\"\n"), StartsWith("plant.toml:9: http.hosts: expected a list of host names"));
+    EXPECT_THAT(error_of(device + "hosts = [\"gateway.local:8080\"]\n"),
+                AllOf(StartsWith("plant.toml:9: http.hosts[0]: \"gateway.local:8080\" is not a host name"),
+                      HasSubstr("without a port or scheme")));
+    EXPECT_THAT(error_of(device + "hosts = [\"http://gateway.local\"]\n"), HasSubstr("is not a host name"));
+    EXPECT_THAT(error_of(device + "hosts = [\"a\\u001b[2Jb\"]\n"), HasSubstr("\"a\\x1b[2Jb\" is not a host name"));
+    EXPECT_THAT(error_of(device + "hosts = [3]\n"), StartsWith("plant.toml:9: http.hosts[0]: expected a host name (a string)"));
     EXPECT_THAT(error_of(device + "token = \"abc\"\n"), HasSubstr("http.token: unknown key (allowed here: listen, token_file"));
     EXPECT_THAT(error_of("http = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected an [http] table"));
 }

@@ -15,6 +15,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -30,6 +31,7 @@
 #include "gateway/gateway.hpp"
 #include "gateway/http_api.hpp"
 #include "gateway/http_server.hpp"
+#include "support/held_replies.hpp"
 #include "support/profile_test_support.hpp"
 
 namespace loopwire::gateway {
@@ -46,14 +48,33 @@ const std::string token = "test-token-5f1c2a9b";
 
 const device::ProfileRegistry& profiles() { return device::testing::builtin_registry(); }
 
+// Whether `condition` holds, asked every 20 ms until the deadline.
+bool eventually(const std::function<bool()>& condition) {
+    const auto give_up = std::chrono::steady_clock::now() + deadline;
+    while (!condition()) {
+        if (std::chrono::steady_clock::now() > give_up) return false;
+        std::this_thread::sleep_for(20ms);
+    }
+    return true;
+}
+
 // --- a small HTTP client --------------------------------------------------------------------
 
 class Socket {
 public:
     // `receive_buffer`: a small one makes a client that does not read fall behind sooner.
-    explicit Socket(std::uint16_t port, int receive_buffer = 0) : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
+    // `from`: the loopback address the client connects from (all of 127.0.0.0/8 is loopback
+    // on Linux), so one test can be several clients.
+    explicit Socket(std::uint16_t port, int receive_buffer = 0, const char* from = nullptr)
+        : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
         if (fd_ < 0) throw std::runtime_error("socket");
         if (receive_buffer > 0) ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
+        if (from) {
+            sockaddr_in source{};
+            source.sin_family = AF_INET;
+            ::inet_pton(AF_INET, from, &source.sin_addr);
+            if (::bind(fd_, reinterpret_cast<sockaddr*>(&source), sizeof source) != 0) throw std::runtime_error("bind");
+        }
         sockaddr_in address{};
         address.sin_family = AF_INET;
         address.sin_port = htons(port);
@@ -64,13 +85,15 @@ public:
     Socket(const Socket&) = delete;
     Socket& operator=(const Socket&) = delete;
 
-    void send(const std::string& bytes) {
+    // False once the server has closed the connection.
+    bool send(const std::string& bytes) {
         std::size_t sent = 0;
         while (sent < bytes.size()) {
             const auto n = ::send(fd_, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
-            if (n <= 0) return;  // the server closed: what it answered is still there to read
+            if (n <= 0) return false;  // the server closed: what it answered is still there to read
             sent += static_cast<std::size_t>(n);
         }
+        return true;
     }
 
     // Whatever arrives within `wait`; none when the server closed the connection with nothing
@@ -139,15 +162,22 @@ Reply parse_reply(const std::string& raw) {
     return reply;
 }
 
-Reply request(std::uint16_t port, const std::string& method, const std::string& target, const std::string& body = {},
-              const std::vector<std::string>& headers = {}) {
+// `host`: the Host header's value; empty sends none.
+Reply request_to_host(std::uint16_t port, const std::string& host, const std::string& method, const std::string& target,
+                      const std::string& body = {}, const std::vector<std::string>& headers = {}) {
     Socket socket(port);
-    std::string text = fmt::format("{} {} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n", method, target);
+    std::string text = fmt::format("{} {} HTTP/1.1\r\n{}Connection: close\r\n", method, target,
+                                   host.empty() ? std::string() : "Host: " + host + "\r\n");
     for (const auto& header : headers) text += header + "\r\n";
     if (!body.empty() || method == "POST") text += fmt::format("Content-Type: application/json\r\nContent-Length: {}\r\n", body.size());
     text += "\r\n" + body;
     socket.send(text);
     return parse_reply(socket.receive_all());
+}
+
+Reply request(std::uint16_t port, const std::string& method, const std::string& target, const std::string& body = {},
+              const std::vector<std::string>& headers = {}) {
+    return request_to_host(port, "127.0.0.1", method, target, body, headers);
 }
 
 Reply get(std::uint16_t port, const std::string& target) { return request(port, "GET", target); }
@@ -212,7 +242,8 @@ enabled = false
 class HttpApiTest : public ::testing::Test {
 protected:
     HttpApiTest()
-        : gateway_(open_gateway(fmt::format("[http]\nlisten = \"127.0.0.1:0\"\ntoken_file = \"{}\"\nread_timeout = \"1s\"\n",
+        : gateway_(open_gateway(fmt::format("[http]\nlisten = \"127.0.0.1:0\"\ntoken_file = \"{}\"\nread_timeout = \"1s\"\n"
+                                            "hosts = [\"Gateway.Plant.Local\", \"192.168.1.10\"]\n",
                                             token_file_.path().string()))),
           port_(gateway_->http_port()) {}
 
@@ -404,6 +435,48 @@ TEST_F(HttpApiTest, AStalledClientIsClosedWithoutHoldingUpOthers) {
     EXPECT_GT(std::chrono::steady_clock::now() - before, 900ms);
 }
 
+TEST_F(HttpApiTest, OnlyTheGatewaysOwnHostNamesAreAnswered) {
+    // A page of another site that points its name at this address (DNS rebinding) sends its
+    // own name: refused, saying which names are answered and how to add one.
+    const Reply evil = request_to_host(port_, "evil.example", "GET", "/api/devices");
+    EXPECT_EQ(evil.status, 421u) << evil.body;
+    const std::string message = evil.json().at("error").get<std::string>();
+    EXPECT_THAT(message, HasSubstr("\"evil.example\""));
+    EXPECT_THAT(message, HasSubstr("localhost, 127.0.0.1, [::1]"));
+    EXPECT_THAT(message, HasSubstr("[http] hosts"));
+    EXPECT_EQ(request_to_host(port_, fmt::format("evil.example:{}", port_), "GET", "/").status, 421u);
+    EXPECT_EQ(request_to_host(port_, "127.0.0.1.evil.example", "GET", "/metrics").status, 421u);
+    // Not even with the token: the rebinding page cannot have it, but nothing is written either way.
+    const Reply write = request_to_host(port_, "evil.example", "POST", "/api/devices/oven/write", R"({"set_point": "201"})",
+                                        {"Authorization: Bearer " + token});
+    EXPECT_EQ(write.status, 421u);
+
+    // The listen address with its port, the loopback names, and the names of [http] hosts, in
+    // any case, with or without a port.
+    for (const std::string& host : {fmt::format("127.0.0.1:{}", port_), std::string("127.0.0.1"), std::string("localhost"),
+                                   fmt::format("LocalHost:{}", port_), fmt::format("[::1]:{}", port_),
+                                   std::string("gateway.plant.local"), std::string("GATEWAY.plant.local:8080"),
+                                   std::string("192.168.1.10")}) {
+        EXPECT_EQ(request_to_host(port_, host, "GET", "/api/devices").status, 200u) << "Host: " << host;
+    }
+    // Malformed, or none at all (HTTP/1.1 requires it).
+    EXPECT_EQ(request_to_host(port_, "localhost:http", "GET", "/api/devices").status, 421u);
+    const Reply none = request_to_host(port_, "", "GET", "/api/devices");
+    EXPECT_EQ(none.status, 400u);
+    EXPECT_THAT(none.json().at("error").get<std::string>(), HasSubstr("no Host header"));
+}
+
+TEST_F(HttpApiTest, TextAClientSentIsEscapedInTheAnswer) {
+    // A name in the path that is not UTF-8, and a JSON key of the body: echoed in the error as
+    // valid JSON, not thrown on.
+    const Reply path = get(port_, "/api/devices/%FF%FE");
+    EXPECT_EQ(path.status, 404u);
+    EXPECT_FALSE(Json::parse(path.body, nullptr, false).is_discarded()) << path.body;
+    const Reply body = post_write(port_, "oven", R"({"set\u0000point\u001b[2J": 5})");
+    EXPECT_EQ(body.status, 400u);
+    EXPECT_FALSE(Json::parse(body.body, nullptr, false).is_discarded()) << body.body;
+}
+
 // Reads server-sent events until one satisfies `wanted`.
 std::optional<Json> next_event(Socket& stream, std::string& buffer, const std::function<bool(const Json&)>& wanted) {
     const auto give_up = std::chrono::steady_clock::now() + deadline;
@@ -494,6 +567,85 @@ TEST(HttpApiWithoutToken, WritesAreRefusedSayingHowToEnableThem) {
     EXPECT_EQ(reply.status, 403u);
     EXPECT_THAT(reply.json().at("error").get<std::string>(), HasSubstr("token_file"));
     EXPECT_EQ(get(gateway->http_port(), "/api/devices").status, 200u);  // reads on loopback need none
+}
+
+// Two lines: the oven on one, the kiln (unit 4) on the other, whose replies the test can hold.
+std::unique_ptr<Gateway> open_two_lines(const std::string& token_path, support::HeldReplies& kiln) {
+    const std::string text = fmt::format(R"toml(
+[[lines]]
+name = "fast"
+link = "rtu:virtual?baud=115200&parity=none"
+timeout = "500ms"
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+poll = "100ms"
+parameters = ["measured_value", "set_point"]
+
+[[lines]]
+name = "slow"
+link = "rtu:virtual?baud=115200&parity=none"
+timeout = "60s"
+
+[[lines.devices]]
+name = "kiln"
+device = "tc10@4"
+poll = "150ms"
+parameters = ["measured_value", "set_point"]
+
+[modbus_tcp]
+enabled = false
+
+[http]
+listen = "127.0.0.1:0"
+token_file = "{}"
+)toml", token_path);
+    auto config = parse_gateway_config(text, "plant.toml", profiles());
+    if (!config) throw std::runtime_error(config.error().message);
+    GatewayOptions options;
+    options.virtual_bus_faults = kiln.injector();
+    auto gateway = Gateway::open(*config, std::move(options));
+    if (!gateway) throw std::runtime_error(gateway.error().message);
+    return std::move(*gateway);
+}
+
+TEST(HttpApiLines, AWriteToOneLineIsAnsweredWhileAnotherLineHoldsItsWrites) {
+    TokenFile token_file(token);
+    support::HeldReplies kiln(4);
+    auto gateway = open_two_lines(token_file.path().string(), kiln);
+    support::HeldReplies::Release release{kiln};
+    const std::uint16_t port = gateway->http_port();
+    const auto status_of = [port](const std::string& device) {
+        const Reply reply = get(port, "/api/devices/" + device);
+        return reply.status == 200 ? Json::parse(reply.body, nullptr, false).value("status", "") : std::string();
+    };
+    ASSERT_TRUE(eventually([&] { return status_of("oven") == "ok" && status_of("kiln") == "ok"; })) << "never read both";
+
+    // The kiln's line stops answering (its device is slow beyond words); four writes wait for
+    // it, more than any pool of workers shared by the lines would have.
+    kiln.hold();
+    std::vector<std::unique_ptr<Socket>> kiln_writes;
+    for (int i = 0; i < 4; ++i) {
+        kiln_writes.push_back(std::make_unique<Socket>(port));
+        const std::string body = fmt::format(R"({{"set_point": "{}"}})", 100 + i);
+        kiln_writes.back()->send(fmt::format("POST /api/devices/kiln/write HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n"
+                                             "Authorization: Bearer {}\r\nContent-Type: application/json\r\n"
+                                             "Content-Length: {}\r\n\r\n{}", token, body.size(), body));
+    }
+    ASSERT_TRUE(eventually([&] { return kiln.holding_a_reply(); })) << "nothing of the kiln's reached its line";
+
+    // A write to the oven's line goes through all the same, while the kiln's wait.
+    const Reply oven = post_write(port, "oven", R"({"set_point": "190"})");
+    EXPECT_EQ(oven.status, 200u) << oven.body;
+    for (auto& write : kiln_writes) EXPECT_EQ(write->receive(0ms), std::string()) << "a kiln write was answered while held";
+
+    // Released, every kiln write is answered (written, or given up for the time it waited).
+    kiln.release();
+    for (auto& write : kiln_writes) {
+        const std::string answer = write->receive_all();
+        EXPECT_EQ(answer.rfind("HTTP/1.1 ", 0), 0u) << answer;
+    }
 }
 
 TEST(HttpApiWithoutHttp, AGatewayWithoutAnHttpTableListensOnNoPort) {
@@ -711,6 +863,118 @@ TEST_F(HttpLimitsTest, ConnectionsBeyondTheLimitAreAnswered503) {
     const Reply refused = get(server_->port(), "/api/devices");
     EXPECT_EQ(refused.status, 503u);
     EXPECT_THAT(refused.json().at("error").get<std::string>(), HasSubstr("too many connections"));
+}
+
+// What each of `clients` got before the server closed it, while each sends the next byte of
+// `request` whenever the server has said nothing for a moment (a slowloris client): closed ones
+// are done; the rest go on until the deadline.
+std::vector<std::optional<std::string>> trickle_until_closed(std::vector<std::unique_ptr<Socket>>& clients,
+                                                             const std::string& request) {
+    std::vector<std::optional<std::string>> received(clients.size(), std::string());
+    std::vector<bool> open(clients.size(), true);
+    std::vector<std::size_t> sent(clients.size(), 1);  // each sent the first byte already
+    const auto give_up = std::chrono::steady_clock::now() + deadline;
+    while (std::chrono::steady_clock::now() < give_up && std::count(open.begin(), open.end(), true) > 0) {
+        for (std::size_t i = 0; i < clients.size(); ++i) {
+            if (!open[i]) continue;
+            auto some = clients[i]->receive(5ms);
+            if (!some) {
+                open[i] = false;
+            } else if (!some->empty()) {
+                *received[i] += *some;
+            } else if (sent[i] < request.size() && !clients[i]->send(request.substr(sent[i]++, 1))) {
+                open[i] = false;
+            }
+        }
+    }
+    for (std::size_t i = 0; i < clients.size(); ++i) {
+        if (open[i]) received[i] = std::nullopt;  // still open at the deadline
+    }
+    return received;
+}
+
+TEST_F(HttpLimitsTest, SlowlorisAndStreamsNobodyReadsLeaveRoomForOthers) {
+    HttpServerSettings settings;
+    settings.read_timeout = 1s;
+    start(settings);
+    // A header trickled a byte at a time never ends (the X-Slow value is longer than anyone waits).
+    const std::string slow_request = "GET /api/devices HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: " + std::string(5000, 'z');
+    std::vector<std::unique_ptr<Socket>> slowloris;
+    for (int i = 0; i < 64; ++i) {
+        slowloris.push_back(std::make_unique<Socket>(server_->port(), 0, "127.0.0.2"));
+        ASSERT_TRUE(slowloris.back()->send(slow_request.substr(0, 1)));
+    }
+    std::vector<std::unique_ptr<Socket>> listeners;
+    for (int i = 0; i < 64; ++i) {
+        listeners.push_back(std::make_unique<Socket>(server_->port(), 4096, "127.0.0.3"));
+        ASSERT_TRUE(listeners.back()->send("GET /api/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));  // and never read
+    }
+    // 128 connections, twice max_connections: an honest client from another address is
+    // answered all the same.
+    const Reply honest = get(server_->port(), "/api/devices");
+    EXPECT_EQ(honest.status, 200u) << honest.body;
+
+    // The slowloris clients: beyond max_connections_per_client refused 429 at once; the others
+    // closed read_timeout after they began, however steadily they trickle.
+    const auto began = std::chrono::steady_clock::now();
+    const auto slow = trickle_until_closed(slowloris, slow_request);
+    std::size_t refused = 0;
+    std::size_t timed_out = 0;
+    for (const auto& got : slow) {
+        ASSERT_TRUE(got) << "a slowloris client was still connected after " << deadline.count() << " s";
+        if (got->empty()) {
+            ++timed_out;
+        } else {
+            EXPECT_THAT(*got, HasSubstr("429 Too Many Requests"));
+            EXPECT_THAT(*got, HasSubstr("too many connections from 127.0.0.2 (at most 8"));
+            ++refused;
+        }
+    }
+    EXPECT_EQ(timed_out, settings.max_connections_per_client);
+    EXPECT_EQ(refused, 64 - settings.max_connections_per_client);
+    EXPECT_GE(std::chrono::steady_clock::now() - began, 900ms) << "closed before read_timeout";
+
+    // The streams nobody reads: 8 streaming, the rest refused the same way.
+    std::size_t streaming = 0;
+    for (auto& listener : listeners) {
+        const auto first = listener->receive(deadline);
+        ASSERT_TRUE(first && !first->empty()) << "no answer to an event stream";
+        if (first->find("429 Too Many Requests") != std::string::npos) continue;
+        EXPECT_THAT(*first, HasSubstr("200 OK"));
+        ++streaming;
+    }
+    EXPECT_EQ(streaming, settings.max_connections_per_client);
+    EXPECT_EQ(get(server_->port(), "/api/devices").status, 200u);
+}
+
+TEST_F(HttpLimitsTest, AnEventClientThatTakesNothingForTheSendTimeoutIsDropped) {
+    HttpServerSettings settings;
+    settings.send_timeout = 1s;
+    settings.event_queue_limit = 16 * 1024 * 1024;  // never reached here: the drop is the timeout's
+    settings.max_connections_per_client = 1;         // the idle stream's slot shows when it is let go
+    start(settings);
+    Socket idle(server_->port(), 4096);
+    idle.send("GET /api/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");  // and never reads again
+    const auto first = idle.receive(deadline);
+    ASSERT_TRUE(first && first->find("200 OK") != std::string::npos) << "the stream did not start";
+    EXPECT_EQ(get(server_->port(), "/api/devices").status, 429u) << "the stream holds this address's one slot";
+    // A few hundred kilobytes of events: more than the two socket buffers hold, far less than
+    // the queue may. The write that waits for the client is given up after send_timeout, and
+    // the slot is free again.
+    for (int i = 0; i < 3000; ++i) sample(i);
+    const auto give_up = std::chrono::steady_clock::now() + deadline;
+    unsigned status = 0;
+    while (status != 200 && std::chrono::steady_clock::now() < give_up) {
+        Socket asking(server_->port());
+        asking.send("GET /api/devices HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+        const std::string answer = asking.receive_all();
+        if (answer.rfind("HTTP/1.1 200", 0) == 0) status = 200;
+    }
+    EXPECT_EQ(status, 200u) << "the client that took nothing was not dropped";
+    // What reached its socket before the drop is there to read, then the end.
+    std::optional<std::string> received = std::string();
+    while (received && std::chrono::steady_clock::now() < give_up) received = idle.receive(100ms);
+    EXPECT_FALSE(received) << "the dropped stream's connection did not end";
 }
 
 TEST_F(HttpLimitsTest, OversizedHeadersAreAnswered431) {

@@ -30,6 +30,7 @@
 
 #include "gateway/gateway.hpp"
 #include "gateway/mqtt_documents.hpp"
+#include "support/held_replies.hpp"
 #include "support/profile_test_support.hpp"
 
 extern char** environ;
@@ -830,6 +831,118 @@ private:
     std::vector<std::uint8_t> buffer_;
 };
 
+TEST(MqttBridge, PayloadsThatAreNotUtf8OrTooLongAreRefusedAndTheNextWriteGoes) {
+    REQUIRE_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port());
+    LogLines lines;
+    GatewayOptions options;
+    options.log = lines.sink();
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), true, "", std::move(options));
+    const std::string value = prefix + "/oven/set_point";
+    const std::string result = value + "/set/result";
+    ASSERT_TRUE(watcher.wait_for(value, is_number)) << "no set_point value";
+
+    // One byte that is not UTF-8: once the end of the process (nlohmann's type_error 316 when
+    // the refusal echoed it).
+    watcher.publish(value + "/set", "\xff");
+    const auto not_utf8 = watcher.nth(result, 1);
+    ASSERT_TRUE(not_utf8) << "no answer to a payload that is not UTF-8";
+    const auto refusal = nlohmann::json::parse(*not_utf8, nullptr, false);
+    ASSERT_FALSE(refusal.is_discarded()) << *not_utf8;
+    EXPECT_EQ(refusal.at("ok"), false) << *not_utf8;
+
+    // 200 KB: refused for its size, neither echoed nor logged whole.
+    watcher.publish(value + "/set", std::string(200 * 1024, '7'));
+    const auto oversized = watcher.nth(result, 2);
+    ASSERT_TRUE(oversized) << "no answer to a 200 KB payload";
+    EXPECT_EQ(nlohmann::json::parse(*oversized).at("ok"), false) << *oversized;
+    EXPECT_NE(oversized->find("204800 bytes long; at most 1024 are taken ([mqtt] max_payload)"), std::string::npos) << *oversized;
+    EXPECT_LT(oversized->size(), 400u);
+
+    // The next valid write goes through.
+    watcher.publish(value + "/set", "205");
+    const auto written = watcher.nth(result, 3);
+    ASSERT_TRUE(written) << "no answer to the valid write after the hostile ones";
+    EXPECT_EQ(nlohmann::json::parse(*written).at("ok"), true) << *written;
+
+    // The log quotes payloads escaped and cut.
+    EXPECT_TRUE(lines.has("\"set_point\" = \"\\xff\" refused"));
+    EXPECT_TRUE(lines.has("\"" + std::string(64, '7') + "\"\u2026 (204800 bytes) refused"));
+    std::lock_guard lock(lines.mutex);
+    for (const auto& line : lines.lines) {
+        EXPECT_LT(line.size(), 1000u) << line.substr(0, 200);
+        EXPECT_EQ(line.find('\xff'), std::string::npos) << "a raw byte reached the log: " << line.substr(0, 200);
+    }
+}
+
+TEST(MqttBridge, AWriteToOneLineIsAnsweredWhileAnotherLineHoldsItsWrites) {
+    REQUIRE_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port());
+    support::HeldReplies kiln(4);
+    const std::string text = fmt::format(R"toml(
+[[lines]]
+name = "fast"
+link = "rtu:virtual?baud=115200&parity=none"
+timeout = "500ms"
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+poll = "100ms"
+parameters = ["set_point"]
+
+[[lines]]
+name = "slow"
+link = "rtu:virtual?baud=115200&parity=none"
+timeout = "60s"
+
+[[lines.devices]]
+name = "kiln"
+device = "tc10@4"
+poll = "150ms"
+parameters = ["set_point"]
+
+[modbus_tcp]
+enabled = false
+
+[mqtt]
+broker = "mqtt://127.0.0.1:{}"
+prefix = "{}"
+writes = true
+)toml", broker.port(), prefix);
+    auto config = parse_gateway_config(text, "plant.toml", profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    GatewayOptions options;
+    options.virtual_bus_faults = kiln.injector();
+    auto opened = Gateway::open(*config, std::move(options));
+    ASSERT_TRUE(opened) << opened.error().message;
+    auto gateway = std::move(*opened);
+    support::HeldReplies::Release release{kiln};
+    ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "online"));
+    ASSERT_TRUE(watcher.wait_for(prefix + "/kiln/status", "online"));
+
+    // The kiln's line stops answering; writes to the kiln wait for it, in order.
+    kiln.hold();
+    const auto give_up = std::chrono::steady_clock::now() + deadline;
+    while (!kiln.holding_a_reply()) {
+        ASSERT_LT(std::chrono::steady_clock::now(), give_up) << "nothing of the kiln's reached its line";
+        std::this_thread::sleep_for(20ms);
+    }
+    for (int i = 0; i < 3; ++i) watcher.publish(prefix + "/kiln/set_point/set", std::to_string(100 + i));
+    // A write to the oven's line is answered while the kiln's wait.
+    watcher.publish(prefix + "/oven/set_point/set", "190");
+    const auto oven = watcher.nth(prefix + "/oven/set_point/set/result", 1);
+    ASSERT_TRUE(oven) << "the oven's write waited for the kiln's line";
+    EXPECT_EQ(nlohmann::json::parse(*oven).at("ok"), true) << *oven;
+    EXPECT_EQ(watcher.count(prefix + "/kiln/set_point/set/result"), 0u) << "a kiln write was answered while held";
+
+    // Released, the kiln's writes are all answered.
+    kiln.release();
+    EXPECT_TRUE(watcher.nth(prefix + "/kiln/set_point/set/result", 3)) << "the kiln's writes were not all answered";
+}
+
 TEST(MqttBridge, ASetRedeliveredAfterAReconnectIsWrittenOnce) {
     ScriptedBroker broker;
     LogLines lines;
@@ -838,7 +951,9 @@ TEST(MqttBridge, ASetRedeliveredAfterAReconnectIsWrittenOnce) {
     auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), true, "", std::move(options));
     const std::string set = prefix + "/oven/set_point/set";
     const std::string result = set + "/result";
-    const std::string probe = prefix + "/oven/no_such_parameter/set";
+    // A write the oven's line refuses (measured_value is read-only): it goes through the same
+    // line as the sets, after them, so its answer comes after any set taken before it.
+    const std::string probe = prefix + "/oven/measured_value/set";
 
     const std::string probe_result = probe + "/result";
     const std::vector<std::string> results{result, probe_result};
@@ -852,7 +967,7 @@ TEST(MqttBridge, ASetRedeliveredAfterAReconnectIsWrittenOnce) {
     broker.drop();  // before the broker saw the PUBACK, as far as the session is concerned
 
     // The session goes on: the same message again, DUP set. Not written: the probe behind it
-    // (commands are taken in order) is the next thing answered.
+    // (a device's writes are taken in order) is the next thing answered.
     ASSERT_TRUE(broker.accept(true)) << "the gateway did not reconnect";
     broker.publish(7, set, "210", true);
     broker.publish(8, probe, "1", false);

@@ -2,8 +2,9 @@
 # `loopwire gateway` with an [mqtt] table against a real mosquitto broker on a free loopback
 # port: the simulated devices' values appear retained, a `mosquitto_pub` set writes to the
 # device and is answered on set/result, an independent client (paho) checks the Home Assistant
-# discovery documents against Home Assistant's documented keys, and SIGTERM leaves the gateway
-# and its devices "offline", retained.
+# discovery documents against Home Assistant's documented keys, hostile payloads (not UTF-8,
+# 200 KB, a thousand of those) are refused without harm, and SIGTERM leaves the gateway and its
+# devices "offline", retained.
 set -u
 loopwire=${1:?usage: mqtt_gateway_test.sh path/to/loopwire}
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -14,7 +15,7 @@ if [[ ! -x $broker_program ]]; then echo "SKIP: $broker_program is not installed
 # A port nothing listens on now (mosquitto cannot be given port 0); a small race, accepted.
 port=$($python -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 printf 'listener %s 127.0.0.1\nallow_anonymous true\npersistence false\n' "$port" >"$WORK_DIR/mosquitto.conf"
-start_background broker.log timeout 100 "$broker_program" -c "$WORK_DIR/mosquitto.conf"
+start_background broker.log timeout 200 "$broker_program" -c "$WORK_DIR/mosquitto.conf"
 wait_for_text "$WORK_DIR/broker.log" "running"
 
 cat >"$WORK_DIR/plant.toml" <<TOML
@@ -40,7 +41,10 @@ writes = true
 discovery = "homeassistant"
 TOML
 
-start_background gateway.log timeout 100 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+# A small AddressSanitizer quarantine (in the sanitized build): freed blocks are otherwise kept
+# up to 256 MB, which the memory check below would count as the gateway's.
+ASAN_OPTIONS=${ASAN_OPTIONS:+$ASAN_OPTIONS:}quarantine_size_mb=16 \
+  start_background gateway.log timeout 200 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
 gateway_pid=$LAST_PID
 topic=loopwire/plant1/oven
 
@@ -83,6 +87,54 @@ done
 # Home Assistant's view, through an independent client.
 check discovery-documents 0 "checked, 0 problems" $python "$(dirname "$0")/ha_discovery_check.py" "$port" homeassistant loopwire/plant1 \
   sensor number select binary_sensor
+
+# Hostile publishers: a payload that is not UTF-8, one of 200 KB, then 1000 of 200 KB. The
+# gateway answers each with a refusal, stays up, keeps its memory and its log lines short, and
+# writes the next valid value.
+start_background results.log timeout 100 mosquitto_sub -h 127.0.0.1 -p "$port" -q 1 -v -t "$topic/+/set/result"
+results_pid=$LAST_PID
+# The subscriber is in place once a result published by hand comes back to it.
+probe_seen() {
+    mosquitto_pub -h 127.0.0.1 -p "$port" -t "$topic/probe/set/result" -m probe
+    grep -q "probe/set/result probe" "$WORK_DIR/results.log"
+}
+wait_for 30 "the results' subscriber" probe_seen
+refusals() { grep -c "set_point/set/result .*\"ok\":false" "$WORK_DIR/results.log"; }
+refused_at_least() { (($(refusals) >= $1)); }
+# The gateway itself, not the `timeout` that runs it.
+loopwire_pid=$(pgrep -P "$gateway_pid" | head -n 1)
+[[ -n $loopwire_pid ]] || fail "no gateway process under timeout ($gateway_pid)"
+rss_kib() { awk '/^VmRSS:/ {print $2}' "/proc/$loopwire_pid/status"; }
+rss_before=$(rss_kib)
+
+printf '\xff' | mosquitto_pub -h 127.0.0.1 -p "$port" -q 1 -t "$topic/set_point/set" -s
+wait_for 30 "the refusal of a payload that is not UTF-8" refused_at_least 1
+expect gateway-survives-invalid-utf8 kill -0 "$loopwire_pid"
+expect invalid-utf8-refusal-is-json grep -q 'set_point/set/result {"error":".*","ok":false}$' "$WORK_DIR/results.log"
+
+big=$WORK_DIR/big.payload
+head -c 204800 /dev/zero | tr '\0' 7 >"$big"
+mosquitto_pub -h 127.0.0.1 -p "$port" -q 1 -t "$topic/set_point/set" -f "$big"
+wait_for 30 "the refusal of a 200 KB payload" refused_at_least 2
+expect oversized-refusal-names-the-limit grep -q 'max_payload' "$WORK_DIR/results.log"
+
+mosquitto_pub -h 127.0.0.1 -p "$port" -q 1 -t "$topic/set_point/set" -f "$big" --repeat 1000
+wait_for 90 "1000 refusals of 200 KB payloads" refused_at_least 1002
+expect gateway-survives-1000-oversized kill -0 "$loopwire_pid"
+rss_after=$(rss_kib)
+echo "gateway VmRSS: ${rss_before} KiB before the hostile payloads, ${rss_after} KiB after"
+# Generous: allocator slack and the broker's bursts, far below the 200 MB that was sent.
+expect memory-stays-bounded test $((rss_after - rss_before)) -lt 65536
+longest=$(awk '{ if (length($0) > n) n = length($0) } END { print n + 0 }' "$WORK_DIR/gateway.log")
+echo "gateway log: longest line ${longest} characters, $(wc -c <"$WORK_DIR/gateway.log") bytes in all"
+expect log-lines-are-cut test "$longest" -lt 1000
+expect log-says-how-long grep -q '(204800 bytes)' "$WORK_DIR/gateway.log"
+expect log-escapes-bytes grep -qF '"\xff"' "$WORK_DIR/gateway.log"
+
+mosquitto_pub -h 127.0.0.1 -p "$port" -q 1 -t "$topic/set_point/set" -m 220
+wait_for 30 "the next valid write's result" grep -q 'set_point/set/result {"ok":true,"value":"220"}' "$WORK_DIR/results.log"
+count_pass
+kill "$results_pid"
 
 # SIGTERM: a clean stop leaves "offline" retained for the gateway and each device.
 kill -TERM "$gateway_pid"
