@@ -1,9 +1,21 @@
 #pragma once
 // One serial line (or one-connection TCP device) shared by everything that wants it: one request
-// on the wire at a time, writes first, then clients' requests (round robin between clients, so
-// a busy one cannot starve another), then due polls. A request whose deadline has passed or
-// whose client has gone is never sent; a unit that stopped answering backs off, so it costs the
-// others at most one timeout per back-off period (docs/DESIGN.md, gateway).
+// on the wire at a time. Writes go first. Clients' requests and the gateway's own polls then
+// share the line by turns: while both are waiting, they alternate (after a client's request the
+// oldest waiting poll goes, after a poll the next client's), and whichever is alone takes every
+// turn. Clients take turns among themselves (round robin), so a busy one cannot starve another.
+//
+// Why alternate: the pollers queue a request only when a poll is due and wait for its reply
+// before the next, so they ask for no more than their configured rate; alternating means a poll
+// waits for at most the request on the wire and one client's (plus any writes), however many
+// clients keep the line busy. Polls therefore keep their rate as long as they need no more than
+// half the line's turns, and clients always get at least half when they want it; a line whose
+// polls need more falls behind, which the poll groups report (poll_groups.hpp). Strict priority
+// for clients, as before, let ten clients reading back to back hold every poll for minutes.
+//
+// A request whose deadline has passed or whose client has gone is never sent; a unit that
+// stopped answering backs off, so it costs the others at most one timeout per back-off period
+// (docs/DESIGN.md, gateway).
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -16,7 +28,7 @@
 
 namespace loopwire::gateway {
 
-enum class Priority { write, client, poll };  // served in this order
+enum class Priority { write, client, poll };  // writes first; clients and polls by turns
 
 struct LineRequest {
     std::uint8_t unit = 1;
@@ -35,6 +47,7 @@ struct LineSchedulerOptions {
 
 struct LineStatistics {
     std::uint64_t sent = 0;          // requests put on the wire
+    std::uint64_t polls_sent = 0;    // of which the gateway's own polls
     std::uint64_t answered = 0;      // replies, exception replies included
     std::uint64_t timeouts = 0;
     std::uint64_t bad_replies = 0;   // malformed or mismatched replies
