@@ -76,7 +76,7 @@ std::optional<double> age_seconds(const WatchedValue& value, MonitorClock::time_
 
 std::string value_status(const WatchedDevice& device, const WatchedValue& value) {
     if (value.fresh) return value.last->status;
-    if (device.status == "no-reply" || device.status == "waiting") return device.status;
+    if (device.status == "no-reply" || device.status == "waiting" || device.status == "stale") return device.status;
     return "error";
 }
 

@@ -45,6 +45,8 @@ void init_library_once() {
     });
 }
 
+// The device's status topic: "online", "offline" (no reply), "error" (some values failed) or
+// "stale" (its poll is overdue: its values may no longer be the device's; value_cache.hpp).
 std::string device_status_word(const std::string& status) {
     if (status == "ok") return "online";
     if (status == "no-reply") return "offline";
@@ -81,7 +83,7 @@ constexpr std::size_t remembered_commands = 1024;
 
 // What the last poll said about a device.
 struct DeviceSeen {
-    std::string status;  // "ok", "partial", "no-reply"
+    std::string status;  // "ok", "partial", "no-reply", "stale"
     std::string error;
 };
 

@@ -112,10 +112,14 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
         {"state_topic", state_topic},
         {"device", std::move(device)},
         // Both the gateway's (its last will) and the device's (its polls): a value is only
-        // current when the gateway is connected and the device answers.
+        // current when the gateway is connected and the device answers. A device whose poll is
+        // overdue ("stale": its values may no longer be the device's) counts as unavailable.
         {"availability",
          {{{"topic", config.prefix + "/status"}, {"payload_available", "online"}, {"payload_not_available", "offline"}},
-          {{"topic", device_topic + "/status"}, {"payload_available", "online"}, {"payload_not_available", "offline"}}}},
+          {{"topic", device_topic + "/status"},
+           {"payload_available", "online"},
+           {"payload_not_available", "offline"},
+           {"value_template", "{{ 'offline' if value == 'stale' else value }}"}}}},
         {"availability_mode", "all"},
     };
     if (!parameter.unit.empty()) doc["unit_of_measurement"] = parameter.unit;
