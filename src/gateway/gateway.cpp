@@ -341,10 +341,11 @@ std::string describe(const LineReport& report, const LineReport* since) {
     const auto open_time = s.open - (since ? since->statistics.open : std::chrono::microseconds(0));
     const double busy = open_time.count() > 0 ? 100.0 * static_cast<double>(busy_time.count()) / static_cast<double>(open_time.count()) : 0.0;
     const std::string period = since ? fmt::format("over the last {:.0f} s", static_cast<double>(open_time.count()) / 1e6) : "of the time";
-    return fmt::format("line {} ({}): {} sent, {} of them polls, {} answered, {} timeout(s), {} bad repl{}, {} garbled frame(s), {} "
-                       "expired in the queue, {} refused while the unit backed off; busy {:.1f} % {}",
-                       report.name, report.link, s.sent, s.polls_sent, s.answered, s.timeouts, s.bad_replies,
-                       s.bad_replies == 1 ? "y" : "ies", report.garbled, s.expired, s.backed_off, busy, period);
+    return fmt::format("line {} ({}): {} sent, {} answered, {} timeout(s), {} bad repl{}, {} garbled frame(s), {} "
+                       "expired in the queue, {} refused while the unit backed off; busy {:.1f} % {}; {} of the requests "
+                       "sent were polls",
+                       report.name, report.link, s.sent, s.answered, s.timeouts, s.bad_replies, s.bad_replies == 1 ? "y" : "ies",
+                       report.garbled, s.expired, s.backed_off, busy, period, s.polls_sent);
 }
 
 }  // namespace loopwire::gateway
