@@ -1,6 +1,7 @@
 #include "client/monitor_loop.hpp"
 
 #include <condition_variable>
+#include <cstdint>
 #include <mutex>
 
 #include <fmt/format.h>
@@ -107,19 +108,24 @@ void run_monitor(const std::vector<MonitorTarget>& targets, const MonitorSetting
         watched.push_back(watch(label_of(target.device), target.parameters));
     }
     const auto start = MonitorClock::now();
+    std::int64_t slot = 0;  // of the sample about to start
+    unsigned missed = 0;    // slots skipped before it
     for (unsigned index = 1; !stop.stop_requested() && (!settings.count || index <= *settings.count); ++index) {
         const auto sample_start = MonitorClock::now();
         const auto wall = std::chrono::system_clock::now();
         for (std::size_t i = 0; i < polled.size() && !stop.stop_requested(); ++i) {
+            watched[i].missed += missed;
             poll(polled[i], watched[i], sample_start);
         }
         if (stop.stop_requested()) break;
-        sink.write(SampleView{index, wall, MonitorClock::now(), &watched});
+        sink.write(SampleView{index, wall, MonitorClock::now(), &watched, missed});
         if (settings.count && index == *settings.count) break;
         // The next slot of the fixed schedule that is still ahead.
         const auto elapsed = MonitorClock::now() - start;
-        const auto slots = elapsed / settings.interval + 1;
-        if (!sleep_until(start + slots * settings.interval, stop)) break;
+        const std::int64_t next = elapsed / settings.interval + 1;
+        missed = next > slot + 1 ? static_cast<unsigned>(next - slot - 1) : 0u;
+        slot = next;
+        if (!sleep_until(start + next * settings.interval, stop)) break;
     }
 }
 

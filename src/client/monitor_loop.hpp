@@ -31,6 +31,9 @@ struct SampleView {
     std::chrono::system_clock::time_point time;   // when the sample started
     MonitorClock::time_point now;                 // the same instant, for ages
     const std::vector<WatchedDevice>* devices = nullptr;
+    // Slots of the schedule skipped just before this sample because the one before ran past
+    // them (0 when on time): the polls could not keep their interval.
+    unsigned missed = 0;
 };
 
 // What consumes samples: the terminal table, CSV and JSON-lines files (app/monitor_output.hpp),
@@ -48,7 +51,8 @@ struct MonitorSettings {
 };
 
 // Polls every target once per interval (samples start on a fixed schedule; a late sample skips
-// the slots it missed rather than bunching up), and hands each sample to `sink`. A target that
+// the slots it missed rather than bunching up, and counts them in each device's `missed` and
+// the next sample's `missed`), and hands each sample to `sink`. A target that
 // does not answer is retried with exponential back-off (RetryBackoff: first wait one interval,
 // doubling up to backoff_cap), and each poll of it stops at its first timeout, so a dead unit
 // costs at most one timeout per back-off period. A poll that fails because the link failed

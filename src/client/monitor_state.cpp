@@ -81,7 +81,10 @@ std::optional<double> age_seconds(const WatchedValue& value, MonitorClock::time_
 
 std::string value_status(const WatchedDevice& device, const WatchedValue& value) {
     if (value.fresh) return value.last->status;
-    if (device.status == "no-reply" || device.status == "line-down" || device.status == "waiting") return device.status;
+    if (device.status == "no-reply" || device.status == "line-down" || device.status == "waiting" ||
+        device.status == "stale") {
+        return device.status;
+    }
     return "error";
 }
 

@@ -24,13 +24,16 @@ struct WatchedValue {
 // "ok": every value read; "partial": the device answered but some values failed (exception,
 // undecodable word); "no-reply": this sample's poll timed out; "line-down": the link the device
 // is on failed or is down, so it could not be asked; "waiting": not polled this sample because
-// the device is in back-off after failing.
+// the device is in back-off after failing. The gateway adds "stale" (gateway/value_cache.hpp):
+// its last poll answered but the next is long overdue.
 struct WatchedDevice {
     std::string label;  // "tc10@3"
     std::vector<WatchedValue> values;
     std::string status = "waiting";
     unsigned errors = 0;  // failed polls so far
     unsigned polls = 0;
+    // Samples of the fixed schedule it missed: the sample before ran past their start.
+    unsigned missed = 0;
     std::string last_error;
     std::optional<MonitorClock::time_point> next_try;  // while in back-off: when it is tried again
 };
@@ -53,7 +56,7 @@ void record_skipped(WatchedDevice& device);
 std::optional<double> age_seconds(const WatchedValue& value, MonitorClock::time_point now);
 
 // The status shown for one value: the value's own ("ok", a special state such as
-// "under-range") when fresh, else why it is not ("no-reply", "line-down", "waiting", "error").
+// "under-range") when fresh, else why it is not ("no-reply", "line-down", "waiting", "stale", "error").
 std::string value_status(const WatchedDevice& device, const WatchedValue& value);
 
 }  // namespace loopwire::device

@@ -378,11 +378,11 @@ std::string describe(const LineReport& report, const LineReport* since) {
     return fmt::format("line {} ({}){}: {} sent, {} answered, {} timeout(s), {} bad repl{}, {} garbled frame(s), {} expired in "
                        "the queue, {} dropped as their client had gone, {} polls held back while the unit backed off, {} "
                        "refused with the queue full, down {} time(s) ({} reopen attempt(s), {} request(s) refused while "
-                       "down); busy {:.1f} % {}",
+                       "down); busy {:.1f} % {}; {} of the requests sent were polls",
                        report.name, report.link, down_now, s.sent, s.answered, s.timeouts, s.bad_replies,
                        s.bad_replies == 1 ? "y" : "ies", report.garbled, s.expired, s.abandoned, s.backed_off,
                        s.refused_busy, health.down_periods, health.reopen_attempts, health.refused_while_down, busy,
-                       period);
+                       period, s.polls_sent);
 }
 
 std::string describe(const FrontReport& report) {

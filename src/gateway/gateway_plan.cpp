@@ -99,7 +99,14 @@ void describe_load(std::ostringstream& out, const transport::LinkUrl& link, doub
     }
     const bool ascii = link.framing == transport::Framing::ascii;
     out << fmt::format("  estimated line load: {:.1f} % of wire time{}\n", load, ascii ? " (approximate, ASCII framing)" : "");
-    if (load > 100.0) out << "  warning: over 100 %: polls will fall behind\n";
+    if (load > 100.0) {
+        out << "  warning: over 100 %: polls will fall behind\n";
+    } else if (load > 50.0) {
+        // Clients and polls take turns on a line (line_scheduler.hpp): under clients reading
+        // without pause the polls get half of it.
+        out << "  warning: over 50 %: while Modbus TCP clients keep the line busy the polls get half of it and "
+               "will fall behind\n";
+    }
 }
 
 // A serial port that is not there now is a warning, not an error: the gateway starts with that

@@ -259,18 +259,36 @@ Result<std::uint64_t> HistoryStore::commit(const std::vector<QueuedRow>& rows) {
     return inserted;
 }
 
+namespace {
+
+// Whether a row holds what a poll read (a value, or a special state of one), which a heartbeat
+// may repeat; a row that says nothing was read (no reply, an error, a device in back-off or
+// whose poll is overdue) is not repeated: a heartbeat of it would stamp the present on a
+// reading nobody made, which is how a frozen value used to look fresh for minutes.
+bool repeatable(const std::optional<std::string>& status) {
+    if (!status) return true;  // "ok"
+    return *status != "stale" && *status != "no-reply" && *status != "error" && *status != "waiting";
+}
+
+}  // namespace
+
 // Every value whose last row is `heartbeat` old or older is written again at the current time,
-// so a value that holds still draws a flat line, not a gap.
+// so a value that holds still draws a flat line, not a gap. Only a value still current: once it
+// is stale (gateway/value_cache.hpp) its row says so and the line stops there.
 void HistoryStore::add_heartbeats(std::vector<QueuedRow>& batch) {
     for (const QueuedRow& row : batch) {
         auto& last = last_[{row.device, row.parameter}];
-        if (row.t >= last.t) last = row;
+        // A change stamped before a heartbeat already written (its sample started before the
+        // heartbeat, or it went stale just then) is still newer than the reading the
+        // heartbeat repeated: it replaces it, or the old reading would be repeated for ever.
+        if (row.t >= last.t || last.heartbeat) last = row;
     }
     const std::int64_t now = to_ms(wall_now());
     const std::int64_t interval = options_.heartbeat.count();
     for (auto& [key, last] : last_) {
-        if (now - last.t < interval) continue;
+        if (now - last.t < interval || !repeatable(last.status)) continue;
         last.t = now;
+        last.heartbeat = true;
         batch.push_back(last);
     }
 }

@@ -98,6 +98,7 @@ private:
         std::optional<std::string> text;
         std::optional<std::string> status;
         std::int64_t t = 0;
+        bool heartbeat = false;  // a repeat of the last reading, stamped when it was written
     };
     struct Writer;
     struct Reader;

@@ -407,8 +407,8 @@ HttpOutcome HttpApi::State::events(const HttpRequest& request) const {
 }
 
 HttpResponse HttpApi::State::metrics() const {
-    std::vector<std::string> names;
-    for (const auto& device : devices) names.push_back(device.name);
+    std::vector<MetricsDevice> names;
+    for (const auto& device : devices) names.push_back({device.name, device.line});
     HttpResponse response;
     response.content_type = "text/plain; version=0.0.4; charset=utf-8";
     const std::optional<FrontReport> front = sources.front ? std::optional(sources.front()) : std::nullopt;

@@ -234,21 +234,27 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         }
     }
 
-    // The next request by priority, or nothing (and the pump stops) if the line is busy, the
-    // scheduler is stopping or nothing is queued. Deciding that and clearing `pumping` under one
-    // lock means a request queued meanwhile is never left behind with nobody pumping.
+    // The next request (writes, then clients and polls by turns), or nothing (and the pump
+    // stops) if the line is busy, the scheduler is stopping or nothing is queued. Deciding that
+    // and clearing `pumping` under one lock means a request queued meanwhile is never left
+    // behind with nobody pumping.
     std::optional<LineRequest> pop_next() {
         std::lock_guard lock(mutex);
         std::optional<LineRequest> next;
         if (!stopping && !in_flight) {
             next = writes.pop();
-            if (!next) next = clients.pop();
-            if (!next && !polls.empty()) {
-                next.emplace(std::move(polls.front()));
-                polls.pop_front();
-            }
+            if (!next) next = polls_turn() ? pop_poll() : clients.pop();
         }
         if (!next) pumping = false;
+        return next;
+    }
+
+    // Whether a poll goes before the clients now (header: alternate while both wait).
+    bool polls_turn() const { return !polls.empty() && (clients.size() == 0 || poll_owed); }
+
+    std::optional<LineRequest> pop_poll() {
+        std::optional<LineRequest> next(std::move(polls.front()));
+        polls.pop_front();
         return next;
     }
 
@@ -278,6 +284,13 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         flight_started = now;
         sending = true;
         ++stats.sent;
+        // Turns count requests that used the line: one dropped unsent costs its kind no turn.
+        if (request.priority == Priority::poll) {
+            ++stats.polls_sent;
+            poll_owed = false;
+        } else if (request.priority == Priority::client) {
+            poll_owed = true;
+        }
         return master.get();
     }
 
@@ -425,6 +438,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
     bool pumping = false;    // a thread is in pump()
     bool sending = false;    // a thread is inside master->forward_async
     bool stopping = false;
+    bool poll_owed = false;  // a client's request went last: a waiting poll goes next
 };
 
 LineScheduler::LineScheduler(std::shared_ptr<session::Master> master, LineSchedulerOptions options,

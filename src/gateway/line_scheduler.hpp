@@ -1,13 +1,25 @@
 #pragma once
 // One serial line (or one-connection TCP device) shared by everything that wants it: one request
-// on the wire at a time, writes first, then clients' requests (round robin between clients, so
-// a busy one cannot starve another), then due polls. A request whose deadline has passed or
-// whose client has gone is never sent; a unit that stopped answering the gateway's polls backs
-// off, so it costs the others at most one timeout per back-off period (docs/DESIGN.md, gateway).
+// on the wire at a time. Writes go first. Clients' requests and the gateway's own polls then
+// share the line by turns: while both are waiting, they alternate (after a client's request the
+// oldest waiting poll goes, after a poll the next client's), and whichever is alone takes every
+// turn. Clients take turns among themselves (round robin), so a busy one cannot starve another.
+//
+// Why alternate: the pollers queue a request only when a poll is due and wait for its reply
+// before the next, so they ask for no more than their configured rate; alternating means a poll
+// waits for at most the request on the wire and one client's (plus any writes), however many
+// clients keep the line busy. Polls therefore keep their rate as long as they need no more than
+// half the line's turns, and clients always get at least half when they want it; a line whose
+// polls need more falls behind, which the poll groups report (poll_groups.hpp). Strict priority
+// for clients, as before, let ten clients reading back to back hold every poll for minutes.
+//
+// A request whose deadline has passed or whose client has gone is never sent (docs/DESIGN.md,
+// gateway).
 //
 // The back-off of a unit lives here and nowhere else: only the outcomes of Priority::poll
 // requests move it (a timeout doubles it, 1 s to 30 s; an answer clears it), so a client's
-// request the unit ignores costs that client a 0Bh and nothing more. The gateway's poller keeps
+// request the unit ignores costs that client a 0Bh and nothing more, and a unit that stopped
+// answering costs the others at most one timeout per back-off period. The gateway's poller keeps
 // no back-off of its own: it asks hold_poll() before each poll (client/monitor_loop.hpp,
 // MonitorTarget::held_until). A link failure clears every unit's back-off: the line was at
 // fault, and when it is back every unit is polled at once.
@@ -24,7 +36,7 @@
 
 namespace loopwire::gateway {
 
-enum class Priority { write, client, poll };  // served in this order
+enum class Priority { write, client, poll };  // writes first; clients and polls by turns
 
 struct LineRequest {
     std::uint8_t unit = 1;
@@ -57,6 +69,7 @@ constexpr int server_device_busy = 0x06;
 
 struct LineStatistics {
     std::uint64_t sent = 0;          // requests put on the wire
+    std::uint64_t polls_sent = 0;    // of which the gateway's own polls
     std::uint64_t answered = 0;      // replies, exception replies included
     std::uint64_t timeouts = 0;
     std::uint64_t bad_replies = 0;   // malformed or mismatched replies

@@ -34,7 +34,7 @@ double seconds(std::chrono::microseconds time) { return static_cast<double>(time
 
 // The statuses a device can have (client/monitor_state.hpp): each gets its sample, 1 for the
 // current one, so that a query can select on status without the series coming and going.
-constexpr const char* device_statuses[] = {"ok", "partial", "no-reply", "line-down", "waiting"};
+constexpr const char* device_statuses[] = {"ok", "partial", "no-reply", "line-down", "stale", "waiting"};
 
 // The Modbus TCP front's connections ([modbus_tcp] max_connections and idle_timeout at work).
 void front_connections(std::string& out, const FrontReport& front) {
@@ -58,9 +58,42 @@ void front_connections(std::string& out, const FrontReport& front) {
     out += fmt::format("loopwire_modbus_tcp_connections_open {}\n", front.open);
 }
 
+// Each configured device's cached state, in configured order; null when never polled.
+std::vector<const CachedDevice*> cached_devices(const std::vector<MetricsDevice>& devices, const std::vector<CachedDevice>& values) {
+    std::vector<const CachedDevice*> found;
+    for (const auto& device : devices) {
+        auto it = std::find_if(values.begin(), values.end(), [&](const CachedDevice& c) { return c.name == device.name; });
+        found.push_back(it == values.end() ? nullptr : &*it);
+    }
+    return found;
+}
+
+// Polls that could not keep their rate, per line: the samples its devices missed, and how
+// many of its devices are stale now.
+void poll_shortfall(std::string& out, const std::vector<LineReport>& lines, const std::vector<MetricsDevice>& devices,
+                    const std::vector<const CachedDevice*>& found) {
+    family(out, "line_polls_missed_total", "counter",
+           "Poll samples of the line's devices skipped because the sample before ran past its interval.");
+    for (const auto& line : lines) {
+        std::uint64_t missed = 0;
+        for (std::size_t i = 0; i < devices.size(); ++i) {
+            if (devices[i].line == line.name && found[i]) missed += found[i]->state.missed;
+        }
+        sample(out, "line_polls_missed_total", fmt::format("line=\"{}\"", label(line.name)), missed);
+    }
+    family(out, "line_devices_stale", "gauge", "Devices on the line whose poll is more than two intervals overdue now.");
+    for (const auto& line : lines) {
+        unsigned stale = 0;
+        for (std::size_t i = 0; i < devices.size(); ++i) {
+            if (devices[i].line == line.name && found[i] && found[i]->state.status == "stale") ++stale;
+        }
+        sample(out, "line_devices_stale", fmt::format("line=\"{}\"", label(line.name)), stale);
+    }
+}
+
 }  // namespace
 
-std::string prometheus_text(const std::vector<LineReport>& lines, const std::vector<std::string>& devices,
+std::string prometheus_text(const std::vector<LineReport>& lines, const std::vector<MetricsDevice>& devices,
                             const std::vector<CachedDevice>& values, const HistorySource* history, const FrontReport* front) {
     std::string out;
     struct LineCounter {
@@ -70,6 +103,7 @@ std::string prometheus_text(const std::vector<LineReport>& lines, const std::vec
     };
     const LineCounter counters[] = {
         {"line_requests_total", "Requests put on the line.", [](const LineReport& r) { return r.statistics.sent; }},
+        {"line_polls_total", "Of those, the gateway's own polls.", [](const LineReport& r) { return r.statistics.polls_sent; }},
         {"line_answered_total", "Replies received, exception replies included.", [](const LineReport& r) { return r.statistics.answered; }},
         {"line_timeouts_total", "Requests that got no reply in time.", [](const LineReport& r) { return r.statistics.timeouts; }},
         {"line_bad_replies_total", "Malformed or mismatched replies.", [](const LineReport& r) { return r.statistics.bad_replies; }},
@@ -116,23 +150,37 @@ std::string prometheus_text(const std::vector<LineReport>& lines, const std::vec
     family(out, "line_queued", "gauge", "Requests waiting for the line now.");
     for (const auto& line : lines) sample(out, "line_queued", fmt::format("line=\"{}\"", label(line.name)), line.statistics.queued);
 
-    family(out, "device_status", "gauge", "1 for the device's status now (ok, partial, no-reply, line-down, waiting), 0 for the others.");
-    std::vector<const CachedDevice*> found;
-    for (const auto& name : devices) {
-        auto it = std::find_if(values.begin(), values.end(), [&](const CachedDevice& c) { return c.name == name; });
-        found.push_back(it == values.end() ? nullptr : &*it);
-        const std::string status = it == values.end() ? "waiting" : it->state.status;
+    const auto found = cached_devices(devices, values);
+    poll_shortfall(out, lines, devices, found);
+
+    family(out, "device_status", "gauge", "1 for the device's status now (ok, partial, no-reply, line-down, stale, waiting), 0 for the others.");
+    for (std::size_t i = 0; i < devices.size(); ++i) {
+        const std::string status = found[i] ? found[i]->state.status : "waiting";
         for (const char* candidate : device_statuses) {
-            sample(out, "device_status", fmt::format("device=\"{}\",status=\"{}\"", label(name), candidate), status == candidate ? 1 : 0);
+            sample(out, "device_status", fmt::format("device=\"{}\",status=\"{}\"", label(devices[i].name), candidate),
+                   status == candidate ? 1 : 0);
         }
     }
     family(out, "device_polls_total", "counter", "Polls of the device.");
     for (std::size_t i = 0; i < devices.size(); ++i) {
-        sample(out, "device_polls_total", fmt::format("device=\"{}\"", label(devices[i])), found[i] ? found[i]->state.polls : 0u);
+        sample(out, "device_polls_total", fmt::format("device=\"{}\"", label(devices[i].name)), found[i] ? found[i]->state.polls : 0u);
     }
     family(out, "device_poll_errors_total", "counter", "Polls of the device that failed.");
     for (std::size_t i = 0; i < devices.size(); ++i) {
-        sample(out, "device_poll_errors_total", fmt::format("device=\"{}\"", label(devices[i])), found[i] ? found[i]->state.errors : 0u);
+        sample(out, "device_poll_errors_total", fmt::format("device=\"{}\"", label(devices[i].name)),
+               found[i] ? found[i]->state.errors : 0u);
+    }
+    family(out, "device_polls_missed_total", "counter", "Poll samples skipped because the sample before ran past its interval.");
+    for (std::size_t i = 0; i < devices.size(); ++i) {
+        sample(out, "device_polls_missed_total", fmt::format("device=\"{}\"", label(devices[i].name)),
+               found[i] ? found[i]->state.missed : 0u);
+    }
+    family(out, "device_poll_age_seconds", "gauge",
+           "Time since the device's last poll that answered; absent before one and while its polls get no answer.");
+    for (std::size_t i = 0; i < devices.size(); ++i) {
+        if (!found[i] || !found[i]->since_answered) continue;
+        sample(out, "device_poll_age_seconds", fmt::format("device=\"{}\"", label(devices[i].name)),
+               static_cast<double>(found[i]->since_answered->count()) / 1e3);
     }
     if (history) {
         family(out, "history_rows_written_total", "counter", "Rows the history store committed since the gateway started.");

@@ -10,11 +10,19 @@
 
 namespace loopwire::gateway {
 
-// Per line: requests, answers, timeouts, bad replies, garbled frames, expired, abandoned and
-// refused requests, busy and open time and their ratio. Per device (`devices`, in configured
-// order): its status as a 1 among 0s, its polls and failed polls. The history store's rows,
-// with one. The Modbus TCP front's connections, with `front`.
-std::string prometheus_text(const std::vector<LineReport>& lines, const std::vector<std::string>& devices,
+// A configured device and the line it is on.
+struct MetricsDevice {
+    std::string name;
+    std::string line;
+};
+
+// Per line: requests (and of them polls), answers, timeouts, bad replies, garbled frames,
+// expired, abandoned and refused requests, busy and open time and their ratio, whether it is up
+// and how often it went down, the poll samples its devices missed and how many of them are
+// stale now (the line cannot carry its polls). Per device (`devices`, in configured order): its
+// status as a 1 among 0s, its polls, failed and missed polls, and the age of its last answered
+// poll. The history store's rows, with one. The Modbus TCP front's connections, with `front`.
+std::string prometheus_text(const std::vector<LineReport>& lines, const std::vector<MetricsDevice>& devices,
                             const std::vector<CachedDevice>& values, const HistorySource* history,
                             const FrontReport* front = nullptr);
 

@@ -47,8 +47,10 @@ void init_library_once() {
     });
 }
 
-// "line-down" stays as it is: the device is unavailable, and the cable or adapter, not the
-// device, is what to look at (the value's meta gives the reason).
+// The device's status topic: "online", "offline" (no reply), "error" (some values failed),
+// "line-down" (the cable or adapter, not the device, is what to look at; the value's meta gives
+// the reason) or "stale" (its poll is overdue: its values may no longer be the device's;
+// value_cache.hpp).
 std::string device_status_word(const std::string& status) {
     if (status == "ok") return "online";
     if (status == "no-reply") return "offline";
@@ -100,7 +102,7 @@ std::uint64_t command_digest(std::string_view topic, std::string_view payload) {
 
 // What the last poll said about a device.
 struct DeviceSeen {
-    std::string status;  // "ok", "partial", "no-reply", "line-down"
+    std::string status;  // "ok", "partial", "no-reply", "line-down", "stale"
     std::string error;
 };
 

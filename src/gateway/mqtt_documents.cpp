@@ -113,7 +113,8 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
         {"device", std::move(device)},
         // Both the gateway's (its last will) and the device's (its polls): a value is only
         // current when the gateway is connected and the device answers. The device's status
-        // has more words than two (`error`, `line-down`): anything but `online` is unavailable.
+        // has more words than two (`error`, `line-down`, `stale`: its values may no longer be
+        // the device's): anything but `online` is unavailable.
         {"availability",
          {{{"topic", config.prefix + "/status"}, {"payload_available", "online"}, {"payload_not_available", "offline"}},
           {{"topic", device_topic + "/status"},

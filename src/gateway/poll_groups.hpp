@@ -1,9 +1,16 @@
 #pragma once
 // The gateway's own polling. Devices polled at the same interval form a poll group; each group
 // runs the client's poller (client/monitor_loop.hpp) on its own thread, through the lines'
-// schedulers at poll priority, so polls take the line only when no write or client waits.
-// What each poll finds goes into the value cache (gateway/value_cache.hpp), and a device that
-// stops or starts answering is logged.
+// schedulers at poll priority, so polls share each line with the clients' requests by turns
+// (line_scheduler.hpp). What each poll finds goes into the value cache (gateway/value_cache.hpp),
+// and a device that stops or starts answering is logged.
+//
+// Polls that cannot keep their rate are reported two ways. A group whose sample ran past its
+// interval (its lines cannot carry its polls beside everything else) is logged once when it
+// falls behind and once when it keeps its interval again, and its skipped samples are counted
+// in each device's `missed` (/metrics). And a timer of its own, a quarter of the shortest
+// interval (50 ms to 1 s), has the cache mark the devices whose poll is overdue `stale`, since
+// a poll stuck on its line reports nothing itself; each device going stale or fresh is logged.
 #include <chrono>
 #include <map>
 #include <memory>
@@ -34,6 +41,11 @@ public:
 private:
     struct Group;
     std::vector<std::unique_ptr<Group>> groups_;
+    std::jthread staleness_;  // last: stops before the groups go
 };
+
+// How often the staleness timer looks: a quarter of the shortest poll interval, kept within
+// 50 ms (no busy loop for fast polls) and 1 s (a slow poll's staleness is still told promptly).
+std::chrono::milliseconds staleness_tick(std::chrono::milliseconds shortest_interval);
 
 }  // namespace loopwire::gateway

@@ -1,7 +1,11 @@
 #include "gateway/value_cache.hpp"
 
 #include <algorithm>
+#include <map>
 #include <mutex>
+#include <utility>
+
+#include <fmt/format.h>
 
 #include "profile/value_format.hpp"
 
@@ -10,7 +14,10 @@ namespace loopwire::gateway {
 // Locking: a subscriber's mutex is held while its callback runs; the hub's guards the devices
 // and the list of subscribers and is never held while a callback runs. Where both are taken,
 // the subscriber's comes first (a callback reading the snapshot; subscribe()), so they cannot
-// deadlock.
+// deadlock. The hub's `telling` mutex is held by update() and mark_overdue() from working out
+// the changes until they are delivered: the poll thread and the staleness timer both change a
+// device, and without it a `stale` found just before a poll could reach a subscriber after the
+// poll's `ok`. It is taken before the others and never by a callback's calls.
 namespace detail {
 
 struct ValueSubscriber {
@@ -23,13 +30,25 @@ struct ValueSubscriber {
 };
 
 struct DeviceEntry {
-    CachedDevice latest;
+    CachedDevice latest;  // as polled; since_answered is filled in by snapshot()
     std::vector<ValueChange> published;  // the device's status, then each parameter, as last told
+    std::optional<Instant> answered_at;  // the cache's clock when its last answered poll arrived
+    bool told_stale = false;
 };
 
 struct ValueHub {
+    ValueHub(std::shared_ptr<Clock> time, std::function<std::chrono::system_clock::time_point()> wall_time)
+        : clock(std::move(time)), wall(std::move(wall_time)) {
+        if (!wall) wall = [] { return std::chrono::system_clock::now(); };
+    }
+
+    const std::shared_ptr<Clock> clock;
+    std::function<std::chrono::system_clock::time_point()> wall;
+    std::mutex telling;
     std::mutex mutex;
     std::vector<DeviceEntry> devices;  // in the order first seen
+    // Declared poll intervals, by name: a device is listed only once it was polled.
+    std::map<std::string, std::chrono::milliseconds> intervals;
     std::vector<std::shared_ptr<ValueSubscriber>> subscribers;
 };
 
@@ -44,6 +63,55 @@ using SystemTime = std::chrono::system_clock::time_point;
 
 // "waiting": the poller skipped a device in back-off; it learned nothing new about it.
 bool polled(const device::WatchedDevice& state) { return state.status != "waiting"; }
+
+// Values were read: what can go stale.
+bool answered(const device::WatchedDevice& state) { return state.status == "ok" || state.status == "partial"; }
+
+// When the device's last answered poll is overdue by more than the allowance; none when it
+// cannot go stale (no interval declared, no answer to be stale).
+std::optional<Instant> stale_from(const DeviceEntry& entry) {
+    if (entry.latest.interval.count() <= 0 || !entry.answered_at) return std::nullopt;
+    return *entry.answered_at + (1 + overdue_intervals_allowed) * entry.latest.interval;
+}
+
+bool overdue(const DeviceEntry& entry, Instant now) {
+    const auto from = stale_from(entry);
+    return from && now > *from;
+}
+
+std::string seconds_text(Instant::duration duration) {
+    return fmt::format("{:.1f} s", std::chrono::duration<double>(duration).count());
+}
+
+std::string overdue_reason(const DeviceEntry& entry, Instant now) {
+    return fmt::format("not polled for {} (polled every {}): its line is too busy to carry its polls, or a poll is "
+                       "stuck; the last value read is no longer known to be the device's (the gateway's log and /metrics "
+                       "say more)",
+                       seconds_text(now - *entry.answered_at), seconds_text(entry.latest.interval));
+}
+
+// The device as its overdue poll leaves it: every value stale (the last one kept, with its
+// age, for those who ask for the detail), the device stale.
+device::WatchedDevice stale_state(const device::WatchedDevice& polled_state, const std::string& why) {
+    device::WatchedDevice state = polled_state;
+    state.status = "stale";
+    state.last_error = why;
+    for (device::WatchedValue& value : state.values) {
+        value.fresh = false;
+        value.changed = false;
+        value.error = why;
+    }
+    return state;
+}
+
+CachedDevice as_seen(const DeviceEntry& entry, Instant now) {
+    CachedDevice device = entry.latest;
+    if (entry.answered_at) {
+        device.since_answered = std::chrono::duration_cast<std::chrono::milliseconds>(now - *entry.answered_at);
+    }
+    if (overdue(entry, now)) device.state = stale_state(device.state, overdue_reason(entry, now));
+    return device;
+}
 
 ValueChange device_change(const std::string& name, const device::WatchedDevice& state, SystemTime sampled) {
     ValueChange change;
@@ -105,7 +173,9 @@ DeviceEntry& entry_of(ValueHub& hub, const std::string& name) {
     auto it = std::find_if(hub.devices.begin(), hub.devices.end(),
                            [&](const DeviceEntry& entry) { return entry.latest.name == name; });
     if (it != hub.devices.end()) return *it;
-    hub.devices.push_back({CachedDevice{name, {}, {}}, {}});
+    const auto interval = hub.intervals.find(name);
+    CachedDevice device{name, {}, {}, interval != hub.intervals.end() ? interval->second : std::chrono::milliseconds(0), {}};
+    hub.devices.push_back({std::move(device), {}, {}, false});
     return hub.devices.back();
 }
 
@@ -160,10 +230,20 @@ void ValueSubscription::reset() {
 
 // ---------------------------------------------------------------------------------------------
 
-ValueCache::ValueCache() : hub_(std::make_shared<ValueHub>()) {}
+ValueCache::ValueCache(std::shared_ptr<Clock> clock, WallClock wall)
+    : hub_(std::make_shared<ValueHub>(std::move(clock), std::move(wall))) {}
 ValueCache::~ValueCache() = default;
 
+void ValueCache::expect_polls(const std::string& name, std::chrono::milliseconds interval) {
+    std::lock_guard lock(hub_->mutex);
+    hub_->intervals[name] = interval;
+    for (DeviceEntry& entry : hub_->devices) {
+        if (entry.latest.name == name) entry.latest.interval = interval;
+    }
+}
+
 void ValueCache::update(const std::string& name, const device::WatchedDevice& state, SystemTime sampled) {
+    std::lock_guard telling(hub_->telling);
     std::vector<ValueChange> changes;
     std::vector<std::shared_ptr<ValueSubscriber>> subscribers;
     {
@@ -172,19 +252,53 @@ void ValueCache::update(const std::string& name, const device::WatchedDevice& st
         entry.latest.state = state;
         entry.latest.sampled = sampled;
         if (!polled(state)) return;
+        if (answered(state)) {
+            entry.answered_at = hub_->clock->now();
+        } else {
+            entry.answered_at.reset();
+        }
+        entry.told_stale = false;
         changes = publish(entry.published, state_of(name, state, sampled));
         if (changes.empty()) return;
         subscribers = hub_->subscribers;
     }
-    // Outside the hub's lock: the other groups' updates and snapshots do not wait for callbacks.
+    // Outside the hub's lock: the other groups' snapshots do not wait for callbacks.
     for (const auto& subscriber : subscribers) deliver(*subscriber, changes);
+}
+
+std::vector<std::string> ValueCache::mark_overdue() {
+    std::lock_guard telling(hub_->telling);
+    std::vector<std::string> stale;
+    std::vector<ValueChange> changes;
+    std::vector<std::shared_ptr<ValueSubscriber>> subscribers;
+    {
+        std::lock_guard lock(hub_->mutex);
+        const Instant now = hub_->clock->now();
+        for (DeviceEntry& entry : hub_->devices) {
+            if (!overdue(entry, now)) continue;
+            const std::string& name = entry.latest.name;
+            stale.push_back(name);
+            if (std::exchange(entry.told_stale, true)) continue;
+            // Stamped now, when it is told, not when it became stale (up to a timer tick
+            // earlier): a history heartbeat of the value written meanwhile then never lies after
+            // the row that says it is stale.
+            auto told = publish(entry.published, state_of(name, stale_state(entry.latest.state, overdue_reason(entry, now)),
+                                                          hub_->wall()));
+            changes.insert(changes.end(), told.begin(), told.end());
+        }
+        if (changes.empty()) return stale;
+        subscribers = hub_->subscribers;
+    }
+    for (const auto& subscriber : subscribers) deliver(*subscriber, changes);
+    return stale;
 }
 
 std::vector<CachedDevice> ValueCache::snapshot() const {
     std::lock_guard lock(hub_->mutex);
+    const Instant now = hub_->clock->now();
     std::vector<CachedDevice> devices;
     devices.reserve(hub_->devices.size());
-    for (const DeviceEntry& entry : hub_->devices) devices.push_back(entry.latest);
+    for (const DeviceEntry& entry : hub_->devices) devices.push_back(as_seen(entry, now));
     return devices;
 }
 

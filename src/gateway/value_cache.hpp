@@ -9,6 +9,15 @@
 // waits for it. Callbacks of one subscriber never run at the same time, and the changes of one
 // device reach it in the order they happened. A callback may read snapshot(), subscribe, and
 // end its own subscription; it must not throw.
+//
+// Staleness: a device polled every T whose last poll answered is `stale` once that poll is more
+// than T + 2T old, that is once the next poll, due after T, is overdue by more than two
+// intervals. Its values then read `stale` everywhere: in snapshot() at once (it is worked out
+// from the clock when read), and for subscribers (MQTT, the history, server-sent events) when
+// mark_overdue() finds it, which the poll groups call on a timer of their own (poll_groups.hpp):
+// a device's poll that never completes (a line too busy to carry it) tells nothing by itself.
+// Its next poll makes it `ok` again. A device whose polls get no answer is not stale but
+// `no-reply`: it shows no value to be stale.
 #include <chrono>
 #include <functional>
 #include <memory>
@@ -17,14 +26,23 @@
 #include <vector>
 
 #include "client/monitor_state.hpp"
+#include "common/clock.hpp"
 
 namespace loopwire::gateway {
 
-// One device as the last poll found it.
+// How far past its due time a device's poll may be before its values are `stale`: two
+// intervals (the header says why the count starts at the due time, one interval after the poll).
+constexpr int overdue_intervals_allowed = 2;
+
+// One device as the last poll found it, or `stale` when that poll is overdue (above).
 struct CachedDevice {
     std::string name;             // the configured device name
-    device::WatchedDevice state;  // values, status ("ok", "no-reply", ...), errors
+    device::WatchedDevice state;  // values, status ("ok", "no-reply", "stale", ...), errors
     std::chrono::system_clock::time_point sampled;
+    std::chrono::milliseconds interval{0};  // how often it is polled; 0 when not declared
+    // Since its last poll that answered, on the cache's clock; none before one, and after a
+    // poll that got no answer.
+    std::optional<std::chrono::milliseconds> since_answered;
 };
 
 // A parameter whose value or status changed, or a device whose status changed.
@@ -35,12 +53,14 @@ struct ValueChange {
     std::optional<device::EngineeringValue> value;
     std::string text;  // the value as people read it ("137.0", an enum label); empty with no value
     std::string unit;  // "°C"; empty for the device's status
-    // A value's: "ok", its special state ("under-range", ...), "no-reply" or "error". The
-    // device's: "ok", "partial" (some values failed) or "no-reply".
+    // A value's: "ok", its special state ("under-range", ...), "no-reply", "error" or "stale".
+    // The device's: "ok", "partial" (some values failed), "no-reply" or "stale". A stale value
+    // carries no value: the last one read is no longer known to be the device's.
     std::string status;
     // Why there is no value, or why the device is not "ok".
     std::string error;
-    std::chrono::system_clock::time_point sampled;  // when the sample that found it started
+    // When the sample that found it started; for a change to `stale`, when it was found stale.
+    std::chrono::system_clock::time_point sampled;
 
     bool about_device() const { return parameter.empty(); }
 };
@@ -76,16 +96,27 @@ private:
 
 class ValueCache {
 public:
-    ValueCache();
+    using WallClock = std::function<std::chrono::system_clock::time_point()>;
+    // `clock`: what staleness is measured on; `wall`: what a change to `stale` is stamped with
+    // (empty: the system clock). Tests inject virtual ones.
+    explicit ValueCache(std::shared_ptr<Clock> clock = steady_clock(), WallClock wall = {});
     ~ValueCache();
     ValueCache(const ValueCache&) = delete;
     ValueCache& operator=(const ValueCache&) = delete;
+
+    // Device `name` is polled every `interval`: from now on its values go stale when its poll
+    // is overdue (above). A device never declared never goes stale.
+    void expect_polls(const std::string& name, std::chrono::milliseconds interval);
 
     // One sample of the device named `name`. Changes against its last polled state go to the
     // subscribers, on this thread: on its first sample every parameter and the device's status.
     // A device in back-off ("waiting": not polled this sample) changes nothing but the snapshot.
     void update(const std::string& name, const device::WatchedDevice& state,
                 std::chrono::system_clock::time_point sampled);
+
+    // Every device that became stale since the last call is told to the subscribers as
+    // `stale`, on this thread. Returns the names of the devices stale now.
+    std::vector<std::string> mark_overdue();
 
     std::vector<CachedDevice> snapshot() const;  // in the order devices were first seen
 

@@ -459,6 +459,16 @@ TEST(GatewayConfigPlan, AnOverloadedLineIsWarnedAbout) {
     EXPECT_THAT(plan, HasSubstr("over 100 %: polls will fall behind")) << plan;
 }
 
+// Polls and clients take turns: polls needing more than half the line fall behind when
+// clients keep it busy.
+TEST(GatewayConfigPlan, ALineWhosePollsNeedOverHalfIsWarnedAbout) {
+    const std::string plan = plan_of(tc10_line("60ms"));
+    EXPECT_THAT(plan, HasSubstr("estimated line load: 68.8 % of wire time")) << plan;
+    EXPECT_THAT(plan, HasSubstr("over 50 %: while Modbus TCP clients keep the line busy the polls get half of it")) << plan;
+    EXPECT_THAT(plan, Not(HasSubstr("over 100 %"))) << plan;
+    EXPECT_THAT(plan_of(tc10_line("100ms")), Not(HasSubstr("over 50 %"))) << "41.3 %";
+}
+
 TEST(GatewayConfigPlan, LoadsOfDevicesOnOneLineAddUp) {
     const std::string text = tc10_line("1s") + "[[lines.devices]]\nname = \"oven2\"\ndevice = \"tc10@4\"\npoll = \"500ms\"\n"
                                                "parameters = [\"measured_value\", \"set_point\"]\n";

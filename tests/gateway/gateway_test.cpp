@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <filesystem>
+#include <iostream>
 #include <fstream>
 #include <condition_variable>
 #include <mutex>
@@ -13,8 +15,10 @@
 
 #include <fmt/format.h>
 
+#include "client/device_client.hpp"
 #include "gateway/gateway.hpp"
 #include "session/master.hpp"
+#include "transport/link_url.hpp"
 #include "support/profile_test_support.hpp"
 
 namespace loopwire::gateway {
@@ -137,6 +141,92 @@ TEST(Gateway, WithAMaxAgeARepeatedReadIsAnsweredWithoutTheLine) {
     for (std::size_t i = 0; i < first.readings.size(); ++i) {
         EXPECT_EQ(second.readings[i].value->raw, first.readings[i].value->raw) << i;
     }
+}
+
+// The field's case (issue 20): ten Modbus TCP clients reading back to back through the gateway
+// keep its line busy all the time; its own poll every second still comes round, so the PV it
+// hands out stays a few intervals old at most and the device stays ok (never stale).
+const char* const busy_plant = R"toml(
+[[lines]]
+name = "sim"
+link = "rtu:virtual?baud=19200&parity=none"
+timeout = "500ms"
+retries = 1
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@3"
+poll = "1s"
+parameters = ["measured_value", "set_point"]
+
+[modbus_tcp]
+listen = "127.0.0.1:0"
+)toml";
+
+TEST(Gateway, TenClientsReadingBackToBackDoNotStopThePolls) {
+    auto config = parse_gateway_config(busy_plant, "plant.toml", profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    auto opened = Gateway::open(*config);
+    ASSERT_TRUE(opened) << opened.error().message;
+    Gateway& gateway = **opened;
+    std::jthread serving([&gateway](std::stop_token stop) { (void)gateway.serve(std::move(stop)); });
+    Collected collected;
+    auto subscription = gateway.subscribe(collected.collect());
+    ASSERT_TRUE(collected.wait_for_value("measured_value")) << "the first poll did not read the device";
+
+    const DeviceConfig& oven = config->lines[0].devices[0];
+    auto link = transport::parse_link_url(fmt::format("tcp://127.0.0.1:{}", gateway.modbus_tcp_port()));
+    ASSERT_TRUE(link) << link.error().message;
+    std::atomic<std::uint64_t> reads{0};
+    std::atomic<std::uint64_t> failures{0};
+    std::vector<std::jthread> clients;
+    for (int i = 0; i < 10; ++i) {
+        clients.emplace_back([&](std::stop_token stop) {
+            auto master = session::open_master(*link, {});
+            if (!master) {
+                failures.fetch_add(1);
+                return;
+            }
+            device::DeviceClient client(**master, oven.address);
+            while (!stop.stop_requested()) {
+                const auto report = client.read(polled_parameters(oven));
+                (report.first_error ? failures : reads).fetch_add(1);
+            }
+        });
+    }
+    const auto polls_of = [&gateway] { return gateway.values().at(0).state.polls; };
+    const auto utilisation = [&gateway] {
+        const auto s = gateway.report().at(0).statistics;
+        return std::pair(s.busy, s.open);
+    };
+    // The clients have the line busy before the watch starts.
+    const auto give_up = std::chrono::steady_clock::now() + 30s;
+    while (reads.load() < 50 && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(20ms);
+    ASSERT_GE(reads.load(), 50u) << "the clients did not get going in 30 s";
+
+    // Ten intervals of watching, as a front reads the cache: the device ok, the PV young.
+    const auto [busy_before, open_before] = utilisation();
+    const auto polls_before = polls_of();
+    const auto watch_until = std::chrono::steady_clock::now() + 10s;
+    double oldest = 0;
+    while (std::chrono::steady_clock::now() < watch_until) {
+        const CachedDevice seen = gateway.values().at(0);
+        ASSERT_EQ(seen.state.status, "ok") << seen.state.last_error;
+        const auto age = device::age_seconds(seen.state.values.at(0), device::MonitorClock::now());
+        ASSERT_TRUE(age);
+        oldest = std::max(oldest, *age);
+        ASSERT_LE(*age, 3.0) << "the PV was not polled for " << *age << " s";
+        std::this_thread::sleep_for(50ms);
+    }
+    const auto [busy_after, open_after] = utilisation();
+    const auto polls_after = polls_of();
+    for (auto& client : clients) client.request_stop();
+    clients.clear();
+    const double busy = static_cast<double>((busy_after - busy_before).count()) / static_cast<double>((open_after - open_before).count());
+    std::cout << "10 clients: " << reads.load() << " reads, " << failures.load() << " failed; line busy " << busy * 100
+              << " %; " << polls_after - polls_before << " polls in 10 s; oldest PV seen " << oldest << " s\n";
+    EXPECT_GE(polls_after - polls_before, 5u) << "the polls every second nearly stopped";
+    EXPECT_GT(busy, 0.5) << "the clients did not load the line: the test shows nothing";
 }
 
 // The polls' values reach the history: the gateway opens the database and answers for it.

@@ -37,8 +37,7 @@ PLATFORMS = {
     "select": ({"command_topic", "options"}, {"command_topic": STRING, "options": LIST, "command_template": STRING}),
 }
 DEVICE_KEYS = {"identifiers": LIST, "name": STRING, "manufacturer": STRING, "model": STRING}
-AVAILABILITY_KEYS = {"topic": STRING, "payload_available": STRING, "payload_not_available": STRING,
-                     "value_template": STRING}
+AVAILABILITY_KEYS = {"topic": STRING, "payload_available": STRING, "payload_not_available": STRING, "value_template": STRING}
 OBJECT_ID = re.compile(r"^[A-Za-z0-9_-]+$")
 
 

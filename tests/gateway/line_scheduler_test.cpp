@@ -167,7 +167,7 @@ TEST_F(LineSchedulerTest, SendsOneRequestAtATime) {
     EXPECT_EQ(stats.queued, 0U);
 }
 
-TEST_F(LineSchedulerTest, WritesGoBeforeClientRequestsBeforePolls) {
+TEST_F(LineSchedulerTest, WritesGoFirstThenClientRequestsAndPollsTakeTurns) {
     submit(1, Priority::poll);  // on the wire while the rest queue
     submit(2, Priority::poll);
     submit(3, Priority::client);
@@ -175,8 +175,26 @@ TEST_F(LineSchedulerTest, WritesGoBeforeClientRequestsBeforePolls) {
     submit(5, Priority::poll);
     submit(6, Priority::client);
     submit(7, Priority::write);
+    submit(8, Priority::client, 1, 2);
     complete_all();
-    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 4, 7, 3, 6, 2, 5}));
+    // A poll went last (1), so a client's request goes next; then turns (the clients round
+    // robin among themselves), and the clients' requests left once the polls are done.
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 4, 7, 3, 2, 8, 5, 6}));
+    EXPECT_EQ(scheduler->statistics().polls_sent, 3U);
+}
+
+// Turns count requests that went on the wire: a poll refused unsent (its unit backs off) is
+// no turn, so the next poll still goes before the next client's request.
+TEST_F(LineSchedulerTest, APollDroppedUnsentCostsThePollsNoTurn) {
+    submit(1, Priority::poll, 5);
+    master->complete(timed_out());  // unit 5 backs off
+    submit(2, Priority::client);    // on the wire
+    submit(3, Priority::client);
+    submit(4, Priority::poll, 5);   // refused when its turn comes
+    submit(5, Priority::poll, 6);
+    complete_all();
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 2, 5, 3}));
+    EXPECT_FALSE(only_answer(4).ok());
 }
 
 TEST_F(LineSchedulerTest, BusyClientDelaysAnotherByAtMostOneRequest) {
@@ -555,6 +573,207 @@ TEST_F(BoundedLineSchedulerTest, AFullQueueDropsRequestsNobodyWantsBeforeRefusin
     EXPECT_EQ(stats.abandoned, 2U);
     EXPECT_EQ(stats.expired, 1U);
     EXPECT_EQ(stats.refused_busy, 0U);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sharing the line under load, in virtual time. Every request takes `wire` on the line. Each
+// client keeps a request queued at all times (it asks again the moment it is answered). Each
+// polled device behaves as the gateway's poller (client/monitor_loop.hpp): from its slot of a
+// fixed schedule it sends its poll's requests one after the other, each with the interval as the
+// longest it may wait for the line (gateway/poll_groups.cpp), and skips a slot it is still busy
+// in.
+
+// Holds the request on the wire until the test completes it, noting when it was sent.
+class WireMaster final : public session::Master {
+public:
+    explicit WireMaster(std::shared_ptr<VirtualClock> clock) : clock_(std::move(clock)) {}
+
+    Result<codec::Reply> execute(std::uint8_t, const codec::Request&) override { return forward_only(); }
+    void execute_async(std::uint8_t, codec::Request, Completion done) override { done(forward_only()); }
+    Result<Bytes> forward(std::uint8_t, ByteView) override { return make_error(ErrorKind::link, "not here"); }
+    std::string describe() const override { return "wire master"; }
+
+    void forward_async(std::uint8_t, Bytes, ForwardCompletion done) override {
+        if (held_) ADD_FAILURE() << "two requests on the wire";
+        held_ = std::move(done);
+        sent_at_ = clock_->now();
+    }
+
+    bool on_wire() const { return static_cast<bool>(held_); }
+    Instant sent_at() const { return sent_at_; }
+    void complete() {
+        auto done = std::move(held_);
+        held_ = nullptr;
+        done(normal_reply());
+    }
+
+private:
+    std::shared_ptr<VirtualClock> clock_;
+    ForwardCompletion held_;
+    Instant sent_at_{};
+};
+
+struct PolledDevice {
+    std::chrono::milliseconds interval;
+    int requests;  // per poll
+    // What happened:
+    int polls = 0;    // completed
+    int missed = 0;   // slots skipped: the poll before was still under way
+    int failed = 0;   // requests dropped unsent (their deadline passed)
+    Instant::duration longest{};  // from a slot to its poll's last reply
+    // The poll under way:
+    Instant next_slot{};
+    Instant slot{};
+    int request = 0;  // 1-based; 0 when idle
+};
+
+class LoadedLine : public ::testing::Test {
+protected:
+    static constexpr auto wire = 20ms;  // e.g. ten registers at 19200 baud with the gaps
+
+    void start(int client_count, std::vector<PolledDevice> polled) {
+        devices = std::move(polled);
+        for (auto& device : devices) device.next_slot = clock->now();
+        for (int client = 0; client < client_count; ++client) ask_as_client(client);
+    }
+
+    // Runs the line for `length` of virtual time: each reply `wire` after its request went, each
+    // poll on its slot.
+    void run_for(Instant::duration length) {
+        const Instant end = clock->now() + length;
+        for (;;) {
+            Instant slot = Instant::max();
+            for (const auto& device : devices) slot = std::min(slot, device.next_slot);
+            const Instant reply = master->on_wire() ? master->sent_at() + wire : Instant::max();
+            const Instant next = std::min(slot, reply);
+            if (next >= end) break;
+            clock->sleep_until(next);
+            if (reply <= slot) {
+                master->complete();
+            } else {
+                start_due_polls();
+            }
+        }
+        clock->sleep_until(end);
+    }
+
+    void ask_as_client(int client) {
+        LineRequest request;
+        request.unit = 1;
+        request.pdu = pdu_for(1000 + client);
+        request.priority = Priority::client;
+        request.client = static_cast<std::uint64_t>(client);
+        request.done = [this, client](Result<Bytes> result) {
+            if (result.ok()) ++client_answers;
+            if (!stopped) ask_as_client(client);
+        };
+        scheduler->submit(std::move(request));
+    }
+
+    void start_due_polls() {
+        for (std::size_t i = 0; i < devices.size(); ++i) {
+            PolledDevice& device = devices[i];
+            if (device.next_slot > clock->now()) continue;
+            if (device.request != 0) {
+                ++device.missed;
+            } else {
+                device.slot = device.next_slot;
+                device.request = 1;
+                send_poll_request(i);
+            }
+            device.next_slot += device.interval;
+        }
+    }
+
+    void send_poll_request(std::size_t i) {
+        PolledDevice& device = devices[i];
+        LineRequest request;
+        request.unit = 2;
+        request.pdu = pdu_for(100 * static_cast<int>(i + 1) + device.request);
+        request.priority = Priority::poll;
+        request.deadline = clock->now() + device.interval;
+        request.done = [this, i](Result<Bytes> result) { poll_answered(i, result.ok()); };
+        scheduler->submit(std::move(request));
+    }
+
+    void poll_answered(std::size_t i, bool ok) {
+        PolledDevice& device = devices[i];
+        if (!ok) {
+            ++device.failed;
+            device.request = 0;
+            return;
+        }
+        if (device.request < device.requests) {
+            ++device.request;
+            send_poll_request(i);
+            return;
+        }
+        ++device.polls;
+        device.longest = std::max(device.longest, clock->now() - device.slot);
+        device.request = 0;
+    }
+
+    void TearDown() override {
+        stopped = true;
+        scheduler.reset();  // fails what is queued; before the master, as an owner must
+    }
+
+    std::shared_ptr<VirtualClock> clock = std::make_shared<VirtualClock>();
+    std::shared_ptr<WireMaster> master = std::make_shared<WireMaster>(clock);
+    std::unique_ptr<LineScheduler> scheduler = std::make_unique<LineScheduler>(master, LineSchedulerOptions{}, clock);
+    std::vector<PolledDevice> devices;
+    int client_answers = 0;
+    bool stopped = false;
+};
+
+// The field's case: ten Modbus TCP clients reading back to back used to hold every poll for
+// minutes. With polls needing 10 % of the line, every poll of every device is still made on
+// time, and the clients get the rest.
+TEST_F(LoadedLine, TenClientsKeepingTheLineFullDoNotSlowThePolls) {
+    start(10, {{1000ms, 3}, {500ms, 1}});
+    run_for(60s);
+    const PolledDevice& every_second = devices[0];
+    const PolledDevice& twice_a_second = devices[1];
+    EXPECT_EQ(every_second.polls, 60) << "slots 0 s to 59 s";
+    EXPECT_EQ(twice_a_second.polls, 120);
+    for (const auto& device : devices) {
+        EXPECT_EQ(device.missed, 0);
+        EXPECT_EQ(device.failed, 0);
+        // Each request waits for the one on the wire, a client's and the other device's at most.
+        EXPECT_LE(device.longest, device.requests * 4 * wire) << device.interval.count() << " ms";
+    }
+    const auto stats = scheduler->statistics();
+    EXPECT_EQ(stats.polls_sent, 60u * 3u + 120u);
+    // The line was never idle: the clients had every turn the polls did not need.
+    const auto capacity = static_cast<int>(60s / wire);
+    EXPECT_GE(stats.sent, static_cast<std::uint64_t>(capacity - 1));
+    EXPECT_GE(client_answers, capacity - 300 - 1);
+}
+
+// Polls that need more than half the line (here 80 %) cannot have it while clients want it
+// too: they get every other turn while they wait, fall behind (the poll group reports the
+// skipped slots), and the clients keep at least half the line.
+TEST_F(LoadedLine, PollsNeedingMoreThanHalfTheLineFallBehindAndClientsKeepHalf) {
+    start(10, {{100ms, 4}});
+    run_for(10s);
+    const PolledDevice& device = devices[0];
+    const auto stats = scheduler->statistics();
+    const auto turns = static_cast<double>(stats.sent);
+    EXPECT_GE(static_cast<double>(client_answers) / turns, 0.49);
+    // Every other turn while a poll waits; between polls (a skipped slot) the clients have all.
+    EXPECT_GE(static_cast<double>(stats.polls_sent) / turns, 0.35);
+    EXPECT_GT(device.missed, 20) << "the shortfall shows as skipped slots";
+    EXPECT_GT(device.polls, 20);
+    EXPECT_EQ(device.failed, 0) << "a poll request waits for one client's at most: never past its deadline";
+}
+
+// Without clients the polls have the whole line; without polls the clients do.
+TEST_F(LoadedLine, WhoeverIsAloneTakesEveryTurn) {
+    start(0, {{100ms, 4}});
+    run_for(10s);
+    EXPECT_EQ(devices[0].polls, 100);
+    EXPECT_EQ(devices[0].missed, 0);
+    EXPECT_EQ(devices[0].longest, 4 * wire);
 }
 
 // Completes each request on its own thread after a short wait, as a serial master does.

@@ -17,6 +17,22 @@ using namespace std::chrono_literals;
 
 const auto sample_time = std::chrono::system_clock::time_point{} + 1000h;
 
+// Wall time for the stale changes' stamps: moves only when the test moves it.
+class SystemTimeForTests {
+public:
+    explicit SystemTimeForTests(std::chrono::system_clock::time_point start) : now_(std::make_shared<std::atomic<std::int64_t>>(ms(start))) {}
+    void advance(std::chrono::milliseconds length) { now_->fetch_add(length.count()); }
+    ValueCache::WallClock clock() const {
+        return [now = now_] { return std::chrono::system_clock::time_point(std::chrono::milliseconds(now->load())); };
+    }
+
+private:
+    static std::int64_t ms(std::chrono::system_clock::time_point time) {
+        return std::chrono::duration_cast<std::chrono::milliseconds>(time.time_since_epoch()).count();
+    }
+    std::shared_ptr<std::atomic<std::int64_t>> now_;
+};
+
 device::Parameter parameter(std::string name, std::string unit) {
     device::Parameter p;
     p.name = std::move(name);
@@ -178,6 +194,140 @@ TEST(ValueCache, ASampleThatSkipsADeviceInBackOffTellsNothing) {
     EXPECT_EQ(cache.snapshot().at(0).state.status, "waiting") << "the snapshot is still the last sample";
     cache.update("oven1", oven.answered(tenths(250), tenths(1375)), sample_time + 2s);
     EXPECT_EQ(told.names(), (std::vector<std::string>{"(ok)", "measured_value", "set_point"}));
+}
+
+// Staleness, in virtual time: a device polled every second whose poll stops coming back.
+class ValueCacheStaleness : public ::testing::Test {
+protected:
+    void SetUp() override { cache.expect_polls("oven1", 1s); }
+
+    std::shared_ptr<VirtualClock> clock = std::make_shared<VirtualClock>();
+    SystemTimeForTests wall{sample_time};
+    ValueCache cache{clock, wall.clock()};
+    Device oven;
+    Told told;
+    ValueSubscription subscription = cache.subscribe(told.collect());
+};
+
+TEST_F(ValueCacheStaleness, APollMoreThanTwoIntervalsOverdueMakesTheDeviceAndItsValuesStale) {
+    cache.update("oven1", oven.answered(tenths(3550), tenths(1375)), sample_time);
+    told.changes.clear();
+
+    // Due after 1 s, overdue by exactly two intervals at 3 s: still current.
+    clock->advance(3s);
+    wall.advance(3s);
+    EXPECT_TRUE(cache.mark_overdue().empty());
+    EXPECT_EQ(cache.snapshot().at(0).state.status, "ok");
+    EXPECT_EQ(cache.snapshot().at(0).since_answered, 3s);
+    EXPECT_TRUE(told.changes.empty());
+
+    clock->advance(1ms);
+    wall.advance(1ms);
+    // Read from the clock at once, before any timer has told the subscribers.
+    const auto seen = cache.snapshot().at(0);
+    EXPECT_EQ(seen.state.status, "stale");
+    EXPECT_NE(seen.state.last_error.find("not polled for 3.0 s (polled every 1.0 s)"), std::string::npos) << seen.state.last_error;
+    const auto& measured = seen.state.values.at(0);
+    EXPECT_EQ(device::value_status(seen.state, measured), "stale");
+    EXPECT_FALSE(measured.fresh);
+    ASSERT_TRUE(measured.last) << "the last value is kept for those who ask how old it is";
+    EXPECT_EQ(measured.last->raw, 3550);
+    EXPECT_TRUE(told.changes.empty());
+
+    EXPECT_EQ(cache.mark_overdue(), (std::vector<std::string>{"oven1"}));
+    ASSERT_EQ(told.names(), (std::vector<std::string>{"(stale)", "measured_value", "set_point"}));
+    for (const auto& change : told.changes) {
+        EXPECT_EQ(change.status, "stale") << change.parameter;
+        EXPECT_FALSE(change.value) << change.parameter << ": a stale change carries no value";
+        EXPECT_EQ(change.text, "") << change.parameter;
+        EXPECT_NE(change.error.find("not polled for"), std::string::npos) << change.parameter;
+        EXPECT_EQ(change.sampled, sample_time + 3001ms) << "stamped when it was found stale";
+    }
+    told.changes.clear();
+    clock->advance(10s);
+    EXPECT_EQ(cache.mark_overdue(), (std::vector<std::string>{"oven1"})) << "still stale";
+    EXPECT_TRUE(told.changes.empty()) << "told once";
+}
+
+TEST_F(ValueCacheStaleness, TheNextPollMakesItOkAgain) {
+    cache.update("oven1", oven.answered(tenths(3550), tenths(1375)), sample_time);
+    clock->advance(5s);
+    (void)cache.mark_overdue();
+    told.changes.clear();
+
+    cache.update("oven1", oven.answered(tenths(3971), tenths(1375)), sample_time + 5s);
+    ASSERT_EQ(told.names(), (std::vector<std::string>{"(ok)", "measured_value", "set_point"}));
+    EXPECT_EQ(told.changes[1].text, "397.1");
+    EXPECT_EQ(told.changes[2].text, "137.5") << "an unchanged value is told again: it was stale";
+    EXPECT_EQ(cache.snapshot().at(0).state.status, "ok");
+    EXPECT_TRUE(cache.mark_overdue().empty());
+}
+
+// A device whose polls get no answer shows no value that could be stale: it stays no-reply,
+// however long its back-off; and a device never declared never goes stale.
+TEST_F(ValueCacheStaleness, NoReplyAndUndeclaredDevicesDoNotGoStale) {
+    Device kiln;
+    cache.update("oven1", oven.silent(), sample_time);
+    cache.update("kiln", kiln.answered(tenths(250), tenths(1375)), sample_time);
+    clock->advance(1h);
+    cache.update("oven1", oven.backing_off(), sample_time + 1h);
+    EXPECT_TRUE(cache.mark_overdue().empty());
+    const auto devices = cache.snapshot();
+    EXPECT_EQ(devices.at(0).state.status, "waiting");
+    EXPECT_FALSE(devices.at(0).since_answered);
+    EXPECT_EQ(devices.at(1).state.status, "ok");
+    EXPECT_EQ(devices.at(1).interval, 0ms);
+}
+
+// The staleness timer and a poll may find the same device at once: a subscriber still gets its
+// changes in the order they were made, never a `stale` after the poll's `ok`.
+TEST(ValueCacheStalenessThreads, AStaleFoundAsAPollArrivesNeverOvertakesIt) {
+    auto clock = std::make_shared<VirtualClock>();
+    ValueCache cache(clock);
+    cache.expect_polls("oven1", 1ms);
+    std::mutex mutex;
+    std::vector<std::string> statuses;
+    // A slow subscriber: while it takes one change, the timer's next and a poll's both wait
+    // for it, which is where one could overtake the other.
+    auto subscription = cache.subscribe([&](const ValueChange& change) {
+        std::this_thread::sleep_for(100us);
+        if (!change.about_device()) return;
+        std::lock_guard lock(mutex);
+        statuses.push_back(change.status);
+    });
+    std::atomic<bool> polling{true};
+    std::atomic<unsigned> looks{0};
+    std::thread timer([&] {
+        while (polling.load()) {
+            clock->advance(4ms);  // past the allowance at each look: stale unless a poll came
+            (void)cache.mark_overdue();
+            looks.fetch_add(1);
+        }
+    });
+    Device oven;
+    const auto told_count = [&] {
+        std::lock_guard lock(mutex);
+        return statuses.size();
+    };
+    // Until the two have met often enough (each stale and ok again is two), or a generous limit.
+    const auto give_up = std::chrono::steady_clock::now() + 30s;
+    while (told_count() < 400 && std::chrono::steady_clock::now() < give_up) {
+        // Each poll waits for the timer to have looked once more, so the two keep meeting;
+        // the timer's next look then runs while this poll does.
+        const unsigned looked = looks.load();
+        cache.update("oven1", oven.answered(tenths(250), tenths(1375)), sample_time);
+        while (looks.load() == looked && std::chrono::steady_clock::now() < give_up) std::this_thread::yield();
+    }
+    polling.store(false);
+    timer.join();
+    // Out of order, a subscriber would hear "ok" twice in a row (the poll's, then the one
+    // before the overtaken "stale") and end on a status the cache no longer has.
+    std::lock_guard lock(mutex);
+    ASSERT_GE(statuses.size(), 400u) << "the timer and the polls met too seldom in 30 s";
+    for (std::size_t i = 1; i < statuses.size(); ++i) {
+        ASSERT_NE(statuses[i], statuses[i - 1]) << "told " << statuses[i] << " twice in a row at " << i;
+    }
+    EXPECT_EQ(statuses.back(), cache.snapshot().at(0).state.status);
 }
 
 TEST(ValueCache, ALateSubscriberIsToldTheWholePictureFirst) {

@@ -2,7 +2,7 @@
 // groups them, live, with a write form on each writable one.
 import { loadDevice, deviceNamed, onChange, loadDevices } from "./store.js";
 import { writeParameter } from "./api.js";
-import { escapeHtml, readingHtml, ageText, alarmReasons, deviceStatusClass, deviceStatusWord, valueText } from "./format.js";
+import { escapeHtml, readingHtml, ageText, alarmReasons, deviceStatusClass, deviceStatusWord, statusChipClass, valueText } from "./format.js";
 import { keyParameters } from "./keys.js";
 import { Trend } from "./trend.js";
 import { openTokenDialog, deviceSubtitle } from "./ui.js";
@@ -95,7 +95,7 @@ function fillRow(row, entry, now) {
   row.dataset.alarm = reasons.length && !(entry.status && entry.status !== "ok") ? "true" : "false";
   const statusCell = row.querySelector(".status-cell");
   const chips = [];
-  if (status && status !== "ok" && entry.time) chips.push(`<span class="chip ${["no-reply", "line-down", "error"].includes(status) ? "bad" : "warn"}" title="${escapeHtml(entry.error || "")}">${escapeHtml(status)}</span>`);
+  if (status && status !== "ok" && entry.time) chips.push(`<span class="chip ${statusChipClass(status)}" title="${escapeHtml(entry.error || "")}">${escapeHtml(status)}</span>`);
   for (const reason of reasons) if (!reason.includes(":")) chips.push(`<span class="chip bad">${escapeHtml(reason)}</span>`);
   const chipHtml = chips.join(" ");
   if (statusCell.innerHTML !== chipHtml) statusCell.innerHTML = chipHtml;

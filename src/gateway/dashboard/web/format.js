@@ -83,9 +83,13 @@ export function alarmReasons(entry) {
   return reasons;
 }
 
+// "stale": the device's poll is overdue, so its last values may no longer be its own (the
+// gateway's value cache says so once the poll is two intervals late); shown apart from both
+// "ok" and the failures, greyed, with the last values kept and their age growing.
 export function deviceStatusClass(status) {
   if (status === "ok") return "ok";
   if (status === "partial") return "warn";
+  if (status === "stale") return "stale";
   if (!status || status === "waiting") return "";
   return "bad";
 }
@@ -95,7 +99,15 @@ export function deviceStatusWord(status) {
   if (status === "no-reply") return "offline";
   if (status === "line-down") return "line down";
   if (status === "partial") return "partial";
+  if (status === "stale") return "stale: not polled";
   return status || "waiting";
+}
+
+// The chip of a value's status: failures red, stale grey, special states amber.
+export function statusChipClass(status) {
+  if (status === "no-reply" || status === "line-down" || status === "error") return "bad";
+  if (status === "stale") return "stale";
+  return "warn";
 }
 
 export function numericValue(entry) {

@@ -43,7 +43,9 @@ function renderCard(card, device) {
     : '<div class="key-value"><div class="label"><span>Values</span></div><div class="reading"><span class="none">waiting for the first poll</span></div></div>';
 
   const alarms = [];
-  if (device.status && device.status !== "ok") alarms.push({ text: deviceStatusWord(device.status), level: "bad" });
+  if (device.status && device.status !== "ok") {
+    alarms.push({ text: deviceStatusWord(device.status), level: device.status === "stale" ? "stale" : "bad" });
+  }
   for (const entry of device.params.values()) {
     for (const reason of alarmReasons(entry)) alarms.push({ text: reason, level: entry.status && entry.status !== "ok" ? "warn" : "bad" });
   }

@@ -147,24 +147,29 @@ function pickLive(entry) {
 function handleEvent(data) {
   if (!data || !data.device) return;
   const time = parseTime(data.time) ?? Date.now();
+  // "stale" tells no value: the last one read stays on show, greyed, with the age it really
+  // has, and the device's "updated" time stays that of its last poll.
+  const stale = data.status === "stale" && (data.value === null || data.value === undefined);
   if (!data.parameter) {
     const device = deviceEntry(data.device);
     device.status = data.status || device.status;
     device.error = data.error || "";
-    device.time = time;
+    if (!stale) device.time = time;
     notify({ kind: "status", device: data.device });
     return;
   }
   const device = deviceEntry(data.device);
-  device.time = time;
+  const previous = device.params.get(data.parameter);
+  const kept = stale && previous && previous.time;
+  if (!stale) device.time = time;
   const entry = applyParameter(data.device, {
     name: data.parameter,
-    value: data.value ?? null,
-    text: data.text ?? "",
-    unit: data.unit ?? device.params.get(data.parameter)?.unit ?? "",
+    value: kept ? previous.value : data.value ?? null,
+    text: kept ? previous.text : data.text ?? "",
+    unit: data.unit ?? previous?.unit ?? "",
     status: data.status || "ok",
     error: data.error || "",
-    time,
+    time: kept ? previous.time : time,
   });
   notify({ kind: "value", device: data.device, parameter: data.parameter, entry });
 }
