@@ -39,6 +39,14 @@ private:
 
 using LatencyKey = std::pair<std::uint8_t, std::uint8_t>;  // unit, function code
 
+// How much later than usual a reply may come and still count as on time for the duplicate rule:
+// a USB adapter holds received bytes up to its latency timer (16 ms by default on FTDI chips)
+// and a busy host wakes its reader late, so a reply's arrival varies by tens of milliseconds
+// although the device answers on time. A real reply taken for a copy costs its request a
+// failure; a copy that comes within this slack is still caught by the ambiguity rule when the
+// real reply follows.
+constexpr Duration reply_jitter = std::chrono::milliseconds(40);
+
 class SerialMaster final : public Master {
 public:
     SerialMaster(std::unique_ptr<transport::ByteStream> stream, const transport::LinkUrl& link,
@@ -300,7 +308,8 @@ private:
         const auto copied = earlier_copy(raw, awaited.request);
         if (!copied) return {};
         const auto now = clock_->now();
-        const bool late = awaited.usual > Duration::zero() && now - awaited.sent_at > awaited.usual + inter_frame_gap_;
+        const bool late =
+            awaited.usual > Duration::zero() && now - awaited.sent_at > awaited.usual + inter_frame_gap_ + reply_jitter;
         if (!late && !line_sends_copies()) return {};
         copy_seen_at_ = now;
         return make_error(ErrorKind::mismatch,

@@ -373,7 +373,7 @@ TEST(ForwardingUnit, ARequestItsAskerNoLongerWantsNeverReachesTheLine) {
     EXPECT_EQ(front.line->sent(), 1U) << "the closed connection's request went on the line";
     EXPECT_EQ(front.scheduler->statistics().abandoned, 1U);
     ASSERT_EQ(replies.got.size(), 2U);
-    EXPECT_EQ(replies.got[1], hex("83 0B"));  // to nobody: the connection has gone
+    EXPECT_EQ(replies.got[1], hex("83 0A"));  // to nobody: the connection has gone; never sent, so not 0Bh
 }
 
 }  // namespace

@@ -648,10 +648,11 @@ TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItRe
     const Clock::duration first = oven_replies.front().took;
     // The first of the oven's requests came when the dead unit's were queued already: it waited
     // for the one on the wire and the next at most (line_scheduler_test.cpp), not for all six.
-    // Each later one waited for the one on the wire only: the clients take turns, one request
-    // each.
+    // Each later one waited for the one on the wire and at most one poll (clients and polls
+    // alternate), which may be the dead unit's own when its back-off has run out: two timeouts
+    // and their late-reply windows, never all six of the dead unit's requests.
     EXPECT_LT(first, 3 * timeout) << "the other client was held up behind the dead unit's requests";
-    EXPECT_LT(slowest, 2 * timeout) << "the other client waited behind more than one of the dead unit's requests";
+    EXPECT_LT(slowest, 3 * timeout) << "the other client waited behind more than one of the dead unit's requests";
     EXPECT_GE(oven_replies.size() + 2, std::size_t{dead_requests}) << "the other client did not get its turns";
     std::cout << fmt::format(
         "{} requests to the dead unit answered 0Bh in {:.2f} s; meanwhile {} reads of the oven, "

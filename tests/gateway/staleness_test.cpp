@@ -78,7 +78,7 @@ protected:
         });
         HttpApiSources sources;
         sources.cache = &cache;
-        sources.lines = [] { return std::vector<LineReport>{{"plant", "rtu:virtual", {}, 0}}; };
+        sources.lines = [] { return std::vector<LineReport>{{"plant", "rtu:virtual", {}, 0, {}}}; };
         api = std::make_unique<HttpApi>(config, std::move(sources));
     }
 
@@ -109,6 +109,7 @@ protected:
         HttpRequest request;
         request.method = "GET";
         request.path = "/api/devices/oven";
+        request.host = "localhost";
         const HttpOutcome outcome = api->handle(request);
         EXPECT_EQ(outcome.response.status, 200u) << outcome.response.body;
         return Json::parse(outcome.response.body);
@@ -127,6 +128,7 @@ protected:
         HttpRequest request;
         request.method = "GET";
         request.path = "/metrics";
+        request.host = "localhost";
         return api->handle(request).response.body;
     }
 
