@@ -143,7 +143,10 @@ last_port() { grep -oE 'listening on port [0-9]+' "$WORK_DIR/read-only.log" | ta
 write_config "$WORK_DIR/read-only.toml" true
 kill -HUP "$read_only_pid"
 wait_for 30 "the reload" grep -q "configuration .*read-only.toml reloaded" "$WORK_DIR/read-only.log"
-wait_for 30 "the reloaded gateway's port" test "$(grep -c 'listening on port' "$WORK_DIR/read-only.log")" -ge 2
+# A function, so the count is taken again on every try (a "$(grep -c ...)" argument would be
+# counted once, before the first try, and miss a port logged a moment after the reload line).
+ports_announced() { (($(grep -c 'listening on port' "$WORK_DIR/read-only.log") >= 2)); }
+wait_for 30 "the reloaded gateway's port" ports_announced
 reloaded="tcp://127.0.0.1:$(last_port)"
 check reloaded-gateway-takes-writes 0 "" "$loopwire" write --link "$reloaded" --device tc10@3 set_point=160
 check reloaded-gateway-wrote 0 '"value":160' "$loopwire" read --link "$reloaded" --device tc10@3 set_point --json
