@@ -156,6 +156,22 @@ private:
         return {};
     }
 
+    // What arrived between exchanges (a late reply, a copy) is read, traced and examined before
+    // it is dropped, not flushed unseen: a copy of an earlier frame marks the line as one that
+    // sends copies, which the duplicate rule needs to know before the next copy races a reply.
+    void hear_out_stray_input() {
+        std::array<std::uint8_t, 512> buffer{};
+        codec_->reset();
+        for (int round = 0; round < 8; ++round) {  // bounded: a line that never stops talking
+            auto got = stream_->read_some(buffer, milliseconds::zero());
+            if (!got || *got == 0) break;
+            auto fed = codec_->feed(ByteView(buffer.data(), *got), clock_->now());
+            if (!fed) break;
+            discard_late(*fed);
+        }
+        discard_late(codec_->flush(clock_->now() + inter_frame_gap_));
+    }
+
     void discard_late(const codec::FrameEvents& events) {
         for (const auto& event : events) {
             if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
@@ -175,6 +191,7 @@ private:
         auto frame = codec_->encode(unit, pdu, 0);
         if (!frame) return frame.error();
         clock_->sleep_until(line_quiet_since_ + inter_frame_gap_);
+        hear_out_stray_input();
         stream_->discard_input();  // a late reply to an earlier try must not answer this one
         codec_->reset();
         trace(TraceDirection::sent, *frame, transaction);
@@ -378,6 +395,13 @@ private:
         std::optional<std::string> ambiguity;
         const Instant accepted_at = clock_->now();
         Instant quiet_until = std::max(accepted_at, usual_start) + inter_frame_gap_;
+        // A reply with the same bytes as another request's recent one may be its copy, come
+        // just when this reply was due, with the real reply a little behind it: the silence is
+        // kept for the reply jitter too, so that the real one, if it comes, makes it ambiguous.
+        // Only replies equal to a recent one pay this wait.
+        if (!retry && earlier_copy(accepted.raw, awaited.request)) {
+            quiet_until = std::max(quiet_until, usual_start + reply_jitter + inter_frame_gap_);
+        }
         // A line that keeps talking after the reply cannot settle the question: give up at the
         // deadline (or a little after the silence, if the reply came that late).
         const Instant give_up = std::max(deadline, quiet_until + inter_frame_gap_);

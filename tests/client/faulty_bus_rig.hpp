@@ -1,8 +1,10 @@
 #pragma once
 // Simulated devices served by a session::Slave on a transport::VirtualBus, and a master on the
 // same bus whose frames (and the replies to them) pass a fault policy the test sets: drops,
-// corrupted bytes, a unit that stops answering. heal() turns the faults off, giving the clean
-// path the tests check the devices' memory through.
+// corrupted bytes, a unit that stops answering. heal() turns the faults off. The clean path the
+// tests check the devices' memory through is a second bus, served by a second slave over the
+// same devices: a serial line has one master, and a master that heard another's replies between
+// its own exchanges would rightly take them for copies (session/serial_master.cpp).
 #include <atomic>
 #include <functional>
 #include <memory>
@@ -38,19 +40,26 @@ public:
             addresses_.push_back(*address);
         }
         slave_port_ = bus_->attach("slave");
-        slave_ = std::make_unique<session::Slave>(*link, std::move(units));
+        slave_ = std::make_unique<session::Slave>(*link, units);
         server_ = std::jthread([this](std::stop_token stop) { (void)slave_->serve_stream(*slave_port_, stop); });
+        // The test asks one master at a time, so the two slaves never run a device at once.
+        clean_bus_ = transport::VirtualBus::create(link->serial.baud, 10);
+        clean_slave_port_ = clean_bus_->attach("slave");
+        clean_slave_ = std::make_unique<session::Slave>(*link, std::move(units));
+        clean_server_ = std::jthread([this](std::stop_token stop) { (void)clean_slave_->serve_stream(*clean_slave_port_, stop); });
         session::MasterOptions options;
         options.timeout = timeout;
         options.retries = 0;  // every fault reaches the code under test
         master_ = session::make_serial_master(bus_->attach("master"), *link, options);
         // The clean path retries: a loaded test machine can stretch a frame past its gaps.
         options.retries = 3;
-        clean_master_ = session::make_serial_master(bus_->attach("checker"), *link, options);
+        clean_master_ = session::make_serial_master(clean_bus_->attach("checker"), *link, options);
     }
     ~FaultyBusRig() {
-        server_.request_stop();
-        server_.join();
+        for (auto* server : {&server_, &clean_server_}) {
+            server->request_stop();
+            server->join();
+        }
     }
     FaultyBusRig(const FaultyBusRig&) = delete;
     FaultyBusRig& operator=(const FaultyBusRig&) = delete;
@@ -58,8 +67,8 @@ public:
     session::Master& master() { return *master_; }
     const device::DeviceAddress& address(std::size_t index) const { return addresses_.at(index); }
     device::DeviceClient client(std::size_t index) { return device::DeviceClient(*master_, addresses_.at(index)); }
-    // Through a second master whose frames never meet a fault (use it only with faults healed:
-    // both masters share the line).
+    // Through a second master, on the clean bus, whose frames never meet a fault (use it only
+    // while the faulty master is idle: the devices are the same).
     device::DeviceClient clean_client(std::size_t index) { return device::DeviceClient(*clean_master_, addresses_.at(index)); }
 
     void inject(FaultPolicy policy) {
@@ -72,7 +81,7 @@ public:
 private:
     transport::BusFault fault_for(const std::string& from, ByteView bytes) {
         std::lock_guard lock(mutex_);
-        if (!policy_ || from == "checker") return {};
+        if (!policy_) return {};
         return policy_(from, bytes, writes_++);
     }
 
@@ -85,6 +94,10 @@ private:
     std::unique_ptr<transport::ByteStream> slave_port_;
     std::unique_ptr<session::Slave> slave_;
     std::jthread server_;
+    std::shared_ptr<transport::VirtualBus> clean_bus_;
+    std::unique_ptr<transport::ByteStream> clean_slave_port_;
+    std::unique_ptr<session::Slave> clean_slave_;
+    std::jthread clean_server_;
     std::unique_ptr<session::Master> master_;
     std::unique_ptr<session::Master> clean_master_;
 };
