@@ -2,9 +2,10 @@
 # files from npm (package.json at the top of the repository) are embedded into the program at
 # build time, so the dashboard works offline and the gateway needs no files beside it.
 # LOOPWIRE_DASHBOARD=OFF builds a gateway without it (dashboard_assets_placeholder.cpp: a page
-# pointing at the API), for a machine without npm.
+# pointing at the API), for a machine without npm. Fuzz builds (which drive the HTTP front, not
+# the dashboard's files) always take the placeholder.
 option(LOOPWIRE_DASHBOARD "Embed the web dashboard (needs uPlot from npm: scripts/setup runs npm ci)" ON)
-if(NOT LOOPWIRE_DASHBOARD)
+if(NOT LOOPWIRE_DASHBOARD OR LOOPWIRE_FUZZ)
   set(LOOPWIRE_DASHBOARD_SOURCE ${CMAKE_CURRENT_LIST_DIR}/../dashboard_assets_placeholder.cpp)
   return()
 endif()
