@@ -80,13 +80,23 @@ public:
             return;
         }
         std::lock_guard lock(mutex_);
+        if (serving_ && !gateway::reload_needs_restart(*serving_, *loaded)) {
+            // Nothing the gateway runs has changed: everything stays up; a new log level applies now.
+            const bool level_changed = serving_->log.level != loaded->log.level;
+            serving_->log.level = loaded->log.level;
+            set_log_level(gateway_log(), loaded->log.level);
+            log_line(fmt::format("configuration {} re-read: {}; lines, listeners, connections and MQTT stay up", file_,
+                                 level_changed ? "only the log level changed" : "nothing changed"));
+            return;
+        }
         next_ = std::move(*loaded);
         running_.request_stop();
     }
 
-    // A stop token for the gateway about to run.
-    std::stop_token start_round() {
+    // A stop token for the gateway about to serve `config`.
+    std::stop_token start_round(const gateway::GatewayConfig& config) {
         std::lock_guard lock(mutex_);
+        serving_ = config;
         running_ = std::stop_source();
         return running_.get_token();
     }
@@ -102,6 +112,7 @@ private:
     std::mutex mutex_;
     std::stop_source running_;
     std::optional<gateway::GatewayConfig> next_;
+    std::optional<gateway::GatewayConfig> serving_;  // what the running gateway was opened with
 };
 
 void announce(const gateway::GatewayConfig& config, const gateway::Gateway& running) {
@@ -161,7 +172,7 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
     gateway::GatewayConfig current = std::move(*config);
     std::optional<gateway::GatewayConfig> previous;
     for (;;) {
-        auto served = serve_round(current, gateway_options, stop.token(), reloads.start_round());
+        auto served = serve_round(current, gateway_options, stop.token(), reloads.start_round(current));
         if (!served && !previous) return report_error(served.error());
         if (!served) {
             // The new configuration loaded but could not be opened (an address taken, a history

@@ -21,6 +21,22 @@
 #include "common/text_parsing.hpp"
 #include "profile/request_planner.hpp"
 
+namespace loopwire::transport {
+bool operator==(const SerialSettings& a, const SerialSettings& b) {
+    return a.baud == b.baud && a.data_bits == b.data_bits && a.parity == b.parity && a.stop_bits == b.stop_bits &&
+           a.rs485 == b.rs485;
+}
+bool operator==(const LinkUrl& a, const LinkUrl& b) {
+    return a.framing == b.framing && a.path == b.path && a.host == b.host && a.port == b.port && a.serial == b.serial;
+}
+}  // namespace loopwire::transport
+
+namespace loopwire::device {
+bool operator==(const DeviceAddress& a, const DeviceAddress& b) {
+    return a.profile == b.profile && a.unit == b.unit && a.address_offset == b.address_offset;
+}
+}  // namespace loopwire::device
+
 namespace loopwire::gateway {
 namespace {
 
@@ -1020,6 +1036,12 @@ bool HttpConfig::loopback() const {
 }
 
 bool is_virtual_bus(const transport::LinkUrl& link) { return link.is_serial() && link.path == "virtual"; }
+
+bool reload_needs_restart(const GatewayConfig& running, const GatewayConfig& next) {
+    GatewayConfig same_level = next;
+    same_level.log.level = running.log.level;
+    return !(same_level == running);
+}
 
 Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::string& source,
                                            const device::ProfileRegistry& profiles) {

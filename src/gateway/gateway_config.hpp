@@ -16,6 +16,16 @@
 #include "profile/profile_registry.hpp"
 #include "transport/link_url.hpp"
 
+// Equality of the link and device types the configuration holds, for reload_needs_restart
+// below (found by argument-dependent lookup from the defaulted comparisons).
+namespace loopwire::transport {
+bool operator==(const SerialSettings& a, const SerialSettings& b);
+bool operator==(const LinkUrl& a, const LinkUrl& b);
+}  // namespace loopwire::transport
+namespace loopwire::device {
+bool operator==(const DeviceAddress& a, const DeviceAddress& b);  // the same profile object, unit and numbering
+}  // namespace loopwire::device
+
 namespace loopwire::gateway {
 
 struct DeviceConfig {
@@ -24,6 +34,8 @@ struct DeviceConfig {
     std::uint8_t tcp_unit = 0;              // the unit id Modbus TCP clients use (default: the device's unit)
     std::chrono::milliseconds poll{1000};   // interval of the parameters polled
     std::vector<std::string> parameters;    // empty: the profile's default watch list
+
+    bool operator==(const DeviceConfig&) const = default;
 };
 
 // A line with no hardware behind it (link "rtu:virtual?baud=19200", or ascii:virtual): the
@@ -32,6 +44,8 @@ struct DeviceConfig {
 struct LineSimulation {
     double speed = 1.0;      // process seconds per real second, as `simulate --speed`
     std::uint64_t seed = 1;  // measurement noise, as `simulate --seed`
+
+    bool operator==(const LineSimulation&) const = default;
 };
 
 struct LineConfig {
@@ -44,6 +58,8 @@ struct LineConfig {
     // long, so a late reply is never taken for it (session::MasterOptions). nullopt: the timeout.
     std::optional<std::chrono::milliseconds> late_reply_window;
     std::vector<DeviceConfig> devices;
+
+    bool operator==(const LineConfig&) const = default;
 };
 
 struct ModbusTcpConfig {
@@ -60,6 +76,8 @@ struct ModbusTcpConfig {
     // A connection with nothing received and no request in progress for this long is closed;
     // zero ("off"): never.
     std::chrono::milliseconds idle_timeout{60000};
+
+    bool operator==(const ModbusTcpConfig&) const = default;
 };
 
 struct LogConfig {
@@ -67,6 +85,8 @@ struct LogConfig {
     Level level = Level::info;
     // How often each line's statistics are logged; zero: only when the gateway stops.
     std::chrono::milliseconds statistics{60000};
+
+    bool operator==(const LogConfig&) const = default;
 };
 
 // [mqtt]: the gateway publishes its values to a broker and takes writes from it
@@ -75,6 +95,8 @@ struct MqttTls {
     std::filesystem::path ca_file;    // empty: the system's certificate store (/etc/ssl/certs)
     std::filesystem::path cert_file;  // the gateway's own certificate and key, for brokers that
     std::filesystem::path key_file;   // ask clients for one; both or neither
+
+    bool operator==(const MqttTls&) const = default;
 };
 
 struct MqttConfig {
@@ -97,6 +119,8 @@ struct MqttConfig {
     std::string gateway_name = "gateway";
     // A .../set payload longer than this many bytes is refused unread (a value is a few bytes).
     std::size_t max_payload = 1024;
+
+    bool operator==(const MqttConfig&) const = default;
 };
 
 // [history]: every change of a polled value, and a heartbeat sample of each, kept in an SQLite
@@ -108,6 +132,8 @@ struct HistoryConfig {
     std::filesystem::path database;  // resolved
     std::chrono::seconds keep = std::chrono::hours(24 * 90);
     std::chrono::milliseconds heartbeat{60000};
+
+    bool operator==(const HistoryConfig&) const = default;
 };
 
 // [http]: the HTTP API and the dashboard (gateway/http_server.hpp). Reads need no token on a
@@ -131,6 +157,8 @@ struct HttpConfig {
 
     // Whether the address is loopback (127.0.0.0/8, ::1, localhost): only then are reads open.
     bool loopback() const;
+
+    bool operator==(const HttpConfig&) const = default;
 };
 
 struct GatewayConfig {
@@ -142,6 +170,8 @@ struct GatewayConfig {
     std::optional<MqttConfig> mqtt;  // absent [mqtt] table: no MQTT
     std::optional<HistoryConfig> history;  // absent [history] table: no history
     std::optional<HttpConfig> http;  // absent [http] table: no HTTP API
+
+    bool operator==(const GatewayConfig&) const = default;
 };
 
 // Whether `link` names the in-process virtual bus rather than a device file.
@@ -151,6 +181,11 @@ bool is_virtual_bus(const transport::LinkUrl& link);
 Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::string& source,
                                            const device::ProfileRegistry& profiles);
 Result<GatewayConfig> load_gateway_config(const std::filesystem::path& file, const device::ProfileRegistry& profiles);
+
+// Whether serving `next` in place of `running` needs the gateway restarted: not when the two
+// differ at most in the log level, which applies at once (a SIGHUP from logrotate, or for a
+// file saved again unchanged, keeps every line, listener, connection and MQTT session up).
+bool reload_needs_restart(const GatewayConfig& running, const GatewayConfig& next);
 
 // What one poll of the device reads: the configured names, or the profile's default watch list.
 std::vector<const device::Parameter*> polled_parameters(const DeviceConfig& device);

@@ -7,6 +7,7 @@
 #   exception 0Bh (requests of connections that have gone never take the line);
 # - a FIFO named as password_file or ca_file is refused by --check at once; SIGHUP with a FIFO
 #   in the configuration is refused and SIGTERM still stops the gateway;
+# - SIGHUP with the file unchanged, or only its log level changed, keeps a client's connection;
 # - the gateway raises its soft descriptor limit to the hard one at start.
 set -u
 loopwire=${1:?usage: front_bounds_test.sh path/to/loopwire}
@@ -124,6 +125,23 @@ mkfifo "$WORK_DIR/reload.toml"  # the configuration itself
 kill -HUP "$reloading"
 wait_for 30 "the second reload to be refused" bash -c "[[ \$(grep -c 'configuration not reloaded' '$WORK_DIR/reload.log') -ge 2 ]]"
 check still-serving-after-refused-reloads 0 "value" "$python" "$flood" read "$PORT" 3 717
+
+# ---- SIGHUP with nothing changed, then with only the log level changed: a connection stays up -
+rm -f "$WORK_DIR/reload.toml"
+write_config "$WORK_DIR/reload.toml"  # what the gateway runs
+touch "$WORK_DIR/hold"
+"$python" "$flood" hold-read "$PORT" 3 717 "$WORK_DIR/hold" >"$WORK_DIR/held.out" 2>&1 &
+held=$!
+wait_for 30 "the held connection's first read" grep -q "^value" "$WORK_DIR/held.out"
+kill -HUP "$reloading"
+wait_for 30 "the unchanged reload" grep -q "reload.toml re-read: nothing changed; lines, listeners, connections and MQTT stay up" "$WORK_DIR/reload.log"
+sed -i 's/level = "debug"/level = "info"/' "$WORK_DIR/reload.toml"
+kill -HUP "$reloading"
+wait_for 30 "the log-level reload" grep -q "reload.toml re-read: only the log level changed" "$WORK_DIR/reload.log"
+rm -f "$WORK_DIR/hold"
+wait "$held"
+expect held-connection-survives-reloads grep -q "on the same connection" "$WORK_DIR/held.out"
+expect no-restart-on-unchanged-reload bash -c "! grep -q 'configuration .*reload.toml reloaded' '$WORK_DIR/reload.log'"
 kill -TERM "$reloading"
 wait_for 30 "the gateway to stop on SIGTERM after refused reloads" bash -c "! kill -0 $reloading 2>/dev/null"
 expect stopped-cleanly grep -q "line furnace" "$WORK_DIR/reload.log"

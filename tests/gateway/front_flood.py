@@ -7,6 +7,10 @@
   front_flood.py storm PORT COUNT UNIT ADDRESS
       COUNT times: connect, send a read of one holding register, close at once (no reply read);
       prints how many were sent;
+  front_flood.py hold-read PORT UNIT ADDRESS HOLD_FILE
+      one connection: reads one holding register and prints "value N", keeps the connection
+      until HOLD_FILE is removed (120 s at most), then reads again on it and prints
+      "value N on the same connection"; a connection the gateway closed meanwhile fails;
   front_flood.py write PORT UNIT ADDRESS VALUE / read PORT UNIT ADDRESS
       the honest client (pymodbus): writes one holding register, or reads one and prints
       "value N"; an exception reply prints "exception N" and exits 1.
@@ -58,6 +62,28 @@ def read_request(transaction, unit, address):
     return struct.pack(">HHHB", transaction, 0, len(pdu) + 1, unit) + pdu
 
 
+def read_on(client, transaction, unit, address):
+    client.sendall(read_request(transaction, unit, address))
+    reply = b""
+    while len(reply) < 9:
+        chunk = client.recv(256)
+        if not chunk:
+            fail("the gateway closed the connection")
+        reply += chunk
+    if reply[7] != 3 or len(reply) < 11:
+        fail(f"not a read reply: {reply.hex(' ')}")
+    return struct.unpack(">H", reply[9:11])[0]
+
+
+def hold_read(port, unit, address, hold_file):
+    with connect(port) as client:
+        print(f"value {read_on(client, 1, unit, address)}", flush=True)
+        deadline = time.monotonic() + 120
+        while os.path.exists(hold_file) and time.monotonic() < deadline:
+            time.sleep(0.05)  # polling for the file the test removes when it is done
+        print(f"value {read_on(client, 2, unit, address)} on the same connection", flush=True)
+
+
 def storm(port, count, unit, address):
     sent = 0
     for i in range(count):
@@ -92,6 +118,8 @@ def main():
         hold_idle(port, int(sys.argv[3]), sys.argv[4])
     elif mode == "storm":
         storm(port, int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5]))
+    elif mode == "hold-read":
+        hold_read(port, int(sys.argv[3]), int(sys.argv[4]), sys.argv[5])
     elif mode == "write":
         client = honest_client(port)
         answer_of(client.write_register(int(sys.argv[4]), int(sys.argv[5]), slave=int(sys.argv[3])), "write")

@@ -123,6 +123,29 @@ TEST(GatewayConfig, DefaultsApplyToWhatIsLeftOut) {
     EXPECT_EQ(config->modbus_tcp.idle_timeout, std::chrono::seconds(60));
 }
 
+// SIGHUP (app/gateway_command.cpp): a file read again with nothing changed, or only the log
+// level, keeps the running gateway; anything it runs on changed needs it opened again.
+TEST(GatewayConfig, AReloadRestartsOnlyWhenSomethingServedChanged) {
+    const std::string base = one_device("device = \"tc10@3\"\n") + "[http]\nlisten = \"127.0.0.1:0\"\n";
+    auto running = parse(base + "[log]\nlevel = \"info\"\n");
+    ASSERT_TRUE(running.ok()) << running.error().message;
+    auto same = parse(base + "[log]\nlevel = \"info\"\n");
+    auto louder = parse(base + "[log]\nlevel = \"debug\"\n");
+    auto other_poll = parse(one_device("device = \"tc10@3\"\npoll = \"2s\"\n") + "[http]\nlisten = \"127.0.0.1:0\"\n");
+    auto other_unit = parse(one_device("device = \"tc10@4\"\n") + "[http]\nlisten = \"127.0.0.1:0\"\n");
+    auto no_http = parse(one_device("device = \"tc10@3\"\n"));
+    auto other_stats = parse(base + "[log]\nstatistics = \"5s\"\n");
+    for (const auto* config : {&same, &louder, &other_poll, &other_unit, &no_http, &other_stats}) {
+        ASSERT_TRUE(config->ok()) << config->error().message;
+    }
+    EXPECT_FALSE(reload_needs_restart(*running, *same));
+    EXPECT_FALSE(reload_needs_restart(*running, *louder));
+    EXPECT_TRUE(reload_needs_restart(*running, *other_poll));
+    EXPECT_TRUE(reload_needs_restart(*running, *other_unit));
+    EXPECT_TRUE(reload_needs_restart(*running, *no_http));
+    EXPECT_TRUE(reload_needs_restart(*running, *other_stats));
+}
+
 TEST(GatewayConfig, TheFrontsConnectionLimitsAreRead) {
     auto config = parse(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nmax_connections = 8\nidle_timeout = \"2m\"\n");
     ASSERT_TRUE(config) << config.error().message;
