@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "dead_line_master.hpp"
 #include "fuzz_support.hpp"
 #include "gateway/device_writer.hpp"
 #include "gateway/gateway_config.hpp"
@@ -23,18 +24,6 @@
 using namespace loopwire;
 
 namespace {
-
-class DeadLineMaster final : public session::Master {
-public:
-    Result<codec::Reply> execute(std::uint8_t, const codec::Request&) override { return failed(); }
-    void execute_async(std::uint8_t, codec::Request, Completion done) override { done(failed()); }
-    Result<Bytes> forward(std::uint8_t, ByteView) override { return failed(); }
-    void forward_async(std::uint8_t, Bytes, ForwardCompletion done) override { done(failed()); }
-    std::string describe() const override { return "fuzz line"; }
-
-private:
-    static Error failed() { return make_error(ErrorKind::link, "fuzz: no line"); }
-};
 
 constexpr const char* plant = R"toml(
 [[lines]]
@@ -54,7 +43,7 @@ hosts = ["gateway.plant.local"]
 )toml";
 
 struct Front {
-    std::shared_ptr<session::Master> master = std::make_shared<DeadLineMaster>();
+    std::shared_ptr<session::Master> master = std::make_shared<fuzz::DeadLineMaster>();
     std::shared_ptr<gateway::LineScheduler> line = std::make_shared<gateway::LineScheduler>(master);
     gateway::ValueCache cache;
     std::unique_ptr<gateway::DeviceWriter> writer;

@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "dead_line_master.hpp"
 #include "fuzz_support.hpp"
 #include "gateway/device_writer.hpp"
 #include "gateway/line_scheduler.hpp"
@@ -24,19 +25,6 @@ using namespace loopwire;
 
 namespace {
 
-// A line with nothing behind it: every request fails at once, as a broken link would.
-class DeadLineMaster final : public session::Master {
-public:
-    Result<codec::Reply> execute(std::uint8_t, const codec::Request&) override { return failed(); }
-    void execute_async(std::uint8_t, codec::Request, Completion done) override { done(failed()); }
-    Result<Bytes> forward(std::uint8_t, ByteView) override { return failed(); }
-    void forward_async(std::uint8_t, Bytes, ForwardCompletion done) override { done(failed()); }
-    std::string describe() const override { return "fuzz line"; }
-
-private:
-    static Error failed() { return make_error(ErrorKind::link, "fuzz: no line"); }
-};
-
 struct Answers {
     std::mutex mutex;
     std::vector<std::pair<std::string, std::string>> published;
@@ -45,7 +33,7 @@ struct Answers {
 
 struct Front {
     Answers answers;
-    std::shared_ptr<session::Master> master = std::make_shared<DeadLineMaster>();
+    std::shared_ptr<session::Master> master = std::make_shared<fuzz::DeadLineMaster>();
     std::shared_ptr<gateway::LineScheduler> line = std::make_shared<gateway::LineScheduler>(master);
     gateway::DeviceWriter writer;
     gateway::MqttConfig config;

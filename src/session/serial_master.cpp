@@ -178,7 +178,9 @@ private:
                 trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
             } else {
                 const auto& frame = std::get<codec::Frame>(event);
-                if (is_copy_of_recent(frame.raw)) copy_seen_at_ = clock_->now();
+                // From a unit whose last request went unanswered it is that request's late reply,
+                // which may well equal an earlier reply to the same request: no sign of copies.
+                if (!unsettled_.contains(frame.unit) && is_copy_of_recent(frame.raw)) copy_seen_at_ = clock_->now();
                 trace(TraceDirection::discarded, frame.raw,
                       fmt::format("late reply from unit {}, after a try that got none: not taken for the next request",
                                   frame.unit));

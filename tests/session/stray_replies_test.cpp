@@ -340,6 +340,29 @@ TEST(StrayReplies, ACopyHeardBetweenExchangesMarksTheLineSoALaterOnTimeCopyIsRef
         << copied.error().message;
 }
 
+// A late reply to a request that timed out may equal an earlier reply to the same request (the
+// value has not changed): that is no copy, and the line is not taken for one that sends copies,
+// so a later reply that equals another register's (two registers holding the same value) is
+// still taken.
+TEST(StrayReplies, ALateReplyEqualToAnEarlierOneOfTheSameRequestIsNoSignOfCopies) {
+    TracedMaster m(
+        [](TimedLine& line, ByteView request, Instant at, unsigned n) {
+            if (n == 3) {  // register 21 holds what register 11 holds
+                line.arrive(at + latency, codec::rtu_encode(unit, reply_pdu(11)));
+                return;
+            }
+            line.arrive(at + (n == 1 ? 1050ms : latency), reply_frame_to(request));
+        },
+        100ms);
+    ASSERT_TRUE(m.master->forward(unit, read_pdu(10)).ok());
+    ASSERT_FALSE(m.master->forward(unit, read_pdu(10)).ok());  // its reply comes after the timeout
+    ASSERT_TRUE(m.master->forward(unit, read_pdu(11)).ok());   // after the late reply, heard and dropped
+    EXPECT_EQ(m.discarded_with("late reply from unit 1"), 1u);
+    auto same_value = m.master->forward(unit, read_pdu(21));
+    ASSERT_TRUE(same_value.ok()) << same_value.error().message;
+    EXPECT_EQ(to_hex(*same_value), to_hex(reply_pdu(11)));
+}
+
 // ---------------------------------------------------------------------------------------------
 // Wall time, the virtual bus, a RegisterBank served by the slave, and random faults on its
 // replies.
