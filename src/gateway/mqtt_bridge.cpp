@@ -1,6 +1,7 @@
 #include "gateway/mqtt_bridge.hpp"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cassert>
 #include <cerrno>
@@ -12,8 +13,13 @@
 #include <optional>
 #include <set>
 #include <string_view>
+#include <system_error>
 #include <stop_token>
 #include <thread>
+
+#include <poll.h>
+#include <sys/eventfd.h>
+#include <unistd.h>
 
 #include <fmt/format.h>
 #include <mosquitto.h>
@@ -29,9 +35,11 @@ namespace {
 
 constexpr int keepalive_seconds = 30;
 constexpr int qos_at_least_once = 1;
-// How long one turn of the network loop waits for the socket: also the longest a queued
-// publication waits before it is sent.
-constexpr int loop_timeout_ms = 50;
+// How long one turn of the network loop waits when nothing happens: the socket, a queued
+// publication and a stop each end the wait at once, so this only paces the keep-alive work.
+constexpr int idle_turn_ms = 500;
+// The shutdown's turns, while the last "offline" messages go out.
+constexpr int goodbye_turn_ms = 50;
 
 void init_library_once() {
     static std::once_flag once;
@@ -100,6 +108,31 @@ std::uint64_t command_digest(std::string_view topic, std::string_view payload) {
     return hash;
 }
 
+// Wakes the network thread's poll() from another thread: an eventfd, readable once notified
+// until drained.
+class Wakeup {
+public:
+    Wakeup() : fd_(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {
+        if (fd_ < 0) throw std::system_error(errno, std::generic_category(), "eventfd for the MQTT network thread");
+    }
+    ~Wakeup() { ::close(fd_); }
+    Wakeup(const Wakeup&) = delete;
+    Wakeup& operator=(const Wakeup&) = delete;
+
+    int fd() const { return fd_; }
+    void notify() const {
+        const std::uint64_t one = 1;
+        (void)!::write(fd_, &one, sizeof one);  // a full counter is still readable: nothing lost
+    }
+    void drain() const {
+        std::uint64_t count = 0;
+        (void)!::read(fd_, &count, sizeof count);
+    }
+
+private:
+    int fd_;
+};
+
 // What the last poll said about a device.
 struct DeviceSeen {
     std::string status;  // "ok", "partial", "no-reply", "line-down", "stale"
@@ -119,6 +152,7 @@ struct MqttBridge::State {
 
     std::mutex mutex;  // guards the queue and what the polls said about the devices
     std::deque<Publication> outgoing;  // from the value stream and the writes' results
+    Wakeup wakeup;  // notified when `outgoing` gets its first publication, and on stop
     std::map<std::string, DeviceSeen> devices;  // by configured name
     // The poll threads' own (one subscriber's callbacks never overlap): each parameter's last
     // error, and the parameters announced to Home Assistant.
@@ -148,6 +182,13 @@ struct MqttBridge::State {
 
     void queue(Publication publication) {
         std::lock_guard lock(mutex);
+        queue_locked(std::move(publication));
+    }
+
+    // With `mutex` held. The network thread sends the whole queue when woken, so only the first
+    // publication of a batch needs to wake it.
+    void queue_locked(Publication publication) {
+        if (outgoing.empty()) wakeup.notify();
         outgoing.push_back(std::move(publication));
     }
 
@@ -157,7 +198,7 @@ struct MqttBridge::State {
         if (change.about_device()) {
             std::lock_guard lock(mutex);
             devices[change.device] = {change.status, change.error};
-            outgoing.push_back({topic(change.device, "status"), device_status_word(change.status), true, qos_at_least_once});
+            queue_locked({topic(change.device, "status"), device_status_word(change.status), true, qos_at_least_once});
             return;
         }
         const std::string base = topic(change.device, change.parameter);
@@ -171,10 +212,10 @@ struct MqttBridge::State {
             discovery = discovery_document(config, change.device, *device->address.profile, *parameter);
         }
         std::lock_guard lock(mutex);
-        outgoing.push_back({base, change.value ? change.text : change.status, true, 0, true});
+        queue_locked({base, change.value ? change.text : change.status, true, 0, true});
         // A device's texts (an error, an enum label) are its own and may not be valid UTF-8.
-        outgoing.push_back({base + "/meta", json_text(meta), true, 0});
-        if (discovery) outgoing.push_back({discovery->topic, json_text(discovery->config), true, qos_at_least_once});
+        queue_locked({base + "/meta", json_text(meta), true, 0});
+        if (discovery) queue_locked({discovery->topic, json_text(discovery->config), true, qos_at_least_once});
     }
 
     // TLS (mqtts://) and credentials. The files were checked when the configuration was read; a
@@ -309,7 +350,27 @@ struct MqttBridge::State {
         woken.wait_for(lock, stop, delay, [] { return false; });
     }
 
+    // One turn of the network loop on libmosquitto's external-loop interface: waits for the
+    // socket or the wake-up (a queued publication, a stop), then reads, writes and does the
+    // keep-alive work. mosquitto_loop() would wait out its whole timeout with a publication
+    // queued: that was the poll-to-subscriber latency (tens of milliseconds).
+    int turn() {
+        const int socket = mosquitto_socket(client);
+        if (socket < 0) return MOSQ_ERR_NO_CONN;
+        const auto want_write = static_cast<short>(mosquitto_want_write(client) ? POLLOUT : 0);
+        std::array<pollfd, 2> watched{{{socket, static_cast<short>(POLLIN | want_write), 0}, {wakeup.fd(), POLLIN, 0}}};
+        if (::poll(watched.data(), watched.size(), idle_turn_ms) < 0 && errno != EINTR) return MOSQ_ERR_ERRNO;
+        if (watched[1].revents & POLLIN) wakeup.drain();
+        int rc = MOSQ_ERR_SUCCESS;
+        if (watched[0].revents & (POLLIN | POLLHUP | POLLERR)) rc = mosquitto_loop_read(client, 1);
+        if (rc == MOSQ_ERR_SUCCESS && mosquitto_socket(client) >= 0 && mosquitto_want_write(client)) {
+            rc = mosquitto_loop_write(client, 1);
+        }
+        return rc == MOSQ_ERR_SUCCESS ? mosquitto_loop_misc(client) : rc;
+    }
+
     void run_network(const std::stop_token& stop) {
+        const std::stop_callback wake_on_stop(stop, [this] { wakeup.notify(); });
         bool have_socket = false;
         auto delay = timing.reconnect_first;
         while (!stop.stop_requested()) {
@@ -329,7 +390,7 @@ struct MqttBridge::State {
             }
             send_queued();
             republish_when_due();
-            const int rc = mosquitto_loop(client, loop_timeout_ms, 1);
+            const int rc = turn();
             if (std::exchange(just_connected, false)) {
                 announce();
                 delay = timing.reconnect_first;
@@ -360,7 +421,7 @@ struct MqttBridge::State {
         (void)mosquitto_disconnect(client);
         const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(2);
         while (std::chrono::steady_clock::now() < give_up &&
-               mosquitto_loop(client, loop_timeout_ms, 1) == MOSQ_ERR_SUCCESS) {
+               mosquitto_loop(client, goodbye_turn_ms, 1) == MOSQ_ERR_SUCCESS) {
         }
         is_connected.store(false);
     }
