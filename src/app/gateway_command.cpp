@@ -101,6 +101,12 @@ public:
         return running_.get_token();
     }
 
+    // The configuration the next round will serve, if a reload asked for one.
+    std::optional<gateway::GatewayConfig> next() {
+        std::lock_guard lock(mutex_);
+        return next_;
+    }
+
     std::optional<gateway::GatewayConfig> take() {
         std::lock_guard lock(mutex_);
         return std::exchange(next_, std::nullopt);
@@ -136,10 +142,11 @@ void announce(const gateway::GatewayConfig& config, const gateway::Gateway& runn
     sd_notifyf(0, "READY=1\nSTATUS=serving %zu line(s), %zu device(s)", config.lines.size(), devices);
 }
 
-// Serves `config` until `stop` or `reload` is requested; the error when it cannot be opened.
+// Serves `config` until `stop` or a reload is requested; the error when it cannot be opened.
 Result<void> serve_round(const gateway::GatewayConfig& config, const gateway::GatewayOptions& options,
-                         const std::stop_token& stop, std::stop_token reload) {
+                         const std::stop_token& stop, Reloads& reloads) {
     set_log_level(gateway_log(), config.log.level);
+    const std::stop_token reload = reloads.start_round(config);
     auto running = gateway::Gateway::open(config, options);
     if (!running) return running.error();
     announce(config, **running);
@@ -147,6 +154,7 @@ Result<void> serve_round(const gateway::GatewayConfig& config, const gateway::Ga
     std::stop_callback on_stop(stop, [&either] { either.request_stop(); });
     std::stop_callback on_reload(reload, [&either] { either.request_stop(); });
     auto served = (*running)->serve(either.get_token());
+    if (auto next = reloads.next(); next && !stop.stop_requested()) (*running)->hand_over_to(*next);
     for (const auto& line : (*running)->report()) log_line(gateway::describe(line));
     if (config.modbus_tcp.enabled) log_line(gateway::describe((*running)->front_report()));
     return served;
@@ -172,7 +180,7 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
     gateway::GatewayConfig current = std::move(*config);
     std::optional<gateway::GatewayConfig> previous;
     for (;;) {
-        auto served = serve_round(current, gateway_options, stop.token(), reloads.start_round(current));
+        auto served = serve_round(current, gateway_options, stop.token(), reloads);
         if (!served && !previous) return report_error(served.error());
         if (!served) {
             // The new configuration loaded but could not be opened (an address taken, a history

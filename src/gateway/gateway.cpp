@@ -6,6 +6,7 @@
 #include <thread>
 #include <map>
 #include <mutex>
+#include <set>
 
 #include <fmt/format.h>
 
@@ -350,6 +351,15 @@ Result<void> Gateway::serve(std::stop_token stop) {
     drain.join();
     if (parts_->http) parts_->http->stop();
     return served;
+}
+
+void Gateway::hand_over_to(const GatewayConfig& next) {
+    if (!parts_->mqtt) return;
+    std::set<std::string> next_devices;
+    for (const auto& line : next.lines) {
+        for (const auto& device : line.devices) next_devices.insert(device.name);
+    }
+    parts_->mqtt->hand_over(next.mqtt, next_devices);
 }
 
 std::vector<LineReport> Gateway::report() const {

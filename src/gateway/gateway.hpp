@@ -71,6 +71,11 @@ public:
 
     std::vector<LineReport> report() const;
 
+    // After serve() returned for a reload, before the gateway is destroyed: hands over to the
+    // gateway that `next` opens what both publish (MqttBridge::hand_over), so that it does not
+    // flap offline and online across the reload.
+    void hand_over_to(const GatewayConfig& next);
+
     // The Modbus TCP front's connections so far; all zero when the front is disabled.
     FrontReport front_report() const;
 

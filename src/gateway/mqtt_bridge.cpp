@@ -165,7 +165,14 @@ struct MqttBridge::State {
     bool told_unreachable = false;
     bool told_refused = false;
     bool just_connected = false;  // set by on_connect, acted on by the network loop
+    // The QoS 1 publications of this connection the broker has not acknowledged yet.
+    std::set<int> unacknowledged;
     std::chrono::steady_clock::time_point next_republish{};
+
+    // Set by hand_over (guarded by `mutex`): what stays "online" when the bridge closes for a
+    // reload rather than a stop.
+    bool gateway_continues = false;
+    std::set<std::string> continuing_devices;
 
     std::unique_ptr<MqttCommands> commands;  // the writes from the broker; before the network thread
     std::jthread network;
@@ -244,8 +251,10 @@ struct MqttBridge::State {
     void publish(const Publication& publication) {
         // A failure (the connection just broke) loses nothing retained: all of it is sent again
         // on the next connection.
-        (void)mosquitto_publish(client, nullptr, publication.topic.c_str(), static_cast<int>(publication.payload.size()),
-                                publication.payload.data(), publication.qos, publication.retained);
+        int mid = 0;
+        const int rc = mosquitto_publish(client, &mid, publication.topic.c_str(), static_cast<int>(publication.payload.size()),
+                                         publication.payload.data(), publication.qos, publication.retained);
+        if (rc == MOSQ_ERR_SUCCESS && publication.qos > 0) unacknowledged.insert(mid);
     }
 
     // Sends what was queued. While the broker is away only the retained picture is brought up
@@ -397,6 +406,7 @@ struct MqttBridge::State {
             }
             if (rc != MOSQ_ERR_SUCCESS) {
                 if (is_connected.exchange(false)) say(fmt::format("connection lost ({})", mosquitto_strerror(rc)));
+                unacknowledged.clear();  // libmosquitto sends them again on the next connection
                 have_socket = false;
                 told_unreachable = false;
                 pause(stop, delay);
@@ -408,18 +418,29 @@ struct MqttBridge::State {
     }
 
     // A clean disconnect does not fire the will: the gateway and each of its devices say
-    // "offline" themselves, then the broker gets a moment to take it.
+    // "offline" themselves (but what a reload hands over), then the broker gets a moment to take it.
     void say_goodbye() {
         send_queued();
         std::vector<std::string> names;
+        bool gateway_stays = false;
         {
             std::lock_guard lock(mutex);
-            for (const auto& [name, seen] : devices) names.push_back(name);
+            for (const auto& [name, seen] : devices) {
+                if (!continuing_devices.contains(name)) names.push_back(name);
+            }
+            gateway_stays = gateway_continues;
         }
         for (const auto& name : names) publish({topic(name, "status"), "offline", true, qos_at_least_once});
-        publish({config.prefix + "/status", "offline", true, qos_at_least_once});
-        (void)mosquitto_disconnect(client);
+        if (!gateway_stays) publish({config.prefix + "/status", "offline", true, qos_at_least_once});
+        // Disconnecting before the broker has acknowledged a QoS 1 publication makes its PUBACK
+        // fail on a closed socket: mosquitto then takes the disconnection for a broken one
+        // ("disconnected due to out of memory", eclipse-mosquitto/mosquitto#2627) and publishes
+        // the will, "offline", which a reload must not do. So the acknowledgements come first.
         const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+        while (!unacknowledged.empty() && std::chrono::steady_clock::now() < give_up &&
+               mosquitto_loop(client, goodbye_turn_ms, 1) == MOSQ_ERR_SUCCESS) {
+        }
+        (void)mosquitto_disconnect(client);
         while (std::chrono::steady_clock::now() < give_up &&
                mosquitto_loop(client, goodbye_turn_ms, 1) == MOSQ_ERR_SUCCESS) {
         }
@@ -459,6 +480,9 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
     mosquitto_connect_with_flags_callback_set(s.client, [](mosquitto*, void* state, int code, int flags) {
         static_cast<State*>(state)->on_connect(code, flags);
     });
+    mosquitto_publish_callback_set(s.client, [](mosquitto*, void* state, int mid) {
+        static_cast<State*>(state)->unacknowledged.erase(mid);  // on the network thread, in its loop
+    });
     mosquitto_message_callback_set(s.client, [](mosquitto*, void* state, const mosquitto_message* message) {
         if (message) static_cast<State*>(state)->on_message(*message);
     });
@@ -489,5 +513,13 @@ MqttBridge::~MqttBridge() {
 }
 
 bool MqttBridge::connected() const { return state_->is_connected.load(); }
+
+void MqttBridge::hand_over(const std::optional<MqttConfig>& next, const std::set<std::string>& next_devices) {
+    State& s = *state_;
+    const bool same_topics = next && next->broker == s.config.broker && next->prefix == s.config.prefix;
+    std::lock_guard lock(s.mutex);
+    s.gateway_continues = same_topics;
+    s.continuing_devices = same_topics ? next_devices : std::set<std::string>{};
+}
 
 }  // namespace loopwire::gateway

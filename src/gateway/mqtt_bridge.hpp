@@ -15,8 +15,9 @@
 //   PREFIX/DEVICE/PARAMETER/set/result {"ok":true,"value":"..."} or {"ok":false,"error":"..."}
 //   DISCOVERY/COMPONENT/ID/config      with discovery = "homeassistant": Home Assistant's documents
 // All but set/result are retained. Values go out when they change and again every `republish`.
-// On a clean stop every PREFIX/DEVICE/status and PREFIX/status say "offline"; a write to a
-// device whose polls find it silent is refused at once (it would only wait out the line).
+// On a clean stop every PREFIX/DEVICE/status and PREFIX/status say "offline" (on a reload, only
+// what the next configuration no longer publishes: hand_over); a write to a device whose polls
+// find it silent is refused at once (it would only wait out the line).
 //
 // Threads: the value stream's callback (on the poll threads) only queues. One network thread
 // owns the libmosquitto client: it connects, reconnects with back-off, publishes what was queued,
@@ -27,6 +28,8 @@
 // bounded number of writes wait at once: whatever is published, memory stays bounded.
 #include <chrono>
 #include <memory>
+#include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -57,6 +60,12 @@ public:
 
     // Whether the bridge is connected to the broker now.
     bool connected() const;
+
+    // Before the bridge is closed for a reload to `next` (the next configuration's [mqtt], and
+    // the names of its devices): what the next bridge publishes again under the same broker and
+    // prefix keeps its retained status, so that a reload does not flap the gateway and its
+    // devices offline and online (issue 20, item 8); the rest is said "offline" as on a stop.
+    void hand_over(const std::optional<MqttConfig>& next, const std::set<std::string>& next_devices);
 
 private:
     struct State;

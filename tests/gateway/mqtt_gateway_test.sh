@@ -3,8 +3,8 @@
 # port: the simulated devices' values appear retained, a `mosquitto_pub` set writes to the
 # device and is answered on set/result, an independent client (paho) checks the Home Assistant
 # discovery documents against Home Assistant's documented keys, hostile payloads (not UTF-8,
-# 200 KB, a thousand of those) are refused without harm, and SIGTERM leaves the gateway and its
-# devices "offline", retained.
+# 200 KB, a thousand of those) are refused without harm, reloads (SIGHUP) do not flap the
+# gateway and its devices offline, and SIGTERM leaves them "offline", retained.
 set -u
 loopwire=${1:?usage: mqtt_gateway_test.sh path/to/loopwire}
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -25,7 +25,9 @@ printf 'listener %s 127.0.0.1\nallow_anonymous true\npersistence false\n' "$port
 start_background broker.log timeout 200 "$broker_program" -c "$WORK_DIR/mosquitto.conf"
 wait_for_text "$WORK_DIR/broker.log" "running"
 
-cat >"$WORK_DIR/plant.toml" <<TOML
+# plant_config [POLL] [EXTRA_DEVICE_TABLE]: the gateway's configuration.
+plant_config() {
+cat <<TOML
 [gateway]
 name = "plant1"
 
@@ -36,8 +38,9 @@ link = "rtu:virtual?baud=19200"
 [[lines.devices]]
 name = "oven"
 device = "tc10@3"
-poll = "200ms"
+poll = "${1:-200ms}"
 parameters = ["measured_value", "set_point", "control_state", "alarm_1_state"]
+${2:-}
 
 [modbus_tcp]
 enabled = false
@@ -47,6 +50,8 @@ broker = "mqtt://127.0.0.1:$port"
 writes = true
 discovery = "homeassistant"
 TOML
+}
+plant_config >"$WORK_DIR/plant.toml"
 
 # A small AddressSanitizer quarantine (in the sanitized build): freed blocks are otherwise kept
 # up to 256 MB, which the memory check below would count as the gateway's.
@@ -142,6 +147,32 @@ mosquitto_pub -h 127.0.0.1 -p "$port" -q 1 -t "$topic/set_point/set" -m 220
 wait_for 30 "the next valid write's result" grep -q 'set_point/set/result {"ok":true,"value":"220"}' "$WORK_DIR/results.log"
 count_pass
 kill "$results_pid"
+
+# SIGHUP with changes that reopen the gateway: first a slower poll and a device added, then the
+# device removed. The gateway and the device that stays never say "offline" across the reloads
+# (the next round publishes them again); the removed device does.
+start_background statuses.log timeout 100 mosquitto_sub -h 127.0.0.1 -p "$port" -v -t loopwire/plant1/status \
+  -t "loopwire/plant1/+/status"
+statuses_pid=$LAST_PID
+wait_for 30 "the statuses' subscriber" grep -q "^$topic/status online" "$WORK_DIR/statuses.log"
+spare='[[lines.devices]]
+name = "spare"
+device = "tc10@4"
+poll = "300ms"
+parameters = ["measured_value"]'
+plant_config 300ms "$spare" >"$WORK_DIR/plant.toml"
+kill -HUP "$loopwire_pid"
+wait_for 30 "the added device online" grep -q "^loopwire/plant1/spare/status online" "$WORK_DIR/statuses.log"
+plant_config 200ms >"$WORK_DIR/plant.toml"
+kill -HUP "$loopwire_pid"
+wait_for 30 "the removed device offline" grep -q "^loopwire/plant1/spare/status offline" "$WORK_DIR/statuses.log"
+wait_for 30 "the third round's connection" bash -c "(( \$(grep -c ': connected' '$WORK_DIR/gateway.log') >= 3 ))"
+expect two-reloads test "$(grep -c "configuration .* reloaded" "$WORK_DIR/gateway.log")" -eq 2
+expect_not() { local name=$1; shift; if "$@"; then count_failure "$name" "$WORK_DIR/statuses.log"; else count_pass; fi; }
+expect_not gateway-never-offline-across-reloads grep -q "^loopwire/plant1/status offline" "$WORK_DIR/statuses.log"
+expect_not device-never-offline-across-reloads grep -q "^$topic/status offline" "$WORK_DIR/statuses.log"
+kill "$statuses_pid"
+check values-flow-after-reloads 0 "" "${first_message[@]}" "$topic/measured_value"
 
 # SIGTERM: a clean stop leaves "offline" retained for the gateway and each device.
 kill -TERM "$gateway_pid"
