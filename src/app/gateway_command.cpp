@@ -142,11 +142,30 @@ void announce(const gateway::GatewayConfig& config, const gateway::Gateway& runn
     sd_notifyf(0, "READY=1\nSTATUS=serving %zu line(s), %zu device(s)", config.lines.size(), devices);
 }
 
+// The Modbus TCP front `config` asks for: `front` itself when it listens as asked (a reload
+// that left [modbus_tcp] alone keeps every client's connection), else a new one (or none).
+Result<void> keep_or_open_front(const gateway::GatewayConfig& config, const gateway::GatewayOptions& options,
+                                std::unique_ptr<gateway::ModbusTcpFront>& front) {
+    if (front && front->listens_as(config.modbus_tcp) && !front->failed().stop_requested()) {
+        const auto open = front->statistics().open;
+        log_line(fmt::format("Modbus TCP front kept on port {}: {} client connection(s) stay up", front->port(), open));
+        return {};
+    }
+    front.reset();  // before the new one: it may listen on the same port
+    if (!config.modbus_tcp.enabled) return {};
+    auto opened = gateway::ModbusTcpFront::open(config.modbus_tcp, {options.trace, options.debug_log});
+    if (!opened) return opened.error();
+    front = std::move(*opened);
+    return {};
+}
+
 // Serves `config` until `stop` or a reload is requested; the error when it cannot be opened.
-Result<void> serve_round(const gateway::GatewayConfig& config, const gateway::GatewayOptions& options,
-                         const std::stop_token& stop, Reloads& reloads) {
+Result<void> serve_round(const gateway::GatewayConfig& config, gateway::GatewayOptions options,
+                         const std::stop_token& stop, Reloads& reloads, std::unique_ptr<gateway::ModbusTcpFront>& front) {
     set_log_level(gateway_log(), config.log.level);
     const std::stop_token reload = reloads.start_round(config);
+    if (auto kept = keep_or_open_front(config, options, front); !kept) return kept.error();
+    options.front = front.get();
     auto running = gateway::Gateway::open(config, options);
     if (!running) return running.error();
     announce(config, **running);
@@ -179,8 +198,9 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
     if (options.verbose) gateway_options.trace = stderr_trace();
     gateway::GatewayConfig current = std::move(*config);
     std::optional<gateway::GatewayConfig> previous;
+    std::unique_ptr<gateway::ModbusTcpFront> front;  // kept across reloads that leave [modbus_tcp] alone
     for (;;) {
-        auto served = serve_round(current, gateway_options, stop.token(), reloads);
+        auto served = serve_round(current, gateway_options, stop.token(), reloads, front);
         if (!served && !previous) return report_error(served.error());
         if (!served) {
             // The new configuration loaded but could not be opened (an address taken, a history

@@ -6,6 +6,7 @@
 #include <thread>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 
 #include <fmt/format.h>
@@ -21,10 +22,6 @@
 
 namespace loopwire::gateway {
 namespace {
-
-// Modbus application protocol V1.1b3, 7: "gateway path unavailable", for a unit id no line of
-// this gateway leads to.
-constexpr std::uint8_t gateway_path_unavailable = 0x0A;
 
 // The simulated devices of a virtual line, answering on their end of its bus.
 struct SimulatedLine {
@@ -138,12 +135,6 @@ LineReport report_of(const OpenLine& line);  // below
 
 }  // namespace
 
-// Requests one Modbus TCP connection may have waiting for the lines; a client pipelining more
-// is not read until it is below (session::TcpClientLimits). With max_connections (64 by
-// default) this bounds what the front can put in the lines' queues, which bound themselves too
-// (LineSchedulerOptions::max_queued).
-constexpr std::size_t requests_per_connection = 16;
-
 // How long a write from a front (MQTT, HTTP) may wait for its line before it is given up.
 constexpr std::chrono::milliseconds write_limit{10000};
 
@@ -158,8 +149,11 @@ struct Gateway::Parts {
     std::unique_ptr<HistoryStore> history;
     ValueSubscription history_subscription;
     std::unique_ptr<PollGroups> polls;
-    std::unique_ptr<transport::TcpListener> listener;
-    std::unique_ptr<session::Slave> front;
+    // The front the units are routed through: `own_front`, or the caller's (GatewayOptions).
+    std::unique_ptr<ModbusTcpFront> own_front;
+    ModbusTcpFront* front = nullptr;
+    session::UnitMap units;  // by TCP unit id, routed to once everything is open
+    FrontReport closed_front;  // the figures of `own_front` when serve() closed it
     // Writes by name for the fronts below, through the lines' schedulers.
     std::unique_ptr<DeviceWriter> writer;
     // After the writer and the cache, so destroyed before them: they subscribe to the cache
@@ -170,13 +164,17 @@ struct Gateway::Parts {
 };
 
 Gateway::Gateway(std::unique_ptr<Parts> parts) : parts_(std::move(parts)) {}
-Gateway::~Gateway() = default;
+
+// A caller's front is left holding this gateway's units, never routing to lines that are gone.
+Gateway::~Gateway() {
+    if (parts_->front && !parts_->own_front) parts_->front->hold(parts_->units);
+}
 
 Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, GatewayOptions options) {
     auto parts = std::make_unique<Parts>();
     parts->statistics_interval = config.log.statistics;
     parts->log = options.log;
-    session::UnitMap units;
+    session::UnitMap& units = parts->units;
     auto clock = steady_clock();
     for (const auto& line : config.lines) {
         auto opened = open_line(line, options);
@@ -202,25 +200,13 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
             parts->cache.subscribe([store = parts->history.get()](const ValueChange& change) { store->record(change); });
     }
     parts->polls = std::make_unique<PollGroups>(config, schedulers, parts->cache, options.log, options.samples);
-    if (config.modbus_tcp.enabled) {
-        auto listener = transport::TcpListener::listen(config.modbus_tcp.host, config.modbus_tcp.port);
-        if (!listener) {
-            return make_error(listener.error().kind, fmt::format("modbus_tcp.listen {}:{}: {}", config.modbus_tcp.host,
-                                                                 config.modbus_tcp.port, listener.error().message));
-        }
-        parts->listener = std::move(*listener);
-        const bool ipv6 = config.modbus_tcp.host.find(':') != std::string::npos;
-        const auto host = ipv6 ? "[" + config.modbus_tcp.host + "]" : config.modbus_tcp.host;
-        auto link = transport::parse_link_url(fmt::format("tcp://{}:{}", host, parts->listener->port()));
-        if (!link) return link.error();
-        session::SlaveOptions slave_options;
-        slave_options.trace = options.trace;
-        slave_options.unserved_unit_exception = gateway_path_unavailable;
-        slave_options.connection_log = options.debug_log;
-        slave_options.tcp.max_connections = config.modbus_tcp.max_connections;
-        slave_options.tcp.idle_timeout = config.modbus_tcp.idle_timeout;
-        slave_options.tcp.max_outstanding_requests = requests_per_connection;
-        parts->front = std::make_unique<session::Slave>(*link, std::move(units), slave_options);
+    if (config.modbus_tcp.enabled && options.front) {
+        parts->front = options.front;
+    } else if (config.modbus_tcp.enabled) {
+        auto front = ModbusTcpFront::open(config.modbus_tcp, {options.trace, options.debug_log});
+        if (!front) return front.error();
+        parts->own_front = std::move(*front);
+        parts->front = parts->own_front.get();
     }
     std::vector<WritableDevice> writable;
     for (std::size_t i = 0; i < config.lines.size(); ++i) {
@@ -237,6 +223,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
     if (config.http) {
         if (auto opened = open_http(*config.http, config, *parts); !opened) return opened.error();
     }
+    if (parts->front) parts->front->route_to(parts->units);
     return std::unique_ptr<Gateway>(new Gateway(std::move(parts)));
 }
 
@@ -250,7 +237,7 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
         for (const auto& line : parts.lines) reports.push_back(report_of(line));
         return reports;
     };
-    sources.front = [&parts] { return parts.front ? parts.front->tcp_statistics() : FrontReport{}; };
+    sources.front = [&parts] { return parts.front ? parts.front->statistics() : FrontReport{}; };
     parts.http_api = std::make_unique<HttpApi>(config, std::move(sources));
     HttpServerSettings settings;
     settings.host = http.host;
@@ -265,7 +252,7 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     return {};
 }
 
-std::uint16_t Gateway::modbus_tcp_port() const { return parts_->listener ? parts_->listener->port() : 0; }
+std::uint16_t Gateway::modbus_tcp_port() const { return parts_->front ? parts_->front->port() : 0; }
 
 std::uint16_t Gateway::http_port() const { return parts_->http ? parts_->http->port() : 0; }
 
@@ -281,9 +268,9 @@ bool lines_idle(const std::vector<OpenLine>& lines) {
     });
 }
 
-// Waits for `stop`, then until every line is idle (or the drain limit passes), then stops the
-// front: a request a client sent before SIGTERM still gets its answer.
-void stop_after_drain(const std::vector<OpenLine>& lines, const std::stop_token& stop, std::stop_source& front) {
+// Waits for `stop`, then until every line is idle (or the drain limit passes): a request a
+// client sent before SIGTERM still gets its answer before the front closes.
+void wait_then_drain(const std::vector<OpenLine>& lines, const std::stop_token& stop) {
     std::mutex mutex;
     std::condition_variable_any woken;
     std::unique_lock lock(mutex);
@@ -292,7 +279,6 @@ void stop_after_drain(const std::vector<OpenLine>& lines, const std::stop_token&
     while (!lines_idle(lines) && std::chrono::steady_clock::now() < give_up) {
         woken.wait_for(lock, std::chrono::milliseconds(10), [] { return false; });
     }
-    front.request_stop();
 }
 
 LineReport report_of(const OpenLine& line) {
@@ -331,24 +317,23 @@ Result<void> Gateway::serve(std::stop_token stop) {
             log_statistics(parts_->lines, parts_->statistics_interval, parts_->log, either.get_token());
         });
     }
-    std::stop_source front;
-    // Also ended by its own token: when the front fails, the jthread's destructor stops it.
-    std::jthread drain([this, &front, stop](std::stop_token own) {
-        std::stop_source either;
-        std::stop_callback on_stop(stop, [&either] { either.request_stop(); });
-        std::stop_callback on_own(own, [&either] { either.request_stop(); });
-        stop_after_drain(parts_->lines, either.get_token(), front);
-    });
-    // The HTTP front closes with the Modbus TCP one, after the drain: writes under way answer.
-    if (!parts_->front) {
-        drain.join();
-        if (parts_->http) parts_->http->stop();
-        return {};
+    // Ended by `stop`, or by the front when it fails.
+    std::stop_source either;
+    auto end = [&either] { either.request_stop(); };
+    std::stop_callback on_stop(stop, end);
+    std::optional<std::stop_callback<decltype(end)>> on_front_failure;
+    if (parts_->front) on_front_failure.emplace(parts_->front->failed(), end);
+    wait_then_drain(parts_->lines, either.get_token());
+    Result<void> served;
+    if (parts_->front && parts_->front->failed().stop_requested()) served = parts_->front->error();
+    if (parts_->own_front) {
+        parts_->closed_front = parts_->own_front->statistics();
+        parts_->front = nullptr;
+        parts_->own_front.reset();  // closes the connections
+    } else if (parts_->front) {
+        parts_->front->hold(parts_->units);
     }
-    auto served = parts_->front->serve_listener(*parts_->listener, front.get_token());
-    if (!served) front.request_stop();
-    drain.request_stop();  // when the front failed rather than stopped
-    drain.join();
+    // The HTTP front closes with the Modbus TCP one, after the drain: writes under way answer.
     if (parts_->http) parts_->http->stop();
     return served;
 }
@@ -368,7 +353,7 @@ std::vector<LineReport> Gateway::report() const {
     return reports;
 }
 
-FrontReport Gateway::front_report() const { return parts_->front ? parts_->front->tcp_statistics() : FrontReport{}; }
+FrontReport Gateway::front_report() const { return parts_->front ? parts_->front->statistics() : parts_->closed_front; }
 
 std::vector<CachedDevice> Gateway::values() const { return parts_->cache.snapshot(); }
 

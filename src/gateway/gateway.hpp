@@ -11,6 +11,7 @@
 #include "gateway/gateway_config.hpp"
 #include "gateway/history_source.hpp"
 #include "gateway/line_scheduler.hpp"
+#include "gateway/modbus_tcp_front.hpp"
 #include "gateway/poll_groups.hpp"
 #include "gateway/reopening_master.hpp"
 #include "gateway/value_cache.hpp"
@@ -31,6 +32,10 @@ struct GatewayOptions {
     // Also given every sample the gateway's polls take, on the poll group's thread (one thread
     // per poll interval): the demo's live table. Must outlive the gateway.
     device::SampleSink* samples = nullptr;
+    // With [modbus_tcp] enabled: the front to route the units through, kept by the caller across
+    // reloads (it must listen as the configuration asks, ModbusTcpFront::listens_as, and outlive
+    // the gateway). None: the gateway opens its own, closed when serve() returns.
+    ModbusTcpFront* front = nullptr;
 };
 
 struct LineReport {
@@ -65,8 +70,9 @@ public:
     std::uint16_t http_port() const;
 
     // Serves until `stop` is requested, then drains: the requests already taken are answered
-    // (5 s at most) before the front closes. Logs each line's statistics every
-    // `log.statistics` of the configuration meanwhile.
+    // (5 s at most) before the front closes, or, when the front is the caller's, holds it
+    // (ModbusTcpFront::hold) for the next gateway. Logs each line's statistics every
+    // `log.statistics` of the configuration meanwhile. The error when the front failed.
     Result<void> serve(std::stop_token stop);
 
     std::vector<LineReport> report() const;

@@ -28,7 +28,7 @@ Bytes exception_pdu(std::uint8_t function, std::uint8_t code) {
 
 Slave::Slave(transport::LinkUrl link, UnitMap units, SlaveOptions options)
     : link_(std::move(link)),
-      units_(std::move(units)),
+      units_(std::make_shared<const UnitMap>(std::move(units))),
       options_(std::move(options)),
       clock_(options_.clock ? options_.clock : steady_clock()) {}
 
@@ -36,39 +36,60 @@ void Slave::trace(TraceDirection direction, ByteView bytes, std::string note) co
     if (options_.trace) options_.trace({clock_->now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
 }
 
+void Slave::replace_units(UnitMap units) {
+    auto replacement = std::make_shared<const UnitMap>(std::move(units));
+    std::lock_guard lock(units_mutex_);
+    units_.swap(replacement);
+}  // the old map goes here, or with the last request routed by it
+
+std::shared_ptr<const UnitMap> Slave::units() const {
+    std::lock_guard lock(units_mutex_);
+    return units_;
+}
+
+namespace {
+
 // The handler answering at `unit`: the one served under it, unless a request moved a handler
 // (UnitHandler::answers_as), which then answers at its new id and no longer at the old one.
-UnitMap::iterator Slave::find_unit(std::uint8_t unit) {
-    for (auto it = units_.begin(); it != units_.end(); ++it) {
+UnitMap::const_iterator find_unit(const UnitMap& units, std::uint8_t unit) {
+    for (auto it = units.begin(); it != units.end(); ++it) {
         if (it->second->answers_as().value_or(it->first) == unit) return it;
     }
-    return units_.end();
+    return units.end();
 }
 
 // Every unit that hears the line sees every frame go past, whatever its unit, and bytes that
 // failed their check (UnitHandler::line_activity).
-void Slave::line_activity() {
-    for (auto& [unit, handler] : units_) {
+void line_activity(const UnitMap& units) {
+    for (const auto& [unit, handler] : units) {
         if (handler->answers_as() != std::uint8_t{0}) handler->line_activity();  // 0: does not hear the line
     }
 }
 
+}  // namespace
+
 Slave::Route Slave::route(const codec::Frame& frame) {
-    line_activity();
-    if (frame.pdu.empty()) return {};
+    Route where;
+    where.units = units();
+    const UnitMap& units = *where.units;
+    line_activity(units);
+    if (frame.pdu.empty()) return where;
     if (frame.unit == 0) {
         if (tracing()) trace(TraceDirection::received, frame.raw, "broadcast: executed by every unit, not answered");
         ++requests_;
-        return {Route::Kind::broadcast, nullptr, {}};
+        where.kind = Route::Kind::broadcast;
+        return where;
     }
-    auto it = find_unit(frame.unit);
-    if (it == units_.end() && frame.unit == tcp_direct_unit && link_.framing == transport::Framing::tcp && units_.size() == 1) {
-        it = units_.begin();
+    auto it = find_unit(units, frame.unit);
+    if (it == units.end() && frame.unit == tcp_direct_unit && link_.framing == transport::Framing::tcp && units.size() == 1) {
+        it = units.begin();
     }
-    if (it == units_.end()) {
+    if (it == units.end()) {
         if (tracing()) trace(TraceDirection::received, frame.raw, fmt::format("unit {} is not served here", frame.unit));
-        if (link_.framing != transport::Framing::tcp) return {};
-        return {Route::Kind::own_reply, nullptr, exception_pdu(frame.pdu[0], options_.unserved_unit_exception)};
+        if (link_.framing != transport::Framing::tcp) return where;
+        where.kind = Route::Kind::own_reply;
+        where.reply_pdu = exception_pdu(frame.pdu[0], options_.unserved_unit_exception);
+        return where;
     }
     ++requests_;
     // Only an MBAP length of 255..260 yields a PDU past 253 bytes (codec/tcp.hpp): no PDU may be
@@ -76,11 +97,14 @@ Slave::Route Slave::route(const codec::Frame& frame) {
     // data value, as for a quantity past the limit in 6.12) without reaching the unit.
     if (frame.pdu.size() > codec::max_pdu_size) {
         if (tracing()) trace(TraceDirection::discarded, frame.raw, fmt::format("PDU of {} bytes is longer than 253: refused", frame.pdu.size()));
-        return {Route::Kind::own_reply, nullptr,
-                exception_pdu(frame.pdu[0], static_cast<std::uint8_t>(codec::ExceptionCode::illegal_data_value))};
+        where.kind = Route::Kind::own_reply;
+        where.reply_pdu = exception_pdu(frame.pdu[0], static_cast<std::uint8_t>(codec::ExceptionCode::illegal_data_value));
+        return where;
     }
     if (tracing()) trace(TraceDirection::received, frame.raw, fmt::format("request for unit {}", frame.unit));
-    return {Route::Kind::unit, it->second.get(), {}};
+    where.kind = Route::Kind::unit;
+    where.handler = it->second.get();
+    return where;
 }
 
 std::optional<Bytes> Slave::answer(const codec::Frame& frame, FrameCodec& codec) {
@@ -89,7 +113,7 @@ std::optional<Bytes> Slave::answer(const codec::Frame& frame, FrameCodec& codec)
     switch (where.kind) {
         case Route::Kind::silent: return std::nullopt;
         case Route::Kind::broadcast:
-            for (auto& [unit, handler] : units_) {
+            for (const auto& [unit, handler] : *where.units) {
                 if (handler->answers_as() != std::uint8_t{0}) handler->handle(frame.pdu, true);  // 0: does not hear the line
             }
             return std::nullopt;
@@ -114,7 +138,9 @@ void Slave::answer_async(const codec::Frame& frame, const UnitHandler::Asker& as
         case Route::Kind::silent: reply(std::nullopt); return;
         case Route::Kind::broadcast:
             // Every unit executes it; whatever they answer, and whenever, is dropped.
-            for (auto& [unit, handler] : units_) handler->handle_async(frame.pdu, true, asker, [](std::optional<Bytes>) {});
+            for (const auto& [unit, handler] : *where.units) {
+                handler->handle_async(frame.pdu, true, asker, [](std::optional<Bytes>) {});
+            }
             reply(std::nullopt);
             return;
         case Route::Kind::own_reply: reply(std::move(where.reply_pdu)); return;
@@ -152,7 +178,7 @@ Result<void> Slave::serve_stream(transport::ByteStream& stream, std::stop_token 
         for (const auto& event : events) {
             if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
                 if (tracing()) trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
-                line_activity();  // a bad check or noise: still bytes on the line
+                line_activity(*units());  // a bad check or noise: still bytes on the line
                 continue;
             }
             if (auto reply = answer(std::get<codec::Frame>(event), *codec)) reply_after_silence(stream, *reply, now);

@@ -9,6 +9,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <stop_token>
 #include <string>
 
@@ -94,6 +95,11 @@ public:
     // from any thread when the unit's handler defers it (UnitHandler::handle_async).
     void answer_async(const codec::Frame& frame, const UnitHandler::Asker& asker, UnitHandler::ReplyCallback reply);
 
+    // Serves `units` from the next request on, from any thread: a gateway reopened with a new
+    // configuration keeps its Modbus TCP front and the clients' connections. A request already
+    // handed to a unit is answered by it.
+    void replace_units(UnitMap units);
+
     // Requests served and replies sent so far (for status lines and tests).
     std::uint64_t requests_served() const { return requests_; }
 
@@ -114,16 +120,17 @@ private:
     // Where one frame goes: to a unit's handler, or answered (or not) by the slave itself.
     struct Route {
         enum class Kind { silent, own_reply, unit, broadcast } kind = Kind::silent;
-        UnitHandler* handler = nullptr;  // Kind::unit
-        Bytes reply_pdu;                 // Kind::own_reply
+        std::shared_ptr<const UnitMap> units;  // the map routed by, holding its handlers
+        UnitHandler* handler = nullptr;        // Kind::unit
+        Bytes reply_pdu;                       // Kind::own_reply
     };
     Route route(const codec::Frame& frame);
-    void line_activity();
-    UnitMap::iterator find_unit(std::uint8_t unit);
+    std::shared_ptr<const UnitMap> units() const;
     void reply_after_silence(transport::ByteStream& stream, const Bytes& reply, Instant request_end);
 
     transport::LinkUrl link_;
-    UnitMap units_;
+    mutable std::mutex units_mutex_;  // guards the pointer; the map it points to never changes
+    std::shared_ptr<const UnitMap> units_;
     SlaveOptions options_;
     std::shared_ptr<Clock> clock_;
     std::atomic<std::uint64_t> requests_{0};

@@ -7,7 +7,8 @@
 #   exception 0Bh (requests of connections that have gone never take the line);
 # - a FIFO named as password_file or ca_file is refused by --check at once; SIGHUP with a FIFO
 #   in the configuration is refused and SIGTERM still stops the gateway;
-# - SIGHUP with the file unchanged, or only its log level changed, keeps a client's connection;
+# - SIGHUP with the file unchanged, or only its log level changed, keeps a client's connection,
+#   and so does one that reopens the gateway with [modbus_tcp] unchanged;
 # - the gateway raises its soft descriptor limit to the hard one at start.
 set -u
 loopwire=${1:?usage: front_bounds_test.sh path/to/loopwire}
@@ -138,10 +139,17 @@ wait_for 30 "the unchanged reload" grep -q "reload.toml re-read: nothing changed
 sed -i 's/level = "debug"/level = "info"/' "$WORK_DIR/reload.toml"
 kill -HUP "$reloading"
 wait_for 30 "the log-level reload" grep -q "reload.toml re-read: only the log level changed" "$WORK_DIR/reload.log"
+expect no-restart-on-unchanged-reload bash -c "! grep -q 'configuration .*reload.toml reloaded' '$WORK_DIR/reload.log'"
+# A change that reopens the gateway (the poll interval) with [modbus_tcp] as it was: the front,
+# and the held connection with it, stays; the reopened gateway answers on that connection.
+sed -i 's/poll = "1s"/poll = "2s"/' "$WORK_DIR/reload.toml"
+kill -HUP "$reloading"
+wait_for 30 "the reload that reopens the gateway" grep -q "configuration .*reload.toml reloaded" "$WORK_DIR/reload.log"
+wait_for 30 "the front kept" grep -q "Modbus TCP front kept on port $PORT: 1 client connection(s) stay up" "$WORK_DIR/reload.log"
+wait_for 30 "the reopened gateway" bash -c "(( \$(grep -c 'line(s), 1 device(s); Modbus TCP on' '$WORK_DIR/reload.log') >= 2 ))"
 rm -f "$WORK_DIR/hold"
 wait "$held"
 expect held-connection-survives-reloads grep -q "on the same connection" "$WORK_DIR/held.out"
-expect no-restart-on-unchanged-reload bash -c "! grep -q 'configuration .*reload.toml reloaded' '$WORK_DIR/reload.log'"
 kill -TERM "$reloading"
 wait_for 30 "the gateway to stop on SIGTERM after refused reloads" bash -c "! kill -0 $reloading 2>/dev/null"
 expect stopped-cleanly grep -q "line furnace" "$WORK_DIR/reload.log"
