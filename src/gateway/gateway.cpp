@@ -18,7 +18,6 @@
 #include "gateway/mqtt_bridge.hpp"
 #include "session/master.hpp"
 #include "session/slave.hpp"
-#include "transport/tcp.hpp"
 
 namespace loopwire::gateway {
 namespace {

@@ -5,7 +5,6 @@
 // and with it every client's connection (issue 20, item 8); the gateway opened next routes the
 // units to its own lines (route_to).
 #include <cstdint>
-#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -13,6 +12,7 @@
 #include <thread>
 
 #include "common/result.hpp"
+#include "gateway/forwarding_unit.hpp"
 #include "gateway/gateway_config.hpp"
 #include "session/slave.hpp"
 #include "session/trace.hpp"
@@ -23,7 +23,7 @@ namespace loopwire::gateway {
 struct FrontOptions {
     session::TraceSink trace;  // every frame the front takes and answers (-v)
     // Connections closed by the front's limits, which come by the thousand under a flood.
-    std::function<void(const std::string&)> connection_log;
+    GatewayLog connection_log;
 };
 
 class ModbusTcpFront {
