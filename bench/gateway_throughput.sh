@@ -5,7 +5,8 @@
 #    requests/s through the gateway, as a fraction of what the line's wire time allows for that
 #    request. The goal is 0.9 or more. The gateway's own line counters (busy %) are shown too.
 # 2. A TCP back-end (`loopwire simulate`, one TC10): 20 clients straight to it, then 20 clients
-#    through a gateway whose line is one shared connection to it; the ratio gateway/direct.
+#    through a gateway whose line is one shared connection to it, requests pipelined
+#    (max_in_flight = 20); the ratio gateway/direct.
 #
 # Every client reads 10 holding registers (FC3, addresses 1-10: measured value onwards) and waits
 # for each reply before sending again. The gateway polls the TC10 once at start (poll = "60m"),
@@ -44,14 +45,18 @@ readonly LIFETIME=$((2 * DURATION + 60))
 
 calc() { awk "BEGIN { printf \"$1\", $2 }"; }
 
-# gateway_config FILE LINK : one line with the TC10 at unit 3 (also its TCP unit), polled once an
-# hour (so once, at start), served on a port the kernel chooses.
+# gateway_config FILE LINK [LINE_KEY...] : one line with the TC10 at unit 3 (also its TCP unit),
+# polled once an hour (so once, at start), served on a port the kernel chooses; LINE_KEYs are
+# more of the line's keys ("max_in_flight = 20").
 gateway_config() {
-    cat >"$1" <<EOF
+    local file=$1 link=$2
+    shift 2
+    cat >"$file" <<EOF
 [[lines]]
 name = "bench"
-link = "$2"
+link = "$link"
 timeout = "1s"
+$(printf '%s\n' "$@")
 
 [[lines.devices]]
 name = "tc10"
@@ -128,7 +133,9 @@ start_tcp_server simulate.log taskset -c 0 "$LOOPWIRE" simulate --link tcp://127
 simulator_port=$PORT
 run_clients direct "$simulator_port" taskset -c 0
 direct_rate=$RATE direct_details=$DETAILS
-gateway_config "$WORK_DIR/tcp.toml" "tcp://127.0.0.1:$simulator_port"
+# Pipelined: every client's request goes to the device as it comes, paired with its reply by
+# transaction id, as direct clients' requests do.
+gateway_config "$WORK_DIR/tcp.toml" "tcp://127.0.0.1:$simulator_port" "max_in_flight = $CLIENTS"
 start_gateway gateway_tcp "$WORK_DIR/tcp.toml" taskset -c 0
 run_clients gateway_tcp "$PORT" taskset -c 0
 tcp_rate=$RATE tcp_details=$DETAILS

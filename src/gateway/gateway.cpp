@@ -104,10 +104,13 @@ Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options
     master_options.late_reply_window = line.late_reply_window;
     master_options.trace = counting_trace(opened.garbled, options.trace);
     auto open = line_opener(line, options, opened, std::move(master_options));
-    opened.master = std::make_shared<ReopeningMaster>(line.name, opened.link, std::move(open), ReopenSchedule{},
-                                                      steady_clock(), options.log);
+    opened.master = std::make_shared<ReopeningMaster>(
+        line.name, opened.link, std::move(open), ReopenSchedule{}, steady_clock(), options.log,
+        line.max_in_flight > 1 ? LinkConcurrency::several : LinkConcurrency::one);
     if (auto started = opened.master->start(); !started) return started.error();
-    opened.scheduler = std::make_shared<LineScheduler>(opened.master);
+    LineSchedulerOptions scheduling;
+    scheduling.max_in_flight = line.max_in_flight;
+    opened.scheduler = std::make_shared<LineScheduler>(opened.master, scheduling);
     return opened;
 }
 

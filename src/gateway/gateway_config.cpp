@@ -46,6 +46,10 @@ constexpr std::uintmax_t max_file_size = 1024 * 1024;  // a real configuration i
 constexpr long long max_retries = 10;
 // A late reply comes at most a few timeouts late; a longer window would only stall the line.
 constexpr std::chrono::milliseconds max_late_reply_window{60000};
+// Modbus TCP servers take as many transactions at once as they were built for
+// (NumberMaxOfServerTransaction, MODBUS Messaging on TCP/IP Implementation Guide V1.0b); 1 is
+// what every device takes, and past a few dozen a gateway's queue only moves into the device's.
+constexpr long long max_in_flight_limit = 64;
 
 // ---------------------------------------------------------------------------------------------
 // Locations: every message starts "FILE:LINE: KEY.PATH: ", so an editor can jump to the spot.
@@ -334,6 +338,22 @@ Result<void> parse_line_simulation(const Context& ctx, const toml::table& table,
     return {};
 }
 
+// A serial line carries one request at a time: RTU, ASCII and Linking replies say nothing of
+// which request they answer, and neither does RTU through a device server (rtu+tcp).
+Result<void> parse_max_in_flight(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
+    auto in_flight = optional_integer(ctx, table, path, "max_in_flight", 1, max_in_flight_limit);
+    if (!in_flight) return in_flight.error();
+    if (!*in_flight) return {};
+    if (**in_flight > 1 && line.link.framing != transport::Framing::tcp) {
+        return ctx.fail(source_of(table, "max_in_flight"), key_path(path, "max_in_flight"),
+                        fmt::format("a {} line carries one request at a time; more than 1 needs a Modbus TCP device "
+                                    "(link = \"tcp://host:502\"), whose replies carry the request's transaction id",
+                                    transport::framing_name(line.link.framing)));
+    }
+    line.max_in_flight = static_cast<std::size_t>(**in_flight);
+    return {};
+}
+
 Result<void> parse_line_settings(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
     auto link_text = required_string(ctx, table, path, "link", "\"rtu:/dev/ttyUSB0?baud=19200\"");
     if (!link_text) return link_text.error();
@@ -355,11 +375,12 @@ Result<void> parse_line_settings(const Context& ctx, const toml::table& table, c
         }
         line.late_reply_window = **late_reply_window;
     }
+    if (auto in_flight = parse_max_in_flight(ctx, table, path, line); !in_flight) return in_flight.error();
     return parse_line_simulation(ctx, table, path, line);
 }
 
 Result<LineConfig> parse_line(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry) {
-    if (auto keys = check_keys(ctx, table, path, {"name", "link", "timeout", "retries", "late_reply_window", "speed", "seed", "devices"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, table, path, {"name", "link", "timeout", "retries", "late_reply_window", "max_in_flight", "speed", "seed", "devices"}); !keys) return keys.error();
     LineConfig line;
     auto name = checked_name(ctx, table, path);
     if (!name) return name.error();

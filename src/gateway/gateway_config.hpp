@@ -57,6 +57,9 @@ struct LineConfig {
     // After a request that got no usable reply, the next waits until the line has been quiet this
     // long, so a late reply is never taken for it (session::MasterOptions). nullopt: the timeout.
     std::optional<std::chrono::milliseconds> late_reply_window;
+    // Requests on the wire at once (LineSchedulerOptions::max_in_flight): more than 1 only on a
+    // Modbus TCP line ("tcp://"), whose replies carry the request's transaction id.
+    std::size_t max_in_flight = 1;
     std::vector<DeviceConfig> devices;
 
     bool operator==(const LineConfig&) const = default;

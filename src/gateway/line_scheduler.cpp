@@ -162,7 +162,7 @@ private:
 struct LineScheduler::State : std::enable_shared_from_this<State> {
     State(std::shared_ptr<session::Master> line, LineSchedulerOptions chosen, std::shared_ptr<Clock> time)
         : master(std::move(line)), options(chosen), clock(std::move(time)) {
-        assert(master && clock);
+        assert(master && clock && options.max_in_flight >= 1);
     }
 
     void submit(LineRequest request) {
@@ -235,13 +235,13 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
     }
 
     // The next request (writes, then clients and polls by turns), or nothing (and the pump
-    // stops) if the line is busy, the scheduler is stopping or nothing is queued. Deciding that
+    // stops) if the line carries all it may, the scheduler is stopping or nothing is queued. Deciding that
     // and clearing `pumping` under one lock means a request queued meanwhile is never left
     // behind with nobody pumping.
     std::optional<LineRequest> pop_next() {
         std::lock_guard lock(mutex);
         std::optional<LineRequest> next;
-        if (!stopping && !in_flight) {
+        if (!stopping && in_flight < options.max_in_flight) {
             next = writes.pop();
             if (!next) next = polls_turn() ? pop_poll() : clients.pop();
         }
@@ -280,8 +280,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
             ++stats.backed_off;
             return *refusal;
         }
-        in_flight = true;
-        flight_started = now;
+        if (in_flight++ == 0) busy_since = now;
         sending = true;
         ++stats.sent;
         // Turns count requests that used the line: one dropped unsent costs its kind no turn.
@@ -343,8 +342,9 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
     void finish(Flight& flight, Result<Bytes> result) {
         {
             std::lock_guard lock(mutex);
-            in_flight = false;
-            stats.busy += std::chrono::duration_cast<std::chrono::microseconds>(clock->now() - flight_started);
+            if (--in_flight == 0) {
+                stats.busy += std::chrono::duration_cast<std::chrono::microseconds>(clock->now() - busy_since);
+            }
             record(flight, result);
         }
         deliver(flight.done, std::move(result));
@@ -415,7 +415,8 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         std::lock_guard lock(mutex);
         auto copy = stats;
         copy.queued = writes.size() + clients.size() + polls.size();
-        copy.on_wire = in_flight;
+        copy.on_wire = in_flight > 0;
+        copy.in_flight = in_flight;
         copy.open = std::chrono::duration_cast<std::chrono::microseconds>(clock->now() - opened);
         return copy;
     }
@@ -432,9 +433,9 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
     std::map<std::uint8_t, device::RetryBackoff> backoffs;  // units whose last poll timed out
     LineStatistics stats;
     const Instant opened = clock->now();
-    Instant flight_started{};
+    Instant busy_since{};  // since in_flight last went from 0 to 1
 
-    bool in_flight = false;  // a request is on the wire
+    std::size_t in_flight = 0;  // requests on the wire
     bool pumping = false;    // a thread is in pump()
     bool sending = false;    // a thread is inside master->forward_async
     bool stopping = false;

@@ -1,6 +1,7 @@
 #pragma once
 // One serial line (or one-connection TCP device) shared by everything that wants it: one request
-// on the wire at a time. Writes go first. Clients' requests and the gateway's own polls then
+// on the wire at a time (a Modbus TCP device that takes several at once: up to max_in_flight,
+// told apart by transaction id). Writes go first. Clients' requests and the gateway's own polls then
 // share the line by turns: while both are waiting, they alternate (after a client's request the
 // oldest waiting poll goes, after a poll the next client's), and whichever is alone takes every
 // turn. Clients take turns among themselves (round robin), so a busy one cannot starve another.
@@ -62,6 +63,11 @@ struct LineSchedulerOptions {
     // leads to, a configuration mistake. 256 requests take a 19200-baud line some 5 s or more,
     // past what a Modbus TCP client waits.
     std::size_t max_queued = 256;
+    // Requests on the wire at once. 1 for a serial line, where one reply must come (or time out)
+    // before the next request. More only for a master that pairs replies with requests by
+    // transaction id (Modbus TCP); the next request then goes while earlier ones are answered,
+    // in the same order of turns.
+    std::size_t max_in_flight = 1;
 };
 
 // The exception code of the refusal above; the error has ErrorKind::exception and this code.
@@ -79,8 +85,9 @@ struct LineStatistics {
     std::uint64_t refused_busy = 0;  // refused unqueued: max_queued were waiting
     std::size_t queued = 0;          // waiting now
     bool on_wire = false;            // a request is on the line now
-    // How long the line has carried a request (from sending to its outcome) and how long the
-    // scheduler has existed: busy / open is the line's utilisation.
+    std::size_t in_flight = 0;       // how many (at most max_in_flight)
+    // How long the line has carried at least one request (from sending to its outcome) and how
+    // long the scheduler has existed: busy / open is the line's utilisation.
     std::chrono::microseconds busy{0};
     std::chrono::microseconds open{0};
 };

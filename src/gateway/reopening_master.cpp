@@ -1,6 +1,7 @@
 #include "gateway/reopening_master.hpp"
 
 #include <algorithm>
+#include <condition_variable>
 #include <mutex>
 #include <optional>
 #include <type_traits>
@@ -53,8 +54,10 @@ struct ReopeningMaster::State {
     // The master to send on: the open one, or one opened now if the line is down and a try is
     // due; otherwise why not. With `use` held.
     Result<session::Master*> ready() {
+        close_failing();
         {
             std::lock_guard lock(mutex);
+            if (closing) return make_error(ErrorKind::link, fmt::format("line {} ({}) is closing", name, link));
             if (master) return master.get();
             if (!backoff.due(clock->now())) return refuse();
         }
@@ -77,6 +80,7 @@ struct ReopeningMaster::State {
             return refuse();
         }
         master = std::move(*opened);
+        ++generation;
         ++counts.reopened;
         const auto down_for = std::chrono::duration_cast<std::chrono::microseconds>(now - down_since);
         counts.down_time += down_for;
@@ -93,8 +97,10 @@ struct ReopeningMaster::State {
         std::unique_ptr<session::Master> closed;
         Error refused = failure;
         {
-            std::lock_guard lock(mutex);
+            std::unique_lock lock(mutex);
+            no_senders.wait(lock, [this] { return senders == 0; });
             closed = std::move(master);
+            failing = false;  // whatever a direct request found, it was this master: closed now
             mark_down(failure.message);
             refused = down_error();
         }
@@ -113,6 +119,78 @@ struct ReopeningMaster::State {
         say(fmt::format("line {} ({}) is down: {}; reopening it in {} s, then with back-off up to every {} s", name, link,
                         reason, std::chrono::ceil<std::chrono::seconds>(backoff.current_wait()).count(),
                         std::chrono::ceil<std::chrono::seconds>(schedule.max).count()));
+    }
+
+    // --- carrying several at once (LinkConcurrency::several) ---------------------------------
+
+    // Hands the request to the open master from the caller's thread: `send(master, completion)`.
+    // False, with nothing sent and `done` untouched, while the line is down or failing: the
+    // request then takes the worker's path.
+    template <typename Outcome, typename Send>
+    bool send_directly(std::function<void(Outcome)>& done, Send send) {
+        session::Master* line = nullptr;
+        std::uint64_t opened_as = 0;
+        {
+            std::lock_guard lock(mutex);
+            if (!master || failing || closing) return false;
+            line = master.get();
+            opened_as = generation;
+            ++senders;
+        }
+        send(*line, [this, opened_as, done = std::move(done)](Outcome outcome) {
+            if (!outcome && outcome.error().kind == ErrorKind::link) failed_underneath(opened_as, outcome.error());
+            done(std::move(outcome));
+        });
+        {
+            std::lock_guard lock(mutex);
+            --senders;
+        }
+        no_senders.notify_all();
+        return true;
+    }
+
+    // A request sent directly met a link failure (on the master's thread, which must not close
+    // its own master): the worker closes it.
+    void failed_underneath(std::uint64_t opened_as, const Error& failure) {
+        {
+            std::lock_guard lock(mutex);
+            if (closing || failing || !master || opened_as != generation) return;
+            failing = true;
+            failing_reason = failure.message;
+        }
+        worker.push([this] {
+            std::lock_guard carrying(use);
+            close_failing();
+        });
+    }
+
+    // With `use` held: closes a master a direct request found failed, once no caller is inside
+    // it, and the line is down from then on.
+    void close_failing() {
+        std::unique_ptr<session::Master> closed;
+        {
+            std::unique_lock lock(mutex);
+            if (!failing) return;
+            no_senders.wait(lock, [this] { return senders == 0; });
+            failing = false;
+            closed = std::move(master);
+            mark_down(std::move(failing_reason));
+        }
+        closed.reset();
+    }
+
+    // For the destructor, once the worker has finished: the master goes while this state is
+    // whole, and completions it runs as it goes (a TCP master fails what it still awaits) hand
+    // nothing to the worker.
+    void close_for_good() {
+        std::unique_ptr<session::Master> closed;
+        {
+            std::unique_lock lock(mutex);
+            closing = true;
+            no_senders.wait(lock, [this] { return senders == 0; });
+            closed = std::move(master);
+        }
+        closed.reset();
     }
 
     // --- refusing while down ----------------------------------------------------------------
@@ -169,6 +247,12 @@ struct ReopeningMaster::State {
     std::mutex use;  // held while a request is carried or the line opened
     mutable std::mutex mutex;  // guards what follows
     std::unique_ptr<session::Master> master;  // null while the line is down
+    std::uint64_t generation = 0;  // which opening `master` is: a failure of an earlier one is old news
+    std::size_t senders = 0;       // callers inside master's *_async right now (concurrent path)
+    std::condition_variable no_senders;
+    bool failing = false;          // a direct request found the link failed; the worker closes it
+    std::string failing_reason;
+    bool closing = false;          // the wrapper is being destroyed
     device::RetryBackoff backoff;  // the reopen schedule
     std::string reason;
     Instant down_since{};
@@ -178,12 +262,16 @@ struct ReopeningMaster::State {
 };
 
 ReopeningMaster::ReopeningMaster(std::string name, std::string link, MasterOpener open, ReopenSchedule schedule,
-                                 std::shared_ptr<Clock> clock, LinkLog log)
+                                 std::shared_ptr<Clock> clock, LinkLog log, LinkConcurrency concurrency)
     : link_(link),
+      concurrency_(concurrency),
       state_(std::make_unique<State>(std::move(name), std::move(link), std::move(open), schedule, std::move(clock),
                                      std::move(log))) {}
 
-ReopeningMaster::~ReopeningMaster() = default;
+ReopeningMaster::~ReopeningMaster() {
+    state_->worker.finish();  // what is queued is carried on the open master, as it was asked
+    state_->close_for_good();
+}
 
 Result<void> ReopeningMaster::start() {
     auto opened = state_->open();
@@ -193,6 +281,7 @@ Result<void> ReopeningMaster::start() {
     std::lock_guard lock(state_->mutex);
     if (opened) {
         state_->master = std::move(*opened);
+        ++state_->generation;
     } else {
         state_->mark_down(opened.error().message);
     }
@@ -204,6 +293,12 @@ Result<codec::Reply> ReopeningMaster::execute(std::uint8_t unit, const codec::Re
 }
 
 void ReopeningMaster::execute_async(std::uint8_t unit, codec::Request request, Completion done) {
+    if (concurrency_ == LinkConcurrency::several &&
+        state_->send_directly(done, [&](session::Master& line, Completion sent) {
+            line.execute_async(unit, std::move(request), std::move(sent));
+        })) {
+        return;
+    }
     if (auto refused = state_->refusal()) return done(*refused);
     state_->worker.push([state = state_.get(), unit, request = std::move(request), done = std::move(done)] {
         done(state->carry([&](session::Master& line) { return line.execute(unit, request); }));
@@ -215,6 +310,12 @@ Result<Bytes> ReopeningMaster::forward(std::uint8_t unit, ByteView pdu) {
 }
 
 void ReopeningMaster::forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) {
+    if (concurrency_ == LinkConcurrency::several &&
+        state_->send_directly(done, [&](session::Master& line, ForwardCompletion sent) {
+            line.forward_async(unit, std::move(pdu), std::move(sent));
+        })) {
+        return;
+    }
     if (auto refused = state_->refusal()) return done(*refused);
     state_->worker.push([state = state_.get(), unit, pdu = std::move(pdu), done = std::move(done)] {
         done(state->carry([&](session::Master& line) { return line.forward(unit, pdu); }));

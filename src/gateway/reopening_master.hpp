@@ -18,6 +18,13 @@
 // opened master's blocking calls, so the opened master can be closed on that thread; completions
 // run there too, or on the caller's thread for a request refused at once while the line is down.
 // Like the serial master, it joins its worker when destroyed: never destroy it from a completion.
+//
+// Concurrent (LinkConcurrency::several, a Modbus TCP master that pairs replies by transaction id):
+// while the line is up, *_async calls go straight to the opened master, several at once, and
+// their completions run on its reader thread. A link failure one of them meets is handed to the
+// worker, which closes the master once no caller is inside it any more; requests sent meanwhile
+// go by the worker and are refused while the line is down. Opening, and every request while the
+// line is down or failing, still take the worker's one-at-a-time path.
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -52,6 +59,9 @@ struct LinkHealth {
 // that is not retried.
 using MasterOpener = std::function<Result<std::unique_ptr<session::Master>>()>;
 
+// Whether the opened master may carry several requests at once (LineSchedulerOptions::max_in_flight).
+enum class LinkConcurrency { one, several };
+
 // The gateway's log (gateway/forwarding_unit.hpp's GatewayLog has the same shape).
 using LinkLog = std::function<void(const std::string&)>;
 
@@ -59,7 +69,8 @@ class ReopeningMaster final : public session::Master {
 public:
     // `name` and `link` are the line's, for messages: "line furnace (rtu:/dev/ttyUSB0?...)".
     ReopeningMaster(std::string name, std::string link, MasterOpener open, ReopenSchedule schedule = {},
-                    std::shared_ptr<Clock> clock = steady_clock(), LinkLog log = {});
+                    std::shared_ptr<Clock> clock = steady_clock(), LinkLog log = {},
+                    LinkConcurrency concurrency = LinkConcurrency::one);
     ~ReopeningMaster() override;
 
     // The first open, when the gateway starts. A link error leaves the line down (logged, and
@@ -78,6 +89,7 @@ private:
     struct State;
 
     std::string link_;
+    LinkConcurrency concurrency_;
     std::unique_ptr<State> state_;
 };
 

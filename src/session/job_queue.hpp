@@ -16,7 +16,11 @@ public:
     JobQueue(const JobQueue&) = delete;
     JobQueue& operator=(const JobQueue&) = delete;
 
-    ~JobQueue() {
+    ~JobQueue() { finish(); }
+
+    // Runs the jobs still queued, then joins the thread. A job pushed afterwards still runs, on
+    // a thread started for it and joined by the next finish() or the destructor.
+    void finish() {
         {
             std::lock_guard lock(mutex_);
             stopping_ = true;

@@ -216,7 +216,7 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(device, "plant.toml:8: lines[0].devices[0].pol: unknown key (allowed here: name, device, poll, parameters, tcp_unit)");
 
     const std::string line = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\ntimout = \"1s\"\n");
-    EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, late_reply_window, speed, seed, devices)");
+    EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, late_reply_window, max_in_flight, speed, seed, devices)");
 
     const std::string top = error_of(one_device("device = \"tc10@3\"\n") + "[modbus]\nlisten = \"127.0.0.1:1502\"\n");
     EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt, history, http)");
@@ -235,6 +235,26 @@ TEST(GatewayConfig, TheLateReplyWindowIsReadAndBounded) {
     EXPECT_THAT(zero, StartsWith("plant.toml:4: lines[0].late_reply_window: '0s' is too short: give at least 1ms")) << zero;
     const std::string huge = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nlate_reply_window = \"2min\"\n");
     EXPECT_EQ(huge, "plant.toml:4: lines[0].late_reply_window: expected 1ms..1min (e.g. \"500ms\", default: the line's timeout)");
+}
+
+// Several requests at once only where replies say which request they answer: Modbus TCP.
+TEST(GatewayConfig, MaxInFlightIsOneOnASerialLineAndBoundedOnAModbusTcpLine) {
+    auto config = parse("[[lines]]\nname = \"plc\"\nlink = \"tcp://192.0.2.7:502\"\nmax_in_flight = 8\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->lines[0].max_in_flight, 8U);
+    auto serial = parse("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\n");
+    ASSERT_TRUE(serial) << serial.error().message;
+    EXPECT_EQ(serial->lines[0].max_in_flight, 1U);
+    EXPECT_TRUE(parse("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nmax_in_flight = 1\n"));
+
+    const std::string rtu = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nmax_in_flight = 4\n");
+    EXPECT_EQ(rtu, "plant.toml:4: lines[0].max_in_flight: a rtu line carries one request at a time; more than 1 needs a "
+                   "Modbus TCP device (link = \"tcp://host:502\"), whose replies carry the request's transaction id");
+    const std::string device_server =
+        error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu+tcp://192.0.2.8:4001\"\nmax_in_flight = 2\n");
+    EXPECT_THAT(device_server, HasSubstr("a rtu+tcp line carries one request at a time")) << device_server;
+    const std::string zero = error_of("[[lines]]\nname = \"plc\"\nlink = \"tcp://192.0.2.7:502\"\nmax_in_flight = 0\n");
+    EXPECT_EQ(zero, "plant.toml:4: lines[0].max_in_flight: 0 is out of range (expected an integer 1..64)");
 }
 
 TEST(GatewayConfig, ABadDurationNamesTheKeyAndTheForm) {

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
+#include <stdexcept>
 #include <atomic>
 #include <filesystem>
 #include <iostream>
@@ -16,9 +18,12 @@
 #include <fmt/format.h>
 
 #include "client/device_client.hpp"
+#include "codec/pdu.hpp"
+#include "codec/tcp.hpp"
 #include "gateway/gateway.hpp"
 #include "session/master.hpp"
 #include "transport/link_url.hpp"
+#include "transport/tcp.hpp"
 #include "support/profile_test_support.hpp"
 
 namespace loopwire::gateway {
@@ -269,6 +274,139 @@ TEST(Gateway, WithAHistoryThePolledValuesAreRecorded) {
     auto plain = Gateway::open(*parse_gateway_config(simulated_plant, "plant.toml", profiles()));
     ASSERT_TRUE(plain) << plain.error().message;
     EXPECT_EQ((*plain)->history(), nullptr);
+}
+
+// A Modbus TCP device that answers reads of address 1000 onwards only once it holds `batch` of
+// them, and then the last first: a server may answer in any order, the transaction id pairs the
+// replies. Other requests (the gateway's poll) are answered at once. Register r reads r * 7.
+class BatchReversingDevice {
+public:
+    explicit BatchReversingDevice(std::size_t batch) : batch_(batch) {
+        auto listening = transport::TcpListener::listen("127.0.0.1", 0);
+        if (!listening) throw std::runtime_error(listening.error().message);
+        listener_ = std::move(*listening);
+        thread_ = std::jthread([this](std::stop_token stop) { serve(std::move(stop)); });
+    }
+
+    std::uint16_t port() const { return listener_->port(); }
+    std::size_t batches() const { return batches_.load(); }
+
+private:
+    static constexpr std::uint16_t held_from = 1000;
+
+    void serve(std::stop_token stop) {
+        std::unique_ptr<transport::ByteStream> connection;
+        while (!stop.stop_requested() && !connection) {
+            auto accepted = listener_->accept(50ms);
+            if (!accepted) return;
+            connection = std::move(*accepted);
+        }
+        codec::MbapDecoder decoder;
+        std::vector<codec::Frame> held;
+        std::array<std::uint8_t, 1024> buffer{};
+        while (!stop.stop_requested()) {
+            auto got = connection->read_some(buffer, 50ms);
+            if (!got) return;  // the gateway closed the connection
+            auto frames = decoder.feed(ByteView(buffer.data(), *got));
+            if (!frames) return;
+            for (auto& frame : *frames) {
+                auto request = codec::decode_request(frame.pdu);
+                if (request && request->address >= held_from) {
+                    held.push_back(std::move(frame));
+                } else if (request) {
+                    answer(*connection, frame, *request);
+                }
+            }
+            if (held.size() < batch_) continue;
+            for (auto frame = held.rbegin(); frame != held.rend(); ++frame) {
+                answer(*connection, *frame, *codec::decode_request(frame->pdu));
+            }
+            held.clear();
+            ++batches_;
+        }
+    }
+
+    static void answer(transport::ByteStream& connection, const codec::Frame& frame, const codec::Request& request) {
+        codec::Reply reply;
+        reply.function = request.function;
+        for (std::uint16_t i = 0; i < request.count; ++i) reply.values.push_back(static_cast<std::uint16_t>((request.address + i) * 7));
+        auto pdu = codec::encode_reply(reply);
+        if (!pdu) pdu = codec::encode_reply(codec::exception_reply(request.function, 0x01));
+        (void)connection.write(codec::mbap_encode(frame.transaction, frame.unit, *pdu));
+    }
+
+    const std::size_t batch_;
+    std::unique_ptr<transport::TcpListener> listener_;
+    std::atomic<std::size_t> batches_{0};
+    std::jthread thread_;  // last: joined before the rest goes
+};
+
+// `max_in_flight` on a Modbus TCP line: four clients' requests are on the device's connection at
+// once (the device answers none until it holds four: one at a time would never be answered) and
+// every client gets the values it asked for, though the device answers the last request first.
+TEST(Gateway, AModbusTcpLineCarriesSeveralRequestsAtOncePairedByTransactionId) {
+    constexpr int clients = 4;
+    constexpr int reads_each = 25;
+    BatchReversingDevice device(clients);
+    const std::string plant = fmt::format(R"toml(
+[[lines]]
+name = "plc"
+link = "tcp://127.0.0.1:{}"
+timeout = "20s"
+max_in_flight = 8
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@3"
+poll = "60m"
+parameters = ["measured_value"]
+
+[modbus_tcp]
+listen = "127.0.0.1:0"
+)toml", device.port());
+    auto config = parse_gateway_config(plant, "plant.toml", profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    auto opened = Gateway::open(*config);
+    ASSERT_TRUE(opened) << opened.error().message;
+    Gateway& gateway = **opened;
+    std::jthread serving([&gateway](std::stop_token stop) { (void)gateway.serve(std::move(stop)); });
+
+    auto link = transport::parse_link_url(fmt::format("tcp://127.0.0.1:{}", gateway.modbus_tcp_port()));
+    ASSERT_TRUE(link) << link.error().message;
+    std::atomic<int> right{0};
+    std::mutex wrong_mutex;
+    std::vector<std::string> wrong;
+    {
+        std::vector<std::jthread> readers;
+        for (int c = 0; c < clients; ++c) {
+            readers.emplace_back([&, c] {
+                session::MasterOptions options;
+                options.timeout = 20s;  // a batch waits for the slowest of the four clients
+                auto master = session::open_master(*link, options);
+                for (int i = 0; master && i < reads_each; ++i) {
+                    const auto address = static_cast<std::uint16_t>(1000 + 100 * c + i);
+                    const auto count = static_cast<std::uint16_t>(1 + (i % 3));
+                    auto reply = (*master)->execute(3, codec::read_request(codec::FunctionCode::read_holding_registers, address, count));
+                    std::vector<std::uint16_t> expected;
+                    for (std::uint16_t r = 0; r < count; ++r) expected.push_back(static_cast<std::uint16_t>((address + r) * 7));
+                    if (reply && reply->values == expected) {
+                        ++right;
+                        continue;
+                    }
+                    std::lock_guard lock(wrong_mutex);
+                    wrong.push_back(fmt::format("client {} read {} x{}: {}", c, address, count,
+                                                reply ? "other values" : reply.error().message));
+                }
+                if (!master) {
+                    std::lock_guard lock(wrong_mutex);
+                    wrong.push_back(master.error().message);
+                }
+            });
+        }
+    }
+    EXPECT_TRUE(wrong.empty()) << ::testing::PrintToString(wrong);
+    EXPECT_EQ(right.load(), clients * reads_each);
+    EXPECT_EQ(device.batches(), static_cast<std::size_t>(reads_each));
 }
 
 }  // namespace

@@ -50,27 +50,27 @@ public:
     std::string describe() const override { return "hand master"; }
 
     void forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) override {
-        if (on_wire_) ADD_FAILURE() << "request " << tag_of(pdu) << " forwarded while another is on the wire";
-        on_wire_ = true;
+        if (held_.size() >= capacity) {
+            ADD_FAILURE() << "request " << tag_of(pdu) << " forwarded while " << held_.size() << " are on the wire";
+        }
         sent_.push_back({unit, std::move(pdu)});
         if (!instant) {
-            held_ = std::move(done);
+            held_.push_back(std::move(done));
             return;
         }
         done(normal_reply());
-        on_wire_ = false;
     }
 
-    // Answers the request on the wire, as the master's thread would.
+    // Answers the oldest request on the wire, as the master's thread would.
     void complete(Result<Bytes> result) {
-        ASSERT_TRUE(held_) << "nothing on the wire to complete";
-        auto done = std::move(held_);
-        held_ = nullptr;
-        on_wire_ = false;
+        ASSERT_FALSE(held_.empty()) << "nothing on the wire to complete";
+        auto done = std::move(held_.front());
+        held_.pop_front();
         done(std::move(result));
     }
 
-    bool waiting() const { return static_cast<bool>(held_); }
+    bool waiting() const { return !held_.empty(); }
+    std::size_t on_wire() const { return held_.size(); }
 
     std::vector<int> sent_tags() const {
         std::vector<int> tags;
@@ -81,11 +81,11 @@ public:
     std::vector<Sent> sent() const { return sent_; }
 
     bool instant = false;
+    std::size_t capacity = 1;  // requests it takes at once (a Modbus TCP device: several)
 
 private:
     std::vector<Sent> sent_;
-    ForwardCompletion held_;
-    bool on_wire_ = false;
+    std::deque<ForwardCompletion> held_;  // oldest first
 };
 
 class LineSchedulerTest : public ::testing::Test {
@@ -165,6 +165,41 @@ TEST_F(LineSchedulerTest, SendsOneRequestAtATime) {
     EXPECT_EQ(stats.sent, 5U);
     EXPECT_EQ(stats.answered, 5U);
     EXPECT_EQ(stats.queued, 0U);
+}
+
+// A Modbus TCP line (max_in_flight > 1): requests go as they come up to the bound, the next one
+// as soon as any is answered, in the same order of turns (a write first); the line counts as busy
+// while at least one is out, not once per request.
+TEST_F(LineSchedulerTest, PipelinedLineCarriesUpToMaxInFlightRequestsAtOnce) {
+    auto options = backoff_options();
+    options.max_in_flight = 3;
+    master->capacity = 3;
+    scheduler = std::make_unique<LineScheduler>(master, options, clock);
+
+    for (int tag = 1; tag <= 5; ++tag) submit(tag, Priority::client, 1, static_cast<std::uint64_t>(tag));
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 2, 3}));
+    auto stats = scheduler->statistics();
+    EXPECT_EQ(stats.in_flight, 3U);
+    EXPECT_EQ(stats.queued, 2U);
+
+    submit(6, Priority::write);
+    clock->sleep_for(10ms);
+    master->complete(normal_reply());  // 1
+    EXPECT_EQ(only_answer(1).value(), normal_reply());
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 2, 3, 6})) << "the write goes first";
+    clock->sleep_for(10ms);
+    master->complete(normal_reply());  // 2
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 2, 3, 6, 4}));
+    complete_all();
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 2, 3, 6, 4, 5}));
+    for (int tag = 1; tag <= 6; ++tag) EXPECT_TRUE(only_answer(tag).ok()) << tag;
+
+    stats = scheduler->statistics();
+    EXPECT_EQ(stats.sent, 6U);
+    EXPECT_EQ(stats.answered, 6U);
+    EXPECT_EQ(stats.in_flight, 0U);
+    EXPECT_FALSE(stats.on_wire);
+    EXPECT_EQ(stats.busy, 20ms) << "two requests out at once are 10 ms of line time, not 20";
 }
 
 TEST_F(LineSchedulerTest, WritesGoFirstThenClientRequestsAndPollsTakeTurns) {

@@ -13,6 +13,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "gateway/reopening_master.hpp"
@@ -281,6 +282,134 @@ TEST_F(ReopeningMasterTest, AConfigurationNoPortCanTakeIsAnErrorAtStart) {
     EXPECT_EQ(started.error().kind, ErrorKind::usage);
     EXPECT_EQ(started.error().message,
               "line furnace (rtu:/dev/ttyUSB0?baud=19200): serial port /dev/ttyUSB0: baud 12345 is not supported");
+}
+
+// A Modbus TCP link that holds every request until the test answers it, several at once, as a
+// reader thread matching replies by transaction id would; destroyed, it fails what it still holds
+// (as the TCP master does) and notes the thread it was destroyed on.
+struct HeldLinkScript {
+    std::mutex mutex;
+    std::deque<session::Master::ForwardCompletion> held;
+    std::atomic<bool> closed{false};
+    std::thread::id closed_on;
+
+    std::size_t waiting() {
+        std::lock_guard lock(mutex);
+        return held.size();
+    }
+    session::Master::ForwardCompletion oldest() {
+        std::lock_guard lock(mutex);
+        auto done = std::move(held.front());
+        held.pop_front();
+        return done;
+    }
+};
+
+class HeldLink final : public session::Master {
+public:
+    explicit HeldLink(std::shared_ptr<HeldLinkScript> script) : script_(std::move(script)) {}
+    ~HeldLink() override {
+        std::deque<ForwardCompletion> left;
+        {
+            std::lock_guard lock(script_->mutex);
+            left.swap(script_->held);
+            script_->closed_on = std::this_thread::get_id();
+        }
+        for (auto& done : left) done(make_error(ErrorKind::link, "master closed"));
+        script_->closed = true;
+    }
+
+    Result<codec::Reply> execute(std::uint8_t, const codec::Request&) override {
+        return make_error(ErrorKind::usage, "the held link only forwards");
+    }
+    void execute_async(std::uint8_t unit, codec::Request request, Completion done) override { done(execute(unit, request)); }
+    Result<Bytes> forward(std::uint8_t, ByteView) override { return normal_reply(); }
+    void forward_async(std::uint8_t, Bytes, ForwardCompletion done) override {
+        std::lock_guard lock(script_->mutex);
+        script_->held.push_back(std::move(done));
+    }
+    std::string describe() const override { return "held link"; }
+
+private:
+    std::shared_ptr<HeldLinkScript> script_;
+};
+
+// Polls `ready` until it holds; fails loudly after 30 s (the worker closes the link on its own thread).
+template <typename Ready>
+::testing::AssertionResult eventually(Ready ready, const char* what) {
+    const auto give_up = std::chrono::steady_clock::now() + 30s;
+    while (!ready()) {
+        if (std::chrono::steady_clock::now() > give_up) return ::testing::AssertionFailure() << "never: " << what;
+        std::this_thread::sleep_for(1ms);
+    }
+    return ::testing::AssertionSuccess();
+}
+
+// LinkConcurrency::several: requests reach the open link together instead of one at a time by
+// the worker; a link failure one of them meets on the link's own thread takes the line down, and
+// the link is closed on another thread (never its own, which would wait for itself).
+TEST(ConcurrentReopeningMaster, CarriesSeveralAtOnceAndClosesALinkThatFailedUnderThemOnItsWorker) {
+    auto clock = std::make_shared<VirtualClock>();
+    std::vector<std::shared_ptr<HeldLinkScript>> links;
+    std::mutex links_mutex;
+    MasterOpener open = [&]() -> Result<std::unique_ptr<session::Master>> {
+        std::lock_guard lock(links_mutex);
+        links.push_back(std::make_shared<HeldLinkScript>());
+        return std::unique_ptr<session::Master>(std::make_unique<HeldLink>(links.back()));
+    };
+    // Before the line: its destructor fails what the link still holds, into these.
+    std::mutex answers_mutex;
+    std::vector<Result<Bytes>> answers;
+    auto record = [&](Result<Bytes> result) {
+        std::lock_guard lock(answers_mutex);
+        answers.push_back(std::move(result));
+    };
+    ReopeningMaster line("plc", "tcp://192.0.2.7:502", open, ReopenSchedule{}, clock, {}, LinkConcurrency::several);
+    ASSERT_TRUE(line.start().ok());
+    const auto first = links.at(0);
+
+    for (int request = 0; request < 3; ++request) line.forward_async(1, read_pdu(), record);
+    EXPECT_EQ(first->waiting(), 3U) << "the requests were not all handed to the link at once";
+
+    first->oldest()(normal_reply());
+    // The connection drops: the link's reader thread fails the next request.
+    std::thread reader([&] { first->oldest()(make_error(ErrorKind::link, "connection to 192.0.2.7:502 lost: reset")); });
+    reader.join();
+    ASSERT_TRUE(eventually([&] { return first->closed.load(); }, "the failed link was closed"));
+    EXPECT_NE(first->closed_on, std::thread::id()) << "closed without a thread";
+    EXPECT_NE(first->closed_on, std::this_thread::get_id());
+    {
+        std::lock_guard lock(answers_mutex);
+        ASSERT_EQ(answers.size(), 3U) << "closing the link did not fail the request it still held";
+        EXPECT_TRUE(answers[0].ok());
+        EXPECT_THAT(answers[1].error().message, HasSubstr("connection to 192.0.2.7:502 lost"));
+        EXPECT_EQ(answers[2].error().kind, ErrorKind::link);
+    }
+    EXPECT_FALSE(line.health().up);
+    EXPECT_THAT(line.health().reason, HasSubstr("connection to 192.0.2.7:502 lost"));
+
+    // Down: refused at once. A second later the next request reopens the line, and requests
+    // after it go straight to the new link again.
+    std::optional<Result<Bytes>> refused;
+    line.forward_async(1, read_pdu(), [&](Result<Bytes> result) { refused.emplace(std::move(result)); });
+    ASSERT_TRUE(refused.has_value());
+    EXPECT_THAT(refused->error().message, HasSubstr("line plc (tcp://192.0.2.7:502) is down"));
+    clock->advance(1s);
+    std::promise<Result<Bytes>> reopened;
+    line.forward_async(1, read_pdu(), [&](Result<Bytes> result) { reopened.set_value(std::move(result)); });
+    auto reply = reopened.get_future();
+    ASSERT_EQ(reply.wait_for(30s), std::future_status::ready);
+    EXPECT_EQ(reply.get().value(), normal_reply());
+    EXPECT_TRUE(line.health().up);
+    std::shared_ptr<HeldLinkScript> second;
+    {
+        std::lock_guard lock(links_mutex);
+        ASSERT_EQ(links.size(), 2U);
+        second = links.at(1);
+    }
+    line.forward_async(1, read_pdu(), record);
+    line.forward_async(1, read_pdu(), record);
+    EXPECT_EQ(second->waiting(), 2U);
 }
 
 }  // namespace
