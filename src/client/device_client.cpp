@@ -1,6 +1,8 @@
 #include "client/device_client.hpp"
 
 #include <algorithm>
+#include <deque>
+#include <memory>
 #include <set>
 
 #include <fmt/format.h>
@@ -112,15 +114,28 @@ Error DeviceClient::explain(Error error) const {
     return error;
 }
 
-Result<codec::Reply> DeviceClient::execute_read(const ReadBlock& block) {
-    return master_.execute(device_.unit, codec::read_request(read_function(block.table), block.wire_address, block.count));
+codec::Request DeviceClient::read_request_of(const ReadBlock& block) const {
+    return codec::read_request(read_function(block.table), block.wire_address, block.count);
 }
 
-// Reads one planned block into `report`; a failure marks its parameters in `failures`.
-bool DeviceClient::read_block(const ReadBlock& block, ReadReport& report, std::map<const Parameter*, std::string>& failures,
-                              bool may_split) {
+std::vector<ReadBlock> DeviceClient::plan(const std::vector<const Parameter*>& parameters) const {
+    return plan_reads(*device_.profile, with_dependencies(*device_.profile, parameters), device_.address_offset);
+}
+
+// A device may refuse a whole block for some of its words (an AC20 in a start-up error condition
+// answers only its configuration, control and security words): on an exception, each parameter
+// is asked for alone, so every word it answers is read.
+std::vector<ReadBlock> DeviceClient::split(const ReadBlock& block) const {
+    std::vector<ReadBlock> singles;
+    for (const Parameter* p : block.parameters) {
+        for (ReadBlock& single : plan_reads(*device_.profile, {p}, device_.address_offset)) singles.push_back(std::move(single));
+    }
+    return singles;
+}
+
+bool DeviceClient::file_block(const ReadBlock& block, Result<codec::Reply> reply, ReadReport& report, Failures& failures,
+                              bool may_split) const {
     ++report.requests;
-    auto reply = execute_read(block);
     if (!reply) {
         const Error error = explain(reply.error());
         if (may_split && error.kind == ErrorKind::exception) return false;
@@ -135,21 +150,8 @@ bool DeviceClient::read_block(const ReadBlock& block, ReadReport& report, std::m
     return true;
 }
 
-ReadReport DeviceClient::read(const std::vector<const Parameter*>& parameters) {
-    ReadReport report;
-    std::map<const Parameter*, std::string> failures;
-    for (const ReadBlock& block : plan_reads(*device_.profile, with_dependencies(*device_.profile, parameters), device_.address_offset)) {
-        // A device may refuse a whole block for some of its words (an AC20 in a start-up error
-        // condition answers only its configuration, control and security words): on an
-        // exception, each parameter is asked for alone, so every word it answers is read.
-        const bool may_split = block.parameters.size() > 1;
-        if (read_block(block, report, failures, may_split)) continue;
-        for (const Parameter* p : block.parameters) {
-            for (const ReadBlock& single : plan_reads(*device_.profile, {p}, device_.address_offset)) {
-                read_block(single, report, failures, false);
-            }
-        }
-    }
+void DeviceClient::decode_readings(const std::vector<const Parameter*>& parameters, ReadReport& report,
+                                   const Failures& failures) const {
     for (const Parameter* p : parameters) {
         ParameterReading reading{p, std::nullopt, {}};
         if (auto failed = failures.find(p); failed != failures.end()) {
@@ -163,7 +165,84 @@ ReadReport DeviceClient::read(const std::vector<const Parameter*>& parameters) {
         }
         report.readings.push_back(std::move(reading));
     }
+}
+
+ReadReport DeviceClient::read(const std::vector<const Parameter*>& parameters) {
+    ReadReport report;
+    Failures failures;
+    for (const ReadBlock& block : plan(parameters)) {
+        const bool may_split = block.parameters.size() > 1;
+        if (file_block(block, master_.execute(device_.unit, read_request_of(block)), report, failures, may_split)) continue;
+        for (const ReadBlock& single : split(block)) {
+            file_block(single, master_.execute(device_.unit, read_request_of(single)), report, failures, false);
+        }
+    }
+    decode_readings(parameters, report, failures);
     return report;
+}
+
+// One read_async in progress: the blocks still to ask (a refused block's singles go first), and
+// what the ones asked so far said.
+struct DeviceClient::AsyncRead : std::enable_shared_from_this<AsyncRead> {
+    struct Pending {
+        ReadBlock block;
+        bool may_split = false;
+    };
+
+    const DeviceClient& client;
+    std::vector<const Parameter*> parameters;
+    std::stop_token stop;
+    ReadDone done;
+    std::deque<Pending> pending;
+    ReadReport report;
+    Failures failures;
+    std::optional<Error> stopped_by;
+
+    AsyncRead(const DeviceClient& owner, std::vector<const Parameter*> wanted, std::stop_token stopping, ReadDone finished)
+        : client(owner), parameters(std::move(wanted)), stop(std::move(stopping)), done(std::move(finished)) {}
+
+    void next() {
+        if (!stopped_by && stop.stop_requested()) stopped_by = make_error(ErrorKind::link, "polling stopped");
+        if (stopped_by || pending.empty()) return finish();
+        Pending asked = std::move(pending.front());
+        pending.pop_front();
+        auto request = client.read_request_of(asked.block);
+        client.master_.execute_async(client.device_.unit, std::move(request),
+                                     [self = shared_from_this(), asked = std::move(asked)](Result<codec::Reply> reply) mutable {
+                                         self->filed(asked, std::move(reply));
+                                     });
+    }
+
+    void filed(const Pending& asked, Result<codec::Reply> reply) {
+        if (!reply && (reply.error().kind == ErrorKind::timeout || reply.error().kind == ErrorKind::link)) {
+            stopped_by = reply.error();
+        }
+        if (!client.file_block(asked.block, std::move(reply), report, failures, asked.may_split)) {
+            auto singles = client.split(asked.block);
+            for (auto single = singles.rbegin(); single != singles.rend(); ++single) pending.push_front({std::move(*single), false});
+        }
+        next();
+    }
+
+    // The blocks never asked fail with what stopped the read.
+    void finish() {
+        for (const Pending& left : pending) {
+            for (const Parameter* p : left.block.parameters) failures[p] = stopped_by->message;
+        }
+        pending.clear();
+        client.decode_readings(parameters, report, failures);
+        auto finished = std::move(done);
+        finished(std::move(report), std::move(stopped_by));
+    }
+};
+
+void DeviceClient::read_async(std::vector<const Parameter*> parameters, std::stop_token stop, ReadDone done) {
+    auto read = std::make_shared<AsyncRead>(*this, std::move(parameters), std::move(stop), std::move(done));
+    for (ReadBlock& block : plan(read->parameters)) {
+        const bool may_split = block.parameters.size() > 1;
+        read->pending.push_back({std::move(block), may_split});
+    }
+    read->next();
 }
 
 namespace {

@@ -2,7 +2,10 @@
 // Reads and writes one device by parameter name, in engineering units, over any master: the
 // request planner decides the requests, the value codecs turn words into values.
 #include <cstdint>
+#include <functional>
 #include <map>
+#include <optional>
+#include <stop_token>
 #include <memory>
 #include <string>
 #include <vector>
@@ -59,6 +62,9 @@ struct WriteReport {
     RawValues known;
 };
 
+// The end of a read_async: the report, and the timeout or link failure that ended it early.
+using ReadDone = std::function<void(ReadReport report, std::optional<Error> stopped_by)>;
+
 class DeviceClient {
 public:
     DeviceClient(session::Master& master, DeviceAddress device);
@@ -66,6 +72,15 @@ public:
     // Reads `parameters` and whatever their values depend on (decimals from other words), in
     // planned blocks. A failed block marks its parameters as failed; the others are still read.
     ReadReport read(const std::vector<const Parameter*>& parameters);
+
+    // The same without blocking, for a poller on an event loop: the blocks go one after another
+    // by the master's execute_async, each from the completion of the one before, and `done` runs
+    // once, on the thread of the last completion (or the caller's, when the master answers at
+    // once). A poll's rule: the first block that times out or finds the link failed ends the read
+    // (`stopped_by`), its other blocks failed with the same error unsent, so a silent device
+    // costs one timeout. A requested `stop` also ends it before the next block. The client (and
+    // its master) must live until `done` has run.
+    void read_async(std::vector<const Parameter*> parameters, std::stop_token stop, ReadDone done);
 
     // Validates every value first (access, type, decimals, range — bounds by other parameters
     // are read from the device), then writes in planned blocks, in the order given. Nothing is
@@ -84,11 +99,18 @@ public:
     const DeviceAddress& device() const { return device_; }
 
 private:
-    Result<codec::Reply> execute_read(const ReadBlock& block);
-    // false: the device refused the block with an exception and `may_split` was set (the
-    // caller splits it); otherwise the block's values or failures are in the report.
-    bool read_block(const ReadBlock& block, ReadReport& report, std::map<const Parameter*, std::string>& failures,
-                    bool may_split);
+    struct AsyncRead;
+    using Failures = std::map<const Parameter*, std::string>;
+
+    codec::Request read_request_of(const ReadBlock& block) const;
+    std::vector<ReadBlock> plan(const std::vector<const Parameter*>& parameters) const;
+    std::vector<ReadBlock> split(const ReadBlock& block) const;
+    // Files one block's reply. false: the device refused the block with an exception and
+    // `may_split` was set (the caller splits it); otherwise the block's values or failures are
+    // in the report.
+    bool file_block(const ReadBlock& block, Result<codec::Reply> reply, ReadReport& report, Failures& failures,
+                    bool may_split) const;
+    void decode_readings(const std::vector<const Parameter*>& parameters, ReadReport& report, const Failures& failures) const;
 
     session::Master& master_;
     DeviceAddress device_;

@@ -69,21 +69,14 @@ void poll(Polled& polled, WatchedDevice& watched, MonitorClock::time_point sampl
     polled.guard->start_poll();
     const auto report = polled.client->read(polled.target->parameters);
     const auto now = MonitorClock::now();
-    watched.next_try.reset();
-    if (const auto& failure = polled.guard->failure()) {
-        if (failure->kind == ErrorKind::link) {
-            record_line_down(watched, failure->message);
-        } else {
-            record_poll(watched, report, false, failure->message, now);
-        }
-        if (own_backoff) {
-            polled.backoff.failed(now);
-            watched.next_try = polled.backoff.next_try();
-        }
-        return;
+    const auto& failure = polled.guard->failure();
+    record_outcome(watched, report, failure, now);
+    if (!failure) {
+        polled.backoff.succeeded();
+    } else if (own_backoff) {
+        polled.backoff.failed(now);
+        watched.next_try = polled.backoff.next_try();
     }
-    record_poll(watched, report, true, {}, now);
-    polled.backoff.succeeded();
 }
 
 // Sleeps until `deadline` or until stop is requested; false when stopped.
@@ -97,6 +90,14 @@ bool sleep_until(MonitorClock::time_point deadline, std::stop_token stop) {
 
 }  // namespace
 
+SampleSchedule::Next SampleSchedule::after(MonitorClock::time_point now) {
+    // The next slot of the fixed schedule that is still ahead.
+    const std::int64_t next = (now - start_) / interval_ + 1;
+    const unsigned missed = next > slot_ + 1 ? static_cast<unsigned>(next - slot_ - 1) : 0u;
+    slot_ = next;
+    return {start_ + next * interval_, missed};
+}
+
 void run_monitor(const std::vector<MonitorTarget>& targets, const MonitorSettings& settings, SampleSink& sink,
                  std::stop_token stop) {
     std::vector<Polled> polled;
@@ -107,9 +108,8 @@ void run_monitor(const std::vector<MonitorTarget>& targets, const MonitorSetting
         polled.push_back(Polled{std::move(guard), std::move(client), &target, RetryBackoff(settings.interval, settings.backoff_cap)});
         watched.push_back(watch(label_of(target.device), target.parameters));
     }
-    const auto start = MonitorClock::now();
-    std::int64_t slot = 0;  // of the sample about to start
-    unsigned missed = 0;    // slots skipped before it
+    SampleSchedule schedule(MonitorClock::now(), settings.interval);
+    unsigned missed = 0;  // slots skipped before the sample about to start
     for (unsigned index = 1; !stop.stop_requested() && (!settings.count || index <= *settings.count); ++index) {
         const auto sample_start = MonitorClock::now();
         const auto wall = std::chrono::system_clock::now();
@@ -120,12 +120,9 @@ void run_monitor(const std::vector<MonitorTarget>& targets, const MonitorSetting
         if (stop.stop_requested()) break;
         sink.write(SampleView{index, wall, MonitorClock::now(), &watched, missed});
         if (settings.count && index == *settings.count) break;
-        // The next slot of the fixed schedule that is still ahead.
-        const auto elapsed = MonitorClock::now() - start;
-        const std::int64_t next = elapsed / settings.interval + 1;
-        missed = next > slot + 1 ? static_cast<unsigned>(next - slot - 1) : 0u;
-        slot = next;
-        if (!sleep_until(start + next * settings.interval, stop)) break;
+        const auto next = schedule.after(MonitorClock::now());
+        missed = next.missed;
+        if (!sleep_until(next.at, stop)) break;
     }
 }
 

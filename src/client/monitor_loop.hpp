@@ -2,6 +2,7 @@
 // The polling loop of `loopwire monitor`, apart from option parsing, so `loopwire demo` can run
 // it on simulators inside the process: it takes masters that are already open.
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <functional>
 #include <optional>
@@ -42,6 +43,25 @@ class SampleSink {
 public:
     virtual ~SampleSink() = default;
     virtual void write(const SampleView& sample) = 0;
+};
+
+// The fixed schedule samples start on: slot k at start + k x interval. A sample that ends past
+// the next slot skips the slots it missed rather than bunching up.
+class SampleSchedule {
+public:
+    SampleSchedule(MonitorClock::time_point start, std::chrono::milliseconds interval) : start_(start), interval_(interval) {}
+
+    struct Next {
+        MonitorClock::time_point at;  // when the next sample starts
+        unsigned missed = 0;          // slots skipped before it
+    };
+    // After a sample that ended at `now`.
+    Next after(MonitorClock::time_point now);
+
+private:
+    MonitorClock::time_point start_;
+    std::chrono::milliseconds interval_;
+    std::int64_t slot_ = 0;  // of the sample that just ran
 };
 
 struct MonitorSettings {

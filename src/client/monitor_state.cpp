@@ -49,6 +49,14 @@ void record_failed_poll(WatchedDevice& device, std::string status, const std::st
 
 void record_line_down(WatchedDevice& device, const std::string& failure) { record_failed_poll(device, "line-down", failure); }
 
+void record_outcome(WatchedDevice& device, const device::ReadReport& report, const std::optional<Error>& stopped_by,
+                    MonitorClock::time_point now) {
+    device.next_try.reset();
+    if (!stopped_by) return record_poll(device, report, true, {}, now);
+    if (stopped_by->kind == ErrorKind::link) return record_line_down(device, stopped_by->message);
+    record_poll(device, report, false, stopped_by->message, now);
+}
+
 void record_poll(WatchedDevice& device, const device::ReadReport& report, bool answered, const std::string& failure,
                  MonitorClock::time_point now) {
     if (!answered) return record_failed_poll(device, "no-reply", failure);

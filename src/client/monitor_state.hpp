@@ -49,6 +49,11 @@ void record_poll(WatchedDevice& device, const device::ReadReport& report, bool a
 // why). Like a poll without a reply, but the device is not to blame.
 void record_line_down(WatchedDevice& device, const std::string& failure);
 
+// Folds a whole poll into the device's state: `stopped_by` is the timeout (no reply) or link
+// failure (line down) that ended it, if one did.
+void record_outcome(WatchedDevice& device, const device::ReadReport& report, const std::optional<Error>& stopped_by,
+                    MonitorClock::time_point now);
+
 // The device was not polled this sample (back-off): nothing is fresh.
 void record_skipped(WatchedDevice& device);
 

@@ -5,12 +5,19 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <stop_token>
+#include <thread>
 #include <utility>
 
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <fmt/format.h>
 
 namespace loopwire::gateway {
 namespace {
+
+namespace asio = boost::asio;
 
 // A group that fell behind is said to keep its interval again only after this many samples on
 // time in a row: a line at the edge of its capacity is one warning, not one per sample.
@@ -89,33 +96,48 @@ private:
     unsigned on_time_ = 0;
 };
 
-// Until `stop`: every `tick`, the cache marks the overdue devices stale, and each device going
+// Every tick of its timer, the cache marks the overdue devices stale, and each device going
 // stale or fresh again is logged once.
-void watch_staleness(ValueCache& cache, std::chrono::milliseconds tick, const GatewayLog& log, const std::stop_token& stop) {
-    std::set<std::string> stale;
-    std::mutex mutex;
-    std::condition_variable_any woken;
-    std::unique_lock lock(mutex);
-    while (!woken.wait_for(lock, stop, tick, [] { return false; }) && !stop.stop_requested()) {
-        const auto now_list = cache.mark_overdue();
+class StalenessWatch {
+public:
+    StalenessWatch(asio::io_context& loop, ValueCache& cache, std::chrono::milliseconds tick, GatewayLog log)
+        : timer_(loop), cache_(cache), tick_(tick), log_(std::move(log)) {
+        arm();
+    }
+
+private:
+    void arm() {
+        timer_.expires_after(tick_);
+        timer_.async_wait([this](const boost::system::error_code& error) {
+            if (error) return;  // cancelled: the polls are stopping
+            look();
+            arm();
+        });
+    }
+
+    void look() {
+        const auto now_list = cache_.mark_overdue();
         const std::set<std::string> now(now_list.begin(), now_list.end());
-        if (!log) {
-            stale = now;
-            continue;
-        }
-        for (const auto& name : now) {
-            if (!stale.count(name)) {
-                log(fmt::format("warning: device {} is stale: its poll is more than {} intervals overdue, so its values "
-                                "read \"stale\" until a poll reads them again",
-                                name, overdue_intervals_allowed));
+        if (log_) {
+            for (const auto& name : now) {
+                if (stale_.count(name)) continue;
+                log_(fmt::format("warning: device {} is stale: its poll is more than {} intervals overdue, so its values "
+                                 "read \"stale\" until a poll reads them again",
+                                 name, overdue_intervals_allowed));
+            }
+            for (const auto& name : stale_) {
+                if (!now.count(name)) log_(fmt::format("device {} is polled again: its values are current", name));
             }
         }
-        for (const auto& name : stale) {
-            if (!now.count(name)) log(fmt::format("device {} is polled again: its values are current", name));
-        }
-        stale = now;
+        stale_ = now;
     }
-}
+
+    asio::steady_timer timer_;
+    ValueCache& cache_;
+    std::chrono::milliseconds tick_;
+    GatewayLog log_;
+    std::set<std::string> stale_;
+};
 
 }  // namespace
 
@@ -123,16 +145,110 @@ std::chrono::milliseconds staleness_tick(std::chrono::milliseconds shortest_inte
     return std::clamp(shortest_interval / 4, std::chrono::milliseconds(50), std::chrono::milliseconds(1000));
 }
 
+// One poll group: its devices, and the sample in progress. Lives on the engine's loop thread.
 struct PollGroups::Group {
+    Group(asio::io_context& loop, std::chrono::milliseconds every)
+        : interval(every), timer(loop), schedule(device::MonitorClock::now(), every) {}
+
+    std::chrono::milliseconds interval;
     std::vector<std::unique_ptr<ScheduledMaster>> masters;  // one per device: each names its line
+    std::vector<std::unique_ptr<device::DeviceClient>> clients;
     std::vector<device::MonitorTarget> targets;
+    std::vector<device::WatchedDevice> watched;
     std::unique_ptr<CachingSink> sink;
-    device::MonitorSettings settings;
-    std::jthread thread;  // last: stops and joins before the rest goes
+    asio::steady_timer timer;
+    device::SampleSchedule schedule;
+    unsigned index = 0;       // of the sample in progress, 1-based
+    unsigned missed = 0;      // slots skipped before it
+    std::size_t polling = 0;  // its devices still being read
+    std::chrono::system_clock::time_point wall;  // when it started
+};
+
+// The loop every group's timers and polls run on, one thread for all of them, and the reads in
+// flight on the lines' threads (each ends by posting its outcome into the loop).
+struct PollGroups::Engine {
+    void start_sample(Group& group) {
+        ++group.index;
+        group.wall = std::chrono::system_clock::now();
+        group.polling = 0;
+        for (std::size_t i = 0; i < group.clients.size(); ++i) {
+            auto& watched = group.watched[i];
+            watched.missed += group.missed;
+            // The unit's back-off is the line's (line_scheduler.hpp): a unit backing off is skipped.
+            if (const auto held = group.targets[i].held_until()) {
+                device::record_skipped(watched);
+                watched.next_try = held;
+                continue;
+            }
+            ++group.polling;
+            read_started();
+            group.clients[i]->read_async(group.targets[i].parameters, stopping.get_token(),
+                                         [this, &group, i](device::ReadReport report, std::optional<Error> stopped_by) {
+                                             asio::post(loop, [this, &group, i, report = std::move(report),
+                                                               stopped_by = std::move(stopped_by)] {
+                                                 device_polled(group, i, report, stopped_by);
+                                             });
+                                             read_ended();
+                                         });
+        }
+        if (group.polling == 0) end_sample(group);
+    }
+
+    void device_polled(Group& group, std::size_t i, const device::ReadReport& report, const std::optional<Error>& stopped_by) {
+        device::record_outcome(group.watched[i], report, stopped_by, device::MonitorClock::now());
+        if (--group.polling == 0) end_sample(group);
+    }
+
+    // Every device of the sample has been read (or skipped): the sample goes to the cache, and
+    // the next one waits for its slot.
+    void end_sample(Group& group) {
+        const auto now = device::MonitorClock::now();
+        group.sink->write(device::SampleView{group.index, group.wall, now, &group.watched, group.missed});
+        const auto next = group.schedule.after(now);
+        group.missed = next.missed;
+        group.timer.expires_at(next.at);
+        group.timer.async_wait([this, &group](const boost::system::error_code& error) {
+            if (!error && !stopping.stop_requested()) start_sample(group);
+        });
+    }
+
+    void read_started() {
+        std::lock_guard lock(reads_mutex);
+        ++reads;
+    }
+
+    // On a line's thread, once the read's outcome is posted. Notified under the lock: the
+    // destructor may go on as soon as it sees none left.
+    void read_ended() {
+        std::lock_guard lock(reads_mutex);
+        --reads;
+        no_reads.notify_all();
+    }
+
+    // No sample starts after this; the reads on the wire end (their next blocks unsent) and
+    // their outcomes are dropped.
+    void stop() {
+        stopping.request_stop();
+        loop.stop();
+        if (thread.joinable()) thread.join();
+        std::unique_lock lock(reads_mutex);
+        no_reads.wait(lock, [this] { return reads == 0; });
+    }
+
+    asio::io_context loop;
+    std::stop_source stopping;
+    std::mutex reads_mutex;
+    std::condition_variable no_reads;
+    std::size_t reads = 0;
+    std::vector<std::unique_ptr<Group>> groups;
+    std::unique_ptr<StalenessWatch> staleness;
+    std::thread thread;  // runs `loop`
 };
 
 PollGroups::PollGroups(const GatewayConfig& config, const std::map<std::string, std::shared_ptr<LineScheduler>>& lines,
-                       ValueCache& cache, GatewayLog log, device::SampleSink* also) {
+                       ValueCache& cache, GatewayLog log, device::SampleSink* also)
+    : engine_(std::make_unique<Engine>()) {
+    Engine& engine = *engine_;
     std::map<std::chrono::milliseconds, std::unique_ptr<Group>> by_interval;
     std::map<std::chrono::milliseconds, std::vector<std::string>> names;
     std::map<std::chrono::milliseconds, std::vector<std::string>> group_lines;
@@ -140,13 +256,15 @@ PollGroups::PollGroups(const GatewayConfig& config, const std::map<std::string, 
         const auto& scheduler = lines.at(line.name);
         for (const auto& device : line.devices) {
             auto& group = by_interval[device.poll];
-            if (!group) group = std::make_unique<Group>();
+            if (!group) group = std::make_unique<Group>(engine.loop, device.poll);
             // A poll waiting longer than its interval would only be stale when it came back.
             group->masters.push_back(std::make_unique<ScheduledMaster>(scheduler, line.link.to_string(), Priority::poll, device.poll));
-            // The unit's back-off is the scheduler's (line_scheduler.hpp); the poller defers to it.
+            group->clients.push_back(std::make_unique<device::DeviceClient>(*group->masters.back(), device.address));
             const std::uint8_t unit = device.address.unit;
             group->targets.push_back({group->masters.back().get(), device.address, polled_parameters(device),
                                       [scheduler, unit] { return scheduler->hold_poll(unit); }});
+            group->watched.push_back(device::watch(fmt::format("{}@{}", device.address.profile->id, unit),
+                                                   group->targets.back().parameters));
             names[device.poll].push_back(device.name);
             auto& on = group_lines[device.poll];
             if (std::find(on.begin(), on.end(), line.name) == on.end()) on.push_back(line.name);
@@ -154,19 +272,18 @@ PollGroups::PollGroups(const GatewayConfig& config, const std::map<std::string, 
         }
     }
     for (auto& [interval, group] : by_interval) {
-        group->settings.interval = interval;
         group->sink = std::make_unique<CachingSink>(interval, std::move(names[interval]), std::move(group_lines[interval]), cache,
                                                     log, also);
-        group->thread = std::jthread([g = group.get()](std::stop_token stop) {
-            device::run_monitor(g->targets, g->settings, *g->sink, std::move(stop));
-        });
-        groups_.push_back(std::move(group));
+        asio::post(engine.loop, [&engine, g = group.get()] { engine.start_sample(*g); });
+        engine.groups.push_back(std::move(group));
     }
     if (by_interval.empty()) return;
-    const auto tick = staleness_tick(by_interval.begin()->first);
-    staleness_ = std::jthread([&cache, tick, log = std::move(log)](std::stop_token stop) { watch_staleness(cache, tick, log, stop); });
+    engine.staleness = std::make_unique<StalenessWatch>(engine.loop, cache, staleness_tick(by_interval.begin()->first), std::move(log));
+    engine.thread = std::thread([&engine] { engine.loop.run(); });
 }
 
-PollGroups::~PollGroups() = default;
+PollGroups::~PollGroups() { engine_->stop(); }
+
+std::size_t PollGroups::size() const { return engine_->groups.size(); }
 
 }  // namespace loopwire::gateway

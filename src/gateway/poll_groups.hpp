@@ -1,21 +1,23 @@
 #pragma once
-// The gateway's own polling. Devices polled at the same interval form a poll group; each group
-// runs the client's poller (client/monitor_loop.hpp) on its own thread, through the lines'
-// schedulers at poll priority, so polls share each line with the clients' requests by turns
-// (line_scheduler.hpp). What each poll finds goes into the value cache (gateway/value_cache.hpp),
-// and a device that stops or starts answering is logged.
+// The gateway's own polling. Devices polled at the same interval form a poll group. Every group
+// runs on one event loop and one thread, however many devices and intervals there are: a timer
+// starts each sample on the fixed schedule of the client's poller (client/monitor_loop.hpp), its
+// devices are read at once without blocking (DeviceClient::read_async), each through its line's
+// scheduler at poll priority, where polls share the line with the clients' requests by turns
+// (line_scheduler.hpp); a silent device or a slow line delays no other line's polls. A sample
+// ends when all its devices have answered or failed. What each poll finds goes into the value
+// cache (gateway/value_cache.hpp), and a device that stops or starts answering is logged.
 //
 // Polls that cannot keep their rate are reported two ways. A group whose sample ran past its
 // interval (its lines cannot carry its polls beside everything else) is logged once when it
 // falls behind and once when it keeps its interval again, and its skipped samples are counted
-// in each device's `missed` (/metrics). And a timer of its own, a quarter of the shortest
+// in each device's `missed` (/metrics). And a timer on the same loop, a quarter of the shortest
 // interval (50 ms to 1 s), has the cache mark the devices whose poll is overdue `stale`, since
 // a poll stuck on its line reports nothing itself; each device going stale or fresh is logged.
 #include <chrono>
 #include <map>
 #include <memory>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "client/monitor_loop.hpp"
@@ -29,19 +31,19 @@ namespace loopwire::gateway {
 class PollGroups {
 public:
     // `lines`: the scheduler of each configured line, by line name. `also`, when given, gets
-    // every sample too, on the group's thread.
+    // every sample too, on the polls' thread.
     PollGroups(const GatewayConfig& config, const std::map<std::string, std::shared_ptr<LineScheduler>>& lines,
                ValueCache& cache, GatewayLog log, device::SampleSink* also = nullptr);
     ~PollGroups();  // stops every group; a poll on the wire is finished first
     PollGroups(const PollGroups&) = delete;
     PollGroups& operator=(const PollGroups&) = delete;
 
-    std::size_t size() const { return groups_.size(); }
+    std::size_t size() const;
 
 private:
     struct Group;
-    std::vector<std::unique_ptr<Group>> groups_;
-    std::jthread staleness_;  // last: stops before the groups go
+    struct Engine;
+    std::unique_ptr<Engine> engine_;
 };
 
 // How often the staleness timer looks: a quarter of the shortest poll interval, kept within

@@ -3,10 +3,10 @@
 // sample time, which every front reads (snapshot), and a stream of the changes (subscribe),
 // which MQTT, HTTP and the history store consume (docs/DESIGN.md, gateway).
 //
-// Threads: each device is updated by its poll group's thread (gateway/poll_groups.hpp), several
-// groups at once. A subscriber's callback runs on the thread of the group whose sample changed
-// something, so it must be quick (copy the change, queue it, return): the group's next poll
-// waits for it. Callbacks of one subscriber never run at the same time, and the changes of one
+// Threads: the devices are updated by the polls' thread (gateway/poll_groups.hpp); the cache
+// still takes updates from several threads at once. A subscriber's callback runs on the thread
+// whose update changed something, so it must be quick (copy the change, queue it, return): every
+// poll waits for it. Callbacks of one subscriber never run at the same time, and the changes of one
 // device reach it in the order they happened. A callback may read snapshot(), subscribe, and
 // end its own subscription; it must not throw.
 //

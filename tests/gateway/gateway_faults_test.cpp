@@ -516,7 +516,15 @@ struct DeadUnit {
 struct Timed {
     Result<codec::Reply> reply;
     Clock::duration took;
+    Clock::time_point done_at;
 };
+
+// How many of `replies` came within [from, to].
+std::size_t answered_between(const std::vector<Timed>& replies, Clock::time_point from, Clock::time_point to) {
+    return static_cast<std::size_t>(std::count_if(replies.begin(), replies.end(), [&](const Timed& timed) {
+        return timed.done_at >= from && timed.done_at <= to;
+    }));
+}
 
 TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItReturns) {
     // A timeout longer than the poll interval: a timeout on every poll of the dead unit would
@@ -617,7 +625,8 @@ TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItRe
         asking_dead->execute_async(2, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1),
                                    [&mutex, &dead_replies, asked](Result<codec::Reply> reply) {
                                        std::lock_guard lock(mutex);
-                                       dead_replies.push_back({std::move(reply), Clock::now() - asked});
+                                       const auto now = Clock::now();
+                                       dead_replies.push_back({std::move(reply), now - asked, now});
                                    });
     }
     ASSERT_TRUE(wait_until([&] { return running.statistics().queued >= 3; }, 5s)) << "the requests never queued";
@@ -630,29 +639,31 @@ TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItRe
         const auto sent = Clock::now();
         auto reply = asking_oven->execute(
             3, codec::read_request(codec::FunctionCode::read_holding_registers, oven_set_point, 1));
-        oven_replies.push_back({std::move(reply), Clock::now() - sent});
+        const auto now = Clock::now();
+        oven_replies.push_back({std::move(reply), now - sent, now});
     }
-    for (const auto& [reply, took] : dead_replies) {
+    for (const Timed& dead_reply : dead_replies) {
+        const auto& reply = dead_reply.reply;
         ASSERT_FALSE(reply.ok()) << "the dead unit answered";
         EXPECT_EQ(reply.error().kind, ErrorKind::exception) << reply.error().message;
         EXPECT_EQ(reply.error().code, 0x0B) << reply.error().message;
     }
     ASSERT_FALSE(oven_replies.empty());
     Clock::duration slowest{0};  // of all but the first
+    std::size_t most_behind = 0;  // the dead unit's requests answered while one of the oven's waited
     for (std::size_t i = 0; i < oven_replies.size(); ++i) {
-        const auto& [reply, took] = oven_replies[i];
+        const auto& [reply, took, done_at] = oven_replies[i];
         ASSERT_TRUE(reply.ok()) << reply.error().message;
         EXPECT_EQ(reply->values, expected->values);
         if (i > 0) slowest = std::max(slowest, took);
+        most_behind = std::max(most_behind, answered_between(dead_replies, done_at - took, done_at));
     }
     const Clock::duration first = oven_replies.front().took;
-    // The first of the oven's requests came when the dead unit's were queued already: it waited
-    // for the one on the wire and the next at most (line_scheduler_test.cpp), not for all six.
-    // Each later one waited for the one on the wire and at most one poll (clients and polls
-    // alternate), which may be the dead unit's own when its back-off has run out: two timeouts
-    // and their late-reply windows, never all six of the dead unit's requests.
-    EXPECT_LT(first, 3 * timeout) << "the other client was held up behind the dead unit's requests";
-    EXPECT_LT(slowest, 3 * timeout) << "the other client waited behind more than one of the dead unit's requests";
+    // Counted in turns, not time, so a loaded machine cannot fail it. Each of the oven's requests
+    // waited for the dead unit's one on the wire and at most the next (line_scheduler_test.cpp:
+    // clients take turns), never for all six of them; the polls in between are the gateway's own
+    // and not among these.
+    EXPECT_LE(most_behind, 2U) << "the other client was held up behind the dead unit's requests";
     EXPECT_GE(oven_replies.size() + 2, std::size_t{dead_requests}) << "the other client did not get its turns";
     std::cout << fmt::format(
         "{} requests to the dead unit answered 0Bh in {:.2f} s; meanwhile {} reads of the oven, "

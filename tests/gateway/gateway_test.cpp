@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <atomic>
 #include <filesystem>
+#include <iterator>
 #include <iostream>
 #include <fstream>
 #include <condition_variable>
@@ -274,6 +275,49 @@ TEST(Gateway, WithAHistoryThePolledValuesAreRecorded) {
     auto plain = Gateway::open(*parse_gateway_config(simulated_plant, "plant.toml", profiles()));
     ASSERT_TRUE(plain) << plain.error().message;
     EXPECT_EQ((*plain)->history(), nullptr);
+}
+
+// The threads of this process now.
+std::size_t threads_now() {
+    return static_cast<std::size_t>(std::distance(std::filesystem::directory_iterator("/proc/self/task"),
+                                                  std::filesystem::directory_iterator{}));
+}
+
+// The threads of a gateway on `plant` once every device has been polled.
+std::size_t threads_of_gateway(const std::string& plant) {
+    auto config = parse_gateway_config(plant, "plant.toml", profiles());
+    EXPECT_TRUE(config) << config.error().message;
+    if (!config) return 0;
+    const std::size_t before = threads_now();
+    auto opened = Gateway::open(*config);
+    EXPECT_TRUE(opened) << opened.error().message;
+    if (!opened) return 0;
+    const auto all_polled = [&] {
+        const auto devices = (*opened)->values();
+        return std::all_of(devices.begin(), devices.end(), [](const CachedDevice& device) { return device.state.polls > 0; });
+    };
+    const auto give_up = std::chrono::steady_clock::now() + 30s;
+    while (!all_polled() && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(10ms);
+    EXPECT_TRUE(all_polled()) << "not every device was polled in 30 s";
+    return threads_now() - before;
+}
+
+// Every poll group runs on one loop and one thread (poll_groups.hpp): three devices polled at
+// three intervals take no more threads than one device.
+TEST(Gateway, ThePollsTakeOneThreadHoweverManyDevicesAndIntervals) {
+    const std::string line = "[[lines]]\nname = \"sim\"\nlink = \"rtu:virtual?baud=115200&parity=none\"\ntimeout = \"500ms\"\n";
+    const std::string one = line + "[[lines.devices]]\nname = \"oven\"\ndevice = \"tc10@1\"\npoll = \"100ms\"\n"
+                                   "[modbus_tcp]\nenabled = false\n";
+    const std::string three = line + "[[lines.devices]]\nname = \"oven\"\ndevice = \"tc10@1\"\npoll = \"100ms\"\n"
+                                     "[[lines.devices]]\nname = \"furnace\"\ndevice = \"ac20@2\"\npoll = \"200ms\"\n"
+                                     "[[lines.devices]]\nname = \"kiln\"\ndevice = \"rampsoak@3\"\npoll = \"300ms\"\n"
+                                     "[modbus_tcp]\nenabled = false\n";
+    const std::size_t for_one = threads_of_gateway(one);
+    const std::size_t for_three = threads_of_gateway(three);
+    std::cout << "threads of a gateway with one line: " << for_one << " for 1 device, " << for_three
+              << " for 3 devices at 3 intervals\n";
+    EXPECT_GT(for_one, 0U);
+    EXPECT_EQ(for_three, for_one);
 }
 
 // A Modbus TCP device that answers reads of address 1000 onwards only once it holds `batch` of
