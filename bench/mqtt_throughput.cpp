@@ -172,7 +172,8 @@ int main(int argc, char** argv) {
     const long before = resident_kib();
 
     gateway::ValueCache cache;
-    gateway::DeviceWriter writer({}, 1s);
+    gateway::Engine engine;
+    gateway::DeviceWriter writer(engine, {}, 1s);
     gateway::MqttConfig config;
     config.broker = fmt::format("mqtt://127.0.0.1:{}", port);
     config.host = "127.0.0.1";

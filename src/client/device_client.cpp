@@ -288,9 +288,8 @@ Result<void> check_write_mode(const Profile& profile, const Parameter& parameter
 
 }  // namespace
 
-Result<WriteReport> DeviceClient::write(const std::vector<std::pair<const Parameter*, std::string>>& assignments) {
-    // What the new values are checked against: decimals and range bounds held by other words,
-    // and the words that tell the device's mode.
+std::vector<const Parameter*> DeviceClient::needed_for(
+    const std::vector<std::pair<const Parameter*, std::string>>& assignments) const {
     std::vector<const Parameter*> needed;
     for (const auto& [parameter, text] : assignments) {
         auto names = dependencies_of(*parameter);
@@ -300,14 +299,13 @@ Result<WriteReport> DeviceClient::write(const std::vector<std::pair<const Parame
             if (const Parameter* dependency = device_.profile->find(name); dependency && dependency->readable) needed.push_back(dependency);
         }
     }
-    RawValues known;
-    if (!needed.empty()) {
-        auto current = read(needed);
-        if (current.first_error) return *current.first_error;
-        known = std::move(current.raw);
-    }
-    // Checked in order against the values as they will be by then: an earlier assignment can
-    // set the mode a later one needs (AC20 local_remote=remote main_set_point=0.9, Note 5).
+    return needed;
+}
+
+// Checked in order against the values as they will be by then: an earlier assignment can set
+// the mode a later one needs (AC20 local_remote=remote main_set_point=0.9, Note 5).
+Result<std::vector<PlannedWrite>> DeviceClient::plan_assignments(
+    const std::vector<std::pair<const Parameter*, std::string>>& assignments, RawValues& known) const {
     std::vector<PlannedWrite> planned;
     for (const auto& [parameter, text] : assignments) {
         if (auto allowed = check_write_mode(*device_.profile, *parameter, known); !allowed) return allowed.error();
@@ -316,7 +314,27 @@ Result<WriteReport> DeviceClient::write(const std::vector<std::pair<const Parame
         planned.push_back({parameter, *raw});
         known[parameter->name] = *raw;  // later bounds see the new value (TC10 SPLL before SP)
     }
-    auto report = write_raw(planned);
+    return planned;
+}
+
+Error DeviceClient::write_failure(const Error& error, const WriteReport& report) const {
+    Error explained = explain(error);
+    std::vector<std::string> done;
+    for (const auto& [p, raw] : report.written) done.push_back(p->name);
+    explained.message += fmt::format("; written before the failure: {}", done.empty() ? "nothing" : fmt::format("{}", fmt::join(done, ", ")));
+    return explained;
+}
+
+Result<WriteReport> DeviceClient::write(const std::vector<std::pair<const Parameter*, std::string>>& assignments) {
+    RawValues known;
+    if (const auto needed = needed_for(assignments); !needed.empty()) {
+        auto current = read(needed);
+        if (current.first_error) return *current.first_error;
+        known = std::move(current.raw);
+    }
+    auto planned = plan_assignments(assignments, known);
+    if (!planned) return planned.error();
+    auto report = write_raw(*planned);
     if (report) report->known = std::move(known);  // a unit word written here is known as written
     return report;
 }
@@ -326,16 +344,64 @@ Result<WriteReport> DeviceClient::write_raw(const std::vector<PlannedWrite>& pla
     for (const WriteBlock& block : plan_writes(*device_.profile, planned, device_.address_offset)) {
         ++report.requests;
         auto reply = master_.execute(device_.unit, write_request(block));
-        if (!reply) {
-            Error error = explain(reply.error());
-            std::vector<std::string> done;
-            for (const auto& [p, raw] : report.written) done.push_back(p->name);
-            error.message += fmt::format("; written before the failure: {}", done.empty() ? "nothing" : fmt::format("{}", fmt::join(done, ", ")));
-            return error;
-        }
+        if (!reply) return write_failure(reply.error(), report);
         for (std::size_t i = 0; i < block.parameters.size(); ++i) report.written.emplace_back(block.parameters[i], block.values[i]);
     }
     return report;
+}
+
+// One write_async in progress: the blocks still to write, and what was written so far.
+struct DeviceClient::AsyncWrite : std::enable_shared_from_this<AsyncWrite> {
+    AsyncWrite(DeviceClient& owner, WriteDone finished) : client(owner), done(std::move(finished)) {}
+
+    void start(std::vector<std::pair<const Parameter*, std::string>> assignments) {
+        auto needed = client.needed_for(assignments);
+        if (needed.empty()) return checked(assignments);
+        client.read_async(std::move(needed), {}, [self = shared_from_this(), assignments = std::move(assignments)](
+                                                     ReadReport current, std::optional<Error>) {
+            if (current.first_error) return self->end(*current.first_error);
+            self->report.known = std::move(current.raw);
+            self->checked(assignments);
+        });
+    }
+
+    void checked(const std::vector<std::pair<const Parameter*, std::string>>& assignments) {
+        auto planned = client.plan_assignments(assignments, report.known);
+        if (!planned) return end(planned.error());
+        for (WriteBlock& block : plan_writes(*client.device_.profile, *planned, client.device_.address_offset)) {
+            blocks.push_back(std::move(block));
+        }
+        next();
+    }
+
+    void next() {
+        if (blocks.empty()) return end(std::move(report));
+        ++report.requests;
+        client.master_.execute_async(client.device_.unit, write_request(blocks.front()),
+                                     [self = shared_from_this()](Result<codec::Reply> reply) { self->written(std::move(reply)); });
+    }
+
+    void written(Result<codec::Reply> reply) {
+        if (!reply) return end(client.write_failure(reply.error(), report));
+        const WriteBlock& block = blocks.front();
+        for (std::size_t i = 0; i < block.parameters.size(); ++i) report.written.emplace_back(block.parameters[i], block.values[i]);
+        blocks.pop_front();
+        next();
+    }
+
+    void end(Result<WriteReport> outcome) {
+        auto finished = std::move(done);
+        finished(std::move(outcome));
+    }
+
+    DeviceClient& client;
+    WriteDone done;
+    WriteReport report;  // `known`: the words checked against, as they are after the write
+    std::deque<WriteBlock> blocks;
+};
+
+void DeviceClient::write_async(std::vector<std::pair<const Parameter*, std::string>> assignments, WriteDone done) {
+    std::make_shared<AsyncWrite>(*this, std::move(done))->start(std::move(assignments));
 }
 
 }  // namespace loopwire::device

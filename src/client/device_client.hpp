@@ -88,6 +88,13 @@ public:
     // parameters were and were not written.
     Result<WriteReport> write(const std::vector<std::pair<const Parameter*, std::string>>& assignments);
 
+    // The same without blocking, as read_async: the words the checks need are read first
+    // (read_async's rules), then the planned blocks are written one after another from each
+    // completion. `done` runs once, on the thread of the last completion or the caller's. The
+    // client must live until it has run.
+    using WriteDone = std::function<void(Result<WriteReport>)>;
+    void write_async(std::vector<std::pair<const Parameter*, std::string>> assignments, WriteDone done);
+
     // Writes raw words as they are (restore: values read from the device before), in planned
     // blocks in the order given, checking nothing first. Stops at the first failed request and
     // says which parameters were and were not written.
@@ -111,6 +118,14 @@ private:
     bool file_block(const ReadBlock& block, Result<codec::Reply> reply, ReadReport& report, Failures& failures,
                     bool may_split) const;
     void decode_readings(const std::vector<const Parameter*>& parameters, ReadReport& report, const Failures& failures) const;
+    struct AsyncWrite;
+    // What a write's values are checked against: decimals and range bounds held by other words,
+    // and the words that tell the device's mode.
+    std::vector<const Parameter*> needed_for(const std::vector<std::pair<const Parameter*, std::string>>& assignments) const;
+    // The words to write, each value checked against `known` as it will be by then.
+    Result<std::vector<PlannedWrite>> plan_assignments(const std::vector<std::pair<const Parameter*, std::string>>& assignments,
+                                                       RawValues& known) const;
+    Error write_failure(const Error& error, const WriteReport& report) const;
 
     session::Master& master_;
     DeviceAddress device_;

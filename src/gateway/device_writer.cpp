@@ -4,9 +4,9 @@
 #include <deque>
 #include <future>
 #include <mutex>
-#include <stop_token>
-#include <thread>
+#include <utility>
 
+#include <boost/asio/post.hpp>
 #include <fmt/format.h>
 
 #include "gateway/scheduled_master.hpp"
@@ -14,6 +14,7 @@
 
 namespace loopwire::gateway {
 
+namespace asio = boost::asio;
 using Clock = std::chrono::steady_clock;
 
 struct DeviceWriter::Target {
@@ -21,8 +22,9 @@ struct DeviceWriter::Target {
     LineWriter* line = nullptr;
 };
 
-// One line's writes, taken one after the other on a thread of the line's own: a dead line
-// holds up only the writes that wait for it.
+// One line's writes, one after the other, driven from the engine's loop: each starts there and
+// its requests go to the line's scheduler without blocking, so a dead line holds up only the
+// writes that wait for it, and no thread waits for any line.
 struct DeviceWriter::LineWriter {
     struct Job {
         const Target* target = nullptr;
@@ -32,27 +34,37 @@ struct DeviceWriter::LineWriter {
         WriteCompletion done;
     };
 
-    LineWriter(std::shared_ptr<LineScheduler> scheduler, std::chrono::milliseconds given_up_after, std::size_t queue_limit)
-        : line(std::move(scheduler)), write_limit(given_up_after), limit(queue_limit) {
-        thread = std::jthread([this](std::stop_token stop) { run(stop); });
-    }
+    // The write under way: the client and master it goes through live until its end.
+    struct Running {
+        Running(std::shared_ptr<LineScheduler> line, const WritableDevice& device, std::chrono::milliseconds left)
+            : master(std::move(line), "write " + device.name, Priority::write, left), client(master, device.address) {}
+        ScheduledMaster master;
+        device::DeviceClient client;
+    };
 
+    LineWriter(asio::io_context& engine_loop, std::shared_ptr<LineScheduler> scheduler, std::chrono::milliseconds given_up_after,
+               std::size_t queue_limit)
+        : loop(engine_loop), line(std::move(scheduler)), write_limit(given_up_after), limit(queue_limit) {}
+
+    asio::io_context& loop;
     std::shared_ptr<LineScheduler> line;
     std::chrono::milliseconds write_limit;
     std::size_t limit;
     mutable std::mutex mutex;
-    std::condition_variable_any arrived;
+    std::condition_variable idle;
     std::deque<Job> queue;
-    bool busy = false;  // a job is under way
-    std::jthread thread;
+    bool busy = false;      // a job is under way, or the next is about to start
+    bool stopping = false;
 
     bool submit(Job job) {
+        bool start = false;
         {
             std::lock_guard lock(mutex);
             if (queue.size() >= limit) return false;
             queue.push_back(std::move(job));
+            start = !std::exchange(busy, true);
         }
-        arrived.notify_one();
+        if (start) asio::post(loop, [this] { start_next(); });
         return true;
     }
 
@@ -61,56 +73,71 @@ struct DeviceWriter::LineWriter {
         return queue.size() + (busy ? 1 : 0);
     }
 
-    void run(const std::stop_token& stop) {
+    // On the loop's thread: the next job that is still wanted, or the line goes idle.
+    void start_next() {
         for (;;) {
             Job job;
             {
-                std::unique_lock lock(mutex);
-                busy = false;
-                if (!arrived.wait(lock, stop, [this] { return !queue.empty(); })) break;
+                std::lock_guard lock(mutex);
+                if (stopping || queue.empty()) {
+                    busy = false;
+                    idle.notify_all();
+                    return;
+                }
                 job = std::move(queue.front());
                 queue.pop_front();
-                busy = true;
             }
-            job.done(execute(job));
+            const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(job.given_up - Clock::now());
+            if (left <= std::chrono::milliseconds(0)) {
+                job.done(make_error(ErrorKind::timeout,
+                                    fmt::format("device \"{}\": its line was busy with other writes for {} ms; nothing was "
+                                                "written (write again)", job.target->device.name, write_limit.count())));
+                continue;
+            }
+            // Each request of the write may wait for the line only as long as the write has left.
+            auto running = std::make_shared<Running>(line, job.target->device, left);
+            auto& client = running->client;
+            client.write_async(std::move(job.planned),
+                               [this, running, written = std::move(job.written), done = std::move(job.done)](
+                                   Result<device::WriteReport> report) mutable {
+                                   if (report) {
+                                       done(std::move(written));
+                                   } else {
+                                       done(running->client.explain(report.error()));
+                                   }
+                                   asio::post(loop, [this] { start_next(); });
+                               });
+            return;
         }
-        // Stopping: what is still queued is answered, never dropped without a word.
+    }
+
+    // What is still queued is answered, never dropped without a word; the write under way ends
+    // first (its line's timeout at most).
+    void stop() {
         std::deque<Job> left;
         {
-            std::lock_guard lock(mutex);
+            std::unique_lock lock(mutex);
+            stopping = true;
             left.swap(queue);
         }
         for (auto& job : left) {
             job.done(make_error(ErrorKind::link, fmt::format("device \"{}\": the gateway is stopping; nothing was written",
                                                              job.target->device.name)));
         }
-    }
-
-    Result<WrittenValues> execute(Job& job) const {
-        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(job.given_up - Clock::now());
-        const WritableDevice& device = job.target->device;
-        if (left <= std::chrono::milliseconds(0)) {
-            return make_error(ErrorKind::timeout,
-                              fmt::format("device \"{}\": its line was busy with other writes for {} ms; nothing was "
-                                          "written (write again)", device.name, write_limit.count()));
-        }
-        // Each request of the write may wait for the line only as long as the write has left.
-        ScheduledMaster master(line, "write " + device.name, Priority::write, left);
-        device::DeviceClient client(master, device.address);
-        auto report = client.write(job.planned);
-        if (!report) return client.explain(report.error());
-        return std::move(job.written);
+        std::unique_lock lock(mutex);
+        idle.wait(lock, [this] { return !busy; });
     }
 };
 
-DeviceWriter::DeviceWriter(std::vector<WritableDevice> devices, std::chrono::milliseconds write_limit, std::size_t queue_limit) {
+DeviceWriter::DeviceWriter(Engine& engine, std::vector<WritableDevice> devices, std::chrono::milliseconds write_limit,
+                           std::size_t queue_limit) {
     for (auto& device : devices) {
         LineWriter* writer = nullptr;
         for (const auto& line : lines_) {
             if (line->line == device.line) writer = line.get();
         }
         if (!writer) {
-            lines_.push_back(std::make_unique<LineWriter>(device.line, write_limit, queue_limit));
+            lines_.push_back(std::make_unique<LineWriter>(engine.loop(), device.line, write_limit, queue_limit));
             writer = lines_.back().get();
         }
         targets_.push_back(std::make_unique<Target>(Target{std::move(device), writer}));
@@ -119,10 +146,7 @@ DeviceWriter::DeviceWriter(std::vector<WritableDevice> devices, std::chrono::mil
 
 DeviceWriter::~DeviceWriter() {
     // Before the targets the jobs point at are gone.
-    for (auto& line : lines_) {
-        line->thread.request_stop();
-        line->thread.join();
-    }
+    for (auto& line : lines_) line->stop();
 }
 
 const WritableDevice* DeviceWriter::find(const std::string& name) const {

@@ -3,8 +3,9 @@
 // `write` (access, type, decimals, range, the device's mode), then the planned requests, sent
 // through the device's line scheduler at Priority::write so they go before the polls.
 //
-// Threads: each line has a writer thread of its own, which takes that line's writes one after
-// the other (the line carries one request at a time anyway). A front hands a write over with
+// Threads: none of its own. Each line's writes go one after the other (the line carries one
+// request at a time anyway), each started on the gateway's event loop (gateway/engine.hpp) and
+// carried by the line's scheduler without blocking. A front hands a write over with
 // write_async() and hears the outcome from the completion, so a write waiting for a slow or
 // dead line never holds up a write to another line, nor the front's own thread. Each line's
 // queue is bounded: beyond `queue_limit` writes waiting, more are refused as busy.
@@ -18,6 +19,7 @@
 
 #include "client/device_client.hpp"
 #include "common/result.hpp"
+#include "gateway/engine.hpp"
 #include "gateway/line_scheduler.hpp"
 
 namespace loopwire::gateway {
@@ -41,8 +43,8 @@ struct WrittenValues {
     std::vector<std::pair<std::string, std::string>> values;
 };
 
-// The outcome of a write; must not throw. Runs exactly once, on the line's writer thread, or at
-// once on the caller's thread when the write is refused before it is queued (an unknown device
+// The outcome of a write; must not throw, nor block. Runs exactly once, on the thread of the
+// line's last reply (or the engine's loop), or at once on the caller's thread when the write is refused before it is queued (an unknown device
 // or parameter, no value).
 using WriteCompletion = std::function<void(Result<WrittenValues>)>;
 
@@ -52,7 +54,7 @@ public:
 
     // `write_limit`: how long a write may wait for its line, from the moment it is queued,
     // before it is given up unsent. `queue_limit`: writes that may wait for one line.
-    DeviceWriter(std::vector<WritableDevice> devices, std::chrono::milliseconds write_limit,
+    DeviceWriter(Engine& engine, std::vector<WritableDevice> devices, std::chrono::milliseconds write_limit,
                  std::size_t queue_limit = default_queue_limit);
     // Fails the writes still queued (ErrorKind::link, "gateway stopping"); each line's write
     // under way finishes and its completion runs first.

@@ -9,9 +9,12 @@
 #include <optional>
 #include <set>
 
+#include <boost/asio/post.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <fmt/format.h>
 
 #include "devices/registry.hpp"
+#include "gateway/engine.hpp"
 #include "gateway/history_store.hpp"
 #include "gateway/http_api.hpp"
 #include "gateway/http_server.hpp"
@@ -143,6 +146,9 @@ constexpr std::chrono::milliseconds write_limit{10000};
 struct Gateway::Parts {
     std::chrono::milliseconds statistics_interval{0};
     GatewayLog log;
+    // First, so it goes last: the polls, the writer and the statistics run on its loop and take
+    // themselves down from it before they go.
+    Engine engine;
     // The front is destroyed first, then the polls (members go in reverse order): no request
     // reaches a line scheduler that is gone.
     std::vector<OpenLine> lines;
@@ -201,7 +207,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         parts->history_subscription =
             parts->cache.subscribe([store = parts->history.get()](const ValueChange& change) { store->record(change); });
     }
-    parts->polls = std::make_unique<PollGroups>(config, schedulers, parts->cache, options.log, options.samples);
+    parts->polls = std::make_unique<PollGroups>(parts->engine, config, schedulers, parts->cache, options.log, options.samples);
     if (config.modbus_tcp.enabled && options.front) {
         parts->front = options.front;
     } else if (config.modbus_tcp.enabled) {
@@ -216,7 +222,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
             writable.push_back({device.name, device.address, parts->lines[i].scheduler});
         }
     }
-    parts->writer = std::make_unique<DeviceWriter>(std::move(writable), write_limit);
+    parts->writer = std::make_unique<DeviceWriter>(parts->engine, std::move(writable), write_limit);
     if (config.mqtt) {
         // Started here, not in serve(): it needs nothing from the TCP front, and a broker that
         // cannot be reached is retried in the background, never an error.
@@ -288,36 +294,53 @@ LineReport report_of(const OpenLine& line) {
             line.master->health()};
 }
 
-// Every `interval` until `stop`, each line's figures, its busy share over the interval.
-void log_statistics(const std::vector<OpenLine>& lines, std::chrono::milliseconds interval, const GatewayLog& log,
-                    const std::stop_token& stop) {
-    std::vector<LineReport> previous;
-    for (const auto& line : lines) previous.push_back(report_of(line));
-    std::mutex mutex;
-    std::condition_variable_any woken;
-    std::unique_lock lock(mutex);
-    for (;;) {
-        woken.wait_for(lock, stop, interval, [] { return false; });
-        if (stop.stop_requested()) return;
-        for (std::size_t i = 0; i < lines.size(); ++i) {
-            LineReport now = report_of(lines[i]);
-            log(describe(now, &previous[i]));
-            previous[i] = std::move(now);
-        }
+// Every `interval`, on the engine's loop, each line's figures, its busy share over the interval.
+class StatisticsLog {
+public:
+    StatisticsLog(Engine& engine, const std::vector<OpenLine>& lines, std::chrono::milliseconds interval, GatewayLog log)
+        : engine_(engine), timer_(engine.loop()), lines_(lines), interval_(interval), log_(std::move(log)) {
+        for (const auto& line : lines_) previous_.push_back(report_of(line));
+        boost::asio::post(engine_.loop(), [this] { arm(); });
     }
-}
+    ~StatisticsLog() {
+        engine_.take_down([this] {
+            stopped_ = true;
+            timer_.cancel();
+        });
+    }
+    StatisticsLog(const StatisticsLog&) = delete;
+    StatisticsLog& operator=(const StatisticsLog&) = delete;
+
+private:
+    void arm() {
+        if (stopped_) return;
+        timer_.expires_after(interval_);
+        timer_.async_wait([this](const boost::system::error_code& error) {
+            if (error) return;  // cancelled: serve() is over
+            for (std::size_t i = 0; i < lines_.size(); ++i) {
+                LineReport now = report_of(lines_[i]);
+                log_(describe(now, &previous_[i]));
+                previous_[i] = std::move(now);
+            }
+            arm();
+        });
+    }
+
+    Engine& engine_;
+    boost::asio::steady_timer timer_;
+    const std::vector<OpenLine>& lines_;
+    std::chrono::milliseconds interval_;
+    GatewayLog log_;
+    std::vector<LineReport> previous_;
+    bool stopped_ = false;  // on the loop's thread only
+};
 
 }  // namespace
 
 Result<void> Gateway::serve(std::stop_token stop) {
-    std::jthread statistics;
+    std::optional<StatisticsLog> statistics;
     if (parts_->log && parts_->statistics_interval.count() > 0) {
-        statistics = std::jthread([this, stop](std::stop_token own) {
-            std::stop_source either;
-            std::stop_callback on_stop(stop, [&either] { either.request_stop(); });
-            std::stop_callback on_own(own, [&either] { either.request_stop(); });
-            log_statistics(parts_->lines, parts_->statistics_interval, parts_->log, either.get_token());
-        });
+        statistics.emplace(parts_->engine, parts_->lines, parts_->statistics_interval, parts_->log);
     }
     // Ended by `stop`, or by the front when it fails.
     std::stop_source either;

@@ -11,7 +11,7 @@
 //
 // Threads: take() runs on the bridge's network thread and never blocks: the write is handed to
 // the device's line (DeviceWriter::write_async) and its result is published from the
-// completion, on that line's writer thread. A slow or dead line delays only its own writes.
+// completion, on the thread of the line's reply. A slow or dead line delays only its own writes.
 #include <condition_variable>
 #include <cstddef>
 #include <functional>

@@ -6,10 +6,8 @@
 #include <optional>
 #include <set>
 #include <stop_token>
-#include <thread>
 #include <utility>
 
-#include <boost/asio/io_context.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <fmt/format.h>
@@ -164,10 +162,13 @@ struct PollGroups::Group {
     std::chrono::system_clock::time_point wall;  // when it started
 };
 
-// The loop every group's timers and polls run on, one thread for all of them, and the reads in
-// flight on the lines' threads (each ends by posting its outcome into the loop).
-struct PollGroups::Engine {
+// Every group's timers and polls, on the engine's loop (one thread for all of them), and the
+// reads in flight on the lines' threads (each ends by posting its outcome into the loop).
+struct PollGroups::State {
+    explicit State(asio::io_context& engine_loop) : loop(engine_loop) {}
+
     void start_sample(Group& group) {
+        if (stopping.stop_requested()) return;
         ++group.index;
         group.wall = std::chrono::system_clock::now();
         group.polling = 0;
@@ -186,7 +187,7 @@ struct PollGroups::Engine {
                                          [this, &group, i](device::ReadReport report, std::optional<Error> stopped_by) {
                                              asio::post(loop, [this, &group, i, report = std::move(report),
                                                                stopped_by = std::move(stopped_by)] {
-                                                 device_polled(group, i, report, stopped_by);
+                                                 if (!taken_down) device_polled(group, i, report, stopped_by);
                                              });
                                              read_ended();
                                          });
@@ -225,30 +226,36 @@ struct PollGroups::Engine {
         no_reads.notify_all();
     }
 
-    // No sample starts after this; the reads on the wire end (their next blocks unsent) and
-    // their outcomes are dropped.
-    void stop() {
+    // No sample starts after this; the reads on the wire end (their next blocks unsent), and
+    // once their outcomes have been handled the groups go, on the loop's thread.
+    void stop(Engine& engine) {
         stopping.request_stop();
-        loop.stop();
-        if (thread.joinable()) thread.join();
-        std::unique_lock lock(reads_mutex);
-        no_reads.wait(lock, [this] { return reads == 0; });
+        {
+            std::unique_lock lock(reads_mutex);
+            no_reads.wait(lock, [this] { return reads == 0; });
+        }
+        engine.take_down([this] {
+            taken_down = true;  // an outcome posted after this finds no group to go to
+            staleness.reset();
+            groups.clear();
+        });
     }
 
-    asio::io_context loop;
+    asio::io_context& loop;
     std::stop_source stopping;
     std::mutex reads_mutex;
     std::condition_variable no_reads;
     std::size_t reads = 0;
     std::vector<std::unique_ptr<Group>> groups;
     std::unique_ptr<StalenessWatch> staleness;
-    std::thread thread;  // runs `loop`
+    bool taken_down = false;  // on the loop's thread only
 };
 
-PollGroups::PollGroups(const GatewayConfig& config, const std::map<std::string, std::shared_ptr<LineScheduler>>& lines,
-                       ValueCache& cache, GatewayLog log, device::SampleSink* also)
-    : engine_(std::make_unique<Engine>()) {
-    Engine& engine = *engine_;
+PollGroups::PollGroups(Engine& engine, const GatewayConfig& config,
+                       const std::map<std::string, std::shared_ptr<LineScheduler>>& lines, ValueCache& cache, GatewayLog log,
+                       device::SampleSink* also)
+    : engine_(engine), state_(std::make_unique<State>(engine.loop())) {
+    State& state = *state_;
     std::map<std::chrono::milliseconds, std::unique_ptr<Group>> by_interval;
     std::map<std::chrono::milliseconds, std::vector<std::string>> names;
     std::map<std::chrono::milliseconds, std::vector<std::string>> group_lines;
@@ -256,7 +263,7 @@ PollGroups::PollGroups(const GatewayConfig& config, const std::map<std::string, 
         const auto& scheduler = lines.at(line.name);
         for (const auto& device : line.devices) {
             auto& group = by_interval[device.poll];
-            if (!group) group = std::make_unique<Group>(engine.loop, device.poll);
+            if (!group) group = std::make_unique<Group>(state.loop, device.poll);
             // A poll waiting longer than its interval would only be stale when it came back.
             group->masters.push_back(std::make_unique<ScheduledMaster>(scheduler, line.link.to_string(), Priority::poll, device.poll));
             group->clients.push_back(std::make_unique<device::DeviceClient>(*group->masters.back(), device.address));
@@ -274,16 +281,18 @@ PollGroups::PollGroups(const GatewayConfig& config, const std::map<std::string, 
     for (auto& [interval, group] : by_interval) {
         group->sink = std::make_unique<CachingSink>(interval, std::move(names[interval]), std::move(group_lines[interval]), cache,
                                                     log, also);
-        asio::post(engine.loop, [&engine, g = group.get()] { engine.start_sample(*g); });
-        engine.groups.push_back(std::move(group));
+        state.groups.push_back(std::move(group));
     }
     if (by_interval.empty()) return;
-    engine.staleness = std::make_unique<StalenessWatch>(engine.loop, cache, staleness_tick(by_interval.begin()->first), std::move(log));
-    engine.thread = std::thread([&engine] { engine.loop.run(); });
+    // Started on the loop's thread, which alone touches the groups and their timers from now on.
+    const auto tick = staleness_tick(by_interval.begin()->first);
+    asio::post(state.loop, [&state, &cache, tick, log = std::move(log)] {
+        state.staleness = std::make_unique<StalenessWatch>(state.loop, cache, tick, log);
+        for (auto& group : state.groups) state.start_sample(*group);
+    });
+    size_ = state.groups.size();
 }
 
-PollGroups::~PollGroups() { engine_->stop(); }
-
-std::size_t PollGroups::size() const { return engine_->groups.size(); }
+PollGroups::~PollGroups() { state_->stop(engine_); }
 
 }  // namespace loopwire::gateway

@@ -1,6 +1,7 @@
 #pragma once
 // The gateway's own polling. Devices polled at the same interval form a poll group. Every group
-// runs on one event loop and one thread, however many devices and intervals there are: a timer
+// runs on the gateway's event loop (gateway/engine.hpp), however many devices and intervals
+// there are: a timer
 // starts each sample on the fixed schedule of the client's poller (client/monitor_loop.hpp), its
 // devices are read at once without blocking (DeviceClient::read_async), each through its line's
 // scheduler at poll priority, where polls share the line with the clients' requests by turns
@@ -21,6 +22,7 @@
 #include <vector>
 
 #include "client/monitor_loop.hpp"
+#include "gateway/engine.hpp"
 #include "gateway/forwarding_unit.hpp"
 #include "gateway/gateway_config.hpp"
 #include "gateway/scheduled_master.hpp"
@@ -32,18 +34,20 @@ class PollGroups {
 public:
     // `lines`: the scheduler of each configured line, by line name. `also`, when given, gets
     // every sample too, on the polls' thread.
-    PollGroups(const GatewayConfig& config, const std::map<std::string, std::shared_ptr<LineScheduler>>& lines,
+    PollGroups(Engine& engine, const GatewayConfig& config, const std::map<std::string, std::shared_ptr<LineScheduler>>& lines,
                ValueCache& cache, GatewayLog log, device::SampleSink* also = nullptr);
     ~PollGroups();  // stops every group; a poll on the wire is finished first
     PollGroups(const PollGroups&) = delete;
     PollGroups& operator=(const PollGroups&) = delete;
 
-    std::size_t size() const;
+    std::size_t size() const { return size_; }
 
 private:
     struct Group;
-    struct Engine;
-    std::unique_ptr<Engine> engine_;
+    struct State;
+    Engine& engine_;
+    std::unique_ptr<State> state_;
+    std::size_t size_ = 0;
 };
 
 // How often the staleness timer looks: a quarter of the shortest poll interval, kept within

@@ -706,7 +706,8 @@ device = "tc10@3"
     }
 
     ValueCache cache_;
-    DeviceWriter writer_{{}, 1s};
+    Engine engine_;
+    DeviceWriter writer_{engine_, {}, 1s};
     RecordingHistory history_;
     std::unique_ptr<HttpApi> api_;
     std::unique_ptr<HttpServer> server_;
@@ -818,7 +819,8 @@ device = "tc10@3"
     }
 
     ValueCache cache_;
-    DeviceWriter writer_{{}, 1s};
+    Engine engine_;
+    DeviceWriter writer_{engine_, {}, 1s};
     std::unique_ptr<HttpApi> api_;
     std::unique_ptr<HttpServer> server_;
 };

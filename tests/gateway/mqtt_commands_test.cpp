@@ -92,7 +92,7 @@ protected:
     MqttCommandsTest() {
         auto address = device::parse_device_address("tc10@3");
         if (!address) throw std::runtime_error(address.error().message);
-        writer_ = std::make_unique<DeviceWriter>(std::vector<WritableDevice>{{"oven", *address, line_}}, 10s);
+        writer_ = std::make_unique<DeviceWriter>(engine_, std::vector<WritableDevice>{{"oven", *address, line_}}, 10s);
         config_.prefix = "p";
         config_.writes = true;
         config_.max_payload = 16;
@@ -119,6 +119,7 @@ protected:
 
     std::shared_ptr<HeldLine> master_ = std::make_shared<HeldLine>();
     std::shared_ptr<LineScheduler> line_ = std::make_shared<LineScheduler>(master_);
+    Engine engine_;  // the writer's loop: goes after it
     std::unique_ptr<DeviceWriter> writer_;
     MqttConfig config_;
     Answers answers_;

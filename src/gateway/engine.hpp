@@ -1,0 +1,42 @@
+#pragma once
+// The gateway's event loop: one thread that runs the polls (their timers and the outcomes of
+// their reads, gateway/poll_groups.hpp), the writes by name from MQTT and HTTP
+// (gateway/device_writer.hpp) and the statistics timer, however many lines, devices and poll
+// intervals there are. What runs on it must not block: requests go to the lines' schedulers
+// asynchronously and their completions are posted back into the loop.
+//
+// Lifetime: whatever posts work or holds timers on the loop is taken down with take_down()
+// before it goes, and the engine outlives all of them.
+#include <functional>
+#include <thread>
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/executor_work_guard.hpp>
+
+namespace loopwire::gateway {
+
+class Engine {
+public:
+    Engine();   // the loop runs from here on
+    ~Engine();  // stop()
+    Engine(const Engine&) = delete;
+    Engine& operator=(const Engine&) = delete;
+
+    boost::asio::io_context& loop() { return loop_; }
+
+    // Runs `work` on the loop's thread after everything posted before it, and returns once it
+    // has run: what a part does to take itself down (cancel its timers, drop its state) while
+    // the loop goes on for the others. Runs `work` here when the loop has stopped. Never call
+    // it from the loop's own thread.
+    void take_down(const std::function<void()>& work);
+
+    // Ends the loop (handlers not yet run are dropped) and joins its thread. Idempotent.
+    void stop();
+
+private:
+    boost::asio::io_context loop_;
+    boost::asio::executor_work_guard<boost::asio::io_context::executor_type> busy_;
+    std::thread thread_;  // last: starts once the loop exists
+};
+
+}  // namespace loopwire::gateway
