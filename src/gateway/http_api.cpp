@@ -349,6 +349,21 @@ HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const
     return json_response(200, out);
 }
 
+namespace {
+
+// A value to write as the CLI would take it: a string as it is ("150", "manual"), a number as
+// its shortest text (Node-RED and scripts send 150 or 0.85, not "150"); the profile's checks then
+// refuse what the parameter cannot take (too many decimals, out of range). Anything else is not
+// a value.
+Result<std::string> written_text(const nlohmann::json& value) {
+    if (value.is_string()) return value.get<std::string>();
+    if (value.is_number()) return value.dump();
+    return make_error(ErrorKind::usage, fmt::format("expected a number or a string as it would be typed (150, \"on\"), "
+                                                    "not {}", value.type_name()));
+}
+
+}  // namespace
+
 HttpOutcome HttpApi::State::write(const ConfiguredDevice& device, const HttpRequest& request) const {
     if (token.empty()) {
         return {error(403, "writes over HTTP are off: give the gateway a token with [http] token_file = \"FILE\" (a file "
@@ -359,21 +374,20 @@ HttpOutcome HttpApi::State::write(const ConfiguredDevice& device, const HttpRequ
     if (auto refusal = check_token(request)) return {*refusal, {}, {}};
     const auto body = nlohmann::json::parse(request.body, nullptr, false);
     if (body.is_discarded()) {
-        return {error(400, "the body is not JSON; send an object of parameter names and values as text, e.g. "
-                           "{\"set_point\": \"150\"}"),
+        return {error(400, "the body is not JSON; send an object of parameter names and values, e.g. "
+                           "{\"set_point\": 150} or {\"mode\": \"manual\"}"),
                 {}, {}};
     }
     if (!body.is_object() || body.empty()) {
-        return {error(400, "expected a JSON object of parameter names and values as text, e.g. {\"set_point\": \"150\"}"), {}, {}};
+        return {error(400, "expected a JSON object of parameter names and values, e.g. {\"set_point\": 150} or "
+                           "{\"mode\": \"manual\"}"),
+                {}, {}};
     }
     std::vector<WriteAssignment> assignments;
     for (const auto& [name, value] : body.items()) {
-        if (!value.is_string()) {
-            return {error(400, fmt::format("the value of \"{}\" must be a string, as it would be typed (\"150\", \"on\"), "
-                                           "not {}", name, value.type_name())),
-                    {}, {}};
-        }
-        assignments.push_back({name, value.get<std::string>()});
+        auto text = written_text(value);
+        if (!text) return {error(400, fmt::format("the value of \"{}\": {}", name, text.error().message)), {}, {}};
+        assignments.push_back({name, std::move(*text)});
     }
     // Handed to the device's line; answered from its completion once the line has answered,
     // so a write waiting for a slow line holds up no other client and no other line.

@@ -349,6 +349,26 @@ TEST_F(HttpApiTest, AWriteWithTheTokenReachesTheDevice) {
     });
 }
 
+// Node-RED and scripts send numbers: 210 is written as "210" would be, and a number the
+// parameter cannot take is refused by the profile's checks as its text would be.
+TEST_F(HttpApiTest, AWriteTakesJsonNumbersAsWellAsText) {
+    const Reply written = post_write(port_, "oven", R"({"set_point": 210})");
+    ASSERT_EQ(written.status, 200u) << written.body;
+    EXPECT_EQ(written.json(), Json::parse(R"({"written": {"set_point": "210"}})"));
+    get_until("/api/devices/oven", [](const Reply& r) {
+        auto device = Json::parse(r.body, nullptr, false);
+        if (device.is_discarded() || !device.contains("parameters")) return false;
+        for (const auto& p : device.at("parameters")) {
+            if (p.at("name") == "set_point") return p.at("value") == 210.0;
+        }
+        return false;
+    });
+    const Reply out_of_range = post_write(port_, "oven", R"({"set_point": 99999})");
+    EXPECT_EQ(out_of_range.status, 422u) << out_of_range.body;
+    const Reply fraction = post_write(port_, "oven", R"({"set_point": 200.123456})");
+    EXPECT_EQ(fraction.status, 422u) << fraction.body;
+}
+
 TEST_F(HttpApiTest, WritesWithoutTheRightTokenAreRefused) {
     const Reply none = post_write(port_, "oven", R"({"set_point": "200"})", "");
     EXPECT_EQ(none.status, 401u);
@@ -379,9 +399,13 @@ TEST_F(HttpApiTest, MalformedAndOversizedBodiesAreRefused) {
     const Reply not_json = post_write(port_, "oven", R"({"set_point": )");
     EXPECT_EQ(not_json.status, 400u);
     EXPECT_THAT(not_json.json().at("error").get<std::string>(), HasSubstr("not JSON"));
-    const Reply number = post_write(port_, "oven", R"({"set_point": 200})");
-    EXPECT_EQ(number.status, 400u);
-    EXPECT_THAT(number.json().at("error").get<std::string>(), HasSubstr("must be a string"));
+    const Reply boolean = post_write(port_, "oven", R"({"set_point": true})");
+    EXPECT_EQ(boolean.status, 400u);
+    EXPECT_EQ(boolean.json().at("error").get<std::string>(),
+              "the value of \"set_point\": expected a number or a string as it would be typed (150, \"on\"), not boolean");
+    const Reply nested = post_write(port_, "oven", R"({"set_point": {"value": 200}})");
+    EXPECT_EQ(nested.status, 400u);
+    EXPECT_THAT(nested.json().at("error").get<std::string>(), HasSubstr("not object"));
     EXPECT_EQ(post_write(port_, "oven", R"(["set_point", "200"])").status, 400u);
     EXPECT_EQ(post_write(port_, "oven", "{}").status, 400u);
     const Reply large = post_write(port_, "oven", R"({"set_point": ")" + std::string(70000, '1') + "\"}");
@@ -472,7 +496,7 @@ TEST_F(HttpApiTest, TextAClientSentIsEscapedInTheAnswer) {
     const Reply path = get(port_, "/api/devices/%FF%FE");
     EXPECT_EQ(path.status, 404u);
     EXPECT_FALSE(Json::parse(path.body, nullptr, false).is_discarded()) << path.body;
-    const Reply body = post_write(port_, "oven", R"({"set\u0000point\u001b[2J": 5})");
+    const Reply body = post_write(port_, "oven", R"({"set\u0000point\u001b[2J": true})");
     EXPECT_EQ(body.status, 400u);
     EXPECT_FALSE(Json::parse(body.body, nullptr, false).is_discarded()) << body.body;
 }
