@@ -457,8 +457,15 @@ HttpResponse HttpApi::State::history(const HttpRequest& request) const {
     }
     auto query = history_query(request.query, std::chrono::system_clock::now());
     if (!query) return error(400, query.error().message);
-    if (!find(query->query.device)) {
+    const ConfiguredDevice* device = find(query->query.device);
+    if (!device) {
         return error(404, fmt::format("no device \"{}\" on this gateway (GET /api/devices lists them)", query->query.device));
+    }
+    // Named as the CLI names them: an alias (PV, SP, OUT) or a mnemonic stands for its
+    // parameter; a name the profile does not know is left for the store to refuse.
+    for (auto& name : query->query.parameters) {
+        auto resolved = device::resolve_parameters(*device->address.profile, {name});
+        if (resolved && resolved->size() == 1) name = resolved->front()->name;
     }
     auto series = sources.history->query(query->query);
     if (!series) return error(400, series.error().message);

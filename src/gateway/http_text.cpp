@@ -122,6 +122,22 @@ std::map<std::string, std::string> parse_query(std::string_view query) {
     return values;
 }
 
+namespace {
+
+// A time of the history query: ISO 8601 with its zone, "now", or "-PERIOD" before now ("-1h",
+// "-30m", "-7d": parse_period's forms), as Grafana and the dashboard's range buttons say it.
+std::optional<system_clock::time_point> query_time(std::string_view text, system_clock::time_point now) {
+    if (text == "now") return now;
+    if (text.starts_with('-')) {
+        auto before = parse_period(text.substr(1), "time");
+        if (!before) return std::nullopt;
+        return now - *before;
+    }
+    return parse_iso_time(text);
+}
+
+}  // namespace
+
 Result<ParsedHistoryQuery> history_query(std::string_view text, system_clock::time_point now) {
     const auto values = parse_query(text);
     for (const auto& [name, value] : values) {
@@ -149,10 +165,11 @@ Result<ParsedHistoryQuery> history_query(std::string_view text, system_clock::ti
     for (const char* name : {"from", "to"}) {
         auto it = values.find(name);
         if (it == values.end()) continue;
-        auto time = parse_iso_time(it->second);
+        auto time = query_time(it->second, now);
         if (!time) {
-            return make_error(ErrorKind::usage, fmt::format("{}=\"{}\" is not a time in ISO 8601 with its zone (e.g. "
-                                                            "2026-12-02T08:00:00Z or 2026-12-02T09:00:00+01:00)", name, it->second));
+            return make_error(ErrorKind::usage, fmt::format("{}=\"{}\" is not a time: give it in ISO 8601 with its zone "
+                                                            "(2026-12-02T08:00:00Z, 2026-12-02T09:00:00+01:00), as a time "
+                                                            "before now (-1h, -30m, -7d) or as now", name, it->second));
         }
         (std::string_view(name) == "from" ? parsed.query.from : parsed.query.to) = *time;
     }

@@ -32,8 +32,9 @@ struct ParsedHistoryQuery {
 };
 
 // GET /api/history's query: device (required), parameters=a,b (default every one recorded),
-// from and to in ISO 8601 (default the last hour up to `now`), points 1..10000 (default 500),
-// format=json|csv. The error says which is wrong and how it should look.
+// from and to in ISO 8601, as "now" or as a time before now ("-1h", "-7d"; default the last hour
+// up to `now`), points 1..10000 (default 500), format=json|csv. The error says which is wrong and
+// how it should look.
 Result<ParsedHistoryQuery> history_query(std::string_view query, std::chrono::system_clock::time_point now);
 
 // parameter,unit,time,min,max,mean,count: one row a bucket, with a header line.

@@ -778,6 +778,23 @@ TEST_F(HttpHistoryTest, DefaultsAreTheLastHourAndFiveHundredPoints) {
     EXPECT_TRUE(asked[0].parameters.empty());
 }
 
+// As Grafana and the dashboard say them: times before now, and the parameters' aliases.
+TEST_F(HttpHistoryTest, TimesMayBeRelativeToNowAndParametersNamedByAlias) {
+    const auto before = std::chrono::system_clock::now();
+    ASSERT_EQ(get(server_->port(), "/api/history?device=oven&parameters=PV,SP&from=-7d&to=-30m").status, 200u);
+    ASSERT_EQ(get(server_->port(), "/api/history?device=oven&from=-1.5h&to=now").status, 200u);
+    const auto after = std::chrono::system_clock::now();
+    const auto asked = history_.asked();
+    ASSERT_EQ(asked.size(), 2u);
+    EXPECT_EQ(asked[0].parameters, (std::vector<std::string>{"measured_value", "set_point"}));
+    EXPECT_EQ(asked[0].to - asked[0].from, std::chrono::hours(7 * 24) - std::chrono::minutes(30));
+    EXPECT_GE(asked[0].to, before - std::chrono::minutes(30));
+    EXPECT_LE(asked[0].to, after - std::chrono::minutes(30));
+    EXPECT_EQ(asked[1].to - asked[1].from, std::chrono::minutes(90));
+    EXPECT_GE(asked[1].to, before);
+    EXPECT_LE(asked[1].to, after);
+}
+
 TEST_F(HttpHistoryTest, BadQueriesAreRefusedSayingWhatIsWrong) {
     const auto port = server_->port();
     const auto error_of = [&](const std::string& query, unsigned status) {
@@ -787,6 +804,8 @@ TEST_F(HttpHistoryTest, BadQueriesAreRefusedSayingWhatIsWrong) {
     };
     EXPECT_THAT(error_of("from=2026-12-02T08:00:00Z", 400), HasSubstr("missing device"));
     EXPECT_THAT(error_of("device=oven&from=yesterday", 400), HasSubstr("ISO 8601"));
+    EXPECT_THAT(error_of("device=oven&from=-1fortnight", 400), HasSubstr("a time before now (-1h, -30m, -7d)"));
+    EXPECT_THAT(error_of("device=oven&from=+1h", 400), HasSubstr("is not a time"));
     EXPECT_THAT(error_of("device=oven&from=2026-12-02T08:00:00", 400), HasSubstr("with its zone"));
     EXPECT_THAT(error_of("device=oven&from=2026-02-30T08:00:00Z", 400), HasSubstr("ISO 8601"));
     EXPECT_THAT(error_of("device=oven&from=2026-12-02T09:00:00Z&to=2026-12-02T08:00:00Z", 400), HasSubstr("must be before"));
