@@ -2,8 +2,12 @@
 
 #include <algorithm>
 #include <functional>
+#include <variant>
 
 #include <fmt/format.h>
+
+#include "client/monitor_state.hpp"
+#include "profile/value_format.hpp"
 
 namespace loopwire::gateway {
 namespace {
@@ -89,6 +93,37 @@ void poll_shortfall(std::string& out, const std::vector<LineReport>& lines, cons
         }
         sample(out, "line_devices_stale", fmt::format("line=\"{}\"", label(line.name)), stale);
     }
+}
+
+// Every polled value that is a number read in the latest poll (status ok): what a dashboard
+// draws without a second path to the devices. A value that failed, went stale, is in a special
+// state or is a label has no sample: absent, never its old number.
+void process_values(std::string& out, const std::vector<MetricsDevice>& devices, const std::vector<const CachedDevice*>& found) {
+    struct Shown {
+        std::string labels;
+        double value;
+        double age;
+    };
+    std::vector<Shown> shown;
+    const auto now = device::MonitorClock::now();
+    for (std::size_t i = 0; i < devices.size(); ++i) {
+        if (!found[i]) continue;
+        for (const auto& value : found[i]->state.values) {
+            if (!value.last || device::value_status(found[i]->state, value) != "ok") continue;
+            const double* number = std::get_if<double>(&value.last->value);
+            if (!number) continue;
+            const auto& parameter = *value.parameter;
+            shown.push_back({fmt::format("device=\"{}\",parameter=\"{}\",unit=\"{}\"", label(devices[i].name),
+                                         label(parameter.name), label(device::shown_unit(parameter, &*value.last))),
+                             *number, device::age_seconds(value, now).value_or(0.0)});
+        }
+    }
+    family(out, "value", "gauge",
+           "Each polled numeric value in engineering units, as the latest poll read it; absent when that poll did not "
+           "read it or it went stale.");
+    for (const auto& one : shown) sample(out, "value", one.labels, one.value);
+    family(out, "value_age_seconds", "gauge", "Time since the value was read.");
+    for (const auto& one : shown) sample(out, "value_age_seconds", one.labels, one.age);
 }
 
 }  // namespace
@@ -182,6 +217,7 @@ std::string prometheus_text(const std::vector<LineReport>& lines, const std::vec
         sample(out, "device_poll_age_seconds", fmt::format("device=\"{}\"", label(devices[i].name)),
                static_cast<double>(found[i]->since_answered->count()) / 1e3);
     }
+    process_values(out, devices, found);
     if (history) {
         family(out, "history_rows_written_total", "counter", "Rows the history store committed since the gateway started.");
         out += fmt::format("loopwire_history_rows_written_total {}\n", history->rows_written());

@@ -21,7 +21,8 @@ struct MetricsDevice {
 // and how often it went down, the poll samples its devices missed and how many of them are
 // stale now (the line cannot carry its polls). Per device (`devices`, in configured order): its
 // status as a 1 among 0s, its polls, failed and missed polls, and the age of its last answered
-// poll. The history store's rows, with one. The Modbus TCP front's connections, with `front`.
+// poll. Per polled numeric value read by the latest poll: the value in its unit and its age.
+// The history store's rows, with one. The Modbus TCP front's connections, with `front`.
 std::string prometheus_text(const std::vector<LineReport>& lines, const std::vector<MetricsDevice>& devices,
                             const std::vector<CachedDevice>& values, const HistorySource* history,
                             const FrontReport* front = nullptr);

@@ -31,6 +31,7 @@
 #include "gateway/gateway.hpp"
 #include "gateway/http_api.hpp"
 #include "gateway/http_server.hpp"
+#include "gateway/metrics.hpp"
 #include "support/held_replies.hpp"
 #include "support/profile_test_support.hpp"
 
@@ -40,6 +41,7 @@ namespace {
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
+using ::testing::Not;
 using Json = nlohmann::json;
 
 // Generous: CI runs this under ASan and TSan on two loaded cores.
@@ -559,6 +561,9 @@ TEST_F(HttpApiTest, MetricsAreInPrometheusTextFormat) {
     EXPECT_THAT(metrics.header("content-type"), HasSubstr("text/plain; version=0.0.4"));
     EXPECT_THAT(metrics.body, HasSubstr("loopwire_line_requests_total{line=\"sim\"}"));
     EXPECT_THAT(metrics.body, HasSubstr("# TYPE loopwire_line_busy_ratio gauge"));
+    // The process values themselves, each in its unit, with its age.
+    EXPECT_THAT(metrics.body, HasSubstr("loopwire_value{device=\"oven\",parameter=\"measured_value\",unit=\"°C\"} "));
+    EXPECT_THAT(metrics.body, HasSubstr("loopwire_value_age_seconds{device=\"oven\",parameter=\"measured_value\",unit=\"°C\"} "));
     // Read by the Prometheus client library's own parser, which refuses what is not the format.
     const fs::path file = fs::temp_directory_path() / fmt::format("loopwire-metrics-{}.txt", ::getpid());
     std::ofstream(file) << metrics.body;
@@ -571,7 +576,8 @@ TEST_F(HttpApiTest, MetricsAreInPrometheusTextFormat) {
         "assert any(s.value > 0 for s in families[\"loopwire_line_requests\"].samples)\n"
         "statuses = [s for s in families[\"loopwire_device_status\"].samples if s.value == 1]\n"
         "assert len(statuses) == 2, statuses\n"
-        "assert families[\"loopwire_line_busy_ratio\"].type == \"gauge\"\n' {}",
+        "assert families[\"loopwire_line_busy_ratio\"].type == \"gauge\"\n"
+        "assert any(s.labels[\"parameter\"] == \"measured_value\" for s in families[\"loopwire_value\"].samples)\n' {}",
         file.string());
     const int status = std::system(check.c_str());
     fs::remove(file);
@@ -815,6 +821,33 @@ TEST_F(HttpHistoryTest, BadQueriesAreRefusedSayingWhatIsWrong) {
     EXPECT_THAT(error_of("device=oven&colour=red", 400), HasSubstr("unknown query parameter"));
     EXPECT_THAT(error_of("device=kiln", 404), HasSubstr("no device \"kiln\""));
     EXPECT_THAT(error_of("device=oven&parameters=nonsense", 400), HasSubstr("no parameter \"nonsense\""));
+}
+
+// loopwire_value is what the latest poll read: a value the poll did not read, or a device gone
+// stale, has no sample, never the old number.
+TEST(PrometheusText, AValueIsExportedOnlyWhileTheLatestPollReadIt) {
+    const auto profile = device::testing::builtin("tc10");
+    const device::Parameter& pv = device::testing::parameter(*profile, "measured_value");
+    const device::Parameter& sp = device::testing::parameter(*profile, "set_point");
+    device::WatchedDevice state = device::watch("tc10@3", {&pv, &sp});
+    state.status = "partial";
+    state.values[0].last = device::EngineeringValue{181.5, "ok", 1815, "°C"};
+    state.values[0].fresh = true;
+    state.values[0].read_at = device::MonitorClock::now() - 2s;
+    state.values[1].last = device::EngineeringValue{150.0, "ok", 1500, "°C"};  // read before, not by this poll
+    state.values[1].fresh = false;
+    CachedDevice oven{"oven", state, std::chrono::system_clock::now(), 1s, std::chrono::milliseconds(2000)};
+
+    const std::string text = prometheus_text({}, {{"oven", "sim"}}, {oven}, nullptr);
+    EXPECT_THAT(text, HasSubstr("# TYPE loopwire_value gauge\n"));
+    EXPECT_THAT(text, HasSubstr("loopwire_value{device=\"oven\",parameter=\"measured_value\",unit=\"°C\"} 181.5\n"));
+    EXPECT_THAT(text, HasSubstr("loopwire_value_age_seconds{device=\"oven\",parameter=\"measured_value\",unit=\"°C\"} 2."));
+    EXPECT_THAT(text, Not(HasSubstr("parameter=\"set_point\""))) << "a value the latest poll did not read";
+
+    oven.state.status = "stale";
+    for (auto& value : oven.state.values) value.fresh = false;
+    const std::string stale = prometheus_text({}, {{"oven", "sim"}}, {oven}, nullptr);
+    EXPECT_THAT(stale, Not(HasSubstr("loopwire_value{"))) << stale;
 }
 
 TEST_F(HttpHistoryTest, MetricsCountTheHistoryRows) {
