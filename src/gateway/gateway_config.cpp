@@ -205,6 +205,7 @@ struct DeviceSeen {
 
 struct Registry {
     std::map<std::string, Seen> line_names;
+    std::map<std::string, Seen> line_ports;  // serial device paths, by path
     std::map<std::string, Seen> device_names;
     std::vector<DeviceSeen> devices;  // every device, in file order
 };
@@ -229,6 +230,12 @@ Result<std::vector<std::string>> parameter_names(const Context& ctx, const toml:
     const std::string list_path = key_path(path, "parameters");
     const auto* array = node->as_array();
     if (!array) return ctx.fail(node->source(), list_path, "expected a list of parameter names, e.g. [\"measured_value\"]");
+    if (array->empty()) {
+        return ctx.fail(node->source(), list_path,
+                        fmt::format("device {}: an empty list polls nothing; name the parameters to poll, or leave the key "
+                                    "out for the profile's watch list", device_name));
+    }
+    std::map<const device::Parameter*, std::size_t> named_at;  // where each was named first
     for (std::size_t i = 0; i < array->size(); ++i) {
         const toml::node& element = *array->get(i);
         const auto* name = element.as_string();
@@ -240,9 +247,17 @@ Result<std::vector<std::string>> parameter_names(const Context& ctx, const toml:
                             fmt::format("device {}: {}", device_name, found.error().message));
         }
         for (const device::Parameter* parameter : *found) {
-            if (parameter->readable) continue;
-            return ctx.fail(element.source(), index_path(list_path, i),
-                            fmt::format("device {}: {} is write-only and cannot be polled", device_name, parameter->name));
+            if (!parameter->readable) {
+                return ctx.fail(element.source(), index_path(list_path, i),
+                                fmt::format("device {}: {} is write-only and cannot be polled", device_name, parameter->name));
+            }
+            // "PV" and "measured_value" are one parameter: polled once, so named once.
+            const auto [first, added] = named_at.emplace(parameter, i);
+            if (!added) {
+                return ctx.fail(element.source(), index_path(list_path, i),
+                                fmt::format("device {}: \"{}\" is {}, already named at {}; name each parameter once",
+                                            device_name, name->get(), parameter->name, index_path(list_path, first->second)));
+            }
         }
         names.push_back(name->get());
     }
@@ -287,6 +302,13 @@ Result<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, 
     device.parameters = std::move(*parameters);
     auto tcp_unit = optional_integer(ctx, table, path, "tcp_unit", 1, 247);
     if (!tcp_unit) return tcp_unit.error();
+    // The manuals allow units past 247 (AC20: 1-255, TC10: up to 254), Modbus TCP clients reach
+    // 1..247 only (application protocol V1.1b3, 4.2: 248-255 reserved).
+    if (!*tcp_unit && device.address.unit > 247) {
+        return ctx.fail(source_of(table, "device"), key_path(path, "device"),
+                        fmt::format("device {}: unit {} cannot be a Modbus TCP unit (1..247); give it one with "
+                                    "tcp_unit = N", device.name, device.address.unit));
+    }
     device.tcp_unit = *tcp_unit ? static_cast<std::uint8_t>(**tcp_unit) : device.address.unit;  // 1..247, checked
     seen.tcp_unit = device.tcp_unit;
     seen.tcp_unit_key = *tcp_unit ? "tcp_unit" : "device";
@@ -379,6 +401,20 @@ Result<void> parse_line_settings(const Context& ctx, const toml::table& table, c
     return parse_line_simulation(ctx, table, path, line);
 }
 
+// One serial port is one line: two lines on it would each open it, and the second would find it
+// "in use by another program" only when the gateway runs. Virtual lines and TCP links have no
+// port to share.
+Result<void> claim_port(const Context& ctx, Registry& registry, const Seen& line_seen, const toml::table& table,
+                        const LineConfig& line) {
+    if (!line.link.is_serial() || line.simulation) return {};
+    const auto [first, fresh] = registry.line_ports.emplace(line.link.path, line_seen);
+    if (fresh) return {};
+    return ctx.fail(source_of(table, "link"), key_path(line_seen.path, "link"),
+                    fmt::format("{} is already the port of line {} ({}, line {}); one port is one line: put the devices of "
+                                "both in one [[lines]] table", line.link.path, first->second.name, first->second.path,
+                                first->second.line));
+}
+
 Result<LineConfig> parse_line(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry) {
     if (auto keys = check_keys(ctx, table, path, {"name", "link", "timeout", "retries", "late_reply_window", "max_in_flight", "speed", "seed", "devices"}); !keys) return keys.error();
     LineConfig line;
@@ -388,6 +424,7 @@ Result<LineConfig> parse_line(const Context& ctx, const toml::table& table, cons
     const Seen seen{path, table.source().begin.line, line.name};
     if (auto claimed = claim_name(ctx, registry.line_names, seen, source_of(table, "name"), "line"); !claimed) return claimed.error();
     if (auto settings = parse_line_settings(ctx, table, path, line); !settings) return settings.error();
+    if (auto port = claim_port(ctx, registry, seen, table, line); !port) return port.error();
     if (auto devices = parse_devices(ctx, table, path, registry, line); !devices) return devices.error();
     return line;
 }
@@ -600,10 +637,15 @@ std::optional<HostPort> split_broker(std::string_view text, bool& tls) {
 }
 
 // Topic levels joined by '/': none empty, no wildcards, no NUL (MQTT 3.1.1, 4.7).
+// Levels joined by '/', none empty, without wildcards, spaces or control characters, and not
+// under "$": brokers keep topics starting with '$' for themselves ($SYS/, MQTT 3.1.1, 4.7.2), and
+// clients subscribing to '#' do not see them.
 bool valid_prefix(std::string_view prefix) {
-    if (prefix.empty() || prefix.front() == '/' || prefix.back() == '/') return false;
+    if (prefix.empty() || prefix.front() == '/' || prefix.back() == '/' || prefix.front() == '$') return false;
     if (prefix.find("//") != std::string_view::npos) return false;
-    return std::none_of(prefix.begin(), prefix.end(), [](char c) { return c == '+' || c == '#' || c == '\0'; });
+    return std::none_of(prefix.begin(), prefix.end(), [](char c) {
+        return c == '+' || c == '#' || c == ' ' || static_cast<unsigned char>(c) < 0x20 || c == 0x7F;
+    });
 }
 
 // A file named in the configuration: relative paths are taken from the configuration's folder.
@@ -731,7 +773,7 @@ Result<void> parse_mqtt_publishing(const Context& ctx, const toml::table& table,
     if (!discovery_prefix) return discovery_prefix.error();
     if (*discovery_prefix) {
         const auto& text = **discovery_prefix;
-        if (!valid_prefix(text) || text.find(' ') != std::string::npos) {
+        if (!valid_prefix(text)) {
             return ctx.fail(source_of(table, "discovery_prefix"), "mqtt.discovery_prefix",
                             fmt::format("{} is not a topic prefix (expected levels joined by '/', none empty, "
                                         "without '+', '#' or spaces, e.g. \"homeassistant\")", quoted_excerpt(text)));
@@ -779,7 +821,8 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
         if (!valid_prefix(**prefix)) {
             return ctx.fail(source_of(*table, "prefix"), "mqtt.prefix",
                             fmt::format("{} is not a topic prefix (expected levels joined by '/', none empty, "
-                                        "without '+' or '#', e.g. \"loopwire/plant1\")", quoted_excerpt(**prefix)));
+                                        "without '+', '#' or spaces, not starting with '$', e.g. \"loopwire/plant1\")",
+                                        quoted_excerpt(**prefix)));
         }
         config.prefix = std::move(**prefix);
     }

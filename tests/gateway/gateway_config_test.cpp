@@ -77,6 +77,35 @@ std::string one_device(const std::string& extra) {
            + extra;                        // 7...
 }
 
+// --check catches what would only fail, or do something else, once the gateway runs.
+TEST(GatewayConfig, AnEmptyOrRepeatingParameterListIsRefused) {
+    EXPECT_EQ(error_of(one_device("device = \"tc10@3\"\nparameters = []\n")),
+              "plant.toml:8: lines[0].devices[0].parameters: device oven1: an empty list polls nothing; name the parameters "
+              "to poll, or leave the key out for the profile's watch list");
+    EXPECT_EQ(error_of(one_device("device = \"tc10@3\"\nparameters = [\"PV\", \"set_point\", \"measured_value\"]\n")),
+              "plant.toml:8: lines[0].devices[0].parameters[2]: device oven1: \"measured_value\" is measured_value, already "
+              "named at lines[0].devices[0].parameters[0]; name each parameter once");
+    EXPECT_TRUE(parse(one_device("device = \"tc10@3\"\nparameters = [\"PV\", \"SP\"]\n")));
+}
+
+TEST(GatewayConfig, AUnitPastModbusTcpsRangeNeedsATcpUnit) {
+    EXPECT_EQ(error_of(one_device("device = \"tc10@248\"\n")),
+              "plant.toml:7: lines[0].devices[0].device: device oven1: unit 248 cannot be a Modbus TCP unit (1..247); give "
+              "it one with tcp_unit = N");
+    auto config = parse(one_device("device = \"tc10@248\"\ntcp_unit = 48\n"));
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->lines[0].devices[0].tcp_unit, 48);
+    EXPECT_EQ(config->lines[0].devices[0].address.unit, 248);
+}
+
+TEST(GatewayConfig, TwoLinesOnOneSerialPortAreRefused) {
+    const std::string text = "[[lines]]\nname = \"a\"\nlink = \"rtu:/dev/ttyUSB0?baud=19200\"\n\n"
+                             "[[lines]]\nname = \"b\"\nlink = \"ascii:/dev/ttyUSB0?baud=9600\"\n";
+    EXPECT_EQ(error_of(text), "plant.toml:7: lines[1].link: /dev/ttyUSB0 is already the port of line a (lines[0], line 1); "
+                              "one port is one line: put the devices of both in one [[lines]] table");
+    EXPECT_TRUE(parse("[[lines]]\nname = \"a\"\nlink = \"rtu:virtual\"\n\n[[lines]]\nname = \"b\"\nlink = \"rtu:virtual\"\n"));
+}
+
 TEST(GatewayConfig, TheIssueExampleParsesToItsValues) {
     auto config = parse(example);
     ASSERT_TRUE(config) << config.error().message;
@@ -684,6 +713,10 @@ TEST(GatewayConfig, ABadMqttPrefixOrAnUnknownMqttKeyIsRefused) {
     EXPECT_THAT(error_of(device + "prefix = \"plant/#\"\n"), StartsWith("plant.toml:10: mqtt.prefix: \"plant/#\" is not a topic prefix"));
     EXPECT_THAT(error_of(device + "prefix = \"plant//a\"\n"), HasSubstr("is not a topic prefix"));
     EXPECT_THAT(error_of(device + "prefix = \"/plant\"\n"), HasSubstr("is not a topic prefix"));
+    // Spaces, and the broker's own "$" topics, which a subscriber to '#' never sees.
+    EXPECT_THAT(error_of(device + "prefix = \"plant one\"\n"), HasSubstr("without '+', '#' or spaces"));
+    EXPECT_THAT(error_of(device + "prefix = \"$SYS/loopwire\"\n"), HasSubstr("not starting with '$'"));
+    EXPECT_THAT(error_of(device + "prefix = \"plant\\ttab\"\n"), HasSubstr("is not a topic prefix"));
     EXPECT_THAT(error_of(device + "writes = \"yes\"\n"), StartsWith("plant.toml:10: mqtt.writes: expected true or false"));
     EXPECT_THAT(error_of(device + "qos = 2\n"), StartsWith("plant.toml:10: mqtt.qos: unknown key (allowed here: broker, prefix, writes, client_id, ca_file, "
                            "cert_file, key_file, username, password_file, republish, discovery, discovery_prefix, "
@@ -863,7 +896,7 @@ TEST(GatewayConfig, TheGatewayNameGivesTheMqttPrefixAndDiscoveryName) {
     EXPECT_EQ(named->mqtt->prefix, "loopwire/plant-2");
     EXPECT_EQ(named->mqtt->gateway_name, "plant-2");
     // Without a name, the prefix's last level, made safe for object ids.
-    auto unnamed = parse(device + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\nprefix = \"site a/gw 1.x\"\n");
+    auto unnamed = parse(device + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\nprefix = \"site-a/gw.1~x\"\n");
     ASSERT_TRUE(unnamed) << unnamed.error().message;
     EXPECT_EQ(unnamed->mqtt->gateway_name, "gw_1_x");
     EXPECT_THAT(error_of("[gateway]\nname = \"my plant\"\n" + device), StartsWith("plant.toml:2: gateway.name: \"my plant\" is not a valid name"));
