@@ -115,7 +115,7 @@ Result<std::uint64_t> parse_byte_size(std::string_view text, std::string_view op
         return make_error(ErrorKind::usage, fmt::format("{} '{}' is not a size: write it like 10MB, 500kB, 1GiB or 65536", option, text));
     }
     const std::uint64_t bytes = count * found->bytes;
-    if (bytes < 1024) return make_error(ErrorKind::usage, fmt::format("{} '{}' is too small: give at least 1kB", option, text));
+    if (bytes < 1000) return make_error(ErrorKind::usage, fmt::format("{} '{}' is too small: give at least 1kB (1000 bytes)", option, text));
     return bytes;
 }
 

@@ -118,12 +118,14 @@ const toml::source_region& source_of(const toml::table& table, std::string_view 
     return node ? node->source() : table.source();
 }
 
+// `least`: shorter is refused, saying so; a key whose own least is longer passes 0 and checks
+// it with its own words, so the error quotes the real minimum.
 Result<std::optional<milliseconds>> optional_duration(const Context& ctx, const toml::table& table, const std::string& path,
-                                                      std::string_view key) {
+                                                      std::string_view key, milliseconds least = milliseconds(1)) {
     auto text = optional_value<std::string>(ctx, table, path, key, "a duration string such as \"500ms\" or \"1s\"");
     if (!text) return text.error();
     if (!*text) return std::optional<milliseconds>{};
-    auto duration = parse_duration(**text, "", std::chrono::milliseconds(1));
+    auto duration = parse_duration(**text, "", least);
     if (!duration) return ctx.fail(source_of(table, key), key_path(path, key), without_option_name(duration.error().message));
     // Sub-millisecond precision means nothing to a poll or a timeout; round to whole ms.
     return std::optional<milliseconds>{std::chrono::round<milliseconds>(*duration)};
@@ -493,7 +495,7 @@ Result<LogConfig::Level> log_level(const Context& ctx, const toml::table& table)
 Result<std::chrono::milliseconds> statistics_interval(const Context& ctx, const toml::table& table) {
     const toml::node* node = table.get("statistics");
     if (node && node->value<std::string>() == "off") return milliseconds(0);
-    auto interval = optional_duration(ctx, table, "log", "statistics");
+    auto interval = optional_duration(ctx, table, "log", "statistics", milliseconds(0));
     if (!interval) return interval.error();
     if (!*interval) return LogConfig{}.statistics;
     if (**interval < std::chrono::seconds(1)) {

@@ -85,9 +85,11 @@ TEST(MonitorByteSize, UnitsAndMistakes) {
     EXPECT_FALSE(parse_byte_size("10 MB", "--rotate-size"));
     EXPECT_FALSE(parse_byte_size("MB", "--rotate-size"));
     EXPECT_FALSE(parse_byte_size("99999999999999999999", "--rotate-size"));
-    const auto tiny = parse_byte_size("100", "--rotate-size");
+    const auto tiny = parse_byte_size("999", "--rotate-size");
     ASSERT_FALSE(tiny);
-    EXPECT_NE(tiny.error().message.find("too small"), std::string::npos);
+    EXPECT_EQ(tiny.error().message, "--rotate-size '999' is too small: give at least 1kB (1000 bytes)");
+    // The minimum it names is taken.
+    EXPECT_EQ(*parse_byte_size("1kB", "--rotate-size"), 1000u);
 }
 
 TEST_F(MonitorFile, RotatesBySizeBeforeTheSampleThatWouldOverflowAndLosesNothing) {

@@ -461,6 +461,9 @@ TEST(GatewayConfig, BadLogSettingsSayWhatIsExpected) {
     EXPECT_EQ(error_of(one_device("device = \"tc10@3\"\n") + "[log]\nstatistics = \"100ms\"\n"),
               "plant.toml:9: log.statistics: less than 1s apart would bury the log in figures (give e.g. \"60s\", or \"off\" "
               "for only at exit)");
+    // "0s" is below the real minimum, which the error names (not the 1ms of other durations).
+    EXPECT_THAT(error_of(one_device("device = \"tc10@3\"\n") + "[log]\nstatistics = \"0s\"\n"),
+                StartsWith("plant.toml:9: log.statistics: less than 1s apart"));
     EXPECT_THAT(error_of(one_device("device = \"tc10@3\"\n") + "[log]\nstatistics = \"often\"\n"),
                 StartsWith("plant.toml:9: log.statistics: 'often' is not a duration"));
     EXPECT_EQ(error_of(one_device("device = \"tc10@3\"\n") + "[log]\nfile = \"x\"\n"),
