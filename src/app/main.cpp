@@ -36,6 +36,10 @@ int main(int argc, char** argv) {
     try {
         // Options may also precede the command's name (`loopwire -v read ...`).
         std::vector<std::string> arguments(argv + 1, argv + argc);
+        // "loopwire reed": CLI11 would only say that a command is required.
+        if (!arguments.empty()) {
+            if (const auto refused = refuse_unknown_command(app, arguments.front())) return *refused;
+        }
         arguments = options_after_command(app, arguments);
         std::vector<char*> reordered{argv[0]};
         for (auto& argument : arguments) reordered.push_back(argument.data());

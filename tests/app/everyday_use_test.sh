@@ -145,6 +145,11 @@ expect help-command-is-command-help cmp -s help1.out help2.out
 "$loopwire" help >help3.out; "$loopwire" --help >help4.out
 expect help-alone-is-program-help cmp -s help3.out help4.out
 check help-unknown-command 2 "there is no command 'nope'" "$loopwire" help nope
+# The hidden commands (shell completion, man pages) are for tools, not offered to people.
+if "$loopwire" help nope 2>&1 | grep -q "__complete"; then count_failure help-lists-hidden-commands; else count_pass; fi
+# A typo gets the nearest command, not CLI11's "A subcommand is required".
+check typo-nearest-command 2 "there is no command 'reed'; did you mean 'read'?" "$loopwire" reed
+check typo-far-from-any 2 "there is no command 'frobnicate': choose one of read, write" "$loopwire" frobnicate
 
 # ---- read --json: a JSON error object on failure -------------------------------------------
 pyjson() {  # name, want-status, python assertion on `doc`, command...
