@@ -292,9 +292,12 @@ std::size_t threads_of_gateway(const std::string& plant) {
     auto opened = Gateway::open(*config);
     EXPECT_TRUE(opened) << opened.error().message;
     if (!opened) return 0;
+    std::size_t configured = 0;
+    for (const auto& line : config->lines) configured += line.devices.size();
     const auto all_polled = [&] {
         const auto devices = (*opened)->values();
-        return std::all_of(devices.begin(), devices.end(), [](const CachedDevice& device) { return device.state.polls > 0; });
+        return devices.size() == configured &&
+               std::all_of(devices.begin(), devices.end(), [](const CachedDevice& device) { return device.state.polls > 0; });
     };
     const auto give_up = std::chrono::steady_clock::now() + 30s;
     while (!all_polled() && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(10ms);
@@ -312,6 +315,9 @@ TEST(Gateway, ThePollsTakeOneThreadHoweverManyDevicesAndIntervals) {
                                      "[[lines.devices]]\nname = \"furnace\"\ndevice = \"ac20@2\"\npoll = \"200ms\"\n"
                                      "[[lines.devices]]\nname = \"kiln\"\ndevice = \"rampsoak@3\"\npoll = \"300ms\"\n"
                                      "[modbus_tcp]\nenabled = false\n";
+    // A first gateway, not counted: a sanitizer's runtime starts a thread of its own once, at a
+    // moment of its choosing.
+    (void)threads_of_gateway(three);
     const std::size_t for_one = threads_of_gateway(one);
     const std::size_t for_three = threads_of_gateway(three);
     std::cout << "threads of a gateway with one line: " << for_one << " for 1 device, " << for_three
