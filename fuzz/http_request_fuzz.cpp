@@ -15,6 +15,7 @@
 #include "dead_line_master.hpp"
 #include "fuzz_support.hpp"
 #include "gateway/device_writer.hpp"
+#include "gateway/engine.hpp"
 #include "gateway/gateway_config.hpp"
 #include "gateway/http_api.hpp"
 #include "gateway/http_server.hpp"
@@ -46,6 +47,7 @@ struct Front {
     std::shared_ptr<session::Master> master = std::make_shared<fuzz::DeadLineMaster>();
     std::shared_ptr<gateway::LineScheduler> line = std::make_shared<gateway::LineScheduler>(master);
     gateway::ValueCache cache;
+    gateway::Engine engine;  // the writer's loop: goes after it
     std::unique_ptr<gateway::DeviceWriter> writer;
     std::unique_ptr<gateway::HttpApi> api;
     gateway::HttpServerSettings settings;
@@ -57,7 +59,7 @@ struct Front {
         fuzz::check(config.ok(), "the fuzz plant parses");
         config->http->token = "fuzz-token-0123456789";  // as if read from token_file: writes are open
         const auto& oven = config->lines.front().devices.front();
-        writer = std::make_unique<gateway::DeviceWriter>(std::vector<gateway::WritableDevice>{{oven.name, oven.address, line}},
+        writer = std::make_unique<gateway::DeviceWriter>(engine, std::vector<gateway::WritableDevice>{{oven.name, oven.address, line}},
                                                          std::chrono::milliseconds(1000));
         gateway::HttpApiSources sources;
         sources.cache = &cache;

@@ -18,6 +18,7 @@
 #include "dead_line_master.hpp"
 #include "fuzz_support.hpp"
 #include "gateway/device_writer.hpp"
+#include "gateway/engine.hpp"
 #include "gateway/line_scheduler.hpp"
 #include "gateway/mqtt_commands.hpp"
 
@@ -35,6 +36,7 @@ struct Front {
     Answers answers;
     std::shared_ptr<session::Master> master = std::make_shared<fuzz::DeadLineMaster>();
     std::shared_ptr<gateway::LineScheduler> line = std::make_shared<gateway::LineScheduler>(master);
+    gateway::Engine engine;  // the writer's loop: goes after it
     gateway::DeviceWriter writer;
     gateway::MqttConfig config;
     gateway::MqttCommands commands;
@@ -53,7 +55,7 @@ struct Front {
     }
 
     Front()
-        : writer(devices(line), std::chrono::milliseconds(1000)),
+        : writer(engine, devices(line), std::chrono::milliseconds(1000)),
           config(configured()),
           commands(
               config, writer,
