@@ -262,6 +262,18 @@ protected:
         return reply;
     }
 
+    // Until the oven's set point reads `value` in GET /api/devices/oven (a poll after a write).
+    void wait_for_oven_set_point(double value) {
+        get_until("/api/devices/oven", [value](const Reply& r) {
+            auto device = Json::parse(r.body, nullptr, false);
+            if (device.is_discarded() || !device.contains("parameters")) return false;
+            for (const auto& p : device.at("parameters")) {
+                if (p.at("name") == "set_point") return p.at("value") == value;
+            }
+            return false;
+        });
+    }
+
     static Json parameter(const Json& device, const std::string& name) {
         for (const auto& p : device.at("parameters")) {
             if (p.at("name") == name) return p;
@@ -341,14 +353,7 @@ TEST_F(HttpApiTest, AWriteWithTheTokenReachesTheDevice) {
     const Reply written = post_write(port_, "oven", R"({"set_point": "200"})");
     ASSERT_EQ(written.status, 200u) << written.body;
     EXPECT_EQ(written.json(), Json::parse(R"({"written": {"set_point": "200"}})"));
-    get_until("/api/devices/oven", [](const Reply& r) {
-        auto device = Json::parse(r.body, nullptr, false);
-        if (device.is_discarded() || !device.contains("parameters")) return false;
-        for (const auto& p : device.at("parameters")) {
-            if (p.at("name") == "set_point") return p.at("value") == 200.0;
-        }
-        return false;
-    });
+    wait_for_oven_set_point(200.0);
 }
 
 // Node-RED and scripts send numbers: 210 is written as "210" would be, and a number the
@@ -357,14 +362,7 @@ TEST_F(HttpApiTest, AWriteTakesJsonNumbersAsWellAsText) {
     const Reply written = post_write(port_, "oven", R"({"set_point": 210})");
     ASSERT_EQ(written.status, 200u) << written.body;
     EXPECT_EQ(written.json(), Json::parse(R"({"written": {"set_point": "210"}})"));
-    get_until("/api/devices/oven", [](const Reply& r) {
-        auto device = Json::parse(r.body, nullptr, false);
-        if (device.is_discarded() || !device.contains("parameters")) return false;
-        for (const auto& p : device.at("parameters")) {
-            if (p.at("name") == "set_point") return p.at("value") == 210.0;
-        }
-        return false;
-    });
+    wait_for_oven_set_point(210.0);
     const Reply out_of_range = post_write(port_, "oven", R"({"set_point": 99999})");
     EXPECT_EQ(out_of_range.status, 422u) << out_of_range.body;
     const Reply fraction = post_write(port_, "oven", R"({"set_point": 200.123456})");
