@@ -154,7 +154,14 @@ kill "$results_pid"
 start_background statuses.log timeout 100 mosquitto_sub -h 127.0.0.1 -p "$port" -v -t loopwire/plant1/status \
   -t "loopwire/plant1/+/status"
 statuses_pid=$LAST_PID
-wait_for 30 "the statuses' subscriber" grep -q "^$topic/status online" "$WORK_DIR/statuses.log"
+# The retained status can be what the flood above left: on a loaded 2-core machine a poll may
+# time out while the gateway refuses 200 MB of payloads. The reloads start from an online device,
+# and only what is published after that moment counts.
+last_device_status_online() { [[ $(grep "^$topic/status " "$WORK_DIR/statuses.log" | tail -n 1) == "$topic/status online" ]]; }
+wait_for 30 "the statuses' subscriber" grep -q "^loopwire/plant1/status online" "$WORK_DIR/statuses.log"
+wait_for 30 "the device online before the reloads" last_device_status_online
+before_reloads=$(wc -l <"$WORK_DIR/statuses.log")
+since_reloads() { tail -n +"$((before_reloads + 1))" "$WORK_DIR/statuses.log"; }
 spare='[[lines.devices]]
 name = "spare"
 device = "tc10@4"
@@ -170,12 +177,13 @@ wait_for 30 "the third round's connection" bash -c "(( \$(grep -c ': connected' 
 expect two-reloads test "$(grep -c "configuration .* reloaded" "$WORK_DIR/gateway.log")" -eq 2
 expect_not() { local name=$1; shift; if "$@"; then count_failure "$name" "$WORK_DIR/statuses.log"; else count_pass; fi; }
 expect_not gateway-never-offline-across-reloads grep -q "^loopwire/plant1/status offline" "$WORK_DIR/statuses.log"
-expect_not device-never-offline-across-reloads grep -q "^$topic/status offline" "$WORK_DIR/statuses.log"
-# Each reopened round publishes the device's status afresh: the retained "online" from before
-# the reloads, then one from each of the two rounds after them. Any status but "offline" counts:
+device_offline_since_reloads() { since_reloads | grep -q "^$topic/status offline"; }
+expect_not device-never-offline-across-reloads device_offline_since_reloads
+# Each reopened round publishes the device's status afresh: one from each of the two rounds
+# after the reloads. Any status but "offline" counts:
 # on a 2-core machine with a browser test beside it, the simulated line's timing can make a round
 # read the device "error" or "stale", which is still that round's own word.
-fresh_statuses() { (($(grep -cE "^$topic/status (online|error|stale|line-down)$" "$WORK_DIR/statuses.log") >= 3)); }
+fresh_statuses() { (($(since_reloads | grep -cE "^$topic/status (online|error|stale|line-down)$") >= 2)); }
 wait_for 30 "the reopened rounds' own statuses" fresh_statuses
 count_pass
 kill "$statuses_pid"
