@@ -105,7 +105,15 @@ struct DeviceWriter::LineWriter {
                                    } else {
                                        done(running->client.explain(report.error()));
                                    }
-                                   asio::post(loop, [this] { start_next(); });
+                                   // Here is the line's worker: the write's master is let go on
+                                   // the loop, before the line goes idle. Dropped here it could
+                                   // be the last hold on the line once the gateway is stopping,
+                                   // and a line's master must not end inside one of its own
+                                   // jobs (job_queue.hpp): it would wait for itself.
+                                   asio::post(loop, [this, finished = std::move(running)]() mutable {
+                                       finished.reset();
+                                       start_next();
+                                   });
                                });
             return;
         }

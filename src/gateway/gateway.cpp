@@ -305,6 +305,7 @@ public:
     ~StatisticsLog() {
         engine_.take_down([this] {
             stopped_ = true;
+            alive_.reset();
             timer_.cancel();
         });
     }
@@ -315,8 +316,10 @@ private:
     void arm() {
         if (stopped_) return;
         timer_.expires_after(interval_);
-        timer_.async_wait([this](const boost::system::error_code& error) {
-            if (error) return;  // cancelled: serve() is over
+        // A wait that had expired before the take-down still runs, with no error: `alive` says
+        // whether this log is still there.
+        timer_.async_wait([this, alive = std::weak_ptr<const bool>(alive_)](const boost::system::error_code& error) {
+            if (error || alive.expired()) return;  // cancelled or taken down: serve() is over
             for (std::size_t i = 0; i < lines_.size(); ++i) {
                 LineReport now = report_of(lines_[i]);
                 log_(describe(now, &previous_[i]));
@@ -333,6 +336,7 @@ private:
     GatewayLog log_;
     std::vector<LineReport> previous_;
     bool stopped_ = false;  // on the loop's thread only
+    std::shared_ptr<const bool> alive_ = std::make_shared<const bool>(true);  // reset at the take-down
 };
 
 }  // namespace

@@ -106,8 +106,10 @@ public:
 private:
     void arm() {
         timer_.expires_after(tick_);
-        timer_.async_wait([this](const boost::system::error_code& error) {
-            if (error) return;  // cancelled: the polls are stopping
+        // A tick that had already expired when the watch was destroyed still runs, with no error
+        // (asio cancels only waits still pending): `alive` tells it the watch is gone.
+        timer_.async_wait([this, alive = std::weak_ptr<const bool>(alive_)](const boost::system::error_code& error) {
+            if (error || alive.expired()) return;  // cancelled or destroyed: the polls are stopping
             look();
             arm();
         });
@@ -135,6 +137,7 @@ private:
     std::chrono::milliseconds tick_;
     GatewayLog log_;
     std::set<std::string> stale_;
+    std::shared_ptr<const bool> alive_ = std::make_shared<const bool>(true);  // dies with the watch
 };
 
 }  // namespace
@@ -208,8 +211,9 @@ struct PollGroups::State {
         const auto next = group.schedule.after(now);
         group.missed = next.missed;
         group.timer.expires_at(next.at);
-        group.timer.async_wait([this, &group](const boost::system::error_code& error) {
-            if (!error && !stopping.stop_requested()) start_sample(group);
+        // As StalenessWatch::arm: a wait that had expired before the take-down still runs.
+        group.timer.async_wait([this, &group, living = std::weak_ptr<const bool>(alive)](const boost::system::error_code& error) {
+            if (!error && !living.expired() && !stopping.stop_requested()) start_sample(group);
         });
     }
 
@@ -236,6 +240,7 @@ struct PollGroups::State {
         }
         engine.take_down([this] {
             taken_down = true;  // an outcome posted after this finds no group to go to
+            alive.reset();
             staleness.reset();
             groups.clear();
         });
@@ -249,6 +254,8 @@ struct PollGroups::State {
     std::vector<std::unique_ptr<Group>> groups;
     std::unique_ptr<StalenessWatch> staleness;
     bool taken_down = false;  // on the loop's thread only
+    // Expires at the take-down: a timer's wait that had already expired still runs after it.
+    std::shared_ptr<const bool> alive = std::make_shared<const bool>(true);
 };
 
 PollGroups::PollGroups(Engine& engine, const GatewayConfig& config,
