@@ -33,11 +33,14 @@ session::TraceSink stderr_trace() {
     };
 }
 
+// With --json a failure is one JSON object on stdout and nothing else: the same words again on
+// stderr made a terminal show every error twice.
 int report_error(const Error& error) {
-    fmt::print(stderr, "loopwire: error: {}\n", error.message);
     if (json_errors_on()) {
         fmt::print("{}\n", error_json(error).dump());
         std::fflush(stdout);
+    } else {
+        fmt::print(stderr, "loopwire: error: {}\n", error.message);
     }
     return exit_code_for(error);
 }

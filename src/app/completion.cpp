@@ -120,6 +120,24 @@ std::vector<std::string> member_choices(const CLI::Option& option) {
     return choices;
 }
 
+// The tables a raw TABLE ADDRESS argument takes, as its help lists them: "TABLE ADDRESS ...:
+// holding|input|coils|discrete, ...".
+std::vector<std::string> table_choices(const CLI::Option& positional) {
+    const std::string& help = positional.get_description();
+    const auto form = help.find("TABLE ADDRESS");
+    const auto colon = help.find(": ", form);
+    if (form == std::string::npos || colon == std::string::npos) return {};
+    const auto end = help.find_first_of(", ", colon + 2);
+    std::string_view list(help.data() + colon + 2, (end == std::string::npos ? help.size() : end) - colon - 2);
+    std::vector<std::string> tables;
+    while (!list.empty()) {
+        const auto bar = std::min(list.find('|'), list.size());
+        tables.emplace_back(list.substr(0, bar));
+        list.remove_prefix(std::min(bar + 1, list.size()));
+    }
+    return tables;
+}
+
 // Options whose value names a file: their type name or help says FILE or PATH (--profile
 // FILE.json, --output FILE, --pty PATH, ...).
 bool wants_path(const CLI::Option& option) {
@@ -212,7 +230,7 @@ Completion complete_positional(const CLI::App& root, const LineState& state, con
     if (positional->check_name("command")) return command_names(root);  // a command about commands
     if (positional->check_name("device")) return {false, candidates.device_ids("")};
     if (positional->check_name("file")) return {true, {}};
-    if (state.devices.empty()) return {};
+    if (state.devices.empty()) return {false, state.positionals.empty() ? table_choices(*positional) : std::vector<std::string>{}};
     const bool assignment = positional->get_description().find("NAME=VALUE") != std::string::npos;
     return {false, candidates.parameters(state.devices, assignment, has_upper(current))};
 }

@@ -26,7 +26,25 @@ Result<Connected> connect(const device::ProfileRegistry& profiles, const MasterC
     return Connected{std::move(*device), std::move(*master)};
 }
 
-void print_readings(const MasterCommandOptions& options, const device::DeviceAddress& device, const device::ReadReport& report) {
+// What failed in a read, if anything: the first failed request, or else a value the profile
+// cannot decode (a decimals or unit word out of its range: the device is probably not the one
+// named), which must not pass as a success.
+std::optional<Error> read_failure(const device::ReadReport& report) {
+    if (report.first_error) return report.first_error;
+    std::size_t failed = 0;
+    const device::ParameterReading* first = nullptr;
+    for (const auto& reading : report.readings) {
+        if (reading.value) continue;
+        ++failed;
+        if (first == nullptr) first = &reading;
+    }
+    if (first == nullptr) return std::nullopt;
+    return make_error(ErrorKind::mismatch, fmt::format("{} of {} value(s) could not be decoded (first: {}: {})", failed,
+                                                       report.readings.size(), first->parameter->name, first->error));
+}
+
+void print_readings(const MasterCommandOptions& options, const device::DeviceAddress& device, const device::ReadReport& report,
+                    const std::optional<Error>& failure) {
     if (options.json) {
         nlohmann::ordered_json values = nlohmann::ordered_json::object();
         for (const auto& reading : report.readings) {
@@ -34,9 +52,9 @@ void print_readings(const MasterCommandOptions& options, const device::DeviceAdd
                                                             : nlohmann::ordered_json{{"value", nullptr}, {"raw", nullptr}, {"unit", reading.parameter->unit}, {"status", "error"}, {"error", reading.error}};
         }
         nlohmann::ordered_json out{{"unit", device.unit}, {"device", device.profile->id}, {"values", values}};
-        if (report.first_error) {  // the one JSON document says it failed, as error_json would
-            out["error"] = error_json(*report.first_error)["error"];
-            out["kind"] = error_json(*report.first_error)["kind"];
+        if (failure) {  // the one JSON document says it failed, as error_json would
+            out["error"] = error_json(*failure)["error"];
+            out["kind"] = error_json(*failure)["kind"];
         }
         fmt::print("{}\n", out.dump());
         return;
@@ -64,11 +82,16 @@ int run_device_read(const device::ProfileRegistry& profiles, const MasterCommand
     auto connected = connect(profiles, options);
     if (!connected) return report_error(connected.error());
     device::DeviceClient client(*connected->master, connected->device);
+    if (!options.no_identify) {
+        auto same = client.confirm_identity();
+        if (!same) return report_error(same.error());
+    }
     const auto report = client.read(*parameters);
-    print_readings(options, connected->device, report);
-    if (report.first_error) {
-        const JsonErrors already_in_the_output(false);
-        return report_error(*report.first_error);
+    const auto failure = read_failure(report);
+    print_readings(options, connected->device, report, failure);
+    if (failure) {
+        if (options.json) return exit_code_for(*failure);  // the document printed says it
+        return report_error(*failure);
     }
     return exit_ok;
 }
@@ -98,6 +121,10 @@ int run_device_write(const device::ProfileRegistry& profiles, const MasterComman
     auto connected = connect(profiles, options);
     if (!connected) return report_error(connected.error());
     device::DeviceClient client(*connected->master, connected->device);
+    if (!options.no_identify) {  // before anything is written to a device that may be another
+        auto same = client.confirm_identity();
+        if (!same) return report_error(same.error());
+    }
     auto written = client.write(resolved);
     if (!written) return report_error(written.error());
     // The unit as a read would show it (unit_of): a unit that follows a configuration word

@@ -19,6 +19,11 @@ void MasterCommandOptions::add_to(CLI::App& command, bool with_device) {
     command.add_flag("--json", json, "Print the result as JSON");
 }
 
+void MasterCommandOptions::add_identify_to(CLI::App& command) {
+    command.add_flag("--no-identify", no_identify, "With --device: skip reading the profile's identification words, which "
+                                                   "make sure the unit is that device before anything is read or written");
+}
+
 Result<std::unique_ptr<session::Master>> MasterCommandOptions::open(session::TraceSink trace) const {
     auto url = transport::parse_link_url(link);
     if (!url) return url.error();

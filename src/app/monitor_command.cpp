@@ -102,13 +102,7 @@ int run_monitor_command(const MonitorOptions& options, const ProfileOptions& pro
     if (!format) return report_error(format.error());
     auto file_settings = file_options(options);
     if (!file_settings) return report_error(file_settings.error());
-    if (options.devices.empty()) {
-        if (options.append || !options.rotate_size.empty() || !options.rotate.empty()) {
-            return report_error(make_error(ErrorKind::usage, "--append, --rotate-size and --rotate work with --device; "
-                                                             "raw registers (--unit) write a new FILE each run"));
-        }
-        return run_raw_monitor(options.master, options.typing, options.names, *settings, *format, options.output, options.utc);
-    }
+    if (options.devices.empty()) return run_raw_monitor(options.master, options.typing, options.names, *settings, *format, *file_settings);
     if (options.typing.any_given()) return report_error(RawTypeOptions::not_with_names());
     auto registry = profiles.load();
     if (!registry) return report_error(registry.error());

@@ -154,12 +154,13 @@ Result<std::unique_ptr<FileSampleSink>> FileSampleSink::open(const MonitorFileOp
     // An appended file started on the day it was last written.
     std::optional<std::chrono::system_clock::time_point> started;
     if (size > 0) started = std::chrono::system_clock::from_time_t(status.st_mtim.tv_sec);
-    return std::unique_ptr<FileSampleSink>(new FileSampleSink(options, format, file, size, started));
+    return std::unique_ptr<FileSampleSink>(
+        new FileSampleSink(options, format, format == MonitorFormat::csv ? csv_header : "", file, size, started));
 }
 
-FileSampleSink::FileSampleSink(MonitorFileOptions options, MonitorFormat format, std::FILE* file, std::uint64_t size,
-                               std::optional<std::chrono::system_clock::time_point> started)
-    : options_(std::move(options)), format_(format), file_(file), size_(size), started_(started) {}
+FileSampleSink::FileSampleSink(MonitorFileOptions options, MonitorFormat format, std::string csv_header, std::FILE* file,
+                               std::uint64_t size, std::optional<std::chrono::system_clock::time_point> started)
+    : options_(std::move(options)), format_(format), csv_header_(std::move(csv_header)), file_(file), size_(size), started_(started) {}
 
 FileSampleSink::~FileSampleSink() {
     if (file_ != nullptr) std::fclose(file_);
@@ -191,17 +192,26 @@ void FileSampleSink::rotate(std::chrono::system_clock::time_point time) {
 }
 
 void FileSampleSink::write(const device::SampleView& sample) {
+    write_text(sample.time, sample.index, sample_line(sample, format_, options_.time, false),
+               format_ == MonitorFormat::csv ? csv_header(*sample.devices) : "");
+}
+
+void FileSampleSink::write_row(std::chrono::system_clock::time_point time, unsigned index, const std::string& row) {
+    write_text(time, index, row, csv_header_);
+}
+
+void FileSampleSink::write_text(std::chrono::system_clock::time_point time, unsigned index, const std::string& row,
+                                const std::string& header) {
     // The row alone decides whether a file is full; the header a new file starts with is not
     // counted against the sample that follows it.
-    const std::string row = sample_line(sample, format_, options_.time, false);
-    if (needs_rotation(sample.time, row.size())) rotate(sample.time);
-    const std::string text = format_ == MonitorFormat::csv && size_ == 0 ? sample_line(sample, format_, options_.time, true) : row;
+    if (needs_rotation(time, row.size())) rotate(time);
+    const std::string text = size_ == 0 ? header + row : row;
     if (std::fputs(text.c_str(), file_) < 0 || std::fflush(file_) != 0) {
-        fmt::print(stderr, "loopwire: warning: writing sample {} to {} failed: {}\n", sample.index, options_.path, std::strerror(errno));
+        fmt::print(stderr, "loopwire: warning: writing sample {} to {} failed: {}\n", index, options_.path, std::strerror(errno));
         return;
     }
     size_ += text.size();
-    if (!started_) started_ = sample.time;
+    if (!started_) started_ = time;
 }
 
 }  // namespace loopwire::app

@@ -56,15 +56,20 @@ public:
     FileSampleSink& operator=(const FileSampleSink&) = delete;
 
     void write(const device::SampleView& sample) override;
+    // One sample as text, for monitors whose samples are not SampleViews (raw registers): `row`,
+    // preceded by the CSV header when it starts a file.
+    void write_row(std::chrono::system_clock::time_point time, unsigned index, const std::string& row);
 
 private:
-    FileSampleSink(MonitorFileOptions options, MonitorFormat format, std::FILE* file, std::uint64_t size,
+    FileSampleSink(MonitorFileOptions options, MonitorFormat format, std::string csv_header, std::FILE* file, std::uint64_t size,
                    std::optional<std::chrono::system_clock::time_point> started);
     bool needs_rotation(std::chrono::system_clock::time_point time, std::size_t bytes) const;
     void rotate(std::chrono::system_clock::time_point time);
+    void write_text(std::chrono::system_clock::time_point time, unsigned index, const std::string& row, const std::string& header);
 
     MonitorFileOptions options_;
     MonitorFormat format_;
+    std::string csv_header_;  // what each CSV file starts with; empty for JSON lines
     std::FILE* file_;
     std::uint64_t size_;
     std::optional<std::chrono::system_clock::time_point> started_;  // time of the file's first sample

@@ -46,8 +46,9 @@ std::string typing_text(const RawRequest& request) {
 
 class RawSampleWriter {
 public:
-    RawSampleWriter(const RawRequest& request, int unit, MonitorFormat format, std::FILE* out)
-        : request_(request), unit_(unit), format_(format), out_(out) {}
+    // Samples go to `file` when given (appended, rotated: monitor_file.hpp), else to `out`.
+    RawSampleWriter(const RawRequest& request, int unit, MonitorFormat format, std::FILE* out, FileSampleSink* file)
+        : request_(request), unit_(unit), format_(format), out_(out), file_(file) {}
     ~RawSampleWriter() {
         if (format_ == MonitorFormat::table && shown_lines_ > 0) {
             std::fputs(terminal_restore, out_);
@@ -58,6 +59,11 @@ public:
     RawSampleWriter& operator=(const RawSampleWriter&) = delete;
 
     void write(const RawSample& sample) {
+        if (file_ != nullptr) {
+            file_->write_row(sample.time, sample.index, format_ == MonitorFormat::jsonl ? raw_sample_json(request_, unit_, sample).dump() + "\n"
+                                                                                        : raw_csv_row(request_, sample));
+            return;
+        }
         std::string text;
         if (format_ == MonitorFormat::jsonl) text = raw_sample_json(request_, unit_, sample).dump() + "\n";
         else if (format_ == MonitorFormat::csv) text = (sample.index == 1 ? raw_csv_header(request_) : "") + raw_csv_row(request_, sample);
@@ -75,6 +81,7 @@ private:
     int unit_;
     MonitorFormat format_;
     std::FILE* out_;
+    FileSampleSink* file_;
     std::size_t shown_lines_ = 0;
 };
 
@@ -86,10 +93,6 @@ bool sleep_until(Clock::time_point deadline, std::stop_token stop) {
     woken.wait_until(lock, stop, deadline, [] { return false; });
     return !stop.stop_requested();
 }
-
-struct FileCloser {
-    void operator()(std::FILE* file) const { std::fclose(file); }
-};
 
 }  // namespace
 
@@ -143,8 +146,8 @@ std::vector<std::string> raw_table_lines(const RawRequest& request, int unit, co
 }
 
 void poll_raw(session::Master& master, int unit, const RawRequest& request, unsigned per_request,
-              const device::MonitorSettings& settings, MonitorFormat format, bool utc, std::FILE* out, std::stop_token stop) {
-    RawSampleWriter writer(request, unit, format, out);
+              const device::MonitorSettings& settings, MonitorFormat format, bool utc, RawOutput out, std::stop_token stop) {
+    RawSampleWriter writer(request, unit, format, out.terminal, out.file);
     unsigned errors = 0;
     const auto start = Clock::now();
     for (unsigned index = 1; !stop.stop_requested() && (!settings.count || index <= *settings.count); ++index) {
@@ -171,8 +174,8 @@ void poll_raw(session::Master& master, int unit, const RawRequest& request, unsi
 }
 
 int run_raw_monitor(const MasterCommandOptions& master, const RawTypeOptions& typing, const std::vector<std::string>& arguments,
-                    const device::MonitorSettings& settings, MonitorFormat format, const std::string& output, bool utc) {
-    if (arguments.size() < 2 || arguments.size() > 3) {
+                    const device::MonitorSettings& settings, MonitorFormat format, const MonitorFileOptions& output) {
+    if (arguments.empty() || arguments.size() > 3) {
         return report_error(make_error(ErrorKind::usage, "monitor takes --device DEVICE@UNIT [NAMES...] (by name), or --unit N "
                                                          "TABLE ADDRESS [COUNT] (raw registers, e.g. --unit 5 holding 100 4 --type float32)"));
     }
@@ -184,15 +187,17 @@ int run_raw_monitor(const MasterCommandOptions& master, const RawTypeOptions& ty
     }
     auto per_request = per_request_on(master.link, *request);
     if (!per_request) return report_error(per_request.error());
-    std::unique_ptr<std::FILE, FileCloser> file;
-    if (!output.empty()) {
-        file.reset(std::fopen(output.c_str(), "w"));
-        if (!file) return report_error(make_error(ErrorKind::usage, fmt::format("cannot write {}: {}", output, std::strerror(errno))));
+    std::unique_ptr<FileSampleSink> file;
+    if (!output.path.empty()) {
+        auto opened = FileSampleSink::open(output, format, format == MonitorFormat::csv ? raw_csv_header(*request) : "");
+        if (!opened) return report_error(opened.error());
+        file = std::move(*opened);
     }
     StopSignal stop;  // before the master's threads start, so they inherit the blocked signals
     auto opened = master.open();
     if (!opened) return report_error(opened.error());
-    poll_raw(**opened, master.unit, *request, *per_request, settings, format, utc, file ? file.get() : stdout, stop.token());
+    poll_raw(**opened, master.unit, *request, *per_request, settings, format, output.time == TimeStyle::utc, RawOutput{stdout, file.get()},
+             stop.token());
     return exit_ok;
 }
 

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "app/master_options.hpp"
+#include "app/monitor_file.hpp"
 #include "app/monitor_output.hpp"
 #include "app/raw_registers.hpp"
 #include "client/monitor_loop.hpp"
@@ -41,15 +42,23 @@ std::string raw_csv_row(const RawRequest& request, const RawSample& sample);
 // The lines of the live table for one sample (no newlines, no cursor movement).
 std::vector<std::string> raw_table_lines(const RawRequest& request, int unit, const RawSample& sample);
 
+// Where raw samples go: a log file (appended to and rotated as the named monitor's), or else the
+// terminal or pipe.
+struct RawOutput {
+    std::FILE* terminal = stdout;
+    FileSampleSink* file = nullptr;
+};
+
 // Polls once per settings.interval on a fixed schedule until settings.count samples were taken
 // or `stop` is requested, writing each sample to `out`. A unit that does not answer costs one
 // timeout per sample and shows as "no-reply"; the polling goes on.
 void poll_raw(session::Master& master, int unit, const RawRequest& request, unsigned per_request,
-              const device::MonitorSettings& settings, MonitorFormat format, std::FILE* out, std::stop_token stop);
+              const device::MonitorSettings& settings, MonitorFormat format, bool utc, RawOutput out, std::stop_token stop);
 
-// The whole command once monitor's options are parsed: `arguments` are TABLE ADDRESS [COUNT];
-// `output` a file to write instead of stdout (empty: stdout).
+// The whole command once monitor's options are parsed: `arguments` are TABLE ADDRESS [COUNT] or
+// REFERENCE [COUNT]; `output.path` a log file to write instead of stdout (empty: stdout), with
+// --append and rotation as for named parameters.
 int run_raw_monitor(const MasterCommandOptions& master, const RawTypeOptions& typing, const std::vector<std::string>& arguments,
-                    const device::MonitorSettings& settings, MonitorFormat format, const std::string& output, bool utc);
+                    const device::MonitorSettings& settings, MonitorFormat format, const MonitorFileOptions& output);
 
 }  // namespace loopwire::app

@@ -2,7 +2,8 @@
 // TABLE ADDRESS [COUNT] of `loopwire read` and `loopwire monitor` on a device without a profile:
 // which registers to read, and how to show them: plain 16-bit words, or with --type,
 // --word-order, --byte-swap and --scale as the numbers they hold (client/raw_values.hpp).
-// --base 1 takes and shows addresses numbered from 1, as many device manuals list them.
+// --base 1 takes and shows addresses numbered from 1, as many device manuals list them, and
+// reference addresses (40001) that name their table.
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -50,6 +51,7 @@ struct RawRequest {
     unsigned address = 0;        // the first address as typed, in the --base numbering
     int base = 0;
     std::uint16_t wire_address = 0;
+    unsigned last_wire = 0xFFFF; // the last wire address the numbering reaches (9998 for 40001..49999)
     unsigned count = 1;          // values
     unsigned registers = 1;      // count * registers per value
     bool typed = false;          // --type, --word-order, --byte-swap or --scale given
@@ -57,10 +59,25 @@ struct RawRequest {
     std::optional<device::RawScale> scale;
 };
 
-// `arguments` are TABLE ADDRESS [COUNT]. Usage errors say what was wrong: an unknown table or
-// type (listing the choices), typing options on bits, an address outside the --base numbering,
-// values that would run past the last register.
+// `arguments` are TABLE ADDRESS [COUNT], or REFERENCE [COUNT] where a reference address names
+// its table (40001 is holding register 1; also holding 40001 with --base 1). Usage errors say
+// what was wrong: an unknown table or type (listing the choices), typing options on bits, an
+// address outside the --base numbering, values that would run past the last register.
 Result<RawRequest> parse_raw_request(const std::vector<std::string>& arguments, const RawTypeOptions& options);
+
+// TABLE ADDRESS VALUE... (or REFERENCE VALUE...) of `loopwire write`: the registers or coils to
+// write, checked as a read's are, with each VALUE encoded by the typing options.
+struct RawWrite {
+    RawRequest target;                // table holding or coils; count = values, registers = words
+    std::vector<std::string> values;  // as typed
+    std::vector<std::uint16_t> words; // what goes on the wire, in order
+    unsigned each = 1;                // registers per value
+};
+Result<RawWrite> parse_raw_write(const std::vector<std::string>& arguments, const RawTypeOptions& options);
+
+// The most one write request may carry on a link of this URL, a whole number of values; a usage
+// error for a value of several registers on a Linking link, which writes one per message.
+Result<unsigned> per_write_on(const std::string& link, const RawWrite& write);
 
 // Reads the request's registers (or bits) in as few requests as the protocol allows;
 // `per_request` is the most one request may ask for (1 on a Linking link).

@@ -31,10 +31,26 @@ struct ScanOptions {
 
 struct FoundUnit {
     int unit;
-    std::string line;  // line settings it answered at
+    std::string line;  // the first line settings it answered at
     std::string device;
     nlohmann::ordered_json identification = nlohmann::ordered_json::object();
+    std::vector<std::string> lines;  // every line setting it answered at, in the order tried
 };
+
+// Modbus application protocol V1.1b3, 7: a gateway answers 0Ah (path unavailable) or 0Bh (target
+// device failed to respond) for a unit nothing answers behind it: that is nobody, not a device.
+bool gateway_says_nobody(const Error& error) {
+    return error.kind == ErrorKind::exception && (error.code == 0x0A || error.code == 0x0B);
+}
+
+// The unit found earlier as the same device at another line setting, if any: a sweep lists each
+// device once, with every setting it answered at.
+FoundUnit* found_before(std::vector<FoundUnit>& found, const FoundUnit& unit) {
+    for (auto& f : found) {
+        if (f.unit == unit.unit && f.device == unit.device) return &f;
+    }
+    return nullptr;
+}
 
 std::vector<std::string> split(const std::string& text) {
     std::vector<std::string> parts;
@@ -150,6 +166,11 @@ std::string units_text(const std::vector<int>& units) { return fmt::format("{}",
 // and a scan stopped early has already shown them.
 void print_found(const FoundUnit& f, bool json) {
     if (json) return;  // one JSON document at the end
+    if (f.lines.size() > 1) {
+        fmt::print("unit {:>3}  {:<10} also at {}\n", f.unit, f.device.empty() ? "(unknown Modbus device)" : f.device, f.lines.back());
+        std::fflush(stdout);
+        return;
+    }
     fmt::print("unit {:>3}  {:<10} {:<12} {}\n", f.unit, f.device.empty() ? "(unknown Modbus device)" : f.device, f.line,
                f.identification.empty() ? "" : f.identification.dump());
     std::fflush(stdout);
@@ -166,13 +187,16 @@ void print_summary(const std::vector<FoundUnit>& found, bool json, bool interrup
         nlohmann::ordered_json list = nlohmann::ordered_json::array();
         for (const auto& f : found) {
             list.push_back({{"unit", f.unit}, {"device", f.device.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(f.device)},
-                            {"identification", f.identification}, {"line", f.line}});
+                            {"identification", f.identification}, {"line", f.line}, {"lines", f.lines}});
         }
         nlohmann::ordered_json out{{"units", list}};
         if (interrupted) out["interrupted"] = true;
         fmt::print("{}\n", out.dump());
     } else {
         fmt::print("{} unit(s) answered{}\n", found.size(), interrupted ? " before the scan was interrupted (not every unit was tried)" : "");
+        for (const auto& f : found) {
+            if (f.lines.size() > 1) fmt::print("unit {} answered at {}\n", f.unit, fmt::join(f.lines, ", "));
+        }
     }
     std::fflush(stdout);
 }
@@ -188,6 +212,7 @@ int run_scan(const ScanOptions& options) {
     StopSignal stop;  // before any link's threads start, so only its thread takes Ctrl-C
     std::vector<FoundUnit> found;
     std::vector<std::vector<int>> found_per_line;  // for the check that the line ignores its settings
+    std::size_t gateway_refusals = 0;
     ScanProgress progress(::isatty(STDERR_FILENO) == 1);
     for (const auto& url : *settings) {
         if (stop.token().stop_requested()) break;
@@ -201,7 +226,6 @@ int run_scan(const ScanOptions& options) {
         };
         auto master = session::open_master(url, master_options);
         if (!master) return report_error(master.error());
-        const std::size_t before = found.size();
         found_per_line.emplace_back();
         for (std::size_t i = 0; i < units->size() && !stop.token().stop_requested(); ++i) {
             const int unit = (*units)[i];
@@ -209,16 +233,22 @@ int run_scan(const ScanOptions& options) {
             // Any answer proves a unit is there, an exception included (the TC10 refuses
             // address 0 with exception 2); only silence means nobody.
             auto reply = (*master)->execute(static_cast<std::uint8_t>(unit), codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1));
-            if (!reply && reply.error().kind != ErrorKind::exception) continue;
-            FoundUnit unit_found{unit, line_text(url), {}, nlohmann::ordered_json::object()};
+            if (!reply && gateway_says_nobody(reply.error())) ++gateway_refusals;
+            if (!reply && (reply.error().kind != ErrorKind::exception || gateway_says_nobody(reply.error()))) continue;
+            FoundUnit unit_found{unit, line_text(url), {}, nlohmann::ordered_json::object(), {line_text(url)}};
             identify(**master, unit_found);
             progress.clear();
-            print_found(unit_found, options.json);
             found_per_line.back().push_back(unit);
+            if (auto* earlier = found_before(found, unit_found)) {
+                earlier->lines.push_back(line_text(url));
+                print_found(*earlier, options.json);
+                continue;
+            }
+            print_found(unit_found, options.json);
             found.push_back(std::move(unit_found));
         }
         progress.clear();
-        if (found.size() == before && *garbled > 0) {
+        if (found_per_line.back().empty() && *garbled > 0) {
             fmt::print(stderr, "loopwire: {} garbled replies at {} and no unit answered cleanly: the usual cause of CRC errors is a wrong baud rate or parity; try --bauds and --parities\n",
                        *garbled, line_text(url));
         }
@@ -230,6 +260,10 @@ int run_scan(const ScanOptions& options) {
                    "settings (a pseudo-terminal, or a converter that sets its own speed and parity), so these results do not "
                    "tell which setting the devices use\n",
                    units_text(found_per_line.front()), settings_text(*settings));
+    }
+    if (gateway_refusals > 0 && !options.json) {
+        fmt::print(stderr, "loopwire: {} unit(s) were answered by a gateway with exception 0Ah or 0Bh (nothing answers behind it "
+                           "at that unit); they are not counted\n", gateway_refusals);
     }
     print_summary(found, options.json, interrupted);
     return interrupted ? exit_interrupted : exit_ok;

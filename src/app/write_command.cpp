@@ -1,4 +1,5 @@
-// loopwire write --link URL --unit N holding|coils ADDRESS VALUE... [--multiple] [--json]
+// loopwire write --link URL --unit N holding|coils ADDRESS VALUE... [--type T] [--word-order W]
+//                [--byte-swap] [--scale F] [--base 0|1] [--multiple] [--json]
 //                --link URL --device DEVICE@UNIT NAME=VALUE... [--json]
 #include <algorithm>
 
@@ -12,43 +13,17 @@
 #include "app/json_errors.hpp"
 #include "app/device_read_write.hpp"
 #include "app/master_options.hpp"
+#include "app/raw_registers.hpp"
 
 namespace loopwire::app {
 namespace {
 
 struct WriteOptions {
     MasterCommandOptions master;
+    RawTypeOptions typing;
     std::vector<std::string> arguments;  // TABLE ADDRESS VALUE..., or NAME=VALUE... with --device
-    std::string table;
-    std::string address;
-    std::vector<std::string> values;
     bool multiple = false;
 };
-
-Result<std::uint16_t> parse_coil(const std::string& text) {
-    std::string lower = text;
-    std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    if (lower == "1" || lower == "on" || lower == "true") return std::uint16_t{1};
-    if (lower == "0" || lower == "off" || lower == "false") return std::uint16_t{0};
-    return make_error(ErrorKind::usage, fmt::format("coil value '{}' must be 0, 1, on, off, true or false", text));
-}
-
-// Registers take unsigned 0..65535 or signed -32768..-1 (sent as two's complement).
-Result<std::vector<std::uint16_t>> parse_values(const WriteOptions& options, bool coils) {
-    std::vector<std::uint16_t> values;
-    for (const auto& text : options.values) {
-        if (coils) {
-            auto coil = parse_coil(text);
-            if (!coil) return coil.error();
-            values.push_back(*coil);
-            continue;
-        }
-        auto value = parse_integer(text, -32768, 65535, "register value");
-        if (!value) return value.error();
-        values.push_back(static_cast<std::uint16_t>(*value));
-    }
-    return values;
-}
 
 codec::Request make_write(bool coils, bool multiple, std::uint16_t address, std::vector<std::uint16_t> values) {
     if (!multiple && values.size() == 1) {
@@ -58,62 +33,79 @@ codec::Request make_write(bool coils, bool multiple, std::uint16_t address, std:
                  : codec::write_multiple_registers(address, std::move(values));
 }
 
-Result<void> write_range(session::Master& master, std::uint8_t unit, bool coils, bool multiple,
-                         std::uint16_t address, const std::vector<std::uint16_t>& values, std::size_t per_request) {
-    for (std::size_t done = 0; done < values.size();) {
-        const std::size_t chunk = std::min(per_request, values.size() - done);
-        std::vector<std::uint16_t> part(values.begin() + static_cast<long>(done), values.begin() + static_cast<long>(done + chunk));
-        auto reply = master.execute(unit, make_write(coils, multiple, static_cast<std::uint16_t>(address + done), std::move(part)));
+// A value of several registers always goes with function 16: written one register at a time,
+// the device would hold half of it between the two writes.
+Result<void> write_range(session::Master& master, std::uint8_t unit, const RawWrite& write, bool multiple, unsigned per_request) {
+    const bool coils = write.target.table->bits;
+    const auto& words = write.words;
+    for (std::size_t done = 0; done < words.size();) {
+        const std::size_t chunk = std::min<std::size_t>(per_request, words.size() - done);
+        std::vector<std::uint16_t> part(words.begin() + static_cast<long>(done), words.begin() + static_cast<long>(done + chunk));
+        auto reply = master.execute(unit, make_write(coils, multiple || write.each > 1,
+                                                     static_cast<std::uint16_t>(write.target.wire_address + done), std::move(part)));
         if (!reply) return reply.error();
         done += chunk;
     }
     return {};
 }
 
+void print_written(const WriteOptions& options, const RawWrite& write) {
+    const auto& target = write.target;
+    const bool broadcast = options.master.unit == 0;
+    if (options.master.json) {
+        nlohmann::ordered_json out{{"unit", options.master.unit}, {"table", target.table->name}, {"address", target.address}};
+        if (target.typed) {
+            describe_typing(target, out);
+            nlohmann::ordered_json values = nlohmann::ordered_json::array();
+            for (const auto& reading : raw_readings(target, write.words)) values.push_back(number_json(reading.number));
+            out["values"] = values;
+            out["registers"] = write.words;
+        } else {
+            if (target.base != 0) out["base"] = target.base;
+            out["values"] = write.words;
+        }
+        out["broadcast"] = broadcast;
+        fmt::print("{}\n", out.dump());
+        return;
+    }
+    const std::string to = fmt::format("{} unit {}", broadcast ? "as broadcast, not answered, to every" : "to", options.master.unit);
+    if (!target.typed) {
+        fmt::print("wrote {} {} from address {} {}\n", write.words.size(), target.table->bits ? "coil(s)" : "register(s)",
+                   target.address, to);
+        return;
+    }
+    // What the registers now hold, read back through the same typing: a float32 shows the value
+    // it could keep (12.3 stays 12.3; 16777217 becomes 16777216).
+    std::string numbers;
+    for (const auto& reading : raw_readings(target, write.words)) numbers += ", " + device::number_text(reading.number);
+    fmt::print("wrote {} {} value(s) ({}; {} register(s)) from address {} {}\n", write.values.size(),
+               device::raw_type_name(target.layout.type), numbers.substr(2), write.words.size(), target.address, to);
+}
+
 int run_raw_write(const WriteOptions& options) {
-    const bool coils = options.table == "coils";
-    if (!coils && options.table != "holding") {
-        return report_error(make_error(ErrorKind::usage, fmt::format("cannot write table '{}': choose holding or coils", options.table)));
-    }
-    auto address = parse_integer(options.address, 0, 0xFFFF, "address");
-    if (!address) return report_error(address.error());
-    auto values = parse_values(options, coils);
-    if (!values) return report_error(values.error());
-    if (static_cast<std::size_t>(*address) + values->size() > 0x10000) {  // address is 0..65535 here
-        return report_error(make_error(ErrorKind::usage, fmt::format("{} values from address {} run past the last address 65535", values->size(), *address)));
-    }
-    auto url = transport::parse_link_url(options.master.link);
-    if (!url) return report_error(url.error());
+    auto write = parse_raw_write(options.arguments, options.typing);
+    if (!write) return report_error(write.error());
+    auto per_request = per_write_on(options.master.link, *write);
+    if (!per_request) return report_error(per_request.error());
     auto master = options.master.open();
     if (!master) return report_error(master.error());
-    std::size_t per_request = coils ? codec::max_write_bits : codec::max_write_registers;
-    if (url->framing == transport::Framing::linking) per_request = 1;
-    auto written = write_range(**master, static_cast<std::uint8_t>(options.master.unit), coils, options.multiple,
-                               static_cast<std::uint16_t>(*address), *values, per_request);
+    auto written = write_range(**master, static_cast<std::uint8_t>(options.master.unit), *write, options.multiple, *per_request);
     if (!written) return report_error(written.error());
-    if (options.master.json) {
-        nlohmann::ordered_json out{{"unit", options.master.unit}, {"table", options.table}, {"address", *address},
-                           {"values", *values}, {"broadcast", options.master.unit == 0}};
-        fmt::print("{}\n", out.dump());
-    } else {
-        fmt::print("wrote {} {} from address {} {} unit {}\n", values->size(), coils ? "coil(s)" : "register(s)", *address,
-                   options.master.unit == 0 ? "as broadcast, not answered, to every" : "to", options.master.unit);
-    }
+    print_written(options, *write);
     return exit_ok;
 }
 
 int run_write(WriteOptions options, const ProfileOptions& profiles) {
     if (!options.master.device.empty()) {
+        if (options.typing.any_given()) return report_error(RawTypeOptions::not_with_names());
         auto registry = profiles.load();
         if (!registry) return report_error(registry.error());
         return run_device_write(*registry, options.master, options.arguments);
     }
-    if (options.arguments.size() < 3) {
-        return report_error(make_error(ErrorKind::usage, "write takes TABLE ADDRESS VALUE... (or --device DEVICE@UNIT and NAME=VALUE pairs)"));
+    if (options.arguments.size() < 2) {
+        return report_error(make_error(ErrorKind::usage, "write takes TABLE ADDRESS VALUE... or REFERENCE VALUE... (or --device "
+                                                         "DEVICE@UNIT and NAME=VALUE pairs)"));
     }
-    options.table = options.arguments[0];
-    options.address = options.arguments[1];
-    options.values.assign(options.arguments.begin() + 2, options.arguments.end());
     return run_raw_write(options);
 }
 
@@ -123,10 +115,14 @@ void add_write_command(CLI::App& app, int& exit_code, const ProfileOptions& prof
     auto options = std::make_shared<WriteOptions>();
     auto* command = app.add_subcommand("write", "Write holding registers or coils");
     options->master.add_to(*command, true);
+    options->master.add_identify_to(*command);
     command->add_option("arguments", options->arguments,
-                        "TABLE ADDRESS VALUE...: holding|coils, first 0-based wire address, values (registers 0..65535 or "
-                        "-32768..-1, decimal, 0x.. or ..h; coils 0/1/on/off). With --device: NAME=VALUE in engineering units or enum labels");
-    command->add_flag("--multiple", options->multiple, "Use function 16/15 even for a single value");
+                        "TABLE ADDRESS VALUE...: holding|coils, the first address (0-based wire address, 1-based with --base 1, "
+                        "or a reference such as 40001 in place of TABLE ADDRESS), values (registers 0..65535 or -32768..-1, decimal, "
+                        "0x.. or ..h; with --type numbers of that type, each taking 1, 2 or 4 registers; coils 0/1/on/off). With "
+                        "--device: NAME=VALUE in engineering units or enum labels");
+    options->typing.add_to(*command);
+    command->add_flag("--multiple", options->multiple, "Use function 16/15 even for a single value (always for values of 2 or 4 registers)");
     command->footer(exit_code_help);
     command->callback([options, &exit_code, &profiles] {
         const JsonErrors json_errors(options->master.json);

@@ -167,6 +167,45 @@ void DeviceClient::decode_readings(const std::vector<const Parameter*>& paramete
     }
 }
 
+Result<void> DeviceClient::confirm_identity() {
+    const Profile& profile = *device_.profile;
+    std::vector<const Parameter*> words;
+    for (const auto& check : profile.identification) {
+        if (const auto* p = profile.find(check.parameter)) words.push_back(p);
+    }
+    if (words.empty()) return {};
+    const auto report = read(words);
+    const auto not_it = [&](const std::string& found) {
+        return make_error(ErrorKind::mismatch,
+                          fmt::format("the device at unit {0} is not {1}@{0}: {2}. `loopwire scan --link URL --units {0}` tells "
+                                      "what it is; --no-identify talks to it as {1} anyway",
+                                      device_.unit, profile.id, found));
+    };
+    for (const auto& check : profile.identification) {
+        const auto* p = profile.find(check.parameter);
+        if (p == nullptr) continue;
+        const auto raw = report.raw.find(p->name);
+        if (raw != report.raw.end()) {
+            if (static_cast<std::int16_t>(raw->second) == static_cast<std::int16_t>(check.equals)) continue;
+            return not_it(fmt::format("its {} (word {}) reads {} where the {} profile expects {}", p->name, p->address,
+                                      static_cast<std::int16_t>(raw->second), profile.id, check.equals));
+        }
+        // Illegal function or address: the unit has no such word, so it is another device. Any
+        // other exception is a device that answers but cannot now (an AC20 in an error condition
+        // refuses everything but its menus with the condition's number, ERROR REPLY): that does
+        // not say it is another device, and the read that follows reports it.
+        const bool no_such_word = report.first_error && report.first_error->kind == ErrorKind::exception &&
+                                  (report.first_error->code == 1 || report.first_error->code == 2);
+        if (report.first_error && report.first_error->kind == ErrorKind::exception && !no_such_word) return {};
+        if (no_such_word) {
+            return not_it(fmt::format("it refuses {} (word {}), which the {} profile reads to identify it: {}", p->name,
+                                      p->address, profile.id, report.first_error->message));
+        }
+        if (report.first_error) return *report.first_error;
+    }
+    return {};
+}
+
 ReadReport DeviceClient::read(const std::vector<const Parameter*>& parameters) {
     ReadReport report;
     Failures failures;

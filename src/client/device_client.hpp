@@ -100,6 +100,12 @@ public:
     // says which parameters were and were not written.
     Result<WriteReport> write_raw(const std::vector<PlannedWrite>& writes);
 
+    // Whether the device at the unit is the one the profile describes: its identification words
+    // (the profile's "identification.match", which `loopwire scan` uses too) read what they
+    // must. A mismatch error says what was found and how to tell what the device is; a timeout
+    // or link failure is returned as it is. A profile without identification words passes.
+    Result<void> confirm_identity();
+
     // The profile's meaning of an exception code, if it names one ("AC20: ...").
     Error explain(Error error) const;
 

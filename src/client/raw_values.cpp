@@ -2,6 +2,9 @@
 
 #include <array>
 #include <bit>
+#include <charconv>
+#include <cctype>
+#include <limits>
 #include <cmath>
 #include <cstdlib>
 
@@ -55,6 +58,153 @@ double float_as_meant(float value) {
 
 bool is_digit(char c) { return c >= '0' && c <= '9'; }
 
+struct ByteOrderEntry {
+    std::string_view name;
+    WordOrder order;
+    bool byte_swap;
+};
+
+constexpr std::array<ByteOrderEntry, 4> byte_orders{{
+    {"ABCD", WordOrder::big, false},
+    {"CDAB", WordOrder::little, false},
+    {"BADC", WordOrder::big, true},
+    {"DCBA", WordOrder::little, true},
+}};
+
+// The registers of a value whose bits are `bits` (most significant first), in the layout's order:
+// the inverse of joined().
+std::vector<std::uint16_t> split(std::uint64_t bits, const RawLayout& layout) {
+    const unsigned n = registers_per_value(layout.type);
+    std::vector<std::uint16_t> words(n);
+    for (unsigned i = 0; i < n; ++i) {
+        auto word = static_cast<std::uint16_t>(bits >> (16 * (n - 1 - i)));
+        if (layout.byte_swap) word = swapped_bytes(word);
+        words[layout.word_order == WordOrder::big ? i : n - 1 - i] = word;
+    }
+    return words;
+}
+
+bool is_float(RawType type) { return type == RawType::float32 || type == RawType::float64; }
+
+struct IntegerRange {
+    std::int64_t lowest;
+    std::int64_t highest;
+};
+
+IntegerRange range_of(RawType type) {
+    switch (type) {
+        case RawType::int16: return {std::numeric_limits<std::int16_t>::min(), std::numeric_limits<std::int16_t>::max()};
+        case RawType::uint16: return {0, std::numeric_limits<std::uint16_t>::max()};
+        case RawType::int32: return {std::numeric_limits<std::int32_t>::min(), std::numeric_limits<std::int32_t>::max()};
+        default: return {0, std::numeric_limits<std::uint32_t>::max()};
+    }
+}
+
+// A whole number as typed: decimal, or hex with 0x (a bit pattern, as a register map gives it).
+std::optional<std::int64_t> whole_number(std::string_view text) {
+    int radix = 10;
+    std::string_view digits = text;
+    bool negative = false;
+    if (!digits.empty() && digits.front() == '-') {
+        negative = true;
+        digits.remove_prefix(1);
+    } else if (!digits.empty() && digits.front() == '+') {
+        digits.remove_prefix(1);
+    }
+    if (digits.size() > 2 && digits[0] == '0' && (digits[1] == 'x' || digits[1] == 'X')) {
+        radix = 16;
+        digits.remove_prefix(2);
+    }
+    std::uint64_t magnitude = 0;
+    const auto [end, error] = std::from_chars(digits.data(), digits.data() + digits.size(), magnitude, radix);
+    if (digits.empty() || error != std::errc() || end != digits.data() + digits.size()) return std::nullopt;
+    if (magnitude > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) return std::nullopt;
+    const auto value = static_cast<std::int64_t>(magnitude);
+    return negative ? -value : value;
+}
+
+// Any number as typed: 12.5, -3, 1e3, nan, inf. Nothing may follow it.
+std::optional<double> any_number(std::string_view text) {
+    if (text.empty() || std::isspace(static_cast<unsigned char>(text.front()))) return std::nullopt;
+    if (text.find_first_of("xX") != std::string_view::npos) {  // hex is a whole number; strtod would take hex floats
+        const auto whole = whole_number(text);
+        return whole ? std::optional<double>(static_cast<double>(*whole)) : std::nullopt;
+    }
+    const std::string copy(text);
+    char* end = nullptr;
+    const double value = std::strtod(copy.c_str(), &end);
+    if (end != copy.c_str() + copy.size()) return std::nullopt;
+    return value;
+}
+
+double factor_of(const RawScale& scale) { return scaled(std::int64_t{1}, scale); }
+
+// "0..65535", or with a scale the same range in the scaled unit, "0..6553.5 (with --scale 0.1)".
+std::string range_text(RawType type, const std::optional<RawScale>& scale) {
+    const auto range = range_of(type);
+    if (!scale) return fmt::format("{}..{}", range.lowest, range.highest);
+    const double low = scaled(range.lowest, *scale);
+    const double high = scaled(range.highest, *scale);
+    return fmt::format("{}..{} (with --scale {})", std::min(low, high), std::max(low, high), factor_of(*scale));
+}
+
+Result<std::uint64_t> integer_bits(std::string_view text, RawType type, const std::optional<RawScale>& scale) {
+    const auto name = raw_type_name(type);
+    std::int64_t value = 0;
+    if (!scale) {
+        const auto whole = whole_number(text);
+        if (!whole) {
+            const bool number = any_number(text).has_value();
+            return make_error(ErrorKind::usage, fmt::format("'{}' is not {} {}: give a whole number {}{}", text,
+                                                            number ? "a whole number for" : "a number for", name,
+                                                            range_text(type, scale),
+                                                            number ? " (or --type float32 for a fraction)" : ""));
+        }
+        value = *whole;
+    } else {
+        const auto number = any_number(text);
+        if (!number || !std::isfinite(*number)) {
+            return make_error(ErrorKind::usage, fmt::format("'{}' is not a number: give a number in {}", text, range_text(type, scale)));
+        }
+        const double units = *number / factor_of(*scale);
+        const double nearest = std::round(units);
+        if (std::abs(units - nearest) > 1e-9 * std::max(1.0, std::abs(nearest))) {
+            return make_error(ErrorKind::usage, fmt::format("{} with --scale {} is {} steps of {}: {} holds whole steps only; "
+                                                            "give {} or {}", text, factor_of(*scale), fmt::format("{:.10g}", units),
+                                                            factor_of(*scale), name, scaled(static_cast<std::int64_t>(std::floor(units)), *scale),
+                                                            scaled(static_cast<std::int64_t>(std::ceil(units)), *scale)));
+        }
+        if (std::abs(nearest) > 9.0e15) {
+            return make_error(ErrorKind::usage, fmt::format("{} does not fit {}: give {}", text, name, range_text(type, scale)));
+        }
+        value = static_cast<std::int64_t>(nearest);
+    }
+    const auto range = range_of(type);
+    // A hex bit pattern of a signed type (0xFFFF for an int16) is its two's complement.
+    const bool pattern = !scale && text.find_first_of("xX") != std::string_view::npos && value >= 0 &&
+                         (type == RawType::int16 || type == RawType::int32) && value <= 2 * range.highest + 1;
+    if (!pattern && (value < range.lowest || value > range.highest)) {
+        return make_error(ErrorKind::usage, fmt::format("{} does not fit {}: give {}", text, name, range_text(type, scale)));
+    }
+    const unsigned bits = 16 * registers_per_value(type);
+    return static_cast<std::uint64_t>(value) & (bits == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << bits) - 1);
+}
+
+Result<std::uint64_t> float_bits(std::string_view text, RawType type, const std::optional<RawScale>& scale) {
+    const auto number = any_number(text);
+    if (!number) {
+        return make_error(ErrorKind::usage, fmt::format("'{}' is not a number for {}: give a decimal number such as 12.5, "
+                                                        "-0.25 or 1e-3 (nan and inf are taken too)", text, raw_type_name(type)));
+    }
+    const double value = scale ? *number / factor_of(*scale) : *number;
+    if (type == RawType::float64) return std::bit_cast<std::uint64_t>(value);
+    if (std::isfinite(value) && std::abs(value) > static_cast<double>(std::numeric_limits<float>::max())) {
+        return make_error(ErrorKind::usage, fmt::format("{} is beyond the largest float32, {}: give a smaller number or --type "
+                                                        "float64", text, std::numeric_limits<float>::max()));
+    }
+    return std::uint64_t{std::bit_cast<std::uint32_t>(static_cast<float>(value))};
+}
+
 constexpr std::size_t most_scale_digits = 15;  // every such integer is exact in a double
 
 }  // namespace
@@ -66,11 +216,22 @@ Result<RawType> parse_raw_type(std::string_view text) {
     return make_error(ErrorKind::usage, fmt::format("unknown type '{}': choose {}", text, raw_type_choices));
 }
 
-Result<WordOrder> parse_word_order(std::string_view text) {
-    if (text == "big") return WordOrder::big;
-    if (text == "little") return WordOrder::little;
+Result<WordOrderChoice> parse_word_order(std::string_view text) {
+    if (text == "big") return WordOrderChoice{WordOrder::big, std::nullopt};
+    if (text == "little") return WordOrderChoice{WordOrder::little, std::nullopt};
+    for (const auto& named : byte_orders) {
+        if (named.name == text) return WordOrderChoice{named.order, named.byte_swap};
+    }
     return make_error(ErrorKind::usage, fmt::format("unknown word order '{}': choose big (most significant register first) "
-                                                    "or little (least significant first)", text));
+                                                    "or little (least significant first), or a byte order: ABCD (big), CDAB "
+                                                    "(little), BADC (big, bytes swapped) or DCBA (little, bytes swapped)", text));
+}
+
+std::string_view byte_order_name(const RawLayout& layout) {
+    for (const auto& named : byte_orders) {
+        if (named.order == layout.word_order && named.byte_swap == layout.byte_swap) return named.name;
+    }
+    return byte_orders.front().name;  // unreachable: the four cover every layout
 }
 
 std::string_view raw_type_name(RawType type) { return entry_of(type).name; }
@@ -139,6 +300,13 @@ double scaled(const RawNumber& value, const RawScale& scale) {
     double power = 1.0;  // 10^decimals, exact: decimals is at most 15
     for (unsigned i = 0; i < scale.decimals; ++i) power *= 10.0;
     return product / power;
+}
+
+Result<std::vector<std::uint16_t>> encode_value(std::string_view text, const RawLayout& layout,
+                                                const std::optional<RawScale>& scale) {
+    auto bits = is_float(layout.type) ? float_bits(text, layout.type, scale) : integer_bits(text, layout.type, scale);
+    if (!bits) return bits.error();
+    return split(*bits, layout);
 }
 
 std::string number_text(const RawNumber& value) {

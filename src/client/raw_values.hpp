@@ -3,6 +3,7 @@
 // 64-bit integers and IEEE 754 floats spread over consecutive registers, in either word order,
 // with or without the bytes of each register swapped, optionally scaled. Pure: no I/O.
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -29,8 +30,18 @@ inline constexpr std::string_view raw_type_choices = "int16, uint16, int32, uint
 
 // "float32" -> RawType::float32; anything else is a usage error listing the choices.
 Result<RawType> parse_raw_type(std::string_view text);
-// "big" or "little".
-Result<WordOrder> parse_word_order(std::string_view text);
+
+// A word order as typed: "big" or "little" say only which register comes first; the byte-order
+// names of Modbus tools, where A is the most significant byte, also say whether the bytes of
+// each register are swapped: ABCD = big, CDAB = little, BADC = big and swapped, DCBA = little
+// and swapped (for a float64, ABCD stands for ABCDEFGH and so on).
+struct WordOrderChoice {
+    WordOrder order = WordOrder::big;
+    std::optional<bool> byte_swap;  // set by the four-letter names only
+};
+Result<WordOrderChoice> parse_word_order(std::string_view text);
+// The four-letter name of a layout: "ABCD", "CDAB", "BADC" or "DCBA".
+std::string_view byte_order_name(const RawLayout& layout);
 std::string_view raw_type_name(RawType type);
 std::string_view word_order_name(WordOrder order);
 
@@ -59,6 +70,14 @@ struct RawScale {
 Result<RawScale> parse_scale(std::string_view text);
 // value * scale, as a double.
 double scaled(const RawNumber& value, const RawScale& scale);
+
+// The registers that hold `text` as one value of the layout's type, in the order they are
+// written; with `scale`, `text` is the scaled number (what a read with the same --scale shows)
+// and the registers hold text / scale. Usage errors say what was wrong: not a number, not a
+// whole number for an integer type ("12.34 with --scale 0.1 is 123.4 units of 0.1"), out of
+// the type's range (naming the range in the scaled unit).
+Result<std::vector<std::uint16_t>> encode_value(std::string_view text, const RawLayout& layout,
+                                                const std::optional<RawScale>& scale = std::nullopt);
 
 // The shortest text that reads back as the same number: "-3", "12.5", "0.1", "nan", "inf".
 std::string number_text(const RawNumber& value);

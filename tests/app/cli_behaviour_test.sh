@@ -98,6 +98,17 @@ wait_for_path "$tc10_pty"
 check simulate-names-device 0 "unit 3: tc10" cat "$WORK_DIR/sim-tc10.log"
 check scan-finds-simulated-tc10 0 '{"unit":3,"device":"tc10"' "$loopwire" scan --link "rtu:$tc10_pty" --units 1-4 --timeout 200ms --json
 check read-simulated-tc10-sp 0 "SP" "$loopwire" read --link "rtu:$tc10_pty" --device tc10@3 SP
+# A device named wrongly is not read as if it were right: the generic unit 1 on TCP and the TC10
+# read as an AC20 fail their identification words, a write to them sends nothing, and
+# --no-identify talks to the unit anyway.
+check wrong-device-read-refused 6 "the device at unit 3 is not ac20@3" \
+  "$loopwire" read --link "rtu:$tc10_pty" --device ac20@3 PV
+check wrong-device-write-refused 6 "the device at unit 1 is not tc10@1: its instrument_id (word 21) reads 0 where the tc10 profile expects 20" \
+  "$loopwire" write --link "tcp://127.0.0.1:$port" --device tc10@1 SP=150
+check wrong-device-write-sent-nothing 0 '"values":[0]' "$loopwire" read --link "tcp://127.0.0.1:$port" --unit 1 holding 717 --json
+check wrong-device-json-once 6 '"kind":"mismatch"' "$loopwire" read --json --link "tcp://127.0.0.1:$port" --device tc10@1 SP
+check no-identify-reads-anyway 0 "set_point" "$loopwire" read --no-identify --link "tcp://127.0.0.1:$port" --device tc10@1 SP
+check right-device-still-reads 0 "measured_value" "$loopwire" read --link "rtu:$tc10_pty" --device tc10@3 PV
 check write-above-sp-hl-refused 5 "exception 3" "$loopwire" write --link "rtu:$tc10_pty" --unit 3 holding 717 30000
 # TC10 §4.1, §5.3.7 #62: Pb "1 ... 9999" is in display counts, so at dP = 1 the master refuses
 # 1000.0 before sending and names the limit in engineering units; 999.9 is the top. §5.3.1 #2:

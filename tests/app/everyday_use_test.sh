@@ -123,7 +123,11 @@ assert re.search(r"\x1b\[\d+F\x1b\[J\r\d\d:\d\d:\d\d\.\d{6} (TX|RX) [^\n]*\n\rlo
 timeout 30 "$loopwire" scan --link "rtu:$WORK_DIR/ttyS" --units 1-5 --bauds 9600,19200 --parities none,even \
   --timeout 50ms >scan.out 2>scan.err || count_failure "scan sweep" scan.err
 check scan-warns-line-ignores-settings 0 "the line probably ignores line settings" cat scan.err
-check scan-lists-unit-at-each-setting 0 "4 unit(s) answered" cat scan.out
+# One simulated unit at four settings is one unit, listed once with every setting that found it.
+check scan-counts-each-unit-once 0 "1 unit(s) answered" cat scan.out
+check scan-lists-the-settings-of-a-unit 0 "answered at 9600 8N1, 9600 8E1, 19200 8N1, 19200 8E1" cat scan.out
+if (($(grep "^unit   3  tc10 " scan.out | grep -vc " also at ") == 1 && $(grep -c " also at " scan.out) == 3)); then count_pass
+else count_failure scan-prints-the-unit-once-then-where-else scan.out; fi
 "$loopwire" scan --link "rtu:$WORK_DIR/ttyS" --units 1-247 --timeout 100ms >scan2.out 2>scan2.err &
 scan_pid=$!
 unit_printed() { grep -q "^unit   3  tc10" scan2.out; }
@@ -167,6 +171,11 @@ pyjson read-json-link-error 3 'assert doc["kind"] == "link" and "none" in doc["e
 pyjson read-json-timeout 4 'assert doc["kind"] == "timeout" and doc["error"], doc' \
   "$loopwire" read --json --link "rtu:$WORK_DIR/ttyS?parity=none" --unit 9 --timeout 200ms holding 0 1
 # The simulator on TCP answers for a unit it does not serve as a gateway would: exception 0Bh.
+# One failure, one report: the JSON object on stdout and nothing again on stderr.
+if [[ ! -s json.err ]]; then count_pass; else count_failure read-json-timeout-says-it-once json.err; fi
+pyjson read-json-device-timeout 4 'assert doc["kind"] == "timeout" and "no reply from unit 9" in doc["error"], doc' \
+  "$loopwire" read --json --link "rtu:$WORK_DIR/ttyS?parity=none" --device tc10@9 --timeout 200ms PV
+if [[ ! -s json.err && $(wc -l <json.out) -eq 1 ]]; then count_pass; else count_failure device-read-json-timeout-says-it-once json.out json.err; fi
 pyjson read-json-exception-0B 5 'assert doc["code"] == 11 and doc["exception"] == "gateway target device failed to respond", doc' \
   "$loopwire" read --json --link "$tcp" --unit 9 --timeout 200ms holding 0 1
 pyjson read-json-exception 5 'assert doc["kind"] == "exception" and doc["code"] == 2 and doc["exception"] == "illegal data address", doc' \

@@ -101,6 +101,16 @@ timeout --preserve-status -s INT 6 "$loopwire" monitor "${link[@]}" --unit 5 hol
 status=$?
 if [[ $status -eq 0 && -s $WORK_DIR/int.jsonl ]]; then count_pass; else count_failure "monitor-ctrl-c (exit $status)" "$WORK_DIR/int.jsonl"; fi
 
+# A raw log appended to, as the named monitor's: one header, the rows of both runs.
+for run in 1 2; do
+    timeout 20 "$loopwire" monitor "${link[@]}" --unit 5 holding 100 --type float32 --count 2 --interval 100ms \
+      --output "$WORK_DIR/raw.csv" --append --rotate-size 10MB >"$WORK_DIR/append.out" 2>&1 || count_failure "monitor-raw-append-run-$run" "$WORK_DIR/append.out"
+done
+if [[ $(grep -c '^time,sample,status,errors,holding 100$' "$WORK_DIR/raw.csv") -eq 1 && $(grep -c ',ok,0,12.5$' "$WORK_DIR/raw.csv") -eq 4 ]]
+then count_pass; else count_failure monitor-raw-append-keeps-one-header "$WORK_DIR/raw.csv"; fi
+check monitor-raw-append-other-columns 2 'its CSV header differs' \
+  "$loopwire" monitor "${link[@]}" --unit 5 holding 102 --type float32 --count 1 --output "$WORK_DIR/raw.csv" --append
+
 check monitor-neither 2 'monitor takes --device DEVICE@UNIT [NAMES...] (by name), or --unit N TABLE ADDRESS [COUNT]' \
   "$loopwire" monitor "${link[@]}" --count 1
 check monitor-no-unit 2 'raw registers need --unit N' "$loopwire" monitor "${link[@]}" holding 100 --count 1

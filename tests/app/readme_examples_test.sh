@@ -46,10 +46,25 @@ for example in "${examples[@]}"; do
     if [[ $status -eq 0 ]]; then count_pass; else count_failure "README: $example (exit $status)" out.txt; fi
 done
 echo "ran $ran README examples"
+# The README's two CSV monitors one after the other: the second appends to what the first wrote.
+mapfile -t csv_monitors < <(printf '%s\n' "${examples[@]}" | grep -E '^loopwire monitor .*--output plant\.csv')
+((${#csv_monitors[@]} == 2)) || fail "expected two README monitors writing plant.csv, found ${#csv_monitors[@]}"
+rm -f plant.csv
+for example in "${csv_monitors[@]}"; do
+    command=$(sed -E -e "s#--link 'rtu:[^']*'#--link '$serial'#" <<<"${example%%#*}")
+    eval "words=($command)"
+    status=0
+    timeout 5 "$loopwire" "${words[@]:1}" >append.out 2>&1 || status=$?
+    [[ $status -eq 124 ]] || count_failure "README monitor into plant.csv (exit $status): $example" append.out
+done
+if [[ $(grep -c '^time' plant.csv) -eq 1 && $(wc -l <plant.csv) -ge 4 ]]; then count_pass
+else count_failure readme-append-continues-the-same-csv plant.csv append.out; fi
 check readme-write-took 0 "150" "$loopwire" read --link "$serial" --device tc10@3 SP
 # The generic Modbus examples print what their comments say, from the words the README wrote.
 check readme-float32-big 0 "12.5" "$loopwire" read --link "$tcp" --unit 1 holding 200 --type float32
 check readme-float32-little 0 "12.5" "$loopwire" read --link "$tcp" --unit 1 holding 202 --type float32 --word-order little
 check readme-int32-json 0 '"values":[-2]' "$loopwire" read --link "$tcp" --unit 1 holding 204 --type int32 --json
+check readme-typed-write 0 '"values":[12.5,-7.75]' "$loopwire" read --link "$tcp" --unit 1 holding 300 2 --type float32 --word-order CDAB --json
+check readme-reference-hex 0 "  40302  0x4148" "$loopwire" read --link "$tcp" --unit 1 40301 2 --format hex
 check readme-scale-base 0 "1671.2" "$loopwire" read --link "$tcp" --unit 1 holding 201 1 --type uint16 --scale 0.1 --base 1
 finish

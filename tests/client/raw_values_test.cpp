@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <tuple>
 
 #include "client/raw_values.hpp"
 
@@ -104,6 +106,102 @@ TEST(RawValues, TypeNamesAndTheirErrors) {
     auto order = parse_word_order("middle");
     ASSERT_FALSE(order);
     EXPECT_NE(order.error().message.find("choose big"), std::string::npos);
+}
+
+std::vector<std::uint16_t> encoded(std::string_view text, RawType type, WordOrder order = WordOrder::big, bool swap = false,
+                                   std::optional<RawScale> scale = std::nullopt) {
+    auto words = encode_value(text, RawLayout{type, order, swap}, scale);
+    EXPECT_TRUE(words) << text << ": " << (words ? "" : words.error().message);
+    return words ? *words : std::vector<std::uint16_t>{};
+}
+
+std::string refusal(std::string_view text, RawType type, std::optional<RawScale> scale = std::nullopt) {
+    auto words = encode_value(text, RawLayout{type}, scale);
+    EXPECT_FALSE(words) << text;
+    if (words) return "";
+    EXPECT_EQ(words.error().kind, ErrorKind::usage);
+    return words.error().message;
+}
+
+TEST(RawValues, EncodesFloat32InTheFourByteOrders) {
+    using W = std::vector<std::uint16_t>;
+    EXPECT_EQ(encoded("12.5", RawType::float32), (W{0x4148, 0x0000}));                           // ABCD
+    EXPECT_EQ(encoded("12.5", RawType::float32, WordOrder::little), (W{0x0000, 0x4148}));        // CDAB
+    EXPECT_EQ(encoded("12.5", RawType::float32, WordOrder::big, true), (W{0x4841, 0x0000}));     // BADC
+    EXPECT_EQ(encoded("12.5", RawType::float32, WordOrder::little, true), (W{0x0000, 0x4841}));  // DCBA
+    EXPECT_EQ(encoded("0.1", RawType::float32), (W{0x3DCC, 0xCCCD}));
+    EXPECT_EQ(encoded("3.141592653589793", RawType::float64, WordOrder::little), (W{0x2D18, 0x5444, 0x21FB, 0x4009}));
+    EXPECT_EQ(encoded("-2", RawType::int32), (W{0xFFFF, 0xFFFE}));
+    EXPECT_EQ(encoded("123456789", RawType::int32, WordOrder::little), (W{0xCD15, 0x075B}));
+    EXPECT_EQ(encoded("0xFFFF", RawType::int16), (W{0xFFFF}));  // a bit pattern, as register maps give them
+    EXPECT_EQ(encoded("0x1234", RawType::uint16, WordOrder::big, true), (W{0x3412}));
+}
+
+TEST(RawValues, EncodingIsTheInverseOfDecoding) {
+    const std::vector<std::pair<RawType, std::vector<const char*>>> samples{
+        {RawType::int16, {"-32768", "-1", "0", "32767"}},
+        {RawType::uint16, {"0", "1", "65535"}},
+        {RawType::int32, {"-2147483648", "-2", "2147483647"}},
+        {RawType::uint32, {"0", "65536", "4294967295"}},
+        {RawType::float32, {"12.5", "-3.25", "0.1", "273.15", "10000000000", "-0"}},
+        {RawType::float64, {"3.141592653589793", "-1e-300", "6.02214076e+23"}},
+    };
+    for (const auto& [type, texts] : samples) {
+        for (const auto order : {WordOrder::big, WordOrder::little}) {
+            for (const bool swap : {false, true}) {
+                for (const char* text : texts) {
+                    const RawLayout layout{type, order, swap};
+                    const auto words = encoded(text, type, order, swap);
+                    ASSERT_EQ(words.size(), registers_per_value(type)) << text;
+                    EXPECT_EQ(number_text(decode_value(words, layout)), text) << raw_type_name(type) << " " << text;
+                }
+            }
+        }
+    }
+}
+
+TEST(RawValues, ScaledWritesHoldWholeSteps) {
+    const auto tenth = parse_scale("0.1");
+    ASSERT_TRUE(tenth);
+    EXPECT_EQ(encoded("123.4", RawType::int16, WordOrder::big, false, *tenth), std::vector<std::uint16_t>{1234});
+    EXPECT_EQ(encoded("-0.5", RawType::int16, WordOrder::big, false, *tenth), std::vector<std::uint16_t>{0xFFFB});
+    EXPECT_EQ(encoded("12.5", RawType::float32, WordOrder::big, false, *parse_scale("0.5")),
+              (std::vector<std::uint16_t>{0x41C8, 0x0000}));  // 25.0
+    EXPECT_EQ(refusal("12.34", RawType::int16, *tenth), "12.34 with --scale 0.1 is 123.4 steps of 0.1: int16 holds whole steps only; "
+                                                         "give 12.3 or 12.4");
+    EXPECT_EQ(refusal("4000", RawType::int16, *tenth), "4000 does not fit int16: give -3276.8..3276.7 (with --scale 0.1)");
+}
+
+TEST(RawValues, EncodingRefusesWhatTheTypeCannotHold) {
+    EXPECT_EQ(refusal("12.5", RawType::int16), "'12.5' is not a whole number for int16: give a whole number -32768..32767 (or "
+                                               "--type float32 for a fraction)");
+    EXPECT_EQ(refusal("abc", RawType::uint32), "'abc' is not a number for uint32: give a whole number 0..4294967295");
+    EXPECT_EQ(refusal("70000", RawType::uint16), "70000 does not fit uint16: give 0..65535");
+    EXPECT_EQ(refusal("-1", RawType::uint32), "-1 does not fit uint32: give 0..4294967295");
+    EXPECT_EQ(refusal("2147483648", RawType::int32), "2147483648 does not fit int32: give -2147483648..2147483647");
+    EXPECT_EQ(refusal("0x10000", RawType::int16), "0x10000 does not fit int16: give -32768..32767");
+    EXPECT_NE(refusal("1e39", RawType::float32).find("beyond the largest float32"), std::string::npos);
+    EXPECT_NE(refusal("12,5", RawType::float32).find("'12,5' is not a number for float32"), std::string::npos);
+    EXPECT_NE(refusal(" 1", RawType::float64).find("is not a number"), std::string::npos);
+    EXPECT_NE(refusal("", RawType::int16).find("is not a number"), std::string::npos);
+}
+
+TEST(RawValues, WordOrdersByTheirByteOrderNames) {
+    const std::vector<std::tuple<const char*, WordOrder, bool>> names{
+        {"ABCD", WordOrder::big, false}, {"CDAB", WordOrder::little, false},
+        {"BADC", WordOrder::big, true}, {"DCBA", WordOrder::little, true}};
+    for (const auto& [name, order, swap] : names) {
+        auto choice = parse_word_order(name);
+        ASSERT_TRUE(choice) << name;
+        EXPECT_EQ(choice->order, order) << name;
+        ASSERT_TRUE(choice->byte_swap.has_value()) << name;
+        EXPECT_EQ(*choice->byte_swap, swap) << name;
+        EXPECT_EQ(byte_order_name(RawLayout{RawType::float32, order, swap}), name);
+    }
+    auto big = parse_word_order("big");
+    ASSERT_TRUE(big);
+    EXPECT_FALSE(big->byte_swap.has_value());  // says nothing about the bytes: --byte-swap may add it
+    EXPECT_FALSE(parse_word_order("abcd"));
 }
 
 TEST(RawValues, ScaleIsExactToTheDecimal) {

@@ -82,6 +82,11 @@ if wait $a && wait $b && wait $c; then count_pass; else count_failure clients-at
 # Exceptions a gateway gives (Modbus application protocol V1.1b3, 7).
 check unserved-unit-gets-0Ah 5 "exception 10" "$loopwire" read --link "$gateway" --unit 9 holding 0
 check silent-unit-gets-0Bh 5 "exception 11" "$loopwire" read --link "$gateway" --unit 4 holding 0
+# A scan through the gateway counts the devices behind it, not the units it answers for: 3 and 5
+# answer, 4 (silent, 0Bh) and the unserved ones (0Ah) are nobody.
+"$loopwire" scan --link "$gateway" --units 1-6 --timeout 2s >"$WORK_DIR/scan.out" 2>"$WORK_DIR/scan.err"
+check scan-through-gateway-counts-devices 0 "2 unit(s) answered" cat "$WORK_DIR/scan.out"
+check scan-through-gateway-says-why-not-more 0 "4 unit(s) were answered by a gateway with exception 0Ah or 0Bh" cat "$WORK_DIR/scan.err"
 
 # A function code loopwire's typed master never sends goes through as it is: the TC10 answers
 # function 65 (user-defined) with exception 1, and the gateway hands that back unchanged.

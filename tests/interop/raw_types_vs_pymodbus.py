@@ -115,7 +115,9 @@ def test():
                     address = start + i * each
                     done = subprocess.run([loopwire, "read", *master, "input", str(address), "--type", name, "--word-order", order],
                                           capture_output=True, text=True, timeout=10, check=False)
-                    shown = done.stdout.split()
+                    lines = done.stdout.splitlines()
+                    support.check_equal(lines[0].split(), ["address", name, "registers"], f"the column header of {name}")
+                    shown = lines[1].split()
                     support.check_equal((done.returncode, shown[:2]), (0, [str(address), shortest(value)]),
                                         f"text of {name} {order} at input {address}")
 
