@@ -1,10 +1,11 @@
 # What `cmake --install` puts beside the binary for people at a shell: a man page per command
-# (share/man/man1/loopwire.1, loopwire-read.1, ...) and bash and zsh completion. The pages are
+# (share/man/man1/loopwire.1, loopwire-read.1, ...), the configuration file's page
+# (share/man/man5/loopwire-gateway.toml.5) and bash and zsh completion. The pages are
 # written at build time by the built binary from its own command-line definitions
 # (`loopwire __man-pages`, src/app/man_page.cpp), with the README's examples, so they never
 # drift from the commands; the completion scripts ask the binary too (`loopwire __complete`).
-set(loopwire_man_dir ${PROJECT_BINARY_DIR}/man/man1)
-set(loopwire_man_stamp ${PROJECT_BINARY_DIR}/man/pages.stamp)
+set(loopwire_man_dir ${PROJECT_BINARY_DIR}/man)
+set(loopwire_man_stamp ${PROJECT_BINARY_DIR}/man_pages.stamp)
 add_custom_command(OUTPUT ${loopwire_man_stamp}
   COMMAND ${CMAKE_COMMAND} -E rm -rf ${loopwire_man_dir}
   COMMAND loopwire __man-pages --output-dir ${loopwire_man_dir} --readme ${PROJECT_SOURCE_DIR}/README.md
@@ -14,7 +15,7 @@ add_custom_command(OUTPUT ${loopwire_man_stamp}
   VERBATIM)
 add_custom_target(loopwire_man_pages ALL DEPENDS ${loopwire_man_stamp})
 
-install(DIRECTORY ${loopwire_man_dir} DESTINATION ${CMAKE_INSTALL_MANDIR})
+install(DIRECTORY ${loopwire_man_dir}/ DESTINATION ${CMAKE_INSTALL_MANDIR})
 install(FILES ${PROJECT_SOURCE_DIR}/packaging/completion/loopwire.bash
   DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/bash-completion/completions RENAME loopwire)
 install(FILES ${PROJECT_SOURCE_DIR}/packaging/completion/_loopwire

@@ -1,4 +1,4 @@
-// loopwire gateway --config FILE [--check] [-v]
+// loopwire gateway --config FILE [--check] [-v], or --print-config
 // One process owns every line of the configuration and shares it: Modbus TCP clients reach the
 // devices through it, their requests queued fairly with each other (docs/DESIGN.md, gateway).
 // SIGHUP re-reads the configuration: a bad one is reported and the running one kept.
@@ -19,6 +19,7 @@
 #include "app/exit_codes.hpp"
 #include "app/gateway_log.hpp"
 #include "app/stop_signal.hpp"
+#include "gateway/config_schema.hpp"
 #include "gateway/gateway.hpp"
 
 namespace loopwire::app {
@@ -28,6 +29,7 @@ struct GatewayCommandOptions {
     std::string config;
     bool check = false;
     bool verbose = false;
+    bool print_config = false;
 };
 
 spdlog::logger& gateway_log() {
@@ -180,10 +182,19 @@ Result<void> serve_round(const gateway::GatewayConfig& config, gateway::GatewayO
 }
 
 int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& profiles) {
+    if (options.print_config) {
+        fmt::print("{}", gateway::commented_example_config());
+        return exit_ok;
+    }
+    if (options.config.empty()) {
+        return report_error(make_error(ErrorKind::usage, "gateway: --config FILE.toml is required (`loopwire gateway "
+                                                         "--print-config > gateway.toml` writes a complete example)"));
+    }
     auto registry = profiles.load();
     if (!registry) return report_error(registry.error());
     auto config = gateway::load_gateway_config(options.config, *registry);
     if (!config) return report_error(config.error());
+    if (auto ready = gateway::check_environment(*config); !ready) return report_error(ready.error());
     if (options.check) {
         fmt::print("{}", gateway::describe_plan(*config));
         return exit_ok;
@@ -228,9 +239,12 @@ void add_gateway_command(CLI::App& app, int& exit_code, const ProfileOptions& pr
     auto options = std::make_shared<GatewayCommandOptions>();
     auto* command = app.add_subcommand("gateway", "Own the lines of a configuration file and serve them to Modbus TCP clients");
     command->add_option("--config", options->config, "Gateway configuration (TOML): lines, devices, the Modbus TCP front")
-        ->required()
         ->type_name("FILE.toml");
-    command->add_flag("--check", options->check, "Check the configuration and print the plan (lines, devices, estimated line load); serve nothing");
+    auto* check = command->add_flag("--check", options->check, "Check the configuration and print the plan (lines, devices, estimated line load); serve nothing");
+    command
+        ->add_flag("--print-config", options->print_config,
+                   "Print a complete configuration with every key, its meaning, bounds and default (man loopwire-gateway.toml)")
+        ->excludes(check);
     command->add_flag("-v,--verbose", options->verbose, "Print every frame on the lines and the front, with timestamps, on stderr");
     command->footer(std::string("SIGTERM or Ctrl-C stops the gateway once the requests it has taken are answered; SIGHUP re-reads "
                                 "the configuration (a configuration with errors is reported and the running one kept).\n\n") +

@@ -1,6 +1,7 @@
 // Commands for the build and the shell, not for people (hidden from --help):
 //   loopwire __complete -- WORDS...          what to offer for the last word (completion scripts)
-//   loopwire __man-pages --output-dir DIR    loopwire.1 and loopwire-COMMAND.1 (the build)
+//   loopwire __man-pages --output-dir DIR    DIR/man1/loopwire.1, loopwire-COMMAND.1 and
+//                                            DIR/man5/loopwire-gateway.toml.5 (the build)
 // Both read the other commands' definitions from the app when they run, after every command
 // has been added, so new commands and options appear in completion and man pages by themselves.
 #include <filesystem>
@@ -51,11 +52,13 @@ int run_man_pages(const CLI::App& root, const std::string& output_dir, const std
         if (!text) return report_error(text.error());
         readme = std::move(*text);
     }
-    std::error_code error;
-    std::filesystem::create_directories(output_dir, error);
-    if (error) return report_error(make_error(ErrorKind::usage, fmt::format("cannot create '{}': {}", output_dir, error.message())));
     for (const ManPage& page : man_pages(root, loopwire::version(), readme)) {
-        const auto path = std::filesystem::path(output_dir) / page.file_name;
+        // man1/loopwire.1, man5/loopwire-gateway.toml.5: the layout of share/man.
+        const auto folder = std::filesystem::path(output_dir) / (std::string("man") + page.file_name.back());
+        std::error_code error;
+        std::filesystem::create_directories(folder, error);
+        if (error) return report_error(make_error(ErrorKind::usage, fmt::format("cannot create '{}': {}", folder.string(), error.message())));
+        const auto path = folder / page.file_name;
         std::ofstream out(path, std::ios::binary | std::ios::trunc);
         out << page.text;
         if (!out.flush()) return report_error(make_error(ErrorKind::usage, fmt::format("cannot write '{}'", path.string())));
@@ -77,9 +80,9 @@ void add_hidden_commands(CLI::App& app, int& exit_code) {
         std::string readme;
     };
     auto options = std::make_shared<ManOptions>();
-    auto* man = app.add_subcommand("__man-pages", "Write loopwire.1 and loopwire-COMMAND.1 for every command");
+    auto* man = app.add_subcommand("__man-pages", "Write man1/loopwire.1, man1/loopwire-COMMAND.1 for every command and man5/loopwire-gateway.toml.5");
     man->group("");
-    man->add_option("--output-dir", options->output_dir, "Folder to write the pages to")->required();
+    man->add_option("--output-dir", options->output_dir, "Folder to write the pages to, in man1/ and man5/")->required();
     man->add_option("--readme", options->readme, "README.md, whose examples of each command go on its page");
     man->callback([options, man, &exit_code] { exit_code = run_man_pages(root_of(*man), options->output_dir, options->readme); });
 }

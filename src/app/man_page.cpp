@@ -7,10 +7,14 @@
 
 #include <fmt/format.h>
 
+#include "gateway/config_schema.hpp"
+
 namespace loopwire::app {
 namespace {
 
 using Examples = std::map<std::string, std::vector<std::string>>;
+
+constexpr std::string_view config_page_name = "loopwire-gateway.toml";
 
 // The code point of the UTF-8 sequence starting at text[i]; `i` moves past it. A byte that does
 // not start a valid sequence stands for itself.
@@ -150,6 +154,7 @@ std::string examples_section(const std::vector<std::string>& examples) {
 std::string see_also(const CLI::App& root, const std::string& self) {
     std::vector<std::string> pages;
     if (self != "loopwire") pages.push_back(bold("loopwire") + "(1)");
+    if (self == "loopwire" || self == "loopwire-gateway") pages.push_back(bold(config_page_name) + "(5)");
     for (const CLI::App* command : root.get_subcommands([](const CLI::App* sub) { return !sub->get_group().empty(); })) {
         const std::string page = "loopwire-" + command->get_name();
         if (page != self) pages.push_back(bold(page) + "(1)");
@@ -157,10 +162,61 @@ std::string see_also(const CLI::App& root, const std::string& self) {
     return ".SH SEE ALSO\n" + fmt::format("{}", fmt::join(pages, ",\n")) + "\n";
 }
 
-std::string header(const std::string& page, std::string_view summary, std::string_view version) {
+std::string header(const std::string& page, std::string_view summary, std::string_view version, char section = '1') {
     // Not hyphenated, not justified: option names and URLs stay whole and evenly spaced.
-    return fmt::format(".TH {} 1 \"\" \"loopwire {}\" \"loopwire manual\"\n.nh\n.ad l\n.SH NAME\n{} \\- {}\n", roff_escape(upper(page)),
-                       roff_escape(version), roff_escape(page), roff_escape(summary));
+    return fmt::format(".TH {} {} \"\" \"loopwire {}\" \"loopwire manual\"\n.nh\n.ad l\n.SH NAME\n{} \\- {}\n", roff_escape(upper(page)),
+                       section, roff_escape(version), roff_escape(page), roff_escape(summary));
+}
+
+// One key of the configuration: "name = type", its meaning, the values it takes and its default.
+std::string config_key_entry(const gateway::ConfigKey& key) {
+    std::string out = ".TP\n" + bold(key.key) + " = " + italic(key.type) + "\n" + sentence(key.meaning) + "\n";
+    if (!key.bounds.empty()) out += ".br\nValues: " + roff_escape(key.bounds) + ".\n";
+    out += ".br\n" + (key.required() ? std::string("Required.") : "Default: " + roff_escape(key.default_value) + ".") + "\n";
+    return out;
+}
+
+// A verbatim block: an empty line is a zero-width character, which roff keeps as an empty line
+// without a warning.
+std::string verbatim(std::string_view text) {
+    std::string out = ".nf\n.RS 4\n";
+    std::size_t start = 0;
+    while (start < text.size()) {
+        auto end = text.find('\n', start);
+        if (end == std::string_view::npos) end = text.size();
+        const auto line = text.substr(start, end - start);
+        out += line.empty() ? std::string("\\&") : roff_escape(line);
+        out += "\n";
+        start = end + 1;
+    }
+    return out + ".RE\n.fi\n";
+}
+
+// loopwire-gateway.toml(5), from the configuration's schema (gateway/config_schema.hpp): every
+// table and key the gateway takes, and the complete example `--print-config` prints.
+std::string config_file_page(std::string_view version) {
+    std::string out = header(std::string(config_page_name), "the configuration file of loopwire gateway", version, '5');
+    out += ".SH SYNOPSIS\n.B loopwire gateway \\-\\-config\n" + italic("FILE.toml") +
+           "\n.br\n.B loopwire gateway \\-\\-print\\-config\n";
+    out += ".SH DESCRIPTION\n" +
+           sentence("A TOML file naming the lines the gateway owns, the devices on each and the fronts it serves. Every "
+                    "error names the file, the line and the key, and says what is expected; `loopwire gateway --config "
+                    "FILE --check` checks a file and prints the plan, and SIGHUP makes a running gateway read it again") +
+           "\n.PP\n" +
+           sentence("Durations are written with a unit: \"500ms\", \"1s\", \"5m\", \"1h\"; periods also in days, \"90d\". "
+                    "Relative file names are taken from the configuration file's folder, and every file named must be a "
+                    "regular file. An unknown key is an error, so a typo never leaves a setting at its default") +
+           "\n";
+    out += ".SH TABLES\n";
+    for (const gateway::ConfigTable& table : gateway::config_tables()) {
+        out += ".SS " + roff_escape(table.header) + "\n" + sentence(table.meaning) + "\n";
+        for (const gateway::ConfigKey& key : gateway::config_keys()) {
+            if (key.table == table.name) out += config_key_entry(key);
+        }
+    }
+    out += ".SH EXAMPLE\nWhat " + bold("loopwire gateway --print-config") + " prints:\n" +
+           verbatim(gateway::commented_example_config());
+    return out + ".SH SEE ALSO\n" + bold("loopwire-gateway") + "(1),\n" + bold("loopwire") + "(1)\n";
 }
 
 std::string command_page(const CLI::App& root, const CLI::App& command, std::string_view version, const Examples& examples) {
@@ -247,6 +303,7 @@ std::vector<ManPage> man_pages(const CLI::App& root, std::string_view version, s
     for (const CLI::App* command : root.get_subcommands([](const CLI::App* sub) { return !sub->get_group().empty(); })) {
         pages.push_back({"loopwire-" + command->get_name() + ".1", command_page(root, *command, version, examples)});
     }
+    pages.push_back({std::string(config_page_name) + ".5", config_file_page(version)});
     return pages;
 }
 

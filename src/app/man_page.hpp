@@ -1,7 +1,8 @@
 #pragma once
 // Man pages written from the command-line definitions themselves (the build runs
 // `loopwire __man-pages`), so a page never says something the command does not do: loopwire.1
-// and one loopwire-COMMAND.1 for each command, in roff (man(7)).
+// and one loopwire-COMMAND.1 for each command, in roff (man(7)); and loopwire-gateway.toml.5,
+// the gateway's configuration file, from its schema (gateway/config_schema.hpp).
 #include <string>
 #include <string_view>
 #include <vector>
@@ -11,7 +12,7 @@
 namespace loopwire::app {
 
 struct ManPage {
-    std::string file_name;  // loopwire.1, loopwire-read.1, ...
+    std::string file_name;  // loopwire.1, loopwire-read.1, ..., loopwire-gateway.toml.5: the last character is the section
     std::string text;
 };
 

@@ -19,6 +19,7 @@
 #include "common/peer_text.hpp"
 #include "common/regular_file.hpp"
 #include "common/text_parsing.hpp"
+#include "gateway/config_schema.hpp"
 #include "profile/request_planner.hpp"
 
 namespace loopwire::transport {
@@ -85,8 +86,10 @@ std::string without_option_name(const std::string& message) {
 // Typed access to the values of one table. Absent keys are std::nullopt; a value of the wrong
 // type is an error saying which type is expected.
 
-Result<void> check_keys(const Context& ctx, const toml::table& table, const std::string& path,
-                        std::initializer_list<std::string_view> allowed) {
+// `schema_table`: the table's name in config_schema.hpp ("lines.devices"), where its keys are
+// described; `path` is where it is in the file ("lines[0].devices[1]").
+Result<void> check_keys(const Context& ctx, const toml::table& table, const std::string& path, std::string_view schema_table) {
+    const std::vector<std::string_view> allowed = config_keys_of(schema_table);
     for (auto&& [key, node] : table) {
         if (std::find(allowed.begin(), allowed.end(), key.str()) != allowed.end()) continue;
         // A typo must not leave a setting at its default without a word: unknown keys are errors.
@@ -282,7 +285,7 @@ Result<void> check_unit_free_on_line(const Context& ctx, const LineConfig& line,
 
 Result<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry,
                                   DeviceSeen& seen) {
-    if (auto keys = check_keys(ctx, table, path, {"name", "device", "poll", "parameters", "tcp_unit"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, table, path, "lines.devices"); !keys) return keys.error();
     DeviceConfig device;
     auto name = checked_name(ctx, table, path);
     if (!name) return name.error();
@@ -418,7 +421,7 @@ Result<void> claim_port(const Context& ctx, Registry& registry, const Seen& line
 }
 
 Result<LineConfig> parse_line(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry) {
-    if (auto keys = check_keys(ctx, table, path, {"name", "link", "timeout", "retries", "late_reply_window", "max_in_flight", "speed", "seed", "devices"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, table, path, "lines"); !keys) return keys.error();
     LineConfig line;
     auto name = checked_name(ctx, table, path);
     if (!name) return name.error();
@@ -511,7 +514,7 @@ Result<LogConfig> parse_log(const Context& ctx, const toml::table& root) {
     if (!node) return config;
     const auto* table = node->as_table();
     if (!table) return ctx.fail(node->source(), "log", "expected a [log] table");
-    if (auto keys = check_keys(ctx, *table, "log", {"level", "statistics"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, *table, "log", "log"); !keys) return keys.error();
     auto level = log_level(ctx, *table);
     if (!level) return level.error();
     config.level = *level;
@@ -572,10 +575,7 @@ Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& 
     if (!node) return config;
     const auto* table = node->as_table();
     if (!table) return ctx.fail(node->source(), "modbus_tcp", "expected a [modbus_tcp] table");
-    if (auto keys = check_keys(ctx, *table, "modbus_tcp",
-                               {"listen", "writes", "enabled", "max_age", "max_connections", "idle_timeout"});
-        !keys)
-        return keys.error();
+    if (auto keys = check_keys(ctx, *table, "modbus_tcp", "modbus_tcp"); !keys) return keys.error();
     auto listen = optional_value<std::string>(ctx, *table, "modbus_tcp", "listen", "a string such as \"127.0.0.1:1502\"");
     if (!listen) return listen.error();
     if (*listen) {
@@ -797,11 +797,7 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
     if (!node) return std::optional<MqttConfig>{};
     const auto* table = node->as_table();
     if (!table) return ctx.fail(node->source(), "mqtt", "expected an [mqtt] table");
-    if (auto keys = check_keys(ctx, *table, "mqtt",
-                               {"broker", "prefix", "writes", "client_id", "ca_file", "cert_file", "key_file", "username",
-                                "password_file", "republish", "discovery", "discovery_prefix", "max_payload"});
-        !keys)
-        return keys.error();
+    if (auto keys = check_keys(ctx, *table, "mqtt", "mqtt"); !keys) return keys.error();
     MqttConfig config;
     auto broker = required_string(ctx, *table, "mqtt", "broker", "\"mqtt://127.0.0.1:1883\"");
     if (!broker) return broker.error();
@@ -884,7 +880,7 @@ Result<std::optional<HistoryConfig>> parse_history(const Context& ctx, const tom
     if (!node) return std::optional<HistoryConfig>{};
     const auto* table = node->as_table();
     if (!table) return ctx.fail(node->source(), "history", "expected a [history] table");
-    if (auto keys = check_keys(ctx, *table, "history", {"database", "keep", "heartbeat"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, *table, "history", "history"); !keys) return keys.error();
     HistoryConfig config;
     auto database = required_string(ctx, *table, "history", "database", "\"plant.db\"");
     if (!database) return database.error();
@@ -893,6 +889,7 @@ Result<std::optional<HistoryConfig>> parse_history(const Context& ctx, const tom
                         "expected the database file's path, e.g. \"plant.db\" (relative to this file's folder)");
     }
     config.database_as_written = *database;
+    config.written_at = fmt::format("{}:{}", ctx.source, source_of(*table, "database").begin.line);
     const std::filesystem::path path(*database);
     config.database = path.is_absolute() ? path : std::filesystem::path(ctx.source).parent_path() / path;
     // Created when absent; when present it must be a regular file, told before SQLite opens it.
@@ -1022,11 +1019,7 @@ Result<std::optional<HttpConfig>> parse_http(const Context& ctx, const toml::tab
     if (!node) return std::optional<HttpConfig>{};
     const auto* table = node->as_table();
     if (!table) return ctx.fail(node->source(), "http", "expected an [http] table");
-    if (auto keys = check_keys(ctx, *table, "http",
-                               {"listen", "token_file", "read_timeout", "max_connections", "max_connections_per_client",
-                                "send_timeout", "hosts"});
-        !keys)
-        return keys.error();
+    if (auto keys = check_keys(ctx, *table, "http", "http"); !keys) return keys.error();
     HttpConfig config;
     auto listen = optional_value<std::string>(ctx, *table, "http", "listen", "a string such as \"127.0.0.1:8080\"");
     if (!listen) return listen.error();
@@ -1071,7 +1064,7 @@ Result<std::string> parse_gateway_name(const Context& ctx, const toml::table& ro
     if (!node) return std::string();
     const auto* table = node->as_table();
     if (!table) return ctx.fail(node->source(), "gateway", "expected a [gateway] table");
-    if (auto keys = check_keys(ctx, *table, "gateway", {"name"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, *table, "gateway", "gateway"); !keys) return keys.error();
     return checked_name(ctx, *table, "gateway");
 }
 
@@ -1114,7 +1107,7 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto root = parse_toml(text, source);
     if (!root) return root.error();
     const Context ctx{source, profiles};
-    if (auto keys = check_keys(ctx, *root, "", {"gateway", "lines", "modbus_tcp", "log", "mqtt", "history", "http"}); !keys) return keys.error();
+    if (auto keys = check_keys(ctx, *root, "", ""); !keys) return keys.error();
     GatewayConfig config;
     config.source = source;
     Registry registry;

@@ -135,8 +135,14 @@ struct HistoryConfig {
     std::filesystem::path database;  // resolved
     std::chrono::seconds keep = std::chrono::hours(24 * 90);
     std::chrono::milliseconds heartbeat{60000};
+    std::string written_at;  // "plant.toml:13", for what check_environment finds
 
-    bool operator==(const HistoryConfig&) const = default;
+    // Where the key was written is not part of what the history does: a reload that only moves
+    // it keeps the history open.
+    bool operator==(const HistoryConfig& other) const {
+        return database_as_written == other.database_as_written && database == other.database && keep == other.keep &&
+               heartbeat == other.heartbeat;
+    }
 };
 
 // [http]: the HTTP API and the dashboard (gateway/http_server.hpp). Reads need no token on a
@@ -192,6 +198,11 @@ bool reload_needs_restart(const GatewayConfig& running, const GatewayConfig& nex
 
 // What one poll of the device reads: the configured names, or the profile's default watch list.
 std::vector<const device::Parameter*> polled_parameters(const DeviceConfig& device);
+
+// What the configuration needs of this machine that parsing does not look at: the history
+// database's folder exists and can be written. An error names the file, line and key and what to
+// do; `--check` fails on it, and the gateway does not start.
+Result<void> check_environment(const GatewayConfig& config);
 
 // What `loopwire gateway --check` prints: each line with its devices, poll groups and the
 // estimated share of the line's wire time the polls take.

@@ -2,6 +2,11 @@
 // line's wire time the polls will take.
 #include "gateway/gateway_config.hpp"
 
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
 #include <filesystem>
 #include <sstream>
 #include <system_error>
@@ -198,6 +203,28 @@ std::vector<const device::Parameter*> polled_parameters(const DeviceConfig& devi
     if (device.parameters.empty()) return device::default_watch_list(profile);
     auto resolved = device::resolve_parameters(profile, device.parameters);
     return resolved ? *resolved : std::vector<const device::Parameter*>{};  // checked when parsed
+}
+
+Result<void> check_environment(const GatewayConfig& config) {
+    if (!config.history) return {};
+    // "plant.db" beside a configuration named without a folder is in the current folder.
+    auto folder = config.history->database.parent_path();
+    if (folder.empty()) folder = ".";
+    const auto fail = [&](const std::string& what) {
+        return make_error(ErrorKind::usage, fmt::format("{}: history.database: {}", config.history->written_at, what));
+    };
+    std::error_code error;
+    if (!std::filesystem::exists(folder, error)) {
+        return fail(fmt::format("the folder {} does not exist; create it (mkdir -p {}) or name a file in another folder",
+                                folder.string(), folder.string()));
+    }
+    if (!std::filesystem::is_directory(folder, error)) return fail(fmt::format("{} is not a folder", folder.string()));
+    // The database and its WAL files are created beside it.
+    if (::access(folder.c_str(), W_OK | X_OK) != 0) {
+        return fail(fmt::format("the folder {} cannot be written by this user ({}); give it write access or name a file "
+                                "in another folder", folder.string(), std::strerror(errno)));
+    }
+    return {};
 }
 
 std::string describe_plan(const GatewayConfig& config) {

@@ -251,7 +251,7 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt, history, http)");
 
     const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
-    EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: listen, writes, enabled, max_age, "
+    EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: enabled, listen, writes, max_age, "
                    "max_connections, idle_timeout)");
 }
 

@@ -206,5 +206,30 @@ timeout = "fast"
 TOML
 check broken-config-names-file-line-key 2 "broken.toml:4" "$loopwire" gateway --config "$WORK_DIR/broken.toml" --check
 check missing-config 2 "nowhere.toml" "$loopwire" gateway --config "$WORK_DIR/nowhere.toml"
+# A history database in a folder that is not there: --check says so with file:line, and so does a
+# start, before any line opens.
+cat >"$WORK_DIR/history.toml" <<TOML
+[[lines]]
+name = "furnace-line"
+link = "rtu:$pty"
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+
+[history]
+database = "no-such-folder/plant.db"
+TOML
+check history-folder-missing-at-check 2 "history.toml:10: history.database: the folder $WORK_DIR/no-such-folder does not exist" \
+  "$loopwire" gateway --config "$WORK_DIR/history.toml" --check
+check history-folder-missing-at-start 2 "mkdir -p $WORK_DIR/no-such-folder" "$loopwire" gateway --config "$WORK_DIR/history.toml"
+
+# The README's two commands, as printed, in a scratch folder: the complete example that
+# --print-config writes passes --check unchanged (it also names every key: the man page test).
+check readme-print-config 0 "" bash -c "cd '$WORK_DIR' && '$loopwire' gateway --print-config > gateway.toml"
+check print-config-passes-check 0 "gateway.toml: 1 line" bash -c "cd '$WORK_DIR' && '$loopwire' gateway --config gateway.toml --check"
+check print-config-names-every-table 0 "[[lines.devices]]" cat "$WORK_DIR/gateway.toml"
+check gateway-without-config 2 "--print-config > gateway.toml" "$loopwire" gateway
+check print-config-is-not-check 2 "excludes" "$loopwire" gateway --print-config --check
 
 finish

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The installed commands as a user meets them: `cmake --install` into a temporary prefix puts
-# the binary in bin/, a man page for the program and for every command in share/man/man1, and
+# the binary in bin/, a man page for the program and for every command in share/man/man1, the
+# configuration file's page in share/man/man5, and
 # the bash and zsh completion scripts where those shells look; the binary runs; every page
 # renders without a warning (groff -ww, man --warnings) and documents every option the command's
 # --help lists; the README's "Install" commands and the one scripts/setup prints work as written.
@@ -49,6 +50,21 @@ done
 check "loopwire-read(1) shows the README's read examples" 0 "--device tc10@3 PV SP sp.ll" cat "$WORK_DIR/loopwire-read.txt"
 check "loopwire-read(1) gives the exit statuses" 0 "EXIT STATUS" cat "$WORK_DIR/loopwire-read.txt"
 check "loopwire(1) lists the read command" 0 "loopwire read" cat "$WORK_DIR/loopwire.txt"
+
+# The configuration file's page, written from the same schema as `gateway --print-config`:
+# every key that prints is described in the page's TABLES (not only in its EXAMPLE).
+config_page=$prefix/share/man/man5/loopwire-gateway.toml.5
+expect "loopwire-gateway.toml.5 is installed" test -f "$config_page"
+check "loopwire-gateway.toml(5): groff -man -ww -z prints no warning" 0 "" bash -c '! groff -man -ww -z "$1" 2>&1 | grep .' _ "$config_page"
+check "loopwire-gateway.toml(5): man --warnings prints no warning" 0 "" bash -c \
+    'out=$(MANWIDTH=80 man --warnings -l "$1" 2>&1 >/dev/null); [[ -z $out ]] || { echo "$out"; false; }' _ "$config_page"
+MANWIDTH=200 man -l "$config_page" 2>/dev/null | sed -n '/^TABLES/,/^EXAMPLE/p' >"$WORK_DIR/config-tables.txt"
+mapfile -t config_keys < <("$loopwire" gateway --print-config | sed -nE 's/^(# )?([a-z_]+) = .*/\2/p' | sort -u)
+((${#config_keys[@]} >= 40)) || fail "--print-config names only ${#config_keys[@]} keys: ${config_keys[*]}"
+for key in "${config_keys[@]}"; do
+    expect "loopwire-gateway.toml(5) describes $key" grep -qE "^ +$key = " "$WORK_DIR/config-tables.txt"
+done
+check "loopwire-gateway(1) points to the configuration's page" 0 "loopwire-gateway.toml(5)" cat "$WORK_DIR/loopwire-gateway.txt"
 
 expect "bash completion is installed" test -f "$prefix/share/bash-completion/completions/loopwire"
 expect "zsh completion is installed" test -f "$prefix/share/zsh/site-functions/_loopwire"

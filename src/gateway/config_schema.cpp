@@ -1,0 +1,213 @@
+#include "gateway/config_schema.hpp"
+
+#include <array>
+#include <sstream>
+
+#include <fmt/format.h>
+
+namespace loopwire::gateway {
+namespace {
+
+// Bounds and defaults are the ones gateway_config.cpp enforces and gateway_config.hpp sets; a
+// test parses every key's example and the printed configuration, so a drift is a failure.
+constexpr std::array tables{
+    ConfigTable{"gateway", "[gateway]", "The gateway itself. Optional."},
+    ConfigTable{"lines", "[[lines]]",
+                "One table per line the gateway owns: a serial port, a Modbus TCP device, RTU through a device server, "
+                "or a simulated line. At least one."},
+    ConfigTable{"lines.devices", "[[lines.devices]]",
+                "One table per device on the line above it; its values are polled and served on every front."},
+    ConfigTable{"modbus_tcp", "[modbus_tcp]",
+                "The Modbus TCP front: clients reach every device through it by its unit id. Absent: on, at "
+                "127.0.0.1:1502, with these defaults."},
+    ConfigTable{"log", "[log]", "What the gateway logs. Absent: these defaults."},
+    ConfigTable{"mqtt", "[mqtt]",
+                "Publish every polled value to an MQTT broker and take writes from it. Absent: no MQTT."},
+    ConfigTable{"history", "[history]",
+                "Record every change of a polled value, and a heartbeat of each, in an SQLite file the HTTP API "
+                "charts from. Absent: no history."},
+    ConfigTable{"http", "[http]", "The HTTP API and the live dashboard. Absent: no HTTP."},
+};
+
+constexpr std::array keys{
+    ConfigKey{"gateway", "name", "string", "", "letters, digits, '-' and '_'",
+              "The gateway's name: the default MQTT prefix is loopwire/NAME, and discovery ids begin with it.",
+              "\"plant1\""},
+
+    ConfigKey{"lines", "name", "string", "", "letters, digits, '-' and '_'; unique",
+              "The line's name in logs, metrics and the HTTP API.", "\"furnace-line\""},
+    ConfigKey{"lines", "link", "string", "", "a link URL",
+              "Where the line is: \"rtu:/dev/ttyUSB0?baud=19200&parity=even\" (also ascii: and linking:), "
+              "\"tcp://192.0.2.7:502\", \"rtu+tcp://serial-server:4001\", or \"rtu:virtual?baud=19200\" for a line "
+              "simulated inside the gateway. One serial port is one line.",
+              "\"rtu:virtual?baud=19200\""},
+    ConfigKey{"lines", "timeout", "duration", "\"1s\"", "at least 1ms",
+              "How long a reply is waited for.", "\"1s\""},
+    ConfigKey{"lines", "retries", "integer", "0", "0..10", "How often a request that got no reply is sent again.", "0"},
+    ConfigKey{"lines", "late_reply_window", "duration", "the line's timeout", "1ms..1min",
+              "After a request that got no usable reply, the next waits until the line has been quiet this long, so a "
+              "late reply is never taken for another request's.",
+              "\"1s\"", true},
+    ConfigKey{"lines", "max_in_flight", "integer", "1", "1..64; more than 1 only on a tcp:// line",
+              "Requests on the wire at once; a Modbus TCP device's replies are paired with requests by transaction id. "
+              "Set it to what the device takes at once.",
+              "1"},
+    ConfigKey{"lines", "speed", "number", "1.0", "0.001..100000; a simulated line only",
+              "Process seconds per real second of the simulated devices, as `loopwire simulate --speed`.", "1.0"},
+    ConfigKey{"lines", "seed", "integer", "1", "0 or more; a simulated line only",
+              "Seed of the simulated measurement noise, as `loopwire simulate --seed`.", "1"},
+
+    ConfigKey{"lines.devices", "name", "string", "", "letters, digits, '-' and '_'; unique in the file",
+              "The device's name in MQTT topics, URLs, metrics and logs.", "\"oven\""},
+    ConfigKey{"lines.devices", "device", "string", "", "PROFILE@UNIT; unit unique on the line",
+              "The device's profile and unit address, as `loopwire read --device` takes it (loopwire profiles lists "
+              "the profiles).",
+              "\"tc10@3\""},
+    ConfigKey{"lines.devices", "poll", "duration", "\"1s\"", "at least 1ms", "How often its parameters are polled.",
+              "\"1s\""},
+    ConfigKey{"lines.devices", "parameters", "list of strings", "the profile's watch list",
+              "readable parameters of the profile, each named once",
+              "The parameters polled, by name, alias or mnemonic as `loopwire read` takes them.",
+              "[\"measured_value\", \"set_point\"]", true},
+    ConfigKey{"lines.devices", "tcp_unit", "integer", "the device's unit", "1..247; unique in the file",
+              "The unit id Modbus TCP clients reach the device by (needed for units above 247).", "3", true},
+
+    ConfigKey{"modbus_tcp", "enabled", "boolean", "true", "", "Whether the Modbus TCP front is served.", "true"},
+    ConfigKey{"modbus_tcp", "listen", "string", "\"127.0.0.1:1502\"", "HOST:PORT or [IPV6]:PORT; port 0 takes any free one",
+              "The address the front listens on.", "\"127.0.0.1:1502\""},
+    ConfigKey{"modbus_tcp", "writes", "boolean", "true", "",
+              "Whether clients may write; false answers anything but a read with exception 01h.", "true"},
+    ConfigKey{"modbus_tcp", "max_age", "duration", "off", "at least 1ms",
+              "A read (function codes 1-4) repeated within this long is answered from the last identical one without "
+              "taking the line; a write through the device empties its cache.",
+              "\"250ms\"", true},
+    ConfigKey{"modbus_tcp", "max_connections", "integer", "64", "1..10000",
+              "Clients connected at once; a newcomer past it is admitted by closing the idlest connection.", "64"},
+    ConfigKey{"modbus_tcp", "idle_timeout", "duration", "\"60s\"", "1s..24h, or \"off\"",
+              "A connection that has sent nothing and waited for nothing this long is closed.", "\"60s\""},
+
+    ConfigKey{"log", "level", "string", "\"info\"", "\"debug\", \"info\", \"warning\" or \"error\"",
+              "The least important events logged.", "\"info\""},
+    ConfigKey{"log", "statistics", "duration", "\"60s\"", "at least 1s, or \"off\"",
+              "How often each line's figures are logged (\"off\": only when the gateway stops).", "\"60s\""},
+
+    ConfigKey{"mqtt", "broker", "string", "", "mqtt://HOST[:PORT] or mqtts://HOST[:PORT] (TLS)",
+              "The broker; the port defaults to 1883, over TLS to 8883.", "\"mqtt://127.0.0.1:1883\""},
+    ConfigKey{"mqtt", "prefix", "string", "loopwire/ and the gateway's name", "topic levels without '+', '#' or spaces, "
+              "none empty, not starting with '$'",
+              "The topics' first levels: values are at PREFIX/DEVICE/PARAMETER.", "\"loopwire/plant1\""},
+    ConfigKey{"mqtt", "writes", "boolean", "false", "",
+              "Whether QoS 1 messages on PREFIX/DEVICE/PARAMETER/set are written to the device.", "false"},
+    ConfigKey{"mqtt", "client_id", "string", "loopwire- and the prefix", "1..256 characters",
+              "The MQTT client id; the broker keeps the gateway's session under it.", "\"loopwire-plant1\"", true},
+    ConfigKey{"mqtt", "ca_file", "file", "the system's certificate store", "a regular file, PEM; mqtts:// only",
+              "The CA certificate the broker's certificate is checked against.", "\"ca.crt\"", true},
+    ConfigKey{"mqtt", "cert_file", "file", "none", "a regular file, PEM; mqtts:// only; with key_file",
+              "The gateway's client certificate, for brokers that ask for one.", "\"gateway.crt\"", true},
+    ConfigKey{"mqtt", "key_file", "file", "none", "a regular file, PEM; mqtts:// only; with cert_file",
+              "The private key of cert_file.", "\"gateway.key\"", true},
+    ConfigKey{"mqtt", "username", "string", "none", "", "The user name sent to the broker.", "\"gateway\"", true},
+    ConfigKey{"mqtt", "password_file", "file", "none", "a regular file not readable by every user; needs username",
+              "A file whose first line is the broker password.", "\"mqtt.password\"", true},
+    ConfigKey{"mqtt", "republish", "duration", "\"5m\"", "at least 100ms, or \"off\"",
+              "Every value is published when it changes and again at least this often (\"off\": on changes only).",
+              "\"5m\""},
+    ConfigKey{"mqtt", "discovery", "string", "\"none\"", "\"homeassistant\" or \"none\"",
+              "Publish Home Assistant discovery documents for every polled parameter.", "\"none\""},
+    ConfigKey{"mqtt", "discovery_prefix", "string", "\"homeassistant\"", "topic levels without '+', '#' or spaces",
+              "The discovery documents' first topic level.", "\"homeassistant\""},
+    ConfigKey{"mqtt", "max_payload", "integer", "1024", "16..65536 (bytes)",
+              "A .../set payload longer than this is refused unread.", "1024"},
+
+    ConfigKey{"history", "database", "file", "", "a regular file or none yet, in a folder the gateway can write",
+              "The SQLite file (WAL mode), created when absent; relative to the configuration file's folder.",
+              "\"plant.db\""},
+    ConfigKey{"history", "keep", "period", "\"90d\"", "at least 1m",
+              "Rows older than this are deleted as the gateway runs.", "\"90d\""},
+    ConfigKey{"history", "heartbeat", "duration", "\"60s\"", "at least 1s",
+              "Every current value is written again at least this often, so a value that holds still is a line, not a gap.",
+              "\"60s\""},
+
+    ConfigKey{"http", "listen", "string", "\"127.0.0.1:8080\"", "HOST:PORT or [IPV6]:PORT; port 0 takes any free one",
+              "The address the API and dashboard are served on; off loopback every request needs the token.",
+              "\"127.0.0.1:8080\""},
+    ConfigKey{"http", "token_file", "file", "none: writes are refused", "a regular file readable by the gateway's user alone",
+              "A file whose first line is the bearer token writes need; relative to the configuration file's folder.",
+              "\"/etc/loopwire/token\"", true},
+    ConfigKey{"http", "read_timeout", "duration", "\"10s\"", "100ms..10min",
+              "A client that has not sent its whole request this long after it began is closed.", "\"10s\""},
+    ConfigKey{"http", "send_timeout", "duration", "\"10s\"", "100ms..10min",
+              "An event stream whose client has taken nothing of what waits for it this long is closed.", "\"10s\""},
+    ConfigKey{"http", "max_connections", "integer", "64", "1..10000", "Connections open at once.", "64"},
+    ConfigKey{"http", "max_connections_per_client", "integer", "8", "1..10000",
+              "Connections one client address may hold at once; more are answered 429.", "8"},
+    ConfigKey{"http", "hosts", "list of strings", "[]", "host names or addresses",
+              "Host header names answered besides the listen address, localhost, 127.0.0.1 and [::1]; others get 421.",
+              "[]"},
+};
+
+// A table's last level: "devices" of "lines.devices".
+std::string_view last_level(std::string_view name) { return name.substr(name.rfind('.') + 1); }
+
+std::string_view parent_of(std::string_view name) {
+    const auto dot = name.rfind('.');
+    return dot == std::string_view::npos ? std::string_view() : name.substr(0, dot);
+}
+
+// `text` as comment lines of at most 100 characters, broken between words.
+void print_comment(std::ostringstream& out, std::string_view text) {
+    constexpr std::size_t width = 100 - 2;
+    while (!text.empty()) {
+        std::size_t end = text.size();
+        if (end > width) {
+            end = text.rfind(' ', width);
+            if (end == std::string_view::npos || end == 0) end = width;
+        }
+        out << "# " << text.substr(0, end) << '\n';
+        text.remove_prefix(end);
+        while (!text.empty() && text.front() == ' ') text.remove_prefix(1);
+    }
+}
+
+void print_key(std::ostringstream& out, const ConfigKey& key) {
+    print_comment(out, key.meaning);
+    std::string facts = fmt::format("{}", key.type);
+    if (!key.bounds.empty()) facts += fmt::format(", {}", key.bounds);
+    facts += key.required() ? "; required" : fmt::format("; default {}", key.default_value);
+    print_comment(out, "(" + facts + ")");
+    out << fmt::format("{}{} = {}\n", key.example_commented ? "# " : "", key.key, key.example);
+}
+
+}  // namespace
+
+std::span<const ConfigTable> config_tables() { return tables; }
+std::span<const ConfigKey> config_keys() { return keys; }
+
+std::vector<std::string_view> config_keys_of(std::string_view table) {
+    std::vector<std::string_view> names;
+    for (const ConfigKey& key : keys) {
+        if (key.table == table) names.push_back(key.key);
+    }
+    for (const ConfigTable& child : tables) {
+        if (parent_of(child.name) == table) names.push_back(last_level(child.name));
+    }
+    return names;
+}
+
+std::string commented_example_config() {
+    std::ostringstream out;
+    out << "# A loopwire gateway configuration with every key: its meaning, the values it takes and its default\n"
+           "# (loopwire-gateway.toml(5)). Keys commented out are not set. As printed it runs one simulated line;\n"
+           "# name your own lines and devices, then check the file:\n"
+           "#   loopwire gateway --config gateway.toml --check\n";
+    for (const ConfigTable& table : tables) {
+        out << fmt::format("\n{}\n", table.header);
+        print_comment(out, table.meaning);
+        for (const ConfigKey& key : keys) {
+            if (key.table == table.name) print_key(out, key);
+        }
+    }
+    return out.str();
+}
+
+}  // namespace loopwire::gateway
