@@ -155,9 +155,16 @@ struct MqttBridge::State {
     Wakeup wakeup;  // notified when `outgoing` gets its first publication, and on stop
     std::map<std::string, DeviceSeen> devices;  // by configured name
     // The poll threads' own (one subscriber's callbacks never overlap): each parameter's last
-    // error, and the parameters announced to Home Assistant.
+    // error, and what was announced to Home Assistant: each parameter's unit and decimals (by
+    // its state topic), each device's control loop.
     std::map<std::string, std::string> last_errors;
-    std::set<std::string> discovered;
+    std::map<std::string, std::string> discovered;
+    struct LoopSeen {
+        std::optional<std::string> pv_unit;
+        std::optional<int> sp_decimals;
+        std::optional<ControlLoopSample> announced;
+    };
+    std::map<std::string, LoopSeen> loops;
 
     // The network thread's own: every retained topic's payload, republished on each connection.
     std::map<std::string, RetainedTopic> retained;
@@ -214,15 +221,51 @@ struct MqttBridge::State {
         std::string& last_error = last_errors[base];
         if (!change.error.empty()) last_error = change.error;
         const nlohmann::json meta = meta_document(change, parameter, last_error);
-        std::optional<DiscoveryDocument> discovery;
-        if (config.discovery == MqttConfig::Discovery::homeassistant && parameter && discovered.insert(base).second) {
-            discovery = discovery_document(config, change.device, *device->address.profile, *parameter);
+        std::vector<DiscoveryDocument> discoveries;
+        if (config.discovery == MqttConfig::Discovery::homeassistant && parameter) {
+            discoveries = discover(change, base, *device->address.profile, *parameter);
         }
         std::lock_guard lock(mutex);
         queue_locked({base, change.value ? change.text : change.status, true, 0, true});
         // A device's texts (an error, an enum label) are its own and may not be valid UTF-8.
         queue_locked({base + "/meta", json_text(meta), true, 0});
-        if (discovery) queue_locked({discovery->topic, json_text(discovery->config), true, qos_at_least_once});
+        for (const auto& discovery : discoveries) {
+            const std::string payload = discovery.config.is_null() ? std::string() : json_text(discovery.config);
+            queue_locked({discovery.topic, payload, true, qos_at_least_once});
+        }
+    }
+
+    // The discovery documents a change calls for: the parameter's when it is first seen and
+    // again when its unit or decimals change on the device (°C to °F, the decimal point moved),
+    // the device's control loop once its PV and SP have values and whenever those change.
+    std::vector<DiscoveryDocument> discover(const ValueChange& change, const std::string& base, const device::Profile& profile,
+                                            const device::Parameter& parameter) {
+        std::vector<DiscoveryDocument> documents;
+        const ValueChange* latest = change.value ? &change : nullptr;
+        const std::string said = latest ? fmt::format("{}|{}", change.unit, shown_decimals(parameter, latest)) : std::string();
+        const auto announced = discovered.find(base);
+        if (announced == discovered.end() || (latest && announced->second != said)) {
+            discovered[base] = said;
+            documents.push_back(discovery_document(config, change.device, profile, parameter, latest));
+        }
+        if (!latest) return documents;
+        const ControlLoop loop = control_loop_of(profile);
+        if (&parameter != loop.pv && &parameter != loop.sp) return documents;
+        LoopSeen& seen = loops[change.device];
+        if (&parameter == loop.pv) seen.pv_unit = change.unit;
+        if (&parameter == loop.sp) seen.sp_decimals = shown_decimals(parameter, latest);
+        if (!seen.pv_unit || !seen.sp_decimals) return documents;
+        const ControlLoopSample sample{*seen.pv_unit, *seen.sp_decimals};
+        if (seen.announced == sample) return documents;
+        auto climate = climate_document(config, change.device, profile, sample);
+        const bool was_climate = seen.announced && climate_document(config, change.device, profile, *seen.announced);
+        seen.announced = sample;
+        if (climate) {
+            documents.push_back(std::move(*climate));
+        } else if (was_climate) {
+            documents.push_back({climate_topic(config, change.device), nullptr});
+        }
+        return documents;
     }
 
     // TLS (mqtts://) and credentials. The files were checked when the configuration was read; a

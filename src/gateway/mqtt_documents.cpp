@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string_view>
 
 #include <fmt/format.h>
@@ -95,21 +96,44 @@ nlohmann::json meta_document(const ValueChange& change, const device::Parameter*
     return meta;
 }
 
-DiscoveryDocument discovery_document(const MqttConfig& config, const std::string& device_name, const device::Profile& profile,
-                                     const device::Parameter& parameter) {
-    const std::string device_topic = fmt::format("{}/{}", config.prefix, device_name);
-    const std::string state_topic = fmt::format("{}/{}", device_topic, parameter.name);
-    const std::string device_id = sanitized_level(fmt::format("{}_{}", config.gateway_name, device_name));
-    const std::string object_id = sanitized_level(fmt::format("{}_{}", device_id, parameter.name));
-    const bool commands = config.writes && parameter.writable;
+int shown_decimals(const device::Parameter& parameter, const ValueChange* latest) {
+    if (const int* fixed = std::get_if<int>(&parameter.decimals)) return *fixed;
+    if (latest && latest->value && std::holds_alternative<double>(latest->value->value)) return decimals_in(latest->text);
+    return 0;
+}
 
+std::string device_class_of(std::string_view unit) {
+    return unit == "°C" || unit == "°F" || unit == "K" ? "temperature" : "";
+}
+
+ControlLoop control_loop_of(const device::Profile& profile) {
+    const auto named = [&](const char* alias) -> const device::Parameter* {
+        const auto found = profile.aliases.find(alias);
+        return found == profile.aliases.end() ? nullptr : profile.find(found->second);
+    };
+    return {named("PV"), named("SP")};
+}
+
+namespace {
+
+bool is_number(const device::Parameter& parameter) {
+    return parameter.type == device::ValueType::int16 || parameter.type == device::ValueType::uint16;
+}
+
+std::string device_id_of(const MqttConfig& config, const std::string& device_name) {
+    return sanitized_level(fmt::format("{}_{}", config.gateway_name, device_name));
+}
+
+// What every entity of the device shares: its device block and its availability.
+nlohmann::json entity_base(const MqttConfig& config, const std::string& device_name, const device::Profile& profile,
+                           const std::string& object_id) {
+    const std::string device_topic = fmt::format("{}/{}", config.prefix, device_name);
+    const std::string device_id = device_id_of(config, device_name);
     nlohmann::json device{{"identifiers", {device_id}}, {"name", device_name},
                           {"model", profile.model.empty() ? profile.title : profile.model}};
     if (!profile.manufacturer.empty()) device["manufacturer"] = profile.manufacturer;
-    nlohmann::json doc{
-        {"name", parameter.name},
+    return nlohmann::json{
         {"unique_id", object_id},
-        {"state_topic", state_topic},
         {"device", std::move(device)},
         // Both the gateway's (its last will) and the device's (its polls): a value is only
         // current when the gateway is connected and the device answers. The device's status
@@ -123,15 +147,69 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
            {"value_template", "{{ 'online' if value == 'online' else 'offline' }}"}}}},
         {"availability_mode", "all"},
     };
-    if (!parameter.unit.empty()) doc["unit_of_measurement"] = parameter.unit;
+}
+
+std::string climate_object_id(const MqttConfig& config, const std::string& device_name) {
+    return sanitized_level(device_id_of(config, device_name) + "_control_loop");
+}
+
+// A special state ("under-range") is text: Home Assistant shows it as unknown rather than
+// rejecting a number's non-numeric state.
+constexpr const char* numbers_only = "{{ value if value | is_number else None }}";
+
+}  // namespace
+
+std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, const std::string& device_name,
+                                                  const device::Profile& profile, const ControlLoopSample& sample) {
+    const ControlLoop loop = control_loop_of(profile);
+    if (!loop.pv || !loop.sp || !is_number(*loop.pv) || !is_number(*loop.sp)) return std::nullopt;
+    // Home Assistant's climate takes temperatures in C or F only.
+    if (sample.pv_unit != "°C" && sample.pv_unit != "°F") return std::nullopt;
+    const std::string device_topic = fmt::format("{}/{}", config.prefix, device_name);
+    const std::string object_id = climate_object_id(config, device_name);
+    nlohmann::json doc = entity_base(config, device_name, profile, object_id);
+    doc["name"] = "control loop";
+    doc["current_temperature_topic"] = fmt::format("{}/{}", device_topic, loop.pv->name);
+    doc["current_temperature_template"] = numbers_only;
+    doc["temperature_state_topic"] = fmt::format("{}/{}", device_topic, loop.sp->name);
+    doc["temperature_state_template"] = numbers_only;
+    if (config.writes && loop.sp->writable) doc["temperature_command_topic"] = fmt::format("{}/{}/set", device_topic, loop.sp->name);
+    doc["temperature_unit"] = sample.pv_unit == "°C" ? "C" : "F";
+    doc["min_temp"] = number_limit(*loop.sp, loop.sp->min, false, sample.sp_decimals);
+    doc["max_temp"] = number_limit(*loop.sp, loop.sp->max, true, sample.sp_decimals);
+    doc["temp_step"] = std::pow(10.0, -sample.sp_decimals);
+    // Home Assistant shows temperatures to 0.1, 0.5 or 1.
+    doc["precision"] = sample.sp_decimals > 0 ? 0.1 : 1.0;
+    // The loop heats: the device's own auto/manual/standby are its control_state entity.
+    doc["modes"] = {"heat"};
+    return DiscoveryDocument{climate_topic(config, device_name), std::move(doc)};
+}
+
+std::string climate_topic(const MqttConfig& config, const std::string& device_name) {
+    return fmt::format("{}/climate/{}/config", config.discovery_prefix, climate_object_id(config, device_name));
+}
+
+DiscoveryDocument discovery_document(const MqttConfig& config, const std::string& device_name, const device::Profile& profile,
+                                     const device::Parameter& parameter, const ValueChange* latest) {
+    const std::string device_topic = fmt::format("{}/{}", config.prefix, device_name);
+    const std::string state_topic = fmt::format("{}/{}", device_topic, parameter.name);
+    const std::string object_id = sanitized_level(fmt::format("{}_{}", device_id_of(config, device_name), parameter.name));
+    const bool commands = config.writes && parameter.writable;
+
+    nlohmann::json doc = entity_base(config, device_name, profile, object_id);
+    doc["name"] = parameter.name;
+    doc["state_topic"] = state_topic;
+    const std::string& shown_unit = latest && !latest->unit.empty() ? latest->unit : parameter.unit;
+    if (!shown_unit.empty()) doc["unit_of_measurement"] = shown_unit;
+    if (const auto device_class = device_class_of(shown_unit); !device_class.empty()) doc["device_class"] = device_class;
 
     std::string component;
     std::string on;
     std::string off;
-    const bool numeric = parameter.type == device::ValueType::int16 || parameter.type == device::ValueType::uint16;
+    const bool numeric = is_number(parameter);
     if (numeric && commands) {
         component = "number";
-        const int decimals = std::holds_alternative<int>(parameter.decimals) ? std::get<int>(parameter.decimals) : 0;
+        const int decimals = shown_decimals(parameter, latest);
         doc["command_topic"] = state_topic + "/set";
         doc["min"] = number_limit(parameter, parameter.min, false, decimals);
         doc["max"] = number_limit(parameter, parameter.max, true, decimals);
@@ -146,19 +224,19 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
             doc["options"] = labels_of(parameter);
         }
         doc.erase("unit_of_measurement");
+        doc.erase("device_class");
     } else if (two_state_labels(parameter, on, off)) {
         component = "binary_sensor";
         doc["payload_on"] = on;
         doc["payload_off"] = off;
         doc.erase("unit_of_measurement");
+        doc.erase("device_class");
     } else {
         component = "sensor";
         if (numeric) {
-            // A special state ("under-range") is text: Home Assistant shows it as unknown
-            // rather than rejecting a number sensor's non-numeric state.
-            doc["value_template"] = "{{ value if value | is_number else None }}";
+            doc["value_template"] = numbers_only;
             doc["state_class"] = "measurement";
-            if (const int* fixed = std::get_if<int>(&parameter.decimals)) doc["suggested_display_precision"] = *fixed;
+            doc["suggested_display_precision"] = shown_decimals(parameter, latest);
         } else if (parameter.type == device::ValueType::enumeration && !parameter.enum_labels.empty()) {
             doc["device_class"] = "enum";
             doc["options"] = labels_of(parameter);

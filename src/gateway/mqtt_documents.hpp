@@ -2,7 +2,9 @@
 // What the MQTT front publishes about a parameter besides its value: the /meta document, and
 // Home Assistant's discovery document (gateway/mqtt_bridge.hpp). Pure functions of the profile
 // and the configuration, kept apart from the network code so that they are tested alone.
+#include <optional>
 #include <string>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 
@@ -25,13 +27,53 @@ nlohmann::json meta_document(const ValueChange& change, const device::Parameter*
 // retained on `topic`.
 struct DiscoveryDocument {
     std::string topic;  // DISCOVERY_PREFIX/COMPONENT/GATEWAY_DEVICE_PARAMETER/config
-    nlohmann::json config;
+    nlohmann::json config;  // null: the entity is removed (an empty retained payload)
 };
 
 // The component that fits the parameter: number (a writable number), select (a writable enum or
 // bit), binary_sensor (a read-only bit, or an enum whose labels are on/off), sensor (the rest).
 // Writable components only when the configuration takes writes; a read-only view otherwise.
+// `latest`: the parameter's latest value, whose unit and decimals were resolved from the
+// device's configuration words where the profile gives none of its own ("°C" or "°F" and the
+// decimal point of a TC10's set point); null: the profile's alone. A temperature gets Home
+// Assistant's device class `temperature`.
 DiscoveryDocument discovery_document(const MqttConfig& config, const std::string& device_name, const device::Profile& profile,
-                                     const device::Parameter& parameter);
+                                     const device::Parameter& parameter, const ValueChange* latest = nullptr);
+
+// The decimals a value shows: the profile's fixed ones, else those of the latest value's text
+// (set by another parameter, e.g. a decimal-point word), else 0.
+int shown_decimals(const device::Parameter& parameter, const ValueChange* latest);
+
+// Home Assistant's device class for a unit: "temperature" for °C, °F and K, the units its
+// temperature class takes; empty for the rest (%, %C, mV: no class fits them).
+std::string device_class_of(std::string_view unit);
+
+// What a device's control loop looks like from its latest values: the unit of its PV and the
+// decimals of its SP (profile aliases PV and SP).
+struct ControlLoopSample {
+    std::string pv_unit;  // "°C"
+    int sp_decimals = 0;  // of the set point's latest text ("150.5": 1)
+
+    bool operator==(const ControlLoopSample&) const = default;
+};
+
+// A Home Assistant `climate` entity for the device's control loop, so a temperature controller
+// appears as a thermostat: current temperature from PV, target temperature from SP (commanded
+// on SP's /set topic when the configuration takes writes), the step from SP's decimals, the
+// limits SP's profile gives (else what its word holds). None when the profile names no PV and
+// SP, when either is not a number, or when the PV is not a temperature in °C or °F.
+std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, const std::string& device_name,
+                                                  const device::Profile& profile, const ControlLoopSample& sample);
+
+// Where climate_document's document goes; an empty retained payload there removes the entity
+// (a PV whose unit is no longer a temperature).
+std::string climate_topic(const MqttConfig& config, const std::string& device_name);
+
+// The profile's PV and SP parameters (its aliases), for the loop above; null when it has none.
+struct ControlLoop {
+    const device::Parameter* pv = nullptr;
+    const device::Parameter* sp = nullptr;
+};
+ControlLoop control_loop_of(const device::Profile& profile);
 
 }  // namespace loopwire::gateway

@@ -4,7 +4,7 @@ required keys, the type of every key used, and what the gateway promises besides
 on both the gateway's and the device's status, unique ids, a device block from the profile).
 
 Written from Home Assistant's documentation pages for MQTT discovery and the MQTT sensor,
-binary sensor, number and select platforms.
+binary sensor, number, select and climate (HVAC) platforms.
 
 usage: ha_discovery_check.py PORT DISCOVERY_PREFIX STATE_PREFIX COMPONENT...
 Exits 0 when a document of each COMPONENT came and every document passed; prints what failed.
@@ -35,7 +35,15 @@ PLATFORMS = {
     "number": ({"command_topic"}, {"command_topic": STRING, "min": NUMBER, "max": NUMBER, "step": NUMBER,
                                     "mode": STRING, "command_template": STRING}),
     "select": ({"command_topic", "options"}, {"command_topic": STRING, "options": LIST, "command_template": STRING}),
+    # The MQTT climate platform (HVAC): no state_topic of its own, a topic per temperature.
+    "climate": ({"current_temperature_topic", "temperature_state_topic"},
+                {"current_temperature_topic": STRING, "current_temperature_template": STRING,
+                 "temperature_state_topic": STRING, "temperature_state_template": STRING,
+                 "temperature_command_topic": STRING, "temperature_unit": STRING, "min_temp": NUMBER,
+                 "max_temp": NUMBER, "temp_step": NUMBER, "precision": NUMBER, "modes": LIST}),
 }
+# Home Assistant's temperature device class takes these units only; climate's unit is C or F.
+TEMPERATURE_UNITS = {"°C", "°F", "K"}
 DEVICE_KEYS = {"identifiers": LIST, "name": STRING, "manufacturer": STRING, "model": STRING}
 AVAILABILITY_KEYS = {"topic": STRING, "payload_available": STRING, "payload_not_available": STRING, "value_template": STRING}
 OBJECT_ID = re.compile(r"^[A-Za-z0-9_-]+$")
@@ -58,7 +66,8 @@ def check(topic, document, state_prefix):
     required, extra = PLATFORMS[component]
     allowed = dict(COMMON, **extra)
     check_types(topic, document, allowed, problems)
-    for key in required | {"unique_id", "state_topic", "device", "availability"}:
+    own_state = "temperature_state_topic" if component == "climate" else "state_topic"
+    for key in required | {"unique_id", own_state, "device", "availability"}:
         if key not in document:
             problems.append(f"{topic}: missing {key}")
     if not OBJECT_ID.match(object_id) or document.get("unique_id") != object_id:
@@ -73,11 +82,24 @@ def check(topic, document, state_prefix):
         if entry.get("payload_available") != "online":
             problems.append(f"{topic}: availability payload_available is not online")
     topics = [entry.get("topic") for entry in availability]
-    device_status = "/".join(document.get("state_topic", "").split("/")[:-1]) + "/status"
+    state_topic = document.get(own_state, "")
+    device_status = "/".join(state_topic.split("/")[:-1]) + "/status"
     if topics != [state_prefix + "/status", device_status] or document.get("availability_mode") != "all":
         problems.append(f"{topic}: availability should be the gateway's and the device's status, mode all: {topics}")
-    if not document.get("state_topic", "").startswith(state_prefix + "/"):
-        problems.append(f"{topic}: state_topic outside {state_prefix}")
+    if not state_topic.startswith(state_prefix + "/"):
+        problems.append(f"{topic}: {own_state} outside {state_prefix}")
+    if document.get("device_class") == "temperature" and document.get("unit_of_measurement") not in TEMPERATURE_UNITS:
+        problems.append(f"{topic}: a temperature in {document.get('unit_of_measurement')!r}, not one of {sorted(TEMPERATURE_UNITS)}")
+    if component == "climate":
+        if document.get("temperature_unit") not in ("C", "F"):
+            problems.append(f"{topic}: temperature_unit must be C or F")
+        if not document.get("min_temp", 0) < document.get("max_temp", 0):
+            problems.append(f"{topic}: min_temp is not below max_temp")
+        if document.get("precision") not in (0.1, 0.5, 1.0):
+            problems.append(f"{topic}: precision must be 0.1, 0.5 or 1.0")
+        command = document.get("temperature_command_topic")
+        if command is not None and command != state_topic + "/set":
+            problems.append(f"{topic}: temperature_command_topic is not TEMPERATURE_STATE_TOPIC/set")
     if component in ("number", "select") and document.get("command_topic") != document.get("state_topic") + "/set":
         problems.append(f"{topic}: command_topic is not STATE_TOPIC/set")
     if component == "number" and not document.get("min", 0) < document.get("max", 0):

@@ -510,6 +510,69 @@ TEST(MqttBridge, MetaAndHomeAssistantDiscoveryDescribeEveryPolledParameter) {
     }
 }
 
+// The TC10's temperatures take their unit from its temperature_unit word: Home Assistant gets
+// the unit the device is set to, a temperature device class, and a thermostat (climate) for the
+// loop; set to °F on the device, every document says °F.
+TEST(MqttBridge, HomeAssistantSeesTheTc10AsAThermostatInTheUnitItIsSetTo) {
+    REQUIRE_BROKER();
+    Broker broker(free_port());
+    WatcherOptions everything;
+    everything.topics = "#";
+    Watcher watcher(broker.port(), everything);
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), true, "discovery = \"homeassistant\"", {},
+                                "plant.toml", R"("measured_value", "set_point", "temperature_unit")");
+    const auto in_unit = [](const char* key, const char* unit) {
+        return [key, unit](const std::string& text) {
+            const auto document = nlohmann::json::parse(text, nullptr, false);
+            return document.is_object() && document.value(key, std::string()) == unit;
+        };
+    };
+    const std::string sensor_topic = "homeassistant/sensor/plant1_oven_measured_value/config";
+    const std::string climate_topic = "homeassistant/climate/plant1_oven_control_loop/config";
+
+    const auto sensor = watcher.wait_for(sensor_topic, in_unit("unit_of_measurement", "°C"));
+    ASSERT_TRUE(sensor) << "the measured value's unit is not the device's °C";
+    EXPECT_EQ(nlohmann::json::parse(*sensor).at("device_class"), "temperature") << *sensor;
+    const auto climate_text = watcher.wait_for(climate_topic, in_unit("temperature_unit", "C"));
+    ASSERT_TRUE(climate_text) << "no thermostat for the TC10's control loop";
+    const auto climate = nlohmann::json::parse(*climate_text);
+    EXPECT_EQ(climate.at("current_temperature_topic"), prefix + "/oven/measured_value");
+    EXPECT_EQ(climate.at("temperature_state_topic"), prefix + "/oven/set_point");
+    EXPECT_EQ(climate.at("temperature_command_topic"), prefix + "/oven/set_point/set");
+    EXPECT_LT(climate.at("min_temp").get<double>(), climate.at("max_temp").get<double>());
+    EXPECT_EQ(climate.at("availability").size(), 2u);
+    EXPECT_EQ(climate.at("device").at("identifiers"), nlohmann::json::array({"plant1_oven"}));
+
+    // What Home Assistant would send for a new target goes to the set point.
+    watcher.publish(climate.at("temperature_command_topic").get<std::string>(), "123");
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/set_point", [](const std::string& text) { return text.rfind("123", 0) == 0; }));
+
+    watcher.publish(prefix + "/oven/temperature_unit/set", "F");
+    EXPECT_TRUE(watcher.wait_for(sensor_topic, in_unit("unit_of_measurement", "°F"))) << "the sensor still says °C";
+    EXPECT_TRUE(watcher.wait_for(climate_topic, in_unit("temperature_unit", "F"))) << "the thermostat still says C";
+}
+
+TEST(MqttDocuments, AClimateIsForATemperatureLoopOnly) {
+    MqttConfig mqtt;
+    mqtt.prefix = "loopwire/plant1";
+    mqtt.gateway_name = "plant1";
+    const auto tc10 = profiles().find("tc10");
+    const auto ac20 = profiles().find("ac20");
+    ASSERT_TRUE(tc10 && ac20);
+    EXPECT_TRUE(climate_document(mqtt, "oven", **tc10, {"°C", 1}));
+    EXPECT_FALSE(climate_document(mqtt, "oven", **tc10, {"EU", 1})) << "a loop in engineering units is no thermostat";
+    EXPECT_FALSE(climate_document(mqtt, "furnace", **ac20, {"%C", 2})) << "carbon potential is no temperature";
+    const auto read_only = climate_document(mqtt, "oven", **tc10, {"°F", 0});
+    ASSERT_TRUE(read_only);
+    EXPECT_FALSE(read_only->config.contains("temperature_command_topic")) << "writes are off, yet HA may set the target";
+    EXPECT_EQ(read_only->config.at("temperature_unit"), "F");
+    EXPECT_EQ(read_only->config.at("temp_step"), 1.0);
+    EXPECT_EQ(read_only->config.at("precision"), 1.0);
+    EXPECT_EQ(read_only->topic, climate_topic(mqtt, "oven"));
+    EXPECT_EQ(device_class_of("°C"), "temperature");
+    EXPECT_EQ(device_class_of("%"), "");
+}
+
 TEST(MqttDocuments, DiscoveryIdsAndTopicsNeverHoldWildcardsSlashesOrSpaces) {
     const auto config = parse_gateway_config(R"toml(
 [[lines]]

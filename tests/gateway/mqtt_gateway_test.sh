@@ -98,7 +98,7 @@ done
 
 # Home Assistant's view, through an independent client.
 check discovery-documents 0 "checked, 0 problems" $python "$(dirname "$0")/ha_discovery_check.py" "$port" homeassistant loopwire/plant1 \
-  sensor number select binary_sensor
+  sensor number select binary_sensor climate
 
 # Hostile publishers: a payload that is not UTF-8, one of 200 KB, then 1000 of 200 KB. The
 # gateway answers each with a refusal, stays up, keeps its memory and its log lines short, and
