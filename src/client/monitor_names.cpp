@@ -9,17 +9,22 @@
 namespace loopwire::device {
 namespace {
 
-// Per built-in profile: process value, set point in force, output, alarm/status word.
-// TC10 (manual §5.1, words 1A, 3A, 4A, 10A): measured value rV, operating set point, output
-// power, alarm status word. Ramp/soak (§7 Register Map, rows 008AH, 0000H, 0087H, 0088H): PV,
-// SV, OUT%, controller information bits. AC20 ("Words for device in control mode - Non
-// parameters", words 123, 125, 137, 130, 135): the carbon potential it controls, the probe
-// temperature, the operative set point, the main control output and the device status.
+// Per built-in profile: process value, set point (the one a user writes, and the one in force
+// where they differ), output, alarm/status word and control mode, so that every front shows
+// the loop and what a write changed (PV, SP and OUT are the profiles' aliases).
+// TC10 (manual §5.1, words 1A, 3A, 4A, 10A, 15A; §5.3.8 #79, word 717): measured value rV, the set
+// point SP, the operating set point, output power, alarm status word, control state
+// (auto/manual/standby). Ramp/soak (§7 Register Map, rows 008AH, 0000H, 0087H, 0088H): PV, SV
+// (its only set point), OUT%, controller information bits. AC20 ("Words for device in control
+// mode", words 123, 125, 138, 137, 130, 135): the carbon potential it controls,
+// the probe temperature, the main set point SP, the operative set point, the main control output
+// and the device status (which carries its mode).
 const std::map<std::string, std::vector<std::string>>& builtin_defaults() {
     static const std::map<std::string, std::vector<std::string>> defaults{
-        {"tc10", {"measured_value", "operating_set_point", "output_power", "alarm_status"}},
+        {"tc10", {"measured_value", "set_point", "operating_set_point", "output_power", "alarm_status", "control_state"}},
         {"rampsoak", {"process_value", "set_value", "output_percentage", "controller_status"}},
-        {"ac20", {"carbon_potential", "probe_temperature", "operative_set_point", "main_output_value", "device_status"}},
+        {"ac20", {"carbon_potential", "probe_temperature", "main_set_point", "operative_set_point", "main_output_value",
+                  "device_status"}},
     };
     return defaults;
 }

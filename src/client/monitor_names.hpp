@@ -9,7 +9,7 @@
 namespace loopwire::device {
 
 // The default watch list of a profile, used for a device no NAME applies to: the process
-// value, the set point in force, the control output and the alarm state. For the built-in
+// value, the set point (and the one in force), the control output, the alarm state and mode. For the built-in
 // profiles these are listed by name (monitor_names.cpp); for any other profile, its first four
 // readable, not hidden parameters.
 std::vector<const device::Parameter*> default_watch_list(const device::Profile& profile);

@@ -33,7 +33,7 @@ timeout 20 "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@
   >"$WORK_DIR/rows.jsonl" 2>"$WORK_DIR/mon.err" || count_failure "monitor-jsonl exit status" "$WORK_DIR/mon.err"
 jcheck monitor-jsonl-rows "$WORK_DIR/rows.jsonl" '
 assert len(rows) == 3, len(rows)
-names = {"tc10@3": ["measured_value", "operating_set_point", "output_power", "alarm_status"],
+names = {"tc10@3": ["measured_value", "set_point", "operating_set_point", "output_power", "alarm_status", "control_state"],
          "rampsoak@5": ["process_value", "set_value", "output_percentage", "controller_status"]}
 for i, row in enumerate(rows, 1):
     # Local time with its offset by default (--utc gives ...Z).
@@ -89,7 +89,8 @@ assert all(v["operating_set_point"]["value"] == 300 for v in values), values
 # names sends, nothing more (the reads skip their identification words, which a monitor does not
 # read).
 count_tx() { grep -c ' TX ' "$1"; }
-timeout 20 "$loopwire" read -v --no-identify --link "$link" --device tc10@3 measured_value operating_set_point output_power alarm_status >/dev/null 2>"$WORK_DIR/r1.err"
+timeout 20 "$loopwire" read -v --no-identify --link "$link" --device tc10@3 measured_value set_point operating_set_point output_power \
+  alarm_status control_state >/dev/null 2>"$WORK_DIR/r1.err"
 timeout 20 "$loopwire" read -v --no-identify --link "$link" --device rampsoak@5 process_value set_value output_percentage controller_status >/dev/null 2>"$WORK_DIR/r2.err"
 timeout 20 "$loopwire" monitor -v --link "$link" --device tc10@3 --device rampsoak@5 --interval 100ms --count 3 \
   >/dev/null 2>"$WORK_DIR/mv.err"
@@ -143,8 +144,8 @@ def read_some(until):
     return True
 read_some(deadline)
 assert b"PARAMETER" in out and b"measured_value" in out and b"\x1b[?25l" in out, out[-400:]
-# Later frames move back up over the 7 lines of the previous one (title, header, device, 4 values).
-assert b"\x1b[7F" in out, out[-400:]
+# Later frames move back up over the 9 lines of the previous one (title, header, device, 6 values).
+assert b"\x1b[9F" in out, out[-400:]
 os.kill(pid, signal.SIGINT)
 read_some(time.time() + 5)
 _, status = os.waitpid(pid, 0)

@@ -186,17 +186,23 @@ std::vector<std::string> names_of(const std::vector<const device::Parameter*>& l
     return names;
 }
 
-// Monitor default watch lists: TC10 §5.1 words 1A/3A/4A/10A, ramp/soak §7 rows 008AH/0000H/
-// 0087H/0088H, AC20 words 123/125/137/130/135 — every listed name must exist and be readable.
+// Monitor default watch lists: TC10 §5.1 words 1A/3A/4A/10A/15A and SP (717), ramp/soak §7 rows
+// 008AH/0000H/0087H/0088H, AC20 words 123/125/138/137/130/135 — every listed name must exist and
+// be readable, and each list holds the profile's PV, SP and OUT.
 TEST(MonitorNames, DefaultWatchListsNameReadableParametersOfEveryBuiltInProfile) {
-    const std::map<std::string, std::size_t> expected{{"tc10", 4}, {"rampsoak", 4}, {"ac20", 5}};
+    const std::map<std::string, std::size_t> expected{{"tc10", 6}, {"rampsoak", 4}, {"ac20", 6}};
     for (const auto& id : device::builtin_profile_ids()) {
         const auto list = device::default_watch_list(*profile(id));
         EXPECT_EQ(list.size(), expected.at(id)) << id;
         for (const auto* p : list) EXPECT_TRUE(p->readable) << id << " " << p->name;
+        for (const char* alias : {"PV", "SP", "OUT"}) {
+            const auto* aliased = profile(id)->find(profile(id)->aliases.at(alias));
+            EXPECT_NE(std::find(list.begin(), list.end(), aliased), list.end()) << id << " watches no " << alias;
+        }
     }
     EXPECT_EQ(names_of(device::default_watch_list(*profile("tc10"))),
-              (std::vector<std::string>{"measured_value", "operating_set_point", "output_power", "alarm_status"}));
+              (std::vector<std::string>{"measured_value", "set_point", "operating_set_point", "output_power", "alarm_status",
+                                        "control_state"}));
 }
 
 TEST(MonitorNames, PlainNameAppliesToEveryDevice) {
@@ -228,7 +234,7 @@ TEST(MonitorNames, DeviceQualifiedNameAppliesToThatDeviceOnly) {
     auto lists = device::watch_lists(devices, {"tc10@4:SP.HL", "tc10@4:set_point"});
     ASSERT_TRUE(lists);
     EXPECT_EQ(names_of((*lists)[1]), (std::vector<std::string>{"set_point_high_limit", "set_point"}));
-    EXPECT_EQ((*lists)[0].size(), 4u);  // defaults
+    EXPECT_EQ((*lists)[0].size(), 6u);  // defaults
 }
 
 TEST(MonitorNames, UnknownNamesAndDevicesAreUsageErrors) {

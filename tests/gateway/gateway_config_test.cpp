@@ -556,8 +556,9 @@ TEST(GatewayConfigPlan, LoadsOfDevicesOnOneLineAddUp) {
 
 TEST(GatewayConfigPlan, TheDefaultWatchListIsPolledWhenNoneIsNamed) {
     const std::string plan = plan_of(one_device("device = \"tc10@3\"\n"));
-    // measured_value, operating_set_point, output_power, alarm_status (client/monitor_names.cpp)
-    EXPECT_THAT(plan, HasSubstr("4 parameters (default watch list)")) << plan;
+    // measured_value, set_point, operating_set_point, output_power, alarm_status, control_state
+    // (client/monitor_names.cpp)
+    EXPECT_THAT(plan, HasSubstr("6 parameters (default watch list)")) << plan;
 }
 
 TEST(GatewayConfigPlan, TcpAndAsciiLinksSayWhatTheEstimateIs) {
