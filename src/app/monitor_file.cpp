@@ -131,14 +131,47 @@ std::string rotated_name(const std::string& path, std::chrono::system_clock::tim
     return name;
 }
 
+namespace {
+
+// A header's columns, split at the commas outside quotes.
+std::vector<std::string> header_columns(const std::string& header) {
+    std::vector<std::string> columns(1);
+    bool quoted = false;
+    for (const char c : without_newline(header)) {
+        if (c == '"') quoted = !quoted;
+        if (c == ',' && !quoted) {
+            columns.emplace_back();
+        } else {
+            columns.back() += c;
+        }
+    }
+    return columns;
+}
+
+// A column without " [unit]" takes the file's with or without one (see FileSampleSink::open).
+bool same_columns(const std::string& file_header, const std::string& monitor_header) {
+    const auto file = header_columns(file_header);
+    const auto monitor = header_columns(monitor_header);
+    if (file.size() != monitor.size()) return false;
+    for (std::size_t i = 0; i < file.size(); ++i) {
+        if (file[i] == monitor[i]) continue;
+        const bool unit_free = monitor[i].find(" [") == std::string::npos;
+        if (!unit_free || file[i].rfind(monitor[i] + " [", 0) != 0) return false;
+    }
+    return true;
+}
+
+}  // namespace
+
 Result<std::unique_ptr<FileSampleSink>> FileSampleSink::open(const MonitorFileOptions& options, MonitorFormat format,
                                                              const std::string& csv_header) {
     struct stat status {};
     const bool exists = ::stat(options.path.c_str(), &status) == 0;
     const bool has_content = exists && S_ISREG(status.st_mode) && status.st_size > 0;
+    std::string present;
     if (options.append && has_content && format == MonitorFormat::csv) {
-        const std::string present = first_line(options.path);
-        if (present != csv_header) {
+        present = first_line(options.path);
+        if (!same_columns(present, csv_header)) {
             return make_error(ErrorKind::usage,
                               fmt::format("--append {}: its CSV header differs from this monitor's columns, so the rows would not "
                                           "line up.\n  file:    {}\n  monitor: {}\nWatch the same devices and names, or write to a "
@@ -155,12 +188,34 @@ Result<std::unique_ptr<FileSampleSink>> FileSampleSink::open(const MonitorFileOp
     std::optional<std::chrono::system_clock::time_point> started;
     if (size > 0) started = std::chrono::system_clock::from_time_t(status.st_mtim.tv_sec);
     return std::unique_ptr<FileSampleSink>(
-        new FileSampleSink(options, format, format == MonitorFormat::csv ? csv_header : "", file, size, started));
+        new FileSampleSink(options, format, format == MonitorFormat::csv ? csv_header : "", file, size, started, present));
 }
 
 FileSampleSink::FileSampleSink(MonitorFileOptions options, MonitorFormat format, std::string csv_header, std::FILE* file,
-                               std::uint64_t size, std::optional<std::chrono::system_clock::time_point> started)
-    : options_(std::move(options)), format_(format), csv_header_(std::move(csv_header)), file_(file), size_(size), started_(started) {}
+                               std::uint64_t size, std::optional<std::chrono::system_clock::time_point> started,
+                               std::string appended_header)
+    : options_(std::move(options)),
+      format_(format),
+      csv_header_(std::move(csv_header)),
+      file_(file),
+      size_(size),
+      started_(started),
+      appended_header_(std::move(appended_header)) {}
+
+// Once, at the first sample appended: the columns whose unit the device now reports differently
+// from the file's header (a header without units, or °C where the device now says °F).
+void FileSampleSink::explain_units(const std::string& header) {
+    const auto file = header_columns(appended_header_);
+    const auto now = header_columns(header);
+    appended_header_.clear();
+    if (file.size() != now.size()) return;
+    for (std::size_t i = 0; i < file.size(); ++i) {
+        if (file[i] == now[i]) continue;
+        fmt::print(stderr, "loopwire: warning: --append {}: the file's column \"{}\" is now \"{}\": the rows appended are in "
+                           "the unit the device reports now; start a new file to keep one unit a column\n",
+                   options_.path, file[i], now[i]);
+    }
+}
 
 FileSampleSink::~FileSampleSink() {
     if (file_ != nullptr) std::fclose(file_);
@@ -192,8 +247,9 @@ void FileSampleSink::rotate(std::chrono::system_clock::time_point time) {
 }
 
 void FileSampleSink::write(const device::SampleView& sample) {
-    write_text(sample.time, sample.index, sample_line(sample, format_, options_.time, false),
-               format_ == MonitorFormat::csv ? csv_header(*sample.devices) : "");
+    const std::string header = format_ == MonitorFormat::csv ? csv_header(*sample.devices) : "";
+    if (!appended_header_.empty()) explain_units(header);
+    write_text(sample.time, sample.index, sample_line(sample, format_, options_.time, false), header);
 }
 
 void FileSampleSink::write_row(std::chrono::system_clock::time_point time, unsigned index, const std::string& row) {

@@ -48,7 +48,10 @@ std::string rotated_name(const std::string& path, std::chrono::system_clock::tim
 class FileSampleSink final : public device::SampleSink {
 public:
     // `csv_header` is the header this monitor writes (empty for JSON lines): with --append, an
-    // existing non-empty file must start with it, or this fails saying how they differ.
+    // existing non-empty file must start with it, or this fails saying how they differ. A column
+    // without a unit in it stands for a unit the device's configuration sets, not yet read: it
+    // matches the file's column with or without one, and the first sample tells (on stderr) when
+    // the unit the device now reports is not the one the file's header says.
     static Result<std::unique_ptr<FileSampleSink>> open(const MonitorFileOptions& options, MonitorFormat format,
                                                         const std::string& csv_header);
     ~FileSampleSink() override;
@@ -62,7 +65,8 @@ public:
 
 private:
     FileSampleSink(MonitorFileOptions options, MonitorFormat format, std::string csv_header, std::FILE* file, std::uint64_t size,
-                   std::optional<std::chrono::system_clock::time_point> started);
+                   std::optional<std::chrono::system_clock::time_point> started, std::string appended_header);
+    void explain_units(const std::string& header);
     bool needs_rotation(std::chrono::system_clock::time_point time, std::size_t bytes) const;
     void rotate(std::chrono::system_clock::time_point time);
     void write_text(std::chrono::system_clock::time_point time, unsigned index, const std::string& row, const std::string& header);
@@ -74,6 +78,8 @@ private:
     std::uint64_t size_;
     std::optional<std::chrono::system_clock::time_point> started_;  // time of the file's first sample
     bool rotation_failed_ = false;
+    // The header of the file appended to, until the first sample's units are compared with it.
+    std::string appended_header_;
 };
 
 }  // namespace loopwire::app

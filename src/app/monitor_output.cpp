@@ -84,10 +84,11 @@ std::string csv_header(const std::vector<device::WatchedDevice>& devices) {
         columns.push_back(csv_field(device.label + " status"));
         columns.push_back(csv_field(device.label + " errors"));
         for (const auto& value : device.values) {
-            // The fixed unit only: a header is written before the first sample (and compared with an
-            // appended file's), so a unit that follows a configuration word (unit_from) is left to
-            // the JSON lines, which carry each value's unit.
-            const auto& unit = value.parameter->unit;
+            // The fixed unit, else the one the device's configuration words gave its latest value
+            // (unit_from: °C or °F on a TC10). A header written before any value was read has
+            // none there; FileSampleSink matches such columns whatever unit they carry.
+            std::string unit = value.parameter->unit;
+            if (unit.empty() && value.last && value.last->unit != device::unknown_unit) unit = value.last->unit;
             columns.push_back(csv_field(device.label + ":" + value.parameter->name + (unit.empty() ? "" : " [" + unit + "]")));
         }
     }

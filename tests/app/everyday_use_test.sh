@@ -81,7 +81,7 @@ timeout 20 "$loopwire" monitor --link "$broken" --device tc10@3 --count 1 --outp
   || count_failure "monitor of an open input" err.txt
 pycheck monitor-csv-special-state-by-name '
 rows = list(csv.DictReader(open("broken.csv")))
-assert rows[0]["tc10@3:measured_value"] == "out-of-range", rows[0]
+assert rows[0]["tc10@3:measured_value [°C]"] == "out-of-range", rows[0]  # the unit its temperature_unit word says
 '
 
 # ---- the live table: fitted to a small terminal, -v traces above it -----------------------

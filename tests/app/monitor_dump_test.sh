@@ -49,8 +49,22 @@ for i, row in enumerate(rows, 1):
 # Named selection: DEVICE@UNIT:NAME for one device (a plain name must match on every device).
 timeout 20 "$loopwire" monitor --link "$link" --device tc10@3 --device rampsoak@5 --count 1 --format csv \
   tc10@3:output_power rampsoak@5:SV >"$WORK_DIR/rows.csv" 2>"$WORK_DIR/mon.err" || count_failure "monitor-csv exit status" "$WORK_DIR/mon.err"
-if [ "$(head -1 "$WORK_DIR/rows.csv")" = "time,sample,tc10@3 status,tc10@3 errors,tc10@3:output_power [%],rampsoak@5 status,rampsoak@5 errors,rampsoak@5:set_value" ] \
+if [ "$(head -1 "$WORK_DIR/rows.csv")" = "time,sample,tc10@3 status,tc10@3 errors,tc10@3:output_power [%],rampsoak@5 status,rampsoak@5 errors,rampsoak@5:set_value [°C]" ] \
    && [ "$(wc -l <"$WORK_DIR/rows.csv")" -eq 2 ]; then count_pass; else count_failure monitor-csv-columns "$WORK_DIR/rows.csv"; fi
+
+# A unit the device's configuration sets (the TC10's temperature_unit word) is in the CSV header
+# once it is read; appending to a file whose header has no unit there (or another one) goes on
+# and says, once, which columns now carry which unit.
+timeout 20 "$loopwire" monitor --link "$tcp" --device tc10@3 PV SP --count 1 --format csv >"$WORK_DIR/units.csv" 2>"$WORK_DIR/units.err"
+check csv-header-has-the-devices-unit 0 "tc10@3:measured_value [°C],tc10@3:set_point [°C]" head -1 "$WORK_DIR/units.csv"
+printf 'time,sample,tc10@3 status,tc10@3 errors,tc10@3:measured_value,tc10@3:set_point [°F]\n' >"$WORK_DIR/old.csv"
+check csv-append-explains-units 0 'column "tc10@3:measured_value" is now "tc10@3:measured_value [°C]"' \
+  timeout 20 "$loopwire" monitor --link "$tcp" --device tc10@3 PV SP --count 2 --interval 100ms --output "$WORK_DIR/old.csv" --append
+check csv-append-explains-another-unit 0 'column "tc10@3:set_point [°F]" is now "tc10@3:set_point [°C]"' \
+  timeout 20 "$loopwire" monitor --link "$tcp" --device tc10@3 PV SP --count 1 --output "$WORK_DIR/old.csv" --append
+if [ "$(wc -l <"$WORK_DIR/old.csv")" -eq 4 ]; then count_pass; else count_failure csv-append-adds-the-rows "$WORK_DIR/old.csv"; fi
+check csv-append-still-refuses-other-columns 2 "its CSV header differs" \
+  timeout 20 "$loopwire" monitor --link "$tcp" --device tc10@3 PV OUT --count 1 --output "$WORK_DIR/old.csv" --append
 
 # A value written between samples shows up changed in the following ones. 30 samples give the
 # write 8 s to land even on a slow machine.
