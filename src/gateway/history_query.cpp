@@ -132,6 +132,60 @@ Result<std::vector<HistoryBucket>> buckets_of(sqlite::Connection& db, std::int64
     return result;
 }
 
+// The first sample of the series with a value after `t`, in ms; none when there is none yet.
+Result<std::optional<std::int64_t>> next_value_after(sqlite::Statement& next, std::int64_t series, std::int64_t t) {
+    next.reset();  // and its bindings
+    next.bind(1, series);
+    next.bind(2, t);
+    auto row = next.step();
+    if (!row) return row.error();
+    return *row ? std::optional<std::int64_t>(next.integer(0)) : std::nullopt;
+}
+
+// The gaps that overlap [from, to]: the samples without a value (their own index, so a month of
+// history costs a few lookups) each start one, unless one is open, which lasts to the next
+// sample with a value. At most max_gaps, the first ones: an answer stays a bounded size.
+constexpr std::size_t max_gaps = 10000;
+
+Result<std::vector<HistoryGap>> gaps_of(sqlite::Connection& db, std::int64_t series, std::int64_t from, std::int64_t to) {
+    auto before = db.prepare("SELECT value IS NULL FROM samples WHERE series_id = ?1 AND t < ?2 ORDER BY t DESC LIMIT 1");
+    auto starts = db.prepare("SELECT t FROM samples WHERE series_id = ?1 AND value IS NULL AND t >= ?2 AND t <= ?3 ORDER BY t");
+    auto next = db.prepare("SELECT t FROM samples WHERE series_id = ?1 AND t > ?2 AND value IS NOT NULL ORDER BY t LIMIT 1");
+    if (!before) return before.error();
+    if (!starts) return starts.error();
+    if (!next) return next.error();
+    std::vector<HistoryGap> gaps;
+    std::optional<std::int64_t> open_until;  // the end of the last gap found; none: it lasts
+    const auto add = [&](std::int64_t start) -> Result<void> {
+        auto end = next_value_after(*next, series, start);
+        if (!end) return end.error();
+        open_until = *end;
+        gaps.push_back({std::chrono::system_clock::time_point(milliseconds(start)),
+                        *end ? std::optional(std::chrono::system_clock::time_point(milliseconds(**end))) : std::nullopt});
+        return {};
+    };
+    before->bind(1, series);
+    before->bind(2, from);
+    auto last = before->step();
+    if (!last) return last.error();
+    if (*last && before->integer(0) != 0) {
+        if (auto added = add(from - 1); !added) return added.error();
+        gaps.back().start = std::chrono::system_clock::time_point(milliseconds(from));
+    }
+    starts->bind(1, series);
+    starts->bind(2, from);
+    starts->bind(3, to);
+    while (gaps.size() < max_gaps) {
+        auto row = starts->step();
+        if (!row) return row.error();
+        if (!*row) break;
+        const std::int64_t t = starts->integer(0);
+        if (!gaps.empty() && (!open_until || t < *open_until)) continue;  // inside the gap already open
+        if (auto added = add(t); !added) return added.error();
+    }
+    return gaps;
+}
+
 struct SeriesRow {
     std::int64_t id = 0;
     std::string parameter;
@@ -217,7 +271,12 @@ Result<std::vector<HistorySeries>> run_query(sqlite::Connection& db, const Histo
             (void)db.execute("ROLLBACK");
             return buckets.error();
         }
-        result.push_back({series.parameter, series.unit, std::move(*buckets)});
+        auto gaps = gaps_of(db, series.id, from, to);
+        if (!gaps) {
+            (void)db.execute("ROLLBACK");
+            return gaps.error();
+        }
+        result.push_back({series.parameter, series.unit, std::move(*buckets), std::move(*gaps)});
     }
     (void)db.execute("COMMIT");
     return result;

@@ -37,6 +37,9 @@ COMMIT;
 )sql";
 static_assert(application_id == 1280788585);
 
+constexpr std::string_view create_gap_index =
+    "CREATE INDEX IF NOT EXISTS samples_without_value ON samples(series_id, t) WHERE value IS NULL";
+
 Error refuse(const std::filesystem::path& file, const std::string& what) {
     return make_error(ErrorKind::usage, fmt::format("history database {}: {}", file.string(), what));
 }
@@ -108,6 +111,13 @@ Result<sqlite::Connection> open_for_writing(const std::filesystem::path& file) {
             return refuse(file, fmt::format("cannot be written ({}); check the gateway may write to it and its folder",
                                             created.error().message));
         }
+    }
+    // The rows without a value (no reply, a special state, stale) are few: indexed apart, the
+    // gaps of a month of history are found without reading its samples (history_query.cpp).
+    // Created here rather than with the tables so that a file of an earlier loopwire gets it too.
+    if (auto indexed = db->execute(create_gap_index); !indexed) {
+        return refuse(file, fmt::format("cannot be indexed ({}); check the gateway may write to it and its folder",
+                                        indexed.error().message));
     }
     return db;
 }

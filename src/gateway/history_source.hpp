@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,10 +29,19 @@ struct HistoryBucket {
     std::size_t count = 0;  // samples with a value in the bucket; buckets with none are left out
 };
 
+// A time the parameter had no value: from a sample without one (no reply, a special state,
+// stale) to the next sample with one. Values are recorded on change, so between two samples
+// with values the first one held: a chart draws steps, and breaks its line only in a gap.
+struct HistoryGap {
+    std::chrono::system_clock::time_point start;  // the query's `from` for a gap that began before it
+    std::optional<std::chrono::system_clock::time_point> end;  // none: it lasts (up to now)
+};
+
 struct HistorySeries {
     std::string parameter;
     std::string unit;
     std::vector<HistoryBucket> buckets;  // in time order
+    std::vector<HistoryGap> gaps;        // in time order; the gaps that overlap the query's range
 };
 
 class HistorySource {

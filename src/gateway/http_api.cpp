@@ -483,7 +483,11 @@ HttpResponse HttpApi::State::history(const HttpRequest& request) const {
             buckets.push_back(Json{{"time", iso_time(bucket.start)}, {"min", bucket.min}, {"max", bucket.max},
                                    {"mean", bucket.mean}, {"count", bucket.count}});
         }
-        list.push_back(Json{{"parameter", one.parameter}, {"unit", one.unit}, {"buckets", std::move(buckets)}});
+        Json gaps = Json::array();
+        for (const auto& gap : one.gaps) {
+            gaps.push_back(Json{{"from", iso_time(gap.start)}, {"to", gap.end ? Json(iso_time(*gap.end)) : Json(nullptr)}});
+        }
+        list.push_back(Json{{"parameter", one.parameter}, {"unit", one.unit}, {"buckets", std::move(buckets)}, {"gaps", std::move(gaps)}});
     }
     return json_response(200, Json{{"device", query->query.device}, {"from", iso_time(query->query.from)},
                                    {"to", iso_time(query->query.to)}, {"series", std::move(list)}});

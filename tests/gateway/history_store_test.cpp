@@ -219,6 +219,45 @@ TEST(HistoryStore, SpecialStatesAreRowsButNoPartOfTheBuckets) {
     EXPECT_EQ((*wide)[0].buckets[0].mean, 2);
 }
 
+// Values are recorded on change: a time without a value is told apart from one where the value
+// held, as gaps from a sample without a value to the next with one, whatever the buckets.
+TEST(HistoryStore, GapsRunFromASampleWithoutAValueToTheNextWithOne) {
+    TempFolder folder;
+    VirtualWall wall(t0);
+    auto store = open_store(options_at(folder.path / "plant.db", wall));
+    ASSERT_TRUE(store);
+    store->record(number("measured_value", 180, t0));
+    store->record(special("measured_value", "no-reply", t0 + 10s, false));
+    store->record(special("measured_value", "no-reply", t0 + 20s, false));  // the same outage, said again
+    store->record(number("measured_value", 25, t0 + 3min));
+    store->record(number("measured_value", 26, t0 + 4min));  // held from 3 min to 4 min: no gap
+    store->record(special("measured_value", "under-range", t0 + 5min, true));  // a special state has no number either
+    ASSERT_TRUE(store->write_pending());
+    const auto at = [](std::chrono::seconds offset) { return t0 + offset; };
+
+    auto series = store->query(ask("measured_value", t0, t0 + 10min, 1));
+    ASSERT_TRUE(series) << series.error().message;
+    const auto& gaps = (*series)[0].gaps;
+    ASSERT_EQ(gaps.size(), 2u);
+    EXPECT_EQ(gaps[0].start, at(10s));
+    ASSERT_TRUE(gaps[0].end);
+    EXPECT_EQ(*gaps[0].end, at(3min));
+    EXPECT_EQ(gaps[1].start, at(5min));
+    EXPECT_FALSE(gaps[1].end) << "the under-range state lasts: no sample with a value came after it";
+
+    // Asked from inside the outage: the gap is open at `from`.
+    auto inside = store->query(ask("measured_value", t0 + 1min, t0 + 4min, 10));
+    ASSERT_TRUE(inside) << inside.error().message;
+    ASSERT_EQ((*inside)[0].gaps.size(), 1u);
+    EXPECT_EQ((*inside)[0].gaps[0].start, at(1min));
+    EXPECT_EQ((*inside)[0].gaps[0].end, std::optional(at(3min)));
+    // From where the value holds: no gap, though no sample is in the range.
+    auto held = store->query(ask("measured_value", at(200s), at(230s), 10));
+    ASSERT_TRUE(held) << held.error().message;
+    EXPECT_TRUE((*held)[0].gaps.empty());
+    EXPECT_TRUE((*held)[0].buckets.empty());
+}
+
 // Three hours at 1 s with spikes, asked for in buckets that start mid-minute, so that every
 // bucket mixes minute rows and samples: each must equal what the samples alone give.
 TEST(HistoryStore, WideBucketsFromTheMinuteTableMatchTheSamples) {

@@ -692,9 +692,11 @@ public:
             return make_error(ErrorKind::usage, "device \"oven\" has no parameter \"nonsense\"");
         }
         const auto start = query.from;
-        HistorySeries series{"measured_value", "°C", {}};
+        HistorySeries series{"measured_value", "°C", {}, {}};
         series.buckets.push_back({start, 20.5, 22.0, 21.25, 4});
         series.buckets.push_back({start + std::chrono::seconds(60), 22.0, 25.5, 23.0, 3});
+        series.gaps.push_back({start + std::chrono::seconds(90), start + std::chrono::seconds(150)});
+        series.gaps.push_back({start + std::chrono::seconds(170), std::nullopt});
         return std::vector<HistorySeries>{series};
     }
     std::uint64_t rows_written() const override { return 1234; }
@@ -761,6 +763,9 @@ TEST_F(HttpHistoryTest, TheQueryIsPassedOnAndTheSeriesComeBackAsJson) {
     ASSERT_EQ(series.at("buckets").size(), 2u);
     EXPECT_EQ(series.at("buckets")[1], Json::parse(R"({"time": "2026-12-02T08:01:00.000Z", "min": 22.0, "max": 25.5,
                                                        "mean": 23.0, "count": 3})"));
+    // The times without a value, for a chart to break its line there; one that lasts has no end.
+    EXPECT_EQ(series.at("gaps"), Json::parse(R"([{"from": "2026-12-02T08:01:30.000Z", "to": "2026-12-02T08:02:30.000Z"},
+                                                 {"from": "2026-12-02T08:02:50.000Z", "to": null}])"));
 }
 
 TEST_F(HttpHistoryTest, CsvHasAHeaderAndARowABucket) {

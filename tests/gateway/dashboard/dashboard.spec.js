@@ -86,6 +86,49 @@ test("a trend updates within 2 s as the process moves", async ({ page }) => {
     .not.toBe(before.values.split(",")[0]);
 });
 
+// Recorded values are changes: each holds until the next, so the trend draws steps, and a time
+// without a value (the history's gaps: no reply, a special state) breaks the line instead of
+// being bridged by a slope. The history here is an answer given to the page (the test gateway
+// records none): 100 °C, a step to 180 °C, an outage of two minutes, then 25 °C.
+test("the trend draws recorded values as steps and breaks its line over a gap", async ({ page }) => {
+  const now = Date.now();
+  const iso = (ms) => new Date(ms).toISOString();
+  const bucket = (ms, value) => ({ time: iso(ms), min: value, max: value, mean: value, count: 1 });
+  await page.route("**/api/history?**", (route) => route.fulfill({
+    json: {
+      device: "oven",
+      series: [{
+        parameter: "measured_value", unit: "°C",
+        buckets: [bucket(now - 240_000, 100), bucket(now - 200_000, 180), bucket(now - 120_000, 999), bucket(now - 60_000, 25)],
+        gaps: [{ from: iso(now - 180_000), to: iso(now - 60_000) }],
+      }],
+    },
+  }));
+  await page.goto(`${gateway.base}/#/devices/oven`);
+  const chart = page.locator("#trend");
+  await expect(chart.locator("canvas")).toBeVisible();
+  // The measured value (the first series) breaks once: over the outage, not between samples.
+  await expect(chart).toHaveAttribute("data-gaps", /^1(,|$)/, { timeout: 10_000 });
+
+  // The same, step by step, through the page's own module.
+  const drawn = await page.evaluate(async (start) => {
+    const { historyPoints, alignColumns } = await import("/assets/trend.js");
+    const iso = (ms) => new Date(ms).toISOString();
+    const points = historyPoints({
+      buckets: [{ time: iso(start), mean: 100 }, { time: iso(start + 40_000), mean: 180 }, { time: iso(start + 120_000), mean: 999 },
+        { time: iso(start + 180_000), mean: 25 }],
+      gaps: [{ from: iso(start + 60_000), to: iso(start + 180_000) }],
+    });
+    const column = new Map(points.t.map((t, i) => [t, points.v[i]]));
+    const [times, [values]] = alignColumns([column], start + 200_000);
+    return { times: times.map((t) => (t - start) / 1000), values };
+  }, now - 240_000);
+  // 100 holds until the step to 180, which holds until the gap; the bucket inside the gap draws
+  // nothing there; 25 from the gap's end, held to now.
+  expect(drawn.times).toEqual([0, 40, 60, 180, 200]);
+  expect(drawn.values).toEqual([100, 180, null, 25, 25]);
+});
+
 test("a write from the form changes the device, and a refused write shows the reason", async ({ page, request }) => {
   await page.addInitScript((token) => localStorage.setItem("loopwire.token", token), gateway.token);
   await page.goto(`${gateway.base}/#/devices/oven`);

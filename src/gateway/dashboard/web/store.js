@@ -1,5 +1,5 @@
 // What the dashboard knows: the devices, every parameter's last value, and the numeric samples
-// seen since the page opened (the trend's live part). Fed by GET /api/devices and the
+// seen since the page opened, with the times there was none (the trend's live part). Fed by GET /api/devices and the
 // /api/events stream, whose first events are the full picture.
 import { listDevices, getDevice } from "./api.js";
 import { parseTime, numericValue } from "./format.js";
@@ -9,7 +9,7 @@ const MAX_SAMPLES = 86400;
 
 const devices = new Map();      // name -> { name, device, line, unit, status, profile, error, params: Map }
 const details = new Map();      // name -> Promise of GET /api/devices/NAME
-const samples = new Map();      // "device\u0000parameter" -> { t: [ms], v: [number] }
+const samples = new Map();      // "device\u0000parameter" -> { t: [ms], v: [number, or null for no value] }
 const listeners = new Set();
 const connectionListeners = new Set();
 let connection = "connecting";
@@ -96,7 +96,9 @@ function applyParameter(deviceName, update) {
   if (!merged.unit && previous.unit) merged.unit = previous.unit;
   device.params.set(update.name, merged);
   const number = numericValue(merged);
-  if (number !== null && merged.time) recordSample(deviceName, update.name, merged.time, number);
+  // No value (no reply, a special state, line down) is a gap the trend does not draw across.
+  const absent = merged.value === null || merged.value === undefined;
+  if (merged.time && (number !== null || absent)) recordSample(deviceName, update.name, merged.time, number);
   return merged;
 }
 
@@ -171,6 +173,8 @@ function handleEvent(data) {
     error: data.error || "",
     time: kept ? previous.time : time,
   });
+  // A stale value stays on show with its real age, but the trend's line ends where it went stale.
+  if (kept) recordSample(data.device, data.parameter, time, null);
   notify({ kind: "value", device: data.device, parameter: data.parameter, entry });
 }
 

@@ -31,6 +31,45 @@ function bucketTime(bucket) {
   return Date.parse(start);
 }
 
+// A recorded series as points in time order: each bucket's mean, and a null where each gap
+// begins (a time without a value: no reply, a special state). A bucket that starts inside a gap
+// takes its point where the gap ends, so no value is drawn inside it.
+export function historyPoints(series) {
+  const gaps = (series.gaps || []).map((gap) => ({ from: Date.parse(gap.from), to: gap.to ? Date.parse(gap.to) : Infinity }));
+  const points = [];
+  for (const bucket of series.buckets || []) {
+    let time = bucketTime(bucket);
+    if (!Number.isFinite(time) || typeof bucket.mean !== "number") continue;
+    const inside = gaps.find((gap) => time >= gap.from && time < gap.to);
+    if (inside) {
+      if (!Number.isFinite(inside.to)) continue;
+      time = inside.to;
+    }
+    points.push([time, bucket.mean]);
+  }
+  for (const gap of gaps) if (Number.isFinite(gap.from)) points.push([gap.from, null]);
+  // At one time a value wins over a gap's start: the value is what came after it.
+  points.sort((a, b) => a[0] - b[0] || (a[1] === null) - (b[1] === null));
+  return { t: points.map((p) => p[0]), v: points.map((p) => p[1]) };
+}
+
+// The columns uPlot draws, from each parameter's points (Map time -> value or null): one row
+// per time any of them has, and `now`. Values are recorded on change, so a parameter's value
+// holds until its next point: each column carries its last value forward (a null, a gap, too).
+export function alignColumns(columns, now) {
+  const times = [...new Set(columns.flatMap((c) => [...c.keys()]))].filter((t) => t <= now);
+  times.push(now);
+  const sorted = [...new Set(times)].sort((a, b) => a - b);
+  const aligned = columns.map((column) => {
+    let last = null;
+    return sorted.map((t) => {
+      if (column.has(t)) last = column.get(t);
+      return last;
+    });
+  });
+  return [sorted, aligned];
+}
+
 export class Trend {
   constructor(container, note, deviceName) {
     this.container = container;
@@ -93,15 +132,7 @@ export class Trend {
         this.historyState = "absent";
       } else {
         this.historyState = "loaded";
-        for (const series of seriesList(answer)) {
-          const t = [];
-          const v = [];
-          for (const bucket of series.buckets || []) {
-            const time = bucketTime(bucket);
-            if (Number.isFinite(time) && typeof bucket.mean === "number") { t.push(time); v.push(bucket.mean); }
-          }
-          this.history.set(series.parameter, { t, v });
-        }
+        for (const series of seriesList(answer)) this.history.set(series.parameter, historyPoints(series));
       }
     } catch (error) {
       if (request !== this.historyRequest) return;
@@ -128,12 +159,21 @@ export class Trend {
       const past = this.history.get(p.name) || { t: [], v: [] };
       const firstLive = live.t.length ? live.t[0] : Infinity;
       const points = new Map();
+      // The value in force at the window's start is its first point, so a value that held
+      // since before the window is drawn from its left edge.
+      let before;
+      for (let i = 0; i < past.t.length && past.t[i] < from; i++) before = past.v[i];
+      for (let i = 0; i < live.t.length && live.t[i] < from; i++) before = live.v[i];
+      if (before !== undefined) points.set(from, before);
       for (let i = 0; i < past.t.length; i++) if (past.t[i] >= from && past.t[i] < firstLive) points.set(past.t[i], past.v[i]);
       for (let i = 0; i < live.t.length; i++) if (live.t[i] >= from) points.set(live.t[i], live.v[i]);
       return points;
     });
-    const times = [...new Set(columns.flatMap((c) => [...c.keys()]))].sort((a, b) => a - b);
-    return [times.map((t) => t / 1000), ...columns.map((c) => times.map((t) => (c.has(t) ? c.get(t) : null)))];
+    if (!columns.some((c) => c.size)) return [[], ...columns.map(() => [])];
+    // The newest point received (the columns reach on to now, where nothing was received).
+    this.lastSample = Math.max(...columns.flatMap((c) => [...c.keys()]));
+    const [times, aligned] = alignColumns(columns, now);
+    return [times.map((t) => t / 1000), ...aligned];
   }
 
   height() {
@@ -176,7 +216,10 @@ export class Trend {
         scale: p.unit || "value",
         stroke: cssVar(PALETTE[i % PALETTE.length]),
         width: 2,
-        spanGaps: true,
+        // Steps, not slopes: a value recorded on change held until the next one; and no line
+        // across a gap (a null), where the device gave no value.
+        spanGaps: false,
+        paths: window.uPlot.paths?.stepped ? window.uPlot.paths.stepped({ align: 1 }) : undefined,
         points: { show: false },
         value: (u, v) => (v === null || v === undefined ? "—" : `${formatNumber(v, p.decimals)}${p.unit ? ` ${p.unit}` : ""}`),
       });
@@ -229,11 +272,17 @@ export class Trend {
     }
     const times = data[0];
     this.container.dataset.points = String(times.length);
-    this.container.dataset.lastTime = times.length ? String(times[times.length - 1]) : "";
+    this.container.dataset.lastTime = times.length ? String(this.lastSample / 1000) : "";
     this.container.dataset.lastValues = data.slice(1).map((column) => {
       for (let i = column.length - 1; i >= 0; i--) if (column[i] !== null) return column[i];
       return "";
     }).join(",");
     this.container.dataset.zoomed = String(this.zoomed);
+    // Where each column's line breaks (a run of nulls after a value), for tests and tools.
+    this.container.dataset.gaps = data.slice(1).map((column) => {
+      let gaps = 0;
+      for (let i = 1; i < column.length; i++) if (column[i] === null && column[i - 1] !== null) gaps++;
+      return gaps;
+    }).join(",");
   }
 }
