@@ -45,6 +45,19 @@ Json bound_json(const std::optional<device::Bound>& bound) {
     return Json{{"parameter", std::get<std::string>(*bound)}};
 }
 
+// A bound another parameter sets, as the number that parameter holds when the gateway polls it
+// (the TC10's set point between its SP.LL and SP.HL); else the bounding parameter's name.
+Json resolved_bound(const std::optional<device::Bound>& bound, const device::WatchedDevice* state) {
+    const auto* name = bound ? std::get_if<std::string>(&*bound) : nullptr;
+    if (name && state) {
+        for (const auto& value : state->values) {
+            if (value.parameter->name != *name || !value.last) continue;
+            if (const auto* number = std::get_if<double>(&value.last->value)) return *number;
+        }
+    }
+    return bound_json(bound);
+}
+
 Json value_json(const device::EngineeringValue& value) {
     return std::visit(
         [](const auto& v) -> Json {
@@ -311,8 +324,10 @@ HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const
         const bool polled = std::find(device.polled.begin(), device.polled.end(), &parameter) != device.polled.end();
         if (parameter.hidden && !polled) continue;
         if (std::find(groups.begin(), groups.end(), parameter.group) == groups.end()) groups.push_back(parameter.group);
+        // The unit as the device is configured (a TC10's °C or °F), as the events and MQTT give it.
+        const std::string unit = device::shown_unit(parameter, watched && watched->last ? &*watched->last : nullptr);
         Json p{{"name", parameter.name}, {"mnemonic", parameter.mnemonic}, {"group", parameter.group},
-               {"description", parameter.description}, {"unit", parameter.unit}, {"polled", polled}};
+               {"description", parameter.description}, {"unit", unit}, {"polled", polled}};
         if (watched && watched->last) {
             p["value"] = value_json(*watched->last);
             p["text"] = device::value_text(parameter, *watched->last);
@@ -326,8 +341,8 @@ HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const
         p["error"] = watched && !watched->fresh ? watched->error : std::string();
         p["readable"] = parameter.readable;
         p["writable"] = parameter.writable;
-        p["min"] = bound_json(parameter.min);
-        p["max"] = bound_json(parameter.max);
+        p["min"] = resolved_bound(parameter.min, cached ? &cached->state : nullptr);
+        p["max"] = resolved_bound(parameter.max, cached ? &cached->state : nullptr);
         if (parameter.range_in_counts) p["range_counts"] = true;  // fixed min/max are display counts
         if (const auto* fixed = std::get_if<int>(&parameter.decimals)) {
             p["decimals"] = *fixed;

@@ -223,7 +223,7 @@ retries = 1
 name = "oven"
 device = "tc10@3"
 poll = "100ms"
-parameters = ["measured_value", "set_point"]
+parameters = ["measured_value", "set_point", "set_point_low_limit", "set_point_high_limit"]
 
 [[lines.devices]]
 name = "furnace"
@@ -329,9 +329,17 @@ TEST_F(HttpApiTest, ADeviceShowsItsParametersWithValuesUnitsRangesAndGroups) {
     EXPECT_TRUE(measured.contains("unit"));
     EXPECT_TRUE(measured.contains("mnemonic"));
     EXPECT_TRUE(measured.contains("group"));
+    // The unit its temperature_unit word gives, as the events and MQTT say it.
+    EXPECT_EQ(measured.at("unit"), "°C");
     const Json set_point = parameter(device, "set_point");
     EXPECT_EQ(set_point.at("writable"), true);
-    EXPECT_EQ(set_point.at("max").at("parameter"), "set_point_high_limit");
+    EXPECT_EQ(set_point.at("unit"), "°C");
+    // Bounded by SP.LL and SP.HL: numbers when the gateway polls them, else their names.
+    const Json high_limit = parameter(device, "set_point_high_limit");
+    ASSERT_TRUE(high_limit.at("value").is_number()) << high_limit;
+    EXPECT_EQ(set_point.at("max"), high_limit.at("value"));
+    EXPECT_EQ(set_point.at("min"), parameter(device, "set_point_low_limit").at("value"));
+    EXPECT_EQ(parameter(device, "alarm_1_threshold").at("max").at("parameter"), "alarm_1_high_limit");
     EXPECT_TRUE(set_point.contains("decimals"));
     // Parameters not polled are listed too, to be written, without a value.
     bool unpolled = false;
