@@ -37,7 +37,7 @@ spdlog::logger& gateway_log() {
     return *logger;
 }
 
-void log_line(const std::string& line) { gateway_log().info(line); }
+void log_line(const std::string& line) { log_event(gateway_log(), line); }
 void log_warning(const std::string& line) { gateway_log().warn(line); }
 void log_debug(const std::string& line) { gateway_log().debug(line); }
 

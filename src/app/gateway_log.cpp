@@ -31,8 +31,16 @@ void set_log_level(spdlog::logger& logger, gateway::LogConfig::Level level) {
     }
 }
 
+void log_event(spdlog::logger& logger, const std::string& line) {
+    if (line.starts_with(gateway::gateway_warning_prefix)) {
+        logger.warn(std::string_view(line).substr(gateway::gateway_warning_prefix.size()));
+    } else {
+        logger.info(line);
+    }
+}
+
 gateway::GatewayLog info_log(std::shared_ptr<spdlog::logger> logger) {
-    return [logger = std::move(logger)](const std::string& line) { logger->info(line); };
+    return [logger = std::move(logger)](const std::string& line) { log_event(*logger, line); };
 }
 
 }  // namespace loopwire::app

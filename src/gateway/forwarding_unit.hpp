@@ -9,6 +9,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "common/clock.hpp"
 #include "gateway/line_scheduler.hpp"
@@ -30,8 +31,11 @@ struct ForwardingSettings {
     std::size_t cache_entries = ReadCache::default_capacity;
 };
 
-// What the gateway says of refused or failed requests (for its log).
+// What the gateway says of refused or failed requests (for its log). A line that begins with
+// "warning: " is one a person must see (a device gone silent, polls falling behind): the log
+// gives it the warning level, without the prefix (app/gateway_log.hpp).
 using GatewayLog = std::function<void(const std::string&)>;
+inline constexpr std::string_view gateway_warning_prefix = "warning: ";
 
 class ForwardingUnit final : public session::UnitHandler {
 public:

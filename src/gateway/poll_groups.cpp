@@ -60,7 +60,9 @@ private:
         if (answers) {
             log_(fmt::format("device {} ({}) {}", names_[i], device.label, first ? "answers" : "answers again"));
         } else {
-            log_(fmt::format("device {} ({}) does not answer: {}; polled again with back-off", names_[i], device.label, device.last_error));
+            // A warning (GatewayLog): what a person reading `journalctl -p warning` must see.
+            log_(fmt::format("warning: device {} ({}) does not answer: {}; polled again with back-off", names_[i], device.label,
+                             device.last_error));
         }
     }
 
