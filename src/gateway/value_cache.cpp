@@ -249,6 +249,9 @@ void ValueCache::update(const std::string& name, const device::WatchedDevice& st
     {
         std::lock_guard lock(hub_->mutex);
         DeviceEntry& entry = entry_of(*hub_, name);
+        // Skipped in back-off, the device is still what its last poll found (no-reply,
+        // line-down): so say the API, /metrics and the dashboard, as MQTT does, not "waiting".
+        if (!polled(state) && polled(entry.latest.state)) return;
         entry.latest.state = state;
         entry.latest.sampled = sampled;
         if (!polled(state)) return;
