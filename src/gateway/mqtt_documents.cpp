@@ -102,6 +102,16 @@ int shown_decimals(const device::Parameter& parameter, const ValueChange* latest
     return 0;
 }
 
+std::string friendly_name(const device::Parameter& parameter) {
+    // The description's first sentence ("Measured value (rV)", "Main set point"): what the
+    // manual calls it; the rest of it is detail a dashboard tile has no room for.
+    std::string_view text = parameter.description;
+    text = text.substr(0, std::min(text.find(". "), text.size()));
+    while (!text.empty() && (text.back() == '.' || text.back() == ' ')) text.remove_suffix(1);
+    constexpr std::size_t longest = 48;
+    return text.empty() || text.size() > longest ? parameter.name : std::string(text);
+}
+
 std::string device_class_of(std::string_view unit) {
     return unit == "°C" || unit == "°F" || unit == "K" ? "temperature" : "";
 }
@@ -197,7 +207,7 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
     const bool commands = config.writes && parameter.writable;
 
     nlohmann::json doc = entity_base(config, device_name, profile, object_id);
-    doc["name"] = parameter.name;
+    doc["name"] = friendly_name(parameter);
     doc["state_topic"] = state_topic;
     const std::string& shown_unit = latest && !latest->unit.empty() ? latest->unit : parameter.unit;
     if (!shown_unit.empty()) doc["unit_of_measurement"] = shown_unit;

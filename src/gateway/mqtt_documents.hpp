@@ -44,6 +44,10 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
 // (set by another parameter, e.g. a decimal-point word), else 0.
 int shown_decimals(const device::Parameter& parameter, const ValueChange* latest);
 
+// An entity's name in Home Assistant: the first sentence of the parameter's description (the
+// manual's words), else its name when there is none or it is too long for a tile.
+std::string friendly_name(const device::Parameter& parameter);
+
 // Home Assistant's device class for a unit: "temperature" for °C, °F and K, the units its
 // temperature class takes; empty for the rest (%, %C, mV: no class fits them).
 std::string device_class_of(std::string_view unit);

@@ -569,6 +569,9 @@ TEST(MqttDocuments, AClimateIsForATemperatureLoopOnly) {
     EXPECT_EQ(read_only->config.at("temp_step"), 1.0);
     EXPECT_EQ(read_only->config.at("precision"), 1.0);
     EXPECT_EQ(read_only->topic, climate_topic(mqtt, "oven"));
+    EXPECT_EQ(friendly_name(*(*tc10)->find("measured_value")), "Measured value (rV)");
+    EXPECT_EQ(friendly_name(*(*tc10)->find("output_power")), "Output power");
+    EXPECT_EQ(friendly_name(*(*ac20)->find("main_set_point")), "Main set point");
     EXPECT_EQ(device_class_of("°C"), "temperature");
     EXPECT_EQ(device_class_of("%"), "");
 }
