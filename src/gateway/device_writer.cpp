@@ -100,17 +100,20 @@ struct DeviceWriter::LineWriter {
             client.write_async(std::move(job.planned),
                                [this, running, written = std::move(job.written), done = std::move(job.done)](
                                    Result<device::WriteReport> report) mutable {
-                                   if (report) {
-                                       done(std::move(written));
-                                   } else {
-                                       done(running->client.explain(report.error()));
-                                   }
-                                   // Here is the line's worker: the write's master is let go on
-                                   // the loop, before the line goes idle. Dropped here it could
-                                   // be the last hold on the line once the gateway is stopping,
-                                   // and a line's master must not end inside one of its own
-                                   // jobs (job_queue.hpp): it would wait for itself.
-                                   asio::post(loop, [this, finished = std::move(running)]() mutable {
+                                   Result<WrittenValues> outcome = report ? Result<WrittenValues>(std::move(written))
+                                                                          : Result<WrittenValues>(running->client.explain(report.error()));
+                                   // Here is the line's worker: everything the write holds is
+                                   // moved to the loop and let go there. The write's master could
+                                   // be the last hold on the line once the gateway is stopping, and
+                                   // a line's master must not end inside one of its own jobs
+                                   // (job_queue.hpp): it would wait for itself. The asker's
+                                   // completion may hold its front's connection (the HTTP API's),
+                                   // whose timers belong to the front's thread: answered and let
+                                   // go on the loop, its last hold is never dropped here.
+                                   asio::post(loop, [this, finished = std::move(running), done = std::move(done),
+                                                     outcome = std::move(outcome)]() mutable {
+                                       done(std::move(outcome));
+                                       done = nullptr;
                                        finished.reset();
                                        start_next();
                                    });

@@ -205,14 +205,30 @@ private:
         waiting_for_worker_ = true;
         stream_.expires_never();
         auto answered = std::make_shared<std::atomic<bool>>(false);
-        start([self = shared_from_this(), guard = asio::make_work_guard(server_.loop), answered](HttpResponse response) {
+        auto pending = std::make_shared<Pending>(shared_from_this());
+        start([pending, answered](HttpResponse response) {
             if (answered->exchange(true)) return;
-            asio::post(self->server_.loop, [self, response = std::move(response)] {
+            asio::post(pending->connection->server_.loop, [self = pending->connection, response = std::move(response)] {
                 self->waiting_for_worker_ = false;
                 self->send(response, false);
             });
         });
     }
+
+    // What a responder holds while the work it waits for runs on another thread (a line's
+    // worker, the engine): the connection, and the loop kept running for its answer. Whatever
+    // thread lets the responder go, the connection is let go on the loop, before the loop may
+    // end: its timers belong to the loop, which must still be there when they go.
+    struct Pending {
+        explicit Pending(std::shared_ptr<Connection> held)
+            : guard(asio::make_work_guard(held->server_.loop)), connection(std::move(held)) {}
+        ~Pending() { asio::post(guard.get_executor(), [released = std::move(connection)] {}); }
+        Pending(const Pending&) = delete;
+        Pending& operator=(const Pending&) = delete;
+
+        asio::executor_work_guard<asio::io_context::executor_type> guard;  // let go last
+        std::shared_ptr<Connection> connection;
+    };
 
     void send(const HttpResponse& response, bool close_after) {
         if (closed_) return;
