@@ -238,13 +238,14 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
 void add_gateway_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles) {
     auto options = std::make_shared<GatewayCommandOptions>();
     auto* command = app.add_subcommand("gateway", "Own the lines of a configuration file and serve them to Modbus TCP clients");
-    command->add_option("--config", options->config, "Gateway configuration (TOML): lines, devices, the Modbus TCP front")
+    auto* config = command->add_option("--config", options->config, "Gateway configuration (TOML): lines, devices, the Modbus TCP front")
         ->type_name("FILE.toml");
     auto* check = command->add_flag("--check", options->check, "Check the configuration and print the plan (lines, devices, estimated line load); serve nothing");
     command
         ->add_flag("--print-config", options->print_config,
                    "Print a complete configuration with every key, its meaning, bounds and default (man loopwire-gateway.toml)")
-        ->excludes(check);
+        ->excludes(check)
+        ->excludes(config);
     command->add_flag("-v,--verbose", options->verbose, "Print every frame on the lines and the front, with timestamps, on stderr");
     command->footer(std::string("SIGTERM or Ctrl-C stops the gateway once the requests it has taken are answered; SIGHUP re-reads "
                                 "the configuration (a configuration with errors is reported and the running one kept).\n\n") +

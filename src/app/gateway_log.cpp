@@ -39,8 +39,5 @@ void log_event(spdlog::logger& logger, const std::string& line) {
     }
 }
 
-gateway::GatewayLog info_log(std::shared_ptr<spdlog::logger> logger) {
-    return [logger = std::move(logger)](const std::string& line) { log_event(*logger, line); };
-}
 
 }  // namespace loopwire::app

@@ -17,7 +17,6 @@ void set_log_level(spdlog::logger& logger, gateway::LogConfig::Level level);
 
 // What the gateway's parts log (refusals, devices that stop or start answering, statistics),
 // at info level, or at warning level for a line that begins with gateway_warning_prefix.
-gateway::GatewayLog info_log(std::shared_ptr<spdlog::logger> logger);
 void log_event(spdlog::logger& logger, const std::string& line);
 
 }  // namespace loopwire::app

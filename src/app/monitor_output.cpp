@@ -87,8 +87,8 @@ std::string csv_header(const std::vector<device::WatchedDevice>& devices) {
             // The fixed unit, else the one the device's configuration words gave its latest value
             // (unit_from: °C or °F on a TC10). A header written before any value was read has
             // none there; FileSampleSink matches such columns whatever unit they carry.
-            std::string unit = value.parameter->unit;
-            if (unit.empty() && value.last && value.last->unit != device::unknown_unit) unit = value.last->unit;
+            std::string unit = device::shown_unit(*value.parameter, value.last ? &*value.last : nullptr);
+            if (unit == device::unknown_unit) unit.clear();
             columns.push_back(csv_field(device.label + ":" + value.parameter->name + (unit.empty() ? "" : " [" + unit + "]")));
         }
     }

@@ -130,6 +130,10 @@ bool is_number(const device::Parameter& parameter) {
     return parameter.type == device::ValueType::int16 || parameter.type == device::ValueType::uint16;
 }
 
+std::string device_topic_of(const MqttConfig& config, const std::string& device_name) {
+    return fmt::format("{}/{}", config.prefix, device_name);
+}
+
 std::string device_id_of(const MqttConfig& config, const std::string& device_name) {
     return sanitized_level(fmt::format("{}_{}", config.gateway_name, device_name));
 }
@@ -137,7 +141,7 @@ std::string device_id_of(const MqttConfig& config, const std::string& device_nam
 // What every entity of the device shares: its device block and its availability.
 nlohmann::json entity_base(const MqttConfig& config, const std::string& device_name, const device::Profile& profile,
                            const std::string& object_id) {
-    const std::string device_topic = fmt::format("{}/{}", config.prefix, device_name);
+    const std::string device_topic = device_topic_of(config, device_name);
     const std::string device_id = device_id_of(config, device_name);
     nlohmann::json device{{"identifiers", {device_id}}, {"name", device_name},
                           {"model", profile.model.empty() ? profile.title : profile.model}};
@@ -175,7 +179,7 @@ std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, cons
     if (!loop.pv || !loop.sp || !is_number(*loop.pv) || !is_number(*loop.sp)) return std::nullopt;
     // Home Assistant's climate takes temperatures in C or F only.
     if (sample.pv_unit != "°C" && sample.pv_unit != "°F") return std::nullopt;
-    const std::string device_topic = fmt::format("{}/{}", config.prefix, device_name);
+    const std::string device_topic = device_topic_of(config, device_name);
     const std::string object_id = climate_object_id(config, device_name);
     nlohmann::json doc = entity_base(config, device_name, profile, object_id);
     doc["name"] = "control loop";
@@ -201,7 +205,7 @@ std::string climate_topic(const MqttConfig& config, const std::string& device_na
 
 DiscoveryDocument discovery_document(const MqttConfig& config, const std::string& device_name, const device::Profile& profile,
                                      const device::Parameter& parameter, const ValueChange* latest) {
-    const std::string device_topic = fmt::format("{}/{}", config.prefix, device_name);
+    const std::string device_topic = device_topic_of(config, device_name);
     const std::string state_topic = fmt::format("{}/{}", device_topic, parameter.name);
     const std::string object_id = sanitized_level(fmt::format("{}_{}", device_id_of(config, device_name), parameter.name));
     const bool commands = config.writes && parameter.writable;
@@ -209,9 +213,11 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
     nlohmann::json doc = entity_base(config, device_name, profile, object_id);
     doc["name"] = friendly_name(parameter);
     doc["state_topic"] = state_topic;
-    const std::string& shown_unit = latest && !latest->unit.empty() ? latest->unit : parameter.unit;
-    if (!shown_unit.empty()) doc["unit_of_measurement"] = shown_unit;
-    if (const auto device_class = device_class_of(shown_unit); !device_class.empty()) doc["device_class"] = device_class;
+    // The latest value's unit is device::shown_unit's (value_cache.cpp); "?" is no unit to show.
+    std::string unit = latest ? latest->unit : parameter.unit;
+    if (unit == device::unknown_unit) unit.clear();
+    if (!unit.empty()) doc["unit_of_measurement"] = unit;
+    if (const auto device_class = device_class_of(unit); !device_class.empty()) doc["device_class"] = device_class;
 
     std::string component;
     std::string on;

@@ -234,5 +234,6 @@ check print-config-passes-check 0 "gateway.toml: 1 line" bash -c "cd '$WORK_DIR'
 check print-config-names-every-table 0 "[[lines.devices]]" cat "$WORK_DIR/gateway.toml"
 check gateway-without-config 2 "--print-config > gateway.toml" "$loopwire" gateway
 check print-config-is-not-check 2 "excludes" "$loopwire" gateway --print-config --check
+check print-config-reads-no-file 2 "excludes" "$loopwire" gateway --print-config --config "$WORK_DIR/gateway.toml"
 
 finish

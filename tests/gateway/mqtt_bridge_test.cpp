@@ -445,14 +445,23 @@ struct LogLines {
     }
 };
 
+// A gateway taking writes and announcing its parameters to Home Assistant.
+std::unique_ptr<Gateway> open_discovering_gateway(const Broker& broker, const std::string& parameters) {
+    return open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), true, "discovery = \"homeassistant\"", {},
+                        "plant.toml", parameters);
+}
+
+WatcherOptions every_topic() {
+    WatcherOptions everything;
+    everything.topics = "#";
+    return everything;
+}
+
 TEST(MqttBridge, MetaAndHomeAssistantDiscoveryDescribeEveryPolledParameter) {
     REQUIRE_BROKER();
     Broker broker(free_port());
-    WatcherOptions everything;
-    everything.topics = "#";
-    Watcher watcher(broker.port(), everything);
-    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), true, "discovery = \"homeassistant\"", {},
-                                "plant.toml", R"("measured_value", "set_point", "control_state", "alarm_1_state")");
+    Watcher watcher(broker.port(), every_topic());
+    auto gateway = open_discovering_gateway(broker, R"("measured_value", "set_point", "control_state", "alarm_1_state")");
     const auto any = [](const std::string&) { return true; };
 
     const auto meta_text = watcher.wait_for(prefix + "/oven/set_point/meta", any);
@@ -516,11 +525,8 @@ TEST(MqttBridge, MetaAndHomeAssistantDiscoveryDescribeEveryPolledParameter) {
 TEST(MqttBridge, HomeAssistantSeesTheTc10AsAThermostatInTheUnitItIsSetTo) {
     REQUIRE_BROKER();
     Broker broker(free_port());
-    WatcherOptions everything;
-    everything.topics = "#";
-    Watcher watcher(broker.port(), everything);
-    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), true, "discovery = \"homeassistant\"", {},
-                                "plant.toml", R"("measured_value", "set_point", "temperature_unit")");
+    Watcher watcher(broker.port(), every_topic());
+    auto gateway = open_discovering_gateway(broker, R"("measured_value", "set_point", "temperature_unit")");
     const auto in_unit = [](const char* key, const char* unit) {
         return [key, unit](const std::string& text) {
             const auto document = nlohmann::json::parse(text, nullptr, false);
