@@ -25,9 +25,9 @@ printf 'listener %s 127.0.0.1\nallow_anonymous true\npersistence false\nmax_queu
 start_background broker.log timeout 300 /usr/sbin/mosquitto -c "$WORK_DIR/mosquitto.conf"
 wait_for_text "$WORK_DIR/broker.log" "running"
 
-"$BENCH" "$port" "$PARAMETERS" "$DURATION" | tee "$WORK_DIR/figures.out"
-gateway_rate=$(sed -nE 's/^rate .*: ([0-9]+) value changes\/s.*/\1/p' "$WORK_DIR/figures.out")
-messages=$(sed -nE 's/^rate .*\(([0-9]+) in .*/\1/p' "$WORK_DIR/figures.out")
+"$BENCH" "$port" "$PARAMETERS" "$DURATION" mqtt | tee "$WORK_DIR/figures.out"
+gateway_rate=$(sed -nE 's/^mqtt rate .*: ([0-9]+) value changes\/s.*/\1/p' "$WORK_DIR/figures.out")
+messages=$(sed -nE 's/^mqtt rate .*\(([0-9]+) in .*/\1/p' "$WORK_DIR/figures.out")
 
 # The peer: as many messages from mosquitto_pub, QoS 0, received by a subscriber.
 timeout 120 mosquitto_sub -h 127.0.0.1 -p "$port" -t bench/peer -C "$messages" >/dev/null &

@@ -19,6 +19,7 @@
 #include "gateway/http_api.hpp"
 #include "gateway/http_server.hpp"
 #include "gateway/mqtt_bridge.hpp"
+#include "gateway/sparkplug/sparkplug_node.hpp"
 #include "session/master.hpp"
 #include "session/slave.hpp"
 
@@ -167,6 +168,7 @@ struct Gateway::Parts {
     // After the writer and the cache, so destroyed before them: they subscribe to the cache
     // and write through the writer.
     std::unique_ptr<MqttBridge> mqtt;
+    std::unique_ptr<SparkplugNode> sparkplug;
     std::unique_ptr<HttpApi> http_api;
     std::unique_ptr<HttpServer> http;  // last: stopped (its threads joined) before the API goes
 };
@@ -228,11 +230,31 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         // cannot be reached is retried in the background, never an error.
         parts->mqtt = std::make_unique<MqttBridge>(*config.mqtt, *parts->writer, parts->cache, options.log);
     }
+    if (config.sparkplug) open_sparkplug(*config.sparkplug, config, *parts, options.log);
     if (config.http) {
         if (auto opened = open_http(*config.http, config, *parts); !opened) return opened.error();
     }
     if (parts->front) parts->front->route_to(parts->units);
     return std::unique_ptr<Gateway>(new Gateway(std::move(parts)));
+}
+
+void Gateway::open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConfig& config, Parts& parts, GatewayLog log) {
+    std::vector<SparkplugDevice> devices;
+    for (const auto& line : config.lines) {
+        for (const auto& device : line.devices) devices.push_back({device.name, polled_parameters(device)});
+    }
+    auto lines = [&parts] {
+        std::vector<SparkplugLineFigures> figures;
+        for (const auto& line : parts.lines) {
+            const LineReport report = report_of(line);
+            figures.push_back({report.name, report.statistics.sent, report.statistics.answered, report.statistics.timeouts,
+                               report.link_health.up});
+        }
+        return figures;
+    };
+    // Like MQTT: started here, retried in the background, never an error.
+    parts.sparkplug = std::make_unique<SparkplugNode>(sparkplug, std::move(devices), *parts.writer, parts.cache, std::move(lines),
+                                                      std::move(log));
 }
 
 Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& config, Parts& parts) {

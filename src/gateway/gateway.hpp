@@ -101,6 +101,7 @@ private:
     struct Parts;
     explicit Gateway(std::unique_ptr<Parts> parts);
     static Result<void> open_http(const HttpConfig& http, const GatewayConfig& config, Parts& parts);
+    static void open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConfig& config, Parts& parts, GatewayLog log);
     std::unique_ptr<Parts> parts_;
 };
 

@@ -664,20 +664,20 @@ Error not_regular(const Context& ctx, const toml::source_region& where, const st
     return ctx.fail(where, key, fmt::format("{} (expected {}); name a regular file", what, expected));
 }
 
-// An optional file key of [mqtt] (ca_file, ...) that must name a readable regular file. Checked
+// An optional file key of [mqtt] or [sparkplug] (`table_name`: ca_file, ...) that must name a readable regular file. Checked
 // with stat() and access(), without opening it.
-Result<std::filesystem::path> readable_file(const Context& ctx, const toml::table& table, std::string_view key,
-                                            std::string_view expected) {
-    auto name = optional_value<std::string>(ctx, table, "mqtt", key, "a file name (a string)");
+Result<std::filesystem::path> readable_file(const Context& ctx, const toml::table& table, const std::string& table_name,
+                                            std::string_view key, std::string_view expected) {
+    auto name = optional_value<std::string>(ctx, table, table_name, key, "a file name (a string)");
     if (!name) return name.error();
     if (!*name) return std::filesystem::path{};
     const auto path = beside_config(ctx, **name);
     const auto where = source_of(table, key);
     if (auto what = not_a_regular_file(path)) {
-        return not_regular(ctx, where, key_path("mqtt", key), fmt::format("\"{}\" {}", path.string(), *what), expected);
+        return not_regular(ctx, where, key_path(table_name, key), fmt::format("\"{}\" {}", path.string(), *what), expected);
     }
     if (::access(path.c_str(), R_OK) != 0) {
-        return ctx.fail(where, key_path("mqtt", key),
+        return ctx.fail(where, key_path(table_name, key),
                         fmt::format("cannot read \"{}\" ({}); let the gateway's user read it",
                                     path.string(), std::error_code(errno, std::generic_category()).message()));
     }
@@ -694,57 +694,61 @@ std::string first_line(const std::string& text) {
 // Password and token files hold one short line; anything this large is the wrong file.
 constexpr std::size_t max_secret_file_size = 64 * 1024;
 
-// [mqtt] password_file: the password is kept out of the TOML (which people share and paste),
+// [mqtt] (or [sparkplug]) password_file: the password is kept out of the TOML (which people share and paste),
 // in a file only its owner may read.
-Result<std::string> read_password(const Context& ctx, const toml::table& table) {
+Result<std::string> read_password(const Context& ctx, const toml::table& table, const std::string& table_name) {
+    const std::string key = key_path(table_name, "password_file");
     constexpr std::string_view expected = "a file whose first line is the broker password";
-    auto path = readable_file(ctx, table, "password_file", expected);
+    auto path = readable_file(ctx, table, table_name, "password_file", expected);
     if (!path) return path.error();
     if (path->empty()) return std::string();
     const auto where = source_of(table, "password_file");
     std::error_code error;
     const auto permissions = std::filesystem::status(*path, error).permissions();
     if (!error && (permissions & std::filesystem::perms::others_read) != std::filesystem::perms::none) {
-        return ctx.fail(where, "mqtt.password_file",
+        return ctx.fail(where, key,
                         fmt::format("\"{}\" is readable by every user; make it private (chmod 600 {})", path->string(),
                                     path->string()));
     }
     auto text = read_regular_file(*path, max_secret_file_size);
-    if (!text) return not_regular(ctx, where, "mqtt.password_file", text.error().message, expected);
+    if (!text) return not_regular(ctx, where, key, text.error().message, expected);
     std::string password = first_line(*text);  // a trailing newline is not part of it
     if (password.empty()) {
-        return ctx.fail(where, "mqtt.password_file", fmt::format("\"{}\" is empty (expected the password on its first line)",
+        return ctx.fail(where, key, fmt::format("\"{}\" is empty (expected the password on its first line)",
                                                                 path->string()));
     }
     return password;
 }
 
-Result<void> parse_mqtt_security(const Context& ctx, const toml::table& table, bool tls, MqttConfig& config) {
-    auto ca_file = readable_file(ctx, table, "ca_file", "the broker's CA certificate, PEM");
+// The broker's TLS files and credentials, the same keys in [mqtt] and [sparkplug].
+template <typename BrokerConfig>
+Result<void> parse_broker_security(const Context& ctx, const toml::table& table, const std::string& table_name, bool tls,
+                                   BrokerConfig& config) {
+    auto ca_file = readable_file(ctx, table, table_name, "ca_file", "the broker's CA certificate, PEM");
     if (!ca_file) return ca_file.error();
-    auto cert_file = readable_file(ctx, table, "cert_file", "the gateway's client certificate, PEM");
+    auto cert_file = readable_file(ctx, table, table_name, "cert_file", "the gateway's client certificate, PEM");
     if (!cert_file) return cert_file.error();
-    auto key_file = readable_file(ctx, table, "key_file", "the private key of cert_file, PEM");
+    auto key_file = readable_file(ctx, table, table_name, "key_file", "the private key of cert_file, PEM");
     if (!key_file) return key_file.error();
     for (const auto key : {"ca_file", "cert_file", "key_file"}) {
         if (!tls && table.get(key)) {
-            return ctx.fail(source_of(table, key), key_path("mqtt", key),
+            return ctx.fail(source_of(table, key), key_path(table_name, key),
                             fmt::format("only used over TLS; the broker is {} (write mqtts://... to use TLS)", config.broker));
         }
     }
     if (cert_file->empty() != key_file->empty()) {
         const auto* missing = cert_file->empty() ? "cert_file" : "key_file";
-        return ctx.fail(table.source(), "mqtt", fmt::format("cert_file and key_file go together: `{}` is missing", missing));
+        return ctx.fail(table.source(), table_name, fmt::format("cert_file and key_file go together: `{}` is missing", missing));
     }
     if (tls) config.tls = MqttTls{std::move(*ca_file), std::move(*cert_file), std::move(*key_file)};
-    auto username = optional_value<std::string>(ctx, table, "mqtt", "username", "a string such as \"gateway\"");
+    auto username = optional_value<std::string>(ctx, table, table_name, "username", "a string such as \"gateway\"");
     if (!username) return username.error();
     config.username = username->value_or("");
-    auto password = read_password(ctx, table);
+    auto password = read_password(ctx, table, table_name);
     if (!password) return password.error();
     config.password = std::move(*password);
     if (!config.password.empty() && config.username.empty()) {
-        return ctx.fail(source_of(table, "password_file"), "mqtt.password_file", "a password needs a `username` too");
+        return ctx.fail(source_of(table, "password_file"), key_path(table_name, "password_file"), "a password needs a `username` too");
     }
     return {};
 }
@@ -792,6 +796,24 @@ std::string last_level_name(const std::string& prefix) {
     return name;
 }
 
+// `broker` and its security keys, the same in [mqtt] and [sparkplug].
+template <typename BrokerConfig>
+Result<void> parse_broker(const Context& ctx, const toml::table& table, const std::string& table_name, BrokerConfig& config) {
+    auto broker = required_string(ctx, table, table_name, "broker", "\"mqtt://127.0.0.1:1883\"");
+    if (!broker) return broker.error();
+    bool tls = false;
+    auto address = split_broker(*broker, tls);
+    if (!address) {
+        return ctx.fail(source_of(table, "broker"), key_path(table_name, "broker"),
+                        fmt::format("{} is not a broker address (expected mqtt://HOST[:PORT], or mqtts://HOST[:PORT] "
+                                    "for TLS, with a port 1..65535, e.g. \"mqtt://127.0.0.1:1883\")", quoted_excerpt(*broker)));
+    }
+    config.broker = *broker;
+    config.host = std::move(address->host);
+    config.port = address->port;
+    return parse_broker_security(ctx, table, table_name, tls, config);
+}
+
 Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::table& root, const std::string& gateway_name) {
     const toml::node* node = root.get("mqtt");
     if (!node) return std::optional<MqttConfig>{};
@@ -799,19 +821,7 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
     if (!table) return ctx.fail(node->source(), "mqtt", "expected an [mqtt] table");
     if (auto keys = check_keys(ctx, *table, "mqtt", "mqtt"); !keys) return keys.error();
     MqttConfig config;
-    auto broker = required_string(ctx, *table, "mqtt", "broker", "\"mqtt://127.0.0.1:1883\"");
-    if (!broker) return broker.error();
-    bool tls = false;
-    auto address = split_broker(*broker, tls);
-    if (!address) {
-        return ctx.fail(source_of(*table, "broker"), "mqtt.broker",
-                        fmt::format("{} is not a broker address (expected mqtt://HOST[:PORT], or mqtts://HOST[:PORT] "
-                                    "for TLS, with a port 1..65535, e.g. \"mqtt://127.0.0.1:1883\")", quoted_excerpt(*broker)));
-    }
-    config.broker = *broker;
-    config.host = std::move(address->host);
-    config.port = address->port;
-    if (auto security = parse_mqtt_security(ctx, *table, tls, config); !security) return security.error();
+    if (auto broker = parse_broker(ctx, *table, "mqtt", config); !broker) return broker.error();
     if (!gateway_name.empty()) config.prefix = "loopwire/" + gateway_name;
     auto prefix = optional_value<std::string>(ctx, *table, "mqtt", "prefix", "a string such as \"loopwire/plant1\"");
     if (!prefix) return prefix.error();
@@ -843,6 +853,57 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
     if (!max_payload) return max_payload.error();
     if (*max_payload) config.max_payload = static_cast<std::size_t>(**max_payload);  // 16..65536, checked
     return std::optional<MqttConfig>{std::move(config)};
+}
+
+// ---------------------------------------------------------------------------------------------
+// [sparkplug]
+
+// A Sparkplug B id (group_id, edge_node_id, primary_host): one topic level (Sparkplug 3.0, 4.1:
+// no '+', '/' or '#'), kept to the characters device names have, plus '.', so that it never
+// needs escaping in a host application's tag path either.
+Result<std::optional<std::string>> sparkplug_id(const Context& ctx, const toml::table& table, std::string_view key,
+                                                std::string_view example) {
+    auto id = optional_value<std::string>(ctx, table, "sparkplug", key, fmt::format("a string such as {}", example));
+    if (!id || !*id) return id;
+    const std::string& text = **id;
+    const bool valid = !text.empty() && text.size() <= 64 &&
+                       std::all_of(text.begin(), text.end(), [](char c) { return name_character(c) || c == '.'; });
+    if (!valid) {
+        return ctx.fail(source_of(table, key), key_path("sparkplug", key),
+                        fmt::format("{} is not a Sparkplug id (expected 1..64 letters, digits, '.', '-' or '_', e.g. {})",
+                                    quoted_excerpt(text), example));
+    }
+    return id;
+}
+
+Result<std::optional<SparkplugConfig>> parse_sparkplug(const Context& ctx, const toml::table& root, const std::string& gateway_name) {
+    const toml::node* node = root.get("sparkplug");
+    if (!node) return std::optional<SparkplugConfig>{};
+    const auto* table = node->as_table();
+    if (!table) return ctx.fail(node->source(), "sparkplug", "expected a [sparkplug] table");
+    if (auto keys = check_keys(ctx, *table, "sparkplug", "sparkplug"); !keys) return keys.error();
+    SparkplugConfig config;
+    if (auto broker = parse_broker(ctx, *table, "sparkplug", config); !broker) return broker.error();
+    auto group = sparkplug_id(ctx, *table, "group_id", "\"plant1\"");
+    if (!group) return group.error();
+    if (!*group) return ctx.fail(table->source(), "sparkplug", "missing `group_id` (e.g. group_id = \"plant1\")");
+    config.group_id = std::move(**group);
+    auto edge = sparkplug_id(ctx, *table, "edge_node_id", "\"cabinet1\"");
+    if (!edge) return edge.error();
+    config.edge_node_id = edge->value_or(gateway_name.empty() ? "loopwire" : gateway_name);
+    auto host = sparkplug_id(ctx, *table, "primary_host", "\"scada\"");
+    if (!host) return host.error();
+    config.primary_host = host->value_or("");
+    auto writes = optional_value<bool>(ctx, *table, "sparkplug", "writes", "true or false");
+    if (!writes) return writes.error();
+    config.writes = writes->value_or(config.writes);
+    auto client_id = optional_value<std::string>(ctx, *table, "sparkplug", "client_id", "a string such as \"cabinet1-sparkplug\"");
+    if (!client_id) return client_id.error();
+    if (*client_id && ((*client_id)->empty() || (*client_id)->size() > 256)) {
+        return ctx.fail(source_of(*table, "client_id"), "sparkplug.client_id", "expected 1..256 characters");
+    }
+    config.client_id = client_id->value_or(fmt::format("loopwire-sparkplug-{}-{}", config.group_id, config.edge_node_id));
+    return std::optional<SparkplugConfig>{std::move(config)};
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1126,6 +1187,9 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto mqtt = parse_mqtt(ctx, *root, config.name);
     if (!mqtt) return mqtt.error();
     config.mqtt = std::move(*mqtt);
+    auto sparkplug = parse_sparkplug(ctx, *root, config.name);
+    if (!sparkplug) return sparkplug.error();
+    config.sparkplug = std::move(*sparkplug);
     auto history = parse_history(ctx, *root);
     if (!history) return history.error();
     config.history = std::move(*history);

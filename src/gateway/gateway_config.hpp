@@ -126,6 +126,25 @@ struct MqttConfig {
     bool operator==(const MqttConfig&) const = default;
 };
 
+// [sparkplug]: the gateway as a Sparkplug B edge node (gateway/sparkplug/sparkplug_node.hpp).
+// The broker keys (broker, TLS files, username, password_file) are [mqtt]'s.
+struct SparkplugConfig {
+    std::string broker;  // as written, for messages
+    std::string host;
+    std::uint16_t port = 1883;
+    std::optional<MqttTls> tls;
+    std::string username;
+    std::string password;
+    std::string client_id;     // empty: "loopwire-sparkplug-" GROUP "-" EDGE
+    std::string group_id;      // spBv1.0/GROUP/...: one topic level
+    std::string edge_node_id;  // default: the gateway's name, else "loopwire"
+    std::string primary_host;  // empty: births go out at once, with no host application to wait for
+    bool writes = false;       // DCMD writes refused unless true
+    std::size_t max_payload = 64 * 1024;  // a longer NCMD or DCMD is refused unread
+
+    bool operator==(const SparkplugConfig&) const = default;
+};
+
 // [history]: every change of a polled value, and a heartbeat sample of each, kept in an SQLite
 // file for the HTTP API's charts (gateway/history_store.hpp).
 struct HistoryConfig {
@@ -177,6 +196,7 @@ struct GatewayConfig {
     ModbusTcpConfig modbus_tcp;
     LogConfig log;
     std::optional<MqttConfig> mqtt;  // absent [mqtt] table: no MQTT
+    std::optional<SparkplugConfig> sparkplug;  // absent [sparkplug] table: no Sparkplug B
     std::optional<HistoryConfig> history;  // absent [history] table: no history
     std::optional<HttpConfig> http;  // absent [http] table: no HTTP API
 

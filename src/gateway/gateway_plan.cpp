@@ -171,6 +171,14 @@ void describe_mqtt(std::ostringstream& out, const std::optional<MqttConfig>& con
                        config->writes ? "allowed" : "refused");
 }
 
+void describe_sparkplug(std::ostringstream& out, const std::optional<SparkplugConfig>& config) {
+    if (!config) return;
+    out << fmt::format("Sparkplug B: {} as edge node spBv1.0/{}/.../{}, {}DCMD writes {}\n", config->broker, config->group_id,
+                       config->edge_node_id,
+                       config->primary_host.empty() ? "" : fmt::format("births once host {} is online, ", config->primary_host),
+                       config->writes ? "allowed" : "refused");
+}
+
 // Days, hours or minutes, whichever is whole ("90d", "36h").
 std::string period_text(std::chrono::seconds period) {
     const auto s = period.count();
@@ -233,6 +241,7 @@ std::string describe_plan(const GatewayConfig& config) {
     for (const LineConfig& line : config.lines) describe_line(out, line);
     describe_modbus_tcp(out, config.modbus_tcp);
     describe_mqtt(out, config.mqtt);
+    describe_sparkplug(out, config.sparkplug);
     describe_history(out, config.history);
     describe_http(out, config.http);
     return out.str();

@@ -1,31 +1,23 @@
 #include "gateway/mqtt_bridge.hpp"
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <cassert>
-#include <cerrno>
-#include <condition_variable>
-#include <cstring>
 #include <deque>
 #include <map>
 #include <mutex>
 #include <optional>
 #include <set>
 #include <string_view>
-#include <system_error>
 #include <stop_token>
 #include <thread>
-
-#include <poll.h>
-#include <sys/eventfd.h>
-#include <unistd.h>
 
 #include <fmt/format.h>
 #include <mosquitto.h>
 #include <nlohmann/json.hpp>
 
 #include "common/peer_text.hpp"
+#include "gateway/mqtt_client.hpp"
 #include "gateway/mqtt_commands.hpp"
 #include "gateway/mqtt_documents.hpp"
 
@@ -40,12 +32,6 @@ constexpr int qos_at_least_once = 1;
 constexpr int idle_turn_ms = 500;
 // The shutdown's turns, while the last "offline" messages go out.
 constexpr int goodbye_turn_ms = 50;
-
-void init_library_once() {
-    static std::once_flag once;
-    // Never cleaned up: other clients in the process may still use the library at exit.
-    std::call_once(once, [] { mosquitto_lib_init(); });
-}
 
 // The configuration restricts names to these (gateway_config.cpp, checked_name): a name is one
 // topic level, with no '/', '+' or '#' to escape.
@@ -108,31 +94,6 @@ std::uint64_t command_digest(std::string_view topic, std::string_view payload) {
     return hash;
 }
 
-// Wakes the network thread's poll() from another thread: an eventfd, readable once notified
-// until drained.
-class Wakeup {
-public:
-    Wakeup() : fd_(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {
-        if (fd_ < 0) throw std::system_error(errno, std::generic_category(), "eventfd for the MQTT network thread");
-    }
-    ~Wakeup() { ::close(fd_); }
-    Wakeup(const Wakeup&) = delete;
-    Wakeup& operator=(const Wakeup&) = delete;
-
-    int fd() const { return fd_; }
-    void notify() const {
-        const std::uint64_t one = 1;
-        (void)!::write(fd_, &one, sizeof one);  // a full counter is still readable: nothing lost
-    }
-    void drain() const {
-        std::uint64_t count = 0;
-        (void)!::read(fd_, &count, sizeof count);
-    }
-
-private:
-    int fd_;
-};
-
 // What the last poll said about a device.
 struct DeviceSeen {
     std::string status;  // "ok", "partial", "no-reply", "line-down", "stale"
@@ -152,7 +113,7 @@ struct MqttBridge::State {
 
     std::mutex mutex;  // guards the queue and what the polls said about the devices
     std::deque<Publication> outgoing;  // from the value stream and the writes' results
-    Wakeup wakeup;  // notified when `outgoing` gets its first publication, and on stop
+    mqtt::Wakeup wakeup;  // notified when `outgoing` gets its first publication, and on stop
     std::map<std::string, DeviceSeen> devices;  // by configured name
     // The poll threads' own (one subscriber's callbacks never overlap): each parameter's last
     // error, and what was announced to Home Assistant: each parameter's unit and decimals (by
@@ -268,27 +229,6 @@ struct MqttBridge::State {
         return documents;
     }
 
-    // TLS (mqtts://) and credentials. The files were checked when the configuration was read; a
-    // failure here (a certificate libmosquitto cannot use) is reported and the bridge keeps trying,
-    // as with a broker that cannot be reached.
-    void configure_security() {
-            State& s = *this;
-        if (s.config.tls) {
-            const auto& tls = *s.config.tls;
-            const std::string ca = tls.ca_file.string();
-            const std::string cert = tls.cert_file.string();
-            const std::string key = tls.key_file.string();
-            const int rc = mosquitto_tls_set(s.client, ca.empty() ? nullptr : ca.c_str(), ca.empty() ? "/etc/ssl/certs" : nullptr,
-                                             cert.empty() ? nullptr : cert.c_str(), key.empty() ? nullptr : key.c_str(), nullptr);
-            if (rc != MOSQ_ERR_SUCCESS) s.say(fmt::format("cannot use the TLS files: {}", mosquitto_strerror(rc)));
-        }
-        if (!s.config.username.empty()) {
-            const int rc = mosquitto_username_pw_set(s.client, s.config.username.c_str(),
-                                                     s.config.password.empty() ? nullptr : s.config.password.c_str());
-            if (rc != MOSQ_ERR_SUCCESS) s.say(fmt::format("cannot use the credentials: {}", mosquitto_strerror(rc)));
-        }
-    }
-
     // --- the network thread ---------------------------------------------------------------------
 
     void publish(const Publication& publication) {
@@ -394,33 +334,6 @@ struct MqttBridge::State {
         commands->take(topic, payload);
     }
 
-    // Sleeps `delay`, or less when stopped.
-    static void pause(const std::stop_token& stop, std::chrono::milliseconds delay) {
-        std::mutex m;
-        std::condition_variable_any woken;
-        std::unique_lock lock(m);
-        woken.wait_for(lock, stop, delay, [] { return false; });
-    }
-
-    // One turn of the network loop on libmosquitto's external-loop interface: waits for the
-    // socket or the wake-up (a queued publication, a stop), then reads, writes and does the
-    // keep-alive work. mosquitto_loop() would wait out its whole timeout with a publication
-    // queued: that was the poll-to-subscriber latency (tens of milliseconds).
-    int turn() {
-        const int socket = mosquitto_socket(client);
-        if (socket < 0) return MOSQ_ERR_NO_CONN;
-        const auto want_write = static_cast<short>(mosquitto_want_write(client) ? POLLOUT : 0);
-        std::array<pollfd, 2> watched{{{socket, static_cast<short>(POLLIN | want_write), 0}, {wakeup.fd(), POLLIN, 0}}};
-        if (::poll(watched.data(), watched.size(), idle_turn_ms) < 0 && errno != EINTR) return MOSQ_ERR_ERRNO;
-        if (watched[1].revents & POLLIN) wakeup.drain();
-        int rc = MOSQ_ERR_SUCCESS;
-        if (watched[0].revents & (POLLIN | POLLHUP | POLLERR)) rc = mosquitto_loop_read(client, 1);
-        if (rc == MOSQ_ERR_SUCCESS && mosquitto_socket(client) >= 0 && mosquitto_want_write(client)) {
-            rc = mosquitto_loop_write(client, 1);
-        }
-        return rc == MOSQ_ERR_SUCCESS ? mosquitto_loop_misc(client) : rc;
-    }
-
     void run_network(const std::stop_token& stop) {
         const std::stop_callback wake_on_stop(stop, [this] { wakeup.notify(); });
         bool have_socket = false;
@@ -430,11 +343,10 @@ struct MqttBridge::State {
                 const int rc = mosquitto_connect(client, config.host.c_str(), config.port, keepalive_seconds);
                 if (rc != MOSQ_ERR_SUCCESS) {
                     if (!std::exchange(told_unreachable, true)) {
-                        say(fmt::format("cannot reach the broker ({}); retrying in the background",
-                                        rc == MOSQ_ERR_ERRNO ? std::string(std::strerror(errno)) : mosquitto_strerror(rc)));
+                        say(fmt::format("cannot reach the broker ({}); retrying in the background", mqtt::connect_failure(rc)));
                     }
                     send_queued();  // keeps the retained picture current, and the queue short
-                    pause(stop, delay);
+                    mqtt::pause(stop, delay);
                     delay = std::min(delay * 2, timing.reconnect_last);
                     continue;
                 }
@@ -442,7 +354,7 @@ struct MqttBridge::State {
             }
             send_queued();
             republish_when_due();
-            const int rc = turn();
+            const int rc = mqtt::turn(client, wakeup, std::chrono::milliseconds(idle_turn_ms));
             if (std::exchange(just_connected, false)) {
                 announce();
                 delay = timing.reconnect_first;
@@ -452,7 +364,7 @@ struct MqttBridge::State {
                 unacknowledged.clear();  // libmosquitto sends them again on the next connection
                 have_socket = false;
                 told_unreachable = false;
-                pause(stop, delay);
+                mqtt::pause(stop, delay);
                 delay = std::min(delay * 2, timing.reconnect_last);
             }
         }
@@ -506,7 +418,7 @@ struct MqttBridge::State {
 
 MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache& cache, GatewayLog log, MqttTiming timing)
     : state_(std::make_unique<State>()) {
-    init_library_once();
+    mqtt::init_library_once();
     State& s = *state_;
     s.config = std::move(config);
     s.timing = timing;
@@ -518,7 +430,8 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
     // ones not yet acknowledged; on_message takes each only once.
     s.client = mosquitto_new(id.c_str(), false, &s);
     if (!s.client) throw std::bad_alloc();
-    s.configure_security();
+    mqtt::configure_security(s.client, s.config.tls, s.config.username, s.config.password,
+                             [&s](const std::string& line) { s.say(line); });
     // Called on the network thread, inside mosquitto_loop.
     mosquitto_connect_with_flags_callback_set(s.client, [](mosquitto*, void* state, int code, int flags) {
         static_cast<State*>(state)->on_connect(code, flags);

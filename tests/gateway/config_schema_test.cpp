@@ -33,6 +33,7 @@ std::string configuration_with(std::string_view table, const std::string& extra)
         {"modbus_tcp", "[modbus_tcp]\n"},
         {"log", "[log]\n"},
         {"mqtt", "[mqtt]\nbroker = \"mqtt://127.0.0.1:1883\"\n"},
+        {"sparkplug", "[sparkplug]\nbroker = \"mqtt://127.0.0.1:1883\"\ngroup_id = \"plant1\"\n"},
         {"history", "[history]\ndatabase = \"plant.db\"\n"},
         {"http", "[http]\n"},
     };
@@ -89,7 +90,7 @@ TEST(ConfigSchema, AKeyItDoesNotDescribeIsRefusedNamingTheKeysItDoes) {
     }
     auto top = parse(configuration_with("", "") + "[no_such_table]\n");
     ASSERT_FALSE(top);
-    EXPECT_THAT(top.error().message, HasSubstr("allowed here: gateway, lines, modbus_tcp, log, mqtt, history, http"));
+    EXPECT_THAT(top.error().message, HasSubstr("allowed here: gateway, lines, modbus_tcp, log, mqtt, sparkplug, history, http"));
 }
 
 TEST(ConfigSchema, TablesHoldTheTablesBelowThem) {

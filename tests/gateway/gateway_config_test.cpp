@@ -248,7 +248,7 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, late_reply_window, max_in_flight, speed, seed, devices)");
 
     const std::string top = error_of(one_device("device = \"tc10@3\"\n") + "[modbus]\nlisten = \"127.0.0.1:1502\"\n");
-    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt, history, http)");
+    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt, sparkplug, history, http)");
 
     const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
     EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: enabled, listen, writes, max_age, "
@@ -726,6 +726,50 @@ TEST(GatewayConfig, ABadMqttPrefixOrAnUnknownMqttKeyIsRefused) {
                            "cert_file, key_file, username, password_file, republish, discovery, discovery_prefix, "
                            "max_payload)"));
     EXPECT_THAT(error_of("mqtt = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected an [mqtt] table"));
+}
+
+// ---------------------------------------------------------------------------------------------
+// [sparkplug]
+
+TEST(GatewayConfig, SparkplugSettingsAreRead) {
+    auto config = parse("[gateway]\nname = \"plant1\"\n" + one_device("device = \"tc10@3\"\n") +
+                        "[sparkplug]\nbroker = \"mqtt://127.0.0.1:1884\"\ngroup_id = \"plant\"\nprimary_host = \"scada\"\n"
+                        "writes = true\n");
+    ASSERT_TRUE(config) << config.error().message;
+    ASSERT_TRUE(config->sparkplug);
+    EXPECT_EQ(config->sparkplug->host, "127.0.0.1");
+    EXPECT_EQ(config->sparkplug->port, 1884);
+    EXPECT_EQ(config->sparkplug->group_id, "plant");
+    EXPECT_EQ(config->sparkplug->edge_node_id, "plant1");  // the gateway's name
+    EXPECT_EQ(config->sparkplug->primary_host, "scada");
+    EXPECT_TRUE(config->sparkplug->writes);
+    EXPECT_EQ(config->sparkplug->client_id, "loopwire-sparkplug-plant-plant1");
+    EXPECT_FALSE(config->mqtt);  // instead of [mqtt], not beside it
+    EXPECT_THAT(describe_plan(*config), HasSubstr("Sparkplug B: mqtt://127.0.0.1:1884 as edge node spBv1.0/plant/.../plant1, "
+                                                  "births once host scada is online, DCMD writes allowed"));
+}
+
+TEST(GatewayConfig, SparkplugDefaultsAndRefusals) {
+    const std::string device = one_device("device = \"tc10@3\"\n");
+    auto config = parse(device + "[sparkplug]\nbroker = \"mqtt://broker.local\"\ngroup_id = \"g1\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->sparkplug->edge_node_id, "loopwire");  // no [gateway] name
+    EXPECT_FALSE(config->sparkplug->writes);               // writes are opt-in
+    EXPECT_EQ(config->sparkplug->primary_host, "");
+    EXPECT_THAT(error_of(device + "[sparkplug]\nbroker = \"mqtt://broker.local\"\n"),
+                StartsWith("plant.toml:8: sparkplug: missing `group_id` (e.g. group_id = \"plant1\")"));
+    // A topic level: '/', '+', '#' would break the namespace (Sparkplug 3.0, 4.1).
+    EXPECT_THAT(error_of(device + "[sparkplug]\nbroker = \"mqtt://b\"\ngroup_id = \"plant/1\"\n"),
+                StartsWith("plant.toml:10: sparkplug.group_id: \"plant/1\" is not a Sparkplug id"));
+    EXPECT_THAT(error_of(device + "[sparkplug]\nbroker = \"mqtt://b\"\ngroup_id = \"g\"\nedge_node_id = \"#\"\n"),
+                HasSubstr("sparkplug.edge_node_id: \"#\" is not a Sparkplug id"));
+    EXPECT_THAT(error_of(device + "[sparkplug]\nbroker = \"tcp://b\"\ngroup_id = \"g\"\n"),
+                StartsWith("plant.toml:9: sparkplug.broker: \"tcp://b\" is not a broker address"));
+    EXPECT_THAT(error_of(device + "[sparkplug]\nbroker = \"mqtt://b\"\ngroup_id = \"g\"\nca_file = \"x\"\n"),
+                HasSubstr("sparkplug.ca_file: "));
+    EXPECT_THAT(error_of(device + "[sparkplug]\nbroker = \"mqtt://b\"\ngroup_id = \"g\"\nprefix = \"x\"\n"),
+                StartsWith("plant.toml:11: sparkplug.prefix: unknown key (allowed here: broker, group_id, edge_node_id, "
+                           "primary_host, writes, client_id, ca_file, cert_file, key_file, username, password_file)"));
 }
 
 // ---------------------------------------------------------------------------------------------

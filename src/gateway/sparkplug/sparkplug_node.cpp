@@ -1,0 +1,636 @@
+#include "gateway/sparkplug/sparkplug_node.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <stop_token>
+#include <thread>
+
+#include <fmt/format.h>
+#include <mosquitto.h>
+#include <nlohmann/json.hpp>
+
+#include "common/peer_text.hpp"
+#include "gateway/mqtt_client.hpp"
+#include "gateway/sparkplug/sparkplug_payloads.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+using namespace sparkplug;
+
+constexpr int keepalive_seconds = 30;
+constexpr int qos_at_least_once = 1;
+constexpr auto idle_turn = std::chrono::milliseconds(500);
+constexpr int goodbye_turn_ms = 50;
+// Writes from DCMDs waiting for their lines at once; more are refused as busy.
+constexpr std::size_t max_pending_writes = 64;
+constexpr std::string_view namespace_level = "spBv1.0";
+const std::string rebirth_metric = "Node Control/Rebirth";
+const std::string last_error_metric = "Device Control/Last Error";
+
+std::uint64_t now_ms() {
+    return static_cast<std::uint64_t>(
+        std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count());
+}
+
+// A device's polls find it answering: it has a birth. "stale" still has one (its values are
+// sent null), "no-reply" and "line-down" are its death.
+bool alive(const std::string& status) { return status == "ok" || status == "partial" || status == "stale"; }
+
+// What the polls said last about a device, noted on the poll threads.
+struct DeviceMirror {
+    std::string status;
+    std::map<std::string, ValueChange> latest;  // by parameter name
+    bool dirty = false;
+};
+
+// A device as the network thread knows it.
+struct NodeDevice {
+    std::string name;
+    std::vector<MetricDefinition> metrics;  // [0]: Device Control/Last Error
+    std::size_t parameter_count = 0;
+    bool born = false;
+    std::vector<std::optional<MetricSample>> sent;  // what the host application was told last
+    std::vector<MetricProperties> born_with;        // each metric's properties in the last birth
+    std::string last_error;
+    bool last_error_due = false;  // a write's refusal waits to be told
+};
+
+// A write's outcome, from the line's thread to the network thread.
+struct WriteOutcome {
+    std::size_t device = 0;
+    std::string error;  // empty: written
+};
+
+struct Command {
+    std::string topic;
+    std::string payload;
+};
+
+}  // namespace
+
+struct SparkplugNode::State {
+    SparkplugConfig config;
+    SparkplugTiming timing;
+    GatewayLog log;
+    const DeviceWriter* writer = nullptr;
+    SparkplugLines lines;
+
+    mosquitto* client = nullptr;
+    std::atomic<bool> is_connected{false};
+    mqtt::Wakeup wakeup;
+
+    std::mutex mutex;  // guards the mirrors, the outcomes and the pending count
+    std::vector<DeviceMirror> mirrors;
+    std::map<std::string, std::size_t> index;  // device name to its position
+    std::vector<WriteOutcome> outcomes;
+    std::size_t pending_writes = 0;
+    std::condition_variable writes_done;  // notified when pending_writes drops to 0
+
+    // The network thread's own.
+    std::vector<MetricDefinition> node_metrics;  // bdSeq, Node Control/Rebirth, Lines/...
+    std::vector<std::optional<MetricSample>> node_sent;
+    std::vector<NodeDevice> devices;
+    std::uint64_t next_bd_seq = 0;
+    std::uint64_t bd_seq = 0;  // of the connection now
+    std::uint64_t seq = 0;     // of the next message
+    bool node_born = false;
+    bool host_online = false;
+    bool just_connected = false;
+    bool reconnect_now = false;  // the primary host went offline
+    std::vector<Command> inbox;  // taken in libmosquitto's callback, acted on after it
+    std::chrono::steady_clock::time_point next_node_data{};
+    bool told_unreachable = false;
+    bool told_refused = false;
+    int unacknowledged_goodbye = -1;
+
+    std::jthread network;
+    ValueSubscription subscription;
+
+    void say(const std::string& message) const {
+        if (log) log("sparkplug " + config.broker + ": " + message);
+    }
+
+    std::string node_topic(std::string_view type) const {
+        return fmt::format("{}/{}/{}/{}", namespace_level, config.group_id, type, config.edge_node_id);
+    }
+    std::string device_topic(std::string_view type, const std::string& device) const {
+        return fmt::format("{}/{}/{}/{}/{}", namespace_level, config.group_id, type, config.edge_node_id, device);
+    }
+    std::string host_topic() const { return fmt::format("{}/STATE/{}", namespace_level, config.primary_host); }
+
+    std::uint64_t take_seq() {
+        const std::uint64_t taken = seq;
+        seq = (seq + 1) % 256;
+        return taken;
+    }
+
+    void publish(const std::string& topic, const std::string& payload, int qos = 0, int* mid = nullptr) {
+        // Sparkplug messages are never retained (but the host's STATE, which is not ours).
+        (void)mosquitto_publish(client, mid, topic.c_str(), static_cast<int>(payload.size()), payload.data(), qos, false);
+    }
+
+    // --- the poll threads ---------------------------------------------------------------------
+
+    void on_change(const ValueChange& change) {
+        std::lock_guard lock(mutex);
+        const auto found = index.find(change.device);
+        if (found == index.end()) return;
+        DeviceMirror& mirror = mirrors[found->second];
+        if (change.about_device()) {
+            mirror.status = change.status;
+        } else {
+            mirror.latest.insert_or_assign(change.parameter, change);
+        }
+        if (!std::exchange(mirror.dirty, true)) wakeup.notify();
+    }
+
+    // --- births, data and deaths (the network thread) -------------------------------------------
+
+    std::string node_death() const {
+        PayloadWriter death(now_ms(), std::nullopt);
+        death.birth_metric(node_metrics[0], {static_cast<std::uint64_t>(bd_seq), quality_good, now_ms()}, nullptr);
+        return death.bytes();
+    }
+
+    std::vector<MetricSample> node_samples() const {
+        const std::uint64_t now = now_ms();
+        std::vector<MetricSample> samples{{bd_seq, quality_good, now}, {false, quality_good, now}};
+        const auto figures = lines ? lines() : std::vector<SparkplugLineFigures>{};
+        for (const auto& line : figures) {
+            samples.push_back({line.requests, quality_good, now});
+            samples.push_back({line.answered, quality_good, now});
+            samples.push_back({line.timeouts, quality_good, now});
+            samples.push_back({line.open, quality_good, now});
+        }
+        samples.resize(node_metrics.size(), MetricSample{{}, quality_bad, now});
+        return samples;
+    }
+
+    void birth_node() {
+        seq = 0;
+        PayloadWriter birth(now_ms(), take_seq());
+        const auto samples = node_samples();
+        for (std::size_t i = 0; i < node_metrics.size(); ++i) birth.birth_metric(node_metrics[i], samples[i], nullptr);
+        node_sent.assign(samples.begin(), samples.end());
+        publish(node_topic("NBIRTH"), birth.bytes());
+        node_born = true;
+        next_node_data = std::chrono::steady_clock::now() + timing.node_data_every;
+        for (auto& device : devices) device.born = false;
+        publish_devices(true);
+    }
+
+    // The lines' figures that changed, when due.
+    void node_data_when_due() {
+        if (!node_born || std::chrono::steady_clock::now() < next_node_data) return;
+        next_node_data = std::chrono::steady_clock::now() + timing.node_data_every;
+        const auto samples = node_samples();
+        std::vector<std::size_t> changed;
+        for (std::size_t i = 2; i < samples.size(); ++i) {
+            if (!node_sent[i] || !node_sent[i]->same_report(samples[i])) changed.push_back(i);
+        }
+        if (changed.empty()) return;
+        PayloadWriter data(now_ms(), take_seq());
+        for (const std::size_t i : changed) {
+            data.data_metric(node_metrics[i], samples[i], false);
+            node_sent[i] = samples[i];
+        }
+        publish(node_topic("NDATA"), data.bytes());
+    }
+
+    // Each metric's sample and properties from what the polls said; none until every polled
+    // parameter was heard of (the first sample's values arrive one by one).
+    struct DevicePicture {
+        std::vector<MetricSample> samples;
+        std::vector<MetricProperties> properties;
+    };
+    std::optional<DevicePicture> picture_of(const NodeDevice& device, const DeviceMirror& mirror) const {
+        if (mirror.latest.size() < device.parameter_count) return std::nullopt;
+        DevicePicture picture;
+        picture.samples.push_back({device.last_error, quality_good, now_ms()});
+        picture.properties.emplace_back();
+        for (std::size_t i = 1; i < device.metrics.size(); ++i) {
+            const MetricDefinition& metric = device.metrics[i];
+            const auto found = mirror.latest.find(metric.parameter->name);
+            if (found == mirror.latest.end()) return std::nullopt;
+            picture.samples.push_back(sample_of(metric, found->second));
+            picture.properties.push_back(properties_of(metric, &found->second));
+        }
+        return picture;
+    }
+
+    void birth_device(NodeDevice& device, const DevicePicture& picture) {
+        PayloadWriter birth(now_ms(), take_seq());
+        for (std::size_t i = 0; i < device.metrics.size(); ++i) {
+            birth.birth_metric(device.metrics[i], picture.samples[i], &picture.properties[i]);
+        }
+        publish(device_topic("DBIRTH", device.name), birth.bytes());
+        device.born = true;
+        device.sent.assign(picture.samples.begin(), picture.samples.end());
+        device.born_with = picture.properties;
+        device.last_error_due = false;
+    }
+
+    void death_device(NodeDevice& device) {
+        PayloadWriter death(now_ms(), take_seq());
+        publish(device_topic("DDEATH", device.name), death.bytes());
+        device.born = false;
+    }
+
+    void data_device(NodeDevice& device, DevicePicture& picture) {
+        if (device.last_error_due) {
+            // Each refusal is told, even one worded as the last.
+            picture.samples[0] = {device.last_error, quality_good, now_ms()};
+            device.sent[0].reset();
+            device.last_error_due = false;
+        }
+        std::vector<std::size_t> changed;
+        for (std::size_t i = 0; i < device.metrics.size(); ++i) {
+            if (!device.sent[i] || !device.sent[i]->same_report(picture.samples[i])) changed.push_back(i);
+        }
+        if (changed.empty()) return;
+        PayloadWriter data(now_ms(), take_seq());
+        for (const std::size_t i : changed) {
+            const bool quality_news = picture.samples[i].quality != quality_good ||
+                                      (device.sent[i] && device.sent[i]->quality != quality_good);
+            data.data_metric(device.metrics[i], picture.samples[i], quality_news);
+            device.sent[i] = picture.samples[i];
+        }
+        publish(device_topic("DDATA", device.name), data.bytes());
+    }
+
+    // Births, deaths and data for every device the polls told of since the last look (all of
+    // them when `everything`, after the node's birth).
+    void publish_devices(bool everything) {
+        if (!node_born) return;
+        std::vector<std::pair<std::size_t, DeviceMirror>> seen;
+        {
+            std::lock_guard lock(mutex);
+            for (std::size_t i = 0; i < mirrors.size(); ++i) {
+                if (!everything && !mirrors[i].dirty && !devices[i].last_error_due) continue;
+                mirrors[i].dirty = false;
+                seen.emplace_back(i, mirrors[i]);
+            }
+        }
+        for (auto& [i, mirror] : seen) {
+            NodeDevice& device = devices[i];
+            if (!alive(mirror.status)) {
+                if (device.born) death_device(device);
+                continue;
+            }
+            auto picture = picture_of(device, mirror);
+            if (!picture) continue;
+            // A unit or decimals the device's configuration changed (°C to °F) is a property of
+            // the birth: the device is born again with it.
+            if (!device.born || picture->properties != device.born_with) {
+                birth_device(device, *picture);
+            } else {
+                data_device(device, *picture);
+            }
+        }
+    }
+
+    // --- commands ------------------------------------------------------------------------------
+
+    void on_node_command(const std::vector<CommandMetric>& metrics) {
+        for (const auto& metric : metrics) {
+            const bool rebirth = metric.name == rebirth_metric || (metric.alias && *metric.alias == node_metrics[1].alias);
+            if (rebirth && metric.value == MetricValue{true}) {
+                say("rebirth asked for (NCMD Node Control/Rebirth): births again");
+                if (node_born) birth_node();
+                continue;
+            }
+            say(fmt::format("NCMD metric {} = {} ignored: the node takes Node Control/Rebirth = true only",
+                            metric.name.empty() && metric.alias ? fmt::format("alias {}", *metric.alias) : quoted_excerpt(metric.name),
+                            quoted_excerpt(value_words(metric.value))));
+        }
+    }
+
+    const MetricDefinition* metric_of(const NodeDevice& device, const CommandMetric& metric) const {
+        for (const auto& definition : device.metrics) {
+            if ((metric.alias && definition.alias == *metric.alias) || (!metric.name.empty() && definition.name == metric.name)) {
+                return &definition;
+            }
+        }
+        return nullptr;
+    }
+
+    void refuse_write(std::size_t device, std::string why) {
+        say(fmt::format("DCMD to {} refused: {}", devices[device].name, why));
+        devices[device].last_error = std::move(why);
+        devices[device].last_error_due = true;
+    }
+
+    // The assignments a DCMD asks for, or why it is refused (nothing is written then).
+    Result<std::vector<WriteAssignment>> assignments_of(const NodeDevice& device, const std::vector<CommandMetric>& metrics) const {
+        std::vector<WriteAssignment> assignments;
+        for (const auto& metric : metrics) {
+            const MetricDefinition* definition = metric_of(device, metric);
+            if (!definition) {
+                return make_error(ErrorKind::usage, fmt::format("{} is not a metric of {} (see its DBIRTH)",
+                                                                metric.name.empty() && metric.alias ? fmt::format("alias {}", *metric.alias)
+                                                                                                     : quoted_excerpt(metric.name),
+                                                                device.name));
+            }
+            auto text = write_text(*definition, metric.value);
+            if (!text) return text.error();
+            assignments.push_back({definition->parameter->name, std::move(*text)});
+        }
+        if (assignments.empty()) return make_error(ErrorKind::usage, "the DCMD holds no metric");
+        return assignments;
+    }
+
+    void on_device_command(std::size_t index_of_device, const std::vector<CommandMetric>& metrics) {
+        NodeDevice& device = devices[index_of_device];
+        if (!config.writes) return refuse_write(index_of_device, "writes are off (set writes = true in [sparkplug] to take DCMDs)");
+        if (!device.born) return refuse_write(index_of_device, "the device does not answer now (DDEATH); nothing was sent");
+        auto assignments = assignments_of(device, metrics);
+        if (!assignments) return refuse_write(index_of_device, assignments.error().message);
+        {
+            std::lock_guard lock(mutex);
+            if (pending_writes >= max_pending_writes) {
+                return refuse_write(index_of_device, fmt::format("{} writes are waiting already; write again later", pending_writes));
+            }
+            ++pending_writes;
+        }
+        const bool queued = writer->write_async(device.name, std::move(*assignments), [this, index_of_device](Result<WrittenValues> written) {
+            std::lock_guard lock(mutex);
+            outcomes.push_back({index_of_device, written ? std::string() : written.error().message});
+            wakeup.notify();
+            if (--pending_writes == 0) writes_done.notify_all();
+        });
+        if (!queued) {
+            {
+                std::lock_guard lock(mutex);
+                --pending_writes;
+            }
+            refuse_write(index_of_device, "the device's line has too many writes waiting; write again later");
+        }
+    }
+
+    void take_outcomes() {
+        std::vector<WriteOutcome> taken;
+        {
+            std::lock_guard lock(mutex);
+            taken.swap(outcomes);
+        }
+        for (auto& outcome : taken) {
+            NodeDevice& device = devices[outcome.device];
+            if (outcome.error.empty()) {
+                if (device.last_error.empty()) continue;
+                device.last_error.clear();  // the last write went through: nothing to report
+                device.last_error_due = true;
+            } else {
+                refuse_write(outcome.device, outcome.error);
+            }
+        }
+    }
+
+    void on_host_state(std::string_view payload) {
+        // Sparkplug 3.0 (host application STATE): {"online": true|false, "timestamp": ms}; the
+        // plain "ONLINE"/"OFFLINE" of Sparkplug 2.2 hosts is taken too.
+        bool online = payload == "ONLINE";
+        const auto json = nlohmann::json::parse(payload, nullptr, false);
+        if (json.is_object() && json.contains("online") && json["online"].is_boolean()) online = json["online"].get<bool>();
+        if (online == host_online) return;
+        host_online = online;
+        if (online) {
+            say(fmt::format("primary host {} is online: births", config.primary_host));
+            birth_node();
+        } else if (node_born) {
+            say(fmt::format("primary host {} went offline: NDEATH, disconnecting until it is back", config.primary_host));
+            publish(node_topic("NDEATH"), node_death(), qos_at_least_once);
+            node_born = false;
+            reconnect_now = true;
+        }
+    }
+
+    void take_commands() {
+        std::vector<Command> taken;
+        taken.swap(inbox);
+        const std::string ncmd = node_topic("NCMD");
+        for (auto& command : taken) {
+            if (!config.primary_host.empty() && command.topic == host_topic()) {
+                on_host_state(command.payload);
+                continue;
+            }
+            if (command.payload.size() > config.max_payload) {
+                say(fmt::format("{} of {} bytes refused unread (at most {})", quoted_excerpt(command.topic), command.payload.size(),
+                                config.max_payload));
+                continue;
+            }
+            auto metrics = decode_command(command.payload);
+            if (!metrics) {
+                say(fmt::format("{}: {}", quoted_excerpt(command.topic), metrics.error().message));
+                continue;
+            }
+            if (command.topic == ncmd) {
+                on_node_command(*metrics);
+                continue;
+            }
+            const std::string prefix = device_topic("DCMD", "");
+            const auto found = command.topic.starts_with(prefix) ? index.find(command.topic.substr(prefix.size())) : index.end();
+            if (found == index.end()) {
+                say(fmt::format("{}: no such device of this node; ignored", quoted_excerpt(command.topic)));
+                continue;
+            }
+            on_device_command(found->second, *metrics);
+        }
+    }
+
+    // --- the connection ------------------------------------------------------------------------
+
+    void on_connect(int code) {
+        if (code != 0) {
+            if (!std::exchange(told_refused, true)) {
+                say(fmt::format("the broker refused the connection: {}; retrying in the background", mosquitto_connack_string(code)));
+            }
+            return;
+        }
+        just_connected = true;
+    }
+
+    void on_message(const mosquitto_message& message) {
+        if (!message.topic) return;
+        inbox.push_back({message.topic, std::string(static_cast<const char*>(message.payload),
+                                                     static_cast<std::size_t>(std::max(message.payloadlen, 0)))});
+    }
+
+    // After a connection was made: the commands' subscriptions, then the births (at once, or
+    // once the primary host says it is online).
+    void announce() {
+        is_connected.store(true);
+        told_unreachable = false;
+        told_refused = false;
+        say(fmt::format("connected as edge node {}/{} (bdSeq {})", config.group_id, config.edge_node_id, bd_seq));
+        (void)mosquitto_subscribe(client, nullptr, node_topic("NCMD").c_str(), qos_at_least_once);
+        (void)mosquitto_subscribe(client, nullptr, device_topic("DCMD", "+").c_str(), qos_at_least_once);
+        host_online = false;
+        node_born = false;
+        if (config.primary_host.empty()) {
+            birth_node();
+        } else {
+            (void)mosquitto_subscribe(client, nullptr, host_topic().c_str(), qos_at_least_once);
+            say(fmt::format("waiting for primary host {} to be online ({})", config.primary_host, host_topic()));
+        }
+    }
+
+    // The will of the next connection: NDEATH with its bdSeq (Sparkplug 3.0: bdSeq counts the
+    // node's MQTT sessions; NBIRTH carries the same).
+    int connect() {
+        bd_seq = next_bd_seq;
+        const std::string death = node_death();
+        (void)mosquitto_will_set(client, node_topic("NDEATH").c_str(), static_cast<int>(death.size()), death.data(),
+                                 qos_at_least_once, false);
+        const int rc = mosquitto_connect(client, config.host.c_str(), config.port, keepalive_seconds);
+        if (rc == MOSQ_ERR_SUCCESS) next_bd_seq = (next_bd_seq + 1) % 256;
+        return rc;
+    }
+
+    void lost(std::string_view why) {
+        if (is_connected.exchange(false)) say(fmt::format("connection lost ({})", why));
+        node_born = false;
+        told_unreachable = false;
+    }
+
+    void run_network(const std::stop_token& stop) {
+        const std::stop_callback wake_on_stop(stop, [this] { wakeup.notify(); });
+        bool have_socket = false;
+        auto delay = timing.reconnect_first;
+        while (!stop.stop_requested()) {
+            if (!have_socket) {
+                const int rc = connect();
+                if (rc != MOSQ_ERR_SUCCESS) {
+                    if (!std::exchange(told_unreachable, true)) {
+                        say(fmt::format("cannot reach the broker ({}); retrying in the background", mqtt::connect_failure(rc)));
+                    }
+                    mqtt::pause(stop, delay);
+                    delay = std::min(delay * 2, timing.reconnect_last);
+                    continue;
+                }
+                have_socket = true;
+            }
+            const int rc = mqtt::turn(client, wakeup, idle_turn);
+            if (std::exchange(just_connected, false)) {
+                announce();
+                delay = timing.reconnect_first;
+            }
+            take_commands();
+            take_outcomes();
+            publish_devices(false);
+            node_data_when_due();
+            if (std::exchange(reconnect_now, false)) {
+                settle(std::chrono::seconds(2));
+                (void)mosquitto_disconnect(client);
+                lost("the primary host is offline");
+                have_socket = false;
+                continue;
+            }
+            if (rc != MOSQ_ERR_SUCCESS) {
+                lost(mosquitto_strerror(rc));
+                have_socket = false;
+                mqtt::pause(stop, delay);
+                delay = std::min(delay * 2, timing.reconnect_last);
+            }
+        }
+        if (have_socket && is_connected.load()) say_goodbye();
+    }
+
+    // Turns the loop until what was published went out (the QoS 1 NDEATH acknowledged), or `limit`.
+    void settle(std::chrono::milliseconds limit) {
+        const auto give_up = std::chrono::steady_clock::now() + limit;
+        while (std::chrono::steady_clock::now() < give_up && mosquitto_want_write(client) &&
+               mosquitto_loop(client, goodbye_turn_ms, 1) == MOSQ_ERR_SUCCESS) {
+        }
+        if (unacknowledged_goodbye < 0) return;
+        while (unacknowledged_goodbye >= 0 && std::chrono::steady_clock::now() < give_up &&
+               mosquitto_loop(client, goodbye_turn_ms, 1) == MOSQ_ERR_SUCCESS) {
+        }
+    }
+
+    // A clean disconnect does not fire the will: the node says its death itself (6.4.18).
+    void say_goodbye() {
+        int mid = 0;
+        publish(node_topic("NDEATH"), node_death(), qos_at_least_once, &mid);
+        unacknowledged_goodbye = mid;
+        settle(std::chrono::seconds(2));
+        (void)mosquitto_disconnect(client);
+        const auto give_up = std::chrono::steady_clock::now() + std::chrono::milliseconds(500);
+        while (std::chrono::steady_clock::now() < give_up && mosquitto_loop(client, goodbye_turn_ms, 1) == MOSQ_ERR_SUCCESS) {
+        }
+        is_connected.store(false);
+    }
+};
+
+SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice> devices, const DeviceWriter& writer,
+                             ValueCache& cache, SparkplugLines lines, GatewayLog log, SparkplugTiming timing)
+    : state_(std::make_unique<State>()) {
+    mqtt::init_library_once();
+    State& s = *state_;
+    s.config = std::move(config);
+    s.timing = timing;
+    s.log = std::move(log);
+    s.writer = &writer;
+    s.lines = std::move(lines);
+    // Aliases from the configuration: the node's metrics, then each device's in order.
+    std::uint64_t alias = 0;
+    s.node_metrics.push_back({"bdSeq", alias++, DataType::uint64, nullptr, {}});
+    s.node_metrics.push_back({rebirth_metric, alias++, DataType::boolean, nullptr, {}});
+    for (const auto& line : s.lines ? s.lines() : std::vector<SparkplugLineFigures>{}) {
+        const std::string base = "Lines/" + line.name + "/";
+        s.node_metrics.push_back({base + "Requests", alias++, DataType::uint64, nullptr, {}});
+        s.node_metrics.push_back({base + "Answered", alias++, DataType::uint64, nullptr, {}});
+        s.node_metrics.push_back({base + "Timeouts", alias++, DataType::uint64, nullptr, {}});
+        s.node_metrics.push_back({base + "Open", alias++, DataType::boolean, nullptr, {}});
+    }
+    for (const auto& device : devices) {
+        NodeDevice node_device;
+        node_device.name = device.name;
+        node_device.metrics.push_back({last_error_metric, alias++, DataType::string, nullptr, {}});
+        for (const device::Parameter* parameter : device.parameters) {
+            auto metrics = parameter_metrics(*parameter, alias);
+            node_device.metrics.insert(node_device.metrics.end(), metrics.begin(), metrics.end());
+        }
+        node_device.parameter_count = device.parameters.size();
+        s.index[device.name] = s.devices.size();
+        s.devices.push_back(std::move(node_device));
+    }
+    s.mirrors.resize(s.devices.size());
+    // A clean session (Sparkplug 3.0: edge nodes connect with Clean Session set): commands sent
+    // while the node was away are not for it, its births make the host application's picture.
+    s.client = mosquitto_new(s.config.client_id.c_str(), true, &s);
+    if (!s.client) throw std::bad_alloc();
+    mqtt::configure_security(s.client, s.config.tls, s.config.username, s.config.password,
+                             [&s](const std::string& line) { s.say(line); });
+    mosquitto_connect_callback_set(s.client, [](mosquitto*, void* state, int code) { static_cast<State*>(state)->on_connect(code); });
+    mosquitto_publish_callback_set(s.client, [](mosquitto*, void* state, int mid) {
+        auto& self = *static_cast<State*>(state);
+        if (mid == self.unacknowledged_goodbye) self.unacknowledged_goodbye = -1;
+    });
+    mosquitto_message_callback_set(s.client, [](mosquitto*, void* state, const mosquitto_message* message) {
+        if (message) static_cast<State*>(state)->on_message(*message);
+    });
+    s.network = std::jthread([&s](std::stop_token stop) { s.run_network(stop); });
+    s.subscription = cache.subscribe([&s](const ValueChange& change) { s.on_change(change); });
+}
+
+SparkplugNode::~SparkplugNode() {
+    State& s = *state_;
+    s.subscription.reset();
+    s.network.request_stop();
+    s.network.join();
+    // The writes still under way end on their lines (within the writer's time limit), and their
+    // completions hold this state: it goes once the last has run.
+    std::unique_lock lock(s.mutex);
+    s.writes_done.wait(lock, [&s] { return s.pending_writes == 0; });
+    lock.unlock();
+    mosquitto_destroy(s.client);
+}
+
+bool SparkplugNode::connected() const { return state_->is_connected.load(); }
+
+}  // namespace loopwire::gateway

@@ -1,0 +1,82 @@
+#pragma once
+// The gateway as a Sparkplug B edge node (Eclipse Sparkplug 3.0), so that a SCADA host
+// application (Ignition, ...) finds every device and parameter from the births, with no hand
+// mapping of topics (docs/DESIGN.md, gateway).
+//
+// Topics (GROUP, EDGE from [sparkplug]; DEVICE the configured names):
+//   spBv1.0/GROUP/NBIRTH/EDGE          on each connection and rebirth: bdSeq, Node Control/Rebirth,
+//                                      each line's figures (Lines/LINE/...), seq 0
+//   spBv1.0/GROUP/NDATA/EDGE           the lines' figures that changed, every `node_data_every`
+//   spBv1.0/GROUP/NDEATH/EDGE          the MQTT will, with that connection's bdSeq; also sent on a
+//                                      clean stop
+//   spBv1.0/GROUP/NCMD/EDGE            subscribed: Node Control/Rebirth = true births everything again
+//   spBv1.0/GROUP/DBIRTH/EDGE/DEVICE   once the device answers: every polled parameter as a metric
+//                                      (sparkplug_payloads.hpp), Device Control/Last Error
+//   spBv1.0/GROUP/DDATA/EDGE/DEVICE    what changed, by alias; a missing or stale value is null
+//   spBv1.0/GROUP/DDEATH/EDGE/DEVICE   when its polls get no answer (or its line is down)
+//   spBv1.0/GROUP/DCMD/EDGE/DEVICE     subscribed: writes, checked as `loopwire write` checks them;
+//                                      a refusal is told in Device Control/Last Error
+//   spBv1.0/STATE/HOST                 with primary_host: births wait for {"online": true}
+// Aliases are numbered once, from the configuration (node metrics, then each device's metrics
+// in order), so they are the same across rebirths and restarts of the same configuration.
+//
+// Threads: the value stream's callback (on the poll threads) only notes the latest value of
+// each parameter and wakes the network thread. That one thread owns the libmosquitto client and
+// every Sparkplug state (born or not, seq, bdSeq, what was last sent), so the messages' order is
+// the order they are made in. Writes are handed to the device's line (DeviceWriter) and their
+// outcome comes back through the same wake-up: a slow line never holds up the network thread.
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gateway/device_writer.hpp"
+#include "gateway/forwarding_unit.hpp"
+#include "gateway/gateway_config.hpp"
+#include "gateway/value_cache.hpp"
+
+namespace loopwire::gateway {
+
+// A device of the node: its configured name and the parameters its polls read.
+struct SparkplugDevice {
+    std::string name;
+    std::vector<const device::Parameter*> parameters;
+};
+
+// A line's figures, for the node's metrics.
+struct SparkplugLineFigures {
+    std::string name;
+    std::uint64_t requests = 0;
+    std::uint64_t answered = 0;
+    std::uint64_t timeouts = 0;
+    bool open = true;
+};
+using SparkplugLines = std::function<std::vector<SparkplugLineFigures>()>;
+
+struct SparkplugTiming {
+    std::chrono::milliseconds reconnect_first{500};
+    std::chrono::milliseconds reconnect_last{10000};
+    std::chrono::milliseconds node_data_every{10000};  // how often the lines' figures are looked at
+};
+
+class SparkplugNode {
+public:
+    // Starts at once and never fails for want of a broker: it keeps trying in the background.
+    // `cache`, `writer` and whatever `lines` reads must outlive the node.
+    SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice> devices, const DeviceWriter& writer,
+                  ValueCache& cache, SparkplugLines lines, GatewayLog log, SparkplugTiming timing = {});
+    // Publishes NDEATH, disconnects cleanly, joins its thread.
+    ~SparkplugNode();
+    SparkplugNode(const SparkplugNode&) = delete;
+    SparkplugNode& operator=(const SparkplugNode&) = delete;
+
+    bool connected() const;
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
+
+}  // namespace loopwire::gateway
