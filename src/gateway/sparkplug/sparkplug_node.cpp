@@ -306,7 +306,7 @@ struct SparkplugNode::State {
             }
             say(fmt::format("NCMD metric {} = {} ignored: the node takes Node Control/Rebirth = true only",
                             metric.name.empty() && metric.alias ? fmt::format("alias {}", *metric.alias) : quoted_excerpt(metric.name),
-                            quoted_excerpt(value_words(metric.value))));
+                            value_words(metric.value)));
         }
     }
 

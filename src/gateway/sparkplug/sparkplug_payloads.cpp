@@ -5,6 +5,8 @@
 
 #include <fmt/format.h>
 
+#include "common/peer_text.hpp"
+
 #include "sparkplug/sparkplug_b.pb.h"  // generated from sparkplug_b.proto
 
 namespace loopwire::gateway::sparkplug {
@@ -282,7 +284,7 @@ std::string value_words(const MetricValue& value) {
             } else if constexpr (std::is_same_v<V, bool>) {
                 return v ? "true" : "false";
             } else if constexpr (std::is_same_v<V, std::string>) {
-                return fmt::format("\"{}\"", v);
+                return quoted_excerpt(v);  // a peer's text: escaped and cut for a log line
             } else {
                 return fmt::format("{}", v);
             }

@@ -125,7 +125,7 @@ Result<std::vector<CommandMetric>> decode_command(std::string_view payload);
 // cannot be written (a bit of a bit field, the node's own metrics, a value of the wrong kind).
 Result<std::string> write_text(const MetricDefinition& metric, const MetricValue& value);
 
-// `value` in words for messages: "150.5", "true", "\"on\"", "null".
+// `value` in words for messages: 150.5, true, "on" (a text escaped and cut: it is a peer's), null.
 std::string value_words(const MetricValue& value);
 
 }  // namespace loopwire::gateway::sparkplug

@@ -1,0 +1,312 @@
+// The Sparkplug B edge node (gateway/sparkplug/sparkplug_node.hpp) against a real mosquitto
+// broker each test starts: a value cache fed with a synthetic device's polls, as the poll
+// groups feed it, and a watcher that decodes what the node publishes with protobuf. Births
+// before data, seq from 0 in each NBIRTH and +1 per message, DDATA by alias with only what
+// changed, DDEATH and DBIRTH again as the device goes silent and comes back, a rebirth on NCMD
+// with the same aliases, stale values null with their quality, DCMDs refused in words, births
+// held back until the primary host is online. Skipped without /usr/sbin/mosquitto.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <mutex>
+
+#include "gateway/sparkplug/sparkplug_node.hpp"
+#include "sparkplug/sparkplug_b.pb.h"
+#include "support/mosquitto_broker.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+using namespace std::chrono_literals;
+using ::testing::HasSubstr;
+using Payload = loopwire::sparkplug::b::Payload;
+using loopwire::testing::Broker;
+using loopwire::testing::free_port;
+using loopwire::testing::Watcher;
+
+const std::string nbirth = "spBv1.0/plant/NBIRTH/edge1";
+const std::string ndeath = "spBv1.0/plant/NDEATH/edge1";
+const std::string ncmd = "spBv1.0/plant/NCMD/edge1";
+const std::string dbirth = "spBv1.0/plant/DBIRTH/edge1/d1";
+const std::string ddata = "spBv1.0/plant/DDATA/edge1/d1";
+const std::string ddeath = "spBv1.0/plant/DDEATH/edge1/d1";
+const std::string dcmd = "spBv1.0/plant/DCMD/edge1/d1";
+
+#define SKIP_WITHOUT_BROKER()                                                                             \
+    if (!std::filesystem::exists(loopwire::testing::broker_program))                                     \
+    GTEST_SKIP() << loopwire::testing::broker_program << " is not installed (Debian package mosquitto)"
+
+loopwire::testing::WatcherOptions every_sparkplug_topic() {
+    loopwire::testing::WatcherOptions options;
+    options.topics = "spBv1.0/#";
+    return options;
+}
+
+Payload decoded(const std::optional<std::string>& bytes) {
+    Payload payload;
+    EXPECT_TRUE(bytes.has_value()) << "no message before the deadline";
+    if (bytes) {
+        EXPECT_TRUE(payload.ParseFromString(*bytes)) << "not a Sparkplug B payload";
+    }
+    return payload;
+}
+
+const Payload::Metric* named(const Payload& payload, const std::string& name) {
+    for (const auto& metric : payload.metrics()) {
+        if (metric.name() == name) return &metric;
+    }
+    return nullptr;
+}
+
+// A device of three parameters as a profile would give them: a scaled temperature, a whole
+// percentage and a labelled mode.
+class Device {
+public:
+    Device() {
+        temperature_.name = "temperature";
+        temperature_.type = device::ValueType::int16;
+        temperature_.decimals = 1;
+        temperature_.unit = "°C";
+        power_.name = "power";
+        power_.type = device::ValueType::uint16;
+        power_.unit = "%";
+        power_.writable = true;
+        mode_.name = "mode";
+        mode_.type = device::ValueType::enumeration;
+        mode_.enum_labels = {{0, "auto"}, {1, "manual"}};
+        state_ = device::watch("test@1", parameters());
+    }
+    std::vector<const device::Parameter*> parameters() const { return {&temperature_, &power_, &mode_}; }
+
+    // One poll that answered with these values.
+    void answer(ValueCache& cache, double temperature, double power, const std::string& mode) {
+        device::ReadReport report;
+        add(report, temperature_, temperature, {});
+        add(report, power_, power, {});
+        add(report, mode_, 0, mode);
+        device::record_poll(state_, report, true, "", device::MonitorClock::now());
+        cache.update("d1", state_, std::chrono::system_clock::now());
+    }
+    // One poll that got no reply.
+    void silent(ValueCache& cache) {
+        device::ReadReport report;
+        device::record_poll(state_, report, false, "timeout: no reply within 1 s", device::MonitorClock::now());
+        cache.update("d1", state_, std::chrono::system_clock::now());
+    }
+
+private:
+    static void add(device::ReadReport& report, const device::Parameter& parameter, double number, const std::string& label) {
+        device::ParameterReading& reading = report.readings.emplace_back();
+        reading.parameter = &parameter;
+        reading.value.emplace();
+        if (label.empty()) {
+            reading.value->value = number;
+        } else {
+            reading.value->value = label;
+        }
+        reading.value->unit = parameter.unit;
+        reading.value->raw = static_cast<std::uint16_t>(number * 10);
+    }
+
+    device::Parameter temperature_;
+    device::Parameter power_;
+    device::Parameter mode_;
+    device::WatchedDevice state_;
+};
+
+struct Log {
+    std::mutex mutex;
+    std::vector<std::string> lines;
+    GatewayLog sink() {
+        return [this](const std::string& line) {
+            std::lock_guard lock(mutex);
+            lines.push_back(line);
+        };
+    }
+    bool holds(const std::string& text) {
+        std::lock_guard lock(mutex);
+        return std::any_of(lines.begin(), lines.end(), [&](const std::string& line) { return line.find(text) != std::string::npos; });
+    }
+    // Waits until a line holds `text`.
+    bool wait_for(const std::string& text) {
+        const auto give_up = std::chrono::steady_clock::now() + loopwire::testing::deadline;
+        while (!holds(text)) {
+            if (std::chrono::steady_clock::now() > give_up) return false;
+            std::this_thread::sleep_for(10ms);
+        }
+        return true;
+    }
+};
+
+struct NodeFixture {
+    explicit NodeFixture(Broker& broker, const std::string& primary_host = {}, std::shared_ptr<Clock> clock = steady_clock())
+        : cache(std::move(clock)) {
+        config.broker = fmt::format("mqtt://127.0.0.1:{}", broker.port());
+        config.host = "127.0.0.1";
+        config.port = broker.port();
+        config.group_id = "plant";
+        config.edge_node_id = "edge1";
+        config.client_id = "test-edge1";
+        config.primary_host = primary_host;
+        SparkplugTiming timing;
+        timing.reconnect_first = 50ms;
+        timing.reconnect_last = 200ms;
+        node = std::make_unique<SparkplugNode>(config, std::vector<SparkplugDevice>{{"d1", device.parameters()}}, writer, cache,
+                                               [] { return std::vector<SparkplugLineFigures>{{"line1", 10, 9, 1, true}}; },
+                                               log.sink(), timing);
+    }
+
+    SparkplugConfig config;
+    Log log;
+    Device device;
+    ValueCache cache;
+    Engine engine;
+    DeviceWriter writer{engine, {}, 1s};
+    std::unique_ptr<SparkplugNode> node;
+};
+
+std::string rebirth_command() {
+    Payload command;
+    auto* metric = command.add_metrics();
+    metric->set_name("Node Control/Rebirth");
+    metric->set_datatype(11);
+    metric->set_boolean_value(true);
+    return command.SerializeAsString();
+}
+
+TEST(SparkplugNode, BirthsDataDeathsAndARebirthKeepTheirOrderAndAliases) {
+    SKIP_WITHOUT_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    NodeFixture node(broker);
+
+    const Payload node_birth = decoded(watcher.nth(nbirth, 1));
+    EXPECT_EQ(node_birth.seq(), 0u);
+    const auto* bd_seq = named(node_birth, "bdSeq");
+    ASSERT_NE(bd_seq, nullptr);
+    EXPECT_EQ(bd_seq->long_value(), 0u);
+    ASSERT_NE(named(node_birth, "Node Control/Rebirth"), nullptr);
+    ASSERT_NE(named(node_birth, "Lines/line1/Timeouts"), nullptr);
+    EXPECT_EQ(named(node_birth, "Lines/line1/Timeouts")->long_value(), 1u);
+    EXPECT_EQ(watcher.count(dbirth), 0u) << "no birth before the device answered";
+
+    node.device.answer(node.cache, 21.5, 40, "auto");
+    const Payload birth = decoded(watcher.nth(dbirth, 1));
+    EXPECT_EQ(birth.seq(), 1u);
+    const auto* temperature = named(birth, "temperature");
+    const auto* power = named(birth, "power");
+    const auto* mode = named(birth, "mode");
+    ASSERT_TRUE(temperature && power && mode && named(birth, "Device Control/Last Error"));
+    EXPECT_EQ(temperature->datatype(), 10u);  // Double
+    EXPECT_DOUBLE_EQ(temperature->double_value(), 21.5);
+    EXPECT_EQ(power->datatype(), 6u);  // UInt16
+    EXPECT_EQ(power->int_value(), 40u);
+    EXPECT_EQ(mode->string_value(), "auto");
+
+    // Only what changed, by alias.
+    node.device.answer(node.cache, 22.0, 40, "auto");
+    const Payload data = decoded(watcher.nth(ddata, 1));
+    EXPECT_EQ(data.seq(), 2u);
+    ASSERT_EQ(data.metrics_size(), 1);
+    EXPECT_EQ(data.metrics(0).alias(), temperature->alias());
+    EXPECT_FALSE(data.metrics(0).has_name());
+    EXPECT_DOUBLE_EQ(data.metrics(0).double_value(), 22.0);
+
+    // Silent, then back.
+    node.device.silent(node.cache);
+    EXPECT_EQ(decoded(watcher.nth(ddeath, 1)).seq(), 3u);
+    node.device.answer(node.cache, 22.5, 41, "manual");
+    const Payload again = decoded(watcher.nth(dbirth, 2));
+    EXPECT_EQ(again.seq(), 4u);
+    EXPECT_DOUBLE_EQ(named(again, "temperature")->double_value(), 22.5);
+
+    // A rebirth asked for: everything again from seq 0, the same session's bdSeq, the same aliases.
+    watcher.publish(ncmd, rebirth_command());
+    const Payload reborn = decoded(watcher.nth(nbirth, 2));
+    EXPECT_EQ(reborn.seq(), 0u);
+    EXPECT_EQ(named(reborn, "bdSeq")->long_value(), 0u);
+    const Payload device_reborn = decoded(watcher.nth(dbirth, 3));
+    EXPECT_EQ(device_reborn.seq(), 1u);
+    for (const auto& metric : birth.metrics()) {
+        const auto* same = named(device_reborn, metric.name());
+        ASSERT_NE(same, nullptr) << metric.name();
+        EXPECT_EQ(same->alias(), metric.alias()) << metric.name();
+    }
+}
+
+TEST(SparkplugNode, AStaleValueIsNullWithItsQualityNeverItsOldNumber) {
+    SKIP_WITHOUT_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    auto clock = std::make_shared<VirtualClock>();
+    NodeFixture node(broker, {}, clock);
+    node.cache.expect_polls("d1", 1s);
+    node.device.answer(node.cache, 21.5, 40, "auto");
+    ASSERT_TRUE(watcher.nth(dbirth, 1));
+    clock->advance(4s);  // the poll due after 1 s is overdue by more than two intervals
+    ASSERT_EQ(node.cache.mark_overdue(), std::vector<std::string>{"d1"});
+    const Payload data = decoded(watcher.nth(ddata, 1));
+    ASSERT_EQ(data.metrics_size(), 3);  // the three values; the last error did not change
+    for (const auto& metric : data.metrics()) {
+        EXPECT_TRUE(metric.is_null()) << metric.alias();
+        EXPECT_EQ(metric.value_case(), Payload::Metric::VALUE_NOT_SET);
+        ASSERT_EQ(metric.properties().keys_size(), 1);
+        EXPECT_EQ(metric.properties().keys(0), "Quality");
+        EXPECT_EQ(metric.properties().values(0).int_value(), 500u);
+    }
+    EXPECT_EQ(watcher.count(ddeath), 0u) << "stale is not dead: its values are null, the device is still born";
+}
+
+TEST(SparkplugNode, CommandsTheNodeCannotTakeAreRefusedInWords) {
+    SKIP_WITHOUT_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    NodeFixture node(broker);  // writes off
+    node.device.answer(node.cache, 21.5, 40, "auto");
+    const Payload birth = decoded(watcher.nth(dbirth, 1));
+
+    Payload command;
+    auto* metric = command.add_metrics();
+    metric->set_name("power");
+    metric->set_datatype(6);
+    metric->set_int_value(55);
+    watcher.publish(dcmd, command.SerializeAsString());
+    const Payload refusal = decoded(watcher.nth(ddata, 1));
+    ASSERT_EQ(refusal.metrics_size(), 1);
+    EXPECT_EQ(refusal.metrics(0).alias(), named(birth, "Device Control/Last Error")->alias());
+    EXPECT_THAT(refusal.metrics(0).string_value(), HasSubstr("writes are off"));
+
+    // Bytes that are not protobuf, and a device the node does not have: logged, nothing sent.
+    watcher.publish(dcmd, std::string("\xff\xfe\x01 not protobuf", 16));
+    watcher.publish("spBv1.0/plant/DCMD/edge1/nosuch", command.SerializeAsString());
+    EXPECT_TRUE(node.log.wait_for("not a Sparkplug B payload"));
+    EXPECT_TRUE(node.log.wait_for("no such device of this node"));
+    EXPECT_FALSE(node.log.holds("\xff")) << "a peer's bytes reach the log escaped";
+    EXPECT_EQ(watcher.count(ddata), 1u);
+}
+
+TEST(SparkplugNode, BirthsWaitForThePrimaryHostAndADeathFollowsItsGoingOffline) {
+    SKIP_WITHOUT_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    NodeFixture node(broker, "scada");
+    node.device.answer(node.cache, 21.5, 40, "auto");
+    ASSERT_TRUE(node.log.wait_for("waiting for primary host scada"));
+    EXPECT_EQ(watcher.count(nbirth), 0u);
+    EXPECT_EQ(watcher.count(dbirth), 0u);
+
+    watcher.publish("spBv1.0/STATE/scada", R"({"online": true, "timestamp": 1})", true);
+    EXPECT_EQ(named(decoded(watcher.nth(nbirth, 1)), "bdSeq")->long_value(), 0u);
+    ASSERT_TRUE(watcher.nth(dbirth, 1));
+
+    // Offline: the node's own death, then a new session that waits again.
+    watcher.publish("spBv1.0/STATE/scada", R"({"online": false, "timestamp": 2})", true);
+    EXPECT_EQ(named(decoded(watcher.nth(ndeath, 1)), "bdSeq")->long_value(), 0u);
+    ASSERT_TRUE(node.log.wait_for("bdSeq 1"));
+    EXPECT_EQ(watcher.count(nbirth), 1u);
+    watcher.publish("spBv1.0/STATE/scada", R"({"online": true, "timestamp": 3})", true);
+    EXPECT_EQ(named(decoded(watcher.nth(nbirth, 2)), "bdSeq")->long_value(), 1u);
+}
+
+}  // namespace
+}  // namespace loopwire::gateway

@@ -1,0 +1,231 @@
+#pragma once
+// A real mosquitto broker for the gateway's MQTT tests (the MQTT front, the Sparkplug B node),
+// on a free loopback port, and a libmosquitto client in the test that watches it as any
+// subscriber would and publishes for the test.
+#include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <spawn.h>
+#include <stdlib.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fmt/format.h>
+#include <mosquitto.h>
+
+extern char** environ;
+
+namespace loopwire::testing {
+
+using namespace std::chrono_literals;
+
+inline constexpr const char* broker_program = "/usr/sbin/mosquitto";
+// Generous: CI runs this under ASan and TSan on two loaded cores.
+inline constexpr auto deadline = 30s;
+
+// A port nothing listens on now: bound to port 0 and let go. Another process could take it
+// before the broker does (a small race, accepted for a test; the broker would then fail to
+// start and the test say so).
+inline std::uint16_t free_port() {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    if (fd < 0) throw std::runtime_error("socket");
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t length = sizeof address;
+    if (::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0 ||
+        ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) != 0) {
+        ::close(fd);
+        throw std::runtime_error("bind");
+    }
+    ::close(fd);
+    return ntohs(address.sin_port);
+}
+
+// Readable by all: mosquitto started as root reads its files as the user it drops to.
+inline std::filesystem::path temporary_directory() {
+    std::string pattern = (std::filesystem::temp_directory_path() / "loopwire-mqtt-XXXXXX").string();
+    if (!::mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp");
+    std::filesystem::permissions(pattern, std::filesystem::perms::owner_all | std::filesystem::perms::group_read | std::filesystem::perms::group_exec | std::filesystem::perms::others_read |
+                                 std::filesystem::perms::others_exec);
+    return pattern;
+}
+
+// A mosquitto broker on 127.0.0.1:port, nothing kept on disk: anonymous, or with the listener
+// settings `settings` (TLS files, a password file) written into its configuration.
+class Broker {
+public:
+    explicit Broker(std::uint16_t port, const std::string& settings = "allow_anonymous true\n")
+        : port_(port), directory_(temporary_directory()) {
+        std::ofstream(directory_ / "mosquitto.conf") << fmt::format(
+            "per_listener_settings true\npersistence false\nlistener {} 127.0.0.1\n{}", port, settings);
+        start();
+    }
+    ~Broker() {
+        stop();
+        std::error_code ignored;
+        std::filesystem::remove_all(directory_, ignored);
+    }
+    Broker(const Broker&) = delete;
+    Broker& operator=(const Broker&) = delete;
+
+    void start() {
+        const std::string config = (directory_ / "mosquitto.conf").string();
+        const std::string log = (directory_ / "broker.log").string();
+        posix_spawn_file_actions_t actions;
+        posix_spawn_file_actions_init(&actions);
+        posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+        posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+        std::vector<std::string> words{broker_program, "-c", config};
+        std::vector<char*> argv;
+        for (auto& word : words) argv.push_back(word.data());
+        argv.push_back(nullptr);
+        const int rc = posix_spawn(&pid_, broker_program, &actions, nullptr, argv.data(), environ);
+        posix_spawn_file_actions_destroy(&actions);
+        if (rc != 0) throw std::runtime_error("cannot start mosquitto");
+    }
+    void stop() {
+        if (pid_ <= 0) return;
+        ::kill(pid_, SIGKILL);  // as a crash: no goodbye to the clients
+        ::waitpid(pid_, nullptr, 0);
+        pid_ = -1;
+    }
+    // SIGHUP: mosquitto reads its password file again.
+    void reload() const { ::kill(pid_, SIGHUP); }
+    std::uint16_t port() const { return port_; }
+    std::string log() const {
+        std::ifstream in(directory_ / "broker.log");
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    }
+
+private:
+    std::uint16_t port_;
+    std::filesystem::path directory_;
+    pid_t pid_ = -1;
+};
+
+struct Message {
+    std::string payload;
+    bool retained = false;
+};
+
+// A subscriber to PREFIX/# that keeps every message, and publishes for the test.
+struct WatcherOptions {
+    std::string topics = "#";
+    std::string ca_file;  // set: TLS
+    std::string username;
+    std::string password;
+};
+
+class Watcher {
+public:
+    explicit Watcher(std::uint16_t port, const WatcherOptions& options = {}) {
+        mosquitto_lib_init();
+        client_ = mosquitto_new(nullptr, true, this);
+        if (!options.ca_file.empty() &&
+            mosquitto_tls_set(client_, options.ca_file.c_str(), nullptr, nullptr, nullptr, nullptr) != MOSQ_ERR_SUCCESS) {
+            throw std::runtime_error("cannot set TLS");
+        }
+        if (!options.username.empty()) mosquitto_username_pw_set(client_, options.username.c_str(), options.password.c_str());
+        mosquitto_subscribe_callback_set(client_, [](mosquitto*, void* self, int, int, const int*) {
+            auto& watcher = *static_cast<Watcher*>(self);
+            std::lock_guard lock(watcher.mutex_);
+            watcher.subscribed_ = true;
+            watcher.arrived_.notify_all();
+        });
+        mosquitto_message_callback_set(client_, [](mosquitto*, void* self, const mosquitto_message* message) {
+            auto& watcher = *static_cast<Watcher*>(self);
+            std::lock_guard lock(watcher.mutex_);
+            watcher.messages_[message->topic].push_back(
+                {std::string(static_cast<const char*>(message->payload), static_cast<std::size_t>(message->payloadlen)),
+                 message->retain});
+            watcher.arrived_.notify_all();
+        });
+        // The broker may still be starting: try until the deadline.
+        const auto give_up = std::chrono::steady_clock::now() + deadline;
+        while (mosquitto_connect(client_, "127.0.0.1", port, 30) != MOSQ_ERR_SUCCESS) {
+            if (std::chrono::steady_clock::now() > give_up) throw std::runtime_error("the broker did not start");
+            std::this_thread::sleep_for(50ms);
+        }
+        // Before the loop's thread starts, and not from a callback: libmosquitto calls those
+        // holding a lock that a subscribe or publish there would take out of order.
+        if (mosquitto_subscribe(client_, nullptr, options.topics.c_str(), 1) != MOSQ_ERR_SUCCESS) {
+            throw std::runtime_error("cannot subscribe");
+        }
+        mosquitto_loop_start(client_);
+        std::unique_lock lock(mutex_);
+        if (!arrived_.wait_for(lock, deadline, [this] { return subscribed_; })) throw std::runtime_error("no SUBACK");
+    }
+    ~Watcher() {
+        mosquitto_disconnect(client_);
+        mosquitto_loop_stop(client_, false);
+        mosquitto_destroy(client_);
+    }
+    Watcher(const Watcher&) = delete;
+    Watcher& operator=(const Watcher&) = delete;
+
+    void publish(const std::string& topic, const std::string& payload, bool retain = false) {
+        ASSERT_EQ(mosquitto_publish(client_, nullptr, topic.c_str(), static_cast<int>(payload.size()), payload.data(), 1, retain),
+                  MOSQ_ERR_SUCCESS);
+    }
+
+    // The last payload of `topic` once `accept` takes it; nullopt at the deadline.
+    std::optional<std::string> wait_for(const std::string& topic, const std::function<bool(const std::string&)>& accept) {
+        std::unique_lock lock(mutex_);
+        std::optional<std::string> found;
+        arrived_.wait_for(lock, deadline, [&] {
+            const auto it = messages_.find(topic);
+            if (it == messages_.end() || it->second.empty() || !accept(it->second.back().payload)) return false;
+            found = it->second.back().payload;
+            return true;
+        });
+        return found;
+    }
+    std::optional<std::string> wait_for(const std::string& topic, const std::string& payload) {
+        return wait_for(topic, [&](const std::string& last) { return last == payload; });
+    }
+    // The `count`th message of `topic` (from 1), waiting for it.
+    std::optional<std::string> nth(const std::string& topic, std::size_t count) {
+        std::unique_lock lock(mutex_);
+        if (!arrived_.wait_for(lock, deadline, [&] { return messages_[topic].size() >= count; })) return std::nullopt;
+        return messages_[topic][count - 1].payload;
+    }
+    std::size_t count(const std::string& topic) {
+        std::lock_guard lock(mutex_);
+        return messages_[topic].size();
+    }
+    // Every topic seen that starts with `head`.
+    std::vector<std::string> topics(const std::string& head) {
+        std::lock_guard lock(mutex_);
+        std::vector<std::string> found;
+        for (const auto& [topic, list] : messages_) {
+            if (topic.rfind(head, 0) == 0 && !list.empty()) found.push_back(topic);
+        }
+        return found;
+    }
+
+private:
+    mosquitto* client_ = nullptr;
+    std::mutex mutex_;
+    std::condition_variable arrived_;
+    bool subscribed_ = false;
+    std::map<std::string, std::vector<Message>> messages_;
+};
+
+}  // namespace loopwire::testing
