@@ -32,6 +32,7 @@
 #include "gateway/mqtt_documents.hpp"
 #include "support/held_replies.hpp"
 #include "support/mosquitto_broker.hpp"
+#include "sparkplug/sparkplug_b.pb.h"
 #include "support/profile_test_support.hpp"
 
 extern char** environ;
@@ -879,6 +880,36 @@ TEST(MqttBridge, ASetRedeliveredAfterAReconnectIsWrittenOnce) {
     ASSERT_TRUE(fourth);
     EXPECT_EQ(fourth->first, result) << "a command of a new session was taken for a redelivery";
     EXPECT_EQ(nlohmann::json::parse(fourth->second).at("ok"), true) << fourth->second;
+}
+
+// Both fronts on one broker (issue 22): the Sparkplug node's DCMD writes the set point through
+// the device's line, and the MQTT front publishes what the next poll read.
+TEST(MqttBridge, TheSparkplugNodeAndTheMqttFrontShareTheBrokerAndTheDevice) {
+    REQUIRE_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port(), every_topic());
+    const std::string url = fmt::format("mqtt://127.0.0.1:{}", broker.port());
+    auto gateway = open_gateway(url, false, fmt::format("\n[sparkplug]\nbroker = \"{}\"\ngroup_id = \"plant\"\nwrites = true\n", url));
+    const std::string dbirth = "spBv1.0/plant/DBIRTH/loopwire/oven";
+    const auto birth_bytes = watcher.nth(dbirth, 1);
+    ASSERT_TRUE(birth_bytes) << "no DBIRTH for the oven";
+    loopwire::sparkplug::b::Payload birth;
+    ASSERT_TRUE(birth.ParseFromString(*birth_bytes));
+    std::string set_point;
+    for (const auto& metric : birth.metrics()) {
+        if (metric.name().ends_with("set_point")) set_point = metric.name();
+    }
+    ASSERT_FALSE(set_point.empty()) << "the set point is not a metric of the oven's birth";
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/measured_value", is_number)) << "the MQTT front publishes beside the node";
+
+    loopwire::sparkplug::b::Payload command;
+    auto* metric = command.add_metrics();
+    metric->set_name(set_point);
+    metric->set_datatype(10);
+    metric->set_double_value(135);
+    watcher.publish("spBv1.0/plant/DCMD/loopwire/oven", command.SerializeAsString());
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/set_point", [](const std::string& text) { return equals_number(text, 135); }))
+        << "the DCMD's write did not reach the device";
 }
 
 }  // namespace
