@@ -305,6 +305,13 @@ std::vector<CachedDevice> ValueCache::snapshot() const {
     return devices;
 }
 
+std::vector<ValueChange> ValueCache::told(const std::string& name) const {
+    std::lock_guard lock(hub_->mutex);
+    const auto it = std::find_if(hub_->devices.begin(), hub_->devices.end(),
+                                 [&](const DeviceEntry& entry) { return entry.latest.name == name; });
+    return it == hub_->devices.end() ? std::vector<ValueChange>{} : it->published;
+}
+
 ValueSubscription ValueCache::subscribe(ValueCallback callback) {
     auto subscriber = std::make_shared<ValueSubscriber>(std::move(callback));
     // Held from before it is listed until the picture is told: a change found meanwhile is

@@ -120,6 +120,13 @@ public:
 
     std::vector<CachedDevice> snapshot() const;  // in the order devices were first seen
 
+    // What the subscribers were last told of device `name`: its status, then each parameter, as
+    // one whole sample (an update is told whole before the next one starts, so this is never
+    // half of one); empty before its first sample. A subscriber that must act on a device's
+    // whole picture (a Sparkplug birth) reads it here rather than piecing it together from its
+    // callbacks, which may be in the middle of one update's changes.
+    std::vector<ValueChange> told(const std::string& name) const;
+
     // Calls `callback` with the state of every device polled so far (its status, then each
     // parameter), on this thread before returning, then with every change after it: a
     // subscriber that starts empty holds the full picture whenever it joins.

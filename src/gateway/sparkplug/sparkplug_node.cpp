@@ -41,11 +41,13 @@ std::uint64_t now_ms() {
 // sent null), "no-reply" and "line-down" are its death.
 bool alive(const std::string& status) { return status == "ok" || status == "partial" || status == "stale"; }
 
-// What the polls said last about a device, noted on the poll threads.
-struct DeviceMirror {
+// What the polls said last about a device: its status and each parameter's latest change, read
+// whole from the cache (ValueCache::told), never pieced together from callbacks that may be in
+// the middle of one sample's changes (a device coming back would be born with the outage's
+// nulls).
+struct DevicePicture {
     std::string status;
     std::map<std::string, ValueChange> latest;  // by parameter name
-    bool dirty = false;
 };
 
 // A device as the network thread knows it.
@@ -84,8 +86,9 @@ struct SparkplugNode::State {
     std::atomic<bool> is_connected{false};
     mqtt::Wakeup wakeup;
 
-    std::mutex mutex;  // guards the mirrors, the outcomes and the pending count
-    std::vector<DeviceMirror> mirrors;
+    const ValueCache* cache = nullptr;
+    std::mutex mutex;  // guards the dirty flags, the outcomes and the pending count
+    std::vector<char> dirty;  // by device: the polls told of a change since the network thread looked
     std::map<std::string, std::size_t> index;  // device name to its position
     std::vector<WriteOutcome> outcomes;
     std::size_t pending_writes = 0;
@@ -140,13 +143,19 @@ struct SparkplugNode::State {
         std::lock_guard lock(mutex);
         const auto found = index.find(change.device);
         if (found == index.end()) return;
-        DeviceMirror& mirror = mirrors[found->second];
-        if (change.about_device()) {
-            mirror.status = change.status;
-        } else {
-            mirror.latest.insert_or_assign(change.parameter, change);
+        if (!std::exchange(dirty[found->second], 1)) wakeup.notify();
+    }
+
+    DevicePicture picture_of(const std::string& device) const {
+        DevicePicture picture;
+        for (auto& change : cache->told(device)) {
+            if (change.about_device()) {
+                picture.status = change.status;
+            } else {
+                picture.latest.insert_or_assign(change.parameter, std::move(change));
+            }
         }
-        if (!std::exchange(mirror.dirty, true)) wakeup.notify();
+        return picture;
     }
 
     // --- births, data and deaths (the network thread) -------------------------------------------
@@ -203,27 +212,30 @@ struct SparkplugNode::State {
     }
 
     // Each metric's sample and properties from what the polls said; none until every polled
-    // parameter was heard of (the first sample's values arrive one by one).
-    struct DevicePicture {
+    // parameter was told.
+    struct DeviceMetrics {
         std::vector<MetricSample> samples;
         std::vector<MetricProperties> properties;
     };
-    std::optional<DevicePicture> picture_of(const NodeDevice& device, const DeviceMirror& mirror) const {
-        if (mirror.latest.size() < device.parameter_count) return std::nullopt;
-        DevicePicture picture;
+    std::optional<DeviceMetrics> metrics_of(const NodeDevice& device, const DevicePicture& seen) const {
+        if (seen.latest.size() < device.parameter_count) return std::nullopt;
+        DeviceMetrics picture;
         picture.samples.push_back({device.last_error, quality_good, now_ms()});
         picture.properties.emplace_back();
         for (std::size_t i = 1; i < device.metrics.size(); ++i) {
             const MetricDefinition& metric = device.metrics[i];
-            const auto found = mirror.latest.find(metric.parameter->name);
-            if (found == mirror.latest.end()) return std::nullopt;
+            const auto found = seen.latest.find(metric.parameter->name);
+            if (found == seen.latest.end()) return std::nullopt;
             picture.samples.push_back(sample_of(metric, found->second));
-            picture.properties.push_back(properties_of(metric, &found->second));
+            // A value that is missing says nothing of its unit and decimals: they stay what the
+            // birth said (else every stale spell would be a rebirth).
+            const bool known = !std::holds_alternative<std::monostate>(picture.samples.back().value);
+            picture.properties.push_back(known || !device.born ? properties_of(metric, &found->second) : device.born_with[i]);
         }
         return picture;
     }
 
-    void birth_device(NodeDevice& device, const DevicePicture& picture) {
+    void birth_device(NodeDevice& device, const DeviceMetrics& picture) {
         PayloadWriter birth(now_ms(), take_seq());
         for (std::size_t i = 0; i < device.metrics.size(); ++i) {
             birth.birth_metric(device.metrics[i], picture.samples[i], &picture.properties[i]);
@@ -241,7 +253,7 @@ struct SparkplugNode::State {
         device.born = false;
     }
 
-    void data_device(NodeDevice& device, DevicePicture& picture) {
+    void data_device(NodeDevice& device, DeviceMetrics& picture) {
         if (device.last_error_due) {
             // Each refusal is told, even one worded as the last.
             picture.samples[0] = {device.last_error, quality_good, now_ms()};
@@ -267,22 +279,23 @@ struct SparkplugNode::State {
     // them when `everything`, after the node's birth).
     void publish_devices(bool everything) {
         if (!node_born) return;
-        std::vector<std::pair<std::size_t, DeviceMirror>> seen;
+        std::vector<std::size_t> looked_at;
         {
             std::lock_guard lock(mutex);
-            for (std::size_t i = 0; i < mirrors.size(); ++i) {
-                if (!everything && !mirrors[i].dirty && !devices[i].last_error_due) continue;
-                mirrors[i].dirty = false;
-                seen.emplace_back(i, mirrors[i]);
+            for (std::size_t i = 0; i < devices.size(); ++i) {
+                if (!everything && !dirty[i] && !devices[i].last_error_due) continue;
+                dirty[i] = 0;
+                looked_at.push_back(i);
             }
         }
-        for (auto& [i, mirror] : seen) {
+        for (const std::size_t i : looked_at) {
             NodeDevice& device = devices[i];
-            if (!alive(mirror.status)) {
+            const DevicePicture seen = picture_of(device.name);
+            if (!alive(seen.status)) {
                 if (device.born) death_device(device);
                 continue;
             }
-            auto picture = picture_of(device, mirror);
+            auto picture = metrics_of(device, seen);
             if (!picture) continue;
             // A unit or decimals the device's configuration changed (°C to °F) is a property of
             // the birth: the device is born again with it.
@@ -403,8 +416,6 @@ struct SparkplugNode::State {
             birth_node();
         } else if (node_born) {
             say(fmt::format("primary host {} went offline: NDEATH, disconnecting until it is back", config.primary_host));
-            publish(node_topic("NDEATH"), node_death(), qos_at_least_once);
-            node_born = false;
             reconnect_now = true;
         }
     }
@@ -524,8 +535,7 @@ struct SparkplugNode::State {
             publish_devices(false);
             node_data_when_due();
             if (std::exchange(reconnect_now, false)) {
-                settle(std::chrono::seconds(2));
-                (void)mosquitto_disconnect(client);
+                leave();
                 lost("the primary host is offline");
                 have_socket = false;
                 continue;
@@ -540,28 +550,29 @@ struct SparkplugNode::State {
         if (have_socket && is_connected.load()) say_goodbye();
     }
 
-    // Turns the loop until what was published went out (the QoS 1 NDEATH acknowledged), or `limit`.
-    void settle(std::chrono::milliseconds limit) {
-        const auto give_up = std::chrono::steady_clock::now() + limit;
-        while (std::chrono::steady_clock::now() < give_up && mosquitto_want_write(client) &&
-               mosquitto_loop(client, goodbye_turn_ms, 1) == MOSQ_ERR_SUCCESS) {
-        }
-        if (unacknowledged_goodbye < 0) return;
+    // The node's own death (Sparkplug 3.0: NDEATH before a clean disconnect, which does not
+    // fire the will): published at QoS 1 and acknowledged, then DISCONNECT written out, so that
+    // a connection made next (a primary host's return) is not a takeover of this one, on which
+    // the broker would also publish the will and libmosquitto send the NDEATH again.
+    void leave() {
+        int mid = -1;
+        publish(node_topic("NDEATH"), node_death(), qos_at_least_once, &mid);
+        unacknowledged_goodbye = mid;
+        const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(2);
         while (unacknowledged_goodbye >= 0 && std::chrono::steady_clock::now() < give_up &&
                mosquitto_loop(client, goodbye_turn_ms, 1) == MOSQ_ERR_SUCCESS) {
         }
+        unacknowledged_goodbye = -1;
+        (void)mosquitto_disconnect(client);
+        // Until the socket is closed (the loop then says so), at most half a second.
+        const auto closed_by = std::chrono::steady_clock::now() + std::chrono::milliseconds(500);
+        while (std::chrono::steady_clock::now() < closed_by && mosquitto_loop(client, goodbye_turn_ms, 1) == MOSQ_ERR_SUCCESS) {
+        }
+        node_born = false;
     }
 
-    // A clean disconnect does not fire the will: the node says its death itself (6.4.18).
     void say_goodbye() {
-        int mid = 0;
-        publish(node_topic("NDEATH"), node_death(), qos_at_least_once, &mid);
-        unacknowledged_goodbye = mid;
-        settle(std::chrono::seconds(2));
-        (void)mosquitto_disconnect(client);
-        const auto give_up = std::chrono::steady_clock::now() + std::chrono::milliseconds(500);
-        while (std::chrono::steady_clock::now() < give_up && mosquitto_loop(client, goodbye_turn_ms, 1) == MOSQ_ERR_SUCCESS) {
-        }
+        leave();
         is_connected.store(false);
     }
 };
@@ -599,7 +610,8 @@ SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice
         s.index[device.name] = s.devices.size();
         s.devices.push_back(std::move(node_device));
     }
-    s.mirrors.resize(s.devices.size());
+    s.dirty.resize(s.devices.size(), 0);
+    s.cache = &cache;
     // A clean session (Sparkplug 3.0: edge nodes connect with Clean Session set): commands sent
     // while the node was away are not for it, its births make the host application's picture.
     s.client = mosquitto_new(s.config.client_id.c_str(), true, &s);
