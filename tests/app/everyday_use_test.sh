@@ -120,15 +120,18 @@ assert re.search(r"\x1b\[\d+F\x1b\[J\r\d\d:\d\d:\d\d\.\d{6} (TX|RX) [^\n]*\n\rlo
 ' "$loopwire" "$tcp"
 
 # ---- scan: each unit as found, Ctrl-C keeps them, a line that ignores its settings --------
-timeout 30 "$loopwire" scan --link "rtu:$WORK_DIR/ttyS" --units 1-5 --bauds 9600,19200 --parities none,even \
-  --timeout 50ms >scan.out 2>scan.err || count_failure "scan sweep" scan.err
+# 300 ms for a reply: the simulator on the other end of the pseudo-terminal shares a loaded
+# CI machine (ASan, two test jobs on two cores), and a reply missed would drop a setting from the
+# list below. The silent units cost 16 x 300 ms.
+timeout 60 "$loopwire" scan --link "rtu:$WORK_DIR/ttyS" --units 1-5 --bauds 9600,19200 --parities none,even \
+  --timeout 300ms >scan.out 2>scan.err || count_failure "scan sweep" scan.err
 check scan-warns-line-ignores-settings 0 "the line probably ignores line settings" cat scan.err
 # One simulated unit at four settings is one unit, listed once with every setting that found it.
 check scan-counts-each-unit-once 0 "1 unit(s) answered" cat scan.out
 check scan-lists-the-settings-of-a-unit 0 "answered at 9600 8N1, 9600 8E1, 19200 8N1, 19200 8E1" cat scan.out
 if (($(grep "^unit   3  tc10 " scan.out | grep -vc " also at ") == 1 && $(grep -c " also at " scan.out) == 3)); then count_pass
 else count_failure scan-prints-the-unit-once-then-where-else scan.out; fi
-"$loopwire" scan --link "rtu:$WORK_DIR/ttyS" --units 1-247 --timeout 100ms >scan2.out 2>scan2.err &
+"$loopwire" scan --link "rtu:$WORK_DIR/ttyS" --units 1-247 --timeout 300ms >scan2.out 2>scan2.err &
 scan_pid=$!
 unit_printed() { grep -q "^unit   3  tc10" scan2.out; }
 wait_for 15 "scan to print unit 3 while still scanning" unit_printed
