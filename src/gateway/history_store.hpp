@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "common/result.hpp"
+#include "gateway/history_forwarder.hpp"
 #include "gateway/history_source.hpp"
 #include "gateway/sqlite_database.hpp"
 #include "gateway/value_cache.hpp"
@@ -53,6 +54,9 @@ struct HistoryOptions {
     std::function<void(const std::string&)> log;
     // Changes held for the writer at most; beyond, new ones are counted as dropped and logged.
     std::size_t max_queued = 1'000'000;
+    // [history] forward_to: each inserted sample is also noted in the file's outbox, in the same
+    // transaction, and a forwarder ships the outbox to PostgreSQL (gateway/history_forwarder.hpp).
+    std::optional<ForwardOptions> forward;
 };
 
 // A parameter the gateway polls: declared when the store opens, so that asking for its history
@@ -86,6 +90,8 @@ public:
     Result<std::vector<HistorySeries>> query(const HistoryQuery& query) const override;
     std::uint64_t rows_written() const override;
     std::uint64_t dropped() const;  // changes refused because the queue was full
+    std::optional<ForwardStats> forward_stats() const override;
+    HistoryForwarder* forwarder() { return forwarder_.get(); }  // null unless forwarding
 
     const std::filesystem::path& database() const { return options_.database; }
 
@@ -126,6 +132,7 @@ private:
     std::map<std::pair<std::string, std::string>, QueuedRow> last_;
     std::uint64_t dropped_ = 0;               // queue lock
     std::uint64_t rows_written_ = 0;          // queue lock
+    std::unique_ptr<HistoryForwarder> forwarder_;
     std::jthread thread_;  // last: stops and joins before the rest goes
 };
 
