@@ -151,7 +151,8 @@ constexpr std::array keys{
               "The SQLite file (WAL mode), created when absent; relative to the configuration file's folder.",
               "\"plant.db\""},
     ConfigKey{"history", "keep", "period", "\"90d\"", "at least 1m",
-              "Rows older than this are deleted as the gateway runs.", "\"90d\""},
+              "Rows older than this are deleted as the gateway runs (with forward_to: also rows not yet forwarded, counted in "
+              "the log), and so are the historian's day partitions.", "\"90d\""},
     ConfigKey{"history", "heartbeat", "duration", "\"60s\"", "at least 1s",
               "Every current value is written again at least this often, so a value that holds still is a line, not a gap.",
               "\"60s\""},

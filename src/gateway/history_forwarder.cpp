@@ -128,6 +128,10 @@ Result<void> HistoryForwarder::connect() {
     auto db = postgres::Connection::connect(options_.conninfo, options_.password, options_.connect_timeout_seconds);
     if (!db) return db.error();
     if (auto migrated = postgres_history::migrate(*db); !migrated) return migrated.error();
+    // Once per forwarder, so the log says where the history goes; an outage's end is the
+    // thread's to log, not every reconnect's.
+    if (!connected_once_) log(fmt::format("forwarding to {}", db->server()));
+    connected_once_ = true;
     remote_ = std::move(*db);
     return {};
 }

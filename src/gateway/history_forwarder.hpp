@@ -93,6 +93,7 @@ private:
     std::optional<postgres::Connection> remote_;
     std::map<std::int64_t, std::int64_t> remote_ids_;  // local series id -> historian's id
     std::set<std::int64_t> partitions_;                // days known to have a partition
+    bool connected_once_ = false;
     std::atomic<std::uint64_t> waiting_{0};
     std::atomic<std::uint64_t> forwarded_{0};
     std::atomic<std::int64_t> oldest_ms_{0};  // 0: none waiting
