@@ -866,6 +866,26 @@ TEST_F(HttpHistoryTest, MetricsCountTheHistoryRows) {
     EXPECT_THAT(reply.body, HasSubstr("loopwire_history_rows_written_total 1234\n"));
 }
 
+// A history forwarded to PostgreSQL: its outbox and the forwarder's counts, as the store says.
+class ForwardingHistory final : public HistorySource {
+public:
+    Result<std::vector<HistorySeries>> query(const HistoryQuery&) const override { return std::vector<HistorySeries>{}; }
+    std::uint64_t rows_written() const override { return 10; }
+    std::optional<ForwardStats> forward_stats() const override { return ForwardStats{42, 7000, 12.5, 3}; }
+};
+
+TEST(Metrics, AForwardedHistoryShowsWhatWaitsAndWhatWent) {
+    const ForwardingHistory forwarding;
+    const std::string text = prometheus_text({}, {}, {}, &forwarding);
+    EXPECT_THAT(text, HasSubstr("# TYPE loopwire_history_forward_waiting_rows gauge\nloopwire_history_forward_waiting_rows 42\n"));
+    EXPECT_THAT(text, HasSubstr("# TYPE loopwire_history_forwarded_rows_total counter\nloopwire_history_forwarded_rows_total 7000\n"));
+    EXPECT_THAT(text, HasSubstr("loopwire_history_forward_oldest_waiting_seconds 12.5\n"));
+    EXPECT_THAT(text, HasSubstr("# TYPE loopwire_history_forward_errors_total counter\nloopwire_history_forward_errors_total 3\n"));
+    // A history kept only locally has none of them.
+    const RecordingHistory local;
+    EXPECT_THAT(prometheus_text({}, {}, {}, &local), Not(HasSubstr("history_forward")));
+}
+
 // --- limits, on a server whose values the test feeds itself --------------------------------------
 
 class HttpLimitsTest : public ::testing::Test {
