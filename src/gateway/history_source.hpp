@@ -14,6 +14,9 @@ namespace loopwire::gateway {
 
 struct HistoryQuery {
     std::string device;                   // the configured device name
+    // Another gateway forwarding to the same PostgreSQL historian ([history] forward_to);
+    // empty, or this gateway's own name: this gateway's own history, from its file.
+    std::string gateway;
     std::vector<std::string> parameters;  // profile names; empty: every parameter recorded
     std::chrono::system_clock::time_point from;
     std::chrono::system_clock::time_point to;

@@ -6,6 +6,7 @@
 
 #include "gateway/history_query.hpp"
 #include "gateway/history_schema.hpp"
+#include "gateway/postgres_history_query.hpp"
 
 namespace loopwire::gateway {
 namespace {
@@ -55,6 +56,7 @@ struct HistoryStore::Writer {
 struct HistoryStore::Reader {
     std::mutex mutex;
     std::optional<sqlite::Connection> db;
+    std::optional<postgres::Connection> historian;  // other gateways' history, when forwarding
 };
 
 HistoryStore::HistoryStore(HistoryOptions options) : options_(std::move(options)) {}
@@ -413,8 +415,28 @@ Result<void> HistoryStore::enforce_retention() {
 }
 
 Result<std::vector<HistorySeries>> HistoryStore::query(const HistoryQuery& query) const {
+    if (!query.gateway.empty() && (!options_.forward || query.gateway != options_.forward->gateway)) return historian_query(query);
     std::lock_guard lock(reader_->mutex);
     return history::run_query(*reader_->db, query);
+}
+
+// Another gateway's history: in the shared historian, on a connection of the reader's own,
+// opened when first needed and again after it broke.
+Result<std::vector<HistorySeries>> HistoryStore::historian_query(const HistoryQuery& query) const {
+    if (!options_.forward) {
+        return make_error(ErrorKind::usage, fmt::format("gateway=\"{}\": only this gateway's history is kept here; another's "
+                                                        "needs [history] forward_to, the historian they share", query.gateway));
+    }
+    std::lock_guard lock(reader_->mutex);
+    if (!reader_->historian || reader_->historian->broken()) {
+        reader_->historian.reset();
+        // A short bound: the asker (an HTTP request) waits for it, unlike the forwarder.
+        auto db = postgres::Connection::connect(options_.forward->conninfo, options_.forward->password,
+                                                std::min(options_.forward->connect_timeout_seconds, 3));
+        if (!db) return db.error();
+        reader_->historian = std::move(*db);
+    }
+    return postgres_history::run_query(*reader_->historian, query.gateway, query);
 }
 
 }  // namespace loopwire::gateway

@@ -91,6 +91,7 @@ public:
     // Deletes rows older than `keep` until none are left, in the same small batches.
     Result<void> enforce_retention();
 
+    // This gateway's history from the file; another's (query.gateway) from the historian.
     Result<std::vector<HistorySeries>> query(const HistoryQuery& query) const override;
     std::uint64_t rows_written() const override;
     std::uint64_t dropped() const;  // changes refused because the queue was full
@@ -124,6 +125,7 @@ private:
     Result<std::int64_t> expire(sqlite::Statement& statement, std::int64_t series, std::int64_t before);
     Result<bool> retention_step(bool force);  // false: nothing was due
     void log(const std::string& message) const;
+    Result<std::vector<HistorySeries>> historian_query(const HistoryQuery& query) const;
 
     HistoryOptions options_;
     std::unique_ptr<Writer> writer_;        // the writer's connection and state; its lock held

@@ -383,6 +383,54 @@ TEST_F(HistoryForward, DayPartitionsAreMadeAheadAndDroppedAfterKeep) {
     EXPECT_EQ(scalar(db, "SELECT count(*) FROM loopwire_samples"), 1);
 }
 
+// /api/history?gateway=NAME: another gateway's history from the historian, cut into the same
+// buckets and gaps as the local file's; the own gateway's from the file.
+TEST_F(HistoryForward, AnotherGatewaysHistoryIsAskedFromTheHistorian) {
+    auto north = HistoryStore::open(forwarding(folder.path / "north.db", wall, server->url(), "north"));
+    auto south = HistoryStore::open(forwarding(folder.path / "south.db", wall, server->url(), "south"));
+    ASSERT_TRUE(north && south);
+    for (int i = 0; i < 120; ++i) (*south)->record(number("oven1", "measured_value", i, t0 + std::chrono::seconds(i)));
+    ValueChange silent = number("oven1", "measured_value", 0, t0 + 120s);
+    silent.value.reset();
+    silent.status = "no-reply";
+    (*south)->record(silent);
+    (*south)->record(number("oven1", "measured_value", 7, t0 + 150s));
+    ASSERT_TRUE((*south)->write_pending());
+    ASSERT_TRUE((*south)->forwarder()->forward_pending());
+    HistoryQuery query;
+    query.device = "oven1";
+    query.parameters = {"measured_value"};
+    query.from = t0;
+    query.to = t0 + 179999ms;
+    query.points = 3;  // one bucket a minute
+    const auto local = (*south)->query(query);
+    query.gateway = "south";
+    const auto remote = (*north)->query(query);
+    ASSERT_TRUE(local && remote) << (remote ? local.error().message : remote.error().message);
+    ASSERT_EQ(remote->size(), 1u);
+    const HistorySeries& series = remote->front();
+    ASSERT_EQ(series.buckets.size(), 3u);
+    EXPECT_EQ(series.buckets[0].min, 0);
+    EXPECT_EQ(series.buckets[0].max, 59);
+    EXPECT_EQ(series.buckets[0].count, 60u);
+    EXPECT_EQ(series.buckets[2].count, 1u);
+    ASSERT_EQ(series.gaps.size(), 1u);
+    EXPECT_EQ(series.gaps[0].start, t0 + 120s);
+    EXPECT_EQ(series.gaps[0].end, std::optional(t0 + 150s));
+    // The same answer as the gateway's own file gives.
+    const HistorySeries& mine = local->front();
+    ASSERT_EQ(mine.buckets.size(), series.buckets.size());
+    for (std::size_t i = 0; i < mine.buckets.size(); ++i) {
+        EXPECT_EQ(mine.buckets[i].start, series.buckets[i].start);
+        EXPECT_EQ(mine.buckets[i].count, series.buckets[i].count);
+        EXPECT_DOUBLE_EQ(mine.buckets[i].mean, series.buckets[i].mean);
+    }
+    query.gateway = "west";
+    auto unknown = (*north)->query(query);
+    ASSERT_FALSE(unknown);
+    EXPECT_THAT(unknown.error().message, HasSubstr("the historian has no device \"oven1\" of gateway \"west\""));
+}
+
 #ifdef HISTORY_FORWARD_WORKER
 // A gateway killed with SIGKILL while it forwards (a worker process with a full outbox): after a
 // restart every row is in the historian exactly once, and the minutes count each once.

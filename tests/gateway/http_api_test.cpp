@@ -812,6 +812,17 @@ TEST_F(HttpHistoryTest, TimesMayBeRelativeToNowAndParametersNamedByAlias) {
     EXPECT_LE(asked[1].to, after);
 }
 
+// Another gateway's history: its device is not configured here, so the names go to the store
+// (the historian) as written.
+TEST_F(HttpHistoryTest, AnotherGatewaysDeviceIsAskedOfTheStoreAsNamed) {
+    ASSERT_EQ(get(server_->port(), "/api/history?device=kiln&gateway=south&parameters=PV").status, 200u);
+    const auto asked = history_.asked();
+    ASSERT_EQ(asked.size(), 1u);
+    EXPECT_EQ(asked[0].gateway, "south");
+    EXPECT_EQ(asked[0].device, "kiln");
+    EXPECT_EQ(asked[0].parameters, (std::vector<std::string>{"PV"}));
+}
+
 TEST_F(HttpHistoryTest, BadQueriesAreRefusedSayingWhatIsWrong) {
     const auto port = server_->port();
     const auto error_of = [&](const std::string& query, unsigned status) {
