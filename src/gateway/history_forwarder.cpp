@@ -127,6 +127,9 @@ Result<void> HistoryForwarder::connect() {
     partitions_.clear();
     auto db = postgres::Connection::connect(options_.conninfo, options_.password, options_.connect_timeout_seconds);
     if (!db) return db.error();
+    // A statement stuck behind a lock (another session's DDL on the samples) fails and is
+    // retried rather than holding the forwarder for ever; a batch takes well under a second.
+    if (auto bounded = db->run("SET statement_timeout = '120s'"); !bounded) return bounded.error();
     if (auto migrated = postgres_history::migrate(*db); !migrated) return migrated.error();
     // Once per forwarder, so the log says where the history goes; an outage's end is the
     // thread's to log, not every reconnect's.

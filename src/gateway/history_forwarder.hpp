@@ -13,6 +13,11 @@
 // alone waits, retrying with back-off (retry_first doubling to retry_max), logging one line when
 // an outage starts and one when it ends, not one per retry.
 //
+// Stopping waits for the round under way: a connect is bounded by connect_timeout_seconds and a
+// statement by the session's statement_timeout (120 s), but a server that stops answering in
+// the middle of a statement without closing its socket (a frozen host) holds the stop until the
+// kernel gives up on the connection.
+//
 // Retention: a sample older than `keep` is deleted from the file whether or not it was shipped
 // (the local disk is the bound); when the forwarder meets such an outbox row it drops it and
 // logs how many it dropped. The historian's own day partitions are dropped after `keep` too.
