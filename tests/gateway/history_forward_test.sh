@@ -5,7 +5,8 @@
 #   do, and a right password passes and creates the tables;
 # - at run time a wrong password is a logged retry (once), never a stop: polling goes on, and once
 #   the password file is right (SIGHUP) every row recorded meanwhile arrives;
-# - two gateways of different names forward into one database, and both appear in it.
+# - two gateways of different names forward into one database, and both appear in it;
+# - `loopwire history` reads a gateway's history from the historian and from its own file.
 set -u
 loopwire=${1:?usage: history_forward_test.sh path/to/loopwire}
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -77,6 +78,17 @@ start_background south.log timeout 200 "$loopwire" gateway --config "$WORK_DIR/s
 wait_for 120 "south's rows in PostgreSQL" arrived south
 expect_equal "$(pg_sql "SELECT string_agg(DISTINCT gateway, ',' ORDER BY gateway) FROM loopwire_series" plant)" "north,south" \
   "gateways in the historian"
+# `loopwire history` reads any gateway's history from the historian, and a gateway's own file.
+historian="postgresql://postgres@/plant?host=$PG_HOST&port=$PG_PORT"
+check history-cli-historian 0 "parameter,unit,time,min,max,mean,count" \
+  "$loopwire" history --database "$historian" --gateway south --device oven --from -1h --format csv
+check history-cli-historian-rows 0 "measured_value" \
+  "$loopwire" history --database "$historian" --gateway south --device oven --parameters measured_value
+check history-cli-needs-gateway 2 "--gateway NAME is required with a PostgreSQL database" \
+  "$loopwire" history --database "$historian" --device oven
+check history-cli-unknown-gateway 2 'the historian has no device "oven" of gateway "west"' \
+  "$loopwire" history --database "$historian" --gateway west --device oven
+check history-cli-file 0 "measured_value" "$loopwire" history --database "$WORK_DIR/north.db" --device oven --format csv
 # Every row the local file holds reached the historian once, or still waits in its outbox.
 kill -TERM "$north"
 wait "$north" 2>/dev/null
