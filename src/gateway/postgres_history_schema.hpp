@@ -7,7 +7,9 @@
 //   loopwire_samples(series_id, t, value, text, status), key (series_id, t): t in ms since the
 //     epoch as in the SQLite file; partitioned by range of t, one partition a UTC day
 //     (loopwire_samples_YYYYMMDD), created ahead by the forwarder and dropped whole once older
-//     than `keep` (cheaper than deleting rows, and no vacuum debt).
+//     than `keep` (cheaper than deleting rows, and no vacuum debt). Partitions are shared by
+//     every gateway, and each drops those older than its own `keep`: the historian keeps the
+//     shortest `keep` of the gateways that forward to it.
 //   loopwire_minutes(series_id, minute, lo, hi, total, n): the per-minute rollup, as in SQLite,
 //     upserted in the same statement that inserts the samples, from the rows that statement
 //     really inserted: a batch sent twice (a crash after PostgreSQL committed, before the
