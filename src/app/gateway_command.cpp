@@ -196,6 +196,7 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
     if (!config) return report_error(config.error());
     if (auto ready = gateway::check_environment(*config); !ready) return report_error(ready.error());
     if (options.check) {
+        if (auto reached = gateway::check_history_forwarding(*config); !reached) return report_error(reached.error());
         fmt::print("{}", gateway::describe_plan(*config));
         return exit_ok;
     }

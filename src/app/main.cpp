@@ -32,6 +32,7 @@ int main(int argc, char** argv) {
     add_monitor_command(app, exit_code, profiles);
     add_dump_command(app, exit_code, profiles);
     add_gateway_command(app, exit_code, profiles);
+    add_history_command(app, exit_code);
     add_help_command(app, exit_code);
     try {
         // Options may also precede the command's name (`loopwire -v read ...`).

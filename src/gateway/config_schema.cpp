@@ -28,7 +28,7 @@ constexpr std::array tables{
                 "in protobuf on spBv1.0/GROUP/... Beside [mqtt] or instead of it. Absent: no Sparkplug."},
     ConfigTable{"history", "[history]",
                 "Record every change of a polled value, and a heartbeat of each, in an SQLite file the HTTP API "
-                "charts from. Absent: no history."},
+                "charts from, and optionally forward it to a PostgreSQL historian. Absent: no history."},
     ConfigTable{"http", "[http]", "The HTTP API and the live dashboard. Absent: no HTTP."},
 };
 
@@ -151,10 +151,23 @@ constexpr std::array keys{
               "The SQLite file (WAL mode), created when absent; relative to the configuration file's folder.",
               "\"plant.db\""},
     ConfigKey{"history", "keep", "period", "\"90d\"", "at least 1m",
-              "Rows older than this are deleted as the gateway runs.", "\"90d\""},
+              "Rows older than this are deleted as the gateway runs (with forward_to: also rows not yet forwarded, counted in "
+              "the log), and so are the historian's day partitions.", "\"90d\""},
     ConfigKey{"history", "heartbeat", "duration", "\"60s\"", "at least 1s",
               "Every current value is written again at least this often, so a value that holds still is a line, not a gap.",
               "\"60s\""},
+    // `database` stays the local SQLite file whether or not the history is forwarded: it is the
+    // gateway's own history and the buffer rows wait in while PostgreSQL is away; forward_to
+    // names the shared historian (gateway/history_forwarder.hpp).
+    ConfigKey{"history", "forward_to", "string", "none",
+              "a PostgreSQL connection string: postgresql://USER@HOST:PORT/DATABASE, postgresql:///DATABASE?host=SOCKET_DIR, "
+              "or \"host=... dbname=...\"; needs [gateway] name",
+              "Forward the history to this PostgreSQL database, shared by many gateways: rows go to the SQLite file first "
+              "and are shipped in order, exactly once, retried while the server is away. TLS by the string's sslmode.",
+              "\"postgresql://gateway@historian:5432/plant\"", true},
+    ConfigKey{"history", "password_file", "file", "the string's password, else PGPASSFILE's",
+              "a regular file not readable by every user; needs forward_to",
+              "A file whose first line is the PostgreSQL password.", "\"historian.password\"", true},
 
     ConfigKey{"http", "listen", "string", "\"127.0.0.1:8080\"", "HOST:PORT or [IPV6]:PORT; port 0 takes any free one",
               "The address the API and dashboard are served on; off loopback every request needs the token.",

@@ -118,6 +118,16 @@ Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options
     return opened;
 }
 
+// Whether and where the history is forwarded ([history] forward_to).
+std::optional<ForwardOptions> forward_options(const HistoryConfig& history, const GatewayConfig& config) {
+    if (history.forward_to.empty()) return std::nullopt;
+    ForwardOptions forward;
+    forward.conninfo = history.forward_to;
+    if (!history.password.empty()) forward.password = history.password;
+    forward.gateway = config.name;
+    return forward;
+}
+
 // The history database, with every parameter the polls read declared as a series.
 Result<std::unique_ptr<HistoryStore>> open_history(const HistoryConfig& history, const GatewayConfig& config,
                                                    const GatewayLog& log) {
@@ -126,6 +136,7 @@ Result<std::unique_ptr<HistoryStore>> open_history(const HistoryConfig& history,
     options.keep = history.keep;
     options.heartbeat = history.heartbeat;
     options.log = log;
+    options.forward = forward_options(history, config);
     std::vector<HistorySeriesName> declared;
     for (const auto& line : config.lines) {
         for (const auto& device : line.devices) {
@@ -409,6 +420,18 @@ FrontReport Gateway::front_report() const { return parts_->front ? parts_->front
 std::vector<CachedDevice> Gateway::values() const { return parts_->cache.snapshot(); }
 
 ValueSubscription Gateway::subscribe(ValueCallback callback) { return parts_->cache.subscribe(std::move(callback)); }
+
+Result<void> check_history_forwarding(const GatewayConfig& config) {
+    if (!config.history) return {};
+    const auto forward = forward_options(*config.history, config);
+    if (!forward) return {};
+    auto checked = check_forward_target(*forward);
+    if (!checked) {
+        return make_error(checked.error().kind,
+                          fmt::format("{}: history.forward_to: {}", config.history->written_at, checked.error().message));
+    }
+    return {};
+}
 
 const HistorySource* Gateway::history() const { return parts_->history.get(); }
 

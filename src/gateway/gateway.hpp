@@ -114,4 +114,9 @@ std::string describe(const LineReport& report, const LineReport* since = nullptr
 // exit summary.
 std::string describe(const FrontReport& report);
 
+// For `--check`: connects once to the history's forward_to, if any, and checks or creates its
+// tables; the error says what was wrong (a wrong password, a missing database) and what to do.
+// At run time the same failures are a logged retry, never a stop.
+Result<void> check_history_forwarding(const GatewayConfig& config);
+
 }  // namespace loopwire::gateway

@@ -20,6 +20,7 @@
 #include "common/regular_file.hpp"
 #include "common/text_parsing.hpp"
 #include "gateway/config_schema.hpp"
+#include "gateway/postgres_database.hpp"
 #include "profile/request_planner.hpp"
 
 namespace loopwire::transport {
@@ -694,11 +695,12 @@ std::string first_line(const std::string& text) {
 // Password and token files hold one short line; anything this large is the wrong file.
 constexpr std::size_t max_secret_file_size = 64 * 1024;
 
-// [mqtt] (or [sparkplug]) password_file: the password is kept out of the TOML (which people share and paste),
-// in a file only its owner may read.
-Result<std::string> read_password(const Context& ctx, const toml::table& table, const std::string& table_name) {
+// [mqtt] (or [sparkplug], [history]) password_file: the password is kept out of the TOML (which
+// people share and paste), in a file only its owner may read. `whose`: "broker", "PostgreSQL".
+Result<std::string> read_password(const Context& ctx, const toml::table& table, const std::string& table_name,
+                                  std::string_view whose = "broker") {
     const std::string key = key_path(table_name, "password_file");
-    constexpr std::string_view expected = "a file whose first line is the broker password";
+    const std::string expected = fmt::format("a file whose first line is the {} password", whose);
     auto path = readable_file(ctx, table, table_name, "password_file", expected);
     if (!path) return path.error();
     if (path->empty()) return std::string();
@@ -936,6 +938,33 @@ Result<std::chrono::milliseconds> history_heartbeat(const Context& ctx, const to
     return **heartbeat;
 }
 
+// `forward_to` and its `password_file`: the connection string is checked as libpq reads it
+// (without connecting: that is `--check`'s and the forwarder's), the password read now as
+// [mqtt]'s is, so that a reload sees a changed one.
+Result<void> history_forwarding(const Context& ctx, const toml::table& table, HistoryConfig& config) {
+    auto target = optional_value<std::string>(ctx, table, "history", "forward_to",
+                                              "a PostgreSQL connection string such as \"postgresql://gateway@historian/plant\"");
+    if (!target) return target.error();
+    if (*target) {
+        if (!postgres::is_conninfo(**target)) {
+            return ctx.fail(source_of(table, "forward_to"), "history.forward_to",
+                            fmt::format("{} is not a PostgreSQL connection string (expected \"postgresql://USER@HOST:PORT/DATABASE\" "
+                                        "or \"host=... dbname=...\")", quoted_excerpt(**target)));
+        }
+        if (auto valid = postgres::check_conninfo(**target); !valid) {
+            return ctx.fail(source_of(table, "forward_to"), "history.forward_to", valid.error().message);
+        }
+        config.forward_to = **target;
+    }
+    auto password = read_password(ctx, table, "history", "PostgreSQL");
+    if (!password) return password.error();
+    if (!password->empty() && config.forward_to.empty()) {
+        return ctx.fail(source_of(table, "password_file"), "history.password_file", "only used with `forward_to`");
+    }
+    config.password = std::move(*password);
+    return {};
+}
+
 Result<std::optional<HistoryConfig>> parse_history(const Context& ctx, const toml::table& root) {
     const toml::node* node = root.get("history");
     if (!node) return std::optional<HistoryConfig>{};
@@ -965,6 +994,7 @@ Result<std::optional<HistoryConfig>> parse_history(const Context& ctx, const tom
     auto heartbeat = history_heartbeat(ctx, *table);
     if (!heartbeat) return heartbeat.error();
     config.heartbeat = *heartbeat;
+    if (auto forwarding = history_forwarding(ctx, *table, config); !forwarding) return forwarding.error();
     return std::optional<HistoryConfig>{std::move(config)};
 }
 
@@ -1193,6 +1223,11 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto history = parse_history(ctx, *root);
     if (!history) return history.error();
     config.history = std::move(*history);
+    if (config.history && !config.history->forward_to.empty() && config.name.empty()) {
+        // Many gateways share the historian: the name is what keeps their series apart.
+        return ctx.fail(source_of(*root->get("history")->as_table(), "forward_to"), "history.forward_to",
+                        "needs [gateway] name: it is part of every series in the shared historian");
+    }
     auto http = parse_http(ctx, *root);
     if (!http) return http.error();
     config.http = std::move(*http);

@@ -154,13 +154,19 @@ struct HistoryConfig {
     std::filesystem::path database;  // resolved
     std::chrono::seconds keep = std::chrono::hours(24 * 90);
     std::chrono::milliseconds heartbeat{60000};
+    // A PostgreSQL historian the history is forwarded to (gateway/history_forwarder.hpp), as
+    // libpq takes it: "postgresql://user@host:5432/plant", "postgresql:///plant?host=/run/pg" or
+    // "host=/var/run/postgresql dbname=plant"; TLS by its sslmode. Empty: not forwarded. The
+    // SQLite `database` stays the gateway's own history and is the buffer the forwarder ships from.
+    std::string forward_to;
+    std::string password;  // read from `password_file`; empty: the URL's, PGPASSFILE's, or none
     std::string written_at;  // "plant.toml:13", for what check_environment finds
 
     // Where the key was written is not part of what the history does: a reload that only moves
     // it keeps the history open.
     bool operator==(const HistoryConfig& other) const {
         return database_as_written == other.database_as_written && database == other.database && keep == other.keep &&
-               heartbeat == other.heartbeat;
+               heartbeat == other.heartbeat && forward_to == other.forward_to && password == other.password;
     }
 };
 

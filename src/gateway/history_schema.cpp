@@ -40,6 +40,9 @@ static_assert(application_id == 1280788585);
 constexpr std::string_view create_gap_index =
     "CREATE INDEX IF NOT EXISTS samples_without_value ON samples(series_id, t) WHERE value IS NULL";
 
+constexpr std::string_view create_outbox =
+    "CREATE TABLE IF NOT EXISTS outbox(seq INTEGER PRIMARY KEY, series_id INTEGER NOT NULL, t INTEGER NOT NULL)";
+
 Error refuse(const std::filesystem::path& file, const std::string& what) {
     return make_error(ErrorKind::usage, fmt::format("history database {}: {}", file.string(), what));
 }
@@ -118,6 +121,13 @@ Result<sqlite::Connection> open_for_writing(const std::filesystem::path& file) {
     if (auto indexed = db->execute(create_gap_index); !indexed) {
         return refuse(file, fmt::format("cannot be indexed ({}); check the gateway may write to it and its folder",
                                         indexed.error().message));
+    }
+    // The rows waiting to be forwarded to PostgreSQL (gateway/history_forwarder.hpp), in the
+    // order they were committed. Created in every file, as the index above, so a file that
+    // starts being forwarded later needs no other schema; empty unless [history] forward_to.
+    if (auto outbox = db->execute(create_outbox); !outbox) {
+        return refuse(file, fmt::format("cannot be written ({}); check the gateway may write to it and its folder",
+                                        outbox.error().message));
     }
     return db;
 }

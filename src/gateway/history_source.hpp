@@ -14,6 +14,9 @@ namespace loopwire::gateway {
 
 struct HistoryQuery {
     std::string device;                   // the configured device name
+    // Another gateway forwarding to the same PostgreSQL historian ([history] forward_to);
+    // empty, or this gateway's own name: this gateway's own history, from its file.
+    std::string gateway;
     std::vector<std::string> parameters;  // profile names; empty: every parameter recorded
     std::chrono::system_clock::time_point from;
     std::chrono::system_clock::time_point to;
@@ -44,6 +47,14 @@ struct HistorySeries {
     std::vector<HistoryGap> gaps;        // in time order; the gaps that overlap the query's range
 };
 
+// The forwarding to a PostgreSQL historian (gateway/history_forwarder.hpp), for GET /metrics.
+struct ForwardStats {
+    std::uint64_t waiting_rows = 0;     // in the outbox when last looked at
+    std::uint64_t forwarded_total = 0;  // rows PostgreSQL acknowledged since start
+    double oldest_waiting_seconds = 0;  // age of the oldest waiting row; 0 when none wait
+    std::uint64_t errors_total = 0;     // failed attempts (connects, batches)
+};
+
 class HistorySource {
 public:
     virtual ~HistorySource() = default;
@@ -51,6 +62,8 @@ public:
     virtual Result<std::vector<HistorySeries>> query(const HistoryQuery& query) const = 0;
     // Rows committed since the gateway started (GET /metrics).
     virtual std::uint64_t rows_written() const = 0;
+    // None when the history is not forwarded ([history] forward_to absent).
+    virtual std::optional<ForwardStats> forward_stats() const { return std::nullopt; }
 };
 
 }  // namespace loopwire::gateway

@@ -6,6 +6,7 @@
 
 #include "gateway/history_query.hpp"
 #include "gateway/history_schema.hpp"
+#include "gateway/postgres_history_query.hpp"
 
 namespace loopwire::gateway {
 namespace {
@@ -40,6 +41,9 @@ struct HistoryStore::Writer {
     sqlite::Statement add_minute;
     sqlite::Statement expire_samples;
     sqlite::Statement expire_minutes;
+    sqlite::Statement add_outbox;  // prepared only when forwarding
+    std::uint64_t outbox_added = 0;  // in the transaction being written, and the first's stamp
+    std::int64_t outbox_first_t = 0;
     // Looked up with std::tie of the row's strings (std::less<>): no copies per row.
     std::map<std::tuple<std::string, std::string, std::string>, std::int64_t, std::less<>> series_ids;
     // Retention: the series still to sweep in this pass, and when the next pass is due.
@@ -52,6 +56,7 @@ struct HistoryStore::Writer {
 struct HistoryStore::Reader {
     std::mutex mutex;
     std::optional<sqlite::Connection> db;
+    std::optional<postgres::Connection> historian;  // other gateways' history, when forwarding
 };
 
 HistoryStore::HistoryStore(HistoryOptions options) : options_(std::move(options)) {}
@@ -74,6 +79,7 @@ struct Statements {
     const char* expire_minutes =
         "DELETE FROM minutes WHERE series_id = ?1 AND minute < ?2 AND minute <= "
         "coalesce((SELECT minute FROM minutes WHERE series_id = ?1 ORDER BY minute LIMIT 1 OFFSET ?3 - 1), ?2)";
+    const char* add_outbox = "INSERT INTO outbox(series_id, t) VALUES(?1, ?2)";
 };
 
 }  // namespace
@@ -95,6 +101,11 @@ Result<std::unique_ptr<HistoryStore>> HistoryStore::open(HistoryOptions options,
         if (!prepared) return prepared.error();
         *statement = std::move(*prepared);
     }
+    if (store->options_.forward) {
+        auto prepared = writer->db.prepare(sql.add_outbox);
+        if (!prepared) return prepared.error();
+        writer->add_outbox = std::move(*prepared);
+    }
     store->writer_ = std::move(writer);
     store->reader_ = std::make_unique<Reader>();
     auto reader = history::open_for_reading(store->options_.database);
@@ -111,6 +122,12 @@ Result<std::unique_ptr<HistoryStore>> HistoryStore::open(HistoryOptions options,
             }
         }
         if (auto committed = store->writer_->db.execute("COMMIT"); !committed) return committed.error();
+    }
+    if (store->options_.forward) {
+        auto forwarder = HistoryForwarder::start(store->options_.database, *store->options_.forward, store->options_.keep,
+                                                 store->options_.wall_clock, store->options_.log);
+        if (!forwarder) return forwarder.error();
+        store->forwarder_ = std::move(*forwarder);
     }
     if (store->options_.writer_thread) {
         store->thread_ = std::jthread([s = store.get()](std::stop_token stop) { s->run(std::move(stop)); });
@@ -154,6 +171,11 @@ void HistoryStore::record(const ValueChange& change) {
 std::uint64_t HistoryStore::rows_written() const {
     std::lock_guard lock(queue_mutex_);
     return rows_written_;
+}
+
+std::optional<ForwardStats> HistoryStore::forward_stats() const {
+    if (!forwarder_) return std::nullopt;
+    return forwarder_->stats();
 }
 
 std::uint64_t HistoryStore::dropped() const {
@@ -222,6 +244,14 @@ Result<void> HistoryStore::insert_rows(const std::vector<QueuedRow>& rows, std::
         if (!added) return added.error();
         if (w.db.changes() != 1) continue;  // already there: counted once
         ++inserted;
+        if (options_.forward) {
+            w.add_outbox.bind(1, *id);
+            w.add_outbox.bind(2, row.t);
+            auto noted = w.add_outbox.step();
+            w.add_outbox.reset();
+            if (!noted) return noted.error();
+            if (w.outbox_added++ == 0) w.outbox_first_t = row.t;
+        }
         if (!row.value) continue;
         MinuteAggregate& minute = minutes[{*id, floor_div(row.t, minute_ms)}];
         const double v = *row.value;
@@ -249,6 +279,7 @@ Result<std::uint64_t> HistoryStore::commit(const std::vector<QueuedRow>& rows) {
     if (rows.empty()) return std::uint64_t{0};
     if (auto begun = w.db.execute("BEGIN IMMEDIATE"); !begun) return begun.error();
     std::uint64_t inserted = 0;
+    w.outbox_added = 0;
     auto written = insert_rows(rows, inserted);
     if (written) written = w.db.execute("COMMIT");
     if (!written) {
@@ -256,6 +287,7 @@ Result<std::uint64_t> HistoryStore::commit(const std::vector<QueuedRow>& rows) {
         w.series_ids.clear();  // ids of series added in the rolled-back transaction are gone
         return written.error();
     }
+    if (forwarder_) forwarder_->queued(w.outbox_added, w.outbox_first_t);
     return inserted;
 }
 
@@ -383,8 +415,28 @@ Result<void> HistoryStore::enforce_retention() {
 }
 
 Result<std::vector<HistorySeries>> HistoryStore::query(const HistoryQuery& query) const {
+    if (!query.gateway.empty() && (!options_.forward || query.gateway != options_.forward->gateway)) return historian_query(query);
     std::lock_guard lock(reader_->mutex);
     return history::run_query(*reader_->db, query);
+}
+
+// Another gateway's history: in the shared historian, on a connection of the reader's own,
+// opened when first needed and again after it broke.
+Result<std::vector<HistorySeries>> HistoryStore::historian_query(const HistoryQuery& query) const {
+    if (!options_.forward) {
+        return make_error(ErrorKind::usage, fmt::format("gateway=\"{}\": only this gateway's history is kept here; another's "
+                                                        "needs [history] forward_to, the historian they share", query.gateway));
+    }
+    std::lock_guard lock(reader_->mutex);
+    if (!reader_->historian || reader_->historian->broken()) {
+        reader_->historian.reset();
+        // A short bound: the asker (an HTTP request) waits for it, unlike the forwarder.
+        auto db = postgres::Connection::connect(options_.forward->conninfo, options_.forward->password,
+                                                std::min(options_.forward->connect_timeout_seconds, 3));
+        if (!db) return db.error();
+        reader_->historian = std::move(*db);
+    }
+    return postgres_history::run_query(*reader_->historian, query.gateway, query);
 }
 
 }  // namespace loopwire::gateway

@@ -227,6 +227,7 @@ struct HttpApi::State {
     HttpOutcome write(const ConfiguredDevice& device, const HttpRequest& request) const;
     HttpOutcome events(const HttpRequest& request) const;
     HttpResponse history(const HttpRequest& request) const;
+    HttpResponse history_reply(const ParsedHistoryQuery& query, const Result<std::vector<HistorySeries>>& series) const;
     HttpResponse metrics() const;
     HttpResponse asset(const HttpRequest& request) const;
 };
@@ -473,6 +474,9 @@ HttpResponse HttpApi::State::history(const HttpRequest& request) const {
     auto query = history_query(request.query, std::chrono::system_clock::now());
     if (!query) return error(400, query.error().message);
     const ConfiguredDevice* device = find(query->query.device);
+    // Another gateway's device (gateway=NAME) is not configured here: its names go to the
+    // historian as written, and an unknown one is refused there.
+    if (!query->query.gateway.empty()) return history_reply(*query, sources.history->query(query->query));
     if (!device) {
         return error(404, fmt::format("no device \"{}\" on this gateway (GET /api/devices lists them)", query->query.device));
     }
@@ -482,11 +486,14 @@ HttpResponse HttpApi::State::history(const HttpRequest& request) const {
         auto resolved = device::resolve_parameters(*device->address.profile, {name});
         if (resolved && resolved->size() == 1) name = resolved->front()->name;
     }
-    auto series = sources.history->query(query->query);
+    return history_reply(*query, sources.history->query(query->query));
+}
+
+HttpResponse HttpApi::State::history_reply(const ParsedHistoryQuery& query, const Result<std::vector<HistorySeries>>& series) const {
     if (!series) return error(400, series.error().message);
     HttpResponse response;
     response.headers.emplace_back("Cache-Control", "no-store");
-    if (query->csv) {
+    if (query.csv) {
         response.content_type = "text/csv; charset=utf-8";
         response.body = history_csv(*series);
         return response;
@@ -504,8 +511,8 @@ HttpResponse HttpApi::State::history(const HttpRequest& request) const {
         }
         list.push_back(Json{{"parameter", one.parameter}, {"unit", one.unit}, {"buckets", std::move(buckets)}, {"gaps", std::move(gaps)}});
     }
-    return json_response(200, Json{{"device", query->query.device}, {"from", iso_time(query->query.from)},
-                                   {"to", iso_time(query->query.to)}, {"series", std::move(list)}});
+    return json_response(200, Json{{"device", query.query.device}, {"from", iso_time(query.query.from)},
+                                   {"to", iso_time(query.query.to)}, {"series", std::move(list)}});
 }
 
 }  // namespace loopwire::gateway

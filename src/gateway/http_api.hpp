@@ -5,7 +5,8 @@
 //   GET  /api/devices/NAME            one device: its parameters with values, units and ranges
 //   POST /api/devices/NAME/write      {"PARAMETER": "text", ...} with the token; as `write` checks
 //   GET  /api/events                  server-sent events: the full picture, then each change
-//   GET  /api/history?device=...      downsampled series from the history store, JSON or CSV
+//   GET  /api/history?device=...      downsampled series from the history store, JSON or CSV;
+//                                     &gateway=NAME: another gateway's, from the shared historian
 //   GET  /metrics                     Prometheus text: the lines' and devices' figures
 //   GET  /, /assets/*                 the dashboard (gateway/dashboard_assets.hpp)
 // Errors are {"error": "..."} with a status that fits.

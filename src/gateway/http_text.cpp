@@ -141,9 +141,10 @@ std::optional<system_clock::time_point> query_time(std::string_view text, system
 Result<ParsedHistoryQuery> history_query(std::string_view text, system_clock::time_point now) {
     const auto values = parse_query(text);
     for (const auto& [name, value] : values) {
-        if (name != "device" && name != "parameters" && name != "from" && name != "to" && name != "points" && name != "format") {
+        if (name != "device" && name != "parameters" && name != "from" && name != "to" && name != "points" && name != "format" &&
+            name != "gateway") {
             return make_error(ErrorKind::usage, fmt::format("unknown query parameter \"{}\" (allowed: device, parameters, from, to, "
-                                                            "points, format)", name));
+                                                            "points, format, gateway)", name));
         }
     }
     ParsedHistoryQuery parsed;
@@ -152,6 +153,7 @@ Result<ParsedHistoryQuery> history_query(std::string_view text, system_clock::ti
         return make_error(ErrorKind::usage, "missing device=NAME (e.g. /api/history?device=furnace&parameters=measured_value)");
     }
     parsed.query.device = device->second;
+    if (auto gateway = values.find("gateway"); gateway != values.end()) parsed.query.gateway = gateway->second;
     if (auto list = values.find("parameters"); list != values.end()) {
         std::string_view rest = list->second;
         while (!rest.empty()) {

@@ -31,7 +31,8 @@ struct ParsedHistoryQuery {
     bool csv = false;
 };
 
-// GET /api/history's query: device (required), parameters=a,b (default every one recorded),
+// GET /api/history's query: device (required), gateway (another gateway's history in the shared
+// PostgreSQL historian; default this one's), parameters=a,b (default every one recorded),
 // from and to in ISO 8601, as "now" or as a time before now ("-1h", "-7d"; default the last hour
 // up to `now`), points 1..10000 (default 500), format=json|csv. The error says which is wrong and
 // how it should look.

@@ -29,6 +29,18 @@ void family(std::string& out, const char* name, const char* type, const char* he
     out += fmt::format("# HELP loopwire_{} {}\n# TYPE loopwire_{} {}\n", name, help, name, type);
 }
 
+// [history] forward_to: what waits in the local outbox, and what the historian took.
+void history_forwarding(std::string& out, const ForwardStats& forward) {
+    family(out, "history_forward_waiting_rows", "gauge", "Rows recorded locally and not yet acknowledged by PostgreSQL.");
+    out += fmt::format("loopwire_history_forward_waiting_rows {}\n", forward.waiting_rows);
+    family(out, "history_forwarded_rows_total", "counter", "Rows PostgreSQL acknowledged since the gateway started.");
+    out += fmt::format("loopwire_history_forwarded_rows_total {}\n", forward.forwarded_total);
+    family(out, "history_forward_oldest_waiting_seconds", "gauge", "Age of the oldest row still waiting; 0 when none wait.");
+    out += fmt::format("loopwire_history_forward_oldest_waiting_seconds {}\n", forward.oldest_waiting_seconds);
+    family(out, "history_forward_errors_total", "counter", "Failed attempts to reach or write PostgreSQL (each retry counts).");
+    out += fmt::format("loopwire_history_forward_errors_total {}\n", forward.errors_total);
+}
+
 template <typename Value>
 void sample(std::string& out, const char* name, const std::string& labels, Value value) {
     out += fmt::format("loopwire_{}{{{}}} {}\n", name, labels, value);
@@ -221,6 +233,7 @@ std::string prometheus_text(const std::vector<LineReport>& lines, const std::vec
     if (history) {
         family(out, "history_rows_written_total", "counter", "Rows the history store committed since the gateway started.");
         out += fmt::format("loopwire_history_rows_written_total {}\n", history->rows_written());
+        if (const auto forward = history->forward_stats()) history_forwarding(out, *forward);
     }
     if (front) front_connections(out, *front);
     return out;

@@ -823,7 +823,8 @@ TEST(GatewayConfig, BadHistorySettingsAreRefusedWithTheKey) {
     EXPECT_THAT(error_of(with_file + "heartbeat = \"500ms\"\n"), StartsWith("plant.toml:10: history.heartbeat: less than 1s apart"));
     EXPECT_THAT(error_of(with_file + "heartbeat = \"2d\"\n"), StartsWith("plant.toml:10: history.heartbeat: '2d' is not a duration"));
     EXPECT_THAT(error_of(with_file + "path = \"x\"\n"),
-                StartsWith("plant.toml:10: history.path: unknown key (allowed here: database, keep, heartbeat)"));
+                StartsWith("plant.toml:10: history.path: unknown key (allowed here: database, keep, heartbeat, forward_to, "
+                           "password_file)"));
     EXPECT_THAT(error_of("history = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected a [history] table"));
 }
 
@@ -1091,6 +1092,51 @@ TEST_F(FifoInTheConfiguration, AsTheConfigurationItselfItIsRefused) {
     ASSERT_FALSE(loaded);
     EXPECT_THAT(loaded.error().message,
                 AllOf(HasSubstr("cannot read the gateway configuration"), HasSubstr("is a FIFO (named pipe), not a regular file")));
+}
+
+// [history] forward_to: the three forms libpq reads, a name required, and the password file.
+
+std::string forwarded(const std::string& keys) {
+    return "[gateway]\nname = \"plant1\"\n" + one_device("device = \"tc10@3\"\n") +
+           "[history]\ndatabase = \"plant.db\"\n" + keys;
+}
+
+TEST(GatewayConfig, HistoryForwardToTakesEveryFormOfConnectionString) {
+    for (const std::string target : {"postgresql://gateway@historian:5432/plant", "host=/var/run/postgresql dbname=plant",
+                                     "postgresql:///plant?host=/tmp/x", "postgresql://gw@historian/plant?sslmode=verify-full"}) {
+        auto config = parse(forwarded("forward_to = \"" + target + "\"\n"));
+        ASSERT_TRUE(config) << target << ": " << config.error().message;
+        EXPECT_EQ(config->history->forward_to, target);
+        EXPECT_EQ(config->history->database.filename(), "plant.db");  // still the local file
+    }
+    auto plain = parse(forwarded(""));
+    ASSERT_TRUE(plain) << plain.error().message;
+    EXPECT_TRUE(plain->history->forward_to.empty());
+}
+
+TEST(GatewayConfig, BadHistoryForwardingIsRefusedWithTheKey) {
+    EXPECT_THAT(error_of(forwarded("forward_to = \"historian:5432\"\n")),
+                HasSubstr("history.forward_to: \"historian:5432\" is not a PostgreSQL connection string"));
+    EXPECT_THAT(error_of(forwarded("forward_to = \"postgresql://h/plant?nonsense=1\"\n")),
+                HasSubstr("history.forward_to: libpq cannot read it: invalid URI query parameter"));
+    EXPECT_THAT(error_of(forwarded("forward_to = \"host=/tmp dbname\"\n")), HasSubstr("history.forward_to: libpq cannot read it"));
+    // Without [gateway] name the shared historian could not tell this gateway's series apart.
+    EXPECT_THAT(error_of(one_device("device = \"tc10@3\"\n") +
+                         "[history]\ndatabase = \"plant.db\"\nforward_to = \"postgresql:///plant\"\n"),
+                HasSubstr("history.forward_to: needs [gateway] name"));
+}
+
+TEST(GatewayConfig, HistoryPasswordFileIsReadAndMustBePrivate) {
+    TokenFile secret("s3cret\n", fs::perms::owner_read | fs::perms::owner_write);
+    auto config = parse(forwarded("forward_to = \"postgresql://gw@historian/plant\"\npassword_file = \"" + secret.path() + "\"\n"));
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->history->password, "s3cret");
+    TokenFile open_secret("s3cret\n", fs::perms::owner_read | fs::perms::owner_write | fs::perms::others_read);
+    EXPECT_THAT(error_of(forwarded("forward_to = \"postgresql://gw@historian/plant\"\npassword_file = \"" +
+                                   open_secret.path() + "\"\n")),
+                AllOf(HasSubstr("history.password_file: "), HasSubstr("is readable by every user; make it private")));
+    EXPECT_THAT(error_of(forwarded("password_file = \"" + secret.path() + "\"\n")),
+                HasSubstr("history.password_file: only used with `forward_to`"));
 }
 
 }  // namespace

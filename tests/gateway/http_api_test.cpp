@@ -812,6 +812,17 @@ TEST_F(HttpHistoryTest, TimesMayBeRelativeToNowAndParametersNamedByAlias) {
     EXPECT_LE(asked[1].to, after);
 }
 
+// Another gateway's history: its device is not configured here, so the names go to the store
+// (the historian) as written.
+TEST_F(HttpHistoryTest, AnotherGatewaysDeviceIsAskedOfTheStoreAsNamed) {
+    ASSERT_EQ(get(server_->port(), "/api/history?device=kiln&gateway=south&parameters=PV").status, 200u);
+    const auto asked = history_.asked();
+    ASSERT_EQ(asked.size(), 1u);
+    EXPECT_EQ(asked[0].gateway, "south");
+    EXPECT_EQ(asked[0].device, "kiln");
+    EXPECT_EQ(asked[0].parameters, (std::vector<std::string>{"PV"}));
+}
+
 TEST_F(HttpHistoryTest, BadQueriesAreRefusedSayingWhatIsWrong) {
     const auto port = server_->port();
     const auto error_of = [&](const std::string& query, unsigned status) {
@@ -864,6 +875,26 @@ TEST(PrometheusText, AValueIsExportedOnlyWhileTheLatestPollReadIt) {
 TEST_F(HttpHistoryTest, MetricsCountTheHistoryRows) {
     const Reply reply = get(server_->port(), "/metrics");
     EXPECT_THAT(reply.body, HasSubstr("loopwire_history_rows_written_total 1234\n"));
+}
+
+// A history forwarded to PostgreSQL: its outbox and the forwarder's counts, as the store says.
+class ForwardingHistory final : public HistorySource {
+public:
+    Result<std::vector<HistorySeries>> query(const HistoryQuery&) const override { return std::vector<HistorySeries>{}; }
+    std::uint64_t rows_written() const override { return 10; }
+    std::optional<ForwardStats> forward_stats() const override { return ForwardStats{42, 7000, 12.5, 3}; }
+};
+
+TEST(Metrics, AForwardedHistoryShowsWhatWaitsAndWhatWent) {
+    const ForwardingHistory forwarding;
+    const std::string text = prometheus_text({}, {}, {}, &forwarding);
+    EXPECT_THAT(text, HasSubstr("# TYPE loopwire_history_forward_waiting_rows gauge\nloopwire_history_forward_waiting_rows 42\n"));
+    EXPECT_THAT(text, HasSubstr("# TYPE loopwire_history_forwarded_rows_total counter\nloopwire_history_forwarded_rows_total 7000\n"));
+    EXPECT_THAT(text, HasSubstr("loopwire_history_forward_oldest_waiting_seconds 12.5\n"));
+    EXPECT_THAT(text, HasSubstr("# TYPE loopwire_history_forward_errors_total counter\nloopwire_history_forward_errors_total 3\n"));
+    // A history kept only locally has none of them.
+    const RecordingHistory local;
+    EXPECT_THAT(prometheus_text({}, {}, {}, &local), Not(HasSubstr("history_forward")));
 }
 
 // --- limits, on a server whose values the test feeds itself --------------------------------------

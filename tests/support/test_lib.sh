@@ -168,3 +168,41 @@ finish() {
     echo "$passes passed, $failures failed"
     [[ $failures -eq 0 ]]
 }
+
+# --- A real PostgreSQL server (tests that forward the history to one). ---
+
+# PostgreSQL 15's programs; LOOPWIRE_PG_BIN overrides the folder (as tests/support/postgres_server.hpp).
+PG_BIN=${LOOPWIRE_PG_BIN:-/usr/lib/postgresql/15/bin}
+
+# start_postgres [HBA] : a new cluster in $WORK_DIR/pg, listening only on a Unix socket in that
+# folder, on a port the kernel had free (the socket's name carries it); HBA is pg_hba.conf's
+# text (trust for every local user unless given). Sets PG_HOST (the socket folder) and PG_PORT.
+# As root the server runs as `postgres` (setpriv, so the PID is the server's and the EXIT trap
+# stops it). Exits 77, shown as skipped with the reason, without PostgreSQL 15.
+start_postgres() {
+    local hba=${1:-"local all all trust"}
+    if [[ ! -x $PG_BIN/initdb || ! -x $PG_BIN/postgres ]]; then
+        echo "SKIP: PostgreSQL 15 is not installed ($PG_BIN/initdb missing): apt-get install postgresql-15" >&2
+        exit 77
+    fi
+    PG_HOST=$WORK_DIR/pg
+    PG_PORT=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+    mkdir -p "$PG_HOST"
+    local as=()
+    if ((EUID == 0)); then
+        id postgres >/dev/null 2>&1 || { echo "SKIP: root without a postgres user to run the server" >&2; exit 77; }
+        chown postgres: "$WORK_DIR" "$PG_HOST"
+        as=(setpriv --reuid=postgres --regid=postgres --init-groups --)
+    fi
+    "${as[@]}" "$PG_BIN/initdb" -D "$PG_HOST/data" -U postgres -A trust --no-sync -E UTF8 >"$WORK_DIR/initdb.log" 2>&1 ||
+        fail "initdb failed: $(tail -n 20 "$WORK_DIR/initdb.log")"
+    printf '%s\n' "$hba" >"$PG_HOST/data/pg_hba.conf"
+    start_background postgres.log "${as[@]}" "$PG_BIN/postgres" -D "$PG_HOST/data" -k "$PG_HOST" -p "$PG_PORT" \
+        -c listen_addresses= -c fsync=off
+    wait_for 120 "PostgreSQL to accept connections" "$PG_BIN/pg_isready" -q -h "$PG_HOST" -p "$PG_PORT" -U postgres
+}
+
+# pg_sql SQL [DATABASE] : runs SQL as the superuser and prints the rows unaligned, no headers.
+pg_sql() {
+    psql -X -q -At -v ON_ERROR_STOP=1 -h "$PG_HOST" -p "$PG_PORT" -U postgres -d "${2:-postgres}" -c "$1"
+}

@@ -1,0 +1,294 @@
+#include "gateway/history_forwarder.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "gateway/history_schema.hpp"
+#include "gateway/postgres_history_schema.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+using std::chrono::milliseconds;
+
+// The samples of a batch go in as one array per column: one statement, one round trip, one
+// transaction, however many rows. The CTE inserts the samples and upserts the minutes from the
+// rows it really inserted, so a batch sent again counts nothing twice.
+constexpr const char* insert_batch = R"sql(
+WITH inserted AS (
+  INSERT INTO loopwire_samples(series_id, t, value, text, status)
+  SELECT * FROM unnest($1::bigint[], $2::bigint[], $3::float8[], $4::text[], $5::text[])
+  ON CONFLICT DO NOTHING
+  RETURNING series_id, t, value)
+INSERT INTO loopwire_minutes(series_id, minute, lo, hi, total, n)
+SELECT series_id, floor(t / 60000.0)::bigint, min(value), max(value), sum(value), count(*)
+FROM inserted WHERE value IS NOT NULL GROUP BY 1, 2
+ON CONFLICT (series_id, minute) DO UPDATE SET
+  lo = least(loopwire_minutes.lo, excluded.lo), hi = greatest(loopwire_minutes.hi, excluded.hi),
+  total = loopwire_minutes.total + excluded.total, n = loopwire_minutes.n + excluded.n
+)sql";
+
+constexpr const char* find_or_add_series = R"sql(
+WITH added AS (
+  INSERT INTO loopwire_series(gateway, device, parameter, unit) VALUES ($1, $2, $3, $4)
+  ON CONFLICT DO NOTHING RETURNING id)
+SELECT id FROM added
+UNION ALL SELECT id FROM loopwire_series WHERE gateway = $1 AND device = $2 AND parameter = $3 AND unit = $4
+LIMIT 1
+)sql";
+
+// How often the historian's expired partitions are looked for.
+constexpr milliseconds partition_sweep_interval{std::chrono::hours(1)};
+
+// PostgreSQL's text for a double: its own words for the non-finite ones.
+std::string float8_text(double value) {
+    if (std::isnan(value)) return "NaN";
+    if (std::isinf(value)) return value > 0 ? "Infinity" : "-Infinity";
+    return fmt::format("{}", value);
+}
+
+}  // namespace
+
+struct HistoryForwarder::Batch {
+    std::int64_t last_seq = 0;
+    std::uint64_t expired = 0;  // outbox rows whose sample retention already deleted
+    std::vector<std::int64_t> series;
+    std::vector<std::int64_t> t;
+    std::vector<std::optional<std::string>> values, texts, statuses;
+    bool empty() const { return last_seq == 0; }
+};
+
+HistoryForwarder::HistoryForwarder(ForwardOptions options, std::chrono::seconds keep, Clock wall_clock,
+                                   std::function<void(const std::string&)> log)
+    : options_(std::move(options)), keep_(keep), wall_clock_(std::move(wall_clock)), log_(std::move(log)) {}
+
+Result<std::unique_ptr<HistoryForwarder>> HistoryForwarder::start(const std::filesystem::path& database,
+                                                                  ForwardOptions options, std::chrono::seconds keep,
+                                                                  Clock wall_clock,
+                                                                  std::function<void(const std::string&)> log) {
+    if (!wall_clock) wall_clock = [] { return std::chrono::system_clock::now(); };
+    std::unique_ptr<HistoryForwarder> forwarder(
+        new HistoryForwarder(std::move(options), keep, std::move(wall_clock), std::move(log)));
+    auto local = history::open_for_reading(database);
+    if (!local) return local.error();
+    forwarder->local_ = std::move(*local);
+    forwarder->refresh_waiting();
+    if (forwarder->options_.thread) {
+        forwarder->thread_ = std::jthread([f = forwarder.get()](std::stop_token stop) { f->run(std::move(stop)); });
+    }
+    return forwarder;
+}
+
+HistoryForwarder::~HistoryForwarder() { thread_ = std::jthread(); }
+
+std::int64_t HistoryForwarder::now_ms() const {
+    return std::chrono::duration_cast<milliseconds>(wall_clock_().time_since_epoch()).count();
+}
+
+void HistoryForwarder::log(const std::string& message) const {
+    if (log_) log_("history: " + message);
+}
+
+ForwardStats HistoryForwarder::stats() const {
+    ForwardStats stats;
+    stats.waiting_rows = waiting_.load();
+    stats.forwarded_total = forwarded_.load();
+    stats.errors_total = errors_.load();
+    if (const std::int64_t oldest = oldest_ms_.load(); oldest != 0 && stats.waiting_rows != 0) {
+        stats.oldest_waiting_seconds = std::max(0.0, static_cast<double>(now_ms() - oldest) / 1000.0);
+    }
+    return stats;
+}
+
+void HistoryForwarder::queued(std::uint64_t rows, std::int64_t first_t) {
+    if (rows == 0) return;
+    waiting_ += rows;
+    std::int64_t none = 0;
+    oldest_ms_.compare_exchange_strong(none, first_t);  // only when nothing was waiting
+}
+
+// The outbox's size and its oldest row, for /metrics: looked at after each round, not per scrape
+// (a scrape must not wait for the forwarder's lock).
+void HistoryForwarder::refresh_waiting() {
+    auto count = local_.query_integer("SELECT count(*) FROM outbox");
+    auto oldest = local_.query_integer("SELECT coalesce((SELECT t FROM outbox ORDER BY seq LIMIT 1), 0)");
+    if (count) waiting_ = static_cast<std::uint64_t>(*count);
+    if (oldest) oldest_ms_ = *oldest;
+}
+
+Result<void> HistoryForwarder::connect() {
+    if (remote_ && !remote_->broken()) return {};
+    remote_.reset();
+    remote_ids_.clear();
+    partitions_.clear();
+    auto db = postgres::Connection::connect(options_.conninfo, options_.password, options_.connect_timeout_seconds);
+    if (!db) return db.error();
+    // A statement stuck behind a lock (another session's DDL on the samples) fails and is
+    // retried rather than holding the forwarder for ever; a batch takes well under a second.
+    if (auto bounded = db->run("SET statement_timeout = '120s'"); !bounded) return bounded.error();
+    if (auto migrated = postgres_history::migrate(*db); !migrated) return migrated.error();
+    // Once per forwarder, so the log says where the history goes; an outage's end is the
+    // thread's to log, not every reconnect's.
+    if (!connected_once_) log(fmt::format("forwarding to {}", db->server()));
+    connected_once_ = true;
+    remote_ = std::move(*db);
+    return {};
+}
+
+Result<HistoryForwarder::Batch> HistoryForwarder::read_batch() {
+    // LEFT JOIN: an outbox row whose sample retention deleted is still read, so it is cleared.
+    auto statement = local_.prepare(
+        "SELECT o.seq, o.series_id, o.t, s.t IS NOT NULL, s.value, s.text, s.status FROM outbox o "
+        "LEFT JOIN samples s ON s.series_id = o.series_id AND s.t = o.t ORDER BY o.seq LIMIT ?1");
+    if (!statement) return statement.error();
+    statement->bind(1, static_cast<std::int64_t>(options_.batch_rows));
+    Batch batch;
+    for (;;) {
+        auto row = statement->step();
+        if (!row) return row.error();
+        if (!*row) break;
+        batch.last_seq = statement->integer(0);
+        if (statement->integer(3) == 0) {
+            ++batch.expired;
+            continue;
+        }
+        auto id = remote_series(statement->integer(1));
+        if (!id) return id.error();
+        batch.series.push_back(*id);
+        batch.t.push_back(statement->integer(2));
+        batch.values.push_back(statement->is_null(4) ? std::nullopt : std::optional(float8_text(statement->real(4))));
+        batch.texts.push_back(statement->is_null(5) ? std::nullopt : std::optional(statement->text(5)));
+        batch.statuses.push_back(statement->is_null(6) ? std::nullopt : std::optional(statement->text(6)));
+    }
+    return batch;
+}
+
+// The historian's id of a local series: looked up (or added) once per connection.
+Result<std::int64_t> HistoryForwarder::remote_series(std::int64_t local_id) {
+    if (auto known = remote_ids_.find(local_id); known != remote_ids_.end()) return known->second;
+    auto names = local_.prepare("SELECT device, parameter, unit FROM series WHERE id = ?1");
+    if (!names) return names.error();
+    names->bind(1, local_id);
+    auto found = names->step();
+    if (!found) return found.error();
+    if (!*found) return make_error(ErrorKind::malformed, fmt::format("{}: series {} is missing", local_.file(), local_id));
+    const postgres::Parameters key{options_.gateway, names->text(0), names->text(1), names->text(2)};
+    auto id = remote_->execute(find_or_add_series, key);
+    if (!id) return id.error();
+    if (id->rows() != 1) return make_error(ErrorKind::mismatch, fmt::format("{}: no id for a series", remote_->server()));
+    const std::int64_t remote_id = id->integer(0, 0);
+    remote_ids_.emplace(local_id, remote_id);
+    return remote_id;
+}
+
+Result<void> HistoryForwarder::ship(const Batch& batch) {
+    if (batch.t.empty()) return {};
+    // The days the batch has rows in, and tomorrow, so that a day's first rows do not wait for
+    // its partition; only those: rows from an old outage make no partitions for the days between.
+    std::set<std::int64_t> days{postgres_history::day_of(now_ms() + postgres_history::day_ms)};
+    for (const std::int64_t t : batch.t) days.insert(postgres_history::day_of(t));
+    std::vector<std::int64_t> missing;
+    std::set_difference(days.begin(), days.end(), partitions_.begin(), partitions_.end(), std::back_inserter(missing));
+    if (!missing.empty()) {
+        if (auto made = postgres_history::ensure_partitions(*remote_, missing); !made) return made.error();
+        partitions_.insert(missing.begin(), missing.end());
+    }
+    auto as_text = [](const std::vector<std::int64_t>& numbers) {
+        std::vector<std::optional<std::string>> texts;
+        texts.reserve(numbers.size());
+        for (std::int64_t n : numbers) texts.emplace_back(std::to_string(n));
+        return postgres::array_literal(texts);
+    };
+    const postgres::Parameters columns{as_text(batch.series), as_text(batch.t), postgres::array_literal(batch.values),
+                                       postgres::array_literal(batch.texts), postgres::array_literal(batch.statuses)};
+    return remote_->run(insert_batch, columns);
+}
+
+Result<bool> HistoryForwarder::forward_batch() {
+    auto batch = read_batch();
+    if (!batch) return batch.error();
+    if (batch->empty()) return false;
+    if (auto shipped = ship(*batch); !shipped) return shipped.error();
+    // Only now that PostgreSQL committed: a crash before this line sends the batch again.
+    auto clear = local_.prepare("DELETE FROM outbox WHERE seq <= ?1");
+    if (!clear) return clear.error();
+    clear->bind(1, batch->last_seq);
+    if (auto cleared = clear->step(); !cleared) return cleared.error();
+    forwarded_ += batch->t.size();
+    if (batch->expired != 0) {
+        log(fmt::format("{} row(s) were deleted locally after `keep` before they could be forwarded", batch->expired));
+    }
+    return true;
+}
+
+Result<std::uint64_t> HistoryForwarder::forward_pending() {
+    std::lock_guard lock(mutex_);
+    const std::uint64_t before = forwarded_.load();
+    Result<void> done = connect();
+    while (done) {
+        auto more = forward_batch();
+        if (!more) done = more.error();
+        if (!more || !*more) break;
+    }
+    refresh_waiting();
+    if (!done) {
+        ++errors_;
+        if (remote_ && remote_->broken()) remote_.reset();
+        return done.error();
+    }
+    return forwarded_.load() - before;
+}
+
+Result<void> HistoryForwarder::drop_expired_partitions() {
+    std::lock_guard lock(mutex_);
+    if (auto connected = connect(); !connected) return connected.error();
+    const std::int64_t cutoff = now_ms() - std::chrono::duration_cast<milliseconds>(keep_).count();
+    auto dropped = postgres_history::drop_partitions_before(*remote_, cutoff);
+    if (!dropped) return dropped.error();
+    partitions_.clear();
+    if (*dropped != 0) log(fmt::format("dropped {} day partition(s) of the historian older than `keep`", *dropped));
+    return {};
+}
+
+void HistoryForwarder::run(std::stop_token stop) {
+    std::mutex wait_mutex;
+    std::condition_variable_any woken;
+    std::unique_lock wait_lock(wait_mutex);
+    auto pause = [&](milliseconds how_long) { woken.wait_for(wait_lock, stop, how_long, [] { return false; }); };
+    milliseconds retry = options_.retry_first;
+    bool outage = false;
+    std::optional<std::chrono::steady_clock::time_point> next_sweep;
+    while (!stop.stop_requested()) {
+        auto shipped = forward_pending();
+        if (!shipped) {
+            if (!outage) {
+                log(fmt::format("forwarding paused: {}; rows wait in the local file and are retried", shipped.error().message));
+            }
+            outage = true;
+            pause(retry);
+            retry = std::min(retry * 2, options_.retry_max);
+            continue;
+        }
+        if (outage) log(fmt::format("forwarding again ({} rows wait)", waiting_.load()));
+        outage = false;
+        retry = options_.retry_first;
+        const auto now = std::chrono::steady_clock::now();
+        if (!next_sweep || now >= *next_sweep) {
+            next_sweep = now + partition_sweep_interval;
+            if (auto swept = drop_expired_partitions(); !swept) log(swept.error().message);
+        }
+        pause(options_.idle_poll);
+    }
+}
+
+Result<void> check_forward_target(const ForwardOptions& options) {
+    auto db = postgres::Connection::connect(options.conninfo, options.password, options.connect_timeout_seconds);
+    if (!db) return db.error();
+    return postgres_history::migrate(*db);
+}
+
+}  // namespace loopwire::gateway

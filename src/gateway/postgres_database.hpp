@@ -1,0 +1,74 @@
+#pragma once
+// A thin owner of PostgreSQL connections and results (libpq, the C API): what the history's
+// forwarder needs of it, with every failure turned into a Result that says what went wrong and,
+// for the failures a user can fix (a wrong password, a missing database), what to do.
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/result.hpp"
+
+struct pg_conn;
+struct pg_result;
+
+namespace loopwire::gateway::postgres {
+
+// A statement's result: rows of text (the forwarder only asks for a few small answers).
+class QueryResult {
+public:
+    int rows() const;
+    bool is_null(int row, int column) const;
+    std::string text(int row, int column) const;
+    long long integer(int row, int column) const;  // a text column parsed as an integer
+
+private:
+    friend class Connection;
+    struct Clear {
+        void operator()(pg_result* result) const;
+    };
+    explicit QueryResult(pg_result* result) : result_(result) {}
+    std::unique_ptr<pg_result, Clear> result_;
+};
+
+// Text parameters ($1, $2, ...), NULL where empty: the values the server parses by their type.
+using Parameters = std::vector<std::optional<std::string>>;
+
+class Connection {
+public:
+    // Connects with `conninfo` (a postgresql:// URL or key=value pairs, libpq's own forms) and
+    // an optional password that overrides any in it (PGPASSFILE works as libpq defines it).
+    // The error names the server without the password and says what to do.
+    static Result<Connection> connect(const std::string& conninfo, const std::optional<std::string>& password,
+                                      int connect_timeout_seconds);
+
+    Connection() = default;
+    Connection(Connection&&) noexcept = default;
+    Connection& operator=(Connection&&) noexcept = default;
+
+    Result<QueryResult> execute(std::string_view sql, const Parameters& parameters = {});
+    Result<void> run(std::string_view sql, const Parameters& parameters = {});  // the rows, if any, unread
+    bool broken() const;  // the connection is gone: reconnect rather than retry on it
+    const std::string& server() const { return server_; }
+
+private:
+    struct Finish {
+        void operator()(pg_conn* connection) const;
+    };
+    std::unique_ptr<pg_conn, Finish> connection_;
+    std::string server_;  // for messages: user@host:port/database
+};
+
+// A PostgreSQL text array literal of the values ("{1,2,NULL}"), quoted so that any text fits:
+// a whole batch travels as one parameter per column (unnest() on the server side).
+std::string array_literal(const std::vector<std::optional<std::string>>& values);
+
+// Whether libpq can read the connection string; the error is libpq's, without the text itself
+// (it may hold a password).
+Result<void> check_conninfo(const std::string& conninfo);
+
+// Whether the text names a PostgreSQL server rather than a file (the URL forms and key=value).
+bool is_conninfo(std::string_view text);
+
+}  // namespace loopwire::gateway::postgres

@@ -1,0 +1,148 @@
+#include "gateway/postgres_history_query.hpp"
+
+#include <algorithm>
+
+#include <fmt/format.h>
+
+#include "gateway/history_store.hpp"
+
+namespace loopwire::gateway::postgres_history {
+namespace {
+
+using std::chrono::milliseconds;
+using TimePoint = std::chrono::system_clock::time_point;
+
+constexpr std::size_t max_points = 10000;
+constexpr std::size_t max_gaps = 10000;  // as the local query: an answer stays a bounded size
+
+std::int64_t to_ms(TimePoint time) { return std::chrono::duration_cast<milliseconds>(time.time_since_epoch()).count(); }
+TimePoint from_ms(long long ms) { return TimePoint(milliseconds(ms)); }
+std::string number(std::int64_t n) { return std::to_string(n); }
+
+struct Series {
+    std::string id;
+    std::string parameter;
+    std::string unit;
+};
+
+// The gateway's series of the device, narrowed to the parameters asked for (all when none).
+Result<std::vector<Series>> chosen_series(postgres::Connection& db, const std::string& gateway, const HistoryQuery& query) {
+    auto rows = db.execute("SELECT id, parameter, unit FROM loopwire_series WHERE gateway = $1 AND device = $2 ORDER BY parameter",
+                           {gateway, query.device});
+    if (!rows) return rows.error();
+    if (rows->rows() == 0) {
+        return make_error(ErrorKind::usage, fmt::format("the historian has no device \"{}\" of gateway \"{}\"", query.device, gateway));
+    }
+    std::vector<Series> all;
+    for (int i = 0; i < rows->rows(); ++i) all.push_back({rows->text(i, 0), rows->text(i, 1), rows->text(i, 2)});
+    if (query.parameters.empty()) return all;
+    std::vector<Series> chosen;
+    for (const auto& name : query.parameters) {
+        const auto found = std::find_if(all.begin(), all.end(), [&](const Series& s) { return s.parameter == name; });
+        if (found == all.end()) {
+            return make_error(ErrorKind::usage, fmt::format("device \"{}\" of gateway \"{}\" has no parameter \"{}\" in the historian",
+                                                            query.device, gateway, name));
+        }
+        chosen.push_back(*found);
+    }
+    return chosen;
+}
+
+// Grouped on the server: only the buckets travel. (The minute table would save reading the
+// samples of long ranges, as the local query does; the samples answer the same.)
+Result<std::vector<HistoryBucket>> buckets_of(postgres::Connection& db, const Series& series, std::int64_t from, std::int64_t to,
+                                              std::size_t points) {
+    const BucketPlan plan = plan_buckets(from, to, points);
+    auto rows = db.execute(
+        "SELECT (t - $2) / $3, min(value), max(value), avg(value), count(*) FROM loopwire_samples "
+        "WHERE series_id = $1 AND t >= $4 AND t <= $5 AND value IS NOT NULL GROUP BY 1 ORDER BY 1",
+        {series.id, number(plan.origin), number(plan.width), number(from), number(to)});
+    if (!rows) return rows.error();
+    std::vector<HistoryBucket> buckets;
+    for (int i = 0; i < rows->rows(); ++i) {
+        HistoryBucket bucket;
+        bucket.start = from_ms(plan.origin + rows->integer(i, 0) * plan.width);
+        bucket.min = std::stod(rows->text(i, 1));
+        bucket.max = std::stod(rows->text(i, 2));
+        bucket.mean = std::stod(rows->text(i, 3));
+        bucket.count = static_cast<std::size_t>(rows->integer(i, 4));
+        buckets.push_back(bucket);
+    }
+    return buckets;
+}
+
+// The first sample with a value after `t`; none while the gap lasts.
+Result<std::optional<long long>> next_value_after(postgres::Connection& db, const Series& series, std::int64_t t) {
+    auto row = db.execute("SELECT min(t) FROM loopwire_samples WHERE series_id = $1 AND t > $2 AND value IS NOT NULL",
+                          {series.id, number(t)});
+    if (!row) return row.error();
+    if (row->is_null(0, 0)) return std::optional<long long>{};
+    return std::optional<long long>(row->integer(0, 0));
+}
+
+// The same gaps as the local query (history_query.cpp): a sample without a value opens one,
+// the next sample with a value closes it; one open at `from` starts there.
+Result<std::vector<HistoryGap>> gaps_of(postgres::Connection& db, const Series& series, std::int64_t from, std::int64_t to) {
+    std::vector<HistoryGap> gaps;
+    std::optional<long long> open_until;
+    const auto add = [&](std::int64_t start, std::int64_t shown) -> Result<void> {
+        auto end = next_value_after(db, series, start);
+        if (!end) return end.error();
+        open_until = *end;
+        gaps.push_back({from_ms(shown), *end ? std::optional(from_ms(**end)) : std::nullopt});
+        return {};
+    };
+    auto before = db.execute("SELECT value IS NULL FROM loopwire_samples WHERE series_id = $1 AND t < $2 ORDER BY t DESC LIMIT 1",
+                             {series.id, number(from)});
+    if (!before) return before.error();
+    if (before->rows() == 1 && before->text(0, 0) == "t") {
+        if (auto added = add(from - 1, from); !added) return added.error();
+    }
+    auto starts = db.execute(
+        "SELECT t FROM loopwire_samples WHERE series_id = $1 AND value IS NULL AND t >= $2 AND t <= $3 ORDER BY t LIMIT $4",
+        // Bounded: the gaps a reply holds are bounded, and most rows without a value fall in a
+        // gap already open; past this many, the last gaps of a very broken range are left out.
+        {series.id, number(from), number(to), std::to_string(max_gaps * 4)});
+    if (!starts) return starts.error();
+    for (int i = 0; i < starts->rows() && gaps.size() < max_gaps; ++i) {
+        const std::int64_t t = starts->integer(i, 0);
+        if (!gaps.empty() && (!open_until || t < *open_until)) continue;  // inside the gap already open
+        if (auto added = add(t, t); !added) return added.error();
+    }
+    return gaps;
+}
+
+}  // namespace
+
+Result<std::vector<HistorySeries>> run_query(postgres::Connection& db, const std::string& gateway, const HistoryQuery& query) {
+    const std::int64_t from = to_ms(query.from);
+    const std::int64_t to = to_ms(query.to);
+    if (from > to) return make_error(ErrorKind::usage, "the history query's `from` is after its `to`; give from <= to");
+    if (query.points == 0 || query.points > max_points) {
+        return make_error(ErrorKind::usage, fmt::format("{} points: ask for 1 to {} points per parameter", query.points, max_points));
+    }
+    auto chosen = chosen_series(db, gateway, query);
+    if (!chosen) return chosen.error();
+    // One snapshot for every series, as the local query reads one.
+    if (auto begun = db.run("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY"); !begun) return begun.error();
+    std::vector<HistorySeries> result;
+    Result<void> done;
+    for (const auto& series : *chosen) {
+        auto buckets = buckets_of(db, series, from, to, query.points);
+        if (!buckets) {
+            done = buckets.error();
+            break;
+        }
+        auto gaps = gaps_of(db, series, from, to);
+        if (!gaps) {
+            done = gaps.error();
+            break;
+        }
+        result.push_back({series.parameter, series.unit, std::move(*buckets), std::move(*gaps)});
+    }
+    (void)db.run(done ? "COMMIT" : "ROLLBACK");
+    if (!done) return done.error();
+    return result;
+}
+
+}  // namespace loopwire::gateway::postgres_history

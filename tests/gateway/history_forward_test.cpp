@@ -1,0 +1,482 @@
+// The history's forwarding to PostgreSQL (gateway/history_forwarder.hpp) against a real server
+// that each test starts (tests/support/postgres_server.hpp): rows arrive exactly once and in
+// order, many gateways share one database, a stopped server, a wrong password, a missing
+// database and a newer schema are survived or refused clearly, a SIGKILL during a forward loses
+// and doubles nothing, and the day partitions are made ahead and dropped after `keep`.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+
+#include <atomic>
+#include <fstream>
+#include <mutex>
+#include <thread>
+
+#include <fmt/format.h>
+
+#include "gateway/gateway.hpp"
+#include "gateway/history_store.hpp"
+#include "gateway/postgres_database.hpp"
+#include "support/postgres_server.hpp"
+
+extern char** environ;
+
+namespace loopwire::gateway {
+namespace {
+
+using namespace std::chrono_literals;
+using ::testing::HasSubstr;
+using std::chrono::milliseconds;
+using test::PostgresServer;
+
+// 2026-01-01T00:00:00Z.
+const SystemTime t0 = SystemTime(std::chrono::seconds(1767225600));
+const std::int64_t t0_ms = 1767225600000;
+
+struct TempFolder {
+    std::filesystem::path path;
+    TempFolder() {
+        std::string pattern = (std::filesystem::temp_directory_path() / "loopwire-forward-XXXXXX").string();
+        path = mkdtemp(pattern.data());
+    }
+    ~TempFolder() { std::filesystem::remove_all(path); }
+};
+
+struct VirtualWall {
+    std::shared_ptr<std::atomic<std::int64_t>> ms = std::make_shared<std::atomic<std::int64_t>>(0);
+    explicit VirtualWall(SystemTime start) { set(start); }
+    void set(SystemTime time) { ms->store(std::chrono::duration_cast<milliseconds>(time.time_since_epoch()).count()); }
+    std::function<SystemTime()> clock() const {
+        return [ms = ms] { return SystemTime(milliseconds(ms->load())); };
+    }
+};
+
+// Log lines, kept for the checks; thread-safe (the forwarder's thread logs).
+struct Logs {
+    std::mutex mutex;
+    std::vector<std::string> lines;
+    std::function<void(const std::string&)> sink() {
+        return [this](const std::string& line) {
+            std::lock_guard lock(mutex);
+            lines.push_back(line);
+        };
+    }
+    int count(const std::string& part) {
+        std::lock_guard lock(mutex);
+        return static_cast<int>(std::count_if(lines.begin(), lines.end(), [&](const auto& l) { return l.find(part) != std::string::npos; }));
+    }
+};
+
+ValueChange number(const std::string& device, const std::string& parameter, double value, SystemTime sampled) {
+    ValueChange change;
+    change.device = device;
+    change.parameter = parameter;
+    change.unit = "°C";
+    change.status = "ok";
+    change.value = device::EngineeringValue{value, "ok", 0, ""};
+    change.sampled = sampled;
+    return change;
+}
+
+// The store on virtual time, with neither thread: the test writes and forwards.
+HistoryOptions forwarding(const std::filesystem::path& file, const VirtualWall& wall, const std::string& conninfo,
+                          const std::string& gateway = "plant1") {
+    HistoryOptions options;
+    options.database = file;
+    options.writer_thread = false;
+    options.wall_clock = wall.clock();
+    options.heartbeat = std::chrono::hours(24);  // only the rows the tests record
+    ForwardOptions forward;
+    forward.conninfo = conninfo;
+    forward.gateway = gateway;
+    forward.thread = false;
+    forward.connect_timeout_seconds = 30;
+    options.forward = forward;
+    return options;
+}
+
+postgres::Connection connect(const PostgresServer& server, const std::string& database = "postgres") {
+    auto db = postgres::Connection::connect(server.conninfo(database), std::nullopt, 30);
+    if (!db) throw std::runtime_error(db.error().message);
+    return std::move(*db);
+}
+
+long long scalar(postgres::Connection& db, const std::string& sql) {
+    auto result = db.execute(sql);
+    if (!result) throw std::runtime_error(result.error().message);
+    return result->integer(0, 0);
+}
+
+// The values of one gateway's series in the historian, in time order.
+std::vector<long long> values_of(postgres::Connection& db, const std::string& gateway, const std::string& parameter) {
+    auto rows = db.execute(
+        "SELECT s.value FROM loopwire_samples s JOIN loopwire_series n ON n.id = s.series_id "
+        "WHERE n.gateway = $1 AND n.parameter = $2 ORDER BY s.t",
+        {gateway, parameter});
+    if (!rows) throw std::runtime_error(rows.error().message);
+    std::vector<long long> values;
+    for (int i = 0; i < rows->rows(); ++i) values.push_back(std::stoll(rows->text(i, 0)));
+    return values;
+}
+
+std::vector<long long> counting(long long n) {
+    std::vector<long long> values(static_cast<std::size_t>(n));
+    for (long long i = 0; i < n; ++i) values[static_cast<std::size_t>(i)] = i;
+    return values;
+}
+
+// Records values 0..n-1 of one parameter, a second apart from `from`, and commits them locally.
+void record_counting(HistoryStore& store, long long n, const std::string& device = "oven1",
+                     const std::string& parameter = "measured_value", SystemTime from = t0) {
+    for (long long i = 0; i < n; ++i) store.record(number(device, parameter, static_cast<double>(i), from + std::chrono::seconds(i)));
+    ASSERT_TRUE(store.write_pending());
+}
+
+class HistoryForward : public ::testing::Test {
+protected:
+    void SetUp() override {
+        if (auto reason = PostgresServer::unavailable()) GTEST_SKIP() << *reason;
+        server = std::make_unique<PostgresServer>(
+            "local all pwuser scram-sha-256\nlocal all all trust\n");
+    }
+    std::unique_ptr<PostgresServer> server;
+    TempFolder folder;
+    VirtualWall wall{t0 + std::chrono::hours(1)};
+};
+
+TEST_F(HistoryForward, ShipsEveryRowOnceWithItsMinutesAndEmptiesTheOutbox) {
+    auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->url()));
+    ASSERT_TRUE(store) << store.error().message;
+    record_counting(**store, 150);  // two and a half minutes
+    EXPECT_EQ((*store)->forward_stats()->forwarded_total, 0u);
+    auto shipped = (*store)->forwarder()->forward_pending();
+    ASSERT_TRUE(shipped) << shipped.error().message;
+    EXPECT_EQ(*shipped, 150u);
+    auto db = connect(*server);
+    EXPECT_EQ(values_of(db, "plant1", "measured_value"), counting(150));
+    // Minute 0 holds 0..59: min 0, max 59, sum 1770, 60 samples; minute 2 holds 120..149.
+    auto minutes = db.execute("SELECT minute - $1, lo, hi, total, n FROM loopwire_minutes ORDER BY minute",
+                              {std::to_string(t0_ms / 60000)});
+    ASSERT_TRUE(minutes);
+    ASSERT_EQ(minutes->rows(), 3);
+    EXPECT_EQ(minutes->text(0, 1) + " " + minutes->text(0, 2) + " " + minutes->text(0, 3) + " " + minutes->text(0, 4),
+              "0 59 1770 60");
+    EXPECT_EQ(minutes->text(2, 0) + " " + minutes->text(2, 4), "2 30");
+    const ForwardStats stats = *(*store)->forward_stats();
+    EXPECT_EQ(stats.waiting_rows, 0u);
+    EXPECT_EQ(stats.forwarded_total, 150u);
+    EXPECT_EQ(stats.errors_total, 0u);
+    // Forwarding again sends nothing: the outbox is empty.
+    auto again = (*store)->forwarder()->forward_pending();
+    ASSERT_TRUE(again);
+    EXPECT_EQ(*again, 0u);
+    EXPECT_EQ(scalar(db, "SELECT count(*) FROM loopwire_samples"), 150);
+    EXPECT_EQ(scalar(db, "SELECT version FROM loopwire_schema_version"), 1);
+}
+
+TEST_F(HistoryForward, TextsStatusesAndGapsTravelAsTheyAre) {
+    auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->conninfo()));
+    ASSERT_TRUE(store) << store.error().message;
+    ValueChange label = number("oven1", "mode", 2, t0);
+    label.value = device::EngineeringValue{std::string("ramp \"up\", \\fast\\"), "ok", 2, ""};
+    label.text = "ramp \"up\", \\fast\\";
+    (*store)->record(label);
+    ValueChange silent = number("oven1", "measured_value", 0, t0 + 1s);
+    silent.value.reset();
+    silent.status = "no-reply";
+    (*store)->record(silent);
+    ASSERT_TRUE((*store)->write_pending());
+    ASSERT_TRUE((*store)->forwarder()->forward_pending());
+    auto db = connect(*server);
+    auto rows = db.execute("SELECT coalesce(value::text, 'null'), coalesce(text, 'null'), coalesce(status, 'ok') "
+                           "FROM loopwire_samples ORDER BY t");
+    ASSERT_TRUE(rows);
+    ASSERT_EQ(rows->rows(), 2);
+    EXPECT_EQ(rows->text(0, 0) + "|" + rows->text(0, 1) + "|" + rows->text(0, 2), "2|ramp \"up\", \\fast\\|ok");
+    EXPECT_EQ(rows->text(1, 0) + "|" + rows->text(1, 1) + "|" + rows->text(1, 2), "null|null|no-reply");
+}
+
+TEST_F(HistoryForward, TwoGatewaysShareOneDatabaseAndStayApart) {
+    auto north = HistoryStore::open(forwarding(folder.path / "north.db", wall, server->url(), "north"));
+    auto south = HistoryStore::open(forwarding(folder.path / "south.db", wall, server->url(), "south"));
+    ASSERT_TRUE(north && south);
+    // The same device and parameter names on both: the gateway's name keeps them apart.
+    record_counting(**north, 30);
+    for (int i = 0; i < 20; ++i) (*south)->record(number("oven1", "measured_value", 1000 + i, t0 + std::chrono::seconds(i)));
+    ASSERT_TRUE((*south)->write_pending());
+    // Forwarded at once from two threads, as two gateways would.
+    std::thread other([&] { EXPECT_TRUE((*south)->forwarder()->forward_pending()); });
+    EXPECT_TRUE((*north)->forwarder()->forward_pending());
+    other.join();
+    auto db = connect(*server);
+    EXPECT_EQ(values_of(db, "north", "measured_value"), counting(30));
+    std::vector<long long> expected;
+    for (int i = 0; i < 20; ++i) expected.push_back(1000 + i);
+    EXPECT_EQ(values_of(db, "south", "measured_value"), expected);
+    EXPECT_EQ(scalar(db, "SELECT count(DISTINCT gateway) FROM loopwire_series"), 2);
+}
+
+TEST_F(HistoryForward, AStoppedServerKeepsRowsWaitingLocallyThenGetsEachOnceInOrder) {
+    auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->url()));
+    ASSERT_TRUE(store);
+    record_counting(**store, 40);
+    ASSERT_TRUE((*store)->forwarder()->forward_pending());
+    server->stop();
+    // Recording and the local writer go on; forwarding fails and counts it.
+    record_counting(**store, 100, "oven1", "measured_value", t0 + 40s);
+    ForwardStats stats = *(*store)->forward_stats();
+    EXPECT_EQ(stats.waiting_rows, 100u);
+    // The first attempt finds its connection closed by the server, the next cannot connect.
+    EXPECT_FALSE((*store)->forwarder()->forward_pending());
+    auto failed = (*store)->forwarder()->forward_pending();
+    ASSERT_FALSE(failed);
+    EXPECT_THAT(failed.error().message, HasSubstr("check the server runs"));
+    stats = *(*store)->forward_stats();
+    EXPECT_EQ(stats.waiting_rows, 100u);
+    EXPECT_EQ(stats.errors_total, 2u);
+    EXPECT_NEAR(stats.oldest_waiting_seconds, 3600.0 - 40.0, 0.01);  // the wall is at t0 + 1 h
+    server->start();
+    auto shipped = (*store)->forwarder()->forward_pending();
+    ASSERT_TRUE(shipped) << shipped.error().message;
+    EXPECT_EQ(*shipped, 100u);
+    auto db = connect(*server);
+    auto values = values_of(db, "plant1", "measured_value");
+    std::vector<long long> expected = counting(40);
+    for (long long i = 0; i < 100; ++i) expected.push_back(i);
+    EXPECT_EQ(values, expected);
+    EXPECT_EQ((*store)->forward_stats()->waiting_rows, 0u);
+}
+
+// The forwarder's own thread: an outage is logged once however often it retries, and its end
+// once; rows recorded meanwhile all arrive.
+TEST_F(HistoryForward, TheThreadRetriesWithBackOffAndLogsAnOutageOnce) {
+    Logs logs;
+    HistoryOptions options = forwarding(folder.path / "h.db", wall, server->url());
+    options.forward->thread = true;
+    options.forward->idle_poll = 20ms;
+    options.forward->retry_first = 20ms;
+    options.forward->retry_max = 100ms;
+    options.log = logs.sink();
+    server->stop();
+    auto store = HistoryStore::open(options);
+    ASSERT_TRUE(store);
+    record_counting(**store, 50);
+    const auto deadline = std::chrono::steady_clock::now() + 120s;
+    while ((*store)->forward_stats()->errors_total < 5) {
+        ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the forwarder did not retry";
+        std::this_thread::sleep_for(10ms);
+    }
+    EXPECT_EQ(logs.count("forwarding paused"), 1);
+    server->start();
+    while ((*store)->forward_stats()->forwarded_total < 50) {
+        ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the rows did not arrive once the server was back";
+        std::this_thread::sleep_for(10ms);
+    }
+    EXPECT_EQ(logs.count("forwarding again"), 1);
+    EXPECT_EQ(logs.count("forwarding paused"), 1);
+    auto db = connect(*server);
+    EXPECT_EQ(values_of(db, "plant1", "measured_value"), counting(50));
+}
+
+TEST_F(HistoryForward, AWrongPasswordIsRefusedClearlyAtCheckAndRetriedAtRunTime) {
+    auto admin = connect(*server);
+    ASSERT_TRUE(admin.run("CREATE ROLE pwuser LOGIN PASSWORD 'right'"));
+    ASSERT_TRUE(admin.run("GRANT CREATE ON SCHEMA public TO pwuser"));
+    ForwardOptions target;
+    target.conninfo = server->conninfo("postgres", "pwuser");
+    target.password = "wrong";
+    auto refused = check_forward_target(target);
+    ASSERT_FALSE(refused);
+    EXPECT_THAT(refused.error().message, HasSubstr("password authentication failed"));
+    EXPECT_THAT(refused.error().message, HasSubstr("password_file"));
+    EXPECT_THAT(refused.error().message, ::testing::Not(HasSubstr("wrong")));
+    target.password = "right";
+    EXPECT_TRUE(check_forward_target(target));
+
+    // At run time: the store opens and records; forwarding fails until the password is right.
+    HistoryOptions options = forwarding(folder.path / "h.db", wall, server->conninfo("postgres", "pwuser"));
+    options.forward->password = "wrong";
+    {
+        auto store = HistoryStore::open(options);
+        ASSERT_TRUE(store);
+        record_counting(**store, 10);
+        EXPECT_FALSE((*store)->forwarder()->forward_pending());
+        EXPECT_EQ((*store)->forward_stats()->waiting_rows, 10u);
+    }
+    options.forward->password = "right";
+    auto store = HistoryStore::open(options);
+    ASSERT_TRUE(store);
+    auto shipped = (*store)->forwarder()->forward_pending();
+    ASSERT_TRUE(shipped) << shipped.error().message;
+    EXPECT_EQ(*shipped, 10u);
+}
+
+TEST_F(HistoryForward, AMissingDatabaseIsRefusedClearlyAndRowsWaitUntilItExists) {
+    ForwardOptions target;
+    target.conninfo = server->url("plant");
+    auto refused = check_forward_target(target);
+    ASSERT_FALSE(refused);
+    EXPECT_THAT(refused.error().message, HasSubstr("database \"plant\" does not exist"));
+    EXPECT_THAT(refused.error().message, HasSubstr("createdb"));
+    auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->url("plant")));
+    ASSERT_TRUE(store);
+    record_counting(**store, 5);
+    EXPECT_FALSE((*store)->forwarder()->forward_pending());
+    auto admin = connect(*server);
+    ASSERT_TRUE(admin.run("CREATE DATABASE plant"));
+    auto shipped = (*store)->forwarder()->forward_pending();
+    ASSERT_TRUE(shipped) << shipped.error().message;
+    EXPECT_EQ(*shipped, 5u);
+}
+
+TEST_F(HistoryForward, ANewerSchemaIsRefusedWithItsVersion) {
+    ForwardOptions target;
+    target.conninfo = server->url();
+    ASSERT_TRUE(check_forward_target(target));
+    auto admin = connect(*server);
+    ASSERT_TRUE(admin.run("UPDATE loopwire_schema_version SET version = 7"));
+    auto refused = check_forward_target(target);
+    ASSERT_FALSE(refused);
+    EXPECT_THAT(refused.error().message, HasSubstr("schema version 7, written by a newer loopwire"));
+}
+
+// --check's message names the configuration's line and key, then what the server said.
+TEST_F(HistoryForward, CheckNamesTheKeyAndTheRemedy) {
+    GatewayConfig config;
+    config.name = "plant1";
+    HistoryConfig history;
+    history.forward_to = server->url("missing");
+    history.written_at = "plant.toml:12";
+    config.history = history;
+    auto refused = check_history_forwarding(config);
+    ASSERT_FALSE(refused);
+    EXPECT_THAT(refused.error().message, HasSubstr("plant.toml:12: history.forward_to:"));
+    EXPECT_THAT(refused.error().message, HasSubstr("create the database"));
+    config.history->forward_to = server->url();
+    EXPECT_TRUE(check_history_forwarding(config));
+}
+
+TEST_F(HistoryForward, DayPartitionsAreMadeAheadAndDroppedAfterKeep) {
+    HistoryOptions options = forwarding(folder.path / "h.db", wall, server->url());
+    options.keep = std::chrono::hours(72);
+    auto store = HistoryStore::open(options);
+    ASSERT_TRUE(store);
+    for (int day = 0; day < 2; ++day) {
+        (*store)->record(number("oven1", "measured_value", day, t0 + std::chrono::hours(24 * day)));
+    }
+    wall.set(t0 + std::chrono::hours(47));  // 2026-01-02 23:00
+    ASSERT_TRUE((*store)->write_pending());
+    ASSERT_TRUE((*store)->forwarder()->forward_pending());
+    auto db = connect(*server);
+    const std::string partitions = "SELECT count(*) FROM pg_inherits WHERE inhparent = 'loopwire_samples'::regclass";
+    EXPECT_EQ(scalar(db, partitions), 3);  // 2026-01-01 and -02 with rows, and tomorrow's ahead
+    EXPECT_EQ(scalar(db, "SELECT count(*) FROM pg_class WHERE relname = 'loopwire_samples_20260103'"), 1);
+    wall.set(t0 + std::chrono::hours(24 * 4 + 1));
+    ASSERT_TRUE((*store)->forwarder()->drop_expired_partitions());
+    // 72 h back from 01-05 01:00 is 01-02 01:00: only 01-01 is wholly older.
+    EXPECT_EQ(scalar(db, partitions), 2);
+    EXPECT_EQ(scalar(db, "SELECT count(*) FROM pg_class WHERE relname = 'loopwire_samples_20260101'"), 0);
+    EXPECT_EQ(scalar(db, "SELECT count(*) FROM loopwire_samples"), 1);
+}
+
+// /api/history?gateway=NAME: another gateway's history from the historian, cut into the same
+// buckets and gaps as the local file's; the own gateway's from the file.
+TEST_F(HistoryForward, AnotherGatewaysHistoryIsAskedFromTheHistorian) {
+    auto north = HistoryStore::open(forwarding(folder.path / "north.db", wall, server->url(), "north"));
+    auto south = HistoryStore::open(forwarding(folder.path / "south.db", wall, server->url(), "south"));
+    ASSERT_TRUE(north && south);
+    for (int i = 0; i < 120; ++i) (*south)->record(number("oven1", "measured_value", i, t0 + std::chrono::seconds(i)));
+    ValueChange silent = number("oven1", "measured_value", 0, t0 + 120s);
+    silent.value.reset();
+    silent.status = "no-reply";
+    (*south)->record(silent);
+    (*south)->record(number("oven1", "measured_value", 7, t0 + 150s));
+    ASSERT_TRUE((*south)->write_pending());
+    ASSERT_TRUE((*south)->forwarder()->forward_pending());
+    HistoryQuery query;
+    query.device = "oven1";
+    query.parameters = {"measured_value"};
+    query.from = t0;
+    query.to = t0 + 179999ms;
+    query.points = 3;  // one bucket a minute
+    const auto local = (*south)->query(query);
+    query.gateway = "south";
+    const auto remote = (*north)->query(query);
+    ASSERT_TRUE(local && remote) << (remote ? local.error().message : remote.error().message);
+    ASSERT_EQ(remote->size(), 1u);
+    const HistorySeries& series = remote->front();
+    ASSERT_EQ(series.buckets.size(), 3u);
+    EXPECT_EQ(series.buckets[0].min, 0);
+    EXPECT_EQ(series.buckets[0].max, 59);
+    EXPECT_EQ(series.buckets[0].count, 60u);
+    EXPECT_EQ(series.buckets[2].count, 1u);
+    ASSERT_EQ(series.gaps.size(), 1u);
+    EXPECT_EQ(series.gaps[0].start, t0 + 120s);
+    EXPECT_EQ(series.gaps[0].end, std::optional(t0 + 150s));
+    // The same answer as the gateway's own file gives.
+    const HistorySeries& mine = local->front();
+    ASSERT_EQ(mine.buckets.size(), series.buckets.size());
+    for (std::size_t i = 0; i < mine.buckets.size(); ++i) {
+        EXPECT_EQ(mine.buckets[i].start, series.buckets[i].start);
+        EXPECT_EQ(mine.buckets[i].count, series.buckets[i].count);
+        EXPECT_DOUBLE_EQ(mine.buckets[i].mean, series.buckets[i].mean);
+    }
+    query.gateway = "west";
+    auto unknown = (*north)->query(query);
+    ASSERT_FALSE(unknown);
+    EXPECT_THAT(unknown.error().message, HasSubstr("the historian has no device \"oven1\" of gateway \"west\""));
+}
+
+#ifdef HISTORY_FORWARD_WORKER
+// A gateway killed with SIGKILL while it forwards (a worker process with a full outbox): after a
+// restart every row is in the historian exactly once, and the minutes count each once.
+TEST_F(HistoryForward, ASigkillDuringAForwardLosesAndDoublesNothing) {
+    const long long total = 60000;
+    const auto file = folder.path / "h.db";
+    {
+        HistoryOptions options = forwarding(file, wall, server->url());
+        options.max_queued = 2'000'000;
+        auto store = HistoryStore::open(options);
+        ASSERT_TRUE(store);
+        record_counting(**store, total);
+        ASSERT_EQ((*store)->forward_stats()->waiting_rows, static_cast<std::uint64_t>(total));
+    }
+    auto db = connect(*server);
+    ASSERT_TRUE(db.run("SELECT 1"));
+    std::string worker = HISTORY_FORWARD_WORKER;
+    std::string database = file.string();
+    std::string url = server->url();
+    char* argv[] = {worker.data(), database.data(), url.data(), nullptr};
+    pid_t pid = 0;
+    ASSERT_EQ(posix_spawn(&pid, worker.c_str(), nullptr, nullptr, argv, environ), 0);
+    // Killed as soon as the historian has some rows and not all: in the middle of forwarding.
+    const auto deadline = std::chrono::steady_clock::now() + 180s;
+    long long seen = 0;
+    for (;;) {
+        ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the worker forwarded nothing";
+        auto count = db.execute("SELECT count(*) FROM loopwire_samples");
+        seen = count ? count->integer(0, 0) : 0;  // the tables may not exist yet
+        if (seen > 0) break;
+        std::this_thread::sleep_for(1ms);
+    }
+    ::kill(pid, SIGKILL);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    ASSERT_TRUE(WIFSIGNALED(status));
+    ASSERT_LT(seen, total) << "the worker finished before it was killed: the test proves nothing";
+    auto store = HistoryStore::open(forwarding(file, wall, server->url()));
+    ASSERT_TRUE(store);
+    ASSERT_TRUE((*store)->forwarder()->forward_pending());
+    EXPECT_EQ(values_of(db, "plant1", "measured_value"), counting(total));
+    EXPECT_EQ(scalar(db, "SELECT sum(n) FROM loopwire_minutes"), total);
+    EXPECT_EQ(scalar(db, "SELECT sum(total)::bigint FROM loopwire_minutes"), total * (total - 1) / 2);
+    EXPECT_EQ((*store)->forward_stats()->waiting_rows, 0u);
+}
+#endif
+
+}  // namespace
+}  // namespace loopwire::gateway
