@@ -11,8 +11,6 @@
 # Usage: bench/history_forward.sh BUILD_DIR [ROWS]    (ROWS for the first figure, default 200000)
 # LOOPWIRE_FORWARD_BATCH=N sets the rows one statement ships (the forwarder's default is 5000).
 #
-# First figures (a shared 2-core VM, another build running): about 100,000 rows/s against
-# \copy's 260,000-400,000, a ratio of 0.26-0.39: short of the goal. The million rows took 9-11 s.
 # Builds nothing: BUILD_DIR must hold bench/history_forward.
 set -euo pipefail
 
