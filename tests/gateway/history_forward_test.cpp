@@ -21,6 +21,8 @@
 #include "gateway/gateway.hpp"
 #include "gateway/history_store.hpp"
 #include "gateway/postgres_database.hpp"
+#include "support/history_test_support.hpp"
+#include "support/log_lines.hpp"
 #include "support/postgres_server.hpp"
 
 extern char** environ;
@@ -32,44 +34,15 @@ using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 using std::chrono::milliseconds;
 using test::PostgresServer;
+using loopwire::testing::TempFolder;
+using loopwire::testing::VirtualWall;
 
 // 2026-01-01T00:00:00Z.
 const SystemTime t0 = SystemTime(std::chrono::seconds(1767225600));
 const std::int64_t t0_ms = 1767225600000;
 
-struct TempFolder {
-    std::filesystem::path path;
-    TempFolder() {
-        std::string pattern = (std::filesystem::temp_directory_path() / "loopwire-forward-XXXXXX").string();
-        path = mkdtemp(pattern.data());
-    }
-    ~TempFolder() { std::filesystem::remove_all(path); }
-};
-
-struct VirtualWall {
-    std::shared_ptr<std::atomic<std::int64_t>> ms = std::make_shared<std::atomic<std::int64_t>>(0);
-    explicit VirtualWall(SystemTime start) { set(start); }
-    void set(SystemTime time) { ms->store(std::chrono::duration_cast<milliseconds>(time.time_since_epoch()).count()); }
-    std::function<SystemTime()> clock() const {
-        return [ms = ms] { return SystemTime(milliseconds(ms->load())); };
-    }
-};
-
 // Log lines, kept for the checks; thread-safe (the forwarder's thread logs).
-struct Logs {
-    std::mutex mutex;
-    std::vector<std::string> lines;
-    std::function<void(const std::string&)> sink() {
-        return [this](const std::string& line) {
-            std::lock_guard lock(mutex);
-            lines.push_back(line);
-        };
-    }
-    int count(const std::string& part) {
-        std::lock_guard lock(mutex);
-        return static_cast<int>(std::count_if(lines.begin(), lines.end(), [&](const auto& l) { return l.find(part) != std::string::npos; }));
-    }
-};
+using Logs = loopwire::testing::LogLines;
 
 ValueChange number(const std::string& device, const std::string& parameter, double value, SystemTime sampled) {
     ValueChange change;

@@ -21,6 +21,7 @@
 
 #include "gateway/history_schema.hpp"
 #include "gateway/history_store.hpp"
+#include "support/history_test_support.hpp"
 
 extern char** environ;
 
@@ -30,28 +31,11 @@ namespace {
 using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 using std::chrono::milliseconds;
+using loopwire::testing::TempFolder;
+using loopwire::testing::VirtualWall;
 
 // 2026-01-01T00:00:00Z: a round minute, so bucket starts are easy to read.
 const SystemTime t0 = SystemTime(std::chrono::seconds(1767225600));
-
-struct TempFolder {
-    std::filesystem::path path;
-    TempFolder() {
-        std::string pattern = (std::filesystem::temp_directory_path() / "loopwire-history-XXXXXX").string();
-        path = mkdtemp(pattern.data());
-    }
-    ~TempFolder() { std::filesystem::remove_all(path); }
-};
-
-// Virtual wall time: moves only when the test moves it.
-struct VirtualWall {
-    std::shared_ptr<std::atomic<std::int64_t>> ms = std::make_shared<std::atomic<std::int64_t>>(0);
-    explicit VirtualWall(SystemTime start) { set(start); }
-    void set(SystemTime time) { ms->store(std::chrono::duration_cast<milliseconds>(time.time_since_epoch()).count()); }
-    std::function<SystemTime()> clock() const {
-        return [ms = ms] { return SystemTime(milliseconds(ms->load())); };
-    }
-};
 
 HistoryOptions options_at(const std::filesystem::path& file, const VirtualWall& wall) {
     HistoryOptions options;

@@ -31,6 +31,7 @@
 #include "gateway/gateway.hpp"
 #include "gateway/mqtt_documents.hpp"
 #include "support/held_replies.hpp"
+#include "support/log_lines.hpp"
 #include "support/mosquitto_broker.hpp"
 #include "sparkplug/sparkplug_b.pb.h"
 #include "support/profile_test_support.hpp"
@@ -239,29 +240,7 @@ bool run(const std::vector<std::string>& words, const fs::path& log) {
     return rc == 0 && ::waitpid(pid, &status, 0) == pid && WIFEXITED(status) && WEXITSTATUS(status) == 0;
 }
 
-// Lines a gateway logs, kept for the test to look through.
-struct LogLines {
-    std::mutex mutex;
-    std::vector<std::string> lines;
-    GatewayLog sink() {
-        return [this](const std::string& line) {
-            std::lock_guard lock(mutex);
-            lines.push_back(line);
-        };
-    }
-    bool has(const std::string& part) {
-        std::lock_guard lock(mutex);
-        return std::any_of(lines.begin(), lines.end(), [&](const std::string& line) { return line.find(part) != std::string::npos; });
-    }
-    bool wait_for(const std::string& part) {
-        const auto give_up = std::chrono::steady_clock::now() + deadline;
-        while (!has(part)) {
-            if (std::chrono::steady_clock::now() > give_up) return false;
-            std::this_thread::sleep_for(20ms);
-        }
-        return true;
-    }
-};
+using testing::LogLines;
 
 // A gateway taking writes and announcing its parameters to Home Assistant.
 std::unique_ptr<Gateway> open_discovering_gateway(const Broker& broker, const std::string& parameters) {
@@ -759,8 +738,7 @@ TEST(MqttBridge, PayloadsThatAreNotUtf8OrTooLongAreRefusedAndTheNextWriteGoes) {
     // The log quotes payloads escaped and cut.
     EXPECT_TRUE(lines.has("\"set_point\" = \"\\xff\" refused"));
     EXPECT_TRUE(lines.has("\"" + std::string(64, '7') + "\"\u2026 (204800 bytes) refused"));
-    std::lock_guard lock(lines.mutex);
-    for (const auto& line : lines.lines) {
+    for (const auto& line : lines.all()) {
         EXPECT_LT(line.size(), 1000u) << line.substr(0, 200);
         EXPECT_EQ(line.find('\xff'), std::string::npos) << "a raw byte reached the log: " << line.substr(0, 200);
     }

@@ -12,6 +12,7 @@
 
 #include "gateway/sparkplug/sparkplug_node.hpp"
 #include "sparkplug/sparkplug_b.pb.h"
+#include "support/log_lines.hpp"
 #include "support/mosquitto_broker.hpp"
 
 namespace loopwire::gateway {
@@ -114,30 +115,6 @@ private:
     device::WatchedDevice state_;
 };
 
-struct Log {
-    std::mutex mutex;
-    std::vector<std::string> lines;
-    GatewayLog sink() {
-        return [this](const std::string& line) {
-            std::lock_guard lock(mutex);
-            lines.push_back(line);
-        };
-    }
-    bool holds(const std::string& text) {
-        std::lock_guard lock(mutex);
-        return std::any_of(lines.begin(), lines.end(), [&](const std::string& line) { return line.find(text) != std::string::npos; });
-    }
-    // Waits until a line holds `text`.
-    bool wait_for(const std::string& text) {
-        const auto give_up = std::chrono::steady_clock::now() + loopwire::testing::deadline;
-        while (!holds(text)) {
-            if (std::chrono::steady_clock::now() > give_up) return false;
-            std::this_thread::sleep_for(10ms);
-        }
-        return true;
-    }
-};
-
 struct NodeFixture {
     explicit NodeFixture(Broker& broker, const std::string& primary_host = {}, std::shared_ptr<Clock> clock = steady_clock())
         : cache(std::move(clock)) {
@@ -157,7 +134,7 @@ struct NodeFixture {
     }
 
     SparkplugConfig config;
-    Log log;
+    loopwire::testing::LogLines log;
     Device device;
     ValueCache cache;
     Engine engine;
@@ -281,7 +258,7 @@ TEST(SparkplugNode, CommandsTheNodeCannotTakeAreRefusedInWords) {
     watcher.publish("spBv1.0/plant/DCMD/edge1/nosuch", command.SerializeAsString());
     EXPECT_TRUE(node.log.wait_for("not a Sparkplug B payload"));
     EXPECT_TRUE(node.log.wait_for("no such device of this node"));
-    EXPECT_FALSE(node.log.holds("\xff")) << "a peer's bytes reach the log escaped";
+    EXPECT_FALSE(node.log.has("\xff")) << "a peer's bytes reach the log escaped";
     EXPECT_EQ(watcher.count(ddata), 1u);
 }
 
