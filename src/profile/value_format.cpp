@@ -17,7 +17,9 @@ int shown_decimals(double number) {
 }  // namespace
 
 std::string value_text(const Parameter&, const EngineeringValue& value) {
-    if (const auto* number = std::get_if<double>(&value.value)) return fmt::format("{:.{}f}", *number, shown_decimals(*number));
+    if (const auto* number = std::get_if<double>(&value.value)) {
+        return fmt::format("{:.{}f}", *number, value.decimals.value_or(shown_decimals(*number)));
+    }
     if (const auto* label = std::get_if<std::string>(&value.value)) return *label;
     if (const auto* bits = std::get_if<std::map<std::string, bool>>(&value.value)) {
         std::vector<std::string> set;

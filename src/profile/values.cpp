@@ -47,7 +47,9 @@ Result<EngineeringValue> decode_number(const Parameter& parameter, std::uint16_t
     if (const std::string* label = label_for(parameter, raw)) return with(*label, raw);
     const auto decimals = decimals_of(parameter, known);
     if (!decimals) return decimals.error();
-    return with(word_number(parameter, raw) / power_of_ten(*decimals), raw);
+    auto decoded = with(word_number(parameter, raw) / power_of_ten(*decimals), raw);
+    decoded.decimals = *decimals;
+    return decoded;
 }
 
 std::string bits_text(const Parameter& parameter, std::uint16_t raw) {

@@ -3,6 +3,7 @@
 // another parameter, enum labels, named bits, and special values decoded to named states.
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <variant>
@@ -28,6 +29,10 @@ struct EngineeringValue {
     // The engineering unit at the time of the reading: fixed, or what the configuration words it
     // follows said (unit_of); empty for codes, counts, labels and bits.
     std::string unit;
+    // The decimal places the device gave the number at the time of reading (fixed, or what its
+    // decimals word said), so its text keeps them: "0.85" and "1.00" %C, never "1". None for
+    // labels, bits, special states and values made by hand, whose text shows what they hold.
+    std::optional<int> decimals = std::nullopt;
 };
 
 // What unit_of says when the words a unit follows were not read, or hold a value the profile

@@ -27,7 +27,7 @@ kill "$simulator"; wait "$simulator" 2>/dev/null
 start sim-restarted.log
 
 check process-value-refused 5 "Error on configuration group 1" "$loopwire" read --link "$link" --device ac20@1 carbon_potential
-check configuration-still-answers 0 "1.5 " "$loopwire" read --link "$link" --device ac20@1 bar_graph_low
+check configuration-still-answers 0 "1.50 %C" "$loopwire" read --link "$link" --device ac20@1 bar_graph_low
 check dump-in-error 0 "refused" "$loopwire" dump --link "$link" --device ac20@1 --output "$WORK_DIR/error.json"
 if $python - "$WORK_DIR/error.json" <<'PY' >"$WORK_DIR/why" 2>&1
 import json, sys

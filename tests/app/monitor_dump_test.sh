@@ -78,8 +78,8 @@ wait "$monitor_pid" || count_failure "monitor-change exit status" "$WORK_DIR/cha
 jcheck monitor-sees-written-value "$WORK_DIR/change.jsonl" '
 texts = [r["devices"]["rampsoak@5"]["values"]["set_value"]["text"] for r in rows]
 assert len(rows) == 30, len(rows)
-assert texts[0] != "425" and texts[-1] == "425", texts
-first = texts.index("425")
+assert texts[0] != "425.0" and texts[-1] == "425.0", texts
+first = texts.index("425.0")
 assert rows[first]["devices"]["rampsoak@5"]["values"]["set_value"]["changed"] is True, rows[first]
 '
 

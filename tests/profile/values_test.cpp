@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "profile/value_format.hpp"
 #include "profile/values.hpp"
 #include "support/profile_test_support.hpp"
 
@@ -65,6 +66,23 @@ TEST(Ac20Values, SetPointTakesItsDecimalsFromWord300) {
     EXPECT_EQ(dependencies_of(sp),
               (std::vector<std::string>{"primary_variable_decimals", "primary_variable_selection", "temperature_input_type",
                                                   "set_point_low_limit", "set_point_high_limit"}));
+}
+
+// The text keeps the decimals the device gave the value (issue 21: "0.85 %C", not "1 %C"):
+// 100 counts at word 300's two decimals read "1.00", at none "100"; a value made by hand shows
+// what it holds.
+TEST(Ac20Values, TextKeepsTheDecimalsTheDeviceGave) {
+    const auto ac20 = builtin("ac20");
+    ASSERT_TRUE(ac20);
+    const Parameter& sp = parameter(*ac20, "main_set_point");
+    const auto two = decode_value(sp, 100, {{"primary_variable_decimals", 2}});
+    ASSERT_TRUE(two.ok());
+    EXPECT_EQ(two->decimals, 2);
+    EXPECT_EQ(value_text(sp, *two), "1.00");
+    EXPECT_EQ(value_text(sp, *decode_value(sp, 85, {{"primary_variable_decimals", 2}})), "0.85");
+    EXPECT_EQ(value_text(sp, *decode_value(sp, 100, {{"primary_variable_decimals", 0}})), "100");
+    EXPECT_EQ(value_text(sp, *decode_value(sp, word(-25), {{"primary_variable_decimals", 1}})), "-2.5");
+    EXPECT_EQ(value_text(sp, EngineeringValue{1.5, "ok", 0, ""}), "1.5");
 }
 
 TEST(Ac20Values, MissingDecimalsNameTheWordToReadFirst) {
