@@ -206,6 +206,8 @@ struct MqttBridge::State {
         const std::string said = latest ? fmt::format("{}|{}", change.unit, shown_decimals(parameter, latest)) : std::string();
         const auto announced = discovered.find(base);
         if (announced == discovered.end() || (latest && announced->second != said)) {
+            // A bit field's bits need no unit: announced once, with the field.
+            if (announced == discovered.end()) documents = bit_documents(config, change.device, profile, parameter);
             discovered[base] = said;
             documents.push_back(discovery_document(config, change.device, profile, parameter, latest));
         }

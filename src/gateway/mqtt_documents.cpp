@@ -1,6 +1,7 @@
 #include "gateway/mqtt_documents.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <optional>
 #include <string_view>
@@ -68,6 +69,29 @@ double number_limit(const device::Parameter& parameter, const std::optional<devi
     const double scale = std::pow(10.0, decimals);
     if (parameter.type == device::ValueType::int16) return (upper ? 32767.0 : -32768.0) / scale;
     return (upper ? 65535.0 : 0.0) / scale;
+}
+
+// Home Assistant's entity categories: `config` for an entity that changes how the device is set
+// up, `diagnostic` for one that only shows it (HA refuses `config` on a sensor). A parameter
+// kept across power-off (the manuals' configuration menus) is one, unless it is the control
+// loop's PV, SP or OUT, which are what the device is for.
+std::optional<std::string> entity_category_of(const device::Profile& profile, const device::Parameter& parameter,
+                                              bool commanded) {
+    if (!parameter.persistent) return std::nullopt;
+    for (const char* primary : {"PV", "SP", "OUT"}) {
+        const auto alias = profile.aliases.find(primary);
+        if (alias != profile.aliases.end() && alias->second == parameter.name) return std::nullopt;
+    }
+    return commanded ? "config" : "diagnostic";
+}
+
+// Bits whose name says something is wrong are Home Assistant's `problem` class (on = problem).
+bool names_a_problem(std::string name) {
+    std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    for (const char* word : {"alarm", "error", "fail", "break", "overload"}) {
+        if (name.find(word) != std::string::npos) return true;
+    }
+    return false;
 }
 
 }  // namespace
@@ -259,7 +283,31 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
             doc.erase("unit_of_measurement");
         }
     }
+    if (const auto category = entity_category_of(profile, parameter, component == "number" || component == "select")) {
+        doc["entity_category"] = *category;
+    }
     return {fmt::format("{}/{}/{}/config", config.discovery_prefix, component, object_id), std::move(doc)};
+}
+
+std::vector<DiscoveryDocument> bit_documents(const MqttConfig& config, const std::string& device_name,
+                                             const device::Profile& profile, const device::Parameter& parameter) {
+    std::vector<DiscoveryDocument> documents;
+    if (parameter.type != device::ValueType::bitfield) return documents;
+    const std::string state_topic = fmt::format("{}/{}", device_topic_of(config, device_name), parameter.name);
+    for (const auto& [bit, name] : parameter.bit_names) {
+        const std::string object_id = sanitized_level(fmt::format("{}_{}_{}", device_id_of(config, device_name), parameter.name, name));
+        nlohmann::json doc = entity_base(config, device_name, profile, object_id);
+        doc["name"] = fmt::format("{}: {}", friendly_name(parameter), name);
+        doc["state_topic"] = state_topic;
+        // The state is the field's text, the set bits' names: "{alarm_1, loop_break_alarm}"
+        // (device::value_text); the name is quoted as a JSON string, which Jinja reads alike.
+        doc["value_template"] = fmt::format("{{{{ 'ON' if {} in value[1:-1].split(', ') else 'OFF' }}}}",
+                                            nlohmann::json(name).dump());
+        if (names_a_problem(name)) doc["device_class"] = "problem";
+        if (parameter.persistent) doc["entity_category"] = "diagnostic";
+        documents.push_back({fmt::format("{}/binary_sensor/{}/config", config.discovery_prefix, object_id), std::move(doc)});
+    }
+    return documents;
 }
 
 }  // namespace loopwire::gateway

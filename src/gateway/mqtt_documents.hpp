@@ -5,6 +5,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -33,12 +34,20 @@ struct DiscoveryDocument {
 // The component that fits the parameter: number (a writable number), select (a writable enum or
 // bit), binary_sensor (a read-only bit, or an enum whose labels are on/off), sensor (the rest).
 // Writable components only when the configuration takes writes; a read-only view otherwise.
+// A configuration parameter (kept across power-off, not the loop's PV, SP or OUT) is in Home
+// Assistant's `config` category when commanded, `diagnostic` when only shown.
 // `latest`: the parameter's latest value, whose unit and decimals were resolved from the
 // device's configuration words where the profile gives none of its own ("°C" or "°F" and the
 // decimal point of a TC10's set point); null: the profile's alone. A temperature gets Home
 // Assistant's device class `temperature`.
 DiscoveryDocument discovery_document(const MqttConfig& config, const std::string& device_name, const device::Profile& profile,
                                      const device::Parameter& parameter, const ValueChange* latest = nullptr);
+
+// One Home Assistant binary_sensor per named bit of a bit field (an alarm or status word), each
+// reading its bit from the field's state topic; `problem` class for alarms and errors. Empty
+// for any other parameter.
+std::vector<DiscoveryDocument> bit_documents(const MqttConfig& config, const std::string& device_name,
+                                             const device::Profile& profile, const device::Parameter& parameter);
 
 // The decimals a value shows: the profile's fixed ones, else those of the latest value's text
 // (set by another parameter, e.g. a decimal-point word), else 0.

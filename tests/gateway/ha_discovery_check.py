@@ -4,7 +4,9 @@ required keys, the type of every key used, and what the gateway promises besides
 on both the gateway's and the device's status, unique ids, a device block from the profile).
 
 Written from Home Assistant's documentation pages for MQTT discovery and the MQTT sensor,
-binary sensor, number, select and climate (HVAC) platforms.
+binary sensor, number, select and climate (HVAC) platforms, and its entity categories. A binary
+sensor's value_template is rendered with Jinja2 (Home Assistant's template engine) against the
+state the gateway published, and must give the sensor's payload_on or payload_off.
 
 usage: ha_discovery_check.py PORT DISCOVERY_PREFIX STATE_PREFIX COMPONENT...
 Exits 0 when a document of each COMPONENT came and every document passed; prints what failed.
@@ -15,6 +17,7 @@ import sys
 import threading
 import time
 
+import jinja2
 import paho.mqtt.client as mqtt
 
 STRING = str
@@ -42,11 +45,17 @@ PLATFORMS = {
                  "temperature_command_topic": STRING, "temperature_unit": STRING, "min_temp": NUMBER,
                  "max_temp": NUMBER, "temp_step": NUMBER, "precision": NUMBER, "modes": LIST}),
 }
+# Entity categories Home Assistant knows; `config` only on entities that change something.
+CATEGORIES = {"config", "diagnostic"}
+READ_ONLY = {"sensor", "binary_sensor"}
+# The binary sensor device classes this gateway uses, from Home Assistant's list.
+BINARY_CLASSES = {"problem", "safety", "running", "heat", "power"}
 # Home Assistant's temperature device class takes these units only; climate's unit is C or F.
 TEMPERATURE_UNITS = {"°C", "°F", "K"}
 DEVICE_KEYS = {"identifiers": LIST, "name": STRING, "manufacturer": STRING, "model": STRING}
 AVAILABILITY_KEYS = {"topic": STRING, "payload_available": STRING, "payload_not_available": STRING, "value_template": STRING}
 OBJECT_ID = re.compile(r"^[A-Za-z0-9_-]+$")
+BIT_IN_TEMPLATE = re.compile(r'("(?:[^"\\]|\\.)*") in value')
 
 
 def check_types(where, document, allowed, problems):
@@ -100,6 +109,11 @@ def check(topic, document, state_prefix):
         command = document.get("temperature_command_topic")
         if command is not None and command != state_topic + "/set":
             problems.append(f"{topic}: temperature_command_topic is not TEMPERATURE_STATE_TOPIC/set")
+    category = document.get("entity_category")
+    if category is not None and (category not in CATEGORIES or (category == "config" and component in READ_ONLY)):
+        problems.append(f"{topic}: entity_category {category!r} is not one Home Assistant takes on a {component}")
+    if component == "binary_sensor" and document.get("device_class") not in (None, *BINARY_CLASSES):
+        problems.append(f"{topic}: {document.get('device_class')!r} is no binary sensor device class")
     if component in ("number", "select") and document.get("command_topic") != document.get("state_topic") + "/set":
         problems.append(f"{topic}: command_topic is not STATE_TOPIC/set")
     if component == "number" and not document.get("min", 0) < document.get("max", 0):
@@ -109,13 +123,45 @@ def check(topic, document, state_prefix):
     return problems
 
 
+def check_template(topic, document, states):
+    """A binary sensor's template turns the published state into its payload_on or payload_off."""
+    template = document.get("value_template")
+    state = states.get(document.get("state_topic"))
+    if template is None:
+        return []
+    if state is None:
+        return [f"{topic}: no retained state on {document.get('state_topic')} to render value_template against"]
+    on, off = document.get("payload_on", "ON"), document.get("payload_off", "OFF")
+    # A bit of a field ("... if \"alarm_1\" in value ..."): a field's text naming that bit
+    # among others turns it on, one naming others only leaves it off.
+    bit = BIT_IN_TEMPLATE.search(template)
+    cases = [(state, {on, off})]
+    if bit:
+        name = json.loads(bit.group(1))
+        cases += [("{other, " + name + "}", {on}), ("{" + name + "_not}", {off}), ("{}", {off})]
+    problems = []
+    for value, allowed in cases:
+        try:
+            shown = jinja2.Environment().from_string(template).render(value=value).strip()
+        except jinja2.TemplateError as error:
+            return [f"{topic}: value_template does not render: {error}"]
+        if shown not in allowed:
+            problems.append(f"{topic}: value_template gave {shown!r} for {value!r}, not one of {sorted(allowed)}")
+    return problems
+
+
 def main():
     port, discovery_prefix, state_prefix = int(sys.argv[1]), sys.argv[2], sys.argv[3]
     wanted = set(sys.argv[4:])
     documents = {}
     done = threading.Event()
 
+    states = {}
+
     def on_message(client, userdata, message):
+        if not message.topic.startswith(discovery_prefix + "/"):
+            states[message.topic] = message.payload.decode("utf-8", "replace")
+            return
         if message.retain and message.payload:
             documents[message.topic] = json.loads(message.payload)
         if wanted <= {topic.split("/")[-3] for topic in documents}:
@@ -125,6 +171,7 @@ def main():
     client.on_message = on_message
     client.connect("127.0.0.1", port)
     client.subscribe(discovery_prefix + "/+/+/config", qos=1)
+    client.subscribe(state_prefix + "/+/+", qos=1)
     client.loop_start()
     done.wait(20)
     time.sleep(0.5)  # the rest of the retained documents
@@ -135,9 +182,12 @@ def main():
         problems.append(f"no document for {sorted(wanted - found)} (found {sorted(found)})")
     for topic, document in sorted(documents.items()):
         problems += check(topic, document, state_prefix)
+        if topic.split("/")[-3] == "binary_sensor":
+            problems += check_template(topic, document, states)
+    templates = sum(1 for document in documents.values() if "value_template" in document and document.get("state_topic") in states)
     for problem in problems:
         print("FAIL", problem)
-    print(f"{len(documents)} discovery documents checked, {len(problems)} problems")
+    print(f"{len(documents)} discovery documents checked ({templates} with a template and a state), {len(problems)} problems")
     return 1 if problems else 0
 
 

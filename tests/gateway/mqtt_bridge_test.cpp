@@ -379,6 +379,37 @@ TEST(MqttDocuments, AClimateIsForATemperatureLoopOnly) {
     EXPECT_EQ(device_class_of("%"), "");
 }
 
+// Configuration words are Home Assistant's `config` entities when commanded and `diagnostic`
+// when only shown; the loop's set point, though kept across power-off, is neither. An alarm
+// word is one binary_sensor per named bit, reading its bit from the word's text.
+TEST(MqttDocuments, ConfigurationIsCategorisedAndEveryAlarmBitIsABinarySensor) {
+    MqttConfig mqtt;
+    mqtt.prefix = "loopwire/plant1";
+    mqtt.gateway_name = "plant1";
+    const auto found = profiles().find("tc10");
+    ASSERT_TRUE(found);
+    const device::Profile& tc10 = **found;
+    mqtt.writes = true;
+    EXPECT_EQ(discovery_document(mqtt, "oven", tc10, *tc10.find("temperature_unit")).config.at("entity_category"), "config");
+    EXPECT_FALSE(discovery_document(mqtt, "oven", tc10, *tc10.find("set_point")).config.contains("entity_category"));
+    EXPECT_FALSE(discovery_document(mqtt, "oven", tc10, *tc10.find("measured_value")).config.contains("entity_category"));
+    mqtt.writes = false;
+    EXPECT_EQ(discovery_document(mqtt, "oven", tc10, *tc10.find("temperature_unit")).config.at("entity_category"), "diagnostic");
+
+    EXPECT_TRUE(bit_documents(mqtt, "oven", tc10, *tc10.find("measured_value")).empty());
+    const auto bits = bit_documents(mqtt, "oven", tc10, *tc10.find("alarm_status"));
+    ASSERT_EQ(bits.size(), 7U) << "one per named bit of the TC10's alarm word";
+    const auto loop_break = std::find_if(bits.begin(), bits.end(), [](const DiscoveryDocument& document) {
+        return document.topic == "homeassistant/binary_sensor/plant1_oven_alarm_status_loop_break_alarm/config";
+    });
+    ASSERT_NE(loop_break, bits.end());
+    EXPECT_EQ(loop_break->config.at("state_topic"), "loopwire/plant1/oven/alarm_status");
+    EXPECT_EQ(loop_break->config.at("device_class"), "problem");
+    EXPECT_EQ(loop_break->config.at("value_template"),
+              "{{ 'ON' if \"loop_break_alarm\" in value[1:-1].split(', ') else 'OFF' }}");
+    EXPECT_EQ(loop_break->config.at("unique_id"), "plant1_oven_alarm_status_loop_break_alarm");
+}
+
 TEST(MqttDocuments, DiscoveryIdsAndTopicsNeverHoldWildcardsSlashesOrSpaces) {
     const auto config = parse_gateway_config(R"toml(
 [[lines]]

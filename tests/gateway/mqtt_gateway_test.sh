@@ -39,7 +39,7 @@ link = "rtu:virtual?baud=19200"
 name = "oven"
 device = "tc10@3"
 poll = "${1:-200ms}"
-parameters = ["measured_value", "set_point", "control_state", "alarm_1_state"]
+parameters = ["measured_value", "set_point", "control_state", "alarm_1_state", "alarm_status"]
 ${2:-}
 
 [modbus_tcp]
@@ -98,7 +98,7 @@ for command in "${readme_commands[@]}"; do
 done
 
 # Home Assistant's view, through an independent client.
-check discovery-documents 0 "checked, 0 problems" $python "$(dirname "$0")/ha_discovery_check.py" "$port" homeassistant loopwire/plant1 \
+check discovery-documents 0 "), 0 problems" $python "$(dirname "$0")/ha_discovery_check.py" "$port" homeassistant loopwire/plant1 \
   sensor number select binary_sensor climate
 
 # Hostile publishers: a payload that is not UTF-8, one of 200 KB, then 1000 of 200 KB. The
