@@ -123,6 +123,7 @@ struct MqttBridge::State {
     struct LoopSeen {
         std::optional<std::string> pv_unit;
         std::optional<int> sp_decimals;
+        bool mode_polled = false;
         std::optional<ControlLoopSample> announced;
     };
     std::map<std::string, LoopSeen> loops;
@@ -198,7 +199,8 @@ struct MqttBridge::State {
 
     // The discovery documents a change calls for: the parameter's when it is first seen and
     // again when its unit or decimals change on the device (°C to °F, the decimal point moved),
-    // the device's control loop once its PV and SP have values and whenever those change.
+    // the device's control loop once its PV and SP have values and whenever those change (and
+    // once more when its mode word first has one).
     std::vector<DiscoveryDocument> discover(const ValueChange& change, const std::string& base, const device::Profile& profile,
                                             const device::Parameter& parameter) {
         std::vector<DiscoveryDocument> documents;
@@ -213,12 +215,13 @@ struct MqttBridge::State {
         }
         if (!latest) return documents;
         const ControlLoop loop = control_loop_of(profile);
-        if (&parameter != loop.pv && &parameter != loop.sp) return documents;
+        if (&parameter != loop.pv && &parameter != loop.sp && &parameter != loop.mode) return documents;
         LoopSeen& seen = loops[change.device];
         if (&parameter == loop.pv) seen.pv_unit = change.unit;
         if (&parameter == loop.sp) seen.sp_decimals = shown_decimals(parameter, latest);
+        if (&parameter == loop.mode) seen.mode_polled = true;
         if (!seen.pv_unit || !seen.sp_decimals) return documents;
-        const ControlLoopSample sample{*seen.pv_unit, *seen.sp_decimals};
+        const ControlLoopSample sample{*seen.pv_unit, *seen.sp_decimals, seen.mode_polled};
         if (seen.announced == sample) return documents;
         auto climate = climate_document(config, change.device, profile, sample);
         const bool was_climate = seen.announced && climate_document(config, change.device, profile, *seen.announced);

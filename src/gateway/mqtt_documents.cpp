@@ -74,11 +74,11 @@ double number_limit(const device::Parameter& parameter, const std::optional<devi
 // Home Assistant's entity categories: `config` for an entity that changes how the device is set
 // up, `diagnostic` for one that only shows it (HA refuses `config` on a sensor). A parameter
 // kept across power-off (the manuals' configuration menus) is one, unless it is the control
-// loop's PV, SP or OUT, which are what the device is for.
+// loop's PV, SP, OUT or MODE, which are what the device is for.
 std::optional<std::string> entity_category_of(const device::Profile& profile, const device::Parameter& parameter,
                                               bool commanded) {
     if (!parameter.persistent) return std::nullopt;
-    for (const char* primary : {"PV", "SP", "OUT"}) {
+    for (const char* primary : {"PV", "SP", "OUT", "MODE"}) {
         const auto alias = profile.aliases.find(primary);
         if (alias != profile.aliases.end() && alias->second == parameter.name) return std::nullopt;
     }
@@ -145,7 +145,9 @@ ControlLoop control_loop_of(const device::Profile& profile) {
         const auto found = profile.aliases.find(alias);
         return found == profile.aliases.end() ? nullptr : profile.find(found->second);
     };
-    return {named("PV"), named("SP")};
+    const device::Parameter* mode = named("MODE");
+    if (mode && (mode->type != device::ValueType::enumeration || mode->enum_labels.empty())) mode = nullptr;
+    return {named("PV"), named("SP"), mode};
 }
 
 namespace {
@@ -195,6 +197,37 @@ std::string climate_object_id(const MqttConfig& config, const std::string& devic
 // rejecting a number's non-numeric state.
 constexpr const char* numbers_only = "{{ value if value | is_number else None }}";
 
+// A mode label meaning the loop does not control (Home Assistant's `off`).
+bool means_off(const std::string& label) { return label == "standby" || label == "off" || label == "stop"; }
+
+// The loop's mode on the thermostat: every device mode a preset (set on MODE's /set topic as
+// it is), and Home Assistant's heat/off: off while the device is in its off-like mode, heat in
+// any other; commanding off sends that mode, heat the first of the others (TC10: auto). Without
+// an off-like mode, the loop always heats and only the presets change it.
+void add_modes(nlohmann::json& doc, const MqttConfig& config, const std::string& device_topic, const device::Parameter& mode) {
+    const std::string topic = fmt::format("{}/{}", device_topic, mode.name);
+    const bool commanded = config.writes && mode.writable;
+    std::vector<std::string> labels;
+    std::string off;
+    std::string heat;
+    for (const auto& [code, label] : mode.enum_labels) {
+        labels.push_back(label);
+        if (means_off(label) && off.empty()) off = label;
+        if (!means_off(label) && heat.empty()) heat = label;
+    }
+    doc["preset_modes"] = labels;
+    doc["preset_mode_state_topic"] = topic;
+    if (commanded) doc["preset_mode_command_topic"] = topic + "/set";
+    if (off.empty() || heat.empty()) return;
+    doc["modes"] = {"heat", "off"};
+    doc["mode_state_topic"] = topic;
+    doc["mode_state_template"] = fmt::format("{{{{ 'off' if value == {} else 'heat' }}}}", nlohmann::json(off).dump());
+    if (!commanded) return;
+    doc["mode_command_topic"] = topic + "/set";
+    doc["mode_command_template"] =
+        fmt::format("{{{{ {} if value == 'off' else {} }}}}", nlohmann::json(off).dump(), nlohmann::json(heat).dump());
+}
+
 }  // namespace
 
 std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, const std::string& device_name,
@@ -218,8 +251,8 @@ std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, cons
     doc["temp_step"] = std::pow(10.0, -sample.sp_decimals);
     // Home Assistant shows temperatures to 0.1, 0.5 or 1.
     doc["precision"] = sample.sp_decimals > 0 ? 0.1 : 1.0;
-    // The loop heats: the device's own auto/manual/standby are its control_state entity.
     doc["modes"] = {"heat"};
+    if (loop.mode && sample.mode_polled) add_modes(doc, config, device_topic, *loop.mode);
     return DiscoveryDocument{climate_topic(config, device_name), std::move(doc)};
 }
 

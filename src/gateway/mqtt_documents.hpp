@@ -66,6 +66,7 @@ std::string device_class_of(std::string_view unit);
 struct ControlLoopSample {
     std::string pv_unit;  // "°C"
     int sp_decimals = 0;  // of the set point's latest text ("150.5": 1)
+    bool mode_polled = false;  // the loop's mode word (alias MODE) has a value on its topic
 
     bool operator==(const ControlLoopSample&) const = default;
 };
@@ -73,7 +74,8 @@ struct ControlLoopSample {
 // A Home Assistant `climate` entity for the device's control loop, so a temperature controller
 // appears as a thermostat: current temperature from PV, target temperature from SP (commanded
 // on SP's /set topic when the configuration takes writes), the step from SP's decimals, the
-// limits SP's profile gives (else what its word holds). None when the profile names no PV and
+// limits SP's profile gives (else what its word holds); with a polled MODE, the device's modes
+// as presets and heat/off from them (commanded on MODE's /set topic). None when the profile names no PV and
 // SP, when either is not a number, or when the PV is not a temperature in °C or °F.
 std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, const std::string& device_name,
                                                   const device::Profile& profile, const ControlLoopSample& sample);
@@ -82,10 +84,14 @@ std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, cons
 // (a PV whose unit is no longer a temperature).
 std::string climate_topic(const MqttConfig& config, const std::string& device_name);
 
-// The profile's PV and SP parameters (its aliases), for the loop above; null when it has none.
+// The profile's PV, SP and MODE parameters (its aliases), for the loop above; null when it has
+// none. MODE is an enumeration of the device's own operating modes (TC10: auto, manual,
+// standby): the thermostat's presets, and its on/off (Home Assistant's heat/off) where one of
+// them means the loop is not controlling.
 struct ControlLoop {
     const device::Parameter* pv = nullptr;
     const device::Parameter* sp = nullptr;
+    const device::Parameter* mode = nullptr;
 };
 ControlLoop control_loop_of(const device::Profile& profile);
 

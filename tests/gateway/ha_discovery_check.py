@@ -43,7 +43,10 @@ PLATFORMS = {
                 {"current_temperature_topic": STRING, "current_temperature_template": STRING,
                  "temperature_state_topic": STRING, "temperature_state_template": STRING,
                  "temperature_command_topic": STRING, "temperature_unit": STRING, "min_temp": NUMBER,
-                 "max_temp": NUMBER, "temp_step": NUMBER, "precision": NUMBER, "modes": LIST}),
+                 "max_temp": NUMBER, "temp_step": NUMBER, "precision": NUMBER, "modes": LIST,
+                 "mode_state_topic": STRING, "mode_state_template": STRING, "mode_command_topic": STRING,
+                 "mode_command_template": STRING, "preset_modes": LIST, "preset_mode_state_topic": STRING,
+                 "preset_mode_command_topic": STRING}),
 }
 # Entity categories Home Assistant knows; `config` only on entities that change something.
 CATEGORIES = {"config", "diagnostic"}
@@ -142,11 +145,44 @@ def check_template(topic, document, states):
     problems = []
     for value, allowed in cases:
         try:
-            shown = jinja2.Environment().from_string(template).render(value=value).strip()
+            shown = render(template, value)
         except jinja2.TemplateError as error:
             return [f"{topic}: value_template does not render: {error}"]
         if shown not in allowed:
             problems.append(f"{topic}: value_template gave {shown!r} for {value!r}, not one of {sorted(allowed)}")
+    return problems
+
+
+# Home Assistant's HVAC modes; presets are the device's own words, never "none".
+HVAC_MODES = {"auto", "off", "cool", "heat", "dry", "fan_only", "heat_cool"}
+
+
+def render(template, value):
+    return jinja2.Environment().from_string(template).render(value=value).strip()
+
+
+def check_climate_modes(topic, document, states):
+    """The thermostat's mode templates map the device's mode word and back, as HA would run them."""
+    problems = []
+    modes, presets = document.get("modes", []), document.get("preset_modes", [])
+    if not set(modes) <= HVAC_MODES:
+        problems.append(f"{topic}: modes {modes} are not all Home Assistant HVAC modes")
+    if "none" in presets:
+        problems.append(f"{topic}: 'none' is not a preset Home Assistant takes")
+    state_template = document.get("mode_state_template")
+    if state_template is None:
+        return problems
+    if document.get("mode_state_topic") not in states:
+        problems.append(f"{topic}: no retained state on {document.get('mode_state_topic')} for the mode")
+    for preset in presets + [states.get(document.get("mode_state_topic"), presets[0] if presets else "")]:
+        if render(state_template, preset) not in modes:
+            problems.append(f"{topic}: mode_state_template gives {render(state_template, preset)!r} for {preset!r}")
+    command_template = document.get("mode_command_template")
+    if command_template is not None:
+        for mode in modes:
+            sent = render(command_template, mode)
+            if sent not in presets or render(state_template, sent) != mode:
+                problems.append(f"{topic}: mode {mode!r} is commanded as {sent!r}, which does not read back as {mode!r}")
     return problems
 
 
@@ -184,6 +220,8 @@ def main():
         problems += check(topic, document, state_prefix)
         if topic.split("/")[-3] == "binary_sensor":
             problems += check_template(topic, document, states)
+        if topic.split("/")[-3] == "climate":
+            problems += check_climate_modes(topic, document, states)
     templates = sum(1 for document in documents.values() if "value_template" in document and document.get("state_topic") in states)
     for problem in problems:
         print("FAIL", problem)

@@ -372,6 +372,25 @@ TEST(MqttDocuments, AClimateIsForATemperatureLoopOnly) {
     EXPECT_EQ(read_only->config.at("temp_step"), 1.0);
     EXPECT_EQ(read_only->config.at("precision"), 1.0);
     EXPECT_EQ(read_only->topic, climate_topic(mqtt, "oven"));
+    EXPECT_FALSE(read_only->config.contains("preset_modes")) << "presets before the mode word was polled";
+
+    // With the TC10's control_state (alias MODE) polled: its modes are the presets, standby is
+    // Home Assistant's off and every other mode heats.
+    mqtt.writes = true;
+    const auto with_modes = climate_document(mqtt, "oven", **tc10, {"°C", 1, true});
+    ASSERT_TRUE(with_modes);
+    const auto& doc = with_modes->config;
+    EXPECT_EQ(doc.at("preset_modes"), nlohmann::json::array({"auto", "manual", "standby"}));
+    EXPECT_EQ(doc.at("preset_mode_state_topic"), "loopwire/plant1/oven/control_state");
+    EXPECT_EQ(doc.at("preset_mode_command_topic"), "loopwire/plant1/oven/control_state/set");
+    EXPECT_EQ(doc.at("modes"), nlohmann::json::array({"heat", "off"}));
+    EXPECT_EQ(doc.at("mode_state_template"), "{{ 'off' if value == \"standby\" else 'heat' }}");
+    EXPECT_EQ(doc.at("mode_command_template"), "{{ \"standby\" if value == 'off' else \"auto\" }}");
+    EXPECT_EQ(doc.at("mode_command_topic"), "loopwire/plant1/oven/control_state/set");
+    const auto no_mode_word = climate_document(mqtt, "furnace", **ac20, {"°C", 1, true});
+    ASSERT_TRUE(no_mode_word);
+    EXPECT_FALSE(no_mode_word->config.contains("preset_modes")) << "the AC20's profile names no MODE";
+    EXPECT_EQ(no_mode_word->config.at("modes"), nlohmann::json::array({"heat"}));
     EXPECT_EQ(friendly_name(*(*tc10)->find("measured_value")), "Measured value (rV)");
     EXPECT_EQ(friendly_name(*(*tc10)->find("output_power")), "Output power");
     EXPECT_EQ(friendly_name(*(*ac20)->find("main_set_point")), "Main set point");
