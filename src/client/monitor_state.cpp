@@ -61,6 +61,7 @@ void record_poll(WatchedDevice& device, const device::ReadReport& report, bool a
                  MonitorClock::time_point now) {
     if (!answered) return record_failed_poll(device, "no-reply", failure);
     ++device.polls;
+    for (const auto& [name, raw] : report.raw) device.known.insert_or_assign(name, raw);
     bool all_read = true;
     for (auto& value : device.values) {
         record_value(value, find_reading(report, value.parameter), now);

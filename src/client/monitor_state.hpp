@@ -36,6 +36,9 @@ struct WatchedDevice {
     unsigned missed = 0;
     std::string last_error;
     std::optional<MonitorClock::time_point> next_try;  // while in back-off: when it is tried again
+    // Every word the polls read, dependencies included (decimal points, unit words, the words
+    // that bound others), as last read: what the values' limits are resolved from.
+    device::RawValues known;
 };
 
 WatchedDevice watch(std::string label, const std::vector<const device::Parameter*>& parameters);

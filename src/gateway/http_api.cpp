@@ -342,9 +342,13 @@ HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const
         p["error"] = watched && !watched->fresh ? watched->error : std::string();
         p["readable"] = parameter.readable;
         p["writable"] = parameter.writable;
-        p["min"] = resolved_bound(parameter.min, cached ? &cached->state : nullptr);
-        p["max"] = resolved_bound(parameter.max, cached ? &cached->state : nullptr);
-        if (parameter.range_in_counts) p["range_counts"] = true;  // fixed min/max are display counts
+        // In engineering units as the device holds them (what a write is checked against); the
+        // profile's bound (a fixed number, or the bounding parameter's name) while not known.
+        const auto limits = device::limits_of(parameter, cached ? cached->state.known : device::RawValues{});
+        p["min"] = limits.min ? Json(*limits.min) : resolved_bound(parameter.min, cached ? &cached->state : nullptr);
+        p["max"] = limits.max ? Json(*limits.max) : resolved_bound(parameter.max, cached ? &cached->state : nullptr);
+        // Fixed min/max still in display counts: the decimal point that scales them is not known.
+        if (parameter.range_in_counts && !limits.min && !limits.max) p["range_counts"] = true;
         if (const auto* fixed = std::get_if<int>(&parameter.decimals)) {
             p["decimals"] = *fixed;
         } else {

@@ -124,6 +124,7 @@ struct MqttBridge::State {
         std::optional<std::string> pv_unit;
         std::optional<int> sp_decimals;
         bool mode_polled = false;
+        device::ValueLimits sp_limits;
         std::optional<ControlLoopSample> announced;
     };
     std::map<std::string, LoopSeen> loops;
@@ -198,14 +199,18 @@ struct MqttBridge::State {
     }
 
     // The discovery documents a change calls for: the parameter's when it is first seen and
-    // again when its unit or decimals change on the device (°C to °F, the decimal point moved),
+    // again when its unit, decimals or limits change on the device (°C to °F, the decimal point
+    // moved, SP.HL lowered),
     // the device's control loop once its PV and SP have values and whenever those change (and
     // once more when its mode word first has one).
     std::vector<DiscoveryDocument> discover(const ValueChange& change, const std::string& base, const device::Profile& profile,
                                             const device::Parameter& parameter) {
         std::vector<DiscoveryDocument> documents;
         const ValueChange* latest = change.value ? &change : nullptr;
-        const std::string said = latest ? fmt::format("{}|{}", change.unit, shown_decimals(parameter, latest)) : std::string();
+        const auto limit = [](const std::optional<double>& value) { return value ? fmt::format("{}", *value) : std::string(); };
+        const std::string said = latest ? fmt::format("{}|{}|{}|{}", change.unit, shown_decimals(parameter, latest),
+                                                      limit(change.limits.min), limit(change.limits.max))
+                                        : std::string();
         const auto announced = discovered.find(base);
         if (announced == discovered.end() || (latest && announced->second != said)) {
             // A bit field's bits need no unit: announced once, with the field.
@@ -218,10 +223,13 @@ struct MqttBridge::State {
         if (&parameter != loop.pv && &parameter != loop.sp && &parameter != loop.mode) return documents;
         LoopSeen& seen = loops[change.device];
         if (&parameter == loop.pv) seen.pv_unit = change.unit;
-        if (&parameter == loop.sp) seen.sp_decimals = shown_decimals(parameter, latest);
+        if (&parameter == loop.sp) {
+            seen.sp_decimals = shown_decimals(parameter, latest);
+            seen.sp_limits = change.limits;
+        }
         if (&parameter == loop.mode) seen.mode_polled = true;
         if (!seen.pv_unit || !seen.sp_decimals) return documents;
-        const ControlLoopSample sample{*seen.pv_unit, *seen.sp_decimals, seen.mode_polled};
+        const ControlLoopSample sample{*seen.pv_unit, *seen.sp_decimals, seen.mode_polled, seen.sp_limits};
         if (seen.announced == sample) return documents;
         auto climate = climate_document(config, change.device, profile, sample);
         const bool was_climate = seen.announced && climate_document(config, change.device, profile, *seen.announced);

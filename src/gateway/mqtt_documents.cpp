@@ -112,8 +112,11 @@ nlohmann::json meta_document(const ValueChange& change, const device::Parameter*
         meta["decimals"] = decimals_in(change.text);
     }
     meta["writable"] = parameter->writable;
-    meta["min"] = parameter->min ? bound_json(*parameter->min) : nlohmann::json(nullptr);
-    meta["max"] = parameter->max ? bound_json(*parameter->max) : nlohmann::json(nullptr);
+    // As the API gives them: numbers as the device holds them, else the profile's bound.
+    meta["min"] = change.limits.min ? nlohmann::json(*change.limits.min)
+                                    : parameter->min ? bound_json(*parameter->min) : nlohmann::json(nullptr);
+    meta["max"] = change.limits.max ? nlohmann::json(*change.limits.max)
+                                    : parameter->max ? bound_json(*parameter->max) : nlohmann::json(nullptr);
     nlohmann::json labels = nlohmann::json::object();
     for (const auto& [code, label] : parameter->enum_labels) labels[std::to_string(code)] = label;
     meta["enum"] = std::move(labels);
@@ -246,8 +249,8 @@ std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, cons
     doc["temperature_state_template"] = numbers_only;
     if (config.writes && loop.sp->writable) doc["temperature_command_topic"] = fmt::format("{}/{}/set", device_topic, loop.sp->name);
     doc["temperature_unit"] = sample.pv_unit == "°C" ? "C" : "F";
-    doc["min_temp"] = number_limit(*loop.sp, loop.sp->min, false, sample.sp_decimals);
-    doc["max_temp"] = number_limit(*loop.sp, loop.sp->max, true, sample.sp_decimals);
+    doc["min_temp"] = sample.sp_limits.min ? *sample.sp_limits.min : number_limit(*loop.sp, loop.sp->min, false, sample.sp_decimals);
+    doc["max_temp"] = sample.sp_limits.max ? *sample.sp_limits.max : number_limit(*loop.sp, loop.sp->max, true, sample.sp_decimals);
     doc["temp_step"] = std::pow(10.0, -sample.sp_decimals);
     // Home Assistant shows temperatures to 0.1, 0.5 or 1.
     doc["precision"] = sample.sp_decimals > 0 ? 0.1 : 1.0;
@@ -284,8 +287,9 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
         component = "number";
         const int decimals = shown_decimals(parameter, latest);
         doc["command_topic"] = state_topic + "/set";
-        doc["min"] = number_limit(parameter, parameter.min, false, decimals);
-        doc["max"] = number_limit(parameter, parameter.max, true, decimals);
+        const device::ValueLimits known = latest ? latest->limits : device::ValueLimits{};
+        doc["min"] = known.min ? *known.min : number_limit(parameter, parameter.min, false, decimals);
+        doc["max"] = known.max ? *known.max : number_limit(parameter, parameter.max, true, decimals);
         doc["step"] = std::pow(10.0, -decimals);
         doc["mode"] = "box";
     } else if (commands && (parameter.type == device::ValueType::enumeration || parameter.type == device::ValueType::boolean)) {

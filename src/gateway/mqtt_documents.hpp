@@ -67,6 +67,7 @@ struct ControlLoopSample {
     std::string pv_unit;  // "°C"
     int sp_decimals = 0;  // of the set point's latest text ("150.5": 1)
     bool mode_polled = false;  // the loop's mode word (alias MODE) has a value on its topic
+    device::ValueLimits sp_limits = {};  // the set point's limits as the device holds them, where known
 
     bool operator==(const ControlLoopSample&) const = default;
 };
@@ -74,7 +75,7 @@ struct ControlLoopSample {
 // A Home Assistant `climate` entity for the device's control loop, so a temperature controller
 // appears as a thermostat: current temperature from PV, target temperature from SP (commanded
 // on SP's /set topic when the configuration takes writes), the step from SP's decimals, the
-// limits SP's profile gives (else what its word holds); with a polled MODE, the device's modes
+// limits the device holds for SP (else its profile's fixed ones, else what its word holds); with a polled MODE, the device's modes
 // as presets and heat/off from them (commanded on MODE's /set topic). None when the profile names no PV and
 // SP, when either is not a number, or when the PV is not a temperature in °C or °F.
 std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, const std::string& device_name,

@@ -27,6 +27,27 @@ std::string joined(const std::vector<std::string>& names) {
     return text;
 }
 
+// How often the words that bound the polled values (a TC10's SP.LL and SP.HL) are read again
+// beside a poll: limits are configuration, changed by hand now and then, and reading them with
+// every sample would cost the AC20 a request more per poll (its limits are far from its values).
+constexpr auto limits_refresh = std::chrono::minutes(5);
+
+// The readable words that bound the polled parameters and are not polled themselves.
+std::vector<const device::Parameter*> bound_words(const device::Profile& profile,
+                                                  const std::vector<const device::Parameter*>& polled) {
+    std::vector<const device::Parameter*> words;
+    for (const device::Parameter* parameter : polled) {
+        for (const auto& bound : {parameter->min, parameter->max}) {
+            const auto* name = bound ? std::get_if<std::string>(&*bound) : nullptr;
+            const device::Parameter* word = name ? profile.find(*name) : nullptr;
+            if (!word || !word->readable) continue;
+            if (std::find(polled.begin(), polled.end(), word) != polled.end()) continue;
+            if (std::find(words.begin(), words.end(), word) == words.end()) words.push_back(word);
+        }
+    }
+    return words;
+}
+
 // Hands each sample of one group to the cache, and logs a device whose answering changes: the
 // first answer, a silence ("no-reply"), an answer again, and the group falling behind its
 // interval or keeping it again. Nothing per sample: the log is read by people.
@@ -158,6 +179,10 @@ struct PollGroups::Group {
     std::vector<std::unique_ptr<device::DeviceClient>> clients;
     std::vector<device::MonitorTarget> targets;
     std::vector<device::WatchedDevice> watched;
+    // Per device: the words bounding its values, when they were last read, whether this poll reads them.
+    std::vector<std::vector<const device::Parameter*>> bounds;
+    std::vector<std::optional<device::MonitorClock::time_point>> limits_read_at;
+    std::vector<bool> reading_limits;
     std::unique_ptr<CachingSink> sink;
     asio::steady_timer timer;
     device::SampleSchedule schedule;
@@ -188,7 +213,7 @@ struct PollGroups::State {
             }
             ++group.polling;
             read_started();
-            group.clients[i]->read_async(group.targets[i].parameters, stopping.get_token(),
+            group.clients[i]->read_async(parameters_of(group, i), stopping.get_token(),
                                          [this, &group, i](device::ReadReport report, std::optional<Error> stopped_by) {
                                              asio::post(loop, [this, &group, i, report = std::move(report),
                                                                stopped_by = std::move(stopped_by)] {
@@ -200,7 +225,18 @@ struct PollGroups::State {
         if (group.polling == 0) end_sample(group);
     }
 
+    // The device's polled parameters, and the words bounding them when those are due again.
+    static std::vector<const device::Parameter*> parameters_of(Group& group, std::size_t i) {
+        auto parameters = group.targets[i].parameters;
+        const auto& read_at = group.limits_read_at[i];
+        group.reading_limits[i] = !group.bounds[i].empty() &&
+                                  (!read_at || device::MonitorClock::now() - *read_at >= limits_refresh);
+        if (group.reading_limits[i]) parameters.insert(parameters.end(), group.bounds[i].begin(), group.bounds[i].end());
+        return parameters;
+    }
+
     void device_polled(Group& group, std::size_t i, const device::ReadReport& report, const std::optional<Error>& stopped_by) {
+        if (group.reading_limits[i] && !stopped_by) group.limits_read_at[i] = device::MonitorClock::now();
         device::record_outcome(group.watched[i], report, stopped_by, device::MonitorClock::now());
         if (--group.polling == 0) end_sample(group);
     }
@@ -281,6 +317,9 @@ PollGroups::PollGroups(Engine& engine, const GatewayConfig& config,
                                       [scheduler, unit] { return scheduler->hold_poll(unit); }});
             group->watched.push_back(device::watch(fmt::format("{}@{}", device.address.profile->id, unit),
                                                    group->targets.back().parameters));
+            group->bounds.push_back(bound_words(*device.address.profile, group->targets.back().parameters));
+            group->limits_read_at.emplace_back();
+            group->reading_limits.push_back(false);
             names[device.poll].push_back(device.name);
             auto& on = group_lines[device.poll];
             if (std::find(on.begin(), on.end(), line.name) == on.end()) on.push_back(line.name);

@@ -129,6 +129,7 @@ ValueChange value_change(const std::string& name, const device::WatchedDevice& s
     change.device = name;
     change.parameter = parameter.name;
     change.unit = device::shown_unit(parameter, value.last ? &*value.last : nullptr);  // as the device is configured
+    change.limits = device::limits_of(parameter, state.known);
     change.status = device::value_status(state, value);
     change.sampled = sampled;
     if (value.fresh) {
@@ -149,12 +150,13 @@ std::vector<ValueChange> state_of(const std::string& name, const device::Watched
 
 bool same_value(const std::optional<device::EngineeringValue>& a, const std::optional<device::EngineeringValue>& b) {
     if (a.has_value() != b.has_value()) return false;
-    return !a || (a->raw == b->raw && a->status == b->status && a->value == b->value && a->unit == b->unit);
+    return !a || (a->raw == b->raw && a->status == b->status && a->value == b->value && a->unit == b->unit &&
+                  a->decimals == b->decimals);
 }
 
 // A new error message with the same status is not a change: the status says what matters.
 bool same_state(const ValueChange& a, const ValueChange& b) {
-    return a.parameter == b.parameter && a.status == b.status && same_value(a.value, b.value);
+    return a.parameter == b.parameter && a.status == b.status && same_value(a.value, b.value) && a.limits == b.limits;
 }
 
 // What differs between what was last told and `now` (all of it when the parameters are not the

@@ -53,6 +53,9 @@ struct ValueChange {
     std::optional<device::EngineeringValue> value;
     std::string text;  // the value as people read it ("137.0", an enum label); empty with no value
     std::string unit;  // "°C"; empty for the device's status
+    // A number's limits in engineering units as the device holds them (device::limits_of over
+    // every word the polls read): what the API, /meta and Home Assistant's number all show.
+    device::ValueLimits limits = {};
     // A value's: "ok", its special state ("under-range", ...), "no-reply", "error" or "stale".
     // The device's: "ok", "partial" (some values failed), "no-reply" or "stale". A stale value
     // carries no value: the last one read is no longer known to be the device's.

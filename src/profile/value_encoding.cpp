@@ -35,6 +35,14 @@ public:
     RangeCheck(const Parameter& parameter, const RawValues& known, int decimals)
         : parameter_(parameter), known_(known), decimals_(decimals) {}
 
+    // The bound in engineering units, when it can be resolved from what is known.
+    std::optional<double> limit(bool upper) const {
+        const auto& bound = upper ? parameter_.max : parameter_.min;
+        if (!bound) return std::nullopt;
+        const auto resolved = resolve(*bound, upper ? "upper" : "lower");
+        return resolved ? std::optional<double>(resolved->value) : std::nullopt;
+    }
+
     Result<void> check(std::string_view typed, double value) const {
         for (const bool upper : {false, true}) {
             const auto& bound = upper ? parameter_.max : parameter_.min;
@@ -229,6 +237,15 @@ Result<std::uint16_t> encode(const Parameter& parameter, std::string_view typed,
 
 Result<std::uint16_t> encode_value(const Parameter& parameter, std::string_view text, const RawValues& known) {
     return encode(parameter, text, known);
+}
+
+ValueLimits limits_of(const Parameter& parameter, const RawValues& known) {
+    if (parameter.type != ValueType::int16 && parameter.type != ValueType::uint16) return {};
+    const auto decimals = decimals_of(parameter, known);
+    // Without its decimals a bound in display counts cannot be scaled; a named or plain one can.
+    if (!decimals && parameter.range_in_counts) return {};
+    const RangeCheck range(parameter, known, decimals ? *decimals : 0);
+    return {range.limit(false), range.limit(true)};
 }
 
 bool raw_in_range(const Parameter& parameter, std::uint16_t raw, const RawValues& known) {

@@ -339,7 +339,12 @@ TEST_F(HttpApiTest, ADeviceShowsItsParametersWithValuesUnitsRangesAndGroups) {
     ASSERT_TRUE(high_limit.at("value").is_number()) << high_limit;
     EXPECT_EQ(set_point.at("max"), high_limit.at("value"));
     EXPECT_EQ(set_point.at("min"), parameter(device, "set_point_low_limit").at("value"));
+    // A bound word neither polled nor bounding a polled value is not read: its name stays.
     EXPECT_EQ(parameter(device, "alarm_1_threshold").at("max").at("parameter"), "alarm_1_high_limit");
+    // Display counts scaled by the decimal point the polls read (dP 0 on the simulated TC10).
+    const Json band = parameter(device, "proportional_band");
+    EXPECT_EQ(band.at("max"), 9999.0) << band;
+    EXPECT_FALSE(band.contains("range_counts")) << "scaled, yet said to be in counts: " << band;
     EXPECT_TRUE(set_point.contains("decimals"));
     // Parameters not polled are listed too, to be written, without a value.
     bool unpolled = false;

@@ -133,7 +133,10 @@ TEST(MqttBridge, PublishesTheGatewayStatusEachDeviceAndItsValues) {
     ASSERT_TRUE(set_point_meta);
     const auto set_point = nlohmann::json::parse(*set_point_meta);
     EXPECT_EQ(set_point.at("writable"), true) << *set_point_meta;
-    EXPECT_EQ(set_point.at("max").at("parameter"), "set_point_high_limit") << *set_point_meta;
+    // The limits as the device holds them (the simulated TC10's SP.LL and SP.HL at dP 0), read
+    // beside the polls though not polled themselves.
+    EXPECT_EQ(set_point.at("min"), -1999.0) << *set_point_meta;
+    EXPECT_EQ(set_point.at("max"), 9999.0) << *set_point_meta;
 
     // Writes are off in this gateway: refused, with the reason.
     watcher.publish(prefix + "/oven/set_point/set", "200");
@@ -353,6 +356,32 @@ TEST(MqttBridge, HomeAssistantSeesTheTc10AsAThermostatInTheUnitItIsSetTo) {
     watcher.publish(prefix + "/oven/temperature_unit/set", "F");
     EXPECT_TRUE(watcher.wait_for(sensor_topic, in_unit("unit_of_measurement", "°F"))) << "the sensor still says °C";
     EXPECT_TRUE(watcher.wait_for(climate_topic, in_unit("temperature_unit", "F"))) << "the thermostat still says C";
+}
+
+// The set point's limits are the device's own SP.LL and SP.HL: lowered on the device, the
+// number, the thermostat and /meta say so.
+TEST(MqttBridge, HomeAssistantAndMetaShowTheLimitsTheDeviceHolds) {
+    REQUIRE_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port(), every_topic());
+    auto gateway = open_discovering_gateway(broker, R"("measured_value", "set_point", "set_point_high_limit")");
+    const auto with_number = [](const char* key, double wanted) {
+        return [key, wanted](const std::string& text) {
+            const auto document = nlohmann::json::parse(text, nullptr, false);
+            return document.is_object() && document.contains(key) && document.at(key).is_number() &&
+                   document.at(key).get<double>() == wanted;
+        };
+    };
+    const std::string number_topic = "homeassistant/number/plant1_oven_set_point/config";
+    const std::string climate_topic = "homeassistant/climate/plant1_oven_control_loop/config";
+    EXPECT_TRUE(watcher.wait_for(number_topic, with_number("max", 9999.0))) << "the number's max is not the device's SP.HL";
+    EXPECT_TRUE(watcher.wait_for(climate_topic, with_number("max_temp", 9999.0)));
+
+    watcher.publish(prefix + "/oven/set_point_high_limit/set", "500");
+    EXPECT_TRUE(watcher.wait_for(number_topic, with_number("max", 500.0))) << "SP.HL lowered, the number still offers more";
+    EXPECT_TRUE(watcher.wait_for(climate_topic, with_number("max_temp", 500.0)));
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/set_point/meta", with_number("max", 500.0)));
+    EXPECT_TRUE(watcher.wait_for(number_topic, with_number("min", -1999.0)));
 }
 
 TEST(MqttDocuments, AClimateIsForATemperatureLoopOnly) {

@@ -180,6 +180,22 @@ TEST(Tc10Values, SetPointIsBoundedBySpllAndSplh) {
     EXPECT_THAT(error_of(encode_value(sp, "", known)), HasSubstr("set_point: no value given"));
 }
 
+// The limits every front shows are the numbers a write is checked against: SP between the
+// device's SP.LL and SP.HL at its decimal point, display counts scaled, nothing when unknown.
+TEST(Tc10Values, LimitsAreTheNumbersAWriteIsCheckedAgainst) {
+    const auto tc10 = builtin("tc10");
+    ASSERT_TRUE(tc10);
+    const Parameter& sp = parameter(*tc10, "set_point");
+    const RawValues known{{"decimal_point", 1}, {"set_point_low_limit", word(-500)}, {"set_point_high_limit", 12000}};
+    EXPECT_EQ(limits_of(sp, known), (ValueLimits{-50.0, 1200.0}));
+    EXPECT_EQ(limits_of(sp, {{"decimal_point", 1}, {"set_point_low_limit", 0}}), (ValueLimits{0.0, std::nullopt}));
+    EXPECT_EQ(limits_of(sp, {}), ValueLimits{}) << "neither the bounds nor the decimals are known";
+    const Parameter& band = parameter(*tc10, "proportional_band");
+    EXPECT_EQ(limits_of(band, {{"decimal_point", 1}}), (ValueLimits{0.1, 999.9}));
+    EXPECT_EQ(limits_of(band, {}), ValueLimits{}) << "counts without the decimal point are no number";
+    EXPECT_EQ(limits_of(parameter(*tc10, "control_state"), {}), ValueLimits{}) << "an enumeration has labels, not limits";
+}
+
 TEST(Tc10Values, UnknownBoundIsReportedAsSuch) {
     const auto tc10 = builtin("tc10");
     ASSERT_TRUE(tc10);
