@@ -1,12 +1,12 @@
 #include "gateway/history_forwarder.hpp"
 
 #include <algorithm>
-#include <cmath>
 #include <iterator>
 #include <vector>
 
 #include <fmt/format.h>
 
+#include "gateway/forward_batch.hpp"
 #include "gateway/history_schema.hpp"
 #include "gateway/postgres_history_schema.hpp"
 
@@ -15,22 +15,35 @@ namespace {
 
 using std::chrono::milliseconds;
 
-// The samples of a batch go in as one array per column: one statement, one round trip, one
-// transaction, however many rows. The CTE inserts the samples and upserts the minutes from the
-// rows it really inserted, so a batch sent again counts nothing twice.
-constexpr const char* insert_batch = R"sql(
-WITH inserted AS (
-  INSERT INTO loopwire_samples(series_id, t, value, text, status)
-  SELECT * FROM unnest($1::bigint[], $2::bigint[], $3::float8[], $4::text[], $5::text[])
-  ON CONFLICT DO NOTHING
-  RETURNING series_id, t, value)
-INSERT INTO loopwire_minutes(series_id, minute, lo, hi, total, n)
-SELECT series_id, floor(t / 60000.0)::bigint, min(value), max(value), sum(value), count(*)
-FROM inserted WHERE value IS NOT NULL GROUP BY 1, 2
-ON CONFLICT (series_id, minute) DO UPDATE SET
-  lo = least(loopwire_minutes.lo, excluded.lo), hi = greatest(loopwire_minutes.hi, excluded.hi),
-  total = loopwire_minutes.total + excluded.total, n = loopwire_minutes.n + excluded.n
-)sql";
+// A batch of rows all new to the historian (the usual case) goes in by COPY straight into the
+// samples, as fast as PostgreSQL takes rows, and its minutes, computed here, by one upsert.
+// A COPY that meets a (series, t) already there fails whole (a unique violation); that batch
+// was sent before (a crash after PostgreSQL committed, before the outbox was cleared), and goes
+// again the merging way: by COPY into a temporary table of the session, then one statement that
+// moves only the new rows into the samples and upserts the minutes of those, so nothing counts
+// twice. Either way in one transaction; the staging table empties itself at its end.
+constexpr const char* copy_samples = "COPY loopwire_samples(series_id, t, value, text, status) FROM STDIN";
+constexpr const char* unique_violation = "23505";
+constexpr const char* create_staging =
+    "CREATE TEMPORARY TABLE loopwire_staging(series_id bigint, t bigint, value double precision, text text, status text) "
+    "ON COMMIT DELETE ROWS";
+constexpr const char* copy_staging = "COPY loopwire_staging FROM STDIN";
+// Both ways end by adding minutes to those of earlier batches.
+constexpr const char* merge_minutes =
+    " ON CONFLICT (series_id, minute) DO UPDATE SET"
+    " lo = least(loopwire_minutes.lo, excluded.lo), hi = greatest(loopwire_minutes.hi, excluded.hi),"
+    " total = loopwire_minutes.total + excluded.total, n = loopwire_minutes.n + excluded.n";
+constexpr const char* upsert_minutes =
+    "INSERT INTO loopwire_minutes(series_id, minute, lo, hi, total, n) "
+    "SELECT * FROM unnest($1::bigint[], $2::bigint[], $3::float8[], $4::float8[], $5::float8[], $6::bigint[])";
+constexpr const char* merge_staged =
+    "WITH inserted AS ("
+    " INSERT INTO loopwire_samples(series_id, t, value, text, status)"
+    " SELECT series_id, t, value, text, status FROM loopwire_staging ON CONFLICT DO NOTHING"
+    " RETURNING series_id, t, value) "
+    "INSERT INTO loopwire_minutes(series_id, minute, lo, hi, total, n) "
+    "SELECT series_id, floor(t / 60000.0)::bigint, min(value), max(value), sum(value), count(*) "
+    "FROM inserted WHERE value IS NOT NULL GROUP BY 1, 2";
 
 constexpr const char* find_or_add_series = R"sql(
 WITH added AS (
@@ -44,21 +57,12 @@ LIMIT 1
 // How often the historian's expired partitions are looked for.
 constexpr milliseconds partition_sweep_interval{std::chrono::hours(1)};
 
-// PostgreSQL's text for a double: its own words for the non-finite ones.
-std::string float8_text(double value) {
-    if (std::isnan(value)) return "NaN";
-    if (std::isinf(value)) return value > 0 ? "Infinity" : "-Infinity";
-    return fmt::format("{}", value);
-}
-
 }  // namespace
 
 struct HistoryForwarder::Batch {
     std::int64_t last_seq = 0;
     std::uint64_t expired = 0;  // outbox rows whose sample retention already deleted
-    std::vector<std::int64_t> series;
-    std::vector<std::int64_t> t;
-    std::vector<std::optional<std::string>> values, texts, statuses;
+    ForwardBatch rows;
     bool empty() const { return last_seq == 0; }
 };
 
@@ -131,6 +135,7 @@ Result<void> HistoryForwarder::connect() {
     // retried rather than holding the forwarder for ever; a batch takes well under a second.
     if (auto bounded = db->run("SET statement_timeout = '120s'"); !bounded) return bounded.error();
     if (auto migrated = postgres_history::migrate(*db); !migrated) return migrated.error();
+    if (auto staging = db->run(create_staging); !staging) return staging.error();
     // Once per forwarder, so the log says where the history goes; an outage's end is the
     // thread's to log, not every reconnect's.
     if (!connected_once_) log(fmt::format("forwarding to {}", db->server()));
@@ -158,13 +163,18 @@ Result<HistoryForwarder::Batch> HistoryForwarder::read_batch() {
         }
         auto id = remote_series(statement->integer(1));
         if (!id) return id.error();
-        batch.series.push_back(*id);
-        batch.t.push_back(statement->integer(2));
-        batch.values.push_back(statement->is_null(4) ? std::nullopt : std::optional(float8_text(statement->real(4))));
-        batch.texts.push_back(statement->is_null(5) ? std::nullopt : std::optional(statement->text(5)));
-        batch.statuses.push_back(statement->is_null(6) ? std::nullopt : std::optional(statement->text(6)));
+        append_row(batch, *id, *statement);
     }
     return batch;
+}
+
+// One outbox row's sample (the columns 2, 4, 5 and 6 of read_batch's statement) into the batch.
+void HistoryForwarder::append_row(Batch& batch, std::int64_t remote_id, sqlite::Statement& row) const {
+    const std::string text = row.is_null(5) ? std::string() : row.text(5);
+    const std::string status = row.is_null(6) ? std::string() : row.text(6);
+    batch.rows.add(remote_id, row.integer(2), row.is_null(4) ? std::nullopt : std::optional(row.real(4)),
+                   row.is_null(5) ? std::nullopt : std::optional<std::string_view>(text),
+                   row.is_null(6) ? std::nullopt : std::optional<std::string_view>(status));
 }
 
 // The historian's id of a local series: looked up (or added) once per connection.
@@ -185,40 +195,59 @@ Result<std::int64_t> HistoryForwarder::remote_series(std::int64_t local_id) {
     return remote_id;
 }
 
-Result<void> HistoryForwarder::ship(const Batch& batch) {
-    if (batch.t.empty()) return {};
-    // The days the batch has rows in, and tomorrow, so that a day's first rows do not wait for
-    // its partition; only those: rows from an old outage make no partitions for the days between.
-    std::set<std::int64_t> days{postgres_history::day_of(now_ms() + postgres_history::day_ms)};
-    for (const std::int64_t t : batch.t) days.insert(postgres_history::day_of(t));
+// The partitions of the days the batch has rows in, and of tomorrow, so that a day's first rows
+// do not wait for theirs; only those: rows from an old outage make none for the days between.
+Result<void> HistoryForwarder::make_partitions(const ForwardBatch& rows) {
+    std::set<std::int64_t> days = rows.days();
+    days.insert(postgres_history::day_of(now_ms() + postgres_history::day_ms));
     std::vector<std::int64_t> missing;
     std::set_difference(days.begin(), days.end(), partitions_.begin(), partitions_.end(), std::back_inserter(missing));
-    if (!missing.empty()) {
-        if (auto made = postgres_history::ensure_partitions(*remote_, missing); !made) return made.error();
-        partitions_.insert(missing.begin(), missing.end());
+    if (missing.empty()) return {};
+    if (auto made = postgres_history::ensure_partitions(*remote_, missing); !made) return made.error();
+    partitions_.insert(missing.begin(), missing.end());
+    return {};
+}
+
+// Runs `steps` in one transaction of the historian; rolls back on failure.
+template <typename Steps>
+Result<void> HistoryForwarder::in_transaction(Steps steps) {
+    if (auto begun = remote_->run("BEGIN"); !begun) return begun.error();
+    Result<void> done = steps();
+    if (done) done = remote_->run("COMMIT");
+    if (!done && !remote_->broken()) {
+        const std::string state = remote_->failed_state();  // the failure's, not the rollback's
+        (void)remote_->execute("ROLLBACK");
+        last_failed_state_ = state;
     }
-    auto as_text = [](const std::vector<std::int64_t>& numbers) {
-        std::vector<std::optional<std::string>> texts;
-        texts.reserve(numbers.size());
-        for (std::int64_t n : numbers) texts.emplace_back(std::to_string(n));
-        return postgres::array_literal(texts);
-    };
-    const postgres::Parameters columns{as_text(batch.series), as_text(batch.t), postgres::array_literal(batch.values),
-                                       postgres::array_literal(batch.texts), postgres::array_literal(batch.statuses)};
-    return remote_->run(insert_batch, columns);
+    return done;
+}
+
+Result<void> HistoryForwarder::ship(const ForwardBatch& rows) {
+    if (rows.rows() == 0) return {};
+    if (auto made = make_partitions(rows); !made) return made.error();
+    last_failed_state_.clear();
+    auto copied = in_transaction([&]() -> Result<void> {
+        if (auto sent = remote_->copy_in(copy_samples, rows.copy_text()); !sent) return sent.error();
+        return rows.minutes().empty() ? Result<void>() : remote_->run(std::string(upsert_minutes) + merge_minutes, rows.minute_columns());
+    });
+    if (copied || last_failed_state_ != unique_violation) return copied;
+    return in_transaction([&]() -> Result<void> {
+        if (auto sent = remote_->copy_in(copy_staging, rows.copy_text()); !sent) return sent.error();
+        return remote_->run(std::string(merge_staged) + merge_minutes);
+    });
 }
 
 Result<bool> HistoryForwarder::forward_batch() {
     auto batch = read_batch();
     if (!batch) return batch.error();
     if (batch->empty()) return false;
-    if (auto shipped = ship(*batch); !shipped) return shipped.error();
+    if (auto shipped = ship(batch->rows); !shipped) return shipped.error();
     // Only now that PostgreSQL committed: a crash before this line sends the batch again.
     auto clear = local_.prepare("DELETE FROM outbox WHERE seq <= ?1");
     if (!clear) return clear.error();
     clear->bind(1, batch->last_seq);
     if (auto cleared = clear->step(); !cleared) return cleared.error();
-    forwarded_ += batch->t.size();
+    forwarded_ += batch->rows.rows();
     if (batch->expired != 0) {
         log(fmt::format("{} row(s) were deleted locally after `keep` before they could be forwarded", batch->expired));
     }

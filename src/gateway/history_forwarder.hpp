@@ -5,9 +5,10 @@
 // The SQLite file stays the gateway's own history and its buffer: the store's writer notes each
 // sample it inserts in the file's `outbox` table in the same transaction (history_store.cpp), so
 // a row is either committed and waiting, or not there at all. This forwarder, on its own thread
-// and its own connection to the file, reads the outbox in order, ships a batch in one statement
-// (idempotent on (series, t): ON CONFLICT DO NOTHING), and only then deletes what it shipped
-// from the outbox. A kill between the two sends the batch again; nothing is doubled.
+// and its own connection to the file, reads the outbox in order, ships a batch in one transaction
+// (COPY; idempotent on (series, t): a batch sent again skips the rows already there), and only
+// then deletes what it shipped from the outbox. A kill between the two sends the batch again;
+// nothing is doubled.
 //
 // PostgreSQL down, slow or refusing never reaches polling or the store's writer: the forwarder
 // alone waits, retrying with back-off (retry_first doubling to retry_max), logging one line when
@@ -36,6 +37,7 @@
 #include <thread>
 
 #include "common/result.hpp"
+#include "gateway/forward_batch.hpp"
 #include "gateway/history_source.hpp"
 #include "gateway/postgres_database.hpp"
 #include "gateway/sqlite_database.hpp"
@@ -84,7 +86,11 @@ private:
     Result<bool> forward_batch();  // false: the outbox was empty
     Result<Batch> read_batch();
     Result<std::int64_t> remote_series(std::int64_t local_id);
-    Result<void> ship(const Batch& batch);
+    void append_row(Batch& batch, std::int64_t remote_id, sqlite::Statement& row) const;
+    Result<void> make_partitions(const ForwardBatch& rows);
+    template <typename Steps>
+    Result<void> in_transaction(Steps steps);
+    Result<void> ship(const ForwardBatch& rows);
     void refresh_waiting();
     std::int64_t now_ms() const;
     void log(const std::string& message) const;
@@ -98,6 +104,7 @@ private:
     std::optional<postgres::Connection> remote_;
     std::map<std::int64_t, std::int64_t> remote_ids_;  // local series id -> historian's id
     std::set<std::int64_t> partitions_;                // days known to have a partition
+    std::string last_failed_state_;                    // the SQLSTATE of in_transaction's last failure
     bool connected_once_ = false;
     std::atomic<std::uint64_t> waiting_{0};
     std::atomic<std::uint64_t> forwarded_{0};
