@@ -150,5 +150,12 @@ struct BucketPlan {
     bool minutes = false;     // whole minutes inside [from, to] come from the minute table
 };
 BucketPlan plan_buckets(std::int64_t from, std::int64_t to, std::size_t points);
+// The minutes (since the epoch) wholly inside [from, to] ms: first <= m < end; none when
+// first >= end. The rest of the range is read from the samples.
+struct MinuteSpan {
+    std::int64_t first = 0;
+    std::int64_t end = 0;
+};
+MinuteSpan whole_minutes(std::int64_t from, std::int64_t to);
 
 }  // namespace loopwire::gateway

@@ -21,6 +21,7 @@
 #include "gateway/gateway.hpp"
 #include "gateway/history_store.hpp"
 #include "gateway/postgres_database.hpp"
+#include "gateway/postgres_history_query.hpp"
 #include "gateway/postgres_history_schema.hpp"
 #include "support/history_test_support.hpp"
 #include "support/log_lines.hpp"
@@ -345,6 +346,20 @@ TEST_F(HistoryForward, ANewerSchemaIsRefusedWithItsVersion) {
     EXPECT_THAT(refused.error().message, HasSubstr("schema version 7, written by a newer loopwire"));
 }
 
+// A historian made by a loopwire of schema version 1 gets version 2's index of the samples
+// without a value (what finds the gaps of a long range), and its version says so.
+TEST_F(HistoryForward, AVersion1SchemaIsUpgraded) {
+    ForwardOptions target;
+    target.conninfo = server->url();
+    ASSERT_TRUE(check_forward_target(target));
+    auto admin = connect(*server);
+    ASSERT_TRUE(admin.run("DROP INDEX loopwire_samples_gaps"));
+    ASSERT_TRUE(admin.run("UPDATE loopwire_schema_version SET version = 1"));
+    ASSERT_TRUE(check_forward_target(target));
+    EXPECT_EQ(scalar(admin, "SELECT version FROM loopwire_schema_version"), 2);
+    EXPECT_EQ(scalar(admin, "SELECT count(*) FROM pg_indexes WHERE indexname = 'loopwire_samples_gaps'"), 1);
+}
+
 // --check's message names the configuration's line and key, then what the server said.
 TEST_F(HistoryForward, CheckNamesTheKeyAndTheRemedy) {
     GatewayConfig config;
@@ -430,6 +445,80 @@ TEST_F(HistoryForward, AnotherGatewaysHistoryIsAskedFromTheHistorian) {
     auto unknown = (*north)->query(query);
     ASSERT_FALSE(unknown);
     EXPECT_THAT(unknown.error().message, HasSubstr("the historian has no device \"oven1\" of gateway \"west\""));
+}
+
+// The historian's buckets from its raw samples, grouped as `plan` groups them: what the rollup
+// must agree with.
+std::vector<HistoryBucket> raw_buckets(postgres::Connection& db, const BucketPlan& plan, std::int64_t from, std::int64_t to) {
+    auto rows = db.execute(
+        "SELECT (t - $1) / $2, min(value), max(value), avg(value), count(*) FROM loopwire_samples "
+        "WHERE t >= $3 AND t <= $4 AND value IS NOT NULL GROUP BY 1 ORDER BY 1",
+        {std::to_string(plan.origin), std::to_string(plan.width), std::to_string(from), std::to_string(to)});
+    if (!rows) throw std::runtime_error(rows.error().message);
+    std::vector<HistoryBucket> buckets;
+    for (int i = 0; i < rows->rows(); ++i) {
+        buckets.push_back({SystemTime(milliseconds(plan.origin + rows->integer(i, 0) * plan.width)), std::stod(rows->text(i, 1)),
+                           std::stod(rows->text(i, 2)), std::stod(rows->text(i, 3)), static_cast<std::size_t>(rows->integer(i, 4))});
+    }
+    return buckets;
+}
+
+// Buckets of whole minutes come from the historian's minute rollup, the minutes cut by `from`
+// and `to` from its samples: the same min, max, mean and count as the samples alone give, no
+// bucket where nothing was sampled, and the gaps as they are.
+TEST_F(HistoryForward, TheHistoriansRollupAnswersAsItsSamplesDo) {
+    auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->url(), "south"));
+    ASSERT_TRUE(store);
+    for (int i = 0; i < 600; ++i) {
+        if (i >= 240 && i < 360) continue;  // minutes 4 and 5: nothing sampled
+        ValueChange change = number("oven1", "measured_value", (i * 37) % 101, t0 + std::chrono::seconds(i));
+        if (i == 400) change.value.reset();  // a missed reply: a gap to the next value
+        (*store)->record(change);
+    }
+    ASSERT_TRUE((*store)->write_pending());
+    ASSERT_TRUE((*store)->forwarder()->forward_pending());
+    auto db = connect(*server);
+    HistoryQuery query;
+    query.device = "oven1";
+    query.from = t0 + 7s;  // minute 0 cut at the start, minute 9 at the end
+    query.to = t0 + 587s;
+    query.points = 5;  // buckets of two minutes
+    const std::int64_t from = t0_ms + 7000, to = t0_ms + 587000;
+    const BucketPlan plan = plan_buckets(from, to, query.points);
+    ASSERT_TRUE(plan.minutes);
+    ASSERT_EQ(plan.width, 120000);
+    auto answer = postgres_history::run_query(db, "south", query);
+    ASSERT_TRUE(answer) << answer.error().message;
+    ASSERT_EQ(answer->size(), 1u);
+    const auto& buckets = answer->front().buckets;
+    const auto expected = raw_buckets(db, plan, from, to);
+    ASSERT_EQ(buckets.size(), 4u);  // of five: the one of minutes 4 and 5 is absent
+    ASSERT_EQ(expected.size(), buckets.size());
+    for (std::size_t i = 0; i < buckets.size(); ++i) {
+        EXPECT_EQ(buckets[i].start, expected[i].start) << i;
+        EXPECT_EQ(buckets[i].min, expected[i].min) << i;
+        EXPECT_EQ(buckets[i].max, expected[i].max) << i;
+        EXPECT_DOUBLE_EQ(buckets[i].mean, expected[i].mean) << i;
+        EXPECT_EQ(buckets[i].count, expected[i].count) << i;
+    }
+    EXPECT_EQ(buckets[2].start, t0 + 6min);
+    ASSERT_EQ(answer->front().gaps.size(), 1u);
+    EXPECT_EQ(answer->front().gaps[0].start, t0 + 400s);
+    EXPECT_EQ(answer->front().gaps[0].end, std::optional(t0 + 401s));
+    // The rollup really is what answers for whole minutes, and only for those: a minute altered
+    // in the rollup shows, the cut minute 0 altered there does not.
+    const std::string minute0 = std::to_string(t0_ms / 60000);
+    ASSERT_TRUE(db.run("UPDATE loopwire_minutes SET hi = 1000 WHERE minute = $1 + 1", {minute0}));
+    ASSERT_TRUE(db.run("UPDATE loopwire_minutes SET lo = -1000 WHERE minute = $1", {minute0}));
+    auto altered = postgres_history::run_query(db, "south", query);
+    ASSERT_TRUE(altered);
+    EXPECT_EQ(altered->front().buckets[0].max, 1000);
+    EXPECT_EQ(altered->front().buckets[0].min, expected[0].min);
+    // Buckets under a minute wide are the samples' alone.
+    query.points = 100;
+    auto fine = postgres_history::run_query(db, "south", query);
+    ASSERT_TRUE(fine);
+    for (const auto& bucket : fine->front().buckets) EXPECT_LE(bucket.max, 100);
 }
 
 #ifdef HISTORY_FORWARD_WORKER
