@@ -7,7 +7,6 @@
 #include <fmt/format.h>
 
 #include "gateway/forward_batch.hpp"
-#include "gateway/history_schema.hpp"
 #include "gateway/postgres_history_schema.hpp"
 
 namespace loopwire::gateway {
@@ -59,13 +58,6 @@ constexpr milliseconds partition_sweep_interval{std::chrono::hours(1)};
 
 }  // namespace
 
-struct HistoryForwarder::Batch {
-    std::int64_t last_seq = 0;
-    std::uint64_t expired = 0;  // outbox rows whose sample retention already deleted
-    ForwardBatch rows;
-    bool empty() const { return last_seq == 0; }
-};
-
 HistoryForwarder::HistoryForwarder(ForwardOptions options, std::chrono::seconds keep, Clock wall_clock,
                                    std::function<void(const std::string&)> log)
     : options_(std::move(options)), keep_(keep), wall_clock_(std::move(wall_clock)), log_(std::move(log)) {}
@@ -77,9 +69,9 @@ Result<std::unique_ptr<HistoryForwarder>> HistoryForwarder::start(const std::fil
     if (!wall_clock) wall_clock = [] { return std::chrono::system_clock::now(); };
     std::unique_ptr<HistoryForwarder> forwarder(
         new HistoryForwarder(std::move(options), keep, std::move(wall_clock), std::move(log)));
-    auto local = history::open_for_reading(database);
-    if (!local) return local.error();
-    forwarder->local_ = std::move(*local);
+    auto outbox = Outbox::open(database);
+    if (!outbox) return outbox.error();
+    forwarder->outbox_ = std::move(*outbox);
     forwarder->refresh_waiting();
     if (forwarder->options_.thread) {
         forwarder->thread_ = std::jthread([f = forwarder.get()](std::stop_token stop) { f->run(std::move(stop)); });
@@ -118,8 +110,8 @@ void HistoryForwarder::queued(std::uint64_t rows, std::int64_t first_t) {
 // The outbox's size and its oldest row, for /metrics: looked at after each round, not per scrape
 // (a scrape must not wait for the forwarder's lock).
 void HistoryForwarder::refresh_waiting() {
-    auto count = local_.query_integer("SELECT count(*) FROM outbox");
-    auto oldest = local_.query_integer("SELECT coalesce((SELECT t FROM outbox ORDER BY seq LIMIT 1), 0)");
+    auto count = outbox_.waiting();
+    auto oldest = outbox_.oldest_t();
     if (count) waiting_ = static_cast<std::uint64_t>(*count);
     if (oldest) oldest_ms_ = *oldest;
 }
@@ -144,49 +136,23 @@ Result<void> HistoryForwarder::connect() {
     return {};
 }
 
-Result<HistoryForwarder::Batch> HistoryForwarder::read_batch() {
-    // LEFT JOIN: an outbox row whose sample retention deleted is still read, so it is cleared.
-    auto statement = local_.prepare(
-        "SELECT o.seq, o.series_id, o.t, s.t IS NOT NULL, s.value, s.text, s.status FROM outbox o "
-        "LEFT JOIN samples s ON s.series_id = o.series_id AND s.t = o.t ORDER BY o.seq LIMIT ?1");
-    if (!statement) return statement.error();
-    statement->bind(1, static_cast<std::int64_t>(options_.batch_rows));
-    Batch batch;
-    for (;;) {
-        auto row = statement->step();
-        if (!row) return row.error();
-        if (!*row) break;
-        batch.last_seq = statement->integer(0);
-        if (statement->integer(3) == 0) {
-            ++batch.expired;
-            continue;
-        }
-        auto id = remote_series(statement->integer(1));
+// The batch's rows as the historian takes them: its series ids, COPY's text, the minutes.
+Result<ForwardBatch> HistoryForwarder::for_historian(const OutboxBatch& batch) {
+    ForwardBatch rows;
+    for (const OutboxRow& row : batch.rows) {
+        auto id = remote_series(row.series);
         if (!id) return id.error();
-        append_row(batch, *id, *statement);
+        rows.add(*id, row.t, row.value, row.text, row.status);
     }
-    return batch;
-}
-
-// One outbox row's sample (the columns 2, 4, 5 and 6 of read_batch's statement) into the batch.
-void HistoryForwarder::append_row(Batch& batch, std::int64_t remote_id, sqlite::Statement& row) const {
-    const std::string text = row.is_null(5) ? std::string() : row.text(5);
-    const std::string status = row.is_null(6) ? std::string() : row.text(6);
-    batch.rows.add(remote_id, row.integer(2), row.is_null(4) ? std::nullopt : std::optional(row.real(4)),
-                   row.is_null(5) ? std::nullopt : std::optional<std::string_view>(text),
-                   row.is_null(6) ? std::nullopt : std::optional<std::string_view>(status));
+    return rows;
 }
 
 // The historian's id of a local series: looked up (or added) once per connection.
 Result<std::int64_t> HistoryForwarder::remote_series(std::int64_t local_id) {
     if (auto known = remote_ids_.find(local_id); known != remote_ids_.end()) return known->second;
-    auto names = local_.prepare("SELECT device, parameter, unit FROM series WHERE id = ?1");
+    auto names = outbox_.names(local_id);
     if (!names) return names.error();
-    names->bind(1, local_id);
-    auto found = names->step();
-    if (!found) return found.error();
-    if (!*found) return make_error(ErrorKind::malformed, fmt::format("{}: series {} is missing", local_.file(), local_id));
-    const postgres::Parameters key{options_.gateway, names->text(0), names->text(1), names->text(2)};
+    const postgres::Parameters key{options_.gateway, names->device, names->parameter, names->unit};
     auto id = remote_->execute(find_or_add_series, key);
     if (!id) return id.error();
     if (id->rows() != 1) return make_error(ErrorKind::mismatch, fmt::format("{}: no id for a series", remote_->server()));
@@ -222,13 +188,17 @@ Result<void> HistoryForwarder::in_transaction(Steps steps) {
     return done;
 }
 
-Result<void> HistoryForwarder::ship(const ForwardBatch& rows) {
+// `meanwhile` runs once the rows are sent, while the server takes them (unless sending failed).
+Result<void> HistoryForwarder::ship(const ForwardBatch& rows, const std::function<void()>& meanwhile) {
     if (rows.rows() == 0) return {};
     if (auto made = make_partitions(rows); !made) return made.error();
     last_failed_state_.clear();
     auto copied = in_transaction([&]() -> Result<void> {
-        if (auto sent = remote_->copy_in(copy_samples, rows.copy_text()); !sent) return sent.error();
-        return rows.minutes().empty() ? Result<void>() : remote_->run(std::string(upsert_minutes) + merge_minutes, rows.minute_columns());
+        if (auto sent = remote_->copy_send(copy_samples, rows.copy_text()); !sent) return sent.error();
+        meanwhile();
+        if (auto taken = remote_->copy_finish(); !taken) return taken.error();
+        if (rows.minutes().empty()) return {};
+        return remote_->run(std::string(upsert_minutes) + merge_minutes, rows.minute_columns());
     });
     if (copied || last_failed_state_ != unique_violation) return copied;
     return in_transaction([&]() -> Result<void> {
@@ -237,32 +207,57 @@ Result<void> HistoryForwarder::ship(const ForwardBatch& rows) {
     });
 }
 
-Result<bool> HistoryForwarder::forward_batch() {
-    auto batch = read_batch();
-    if (!batch) return batch.error();
-    if (batch->empty()) return false;
-    if (auto shipped = ship(batch->rows); !shipped) return shipped.error();
-    // Only now that PostgreSQL committed: a crash before this line sends the batch again.
-    auto clear = local_.prepare("DELETE FROM outbox WHERE seq <= ?1");
-    if (!clear) return clear.error();
-    clear->bind(1, batch->last_seq);
-    if (auto cleared = clear->step(); !cleared) return cleared.error();
-    forwarded_ += batch->rows.rows();
-    if (batch->expired != 0) {
-        log(fmt::format("{} row(s) were deleted locally after `keep` before they could be forwarded", batch->expired));
+// Only once PostgreSQL committed the batch: a crash before this sends the batch again.
+Result<void> HistoryForwarder::cleared(const OutboxBatch& batch) {
+    if (auto cleared = outbox_.clear(batch.last_seq); !cleared) return cleared.error();
+    forwarded_ += batch.rows.size();
+    if (batch.expired != 0) {
+        log(fmt::format("{} row(s) were deleted locally after `keep` before they could be forwarded", batch.expired));
     }
-    return true;
+    return {};
+}
+
+// Ships the outbox batch after batch until it is empty. While the server takes a batch's COPY,
+// the file's side works at once: it clears the batch committed before (a crash before that sends
+// it again, which the merging way absorbs) and reads the next one.
+Result<void> HistoryForwarder::forward_all() {
+    auto batch = outbox_.read(0, options_.batch_rows);
+    std::optional<OutboxBatch> committed;  // in the historian, not yet cleared from the outbox
+    Result<void> done;
+    while (done && batch && !batch->empty()) {
+        auto rows = for_historian(*batch);
+        if (!rows) {
+            done = rows.error();
+            break;
+        }
+        const std::int64_t last = batch->last_seq;
+        std::optional<Result<OutboxBatch>> next;
+        const auto meanwhile = [&] {
+            if (committed) done = cleared(*committed);
+            committed.reset();
+            next = outbox_.read(last, options_.batch_rows);
+        };
+        if (auto shipped = ship(*rows, meanwhile); !shipped) {
+            done = shipped.error();
+            break;
+        }
+        if (!next) meanwhile();
+        committed = std::move(*batch);
+        batch = std::move(*next);
+    }
+    if (committed) {
+        auto clear = cleared(*committed);
+        if (done) done = clear;
+    }
+    if (done && !batch) return batch.error();
+    return done;
 }
 
 Result<std::uint64_t> HistoryForwarder::forward_pending() {
     std::lock_guard lock(mutex_);
     const std::uint64_t before = forwarded_.load();
     Result<void> done = connect();
-    while (done) {
-        auto more = forward_batch();
-        if (!more) done = more.error();
-        if (!more || !*more) break;
-    }
+    if (done) done = forward_all();
     refresh_waiting();
     if (!done) {
         ++errors_;

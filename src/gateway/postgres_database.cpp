@@ -118,6 +118,11 @@ Error Connection::failure(const pg_result* result) {
 }
 
 Result<void> Connection::copy_in(std::string_view copy, std::string_view data) {
+    if (auto sent = copy_send(copy, data); !sent) return sent;
+    return copy_finish();
+}
+
+Result<void> Connection::copy_send(std::string_view copy, std::string_view data) {
     const std::string text(copy);
     QueryResult started(PQexec(connection_.get(), text.c_str()));
     if (!started.result_ || PQresultStatus(started.result_.get()) != PGRES_COPY_IN) return failure(started.result_.get());
@@ -130,6 +135,11 @@ Result<void> Connection::copy_in(std::string_view copy, std::string_view data) {
     }
     // A failed send still ends the COPY (with an error), so the connection leaves COPY mode.
     if (PQputCopyEnd(connection_.get(), sent ? nullptr : "loopwire: sending the rows failed") != 1) return failure(nullptr);
+    if (!sent) return copy_finish();  // the server's word on the COPY it was told to abandon
+    return {};
+}
+
+Result<void> Connection::copy_finish() {
     QueryResult ended(PQgetResult(connection_.get()));
     const bool done = ended.result_ && PQresultStatus(ended.result_.get()) == PGRES_COMMAND_OK;
     Result<void> outcome;

@@ -52,6 +52,11 @@ public:
     // Runs `copy` (a COPY ... FROM STDIN) and sends `data` in COPY's text format: the cheapest
     // way into the server for many rows (no per-row statement, no array to parse).
     Result<void> copy_in(std::string_view copy, std::string_view data);
+    // copy_in in two halves: copy_send returns once the rows are sent, while the server may still
+    // be taking them, so the caller can do other work (read its next rows) before copy_finish
+    // waits for the outcome. Nothing else may be sent on the connection in between.
+    Result<void> copy_send(std::string_view copy, std::string_view data);
+    Result<void> copy_finish();
     bool broken() const;  // the connection is gone: reconnect rather than retry on it
     // The SQLSTATE of the last statement that failed ("23505": a unique key already there).
     const std::string& failed_state() const { return failed_state_; }
