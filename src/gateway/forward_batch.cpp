@@ -1,5 +1,6 @@
 #include "gateway/forward_batch.hpp"
 
+#include <bit>
 #include <cmath>
 #include <iterator>
 #include <vector>
@@ -22,6 +23,31 @@ bool before(double a, double b) {
 
 std::int64_t minute_of(std::int64_t t) { return t / minute_ms - ((t % minute_ms != 0 && t < 0) ? 1 : 0); }
 
+// COPY's binary format: a signature, flags and the length of an extension area (none), then
+// tuples of a field count and, per field, its length (-1: NULL) and bytes, all in network order;
+// a count of -1 ends it.
+constexpr std::string_view copy_signature{"PGCOPY\n\xff\r\n\0", 11};
+
+template <typename Unsigned>
+void put_big_endian(std::string& out, Unsigned value) {
+    for (int shift = 8 * (static_cast<int>(sizeof(Unsigned)) - 1); shift >= 0; shift -= 8) {
+        out += static_cast<char>((value >> shift) & 0xff);
+    }
+}
+
+void put_length(std::string& out, std::int32_t length) { put_big_endian(out, static_cast<std::uint32_t>(length)); }
+
+void put_int8(std::string& out, std::int64_t value) {
+    put_length(out, 8);
+    put_big_endian(out, static_cast<std::uint64_t>(value));
+}
+
+void put_text(std::string& out, const std::optional<std::string_view>& text) {
+    if (!text) return put_length(out, -1);
+    put_length(out, static_cast<std::int32_t>(text->size()));
+    out += *text;
+}
+
 }  // namespace
 
 void MinuteRollup::add(double value) {
@@ -41,22 +67,34 @@ void append_float8(std::string& out, double value) {
     }
 }
 
+ForwardBatch::ForwardBatch() {
+    copy_ = copy_signature;
+    put_big_endian(copy_, std::uint32_t{0});  // flags: no OIDs
+    put_big_endian(copy_, std::uint32_t{0});  // no header extension
+}
+
 void ForwardBatch::add(std::int64_t series, std::int64_t t, std::optional<double> value, std::optional<std::string_view> text,
                        std::optional<std::string_view> status) {
-    fmt::format_to(std::back_inserter(copy_), "{}\t{}\t", series, t);
+    put_big_endian(copy_, std::uint16_t{5});
+    put_int8(copy_, series);
+    put_int8(copy_, t);
     if (value) {
-        append_float8(copy_, *value);
+        put_length(copy_, 8);
+        put_big_endian(copy_, std::bit_cast<std::uint64_t>(*value));  // float8: IEEE 754, as the server's
         minutes_[{series, minute_of(t)}].add(*value);
     } else {
-        copy_ += "\\N";
+        put_length(copy_, -1);
     }
-    copy_ += '\t';
-    postgres::append_copy_field(copy_, text);
-    copy_ += '\t';
-    postgres::append_copy_field(copy_, status);
-    copy_ += '\n';
+    put_text(copy_, text);
+    put_text(copy_, status);
     days_.insert(postgres_history::day_of(t));
     ++rows_;
+}
+
+std::string ForwardBatch::copy_data() const {
+    std::string data = copy_;
+    put_big_endian(data, std::uint16_t{0xffff});  // the trailer: a field count of -1
+    return data;
 }
 
 postgres::Parameters ForwardBatch::minute_columns() const {

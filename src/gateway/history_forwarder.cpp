@@ -21,12 +21,12 @@ using std::chrono::milliseconds;
 // again the merging way: by COPY into a temporary table of the session, then one statement that
 // moves only the new rows into the samples and upserts the minutes of those, so nothing counts
 // twice. Either way in one transaction; the staging table empties itself at its end.
-constexpr const char* copy_samples = "COPY loopwire_samples(series_id, t, value, text, status) FROM STDIN";
+constexpr const char* copy_samples = "COPY loopwire_samples(series_id, t, value, text, status) FROM STDIN (FORMAT binary)";
 constexpr const char* unique_violation = "23505";
 constexpr const char* create_staging =
     "CREATE TEMPORARY TABLE loopwire_staging(series_id bigint, t bigint, value double precision, text text, status text) "
     "ON COMMIT DELETE ROWS";
-constexpr const char* copy_staging = "COPY loopwire_staging FROM STDIN";
+constexpr const char* copy_staging = "COPY loopwire_staging FROM STDIN (FORMAT binary)";
 // Both ways end by adding minutes to those of earlier batches.
 constexpr const char* merge_minutes =
     " ON CONFLICT (series_id, minute) DO UPDATE SET"
@@ -193,8 +193,9 @@ Result<void> HistoryForwarder::ship(const ForwardBatch& rows, const std::functio
     if (rows.rows() == 0) return {};
     if (auto made = make_partitions(rows); !made) return made.error();
     last_failed_state_.clear();
+    const std::string data = rows.copy_data();
     auto copied = in_transaction([&]() -> Result<void> {
-        if (auto sent = remote_->copy_send(copy_samples, rows.copy_text()); !sent) return sent.error();
+        if (auto sent = remote_->copy_send(copy_samples, data); !sent) return sent.error();
         meanwhile();
         if (auto taken = remote_->copy_finish(); !taken) return taken.error();
         if (rows.minutes().empty()) return {};
@@ -202,7 +203,7 @@ Result<void> HistoryForwarder::ship(const ForwardBatch& rows, const std::functio
     });
     if (copied || last_failed_state_ != unique_violation) return copied;
     return in_transaction([&]() -> Result<void> {
-        if (auto sent = remote_->copy_in(copy_staging, rows.copy_text()); !sent) return sent.error();
+        if (auto sent = remote_->copy_in(copy_staging, data); !sent) return sent.error();
         return remote_->run(std::string(merge_staged) + merge_minutes);
     });
 }

@@ -174,22 +174,6 @@ std::string array_literal(const std::vector<std::optional<std::string>>& values)
     return literal;
 }
 
-void append_copy_field(std::string& row, const std::optional<std::string_view>& value) {
-    if (!value) {
-        row += "\\N";
-        return;
-    }
-    for (const char c : *value) {
-        switch (c) {
-            case '\\': row += "\\\\"; break;
-            case '\t': row += "\\t"; break;
-            case '\n': row += "\\n"; break;
-            case '\r': row += "\\r"; break;
-            default: row += c;
-        }
-    }
-}
-
 Result<void> check_conninfo(const std::string& conninfo) {
     char* message = nullptr;
     PQconninfoOption* options = PQconninfoParse(conninfo.c_str(), &message);

@@ -49,7 +49,7 @@ public:
 
     Result<QueryResult> execute(std::string_view sql, const Parameters& parameters = {});
     Result<void> run(std::string_view sql, const Parameters& parameters = {});  // the rows, if any, unread
-    // Runs `copy` (a COPY ... FROM STDIN) and sends `data` in COPY's text format: the cheapest
+    // Runs `copy` (a COPY ... FROM STDIN) and sends `data` in the format it names: the cheapest
     // way into the server for many rows (no per-row statement, no array to parse).
     Result<void> copy_in(std::string_view copy, std::string_view data);
     // copy_in in two halves: copy_send returns once the rows are sent, while the server may still
@@ -75,10 +75,6 @@ private:
 // A PostgreSQL text array literal of the values ("{1,2,NULL}"), quoted so that any text fits:
 // a whole batch travels as one parameter per column (unnest() on the server side).
 std::string array_literal(const std::vector<std::optional<std::string>>& values);
-
-// Appends a value to a row of COPY's text format: backslash, tab, newline and carriage return
-// escaped; none is NULL (\N).
-void append_copy_field(std::string& row, const std::optional<std::string_view>& value);
 
 // Whether libpq can read the connection string; the error is libpq's, without the text itself
 // (it may hold a password).
