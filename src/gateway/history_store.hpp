@@ -35,6 +35,7 @@
 
 #include "common/result.hpp"
 #include "gateway/history_forwarder.hpp"
+#include "gateway/historian_reader.hpp"
 #include "gateway/history_source.hpp"
 #include "gateway/sqlite_database.hpp"
 #include "gateway/value_cache.hpp"
@@ -130,6 +131,7 @@ private:
     HistoryOptions options_;
     std::unique_ptr<Writer> writer_;        // the writer's connection and state; its lock held
     mutable std::unique_ptr<Reader> reader_;  // query()'s connection; its own lock
+    std::unique_ptr<HistorianReader> historian_;  // other gateways' history, when forwarding
     mutable std::mutex writer_mutex_;
     mutable std::mutex queue_mutex_;
     std::condition_variable_any queue_woken_;

@@ -135,6 +135,12 @@ std::optional<std::string> host_name_of(std::string_view host) {
     return lower_case(name);
 }
 
+// A failed history query: the asker's fault (400), or the historian's, unreachable or too slow
+// (503: the same request may well succeed later).
+unsigned history_failure_status(const Error& failure) {
+    return failure.kind == ErrorKind::link || failure.kind == ErrorKind::timeout ? 503u : 400u;
+}
+
 // The answer to a write: what was written, or why not, with a status that fits.
 HttpResponse write_response(const Result<WrittenValues>& written) {
     if (!written) {
@@ -490,7 +496,7 @@ HttpResponse HttpApi::State::history(const HttpRequest& request) const {
 }
 
 HttpResponse HttpApi::State::history_reply(const ParsedHistoryQuery& query, const Result<std::vector<HistorySeries>>& series) const {
-    if (!series) return error(400, series.error().message);
+    if (!series) return error(history_failure_status(series.error()), series.error().message);
     HttpResponse response;
     response.headers.emplace_back("Cache-Control", "no-store");
     if (query.csv) {

@@ -65,12 +65,12 @@ long long QueryResult::integer(int row, int column) const {
 }
 
 Result<Connection> Connection::connect(const std::string& conninfo, const std::optional<std::string>& password,
-                                       int connect_timeout_seconds) {
+                                       int connect_timeout_seconds, const char* application_name) {
     // expand_dbname: the "dbname" value is the whole connection string; the keywords after it
     // override what it says (the password from password_file, a bound on the connect).
     const std::string timeout = std::to_string(connect_timeout_seconds);
     std::vector<const char*> keys{"dbname", "connect_timeout", "application_name"};
-    std::vector<const char*> values{conninfo.c_str(), timeout.c_str(), "loopwire"};
+    std::vector<const char*> values{conninfo.c_str(), timeout.c_str(), application_name};
     if (password) {
         keys.push_back("password");
         values.push_back(password->c_str());

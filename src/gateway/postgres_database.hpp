@@ -40,8 +40,9 @@ public:
     // Connects with `conninfo` (a postgresql:// URL or key=value pairs, libpq's own forms) and
     // an optional password that overrides any in it (PGPASSFILE works as libpq defines it).
     // The error names the server without the password and says what to do.
+    // `application_name` is what the server's pg_stat_activity calls the session.
     static Result<Connection> connect(const std::string& conninfo, const std::optional<std::string>& password,
-                                      int connect_timeout_seconds);
+                                      int connect_timeout_seconds, const char* application_name = "loopwire");
 
     Connection() = default;
     Connection(Connection&&) noexcept = default;

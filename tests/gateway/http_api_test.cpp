@@ -699,6 +699,8 @@ public:
         if (!query.parameters.empty() && query.parameters.front() == "nonsense") {
             return make_error(ErrorKind::usage, "device \"oven\" has no parameter \"nonsense\"");
         }
+        if (query.gateway == "down") return make_error(ErrorKind::link, "postgresql postgres@db:5432/plant: cannot connect");
+        if (query.gateway == "slow") return make_error(ErrorKind::timeout, "postgresql postgres@db:5432/plant: no answer within");
         const auto start = query.from;
         HistorySeries series{"measured_value", "°C", {}, {}};
         series.buckets.push_back({start, 20.5, 22.0, 21.25, 4});
@@ -821,6 +823,16 @@ TEST_F(HttpHistoryTest, AnotherGatewaysDeviceIsAskedOfTheStoreAsNamed) {
     EXPECT_EQ(asked[0].gateway, "south");
     EXPECT_EQ(asked[0].device, "kiln");
     EXPECT_EQ(asked[0].parameters, (std::vector<std::string>{"PV"}));
+}
+
+// A historian that cannot be reached or does not answer in time is the server's trouble, not
+// the asker's: 503, with what went wrong, so the dashboard can say so and ask again later.
+TEST_F(HttpHistoryTest, AHistorianDownOrTooSlowIs503WithTheReason) {
+    for (const auto& [gateway, reason] : {std::pair{"down", "cannot connect"}, std::pair{"slow", "no answer within"}}) {
+        const Reply reply = get(server_->port(), std::string("/api/history?device=kiln&gateway=") + gateway);
+        EXPECT_EQ(reply.status, 503u) << reply.body;
+        EXPECT_THAT(reply.json().at("error").get<std::string>(), HasSubstr(reason));
+    }
 }
 
 TEST_F(HttpHistoryTest, BadQueriesAreRefusedSayingWhatIsWrong) {
