@@ -425,6 +425,11 @@ Result<std::vector<HistorySeries>> HistoryStore::query(const HistoryQuery& query
     return history::run_query(*reader_->db, query);
 }
 
+Result<std::vector<std::string>> HistoryStore::historian_gateways() const {
+    if (!historian_) return HistorySource::historian_gateways();
+    return historian_->gateways();
+}
+
 // Another gateway's history: in the shared historian, read by its own reader (its own
 // connection and lock: a slow historian does not hold this gateway's own history queries).
 Result<std::vector<HistorySeries>> HistoryStore::historian_query(const HistoryQuery& query) const {

@@ -97,6 +97,7 @@ public:
     std::uint64_t rows_written() const override;
     std::uint64_t dropped() const;  // changes refused because the queue was full
     std::optional<ForwardStats> forward_stats() const override;
+    Result<std::vector<std::string>> historian_gateways() const override;
     HistoryForwarder* forwarder() { return forwarder_.get(); }  // null unless forwarding
 
     const std::filesystem::path& database() const { return options_.database; }

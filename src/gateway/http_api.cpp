@@ -167,6 +167,7 @@ struct ConfiguredDevice {
 }  // namespace
 
 struct HttpApi::State {
+    std::string gateway_name;  // [gateway] name
     std::vector<ConfiguredDevice> devices;
     HttpApiSources sources;
     std::string token;        // empty: writes refused
@@ -233,6 +234,7 @@ struct HttpApi::State {
     HttpOutcome write(const ConfiguredDevice& device, const HttpRequest& request) const;
     HttpOutcome events(const HttpRequest& request) const;
     HttpResponse history(const HttpRequest& request) const;
+    HttpResponse history_gateways() const;
     HttpResponse history_reply(const ParsedHistoryQuery& query, const Result<std::vector<HistorySeries>>& series) const;
     HttpResponse metrics() const;
     HttpResponse asset(const HttpRequest& request) const;
@@ -248,6 +250,7 @@ HttpApi::HttpApi(const GatewayConfig& config, HttpApiSources sources) : state_(s
     const HttpConfig http = config.http.value_or(HttpConfig{});
     state_->token = http.token;
     state_->reads_need_token = !http.loopback();
+    state_->gateway_name = config.name;
     state_->hosts = {"localhost", "127.0.0.1", "[::1]"};
     const std::string listen = lower_case(http.host.find(':') != std::string::npos ? "[" + http.host + "]" : http.host);
     for (const auto& name : http.hosts) state_->hosts.push_back(name);
@@ -273,6 +276,7 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
     if (path == "/api/devices") return {get ? devices_list() : not_allowed("GET"), {}, {}};
     if (path == "/api/events") return get ? events(request) : HttpOutcome{not_allowed("GET"), {}, {}};
     if (path == "/api/history") return {get ? history(request) : not_allowed("GET"), {}, {}};
+    if (path == "/api/history/gateways") return {get ? history_gateways() : not_allowed("GET"), {}, {}};
     if (path == "/metrics") return {get ? metrics() : not_allowed("GET"), {}, {}};
     constexpr std::string_view prefix = "/api/devices/";
     if (path.rfind(prefix, 0) == 0) {
@@ -493,6 +497,22 @@ HttpResponse HttpApi::State::history(const HttpRequest& request) const {
         if (resolved && resolved->size() == 1) name = resolved->front()->name;
     }
     return history_reply(*query, sources.history->query(query->query));
+}
+
+// The gateways whose history the historian holds, for the dashboard's choice of whose trend
+// to show; 404 when there is no historian ([history] forward_to absent).
+HttpResponse HttpApi::State::history_gateways() const {
+    if (!sources.history) {
+        return error(404, "no [history] configured: add a [history] table to the gateway's configuration to record values");
+    }
+    auto names = sources.history->historian_gateways();
+    if (!names) {
+        const unsigned status = names.error().kind == ErrorKind::usage ? 404u : history_failure_status(names.error());
+        return error(status, names.error().message);
+    }
+    HttpResponse response = json_response(200, Json{{"this", gateway_name}, {"gateways", *names}});
+    response.headers.emplace_back("Cache-Control", "no-store");
+    return response;
 }
 
 HttpResponse HttpApi::State::history_reply(const ParsedHistoryQuery& query, const Result<std::vector<HistorySeries>>& series) const {
