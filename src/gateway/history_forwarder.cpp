@@ -44,13 +44,17 @@ constexpr const char* merge_staged =
     "SELECT series_id, floor(t / 60000.0)::bigint, min(value), max(value), sum(value), count(*) "
     "FROM inserted WHERE value IS NOT NULL GROUP BY 1, 2";
 
+// The historian's ids of a batch's new series, added where missing, in one round trip: the
+// rows `added` inserts are not visible to the second SELECT (one snapshot), so each series
+// comes back once, from one side or the other.
 constexpr const char* find_or_add_series = R"sql(
-WITH added AS (
-  INSERT INTO loopwire_series(gateway, device, parameter, unit) VALUES ($1, $2, $3, $4)
-  ON CONFLICT DO NOTHING RETURNING id)
-SELECT id FROM added
-UNION ALL SELECT id FROM loopwire_series WHERE gateway = $1 AND device = $2 AND parameter = $3 AND unit = $4
-LIMIT 1
+WITH wanted AS (SELECT * FROM unnest($2::text[], $3::text[], $4::text[]) AS w(device, parameter, unit)),
+added AS (
+  INSERT INTO loopwire_series(gateway, device, parameter, unit) SELECT $1, device, parameter, unit FROM wanted
+  ON CONFLICT DO NOTHING RETURNING id, device, parameter, unit)
+SELECT id, device, parameter, unit FROM added
+UNION ALL SELECT s.id, s.device, s.parameter, s.unit FROM loopwire_series s JOIN wanted w USING (device, parameter, unit)
+WHERE s.gateway = $1
 )sql";
 
 // How often the historian's expired partitions are looked for.
@@ -136,29 +140,42 @@ Result<void> HistoryForwarder::connect() {
     return {};
 }
 
-// The batch's rows as the historian takes them: its series ids, COPY's text, the minutes.
+// The batch's rows as the historian takes them: its series ids, COPY's data, the minutes.
 Result<ForwardBatch> HistoryForwarder::for_historian(const OutboxBatch& batch) {
+    if (auto learned = learn_series(batch); !learned) return learned.error();
     ForwardBatch rows;
-    for (const OutboxRow& row : batch.rows) {
-        auto id = remote_series(row.series);
-        if (!id) return id.error();
-        rows.add(*id, row.t, row.value, row.text, row.status);
-    }
+    for (const OutboxRow& row : batch.rows) rows.add(remote_ids_.at(row.series), row.t, row.value, row.text, row.status);
     return rows;
 }
 
-// The historian's id of a local series: looked up (or added) once per connection.
-Result<std::int64_t> HistoryForwarder::remote_series(std::int64_t local_id) {
-    if (auto known = remote_ids_.find(local_id); known != remote_ids_.end()) return known->second;
-    auto names = outbox_.names(local_id);
-    if (!names) return names.error();
-    const postgres::Parameters key{options_.gateway, names->device, names->parameter, names->unit};
-    auto id = remote_->execute(find_or_add_series, key);
-    if (!id) return id.error();
-    if (id->rows() != 1) return make_error(ErrorKind::mismatch, fmt::format("{}: no id for a series", remote_->server()));
-    const std::int64_t remote_id = id->integer(0, 0);
-    remote_ids_.emplace(local_id, remote_id);
-    return remote_id;
+// The historian's ids of the batch's series not met yet on this connection (all of them on its
+// first batch), looked up or added together.
+Result<void> HistoryForwarder::learn_series(const OutboxBatch& batch) {
+    using Names = std::tuple<std::string, std::string, std::string>;
+    std::map<Names, std::int64_t> unknown;  // -> the local id
+    std::set<std::int64_t> seen;
+    std::vector<std::optional<std::string>> devices, parameters, units;
+    for (const OutboxRow& row : batch.rows) {
+        if (remote_ids_.count(row.series) != 0 || !seen.insert(row.series).second) continue;
+        auto names = outbox_.names(row.series);
+        if (!names) return names.error();
+        unknown.emplace(Names{names->device, names->parameter, names->unit}, row.series);
+        devices.emplace_back(names->device);
+        parameters.emplace_back(names->parameter);
+        units.emplace_back(names->unit);
+    }
+    if (unknown.empty()) return {};
+    auto found = remote_->execute(find_or_add_series, {options_.gateway, postgres::array_literal(devices),
+                                                       postgres::array_literal(parameters), postgres::array_literal(units)});
+    if (!found) return found.error();
+    for (int i = 0; i < found->rows(); ++i) {
+        const auto local = unknown.find(Names{found->text(i, 1), found->text(i, 2), found->text(i, 3)});
+        if (local != unknown.end()) remote_ids_.emplace(local->second, found->integer(i, 0));
+    }
+    if (std::any_of(unknown.begin(), unknown.end(), [&](const auto& entry) { return remote_ids_.count(entry.second) == 0; })) {
+        return make_error(ErrorKind::mismatch, fmt::format("{}: no id for a series", remote_->server()));
+    }
+    return {};
 }
 
 // The partitions of the days the batch has rows in, and of tomorrow, so that a day's first rows

@@ -35,6 +35,7 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <tuple>
 
 #include "common/result.hpp"
 #include "gateway/forward_batch.hpp"
@@ -84,7 +85,7 @@ private:
     Result<void> connect();
     Result<void> forward_all();
     Result<ForwardBatch> for_historian(const OutboxBatch& batch);
-    Result<std::int64_t> remote_series(std::int64_t local_id);
+    Result<void> learn_series(const OutboxBatch& batch);
     Result<void> make_partitions(const ForwardBatch& rows);
     template <typename Steps>
     Result<void> in_transaction(Steps steps);

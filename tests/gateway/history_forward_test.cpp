@@ -179,6 +179,37 @@ TEST_F(HistoryForward, ABatchSentAgainAddsNoSamplesNorMinutes) {
     EXPECT_EQ((*store)->forward_stats()->waiting_rows, 0u);
 }
 
+// The historian's series ids are learnt a batch at a time: series new in a later batch, one the
+// historian already has (added by an earlier connection), several in one batch.
+TEST_F(HistoryForward, SeriesNewInAnyBatchGetTheirOwnIdsAndRows) {
+    HistoryOptions options = forwarding(folder.path / "h.db", wall, server->url());
+    options.forward->batch_rows = 4;
+    auto store = HistoryStore::open(options);
+    ASSERT_TRUE(store) << store.error().message;
+    for (int i = 0; i < 6; ++i) (*store)->record(number("oven1", "measured_value", i, t0 + std::chrono::seconds(i)));
+    for (int i = 0; i < 6; ++i) {
+        (*store)->record(number("oven1", "set_point", 100 + i, t0 + std::chrono::seconds(10 + i)));
+        (*store)->record(number("oven2", "measured_value", 200 + i, t0 + std::chrono::seconds(10 + i)));
+    }
+    ASSERT_TRUE((*store)->write_pending());
+    auto admin = connect(*server);
+    ASSERT_TRUE(check_forward_target(options.forward.value()));
+    // Known to the historian before this gateway's forwarder asks for it.
+    ASSERT_TRUE(admin.run("INSERT INTO loopwire_series(gateway, device, parameter, unit) VALUES ('plant1', 'oven1', 'set_point', '°C')"));
+    auto shipped = (*store)->forwarder()->forward_pending();
+    ASSERT_TRUE(shipped) << shipped.error().message;
+    EXPECT_EQ(*shipped, 18u);
+    auto rows = admin.execute(
+        "SELECT n.device || '/' || n.parameter, string_agg(s.value::text, ',' ORDER BY s.t) FROM loopwire_samples s "
+        "JOIN loopwire_series n ON n.id = s.series_id WHERE n.gateway = 'plant1' GROUP BY 1 ORDER BY 1");
+    ASSERT_TRUE(rows);
+    ASSERT_EQ(rows->rows(), 3);
+    EXPECT_EQ(rows->text(0, 0) + " " + rows->text(0, 1), "oven1/measured_value 0,1,2,3,4,5");
+    EXPECT_EQ(rows->text(1, 0) + " " + rows->text(1, 1), "oven1/set_point 100,101,102,103,104,105");
+    EXPECT_EQ(rows->text(2, 0) + " " + rows->text(2, 1), "oven2/measured_value 200,201,202,203,204,205");
+    EXPECT_EQ(scalar(admin, "SELECT count(*) FROM loopwire_series"), 3);
+}
+
 TEST_F(HistoryForward, TextsStatusesAndGapsTravelAsTheyAre) {
     auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->conninfo()));
     ASSERT_TRUE(store) << store.error().message;
