@@ -68,6 +68,12 @@ int main(int argc, char** argv) {
     }
     if (!(*store)->write_pending()) return 1;
     csv.close();
+    // The historian's tables made beforehand, as the \copy peer's table is: the time is the
+    // rows' (and a connect's, as psql's includes one).
+    if (auto made = check_forward_target(forward); !made) {
+        std::fprintf(stderr, "%s\n", made.error().message.c_str());
+        return 1;
+    }
     const auto began = std::chrono::steady_clock::now();
     auto shipped = (*store)->forwarder()->forward_pending();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();

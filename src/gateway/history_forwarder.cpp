@@ -1,13 +1,12 @@
 #include "gateway/history_forwarder.hpp"
 
 #include <algorithm>
-#include <cmath>
 #include <iterator>
 #include <vector>
 
 #include <fmt/format.h>
 
-#include "gateway/history_schema.hpp"
+#include "gateway/forward_batch.hpp"
 #include "gateway/postgres_history_schema.hpp"
 
 namespace loopwire::gateway {
@@ -15,52 +14,53 @@ namespace {
 
 using std::chrono::milliseconds;
 
-// The samples of a batch go in as one array per column: one statement, one round trip, one
-// transaction, however many rows. The CTE inserts the samples and upserts the minutes from the
-// rows it really inserted, so a batch sent again counts nothing twice.
-constexpr const char* insert_batch = R"sql(
-WITH inserted AS (
-  INSERT INTO loopwire_samples(series_id, t, value, text, status)
-  SELECT * FROM unnest($1::bigint[], $2::bigint[], $3::float8[], $4::text[], $5::text[])
-  ON CONFLICT DO NOTHING
-  RETURNING series_id, t, value)
-INSERT INTO loopwire_minutes(series_id, minute, lo, hi, total, n)
-SELECT series_id, floor(t / 60000.0)::bigint, min(value), max(value), sum(value), count(*)
-FROM inserted WHERE value IS NOT NULL GROUP BY 1, 2
-ON CONFLICT (series_id, minute) DO UPDATE SET
-  lo = least(loopwire_minutes.lo, excluded.lo), hi = greatest(loopwire_minutes.hi, excluded.hi),
-  total = loopwire_minutes.total + excluded.total, n = loopwire_minutes.n + excluded.n
-)sql";
+// A batch of rows all new to the historian (the usual case) goes in by COPY straight into the
+// samples, as fast as PostgreSQL takes rows, and its minutes, computed here, by one upsert.
+// A COPY that meets a (series, t) already there fails whole (a unique violation); that batch
+// was sent before (a crash after PostgreSQL committed, before the outbox was cleared), and goes
+// again the merging way: by COPY into a temporary table of the session, then one statement that
+// moves only the new rows into the samples and upserts the minutes of those, so nothing counts
+// twice. Either way in one transaction; the staging table empties itself at its end.
+constexpr const char* copy_samples = "COPY loopwire_samples(series_id, t, value, text, status) FROM STDIN (FORMAT binary)";
+constexpr const char* unique_violation = "23505";
+constexpr const char* create_staging =
+    "CREATE TEMPORARY TABLE loopwire_staging(series_id bigint, t bigint, value double precision, text text, status text) "
+    "ON COMMIT DELETE ROWS";
+constexpr const char* copy_staging = "COPY loopwire_staging FROM STDIN (FORMAT binary)";
+// Both ways end by adding minutes to those of earlier batches.
+constexpr const char* merge_minutes =
+    " ON CONFLICT (series_id, minute) DO UPDATE SET"
+    " lo = least(loopwire_minutes.lo, excluded.lo), hi = greatest(loopwire_minutes.hi, excluded.hi),"
+    " total = loopwire_minutes.total + excluded.total, n = loopwire_minutes.n + excluded.n";
+constexpr const char* upsert_minutes =
+    "INSERT INTO loopwire_minutes(series_id, minute, lo, hi, total, n) "
+    "SELECT * FROM unnest($1::bigint[], $2::bigint[], $3::float8[], $4::float8[], $5::float8[], $6::bigint[])";
+constexpr const char* merge_staged =
+    "WITH inserted AS ("
+    " INSERT INTO loopwire_samples(series_id, t, value, text, status)"
+    " SELECT series_id, t, value, text, status FROM loopwire_staging ON CONFLICT DO NOTHING"
+    " RETURNING series_id, t, value) "
+    "INSERT INTO loopwire_minutes(series_id, minute, lo, hi, total, n) "
+    "SELECT series_id, floor(t / 60000.0)::bigint, min(value), max(value), sum(value), count(*) "
+    "FROM inserted WHERE value IS NOT NULL GROUP BY 1, 2";
 
+// The historian's ids of a batch's new series, added where missing, in one round trip: the
+// rows `added` inserts are not visible to the second SELECT (one snapshot), so each series
+// comes back once, from one side or the other.
 constexpr const char* find_or_add_series = R"sql(
-WITH added AS (
-  INSERT INTO loopwire_series(gateway, device, parameter, unit) VALUES ($1, $2, $3, $4)
-  ON CONFLICT DO NOTHING RETURNING id)
-SELECT id FROM added
-UNION ALL SELECT id FROM loopwire_series WHERE gateway = $1 AND device = $2 AND parameter = $3 AND unit = $4
-LIMIT 1
+WITH wanted AS (SELECT * FROM unnest($2::text[], $3::text[], $4::text[]) AS w(device, parameter, unit)),
+added AS (
+  INSERT INTO loopwire_series(gateway, device, parameter, unit) SELECT $1, device, parameter, unit FROM wanted
+  ON CONFLICT DO NOTHING RETURNING id, device, parameter, unit)
+SELECT id, device, parameter, unit FROM added
+UNION ALL SELECT s.id, s.device, s.parameter, s.unit FROM loopwire_series s JOIN wanted w USING (device, parameter, unit)
+WHERE s.gateway = $1
 )sql";
 
 // How often the historian's expired partitions are looked for.
 constexpr milliseconds partition_sweep_interval{std::chrono::hours(1)};
 
-// PostgreSQL's text for a double: its own words for the non-finite ones.
-std::string float8_text(double value) {
-    if (std::isnan(value)) return "NaN";
-    if (std::isinf(value)) return value > 0 ? "Infinity" : "-Infinity";
-    return fmt::format("{}", value);
-}
-
 }  // namespace
-
-struct HistoryForwarder::Batch {
-    std::int64_t last_seq = 0;
-    std::uint64_t expired = 0;  // outbox rows whose sample retention already deleted
-    std::vector<std::int64_t> series;
-    std::vector<std::int64_t> t;
-    std::vector<std::optional<std::string>> values, texts, statuses;
-    bool empty() const { return last_seq == 0; }
-};
 
 HistoryForwarder::HistoryForwarder(ForwardOptions options, std::chrono::seconds keep, Clock wall_clock,
                                    std::function<void(const std::string&)> log)
@@ -73,9 +73,9 @@ Result<std::unique_ptr<HistoryForwarder>> HistoryForwarder::start(const std::fil
     if (!wall_clock) wall_clock = [] { return std::chrono::system_clock::now(); };
     std::unique_ptr<HistoryForwarder> forwarder(
         new HistoryForwarder(std::move(options), keep, std::move(wall_clock), std::move(log)));
-    auto local = history::open_for_reading(database);
-    if (!local) return local.error();
-    forwarder->local_ = std::move(*local);
+    auto outbox = Outbox::open(database);
+    if (!outbox) return outbox.error();
+    forwarder->outbox_ = std::move(*outbox);
     forwarder->refresh_waiting();
     if (forwarder->options_.thread) {
         forwarder->thread_ = std::jthread([f = forwarder.get()](std::stop_token stop) { f->run(std::move(stop)); });
@@ -114,8 +114,8 @@ void HistoryForwarder::queued(std::uint64_t rows, std::int64_t first_t) {
 // The outbox's size and its oldest row, for /metrics: looked at after each round, not per scrape
 // (a scrape must not wait for the forwarder's lock).
 void HistoryForwarder::refresh_waiting() {
-    auto count = local_.query_integer("SELECT count(*) FROM outbox");
-    auto oldest = local_.query_integer("SELECT coalesce((SELECT t FROM outbox ORDER BY seq LIMIT 1), 0)");
+    auto count = outbox_.waiting();
+    auto oldest = outbox_.oldest_t();
     if (count) waiting_ = static_cast<std::uint64_t>(*count);
     if (oldest) oldest_ms_ = *oldest;
 }
@@ -131,6 +131,7 @@ Result<void> HistoryForwarder::connect() {
     // retried rather than holding the forwarder for ever; a batch takes well under a second.
     if (auto bounded = db->run("SET statement_timeout = '120s'"); !bounded) return bounded.error();
     if (auto migrated = postgres_history::migrate(*db); !migrated) return migrated.error();
+    if (auto staging = db->run(create_staging); !staging) return staging.error();
     // Once per forwarder, so the log says where the history goes; an outage's end is the
     // thread's to log, not every reconnect's.
     if (!connected_once_) log(fmt::format("forwarding to {}", db->server()));
@@ -139,101 +140,142 @@ Result<void> HistoryForwarder::connect() {
     return {};
 }
 
-Result<HistoryForwarder::Batch> HistoryForwarder::read_batch() {
-    // LEFT JOIN: an outbox row whose sample retention deleted is still read, so it is cleared.
-    auto statement = local_.prepare(
-        "SELECT o.seq, o.series_id, o.t, s.t IS NOT NULL, s.value, s.text, s.status FROM outbox o "
-        "LEFT JOIN samples s ON s.series_id = o.series_id AND s.t = o.t ORDER BY o.seq LIMIT ?1");
-    if (!statement) return statement.error();
-    statement->bind(1, static_cast<std::int64_t>(options_.batch_rows));
-    Batch batch;
-    for (;;) {
-        auto row = statement->step();
-        if (!row) return row.error();
-        if (!*row) break;
-        batch.last_seq = statement->integer(0);
-        if (statement->integer(3) == 0) {
-            ++batch.expired;
-            continue;
-        }
-        auto id = remote_series(statement->integer(1));
-        if (!id) return id.error();
-        batch.series.push_back(*id);
-        batch.t.push_back(statement->integer(2));
-        batch.values.push_back(statement->is_null(4) ? std::nullopt : std::optional(float8_text(statement->real(4))));
-        batch.texts.push_back(statement->is_null(5) ? std::nullopt : std::optional(statement->text(5)));
-        batch.statuses.push_back(statement->is_null(6) ? std::nullopt : std::optional(statement->text(6)));
+// The batch's rows as the historian takes them: its series ids, COPY's data, the minutes.
+Result<ForwardBatch> HistoryForwarder::for_historian(const OutboxBatch& batch) {
+    if (auto learned = learn_series(batch); !learned) return learned.error();
+    ForwardBatch rows;
+    for (const OutboxRow& row : batch.rows) rows.add(remote_ids_.at(row.series), row.t, row.value, row.text, row.status);
+    return rows;
+}
+
+// The historian's ids of the batch's series not met yet on this connection (all of them on its
+// first batch), looked up or added together.
+Result<void> HistoryForwarder::learn_series(const OutboxBatch& batch) {
+    using Names = std::tuple<std::string, std::string, std::string>;
+    std::map<Names, std::int64_t> unknown;  // -> the local id
+    std::set<std::int64_t> seen;
+    std::vector<std::optional<std::string>> devices, parameters, units;
+    for (const OutboxRow& row : batch.rows) {
+        if (remote_ids_.count(row.series) != 0 || !seen.insert(row.series).second) continue;
+        auto names = outbox_.names(row.series);
+        if (!names) return names.error();
+        unknown.emplace(Names{names->device, names->parameter, names->unit}, row.series);
+        devices.emplace_back(names->device);
+        parameters.emplace_back(names->parameter);
+        units.emplace_back(names->unit);
     }
-    return batch;
-}
-
-// The historian's id of a local series: looked up (or added) once per connection.
-Result<std::int64_t> HistoryForwarder::remote_series(std::int64_t local_id) {
-    if (auto known = remote_ids_.find(local_id); known != remote_ids_.end()) return known->second;
-    auto names = local_.prepare("SELECT device, parameter, unit FROM series WHERE id = ?1");
-    if (!names) return names.error();
-    names->bind(1, local_id);
-    auto found = names->step();
+    if (unknown.empty()) return {};
+    auto found = remote_->execute(find_or_add_series, {options_.gateway, postgres::array_literal(devices),
+                                                       postgres::array_literal(parameters), postgres::array_literal(units)});
     if (!found) return found.error();
-    if (!*found) return make_error(ErrorKind::malformed, fmt::format("{}: series {} is missing", local_.file(), local_id));
-    const postgres::Parameters key{options_.gateway, names->text(0), names->text(1), names->text(2)};
-    auto id = remote_->execute(find_or_add_series, key);
-    if (!id) return id.error();
-    if (id->rows() != 1) return make_error(ErrorKind::mismatch, fmt::format("{}: no id for a series", remote_->server()));
-    const std::int64_t remote_id = id->integer(0, 0);
-    remote_ids_.emplace(local_id, remote_id);
-    return remote_id;
+    for (int i = 0; i < found->rows(); ++i) {
+        const auto local = unknown.find(Names{found->text(i, 1), found->text(i, 2), found->text(i, 3)});
+        if (local != unknown.end()) remote_ids_.emplace(local->second, found->integer(i, 0));
+    }
+    if (std::any_of(unknown.begin(), unknown.end(), [&](const auto& entry) { return remote_ids_.count(entry.second) == 0; })) {
+        return make_error(ErrorKind::mismatch, fmt::format("{}: no id for a series", remote_->server()));
+    }
+    return {};
 }
 
-Result<void> HistoryForwarder::ship(const Batch& batch) {
-    if (batch.t.empty()) return {};
-    // The days the batch has rows in, and tomorrow, so that a day's first rows do not wait for
-    // its partition; only those: rows from an old outage make no partitions for the days between.
-    std::set<std::int64_t> days{postgres_history::day_of(now_ms() + postgres_history::day_ms)};
-    for (const std::int64_t t : batch.t) days.insert(postgres_history::day_of(t));
+// The partitions of the days the batch has rows in, and of tomorrow, so that a day's first rows
+// do not wait for theirs; only those: rows from an old outage make none for the days between.
+Result<void> HistoryForwarder::make_partitions(const ForwardBatch& rows) {
+    std::set<std::int64_t> days = rows.days();
+    days.insert(postgres_history::day_of(now_ms() + postgres_history::day_ms));
     std::vector<std::int64_t> missing;
     std::set_difference(days.begin(), days.end(), partitions_.begin(), partitions_.end(), std::back_inserter(missing));
-    if (!missing.empty()) {
-        if (auto made = postgres_history::ensure_partitions(*remote_, missing); !made) return made.error();
-        partitions_.insert(missing.begin(), missing.end());
-    }
-    auto as_text = [](const std::vector<std::int64_t>& numbers) {
-        std::vector<std::optional<std::string>> texts;
-        texts.reserve(numbers.size());
-        for (std::int64_t n : numbers) texts.emplace_back(std::to_string(n));
-        return postgres::array_literal(texts);
-    };
-    const postgres::Parameters columns{as_text(batch.series), as_text(batch.t), postgres::array_literal(batch.values),
-                                       postgres::array_literal(batch.texts), postgres::array_literal(batch.statuses)};
-    return remote_->run(insert_batch, columns);
+    if (missing.empty()) return {};
+    if (auto made = postgres_history::ensure_partitions(*remote_, missing); !made) return made.error();
+    partitions_.insert(missing.begin(), missing.end());
+    return {};
 }
 
-Result<bool> HistoryForwarder::forward_batch() {
-    auto batch = read_batch();
-    if (!batch) return batch.error();
-    if (batch->empty()) return false;
-    if (auto shipped = ship(*batch); !shipped) return shipped.error();
-    // Only now that PostgreSQL committed: a crash before this line sends the batch again.
-    auto clear = local_.prepare("DELETE FROM outbox WHERE seq <= ?1");
-    if (!clear) return clear.error();
-    clear->bind(1, batch->last_seq);
-    if (auto cleared = clear->step(); !cleared) return cleared.error();
-    forwarded_ += batch->t.size();
-    if (batch->expired != 0) {
-        log(fmt::format("{} row(s) were deleted locally after `keep` before they could be forwarded", batch->expired));
+// Runs `steps` in one transaction of the historian; rolls back on failure.
+template <typename Steps>
+Result<void> HistoryForwarder::in_transaction(Steps steps) {
+    if (auto begun = remote_->run("BEGIN"); !begun) return begun.error();
+    Result<void> done = steps();
+    if (done) done = remote_->run("COMMIT");
+    if (!done && !remote_->broken()) {
+        const std::string state = remote_->failed_state();  // the failure's, not the rollback's
+        (void)remote_->execute("ROLLBACK");
+        last_failed_state_ = state;
     }
-    return true;
+    return done;
+}
+
+// `meanwhile` runs once the rows are sent, while the server takes them (unless sending failed).
+Result<void> HistoryForwarder::ship(const ForwardBatch& rows, const std::function<void()>& meanwhile) {
+    if (rows.rows() == 0) return {};
+    if (auto made = make_partitions(rows); !made) return made.error();
+    last_failed_state_.clear();
+    const std::string data = rows.copy_data();
+    auto copied = in_transaction([&]() -> Result<void> {
+        if (auto sent = remote_->copy_send(copy_samples, data); !sent) return sent.error();
+        meanwhile();
+        if (auto taken = remote_->copy_finish(); !taken) return taken.error();
+        if (rows.minutes().empty()) return {};
+        return remote_->run(std::string(upsert_minutes) + merge_minutes, rows.minute_columns());
+    });
+    if (copied || last_failed_state_ != unique_violation) return copied;
+    return in_transaction([&]() -> Result<void> {
+        if (auto sent = remote_->copy_in(copy_staging, data); !sent) return sent.error();
+        return remote_->run(std::string(merge_staged) + merge_minutes);
+    });
+}
+
+// Only once PostgreSQL committed the batch: a crash before this sends the batch again.
+Result<void> HistoryForwarder::cleared(const OutboxBatch& batch) {
+    if (auto cleared = outbox_.clear(batch.last_seq); !cleared) return cleared.error();
+    forwarded_ += batch.rows.size();
+    if (batch.expired != 0) {
+        log(fmt::format("{} row(s) were deleted locally after `keep` before they could be forwarded", batch.expired));
+    }
+    return {};
+}
+
+// Ships the outbox batch after batch until it is empty. While the server takes a batch's COPY,
+// the file's side works at once: it clears the batch committed before (a crash before that sends
+// it again, which the merging way absorbs) and reads the next one.
+Result<void> HistoryForwarder::forward_all() {
+    auto batch = outbox_.read(0, options_.batch_rows);
+    std::optional<OutboxBatch> committed;  // in the historian, not yet cleared from the outbox
+    Result<void> done;
+    while (done && batch && !batch->empty()) {
+        auto rows = for_historian(*batch);
+        if (!rows) {
+            done = rows.error();
+            break;
+        }
+        const std::int64_t last = batch->last_seq;
+        std::optional<Result<OutboxBatch>> next;
+        const auto meanwhile = [&] {
+            if (committed) done = cleared(*committed);
+            committed.reset();
+            next = outbox_.read(last, options_.batch_rows);
+        };
+        if (auto shipped = ship(*rows, meanwhile); !shipped) {
+            done = shipped.error();
+            break;
+        }
+        if (!next) meanwhile();
+        committed = std::move(*batch);
+        batch = std::move(*next);
+    }
+    if (committed) {
+        auto clear = cleared(*committed);
+        if (done) done = clear;
+    }
+    if (done && !batch) return batch.error();
+    return done;
 }
 
 Result<std::uint64_t> HistoryForwarder::forward_pending() {
     std::lock_guard lock(mutex_);
     const std::uint64_t before = forwarded_.load();
     Result<void> done = connect();
-    while (done) {
-        auto more = forward_batch();
-        if (!more) done = more.error();
-        if (!more || !*more) break;
-    }
+    if (done) done = forward_all();
     refresh_waiting();
     if (!done) {
         ++errors_;

@@ -5,9 +5,10 @@
 // The SQLite file stays the gateway's own history and its buffer: the store's writer notes each
 // sample it inserts in the file's `outbox` table in the same transaction (history_store.cpp), so
 // a row is either committed and waiting, or not there at all. This forwarder, on its own thread
-// and its own connection to the file, reads the outbox in order, ships a batch in one statement
-// (idempotent on (series, t): ON CONFLICT DO NOTHING), and only then deletes what it shipped
-// from the outbox. A kill between the two sends the batch again; nothing is doubled.
+// and its own connection to the file, reads the outbox in order, ships a batch in one transaction
+// (COPY; idempotent on (series, t): a batch sent again skips the rows already there), and only
+// then deletes what it shipped from the outbox. A kill between the two sends the batch again;
+// nothing is doubled.
 //
 // PostgreSQL down, slow or refusing never reaches polling or the store's writer: the forwarder
 // alone waits, retrying with back-off (retry_first doubling to retry_max), logging one line when
@@ -34,11 +35,13 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <tuple>
 
 #include "common/result.hpp"
+#include "gateway/forward_batch.hpp"
+#include "gateway/history_outbox.hpp"
 #include "gateway/history_source.hpp"
 #include "gateway/postgres_database.hpp"
-#include "gateway/sqlite_database.hpp"
 
 namespace loopwire::gateway {
 
@@ -47,7 +50,7 @@ struct ForwardOptions {
     std::optional<std::string> password;  // from password_file; none: the URL's, PGPASSFILE's or none
     std::string gateway;                  // [gateway] name, part of every series in the historian
     bool thread = true;                   // false: the owner calls forward_pending() (tests)
-    std::size_t batch_rows = 5000;        // rows one statement ships at most
+    std::size_t batch_rows = 20000;       // rows one transaction ships at most
     std::chrono::milliseconds idle_poll{500};    // how often an empty outbox is looked at again
     std::chrono::milliseconds retry_first{1000};  // the first wait after a failure, doubled each time
     std::chrono::milliseconds retry_max{30000};
@@ -76,15 +79,18 @@ public:
     void queued(std::uint64_t rows, std::int64_t first_t);
 
 private:
-    struct Batch;
     HistoryForwarder(ForwardOptions options, std::chrono::seconds keep, Clock wall_clock,
                      std::function<void(const std::string&)> log);
     void run(std::stop_token stop);
     Result<void> connect();
-    Result<bool> forward_batch();  // false: the outbox was empty
-    Result<Batch> read_batch();
-    Result<std::int64_t> remote_series(std::int64_t local_id);
-    Result<void> ship(const Batch& batch);
+    Result<void> forward_all();
+    Result<ForwardBatch> for_historian(const OutboxBatch& batch);
+    Result<void> learn_series(const OutboxBatch& batch);
+    Result<void> make_partitions(const ForwardBatch& rows);
+    template <typename Steps>
+    Result<void> in_transaction(Steps steps);
+    Result<void> ship(const ForwardBatch& rows, const std::function<void()>& meanwhile);
+    Result<void> cleared(const OutboxBatch& batch);
     void refresh_waiting();
     std::int64_t now_ms() const;
     void log(const std::string& message) const;
@@ -94,10 +100,11 @@ private:
     Clock wall_clock_;
     std::function<void(const std::string&)> log_;
     std::mutex mutex_;  // one forward at a time: the connections and caches below
-    sqlite::Connection local_;
+    Outbox outbox_;
     std::optional<postgres::Connection> remote_;
     std::map<std::int64_t, std::int64_t> remote_ids_;  // local series id -> historian's id
     std::set<std::int64_t> partitions_;                // days known to have a partition
+    std::string last_failed_state_;                    // the SQLSTATE of in_transaction's last failure
     bool connected_once_ = false;
     std::atomic<std::uint64_t> waiting_{0};
     std::atomic<std::uint64_t> forwarded_{0};

@@ -35,6 +35,10 @@ BucketPlan plan_buckets(std::int64_t from, std::int64_t to, std::size_t points) 
     return plan;
 }
 
+MinuteSpan whole_minutes(std::int64_t from, std::int64_t to) {
+    return {ceil_div(from, minute_ms), floor_div(to + 1, minute_ms)};
+}
+
 namespace history {
 namespace {
 
@@ -108,8 +112,7 @@ Result<std::vector<HistoryBucket>> buckets_of(sqlite::Connection& db, std::int64
     if (!plan.minutes) {
         if (auto done = gather_samples(db, series, plan, from, to, buckets); !done) return done.error();
     } else {
-        const std::int64_t first = ceil_div(from, minute_ms);  // the first minute wholly inside
-        const std::int64_t end = floor_div(to + 1, minute_ms);   // past the last one
+        const auto [first, end] = whole_minutes(from, to);
         if (first < end) {
             if (auto done = gather_samples(db, series, plan, from, first * minute_ms - 1, buckets); !done) return done.error();
             if (auto done = gather_minutes(db, series, plan, first, end, buckets); !done) return done.error();

@@ -64,6 +64,11 @@ public:
     virtual std::uint64_t rows_written() const = 0;
     // None when the history is not forwarded ([history] forward_to absent).
     virtual std::optional<ForwardStats> forward_stats() const { return std::nullopt; }
+    // The gateways whose history the shared historian holds, sorted; ErrorKind::usage when
+    // there is no historian ([history] forward_to absent).
+    virtual Result<std::vector<std::string>> historian_gateways() const {
+        return make_error(ErrorKind::usage, "no historian: the history is forwarded nowhere ([history] forward_to absent)");
+    }
 };
 
 }  // namespace loopwire::gateway

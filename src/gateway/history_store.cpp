@@ -56,7 +56,6 @@ struct HistoryStore::Writer {
 struct HistoryStore::Reader {
     std::mutex mutex;
     std::optional<sqlite::Connection> db;
-    std::optional<postgres::Connection> historian;  // other gateways' history, when forwarding
 };
 
 HistoryStore::HistoryStore(HistoryOptions options) : options_(std::move(options)) {}
@@ -108,6 +107,12 @@ Result<std::unique_ptr<HistoryStore>> HistoryStore::open(HistoryOptions options,
     }
     store->writer_ = std::move(writer);
     store->reader_ = std::make_unique<Reader>();
+    if (store->options_.forward) {
+        // Bounded for an asker that waits (an HTTP request), unlike the forwarder.
+        HistorianLimits limits;
+        limits.connect_timeout_seconds = std::min(store->options_.forward->connect_timeout_seconds, limits.connect_timeout_seconds);
+        store->historian_ = std::make_unique<HistorianReader>(store->options_.forward->conninfo, store->options_.forward->password, limits);
+    }
     auto reader = history::open_for_reading(store->options_.database);
     if (!reader) return reader.error();
     store->reader_->db = std::move(*reader);
@@ -420,23 +425,19 @@ Result<std::vector<HistorySeries>> HistoryStore::query(const HistoryQuery& query
     return history::run_query(*reader_->db, query);
 }
 
-// Another gateway's history: in the shared historian, on a connection of the reader's own,
-// opened when first needed and again after it broke.
+Result<std::vector<std::string>> HistoryStore::historian_gateways() const {
+    if (!historian_) return HistorySource::historian_gateways();
+    return historian_->gateways();
+}
+
+// Another gateway's history: in the shared historian, read by its own reader (its own
+// connection and lock: a slow historian does not hold this gateway's own history queries).
 Result<std::vector<HistorySeries>> HistoryStore::historian_query(const HistoryQuery& query) const {
-    if (!options_.forward) {
+    if (!historian_) {
         return make_error(ErrorKind::usage, fmt::format("gateway=\"{}\": only this gateway's history is kept here; another's "
                                                         "needs [history] forward_to, the historian they share", query.gateway));
     }
-    std::lock_guard lock(reader_->mutex);
-    if (!reader_->historian || reader_->historian->broken()) {
-        reader_->historian.reset();
-        // A short bound: the asker (an HTTP request) waits for it, unlike the forwarder.
-        auto db = postgres::Connection::connect(options_.forward->conninfo, options_.forward->password,
-                                                std::min(options_.forward->connect_timeout_seconds, 3));
-        if (!db) return db.error();
-        reader_->historian = std::move(*db);
-    }
-    return postgres_history::run_query(*reader_->historian, query.gateway, query);
+    return historian_->query(query.gateway, query);
 }
 
 }  // namespace loopwire::gateway

@@ -35,6 +35,7 @@
 
 #include "common/result.hpp"
 #include "gateway/history_forwarder.hpp"
+#include "gateway/historian_reader.hpp"
 #include "gateway/history_source.hpp"
 #include "gateway/sqlite_database.hpp"
 #include "gateway/value_cache.hpp"
@@ -96,6 +97,7 @@ public:
     std::uint64_t rows_written() const override;
     std::uint64_t dropped() const;  // changes refused because the queue was full
     std::optional<ForwardStats> forward_stats() const override;
+    Result<std::vector<std::string>> historian_gateways() const override;
     HistoryForwarder* forwarder() { return forwarder_.get(); }  // null unless forwarding
 
     const std::filesystem::path& database() const { return options_.database; }
@@ -130,6 +132,7 @@ private:
     HistoryOptions options_;
     std::unique_ptr<Writer> writer_;        // the writer's connection and state; its lock held
     mutable std::unique_ptr<Reader> reader_;  // query()'s connection; its own lock
+    std::unique_ptr<HistorianReader> historian_;  // other gateways' history, when forwarding
     mutable std::mutex writer_mutex_;
     mutable std::mutex queue_mutex_;
     std::condition_variable_any queue_woken_;
@@ -150,5 +153,12 @@ struct BucketPlan {
     bool minutes = false;     // whole minutes inside [from, to] come from the minute table
 };
 BucketPlan plan_buckets(std::int64_t from, std::int64_t to, std::size_t points);
+// The minutes (since the epoch) wholly inside [from, to] ms: first <= m < end; none when
+// first >= end. The rest of the range is read from the samples.
+struct MinuteSpan {
+    std::int64_t first = 0;
+    std::int64_t end = 0;
+};
+MinuteSpan whole_minutes(std::int64_t from, std::int64_t to);
 
 }  // namespace loopwire::gateway

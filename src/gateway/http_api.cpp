@@ -135,6 +135,12 @@ std::optional<std::string> host_name_of(std::string_view host) {
     return lower_case(name);
 }
 
+// A failed history query: the asker's fault (400), or the historian's, unreachable or too slow
+// (503: the same request may well succeed later).
+unsigned history_failure_status(const Error& failure) {
+    return failure.kind == ErrorKind::link || failure.kind == ErrorKind::timeout ? 503u : 400u;
+}
+
 // The answer to a write: what was written, or why not, with a status that fits.
 HttpResponse write_response(const Result<WrittenValues>& written) {
     if (!written) {
@@ -161,6 +167,7 @@ struct ConfiguredDevice {
 }  // namespace
 
 struct HttpApi::State {
+    std::string gateway_name;  // [gateway] name
     std::vector<ConfiguredDevice> devices;
     HttpApiSources sources;
     std::string token;        // empty: writes refused
@@ -227,6 +234,7 @@ struct HttpApi::State {
     HttpOutcome write(const ConfiguredDevice& device, const HttpRequest& request) const;
     HttpOutcome events(const HttpRequest& request) const;
     HttpResponse history(const HttpRequest& request) const;
+    HttpResponse history_gateways() const;
     HttpResponse history_reply(const ParsedHistoryQuery& query, const Result<std::vector<HistorySeries>>& series) const;
     HttpResponse metrics() const;
     HttpResponse asset(const HttpRequest& request) const;
@@ -242,6 +250,7 @@ HttpApi::HttpApi(const GatewayConfig& config, HttpApiSources sources) : state_(s
     const HttpConfig http = config.http.value_or(HttpConfig{});
     state_->token = http.token;
     state_->reads_need_token = !http.loopback();
+    state_->gateway_name = config.name;
     state_->hosts = {"localhost", "127.0.0.1", "[::1]"};
     const std::string listen = lower_case(http.host.find(':') != std::string::npos ? "[" + http.host + "]" : http.host);
     for (const auto& name : http.hosts) state_->hosts.push_back(name);
@@ -267,6 +276,7 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
     if (path == "/api/devices") return {get ? devices_list() : not_allowed("GET"), {}, {}};
     if (path == "/api/events") return get ? events(request) : HttpOutcome{not_allowed("GET"), {}, {}};
     if (path == "/api/history") return {get ? history(request) : not_allowed("GET"), {}, {}};
+    if (path == "/api/history/gateways") return {get ? history_gateways() : not_allowed("GET"), {}, {}};
     if (path == "/metrics") return {get ? metrics() : not_allowed("GET"), {}, {}};
     constexpr std::string_view prefix = "/api/devices/";
     if (path.rfind(prefix, 0) == 0) {
@@ -493,8 +503,24 @@ HttpResponse HttpApi::State::history(const HttpRequest& request) const {
     return history_reply(*query, sources.history->query(query->query));
 }
 
+// The gateways whose history the historian holds, for the dashboard's choice of whose trend
+// to show; 404 when there is no historian ([history] forward_to absent).
+HttpResponse HttpApi::State::history_gateways() const {
+    if (!sources.history) {
+        return error(404, "no [history] configured: add a [history] table to the gateway's configuration to record values");
+    }
+    auto names = sources.history->historian_gateways();
+    if (!names) {
+        const unsigned status = names.error().kind == ErrorKind::usage ? 404u : history_failure_status(names.error());
+        return error(status, names.error().message);
+    }
+    HttpResponse response = json_response(200, Json{{"this", gateway_name}, {"gateways", *names}});
+    response.headers.emplace_back("Cache-Control", "no-store");
+    return response;
+}
+
 HttpResponse HttpApi::State::history_reply(const ParsedHistoryQuery& query, const Result<std::vector<HistorySeries>>& series) const {
-    if (!series) return error(400, series.error().message);
+    if (!series) return error(history_failure_status(series.error()), series.error().message);
     HttpResponse response;
     response.headers.emplace_back("Cache-Control", "no-store");
     if (query.csv) {

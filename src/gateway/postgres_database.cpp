@@ -2,6 +2,7 @@
 
 #include <libpq-fe.h>
 
+#include <algorithm>
 #include <charconv>
 
 #include <fmt/format.h>
@@ -64,12 +65,12 @@ long long QueryResult::integer(int row, int column) const {
 }
 
 Result<Connection> Connection::connect(const std::string& conninfo, const std::optional<std::string>& password,
-                                       int connect_timeout_seconds) {
+                                       int connect_timeout_seconds, const char* application_name) {
     // expand_dbname: the "dbname" value is the whole connection string; the keywords after it
     // override what it says (the password from password_file, a bound on the connect).
     const std::string timeout = std::to_string(connect_timeout_seconds);
     std::vector<const char*> keys{"dbname", "connect_timeout", "application_name"};
-    std::vector<const char*> values{conninfo.c_str(), timeout.c_str(), "loopwire"};
+    std::vector<const char*> values{conninfo.c_str(), timeout.c_str(), application_name};
     if (password) {
         keys.push_back("password");
         values.push_back(password->c_str());
@@ -104,12 +105,48 @@ Result<QueryResult> Connection::execute(std::string_view sql, const Parameters& 
                                       : PQexecParams(connection_.get(), text.c_str(), static_cast<int>(values.size()),
                                                      nullptr, values.data(), nullptr, nullptr, 0));
     const ExecStatusType status = result.result_ ? PQresultStatus(result.result_.get()) : PGRES_FATAL_ERROR;
-    if (status != PGRES_COMMAND_OK && status != PGRES_TUPLES_OK) {
-        const std::string message = trimmed(PQerrorMessage(connection_.get()));
-        const std::string what = remedy(message);
-        return make_error(ErrorKind::link, fmt::format("{}: {}{}", server_, message, what.empty() ? "" : "; " + what));
-    }
+    if (status != PGRES_COMMAND_OK && status != PGRES_TUPLES_OK) return failure(result.result_.get());
     return result;
+}
+
+Error Connection::failure(const pg_result* result) {
+    const char* state = result ? PQresultErrorField(result, PG_DIAG_SQLSTATE) : nullptr;
+    failed_state_ = state ? state : "";
+    const std::string message = trimmed(PQerrorMessage(connection_.get()));
+    const std::string what = remedy(message);
+    return make_error(ErrorKind::link, fmt::format("{}: {}{}", server_, message, what.empty() ? "" : "; " + what));
+}
+
+Result<void> Connection::copy_in(std::string_view copy, std::string_view data) {
+    if (auto sent = copy_send(copy, data); !sent) return sent;
+    return copy_finish();
+}
+
+Result<void> Connection::copy_send(std::string_view copy, std::string_view data) {
+    const std::string text(copy);
+    QueryResult started(PQexec(connection_.get(), text.c_str()));
+    if (!started.result_ || PQresultStatus(started.result_.get()) != PGRES_COPY_IN) return failure(started.result_.get());
+    // In pieces: PQputCopyData takes an int length, and a batch may one day be larger.
+    constexpr std::size_t piece = 1 << 20;
+    bool sent = true;
+    for (std::size_t at = 0; sent && at < data.size(); at += piece) {
+        const std::size_t size = std::min(piece, data.size() - at);
+        sent = PQputCopyData(connection_.get(), data.data() + at, static_cast<int>(size)) == 1;
+    }
+    // A failed send still ends the COPY (with an error), so the connection leaves COPY mode.
+    if (PQputCopyEnd(connection_.get(), sent ? nullptr : "loopwire: sending the rows failed") != 1) return failure(nullptr);
+    if (!sent) return copy_finish();  // the server's word on the COPY it was told to abandon
+    return {};
+}
+
+Result<void> Connection::copy_finish() {
+    QueryResult ended(PQgetResult(connection_.get()));
+    const bool done = ended.result_ && PQresultStatus(ended.result_.get()) == PGRES_COMMAND_OK;
+    Result<void> outcome;
+    if (!done) outcome = failure(ended.result_.get());
+    // The results are read to the end (a null one) before the next statement can be sent.
+    while (pg_result* rest = PQgetResult(connection_.get())) PQclear(rest);
+    return outcome;
 }
 
 Result<void> Connection::run(std::string_view sql, const Parameters& parameters) {

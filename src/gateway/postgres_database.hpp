@@ -40,8 +40,9 @@ public:
     // Connects with `conninfo` (a postgresql:// URL or key=value pairs, libpq's own forms) and
     // an optional password that overrides any in it (PGPASSFILE works as libpq defines it).
     // The error names the server without the password and says what to do.
+    // `application_name` is what the server's pg_stat_activity calls the session.
     static Result<Connection> connect(const std::string& conninfo, const std::optional<std::string>& password,
-                                      int connect_timeout_seconds);
+                                      int connect_timeout_seconds, const char* application_name = "loopwire");
 
     Connection() = default;
     Connection(Connection&&) noexcept = default;
@@ -49,15 +50,27 @@ public:
 
     Result<QueryResult> execute(std::string_view sql, const Parameters& parameters = {});
     Result<void> run(std::string_view sql, const Parameters& parameters = {});  // the rows, if any, unread
+    // Runs `copy` (a COPY ... FROM STDIN) and sends `data` in the format it names: the cheapest
+    // way into the server for many rows (no per-row statement, no array to parse).
+    Result<void> copy_in(std::string_view copy, std::string_view data);
+    // copy_in in two halves: copy_send returns once the rows are sent, while the server may still
+    // be taking them, so the caller can do other work (read its next rows) before copy_finish
+    // waits for the outcome. Nothing else may be sent on the connection in between.
+    Result<void> copy_send(std::string_view copy, std::string_view data);
+    Result<void> copy_finish();
     bool broken() const;  // the connection is gone: reconnect rather than retry on it
+    // The SQLSTATE of the last statement that failed ("23505": a unique key already there).
+    const std::string& failed_state() const { return failed_state_; }
     const std::string& server() const { return server_; }
 
 private:
+    Error failure(const pg_result* result);  // the statement's error, with its remedy; notes its SQLSTATE
     struct Finish {
         void operator()(pg_conn* connection) const;
     };
     std::unique_ptr<pg_conn, Finish> connection_;
     std::string server_;  // for messages: user@host:port/database
+    std::string failed_state_;
 };
 
 // A PostgreSQL text array literal of the values ("{1,2,NULL}"), quoted so that any text fits:

@@ -37,6 +37,13 @@ CREATE TABLE loopwire_minutes(
 INSERT INTO loopwire_schema_version(version) VALUES (1);
 )sql";
 
+// Version 2: the samples without a value (special states, missed replies) indexed apart, so a
+// query finds the gaps of a month without reading the month: the local file has the same index.
+constexpr const char* upgrade_to_2 = R"sql(
+CREATE INDEX IF NOT EXISTS loopwire_samples_gaps ON loopwire_samples(series_id, t) WHERE value IS NULL;
+UPDATE loopwire_schema_version SET version = 2;
+)sql";
+
 // Runs `steps` in one transaction under the schema lock; rolls back on failure.
 template <typename Steps>
 Result<void> locked(postgres::Connection& db, Steps steps) {
@@ -65,15 +72,19 @@ Result<void> migrate(postgres::Connection& db) {
         }
         auto version = db.execute("SELECT max(version) FROM loopwire_schema_version");
         if (!version) return version.error();
-        if (version->is_null(0, 0)) return db.run(create_tables);
-        const long long found = version->integer(0, 0);
+        long long found = version->is_null(0, 0) ? 0 : version->integer(0, 0);
+        if (found == 0) {
+            if (auto made = db.run(create_tables); !made) return made.error();
+            found = 1;
+        }
         if (found > schema_version) {
             return make_error(ErrorKind::usage,
                               fmt::format("{}: the history tables are of schema version {}, written by a newer loopwire; "
                                           "this one knows version {}: upgrade this gateway, or forward to another database",
                                           db.server(), found, schema_version));
         }
-        return {};  // version 1 is the first: nothing to upgrade yet
+        if (found < 2) return db.run(upgrade_to_2);
+        return {};
     });
 }
 

@@ -14,6 +14,7 @@
 //     upserted in the same statement that inserts the samples, from the rows that statement
 //     really inserted: a batch sent twice (a crash after PostgreSQL committed, before the
 //     outbox was cleared) adds neither samples nor minutes twice.
+//   loopwire_samples_gaps (version 2): the samples without a value, indexed apart for the gaps.
 #include <chrono>
 #include <cstdint>
 #include <vector>
@@ -23,7 +24,7 @@
 
 namespace loopwire::gateway::postgres_history {
 
-constexpr int schema_version = 1;
+constexpr int schema_version = 2;
 constexpr std::int64_t day_ms = 24LL * 60 * 60 * 1000;
 
 // Creates the tables, or checks they are of this version; refuses a newer schema with a message

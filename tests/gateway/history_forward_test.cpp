@@ -21,6 +21,8 @@
 #include "gateway/gateway.hpp"
 #include "gateway/history_store.hpp"
 #include "gateway/postgres_database.hpp"
+#include "gateway/postgres_history_query.hpp"
+#include "gateway/postgres_history_schema.hpp"
 #include "support/history_test_support.hpp"
 #include "support/log_lines.hpp"
 #include "support/postgres_server.hpp"
@@ -148,15 +150,73 @@ TEST_F(HistoryForward, ShipsEveryRowOnceWithItsMinutesAndEmptiesTheOutbox) {
     ASSERT_TRUE(again);
     EXPECT_EQ(*again, 0u);
     EXPECT_EQ(scalar(db, "SELECT count(*) FROM loopwire_samples"), 150);
-    EXPECT_EQ(scalar(db, "SELECT version FROM loopwire_schema_version"), 1);
+    EXPECT_EQ(scalar(db, "SELECT version FROM loopwire_schema_version"), postgres_history::schema_version);
+}
+
+// A crash after PostgreSQL committed a batch and before the outbox was cleared: the batch is
+// sent again, and neither its samples nor its minutes count twice. The outbox is refilled by
+// hand, as the crash would have left it, so the resend is certain rather than a race.
+TEST_F(HistoryForward, ABatchSentAgainAddsNoSamplesNorMinutes) {
+    const auto file = folder.path / "h.db";
+    auto store = HistoryStore::open(forwarding(file, wall, server->url()));
+    ASSERT_TRUE(store) << store.error().message;
+    record_counting(**store, 150);
+    ASSERT_TRUE((*store)->forwarder()->forward_pending());
+    {
+        auto local = sqlite::Connection::open(file.string(), sqlite::Connection::Mode::read_write_create);
+        ASSERT_TRUE(local);
+        ASSERT_TRUE(local->execute("INSERT INTO outbox(series_id, t) SELECT series_id, t FROM samples ORDER BY t"));
+    }
+    for (int i = 150; i < 180; ++i) (*store)->record(number("oven1", "measured_value", i, t0 + std::chrono::seconds(i)));
+    ASSERT_TRUE((*store)->write_pending());  // and new rows behind them
+    auto shipped = (*store)->forwarder()->forward_pending();
+    ASSERT_TRUE(shipped) << shipped.error().message;
+    auto db = connect(*server);
+    EXPECT_EQ(values_of(db, "plant1", "measured_value"), counting(180));
+    EXPECT_EQ(scalar(db, "SELECT sum(n) FROM loopwire_minutes"), 180);
+    EXPECT_EQ(scalar(db, "SELECT sum(total)::bigint FROM loopwire_minutes"), 180 * 179 / 2);
+    EXPECT_EQ(scalar(db, "SELECT max(hi)::bigint FROM loopwire_minutes"), 179);
+    EXPECT_EQ((*store)->forward_stats()->waiting_rows, 0u);
+}
+
+// The historian's series ids are learnt a batch at a time: series new in a later batch, one the
+// historian already has (added by an earlier connection), several in one batch.
+TEST_F(HistoryForward, SeriesNewInAnyBatchGetTheirOwnIdsAndRows) {
+    HistoryOptions options = forwarding(folder.path / "h.db", wall, server->url());
+    options.forward->batch_rows = 4;
+    auto store = HistoryStore::open(options);
+    ASSERT_TRUE(store) << store.error().message;
+    for (int i = 0; i < 6; ++i) (*store)->record(number("oven1", "measured_value", i, t0 + std::chrono::seconds(i)));
+    for (int i = 0; i < 6; ++i) {
+        (*store)->record(number("oven1", "set_point", 100 + i, t0 + std::chrono::seconds(10 + i)));
+        (*store)->record(number("oven2", "measured_value", 200 + i, t0 + std::chrono::seconds(10 + i)));
+    }
+    ASSERT_TRUE((*store)->write_pending());
+    auto admin = connect(*server);
+    ASSERT_TRUE(check_forward_target(options.forward.value()));
+    // Known to the historian before this gateway's forwarder asks for it.
+    ASSERT_TRUE(admin.run("INSERT INTO loopwire_series(gateway, device, parameter, unit) VALUES ('plant1', 'oven1', 'set_point', '°C')"));
+    auto shipped = (*store)->forwarder()->forward_pending();
+    ASSERT_TRUE(shipped) << shipped.error().message;
+    EXPECT_EQ(*shipped, 18u);
+    auto rows = admin.execute(
+        "SELECT n.device || '/' || n.parameter, string_agg(s.value::text, ',' ORDER BY s.t) FROM loopwire_samples s "
+        "JOIN loopwire_series n ON n.id = s.series_id WHERE n.gateway = 'plant1' GROUP BY 1 ORDER BY 1");
+    ASSERT_TRUE(rows);
+    ASSERT_EQ(rows->rows(), 3);
+    EXPECT_EQ(rows->text(0, 0) + " " + rows->text(0, 1), "oven1/measured_value 0,1,2,3,4,5");
+    EXPECT_EQ(rows->text(1, 0) + " " + rows->text(1, 1), "oven1/set_point 100,101,102,103,104,105");
+    EXPECT_EQ(rows->text(2, 0) + " " + rows->text(2, 1), "oven2/measured_value 200,201,202,203,204,205");
+    EXPECT_EQ(scalar(admin, "SELECT count(*) FROM loopwire_series"), 3);
 }
 
 TEST_F(HistoryForward, TextsStatusesAndGapsTravelAsTheyAre) {
     auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->conninfo()));
     ASSERT_TRUE(store) << store.error().message;
     ValueChange label = number("oven1", "mode", 2, t0);
-    label.value = device::EngineeringValue{std::string("ramp \"up\", \\fast\\"), "ok", 2, ""};
-    label.text = "ramp \"up\", \\fast\\";
+    // Every character COPY's text format escapes, and a quote for good measure.
+    label.value = device::EngineeringValue{std::string("ramp \"up\",\t\\fast\\\r\n"), "ok", 2, ""};
+    label.text = "ramp \"up\",\t\\fast\\\r\n";
     (*store)->record(label);
     ValueChange silent = number("oven1", "measured_value", 0, t0 + 1s);
     silent.value.reset();
@@ -169,7 +229,7 @@ TEST_F(HistoryForward, TextsStatusesAndGapsTravelAsTheyAre) {
                            "FROM loopwire_samples ORDER BY t");
     ASSERT_TRUE(rows);
     ASSERT_EQ(rows->rows(), 2);
-    EXPECT_EQ(rows->text(0, 0) + "|" + rows->text(0, 1) + "|" + rows->text(0, 2), "2|ramp \"up\", \\fast\\|ok");
+    EXPECT_EQ(rows->text(0, 0) + "|" + rows->text(0, 1) + "|" + rows->text(0, 2), "2|ramp \"up\",\t\\fast\\\r\n|ok");
     EXPECT_EQ(rows->text(1, 0) + "|" + rows->text(1, 1) + "|" + rows->text(1, 2), "null|null|no-reply");
 }
 
@@ -317,6 +377,20 @@ TEST_F(HistoryForward, ANewerSchemaIsRefusedWithItsVersion) {
     EXPECT_THAT(refused.error().message, HasSubstr("schema version 7, written by a newer loopwire"));
 }
 
+// A historian made by a loopwire of schema version 1 gets version 2's index of the samples
+// without a value (what finds the gaps of a long range), and its version says so.
+TEST_F(HistoryForward, AVersion1SchemaIsUpgraded) {
+    ForwardOptions target;
+    target.conninfo = server->url();
+    ASSERT_TRUE(check_forward_target(target));
+    auto admin = connect(*server);
+    ASSERT_TRUE(admin.run("DROP INDEX loopwire_samples_gaps"));
+    ASSERT_TRUE(admin.run("UPDATE loopwire_schema_version SET version = 1"));
+    ASSERT_TRUE(check_forward_target(target));
+    EXPECT_EQ(scalar(admin, "SELECT version FROM loopwire_schema_version"), 2);
+    EXPECT_EQ(scalar(admin, "SELECT count(*) FROM pg_indexes WHERE indexname = 'loopwire_samples_gaps'"), 1);
+}
+
 // --check's message names the configuration's line and key, then what the server said.
 TEST_F(HistoryForward, CheckNamesTheKeyAndTheRemedy) {
     GatewayConfig config;
@@ -402,6 +476,80 @@ TEST_F(HistoryForward, AnotherGatewaysHistoryIsAskedFromTheHistorian) {
     auto unknown = (*north)->query(query);
     ASSERT_FALSE(unknown);
     EXPECT_THAT(unknown.error().message, HasSubstr("the historian has no device \"oven1\" of gateway \"west\""));
+}
+
+// The historian's buckets from its raw samples, grouped as `plan` groups them: what the rollup
+// must agree with.
+std::vector<HistoryBucket> raw_buckets(postgres::Connection& db, const BucketPlan& plan, std::int64_t from, std::int64_t to) {
+    auto rows = db.execute(
+        "SELECT (t - $1) / $2, min(value), max(value), avg(value), count(*) FROM loopwire_samples "
+        "WHERE t >= $3 AND t <= $4 AND value IS NOT NULL GROUP BY 1 ORDER BY 1",
+        {std::to_string(plan.origin), std::to_string(plan.width), std::to_string(from), std::to_string(to)});
+    if (!rows) throw std::runtime_error(rows.error().message);
+    std::vector<HistoryBucket> buckets;
+    for (int i = 0; i < rows->rows(); ++i) {
+        buckets.push_back({SystemTime(milliseconds(plan.origin + rows->integer(i, 0) * plan.width)), std::stod(rows->text(i, 1)),
+                           std::stod(rows->text(i, 2)), std::stod(rows->text(i, 3)), static_cast<std::size_t>(rows->integer(i, 4))});
+    }
+    return buckets;
+}
+
+// Buckets of whole minutes come from the historian's minute rollup, the minutes cut by `from`
+// and `to` from its samples: the same min, max, mean and count as the samples alone give, no
+// bucket where nothing was sampled, and the gaps as they are.
+TEST_F(HistoryForward, TheHistoriansRollupAnswersAsItsSamplesDo) {
+    auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->url(), "south"));
+    ASSERT_TRUE(store);
+    for (int i = 0; i < 600; ++i) {
+        if (i >= 240 && i < 360) continue;  // minutes 4 and 5: nothing sampled
+        ValueChange change = number("oven1", "measured_value", (i * 37) % 101, t0 + std::chrono::seconds(i));
+        if (i == 400) change.value.reset();  // a missed reply: a gap to the next value
+        (*store)->record(change);
+    }
+    ASSERT_TRUE((*store)->write_pending());
+    ASSERT_TRUE((*store)->forwarder()->forward_pending());
+    auto db = connect(*server);
+    HistoryQuery query;
+    query.device = "oven1";
+    query.from = t0 + 7s;  // minute 0 cut at the start, minute 9 at the end
+    query.to = t0 + 587s;
+    query.points = 5;  // buckets of two minutes
+    const std::int64_t from = t0_ms + 7000, to = t0_ms + 587000;
+    const BucketPlan plan = plan_buckets(from, to, query.points);
+    ASSERT_TRUE(plan.minutes);
+    ASSERT_EQ(plan.width, 120000);
+    auto answer = postgres_history::run_query(db, "south", query);
+    ASSERT_TRUE(answer) << answer.error().message;
+    ASSERT_EQ(answer->size(), 1u);
+    const auto& buckets = answer->front().buckets;
+    const auto expected = raw_buckets(db, plan, from, to);
+    ASSERT_EQ(buckets.size(), 4u);  // of five: the one of minutes 4 and 5 is absent
+    ASSERT_EQ(expected.size(), buckets.size());
+    for (std::size_t i = 0; i < buckets.size(); ++i) {
+        EXPECT_EQ(buckets[i].start, expected[i].start) << i;
+        EXPECT_EQ(buckets[i].min, expected[i].min) << i;
+        EXPECT_EQ(buckets[i].max, expected[i].max) << i;
+        EXPECT_DOUBLE_EQ(buckets[i].mean, expected[i].mean) << i;
+        EXPECT_EQ(buckets[i].count, expected[i].count) << i;
+    }
+    EXPECT_EQ(buckets[2].start, t0 + 6min);
+    ASSERT_EQ(answer->front().gaps.size(), 1u);
+    EXPECT_EQ(answer->front().gaps[0].start, t0 + 400s);
+    EXPECT_EQ(answer->front().gaps[0].end, std::optional(t0 + 401s));
+    // The rollup really is what answers for whole minutes, and only for those: a minute altered
+    // in the rollup shows, the cut minute 0 altered there does not.
+    const std::string minute0 = std::to_string(t0_ms / 60000);
+    ASSERT_TRUE(db.run("UPDATE loopwire_minutes SET hi = 1000 WHERE minute = $1 + 1", {minute0}));
+    ASSERT_TRUE(db.run("UPDATE loopwire_minutes SET lo = -1000 WHERE minute = $1", {minute0}));
+    auto altered = postgres_history::run_query(db, "south", query);
+    ASSERT_TRUE(altered);
+    EXPECT_EQ(altered->front().buckets[0].max, 1000);
+    EXPECT_EQ(altered->front().buckets[0].min, expected[0].min);
+    // Buckets under a minute wide are the samples' alone.
+    query.points = 100;
+    auto fine = postgres_history::run_query(db, "south", query);
+    ASSERT_TRUE(fine);
+    for (const auto& bucket : fine->front().buckets) EXPECT_LE(bucket.max, 100);
 }
 
 #ifdef HISTORY_FORWARD_WORKER

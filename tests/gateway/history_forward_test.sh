@@ -52,7 +52,7 @@ check check-wrong-password 3 'password authentication failed for user "pwuser"; 
   "$loopwire" gateway --config "$WORK_DIR/north.toml" --check
 write_config "$WORK_DIR/north.toml" north plant "$WORK_DIR/right.password"
 check check-right-password 0 "history:" "$loopwire" gateway --config "$WORK_DIR/north.toml" --check
-expect_equal "$(pg_sql "SELECT version FROM loopwire_schema_version" plant)" 1 "schema version after --check"
+expect_equal "$(pg_sql "SELECT version FROM loopwire_schema_version" plant)" 2 "schema version after --check"
 
 # At run time a wrong password pauses forwarding, and polling and the local history go on.
 write_config "$WORK_DIR/north.toml" north plant "$WORK_DIR/wrong.password"

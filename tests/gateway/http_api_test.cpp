@@ -704,6 +704,8 @@ public:
         if (!query.parameters.empty() && query.parameters.front() == "nonsense") {
             return make_error(ErrorKind::usage, "device \"oven\" has no parameter \"nonsense\"");
         }
+        if (query.gateway == "down") return make_error(ErrorKind::link, "postgresql postgres@db:5432/plant: cannot connect");
+        if (query.gateway == "slow") return make_error(ErrorKind::timeout, "postgresql postgres@db:5432/plant: no answer within");
         const auto start = query.from;
         HistorySeries series{"measured_value", "°C", {}, {}};
         series.buckets.push_back({start, 20.5, 22.0, 21.25, 4});
@@ -713,6 +715,17 @@ public:
         return std::vector<HistorySeries>{series};
     }
     std::uint64_t rows_written() const override { return 1234; }
+    // No historian unless the test sets its gateways; "down" stands for one that is unreachable.
+    Result<std::vector<std::string>> historian_gateways() const override {
+        std::lock_guard lock(mutex_);
+        if (!gateways_) return HistorySource::historian_gateways();
+        if (*gateways_ == std::vector<std::string>{"down"}) return make_error(ErrorKind::link, "postgresql: cannot connect");
+        return *gateways_;
+    }
+    void set_gateways(std::vector<std::string> names) {
+        std::lock_guard lock(mutex_);
+        gateways_ = std::move(names);
+    }
 
     std::vector<HistoryQuery> asked() const {
         std::lock_guard lock(mutex_);
@@ -722,12 +735,16 @@ public:
 private:
     mutable std::mutex mutex_;
     mutable std::vector<HistoryQuery> asked_;
+    std::optional<std::vector<std::string>> gateways_;
 };
 
 class HttpHistoryTest : public ::testing::Test {
 protected:
     HttpHistoryTest() {
         auto config = parse_gateway_config(R"toml(
+[gateway]
+name = "north"
+
 [[lines]]
 name = "sim"
 link = "rtu:virtual?baud=115200&parity=none"
@@ -826,6 +843,30 @@ TEST_F(HttpHistoryTest, AnotherGatewaysDeviceIsAskedOfTheStoreAsNamed) {
     EXPECT_EQ(asked[0].gateway, "south");
     EXPECT_EQ(asked[0].device, "kiln");
     EXPECT_EQ(asked[0].parameters, (std::vector<std::string>{"PV"}));
+}
+
+// A historian that cannot be reached or does not answer in time is the server's trouble, not
+// the asker's: 503, with what went wrong, so the dashboard can say so and ask again later.
+TEST_F(HttpHistoryTest, AHistorianDownOrTooSlowIs503WithTheReason) {
+    for (const auto& [gateway, reason] : {std::pair{"down", "cannot connect"}, std::pair{"slow", "no answer within"}}) {
+        const Reply reply = get(server_->port(), std::string("/api/history?device=kiln&gateway=") + gateway);
+        EXPECT_EQ(reply.status, 503u) << reply.body;
+        EXPECT_THAT(reply.json().at("error").get<std::string>(), HasSubstr(reason));
+    }
+}
+
+// The dashboard's choice of whose history the trend shows: the historian's gateways and this
+// one's name; 404 without a historian, 503 when it cannot be reached.
+TEST_F(HttpHistoryTest, TheHistoriansGatewaysAreListedWithThisOnesName) {
+    const Reply none = get(server_->port(), "/api/history/gateways");
+    EXPECT_EQ(none.status, 404u) << none.body;
+    EXPECT_THAT(none.json().at("error").get<std::string>(), HasSubstr("forward_to"));
+    history_.set_gateways({"north", "south"});
+    const Reply listed = get(server_->port(), "/api/history/gateways");
+    ASSERT_EQ(listed.status, 200u) << listed.body;
+    EXPECT_EQ(listed.json(), nlohmann::json::parse(R"({"this": "north", "gateways": ["north", "south"]})"));
+    history_.set_gateways({"down"});
+    EXPECT_EQ(get(server_->port(), "/api/history/gateways").status, 503u);
 }
 
 TEST_F(HttpHistoryTest, BadQueriesAreRefusedSayingWhatIsWrong) {

@@ -129,6 +129,37 @@ test("the trend draws recorded values as steps and breaks its line over a gap", 
   expect(drawn.values).toEqual([100, 180, null, 25, 25]);
 });
 
+// A gateway whose history goes to a historian other gateways share can show their history: the
+// trend's picker lists them (this gateway first), the history request names the one chosen, and
+// the note says that live values, which are this gateway's, are left out. The historian's
+// answers are given to the page (the test gateway forwards to none).
+test("the trend shows another gateway's history when one is picked", async ({ page }) => {
+  await page.route("**/api/history/gateways", (route) => route.fulfill({ json: { this: "north", gateways: ["north", "south", "west"] } }));
+  const asked = [];
+  await page.route("**/api/history?**", (route) => {
+    asked.push(new URL(route.request().url()).searchParams.get("gateway"));
+    return route.fulfill({ json: { device: "oven", series: [] } });
+  });
+  await page.goto(`${gateway.base}/#/devices/oven`);
+  const picker = page.getByLabel("History of gateway");
+  await expect(picker).toBeVisible({ timeout: 10_000 });
+  await expect(picker.locator("option")).toHaveText(["north (this gateway)", "south", "west"]);
+  await picker.selectOption("south");
+  await expect.poll(() => asked.at(-1)).toBe("south");
+  await expect(page.locator("#trend-note")).toHaveText(/Recorded history of gateway south \(no live values/);
+  await picker.selectOption("");
+  await expect.poll(() => asked.at(-1)).toBe(null);
+  await expect(page.locator("#trend-note")).toHaveText("Recorded history, then live values.");
+});
+
+test("without a shared historian there is no choice of gateway", async ({ page }) => {
+  const answered = page.waitForResponse("**/api/history/gateways");
+  await page.goto(`${gateway.base}/#/devices/oven`);
+  expect((await answered).status()).toBe(404);
+  await expect(page.locator("#trend canvas")).toBeVisible({ timeout: 10_000 });
+  await expect(page.getByLabel("History of gateway")).toBeHidden();
+});
+
 test("a write from the form changes the device, and a refused write shows the reason", async ({ page, request }) => {
   await page.addInitScript((token) => localStorage.setItem("loopwire.token", token), gateway.token);
   await page.goto(`${gateway.base}/#/devices/oven`);

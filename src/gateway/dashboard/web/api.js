@@ -67,15 +67,27 @@ export async function writeParameter(device, parameter, text) {
   return response.json();
 }
 
-// Downsampled history, or null when the gateway keeps none (404).
-export async function getHistory(device, parameters, from, to, points) {
+// Downsampled history, or null when the gateway keeps none (404). `gateway`: another gateway's,
+// from the historian they share; empty: this gateway's own.
+export async function getHistory(device, parameters, from, to, points, gateway = "") {
   const query = new URLSearchParams({
     device, parameters: parameters.join(","), from: from.toISOString(), to: to.toISOString(), points: String(points),
   });
+  if (gateway) query.set("gateway", gateway);
   try {
     return await getJson(`/api/history?${query}`);
   } catch (error) {
     if (error.status === 404) return null;
     throw error;
+  }
+}
+
+// The gateways whose history the shared historian holds ({ this, gateways }), or null when this
+// gateway forwards its history nowhere (404) or the historian cannot say now.
+export async function listHistoryGateways() {
+  try {
+    return await getJson("/api/history/gateways");
+  } catch {
+    return null;
   }
 }

@@ -1,7 +1,7 @@
 // A device page: its key values, a trend, and every parameter grouped as `loopwire describe`
 // groups them, live, with a write form on each writable one.
 import { loadDevice, deviceNamed, onChange, loadDevices } from "./store.js";
-import { writeParameter } from "./api.js";
+import { writeParameter, listHistoryGateways } from "./api.js";
 import { escapeHtml, readingHtml, ageText, alarmReasons, deviceStatusClass, deviceStatusWord, statusChipClass, valueText } from "./format.js";
 import { keyParameters } from "./keys.js";
 import { Trend } from "./trend.js";
@@ -139,6 +139,19 @@ function writtenText(answer, parameter, typed, unit) {
   return `Written: ${text}${unit && !String(text).endsWith(unit) ? ` ${unit}` : ""}`;
 }
 
+// When this gateway forwards its history to a historian that others share, the picker offers
+// their histories too: this gateway first (its own history and live values), then the others.
+async function offerGateways(picker) {
+  const answer = await listHistoryGateways();
+  if (!answer || !Array.isArray(answer.gateways)) return;
+  const others = answer.gateways.filter((gateway) => gateway !== answer.this);
+  if (!others.length) return;
+  const own = answer.this ? `${answer.this} (this gateway)` : "this gateway";
+  picker.innerHTML = [`<option value="">${escapeHtml(own)}</option>`,
+    ...others.map((gateway) => `<option value="${escapeHtml(gateway)}">${escapeHtml(gateway)}</option>`)].join("");
+  picker.hidden = false;
+}
+
 export function showDevice(view, name) {
   view.innerHTML = `
     <div class="page-head device-head">
@@ -157,6 +170,7 @@ export function showDevice(view, name) {
             ${RANGES.map(([label, seconds]) => `<button type="button" data-range="${seconds}" aria-pressed="${seconds === 300}">${label}</button>`).join("")}
           </div>
           <button type="button" class="button small" data-action="live" hidden>Back to live</button>
+          <select class="trend-gateway" aria-label="History of gateway" hidden></select>
         </div>
       </div>
       <div class="panel-body">
@@ -342,6 +356,9 @@ export function showDevice(view, name) {
     trend.setRange(Number(button.dataset.range));
   }));
   liveButton.addEventListener("click", () => trend.followLive());
+  const gatewayPicker = view.querySelector(".trend-gateway");
+  gatewayPicker.addEventListener("change", () => trend.setGateway(gatewayPicker.value));
+  offerGateways(gatewayPicker);
   const zoomWatch = setInterval(() => { liveButton.hidden = !trend.zoomed; }, 250);
 
   search.addEventListener("input", () => {

@@ -78,6 +78,7 @@ export class Trend {
     this.parameters = [];       // [{ name, unit, decimals, label }]
     this.rangeSeconds = 5 * 60;
     this.zoomed = false;
+    this.gateway = "";          // whose history: "" this gateway's, or another's from the historian
     this.history = new Map();   // parameter -> { t: [ms], v: [] }
     this.historyState = "unknown";
     this.plot = null;
@@ -113,6 +114,14 @@ export class Trend {
     this.update();
   }
 
+  // Another gateway's history (its device of the same name), or "" for this one's. The live
+  // values are this gateway's, so they join only this gateway's history.
+  setGateway(gateway) {
+    this.gateway = gateway;
+    this.loadHistory();
+    this.update();
+  }
+
   followLive() {
     this.zoomed = false;
     this.update();
@@ -125,7 +134,7 @@ export class Trend {
     const to = new Date();
     const from = new Date(to.getTime() - this.rangeSeconds * 1000);
     try {
-      const answer = await getHistory(this.device, names, from, to, HISTORY_POINTS);
+      const answer = await getHistory(this.device, names, from, to, HISTORY_POINTS, this.gateway);
       if (request !== this.historyRequest) return;
       this.history.clear();
       if (answer === null) {
@@ -145,6 +154,7 @@ export class Trend {
   describe() {
     if (!this.note) return;
     if (this.historyState === "absent") this.note.textContent = "No history is recorded: the trend shows the values received since this page opened.";
+    else if (this.historyState === "loaded" && this.gateway) this.note.textContent = `Recorded history of gateway ${this.gateway} (no live values: they are this gateway's).`;
     else if (this.historyState === "loaded") this.note.textContent = "Recorded history, then live values.";
     else if (this.historyState.startsWith("failed")) this.note.textContent = `History could not be loaded (${this.historyState.slice(8)}): live values only.`;
     else this.note.textContent = "";
@@ -155,7 +165,7 @@ export class Trend {
     const now = Date.now();
     const from = now - this.rangeSeconds * 1000;
     const columns = this.parameters.map((p) => {
-      const live = samplesOf(this.device, p.name);
+      const live = this.gateway ? { t: [], v: [] } : samplesOf(this.device, p.name);
       const past = this.history.get(p.name) || { t: [], v: [] };
       const firstLive = live.t.length ? live.t[0] : Infinity;
       const points = new Map();
