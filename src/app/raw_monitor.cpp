@@ -47,7 +47,7 @@ std::string typing_text(const RawRequest& request) {
 class RawSampleWriter {
 public:
     // Samples go to `file` when given (appended, rotated: monitor_file.hpp), else to `out`.
-    RawSampleWriter(const RawRequest& request, int unit, MonitorFormat format, std::FILE* out, FileSampleSink* file)
+    RawSampleWriter(const RawRequest& request, int unit, MonitorFormat format, std::FILE* out, device::FileSampleSink* file)
         : request_(request), unit_(unit), format_(format), out_(out), file_(file) {}
     ~RawSampleWriter() {
         if (format_ == MonitorFormat::table && shown_lines_ > 0) {
@@ -81,7 +81,7 @@ private:
     int unit_;
     MonitorFormat format_;
     std::FILE* out_;
-    FileSampleSink* file_;
+    device::FileSampleSink* file_;
     std::size_t shown_lines_ = 0;
 };
 
@@ -174,7 +174,7 @@ void poll_raw(session::Master& master, int unit, const RawRequest& request, unsi
 }
 
 int run_raw_monitor(const MasterCommandOptions& master, const RawTypeOptions& typing, const std::vector<std::string>& arguments,
-                    const device::MonitorSettings& settings, MonitorFormat format, const MonitorFileOptions& output) {
+                    const device::MonitorSettings& settings, MonitorFormat format, const device::MonitorFileOptions& output) {
     if (arguments.empty() || arguments.size() > 3) {
         return report_error(make_error(ErrorKind::usage, "monitor takes --device DEVICE@UNIT [NAMES...] (by name), or --unit N "
                                                          "TABLE ADDRESS [COUNT] (raw registers, e.g. --unit 5 holding 100 4 --type float32)"));
@@ -187,9 +187,9 @@ int run_raw_monitor(const MasterCommandOptions& master, const RawTypeOptions& ty
     }
     auto per_request = per_request_on(master.link, *request);
     if (!per_request) return report_error(per_request.error());
-    std::unique_ptr<FileSampleSink> file;
+    std::unique_ptr<device::FileSampleSink> file;
     if (!output.path.empty()) {
-        auto opened = FileSampleSink::open(output, format, format == MonitorFormat::csv ? raw_csv_header(*request) : "");
+        auto opened = device::FileSampleSink::open(output, format, format == MonitorFormat::csv ? raw_csv_header(*request) : "");
         if (!opened) return report_error(opened.error());
         file = std::move(*opened);
     }

@@ -11,9 +11,9 @@
 #include <nlohmann/json.hpp>
 
 #include "app/master_options.hpp"
-#include "app/monitor_file.hpp"
 #include "app/monitor_output.hpp"
 #include "app/raw_registers.hpp"
+#include "client/monitor_file.hpp"
 #include "client/monitor_loop.hpp"
 
 namespace loopwire::app {
@@ -46,7 +46,7 @@ std::vector<std::string> raw_table_lines(const RawRequest& request, int unit, co
 // terminal or pipe.
 struct RawOutput {
     std::FILE* terminal = stdout;
-    FileSampleSink* file = nullptr;
+    device::FileSampleSink* file = nullptr;
 };
 
 // Polls once per settings.interval on a fixed schedule until settings.count samples were taken
@@ -59,6 +59,6 @@ void poll_raw(session::Master& master, int unit, const RawRequest& request, unsi
 // REFERENCE [COUNT]; `output.path` a log file to write instead of stdout (empty: stdout), with
 // --append and rotation as for named parameters.
 int run_raw_monitor(const MasterCommandOptions& master, const RawTypeOptions& typing, const std::vector<std::string>& arguments,
-                    const device::MonitorSettings& settings, MonitorFormat format, const MonitorFileOptions& output);
+                    const device::MonitorSettings& settings, MonitorFormat format, const device::MonitorFileOptions& output);
 
 }  // namespace loopwire::app

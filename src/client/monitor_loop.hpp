@@ -37,8 +37,9 @@ struct SampleView {
     unsigned missed = 0;
 };
 
-// What consumes samples: the terminal table, CSV and JSON-lines files (app/monitor_output.hpp),
-// and later the gateway's fronts. Called on the poller's thread, once per sample, in order.
+// What consumes samples: CSV and JSON-lines files (client/monitor_file.hpp), the CLI's terminal
+// table (app/monitor_output.hpp)
+// and the gateway's fronts. Called on the poller's thread, once per sample, in order.
 class SampleSink {
 public:
     virtual ~SampleSink() = default;
