@@ -119,7 +119,7 @@ int run_monitor_command(const MonitorOptions& options, const ProfileOptions& pro
         sink = std::make_unique<StreamSampleSink>(stdout, *format, time_style(options));
     }
     std::unique_ptr<TableScreen> screen;
-    session::TraceSink trace;
+    device::TraceSink trace;
     if (!sink) {  // the live table on stdout's terminal; -v traces above it when stderr is a terminal too
         screen = std::make_unique<TableScreen>(stdout);
         sink = std::make_unique<TerminalTableSink>(*screen, STDOUT_FILENO, time_style(options));

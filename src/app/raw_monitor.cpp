@@ -145,7 +145,7 @@ std::vector<std::string> raw_table_lines(const RawRequest& request, int unit, co
     return lines;
 }
 
-void poll_raw(session::Master& master, int unit, const RawRequest& request, unsigned per_request,
+void poll_raw(device::Master& master, int unit, const RawRequest& request, unsigned per_request,
               const device::MonitorSettings& settings, MonitorFormat format, bool utc, RawOutput out, std::stop_token stop) {
     RawSampleWriter writer(request, unit, format, out.terminal, out.file);
     unsigned errors = 0;

@@ -6,7 +6,6 @@
 #include <fmt/format.h>
 
 #include "app/command_line.hpp"
-#include "transport/link_url.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -276,12 +275,12 @@ Result<RawWrite> parse_raw_write(const std::vector<std::string>& arguments, cons
 }
 
 Result<unsigned> per_request_on(const std::string& link, const RawRequest& request) {
-    auto url = transport::parse_link_url(link);
-    if (!url) return url.error();
-    return url->framing == transport::Framing::linking ? 1u : request.table->most_per_request;
+    auto linking = device::is_linking_link(link);
+    if (!linking) return linking.error();
+    return *linking ? 1u : request.table->most_per_request;
 }
 
-Result<std::vector<std::uint16_t>> read_raw(session::Master& master, std::uint8_t unit, const RawRequest& request,
+Result<std::vector<std::uint16_t>> read_raw(device::Master& master, std::uint8_t unit, const RawRequest& request,
                                             unsigned per_request) {
     std::vector<std::uint16_t> values;
     while (values.size() < request.registers) {
@@ -295,10 +294,10 @@ Result<std::vector<std::uint16_t>> read_raw(session::Master& master, std::uint8_
 }
 
 Result<unsigned> per_write_on(const std::string& link, const RawWrite& write) {
-    auto url = transport::parse_link_url(link);
-    if (!url) return url.error();
+    auto linking = device::is_linking_link(link);
+    if (!linking) return linking.error();
     const unsigned most = write.target.table->bits ? codec::max_write_bits : codec::max_write_registers;
-    if (url->framing != transport::Framing::linking) return most - most % write.each;  // a value never split between two requests
+    if (!*linking) return most - most % write.each;  // a value never split between two requests
     if (write.each > 1) {
         return make_error(ErrorKind::usage, fmt::format("a {} takes {} registers, and a Linking link writes one register per message: "
                                                         "the device would hold half a value between them; write the registers one "

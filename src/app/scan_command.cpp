@@ -136,7 +136,7 @@ int run_scan(const ScanOptions& options) {
 
     StopSignal stop;  // before any link's threads start, so only its thread takes Ctrl-C
     ScanProgress progress(::isatty(STDERR_FILENO) == 1);
-    auto result = scan->run(*units, std::chrono::ceil<std::chrono::milliseconds>(*wait), options.verbose ? stderr_trace() : session::TraceSink{},
+    auto result = scan->run(*units, std::chrono::ceil<std::chrono::milliseconds>(*wait), options.verbose ? stderr_trace() : device::TraceSink{},
                             scan_printer(progress, options.json), stop.token());
     if (!result) return report_error(result.error());
     print_warnings(*result, *scan, options.json);

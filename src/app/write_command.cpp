@@ -35,7 +35,7 @@ codec::Request make_write(bool coils, bool multiple, std::uint16_t address, std:
 
 // A value of several registers always goes with function 16: written one register at a time,
 // the device would hold half of it between the two writes.
-Result<void> write_range(session::Master& master, std::uint8_t unit, const RawWrite& write, bool multiple, unsigned per_request) {
+Result<void> write_range(device::Master& master, std::uint8_t unit, const RawWrite& write, bool multiple, unsigned per_request) {
     const bool coils = write.target.table->bits;
     const auto& words = write.words;
     for (std::size_t done = 0; done < words.size();) {
