@@ -1,22 +1,19 @@
 #include "app/raw_monitor.hpp"
 
 #include <cerrno>
-#include <condition_variable>
 #include <cstring>
 #include <memory>
-#include <mutex>
 
 #include <fmt/format.h>
 
 #include "app/command_line.hpp"
 #include "app/exit_codes.hpp"
 #include "app/stop_signal.hpp"
+#include "client/register_monitor.hpp"
 #include "common/time_text.hpp"
 
 namespace loopwire::app {
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 std::string status_of(const Error& error) {
     switch (error.kind) {
@@ -85,15 +82,6 @@ private:
     std::size_t shown_lines_ = 0;
 };
 
-// Sleeps until `deadline` or until stop is requested; false when stopped.
-bool sleep_until(Clock::time_point deadline, std::stop_token stop) {
-    std::mutex mutex;
-    std::condition_variable_any woken;
-    std::unique_lock lock(mutex);
-    woken.wait_until(lock, stop, deadline, [] { return false; });
-    return !stop.stop_requested();
-}
-
 }  // namespace
 
 nlohmann::ordered_json raw_sample_json(const RawRequest& request, int unit, const RawSample& sample) {
@@ -148,29 +136,21 @@ std::vector<std::string> raw_table_lines(const RawRequest& request, int unit, co
 void poll_raw(device::Master& master, int unit, const RawRequest& request, unsigned per_request,
               const device::MonitorSettings& settings, MonitorFormat format, bool utc, RawOutput out, std::stop_token stop) {
     RawSampleWriter writer(request, unit, format, out.terminal, out.file);
-    unsigned errors = 0;
-    const auto start = Clock::now();
-    for (unsigned index = 1; !stop.stop_requested() && (!settings.count || index <= *settings.count); ++index) {
+    const auto range = register_range(static_cast<std::uint8_t>(unit), request, per_request);
+    device::run_register_monitor(master, range, settings, [&](const device::RegisterSample& polled) {
         RawSample sample;
-        sample.index = index;
-        sample.time = std::chrono::system_clock::now();
+        sample.index = polled.index;
+        sample.time = polled.time;
         sample.utc = utc;
-        auto words = read_raw(master, static_cast<std::uint8_t>(unit), request, per_request);
-        if (words) {
-            sample.readings = raw_readings(request, *words);
+        if (polled.error) {
+            sample.status = status_of(*polled.error);
+            sample.error = polled.error->message;
         } else {
-            ++errors;
-            sample.status = status_of(words.error());
-            sample.error = words.error().message;
+            sample.readings = raw_readings(request, polled.words);
         }
-        sample.errors = errors;
-        if (stop.stop_requested()) break;
+        sample.errors = polled.errors;
         writer.write(sample);
-        if (settings.count && index == *settings.count) break;
-        // The next slot of the fixed schedule that is still ahead.
-        const auto slots = (Clock::now() - start) / settings.interval + 1;
-        if (!sleep_until(start + slots * settings.interval, stop)) break;
-    }
+    }, stop);
 }
 
 int run_raw_monitor(const MasterCommandOptions& master, const RawTypeOptions& typing, const std::vector<std::string>& arguments,

@@ -49,9 +49,9 @@ struct RawOutput {
     device::FileSampleSink* file = nullptr;
 };
 
-// Polls once per settings.interval on a fixed schedule until settings.count samples were taken
-// or `stop` is requested, writing each sample to `out`. A unit that does not answer costs one
-// timeout per sample and shows as "no-reply"; the polling goes on.
+// Polls once per settings.interval on the monitors' one loop (client/register_monitor.hpp) until
+// settings.count samples were taken or `stop` is requested, writing each sample to `out`. A unit
+// that does not answer costs one timeout per sample and shows as "no-reply"; the polling goes on.
 void poll_raw(device::Master& master, int unit, const RawRequest& request, unsigned per_request,
               const device::MonitorSettings& settings, MonitorFormat format, bool utc, RawOutput out, std::stop_token stop);
 

@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include "app/command_line.hpp"
+#include "client/register_monitor.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -282,15 +283,11 @@ Result<unsigned> per_request_on(const std::string& link, const RawRequest& reque
 
 Result<std::vector<std::uint16_t>> read_raw(device::Master& master, std::uint8_t unit, const RawRequest& request,
                                             unsigned per_request) {
-    std::vector<std::uint16_t> values;
-    while (values.size() < request.registers) {
-        const auto chunk = static_cast<std::uint16_t>(std::min<std::size_t>(per_request, request.registers - values.size()));
-        const auto at = static_cast<std::uint16_t>(request.wire_address + values.size());
-        auto reply = master.execute(unit, codec::read_request(request.table->function, at, chunk));
-        if (!reply) return reply.error();
-        values.insert(values.end(), reply->values.begin(), reply->values.end());
-    }
-    return values;
+    return device::read_registers(master, register_range(unit, request, per_request));
+}
+
+device::RegisterRange register_range(std::uint8_t unit, const RawRequest& request, unsigned per_request) {
+    return device::RegisterRange{unit, request.table->function, request.wire_address, request.registers, per_request};
 }
 
 Result<unsigned> per_write_on(const std::string& link, const RawWrite& write) {
