@@ -38,8 +38,8 @@ struct SampleView {
 };
 
 // What consumes samples: CSV and JSON-lines files (client/monitor_file.hpp), the CLI's terminal
-// table (app/monitor_output.hpp)
-// and the gateway's fronts. Called on the poller's thread, once per sample, in order.
+// table (app/monitor_output.hpp) and the gateway's fronts. Called on the poller's thread, once
+// per sample, in order.
 class SampleSink {
 public:
     virtual ~SampleSink() = default;
