@@ -107,7 +107,9 @@ std::string raw_csv_header(const RawRequest& request) {
 std::string raw_csv_row(const RawRequest& request, const RawSample& sample) {
     std::vector<std::string> fields{iso8601(sample.time, sample.utc), std::to_string(sample.index), sample.status, std::to_string(sample.errors)};
     std::vector<std::string> values(request.count);
-    for (std::size_t i = 0; i < sample.readings.size() && i < values.size(); ++i) values[i] = device::number_text(sample.readings[i].number);
+    for (std::size_t i = 0; i < sample.readings.size() && i < values.size(); ++i) {
+        values[i] = device::csv_field(device::number_text(sample.readings[i].number));  // a string may hold a comma
+    }
     fields.insert(fields.end(), values.begin(), values.end());
     return fmt::format("{}\n", fmt::join(fields, ","));
 }

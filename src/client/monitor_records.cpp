@@ -26,17 +26,6 @@ nlohmann::ordered_json value_entry(const WatchedDevice& device, const WatchedVal
     return entry;
 }
 
-// RFC 4180: quote a field holding a comma, a quote or a line break; double inner quotes.
-std::string csv_field(const std::string& text) {
-    if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
-    std::string quoted = "\"";
-    for (char c : text) {
-        if (c == '"') quoted += '"';
-        quoted += c;
-    }
-    return quoted + "\"";
-}
-
 // A value in a special state is logged by the state's name: a number would pass for a reading.
 std::string csv_value(const Parameter& parameter, const EngineeringValue& value) {
     if (std::holds_alternative<std::monostate>(value.value) && value.status != "ok") return value.status;
@@ -99,6 +88,17 @@ Result<MonitorFormat> monitor_format(std::string_view option, bool terminal) {
     if (option == "jsonl") return MonitorFormat::jsonl;
     if (option == "csv") return MonitorFormat::csv;
     return make_error(ErrorKind::usage, fmt::format("--format '{}': choose table, csv or jsonl", option));
+}
+
+// RFC 4180: quote a field holding a comma, a quote or a line break; double inner quotes.
+std::string csv_field(const std::string& text) {
+    if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+    std::string quoted = "\"";
+    for (char c : text) {
+        if (c == '"') quoted += '"';
+        quoted += c;
+    }
+    return quoted + "\"";
 }
 
 std::string record_line(const SampleView& sample, MonitorFormat format, TimeStyle time, bool with_csv_header) {

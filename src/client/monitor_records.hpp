@@ -38,6 +38,10 @@ nlohmann::ordered_json sample_json(const SampleView& sample, TimeStyle time = Ti
 std::string csv_header(const std::vector<WatchedDevice>& devices);
 std::string csv_row(const SampleView& sample, TimeStyle time = TimeStyle::utc);
 
+// One CSV field as RFC 4180 writes it: quoted when it holds a comma, a quote or a line break,
+// inner quotes doubled.
+std::string csv_field(const std::string& text);
+
 // The text a sample adds to a CSV (after the header when asked) or JSON-lines stream; `format`
 // is csv or jsonl.
 std::string record_line(const SampleView& sample, MonitorFormat format, TimeStyle time, bool with_csv_header);

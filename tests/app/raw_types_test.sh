@@ -136,6 +136,8 @@ check string-badc 0 '"values":["Hi!"]' "${read5[@]}" holding 320 2 --type string
 check string-dcba 0 '"values":["Hi!"]' "${read5[@]}" holding 320 2 --type string --word-order DCBA --json
 check string-other-byte-order 0 '"values":["iH"]' "${read5[@]}" holding 320 2 --type string --json
 check string-monitor 0 ',ok,0,AB12c' "$loopwire" monitor "${link[@]}" --unit 5 holding 300 3 --type string --count 1 --format csv
+"${write5[@]}" holding 330 --type string 'say "a,b"' >/dev/null 2>&1 || fail "writing a string with a comma"
+check string-monitor-csv-quoted 0 ',ok,0,"say ""a,b"""' "$loopwire" monitor "${link[@]}" --unit 5 holding 330 5 --type string --count 1 --format csv
 check string-not-ascii 2 "'Grüße' is not printable ASCII text" "${write5[@]}" holding 300 --type string "Grüße"
 check string-too-long 2 'its 250 characters take 125 registers, and one write carries at most 123 (246 characters)' \
   "${write5[@]}" holding 300 --type string "$(printf 'x%.0s' {1..250})"
