@@ -11,22 +11,22 @@
 
 namespace loopwire::app {
 
-std::string trace_line(const session::TraceEvent& event) {
+std::string trace_line(const device::TraceEvent& event) {
     const auto wall = std::chrono::system_clock::now();
     const auto seconds = std::chrono::system_clock::to_time_t(wall);
     const auto micros = std::chrono::duration_cast<std::chrono::microseconds>(wall.time_since_epoch()).count() % 1000000;
     std::tm local{};
     localtime_r(&seconds, &local);
-    const char* tag = event.direction == session::TraceDirection::sent       ? "TX"
-                      : event.direction == session::TraceDirection::received ? "RX"
+    const char* tag = event.direction == device::TraceDirection::sent       ? "TX"
+                      : event.direction == device::TraceDirection::received ? "RX"
                                                                              : "!!";
     return fmt::format("{:02}:{:02}:{:02}.{:06} {} {}  {}", local.tm_hour, local.tm_min, local.tm_sec, micros, tag,
                        to_hex(event.bytes), event.note);
 }
 
-session::TraceSink stderr_trace() {
+device::TraceSink stderr_trace() {
     auto lock = std::make_shared<std::mutex>();
-    return [lock](const session::TraceEvent& event) {
+    return [lock](const device::TraceEvent& event) {
         const std::string line = trace_line(event);
         std::lock_guard guard(*lock);
         fmt::print(stderr, "{}\n", line);

@@ -7,17 +7,17 @@
 #include <string>
 #include <string_view>
 
+#include "client/link.hpp"
 #include "common/result.hpp"
 #include "common/text_parsing.hpp"
-#include "session/trace.hpp"
 
 namespace loopwire::app {
 
 // One traced frame as a line (no newline): "12:03:04.123456 TX 01 03 ...  note".
-std::string trace_line(const session::TraceEvent& event);
+std::string trace_line(const device::TraceEvent& event);
 
 // Prints each traced frame to stderr as trace_line does.
-session::TraceSink stderr_trace();
+device::TraceSink stderr_trace();
 
 // "loopwire: error: <message>" on stderr; returns the exit code for the error.
 int report_error(const Error& error);

@@ -17,8 +17,8 @@
 #include "app/monitor_output.hpp"
 #include "app/stop_signal.hpp"
 #include "client/device_client.hpp"
+#include "client/link.hpp"
 #include "gateway/gateway.hpp"
-#include "transport/link_url.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -72,7 +72,7 @@ const std::vector<std::pair<std::string, std::vector<std::string>>> demo_setting
 };
 
 // Written through the gateway's Modbus TCP front, as any client would.
-void apply_demo_settings(session::Master& master) {
+void apply_demo_settings(device::Master& master) {
     for (const auto& [address_text, assignments] : demo_settings) {
         auto address = device::parse_device_address(address_text);
         if (!address) continue;
@@ -169,9 +169,9 @@ int run_demo(const DemoOptions& options) {
 
     Result<void> served;
     std::thread server([&] { served = (*running)->serve(stop.token()); });
-    session::MasterOptions client_options;
+    device::MasterOptions client_options;
     client_options.timeout = std::chrono::seconds(2);
-    auto client = session::open_master(*transport::parse_link_url(fmt::format("tcp://127.0.0.1:{}", port)), client_options);
+    auto client = device::open_link(fmt::format("tcp://127.0.0.1:{}", port), client_options);
     if (client) apply_demo_settings(**client);
     else fmt::print(stderr, "loopwire demo: could not reach the gateway to set the set points: {}\n", client.error().message);
     client = make_error(ErrorKind::link, "closed");  // one client less on the front while it runs

@@ -15,7 +15,7 @@ namespace {
 
 struct Connected {
     device::DeviceAddress device;
-    std::unique_ptr<session::Master> master;
+    std::unique_ptr<device::Master> master;
 };
 
 Result<Connected> connect(const device::ProfileRegistry& profiles, const MasterCommandOptions& options) {

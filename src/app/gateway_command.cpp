@@ -1,14 +1,14 @@
 // loopwire gateway --config FILE [--check] [-v], or --print-config
 // One process owns every line of the configuration and shares it: Modbus TCP clients reach the
 // devices through it, their requests queued fairly with each other (docs/DESIGN.md, gateway).
-// SIGHUP re-reads the configuration: a bad one is reported and the running one kept.
+// SIGHUP re-reads the configuration: a bad one is reported and the running one kept
+// (gateway/service.hpp).
 #include <sys/resource.h>
 
 #include <cerrno>
 #include <cstring>
-#include <mutex>
+#include <memory>
 #include <optional>
-#include <utility>
 
 #include <systemd/sd-daemon.h>
 
@@ -21,6 +21,7 @@
 #include "app/stop_signal.hpp"
 #include "gateway/config_schema.hpp"
 #include "gateway/gateway.hpp"
+#include "gateway/service.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -32,20 +33,22 @@ struct GatewayCommandOptions {
     bool print_config = false;
 };
 
-spdlog::logger& gateway_log() {
-    static const std::shared_ptr<spdlog::logger> logger = make_gateway_logger();
-    return *logger;
+// The gateway's log (app/gateway_log.hpp) as the gateway's parts and its service take it: one
+// logger for the command's run, shared by every thread that logs.
+gateway::ServiceLog service_log(const std::shared_ptr<spdlog::logger>& logger) {
+    gateway::ServiceLog log;
+    log.info = [logger](const std::string& line) { log_event(*logger, line); };
+    log.warning = [logger](const std::string& line) { logger->warn(line); };
+    log.debug = [logger](const std::string& line) { logger->debug(line); };
+    log.set_level = [logger](gateway::LogConfig::Level level) { set_log_level(*logger, level); };
+    return log;
 }
-
-void log_line(const std::string& line) { log_event(gateway_log(), line); }
-void log_warning(const std::string& line) { gateway_log().warn(line); }
-void log_debug(const std::string& line) { gateway_log().debug(line); }
 
 // Every Modbus TCP and HTTP client costs a descriptor, and the default soft limit (1024) is far
 // below what the kernel lets the process have (the hard limit). Raised once at start, so that the
 // fronts' own bounds ([modbus_tcp] and [http] max_connections), not the soft limit, decide who
 // is served. systemd sets both through LimitNOFILE= (packaging/loopwire-gateway.service).
-void raise_descriptor_limit() {
+void raise_descriptor_limit(const gateway::GatewayLog& log_debug) {
     rlimit limit{};
     if (::getrlimit(RLIMIT_NOFILE, &limit) != 0) {
         log_debug(fmt::format("open files: the limit cannot be read ({})", std::strerror(errno)));
@@ -65,65 +68,7 @@ void raise_descriptor_limit() {
     log_debug(fmt::format("open files: limit raised from {} to the hard limit, {}", before, limit.rlim_max));
 }
 
-// What SIGHUP hands over to the serving loop: a configuration that loaded, and the request to
-// stop the gateway running now so that the loop opens the new one.
-class Reloads {
-public:
-    Reloads(std::string file, const device::ProfileRegistry& profiles) : file_(std::move(file)), profiles_(profiles) {}
-
-    // On the signal thread, which also takes SIGTERM: loading must never wait. It reads only
-    // regular files, each examined before it is opened and opened without blocking, so a FIFO
-    // or a device named in the new file is an error here, not a hang (common/regular_file.hpp).
-    // A configuration that does not load changes nothing.
-    void hangup() {
-        auto loaded = gateway::load_gateway_config(file_, profiles_);
-        if (!loaded) {
-            log_warning(fmt::format("configuration not reloaded, the running one is kept: {}", loaded.error().message));
-            return;
-        }
-        std::lock_guard lock(mutex_);
-        if (serving_ && !gateway::reload_needs_restart(*serving_, *loaded)) {
-            // Nothing the gateway runs has changed: everything stays up; a new log level applies now.
-            const bool level_changed = serving_->log.level != loaded->log.level;
-            serving_->log.level = loaded->log.level;
-            set_log_level(gateway_log(), loaded->log.level);
-            log_line(fmt::format("configuration {} re-read: {}; lines, listeners, connections and MQTT stay up", file_,
-                                 level_changed ? "only the log level changed" : "nothing changed"));
-            return;
-        }
-        next_ = std::move(*loaded);
-        running_.request_stop();
-    }
-
-    // A stop token for the gateway about to serve `config`.
-    std::stop_token start_round(const gateway::GatewayConfig& config) {
-        std::lock_guard lock(mutex_);
-        serving_ = config;
-        running_ = std::stop_source();
-        return running_.get_token();
-    }
-
-    // The configuration the next round will serve, if a reload asked for one.
-    std::optional<gateway::GatewayConfig> next() {
-        std::lock_guard lock(mutex_);
-        return next_;
-    }
-
-    std::optional<gateway::GatewayConfig> take() {
-        std::lock_guard lock(mutex_);
-        return std::exchange(next_, std::nullopt);
-    }
-
-private:
-    std::string file_;
-    const device::ProfileRegistry& profiles_;
-    std::mutex mutex_;
-    std::stop_source running_;
-    std::optional<gateway::GatewayConfig> next_;
-    std::optional<gateway::GatewayConfig> serving_;  // what the running gateway was opened with
-};
-
-void announce(const gateway::GatewayConfig& config, const gateway::Gateway& running) {
+void announce(const gateway::GatewayLog& log_line, const gateway::GatewayConfig& config, const gateway::Gateway& running) {
     std::size_t devices = 0;
     for (const auto& line : config.lines) devices += line.devices.size();
     if (config.modbus_tcp.enabled) {
@@ -142,43 +87,6 @@ void announce(const gateway::GatewayConfig& config, const gateway::Gateway& runn
     // Under systemd (Type=notify, packaging/loopwire-gateway.service) the unit is up once the
     // lines and the listener are open; without $NOTIFY_SOCKET these calls do nothing.
     sd_notifyf(0, "READY=1\nSTATUS=serving %zu line(s), %zu device(s)", config.lines.size(), devices);
-}
-
-// The Modbus TCP front `config` asks for: `front` itself when it listens as asked (a reload
-// that left [modbus_tcp] alone keeps every client's connection), else a new one (or none).
-Result<void> keep_or_open_front(const gateway::GatewayConfig& config, const gateway::GatewayOptions& options,
-                                std::unique_ptr<gateway::ModbusTcpFront>& front) {
-    if (front && front->listens_as(config.modbus_tcp) && !front->failed().stop_requested()) {
-        const auto open = front->statistics().open;
-        log_line(fmt::format("Modbus TCP front kept on port {}: {} client connection(s) stay up", front->port(), open));
-        return {};
-    }
-    front.reset();  // before the new one: it may listen on the same port
-    if (!config.modbus_tcp.enabled) return {};
-    auto opened = gateway::ModbusTcpFront::open(config.modbus_tcp, {options.trace, options.debug_log});
-    if (!opened) return opened.error();
-    front = std::move(*opened);
-    return {};
-}
-
-// Serves `config` until `stop` or a reload is requested; the error when it cannot be opened.
-Result<void> serve_round(const gateway::GatewayConfig& config, gateway::GatewayOptions options,
-                         const std::stop_token& stop, Reloads& reloads, std::unique_ptr<gateway::ModbusTcpFront>& front) {
-    set_log_level(gateway_log(), config.log.level);
-    const std::stop_token reload = reloads.start_round(config);
-    if (auto kept = keep_or_open_front(config, options, front); !kept) return kept.error();
-    options.front = front.get();
-    auto running = gateway::Gateway::open(config, options);
-    if (!running) return running.error();
-    announce(config, **running);
-    std::stop_source either;
-    std::stop_callback on_stop(stop, [&either] { either.request_stop(); });
-    std::stop_callback on_reload(reload, [&either] { either.request_stop(); });
-    auto served = (*running)->serve(either.get_token());
-    if (auto next = reloads.next(); next && !stop.stop_requested()) (*running)->hand_over_to(*next);
-    for (const auto& line : (*running)->report()) log_line(gateway::describe(line));
-    if (config.modbus_tcp.enabled) log_line(gateway::describe((*running)->front_report()));
-    return served;
 }
 
 int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& profiles) {
@@ -200,36 +108,21 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
         fmt::print("{}", gateway::describe_plan(*config));
         return exit_ok;
     }
-    set_log_level(gateway_log(), config->log.level);
-    raise_descriptor_limit();
-    Reloads reloads(options.config, *registry);
+    const auto logger = make_gateway_logger();
+    const auto log = service_log(logger);
+    log.set_level(config->log.level);
+    raise_descriptor_limit(log.debug);
+    gateway::ConfigReloads reloads(options.config, *registry, log);
     StopSignal stop(std::nullopt, [&reloads] { reloads.hangup(); });  // before any thread starts
     gateway::GatewayOptions gateway_options;
-    gateway_options.log = log_line;
-    gateway_options.debug_log = log_debug;
+    gateway_options.log = log.info;
+    gateway_options.debug_log = log.debug;
     if (options.verbose) gateway_options.trace = stderr_trace();
-    gateway::GatewayConfig current = std::move(*config);
-    std::optional<gateway::GatewayConfig> previous;
-    std::unique_ptr<gateway::ModbusTcpFront> front;  // kept across reloads that leave [modbus_tcp] alone
-    for (;;) {
-        auto served = serve_round(current, gateway_options, stop.token(), reloads, front);
-        if (!served && !previous) return report_error(served.error());
-        if (!served) {
-            // The new configuration loaded but could not be opened (an address taken, a history
-            // database it cannot read; a missing port is only a line that is down): back to the
-            // one that ran.
-            log_warning(fmt::format("the reloaded configuration cannot be served ({}); going back to the previous one",
-                                 served.error().message));
-            current = std::move(*std::exchange(previous, std::nullopt));
-            continue;
-        }
-        if (stop.token().stop_requested()) break;
-        if (auto next = reloads.take()) {
-            sd_notify(0, "RELOADING=1");
-            log_line(fmt::format("configuration {} reloaded", options.config));
-            previous = std::exchange(current, std::move(*next));
-        }
-    }
+    gateway::ServiceHooks hooks;
+    hooks.serving = [&log](const gateway::GatewayConfig& serving, const gateway::Gateway& running) { announce(log.info, serving, running); };
+    hooks.reloading = [] { sd_notify(0, "RELOADING=1"); };
+    auto served = gateway::serve_with_reloads(std::move(*config), gateway_options, reloads, stop.token(), log, hooks);
+    if (!served) return report_error(served.error());
     sd_notify(0, "STOPPING=1");
     return exit_ok;
 }

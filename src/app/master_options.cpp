@@ -24,16 +24,16 @@ void MasterCommandOptions::add_identify_to(CLI::App& command) {
                                                    "make sure the unit is that device before anything is read or written");
 }
 
-Result<std::unique_ptr<session::Master>> MasterCommandOptions::open(session::TraceSink trace) const {
-    auto url = transport::parse_link_url(link);
-    if (!url) return url.error();
+Result<std::unique_ptr<device::Master>> MasterCommandOptions::open(device::TraceSink trace) const {
+    // The URL is checked before the durations, so its mistakes are the ones reported first.
+    if (auto checked = device::check_link_url(link); !checked) return checked.error();
     auto wait = parse_duration(timeout, "--timeout", std::chrono::milliseconds(1));
     if (!wait) return wait.error();
-    session::MasterOptions options;
+    device::MasterOptions options;
     options.timeout = std::chrono::ceil<std::chrono::milliseconds>(*wait);  // 1.5ms waits 2ms, never less than asked
     options.retries = retries;
     if (verbose) options.trace = trace ? std::move(trace) : stderr_trace();
-    return session::open_master(*url, std::move(options));
+    return device::open_link(link, std::move(options));
 }
 
 }  // namespace loopwire::app

@@ -5,8 +5,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "client/link.hpp"
 #include "common/result.hpp"
-#include "session/master.hpp"
 
 namespace loopwire::app {
 
@@ -27,7 +27,7 @@ struct MasterCommandOptions {
     void add_identify_to(CLI::App& command);
     // Parses the link URL and the durations, opens the link and builds the master. With -v,
     // frames are traced to `trace`, or to stderr when it is empty.
-    Result<std::unique_ptr<session::Master>> open(session::TraceSink trace = {}) const;
+    Result<std::unique_ptr<device::Master>> open(device::TraceSink trace = {}) const;
 };
 
 }  // namespace loopwire::app

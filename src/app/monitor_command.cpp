@@ -12,11 +12,11 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
-#include "app/monitor_file.hpp"
 #include "app/monitor_output.hpp"
 #include "app/monitor_screen.hpp"
 #include "app/master_options.hpp"
 #include "app/raw_monitor.hpp"
+#include "client/monitor_file.hpp"
 #include "client/monitor_loop.hpp"
 #include "client/monitor_names.hpp"
 #include "app/stop_signal.hpp"
@@ -41,18 +41,18 @@ struct MonitorOptions {
 
 Result<MonitorFormat> choose_format(const MonitorOptions& options) {
     const bool terminal = options.output.empty() && ::isatty(STDOUT_FILENO) == 1;
-    return choose_monitor_format(options.format, options.output, terminal);
+    return device::choose_monitor_format(options.format, options.output, terminal);
 }
 
 TimeStyle time_style(const MonitorOptions& options) { return options.utc ? TimeStyle::utc : TimeStyle::local; }
 
-Result<MonitorFileOptions> file_options(const MonitorOptions& options) {
+Result<device::MonitorFileOptions> file_options(const MonitorOptions& options) {
     if (options.output.empty() && (options.append || !options.rotate_size.empty() || !options.rotate.empty())) {
         return make_error(ErrorKind::usage, "--append, --rotate-size and --rotate apply to a log file: add --output FILE");
     }
-    MonitorFileOptions file{options.output, options.append, std::nullopt, false, time_style(options)};
+    device::MonitorFileOptions file{options.output, options.append, std::nullopt, false, time_style(options)};
     if (!options.rotate_size.empty()) {
-        auto size = parse_byte_size(options.rotate_size, "--rotate-size");
+        auto size = device::parse_byte_size(options.rotate_size, "--rotate-size");
         if (!size) return size.error();
         file.rotate_size = *size;
     }
@@ -112,14 +112,14 @@ int run_monitor_command(const MonitorOptions& options, const ProfileOptions& pro
     if (!lists) return report_error(lists.error());
     std::unique_ptr<device::SampleSink> sink;
     if (!options.output.empty()) {
-        auto file = FileSampleSink::open(*file_settings, *format, *format == MonitorFormat::csv ? planned_csv_header(*devices, *lists) : "");
+        auto file = device::FileSampleSink::open(*file_settings, *format, *format == MonitorFormat::csv ? planned_csv_header(*devices, *lists) : "");
         if (!file) return report_error(file.error());
         sink = std::move(*file);
     } else if (*format != MonitorFormat::table) {
         sink = std::make_unique<StreamSampleSink>(stdout, *format, time_style(options));
     }
     std::unique_ptr<TableScreen> screen;
-    session::TraceSink trace;
+    device::TraceSink trace;
     if (!sink) {  // the live table on stdout's terminal; -v traces above it when stderr is a terminal too
         screen = std::make_unique<TableScreen>(stdout);
         sink = std::make_unique<TerminalTableSink>(*screen, STDOUT_FILENO, time_style(options));

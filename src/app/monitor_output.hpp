@@ -1,40 +1,23 @@
 #pragma once
 // How monitor samples are shown: a live table redrawn in place on a terminal, or one line per
-// sample as CSV or JSON lines for files and pipes.
+// sample as CSV or JSON lines (client/monitor_records.hpp) for pipes.
 #include <chrono>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
-#include "client/monitor_loop.hpp"
+#include "client/monitor_records.hpp"
 
 namespace loopwire::app {
 
-enum class MonitorFormat { table, csv, jsonl };
+using device::MonitorFormat;
+using device::TimeStyle;
+using device::csv_header;
+using device::csv_row;
+using device::monitor_format;
+using device::sample_json;
 
-// How sample times are written: local time with its offset (the monitor's default) or UTC
-// (--utc), both ISO 8601.
-enum class TimeStyle { local, utc };
-
-// The format a --format option names; empty chooses the table on a terminal, JSON lines otherwise.
-Result<MonitorFormat> monitor_format(std::string_view option, bool terminal);
-
-
-// {"time":"...Z","sample":1,"devices":{"tc10@3":{"status":"ok","errors":0,"values":{NAME:
-// {"value":V,"text":"25.0","unit":"°C","status":"ok","age":0.0,"changed":false}}}}}.
-// A value not read in this sample has "value":null and "text":null whatever was read before;
-// "age" says how old the last good reading is (null: never read), "status" why it is missing.
-// A device whose status is not "ok" also has "error" (the last failure) and, while in back-off,
-// "retry_in" (seconds until it is tried again).
-nlohmann::ordered_json sample_json(const device::SampleView& sample, TimeStyle time = TimeStyle::utc);
-
-// CSV: time,sample, then per device "DEVICE status","DEVICE errors", and one column
-// "DEVICE:NAME [UNIT]" per value ("tc10@3:measured_value [°C]"; no brackets for a value without
-// unit) holding its text, or the name of its special state ("out-of-range", "under-range": the
-// state, not an empty cell, reaches the log); empty when not read in this sample.
-std::string csv_header(const std::vector<device::WatchedDevice>& devices);
-std::string csv_row(const device::SampleView& sample, TimeStyle time = TimeStyle::utc);
 // The text a sample adds to a stream: a JSON line, a CSV row (after the header when asked),
 // or a table frame.
 std::string sample_line(const device::SampleView& sample, MonitorFormat format, TimeStyle time, bool with_csv_header);

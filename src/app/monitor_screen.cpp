@@ -139,8 +139,8 @@ void TableScreen::trace(const std::string& line) {
     std::fflush(out_);
 }
 
-session::TraceSink TableScreen::trace_sink() {
-    return [this](const session::TraceEvent& event) { trace(trace_line(event)); };
+device::TraceSink TableScreen::trace_sink() {
+    return [this](const device::TraceEvent& event) { trace(trace_line(event)); };
 }
 
 void TerminalTableSink::write(const device::SampleView& sample) {

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "app/monitor_output.hpp"
-#include "session/trace.hpp"
+#include "client/link.hpp"
 
 namespace loopwire::app {
 
@@ -47,7 +47,7 @@ public:
 
     void draw(std::vector<std::string> lines);
     void trace(const std::string& line);
-    session::TraceSink trace_sink();
+    device::TraceSink trace_sink();
 
 private:
     std::string render() const;

@@ -1,22 +1,19 @@
 #include "app/raw_monitor.hpp"
 
 #include <cerrno>
-#include <condition_variable>
 #include <cstring>
 #include <memory>
-#include <mutex>
 
 #include <fmt/format.h>
 
 #include "app/command_line.hpp"
 #include "app/exit_codes.hpp"
 #include "app/stop_signal.hpp"
+#include "client/register_monitor.hpp"
 #include "common/time_text.hpp"
 
 namespace loopwire::app {
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 std::string status_of(const Error& error) {
     switch (error.kind) {
@@ -47,7 +44,7 @@ std::string typing_text(const RawRequest& request) {
 class RawSampleWriter {
 public:
     // Samples go to `file` when given (appended, rotated: monitor_file.hpp), else to `out`.
-    RawSampleWriter(const RawRequest& request, int unit, MonitorFormat format, std::FILE* out, FileSampleSink* file)
+    RawSampleWriter(const RawRequest& request, int unit, MonitorFormat format, std::FILE* out, device::FileSampleSink* file)
         : request_(request), unit_(unit), format_(format), out_(out), file_(file) {}
     ~RawSampleWriter() {
         if (format_ == MonitorFormat::table && shown_lines_ > 0) {
@@ -81,18 +78,9 @@ private:
     int unit_;
     MonitorFormat format_;
     std::FILE* out_;
-    FileSampleSink* file_;
+    device::FileSampleSink* file_;
     std::size_t shown_lines_ = 0;
 };
-
-// Sleeps until `deadline` or until stop is requested; false when stopped.
-bool sleep_until(Clock::time_point deadline, std::stop_token stop) {
-    std::mutex mutex;
-    std::condition_variable_any woken;
-    std::unique_lock lock(mutex);
-    woken.wait_until(lock, stop, deadline, [] { return false; });
-    return !stop.stop_requested();
-}
 
 }  // namespace
 
@@ -119,7 +107,9 @@ std::string raw_csv_header(const RawRequest& request) {
 std::string raw_csv_row(const RawRequest& request, const RawSample& sample) {
     std::vector<std::string> fields{iso8601(sample.time, sample.utc), std::to_string(sample.index), sample.status, std::to_string(sample.errors)};
     std::vector<std::string> values(request.count);
-    for (std::size_t i = 0; i < sample.readings.size() && i < values.size(); ++i) values[i] = device::number_text(sample.readings[i].number);
+    for (std::size_t i = 0; i < sample.readings.size() && i < values.size(); ++i) {
+        values[i] = device::csv_field(device::number_text(sample.readings[i].number));  // a string may hold a comma
+    }
     fields.insert(fields.end(), values.begin(), values.end());
     return fmt::format("{}\n", fmt::join(fields, ","));
 }
@@ -145,36 +135,28 @@ std::vector<std::string> raw_table_lines(const RawRequest& request, int unit, co
     return lines;
 }
 
-void poll_raw(session::Master& master, int unit, const RawRequest& request, unsigned per_request,
+void poll_raw(device::Master& master, int unit, const RawRequest& request, unsigned per_request,
               const device::MonitorSettings& settings, MonitorFormat format, bool utc, RawOutput out, std::stop_token stop) {
     RawSampleWriter writer(request, unit, format, out.terminal, out.file);
-    unsigned errors = 0;
-    const auto start = Clock::now();
-    for (unsigned index = 1; !stop.stop_requested() && (!settings.count || index <= *settings.count); ++index) {
+    const auto range = register_range(static_cast<std::uint8_t>(unit), request, per_request);
+    device::run_register_monitor(master, range, settings, [&](const device::RegisterSample& polled) {
         RawSample sample;
-        sample.index = index;
-        sample.time = std::chrono::system_clock::now();
+        sample.index = polled.index;
+        sample.time = polled.time;
         sample.utc = utc;
-        auto words = read_raw(master, static_cast<std::uint8_t>(unit), request, per_request);
-        if (words) {
-            sample.readings = raw_readings(request, *words);
+        if (polled.error) {
+            sample.status = status_of(*polled.error);
+            sample.error = polled.error->message;
         } else {
-            ++errors;
-            sample.status = status_of(words.error());
-            sample.error = words.error().message;
+            sample.readings = raw_readings(request, polled.words);
         }
-        sample.errors = errors;
-        if (stop.stop_requested()) break;
+        sample.errors = polled.errors;
         writer.write(sample);
-        if (settings.count && index == *settings.count) break;
-        // The next slot of the fixed schedule that is still ahead.
-        const auto slots = (Clock::now() - start) / settings.interval + 1;
-        if (!sleep_until(start + slots * settings.interval, stop)) break;
-    }
+    }, stop);
 }
 
 int run_raw_monitor(const MasterCommandOptions& master, const RawTypeOptions& typing, const std::vector<std::string>& arguments,
-                    const device::MonitorSettings& settings, MonitorFormat format, const MonitorFileOptions& output) {
+                    const device::MonitorSettings& settings, MonitorFormat format, const device::MonitorFileOptions& output) {
     if (arguments.empty() || arguments.size() > 3) {
         return report_error(make_error(ErrorKind::usage, "monitor takes --device DEVICE@UNIT [NAMES...] (by name), or --unit N "
                                                          "TABLE ADDRESS [COUNT] (raw registers, e.g. --unit 5 holding 100 4 --type float32)"));
@@ -187,9 +169,9 @@ int run_raw_monitor(const MasterCommandOptions& master, const RawTypeOptions& ty
     }
     auto per_request = per_request_on(master.link, *request);
     if (!per_request) return report_error(per_request.error());
-    std::unique_ptr<FileSampleSink> file;
+    std::unique_ptr<device::FileSampleSink> file;
     if (!output.path.empty()) {
-        auto opened = FileSampleSink::open(output, format, format == MonitorFormat::csv ? raw_csv_header(*request) : "");
+        auto opened = device::FileSampleSink::open(output, format, format == MonitorFormat::csv ? raw_csv_header(*request) : "");
         if (!opened) return report_error(opened.error());
         file = std::move(*opened);
     }

@@ -11,9 +11,9 @@
 #include <nlohmann/json.hpp>
 
 #include "app/master_options.hpp"
-#include "app/monitor_file.hpp"
 #include "app/monitor_output.hpp"
 #include "app/raw_registers.hpp"
+#include "client/monitor_file.hpp"
 #include "client/monitor_loop.hpp"
 
 namespace loopwire::app {
@@ -46,19 +46,19 @@ std::vector<std::string> raw_table_lines(const RawRequest& request, int unit, co
 // terminal or pipe.
 struct RawOutput {
     std::FILE* terminal = stdout;
-    FileSampleSink* file = nullptr;
+    device::FileSampleSink* file = nullptr;
 };
 
-// Polls once per settings.interval on a fixed schedule until settings.count samples were taken
-// or `stop` is requested, writing each sample to `out`. A unit that does not answer costs one
-// timeout per sample and shows as "no-reply"; the polling goes on.
-void poll_raw(session::Master& master, int unit, const RawRequest& request, unsigned per_request,
+// Polls once per settings.interval on the monitors' one loop (client/register_monitor.hpp) until
+// settings.count samples were taken or `stop` is requested, writing each sample to `out`. A unit
+// that does not answer costs one timeout per sample and shows as "no-reply"; the polling goes on.
+void poll_raw(device::Master& master, int unit, const RawRequest& request, unsigned per_request,
               const device::MonitorSettings& settings, MonitorFormat format, bool utc, RawOutput out, std::stop_token stop);
 
 // The whole command once monitor's options are parsed: `arguments` are TABLE ADDRESS [COUNT] or
 // REFERENCE [COUNT]; `output.path` a log file to write instead of stdout (empty: stdout), with
 // --append and rotation as for named parameters.
 int run_raw_monitor(const MasterCommandOptions& master, const RawTypeOptions& typing, const std::vector<std::string>& arguments,
-                    const device::MonitorSettings& settings, MonitorFormat format, const MonitorFileOptions& output);
+                    const device::MonitorSettings& settings, MonitorFormat format, const device::MonitorFileOptions& output);
 
 }  // namespace loopwire::app

@@ -6,7 +6,7 @@
 #include <fmt/format.h>
 
 #include "app/command_line.hpp"
-#include "transport/link_url.hpp"
+#include "client/register_monitor.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -134,6 +134,9 @@ Result<void> parse_typing(const RawTypeOptions& options, RawRequest& request) {
     auto layout = layout_of(options);
     if (!layout) return layout.error();
     request.layout = *layout;
+    if (request.layout.type == device::RawType::string && !options.scale.empty()) {
+        return make_error(ErrorKind::usage, "--scale multiplies numbers; a string is text: drop --scale or choose a number type");
+    }
     if (!options.scale.empty()) {
         auto scale = device::parse_scale(options.scale);
         if (!scale) return scale.error();
@@ -194,7 +197,8 @@ Result<std::vector<std::uint16_t>> register_words(const std::vector<std::string>
 const char* const raw_count_help =
     "TABLE ADDRESS [COUNT]: holding|input|coils|discrete, the first address (0-based wire address, or 1-based with "
     "--base 1; decimal, 0x.. or ..h) and how many values to read (default 1; with --type a value takes 1, 2 or 4 "
-    "registers: holding 100 2 --type float32 reads registers 100-103)";
+    "registers: holding 100 2 --type float32 reads registers 100-103; a string's COUNT counts its registers, two "
+    "characters each)";
 
 const ReadTable* find_read_table(const std::string& name) {
     for (const auto& table : read_tables) {
@@ -205,9 +209,11 @@ const ReadTable* find_read_table(const std::string& name) {
 
 void RawTypeOptions::add_to(CLI::App& command) {
     command.add_option("--type", type,
-                       "What the registers hold: int16, uint16, int32, uint32, float32 (IEEE 754, 2 registers) or float64 "
-                       "(4 registers); COUNT counts values of this type")
-        ->type_name("TYPE:{int16,uint16,int32,uint32,float32,float64}");  // the choices, for completion
+                       "What the registers hold: int16, uint16, int32, uint32, float32 (IEEE 754, 2 registers), float64 "
+                       "(4 registers), or string (ASCII, two characters a register, the first in the high byte; with "
+                       "--byte-swap, BADC or DCBA the low byte; padded with NUL, read up to the first NUL); COUNT counts "
+                       "values of this type (registers for a string)")
+        ->type_name("TYPE:{int16,uint16,int32,uint32,float32,float64,string}");  // the choices, for completion
     command.add_option("--word-order", word_order,
                        "Register order of 32/64-bit values: big (most significant register first, the Modbus convention; "
                        "default) or little; or the byte order as Modbus tools name it: ABCD (big), CDAB (little), BADC (big, "
@@ -241,6 +247,14 @@ Result<RawRequest> parse_raw_request(const std::vector<std::string>& arguments, 
     auto count = parse_integer(arguments.size() > *taken ? arguments[*taken] : "1", 1, address_space, "count");
     if (!count) return count.error();
     request.count = static_cast<unsigned>(*count);
+    if (request.layout.type == device::RawType::string) {
+        // COUNT counts the string's registers, two characters each: one value of them all.
+        auto fits = check_room(request, request.count, fmt::format("a string of {} register{}", request.count, request.count == 1 ? "" : "s"));
+        if (!fits) return fits.error();
+        request.registers = request.count;
+        request.count = 1;
+        return request;
+    }
     const unsigned each = device::registers_per_value(request.layout.type);
     auto fits = check_room(request, static_cast<unsigned long long>(request.count) * each,
                            fmt::format("{} {} value{}", request.count, device::raw_type_name(request.layout.type),
@@ -262,10 +276,21 @@ Result<RawWrite> parse_raw_write(const std::vector<std::string>& arguments, cons
     if (write.values.empty()) return make_error(ErrorKind::usage, "give the value(s) to write after the address");
     auto typing = parse_typing(options, write.target);
     if (!typing) return typing.error();
+    const bool text = write.target.layout.type == device::RawType::string;
+    if (text && write.values.size() != 1) {
+        return make_error(ErrorKind::usage, fmt::format("--type string writes one text, {} were given: quote a text with spaces "
+                                                        "(\"AB 12\")", write.values.size()));
+    }
     auto words = table.bits ? coil_words(write.values) : register_words(write.values, write.target);
     if (!words) return words.error();
     write.words = std::move(*words);
-    const unsigned each = device::registers_per_value(write.target.layout.type);
+    if (text && write.words.size() > codec::max_write_registers) {
+        return make_error(ErrorKind::usage, fmt::format("'{}' is too long: its {} characters take {} registers, and one write "
+                                                        "carries at most {} ({} characters)", write.values.front(),
+                                                        write.values.front().size(), write.words.size(), codec::max_write_registers,
+                                                        2 * codec::max_write_registers));
+    }
+    const unsigned each = text ? static_cast<unsigned>(write.words.size()) : device::registers_per_value(write.target.layout.type);
     write.target.count = static_cast<unsigned>(write.values.size());
     write.target.registers = static_cast<unsigned>(write.words.size());
     auto fits = check_room(write.target, write.words.size(),
@@ -276,29 +301,25 @@ Result<RawWrite> parse_raw_write(const std::vector<std::string>& arguments, cons
 }
 
 Result<unsigned> per_request_on(const std::string& link, const RawRequest& request) {
-    auto url = transport::parse_link_url(link);
-    if (!url) return url.error();
-    return url->framing == transport::Framing::linking ? 1u : request.table->most_per_request;
+    auto linking = device::is_linking_link(link);
+    if (!linking) return linking.error();
+    return *linking ? 1u : request.table->most_per_request;
 }
 
-Result<std::vector<std::uint16_t>> read_raw(session::Master& master, std::uint8_t unit, const RawRequest& request,
+Result<std::vector<std::uint16_t>> read_raw(device::Master& master, std::uint8_t unit, const RawRequest& request,
                                             unsigned per_request) {
-    std::vector<std::uint16_t> values;
-    while (values.size() < request.registers) {
-        const auto chunk = static_cast<std::uint16_t>(std::min<std::size_t>(per_request, request.registers - values.size()));
-        const auto at = static_cast<std::uint16_t>(request.wire_address + values.size());
-        auto reply = master.execute(unit, codec::read_request(request.table->function, at, chunk));
-        if (!reply) return reply.error();
-        values.insert(values.end(), reply->values.begin(), reply->values.end());
-    }
-    return values;
+    return device::read_registers(master, register_range(unit, request, per_request));
+}
+
+device::RegisterRange register_range(std::uint8_t unit, const RawRequest& request, unsigned per_request) {
+    return device::RegisterRange{unit, request.table->function, request.wire_address, request.registers, per_request};
 }
 
 Result<unsigned> per_write_on(const std::string& link, const RawWrite& write) {
-    auto url = transport::parse_link_url(link);
-    if (!url) return url.error();
+    auto linking = device::is_linking_link(link);
+    if (!linking) return linking.error();
     const unsigned most = write.target.table->bits ? codec::max_write_bits : codec::max_write_registers;
-    if (url->framing != transport::Framing::linking) return most - most % write.each;  // a value never split between two requests
+    if (!*linking) return most - most % write.each;  // a value never split between two requests
     if (write.each > 1) {
         return make_error(ErrorKind::usage, fmt::format("a {} takes {} registers, and a Linking link writes one register per message: "
                                                         "the device would hold half a value between them; write the registers one "
@@ -310,7 +331,8 @@ Result<unsigned> per_write_on(const std::string& link, const RawWrite& write) {
 
 std::vector<RawReading> raw_readings(const RawRequest& request, const std::vector<std::uint16_t>& words) {
     std::vector<RawReading> readings;
-    const unsigned each = device::registers_per_value(request.layout.type);
+    const bool text = request.layout.type == device::RawType::string;
+    const unsigned each = text ? std::max(request.registers, 1u) : device::registers_per_value(request.layout.type);
     for (std::size_t at = 0; at + each <= words.size(); at += each) {
         RawReading reading;
         reading.address = request.address + static_cast<unsigned>(at);
@@ -323,6 +345,7 @@ std::vector<RawReading> raw_readings(const RawRequest& request, const std::vecto
 }
 
 nlohmann::ordered_json number_json(const device::RawNumber& number) {
+    if (const auto* text = std::get_if<std::string>(&number)) return *text;
     if (const auto* integer = std::get_if<std::int64_t>(&number)) return *integer;
     const double value = std::get<double>(number);
     if (!std::isfinite(value)) return nullptr;

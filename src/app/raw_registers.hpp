@@ -12,10 +12,11 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "client/link.hpp"
 #include "client/raw_values.hpp"
+#include "client/register_monitor.hpp"
 #include "codec/pdu.hpp"
 #include "common/result.hpp"
-#include "session/master.hpp"
 
 namespace loopwire::app {
 
@@ -81,7 +82,9 @@ Result<unsigned> per_write_on(const std::string& link, const RawWrite& write);
 
 // Reads the request's registers (or bits) in as few requests as the protocol allows;
 // `per_request` is the most one request may ask for (1 on a Linking link).
-Result<std::vector<std::uint16_t>> read_raw(session::Master& master, std::uint8_t unit, const RawRequest& request,
+// client/register_monitor.hpp reads them; this is the range it is given.
+device::RegisterRange register_range(std::uint8_t unit, const RawRequest& request, unsigned per_request);
+Result<std::vector<std::uint16_t>> read_raw(device::Master& master, std::uint8_t unit, const RawRequest& request,
                                             unsigned per_request);
 
 // The most one request may read on a link of this URL: the table's limit, or 1 on Linking.

@@ -13,8 +13,7 @@
 #include "app/exit_codes.hpp"
 #include "app/scan_report.hpp"
 #include "app/stop_signal.hpp"
-#include "client/device_client.hpp"
-#include "transport/serial_port.hpp"
+#include "client/scan.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -28,29 +27,6 @@ struct ScanOptions {
     bool json = false;
     bool verbose = false;
 };
-
-struct FoundUnit {
-    int unit;
-    std::string line;  // the first line settings it answered at
-    std::string device;
-    nlohmann::ordered_json identification = nlohmann::ordered_json::object();
-    std::vector<std::string> lines;  // every line setting it answered at, in the order tried
-};
-
-// Modbus application protocol V1.1b3, 7: a gateway answers 0Ah (path unavailable) or 0Bh (target
-// device failed to respond) for a unit nothing answers behind it: that is nobody, not a device.
-bool gateway_says_nobody(const Error& error) {
-    return error.kind == ErrorKind::exception && (error.code == 0x0A || error.code == 0x0B);
-}
-
-// The unit found earlier as the same device at another line setting, if any: a sweep lists each
-// device once, with every setting it answered at.
-FoundUnit* found_before(std::vector<FoundUnit>& found, const FoundUnit& unit) {
-    for (auto& f : found) {
-        if (f.unit == unit.unit && f.device == unit.device) return &f;
-    }
-    return nullptr;
-}
 
 std::vector<std::string> split(const std::string& text) {
     std::vector<std::string> parts;
@@ -80,91 +56,11 @@ Result<std::vector<int>> parse_units(const std::string& text) {
     return units;
 }
 
-Result<transport::Parity> parse_parity(const std::string& text) {
-    if (text == "none" || text == "n") return transport::Parity::none;
-    if (text == "even" || text == "e") return transport::Parity::even;
-    if (text == "odd" || text == "o") return transport::Parity::odd;
-    return make_error(ErrorKind::usage, fmt::format("parity '{}' is not none, even or odd", text));
-}
-
-// Every line setting to try: the URL's own, or the sweep the options ask for.
-Result<std::vector<transport::LinkUrl>> line_settings(const ScanOptions& options) {
-    auto base = transport::parse_link_url(options.link);
-    if (!base) return base.error();
-    if (!base->is_serial() && (!options.bauds.empty() || !options.parities.empty())) {
-        return make_error(ErrorKind::usage, "--bauds and --parities sweep serial lines; " + options.link + " is a network link");
-    }
-    std::vector<std::uint32_t> bauds{base->serial.baud};
-    if (!options.bauds.empty()) bauds.clear();
-    for (const auto& text : split(options.bauds)) {
-        auto baud = parse_integer(text, 0, 115200, "baud");
-        if (!baud) return baud.error();
-        if (!transport::is_supported_baud(static_cast<std::uint32_t>(*baud))) {
-            return make_error(ErrorKind::usage, fmt::format("baud {} is not a supported rate (600 to 115200)", text));
-        }
-        bauds.push_back(static_cast<std::uint32_t>(*baud));
-    }
-    std::vector<transport::Parity> parities{base->serial.parity};
-    if (!options.parities.empty()) parities.clear();
-    for (const auto& text : split(options.parities)) {
-        auto parity = parse_parity(text);
-        if (!parity) return parity.error();
-        parities.push_back(*parity);
-    }
-    std::vector<transport::LinkUrl> settings;
-    for (auto baud : bauds) {
-        for (auto parity : parities) {
-            transport::LinkUrl url = *base;
-            url.serial.baud = baud;
-            url.serial.parity = parity;
-            settings.push_back(url);
-        }
-    }
-    return settings;
-}
-
-std::string line_text(const transport::LinkUrl& url) {
-    if (!url.is_serial()) return url.to_string();
-    const char parity = url.serial.parity == transport::Parity::none ? 'N' : url.serial.parity == transport::Parity::even ? 'E' : 'O';
-    return fmt::format("{} {}{}{}", url.serial.baud, url.serial.data_bits, parity, url.serial.stop_bits);
-}
-
-// Reads each profile's identification words; the first profile whose checks all hold names it.
-void identify(session::Master& master, FoundUnit& found) {
-    for (const auto& id : device::builtin_profile_ids()) {
-        auto address = device::parse_device_address(id + "@" + std::to_string(found.unit));
-        if (!address) continue;
-        const auto& profile = *address->profile;
-        std::vector<const device::Parameter*> checks;
-        for (const auto& check : profile.identification) {
-            if (const auto* p = profile.find(check.parameter)) checks.push_back(p);
-        }
-        if (checks.empty()) continue;
-        device::DeviceClient client(master, *address);
-        const auto report = client.read(checks);
-        bool all_hold = !report.first_error;
-        for (const auto& check : profile.identification) {
-            auto raw = report.raw.find(check.parameter);
-            all_hold = all_hold && raw != report.raw.end() && static_cast<std::int16_t>(raw->second) == static_cast<std::int16_t>(check.equals);
-        }
-        if (!all_hold) continue;
-        found.device = id;
-        std::vector<const device::Parameter*> shown;
-        for (const auto& name : profile.identification_report) {
-            if (const auto* p = profile.find(name)) shown.push_back(p);
-        }
-        for (const auto& reading : client.read(shown).readings) {
-            if (reading.value) found.identification[reading.parameter->name] = reading.value->raw;
-        }
-        return;
-    }
-}
-
 std::string units_text(const std::vector<int>& units) { return fmt::format("{}", fmt::join(units, ", ")); }
 
 // Prints a unit on stdout as soon as it is found, so a long scan shows its results as it goes
 // and a scan stopped early has already shown them.
-void print_found(const FoundUnit& f, bool json) {
+void print_found(const device::FoundUnit& f, bool json) {
     if (json) return;  // one JSON document at the end
     if (f.lines.size() > 1) {
         fmt::print("unit {:>3}  {:<10} also at {}\n", f.unit, f.device.empty() ? "(unknown Modbus device)" : f.device, f.lines.back());
@@ -176,13 +72,7 @@ void print_found(const FoundUnit& f, bool json) {
     std::fflush(stdout);
 }
 
-std::string settings_text(const std::vector<transport::LinkUrl>& settings) {
-    std::vector<std::string> texts;
-    for (const auto& url : settings) texts.push_back(line_text(url));
-    return fmt::format("{}", fmt::join(texts, ", "));
-}
-
-void print_summary(const std::vector<FoundUnit>& found, bool json, bool interrupted) {
+void print_summary(const std::vector<device::FoundUnit>& found, bool json, bool interrupted) {
     if (json) {
         nlohmann::ordered_json list = nlohmann::ordered_json::array();
         for (const auto& f : found) {
@@ -201,72 +91,57 @@ void print_summary(const std::vector<FoundUnit>& found, bool json, bool interrup
     std::fflush(stdout);
 }
 
-int run_scan(const ScanOptions& options) {
-    auto units = parse_units(options.units);
-    if (!units) return report_error(units.error());
-    auto settings = line_settings(options);
-    if (!settings) return report_error(settings.error());
-    auto wait = parse_duration(options.timeout, "--timeout", std::chrono::milliseconds(1));
-    if (!wait) return report_error(wait.error());
-
-    StopSignal stop;  // before any link's threads start, so only its thread takes Ctrl-C
-    std::vector<FoundUnit> found;
-    std::vector<std::vector<int>> found_per_line;  // for the check that the line ignores its settings
-    std::size_t gateway_refusals = 0;
-    ScanProgress progress(::isatty(STDERR_FILENO) == 1);
-    for (const auto& url : *settings) {
-        if (stop.token().stop_requested()) break;
-        auto garbled = std::make_shared<unsigned>(0);
-        session::MasterOptions master_options;
-        master_options.timeout = std::chrono::ceil<std::chrono::milliseconds>(*wait);
-        auto verbose = options.verbose ? stderr_trace() : session::TraceSink{};
-        master_options.trace = [garbled, verbose](const session::TraceEvent& event) {
-            if (event.direction == session::TraceDirection::discarded) ++*garbled;
-            if (verbose) verbose(event);
-        };
-        auto master = session::open_master(url, master_options);
-        if (!master) return report_error(master.error());
-        found_per_line.emplace_back();
-        for (std::size_t i = 0; i < units->size() && !stop.token().stop_requested(); ++i) {
-            const int unit = (*units)[i];
-            progress.show(line_text(url), unit, i + 1, units->size(), found.size());
-            // Any answer proves a unit is there, an exception included (the TC10 refuses
-            // address 0 with exception 2); only silence means nobody.
-            auto reply = (*master)->execute(static_cast<std::uint8_t>(unit), codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1));
-            if (!reply && gateway_says_nobody(reply.error())) ++gateway_refusals;
-            if (!reply && (reply.error().kind != ErrorKind::exception || gateway_says_nobody(reply.error()))) continue;
-            FoundUnit unit_found{unit, line_text(url), {}, nlohmann::ordered_json::object(), {line_text(url)}};
-            identify(**master, unit_found);
-            progress.clear();
-            found_per_line.back().push_back(unit);
-            if (auto* earlier = found_before(found, unit_found)) {
-                earlier->lines.push_back(line_text(url));
-                print_found(*earlier, options.json);
-                continue;
-            }
-            print_found(unit_found, options.json);
-            found.push_back(std::move(unit_found));
-        }
+// Prints as the scan goes: progress on a terminal, each unit as it is found, and a line's
+// garbled replies when nobody answered there cleanly.
+device::ScanEvents scan_printer(ScanProgress& progress, bool json) {
+    device::ScanEvents events;
+    events.trying = [&progress](const std::string& line, int unit, std::size_t index, std::size_t total, std::size_t found) {
+        progress.show(line, unit, index, total, found);
+    };
+    events.found = [&progress, json](const device::FoundUnit& unit) {
         progress.clear();
-        if (found_per_line.back().empty() && *garbled > 0) {
+        print_found(unit, json);
+    };
+    events.line_done = [&progress](const std::string& line, std::size_t answered, unsigned garbled) {
+        progress.clear();
+        if (answered == 0 && garbled > 0) {
             fmt::print(stderr, "loopwire: {} garbled replies at {} and no unit answered cleanly: the usual cause of CRC errors is a wrong baud rate or parity; try --bauds and --parities\n",
-                       *garbled, line_text(url));
+                       garbled, line);
         }
-    }
-    const bool interrupted = stop.token().stop_requested();
-    if (!interrupted && ignores_line_settings(found_per_line)) {
+    };
+    return events;
+}
+
+void print_warnings(const device::ScanResult& result, const device::UnitScan& scan, bool json) {
+    if (!result.interrupted && device::ignores_line_settings(result.found_per_line)) {
         fmt::print(stderr,
                    "loopwire: warning: every line setting found the same units ({}) at {}: the line probably ignores line "
                    "settings (a pseudo-terminal, or a converter that sets its own speed and parity), so these results do not "
                    "tell which setting the devices use\n",
-                   units_text(found_per_line.front()), settings_text(*settings));
+                   units_text(result.found_per_line.front()), fmt::join(scan.settings_text(), ", "));
     }
-    if (gateway_refusals > 0 && !options.json) {
+    if (result.gateway_refusals > 0 && !json) {
         fmt::print(stderr, "loopwire: {} unit(s) were answered by a gateway with exception 0Ah or 0Bh (nothing answers behind it "
-                           "at that unit); they are not counted\n", gateway_refusals);
+                           "at that unit); they are not counted\n", result.gateway_refusals);
     }
-    print_summary(found, options.json, interrupted);
-    return interrupted ? exit_interrupted : exit_ok;
+}
+
+int run_scan(const ScanOptions& options) {
+    auto units = parse_units(options.units);
+    if (!units) return report_error(units.error());
+    auto scan = device::UnitScan::plan(options.link, split(options.bauds), split(options.parities));
+    if (!scan) return report_error(scan.error());
+    auto wait = parse_duration(options.timeout, "--timeout", std::chrono::milliseconds(1));
+    if (!wait) return report_error(wait.error());
+
+    StopSignal stop;  // before any link's threads start, so only its thread takes Ctrl-C
+    ScanProgress progress(::isatty(STDERR_FILENO) == 1);
+    auto result = scan->run(*units, std::chrono::ceil<std::chrono::milliseconds>(*wait), options.verbose ? stderr_trace() : device::TraceSink{},
+                            scan_printer(progress, options.json), stop.token());
+    if (!result) return report_error(result.error());
+    print_warnings(*result, *scan, options.json);
+    print_summary(result->found, options.json, result->interrupted);
+    return result->interrupted ? exit_interrupted : exit_ok;
 }
 
 }  // namespace

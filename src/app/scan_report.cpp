@@ -1,6 +1,5 @@
 #include "app/scan_report.hpp"
 
-#include <algorithm>
 #include <cstdio>
 
 #include <fmt/format.h>
@@ -19,12 +18,6 @@ void ScanProgress::clear() {
     fmt::print(stderr, "\r\x1b[K");
     std::fflush(stderr);
     shown_ = false;
-}
-
-bool ignores_line_settings(const std::vector<std::vector<int>>& found_per_setting) {
-    if (found_per_setting.size() < 2 || found_per_setting.front().empty()) return false;
-    return std::all_of(found_per_setting.begin(), found_per_setting.end(),
-                       [&](const std::vector<int>& found) { return found == found_per_setting.front(); });
 }
 
 }  // namespace loopwire::app

@@ -1,9 +1,8 @@
 #pragma once
-// What `loopwire scan` tells while it runs: its progress on a terminal, and the warning that a
-// line ignores the line settings swept over it.
+// What `loopwire scan` tells while it runs: its progress on a terminal (the scan itself is
+// client/scan.hpp).
 #include <cstddef>
 #include <string>
-#include <vector>
 
 namespace loopwire::app {
 
@@ -19,11 +18,5 @@ private:
     bool enabled_;
     bool shown_ = false;
 };
-
-// The units found at each line setting tried, in order. True when more than one setting was tried
-// and every one found the same units, at least one: real devices answer at their own baud and
-// parity only, so the same answers at every setting mean the line does not apply them (a
-// pseudo-terminal, a TCP converter with fixed settings).
-bool ignores_line_settings(const std::vector<std::vector<int>>& found_per_setting);
 
 }  // namespace loopwire::app

@@ -12,11 +12,9 @@
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
 #include "app/stop_signal.hpp"
-#include "app/simulated_units.hpp"
+#include "devices/simulated_units.hpp"
+#include "simulation/simulator_server.hpp"
 #include "simulation/state_file.hpp"
-#include "session/slave.hpp"
-#include "transport/pseudo_terminal.hpp"
-#include "transport/serial_port.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -86,40 +84,20 @@ private:
     std::jthread thread_;
 };
 
-Result<transport::LinkUrl> simulated_link(const SimulateOptions& options) {
-    if (options.link.empty() && options.pty.empty()) {
-        return make_error(ErrorKind::usage, "say where to serve: --link URL (serial port or tcp://host:port) or --pty PATH");
-    }
-    auto url = transport::parse_link_url(options.link.empty() ? "rtu:" + options.pty : options.link);
-    if (!url) return url.error();
-    if (!options.pty.empty() && !url->is_serial()) {
-        return make_error(ErrorKind::usage, "--pty makes a pseudo-terminal, which carries serial framings (rtu, ascii, linking), not " + transport::framing_name(url->framing));
-    }
-    return url;
-}
-
-Result<std::unique_ptr<transport::ByteStream>> open_serial_side(const SimulateOptions& options, const transport::LinkUrl& url) {
-    if (!options.pty.empty()) return transport::create_pseudo_terminal(options.pty, url.serial);
-    if (url.path == "virtual") {
-        return make_error(ErrorKind::usage, "a virtual bus exists only inside one process; use --pty PATH to let other programs reach the simulator");
-    }
-    return transport::open_serial_port(url.path, url.serial);
-}
-
-void announce(const SimulatedUnits& served) {
+void announce(const device::models::SimulatedUnits& served) {
     for (const std::string& warning : served.warnings) fmt::print(stderr, "loopwire: warning: {}\n", warning);
     for (const std::string& line : served.descriptions) fmt::print(stderr, "loopwire: unit {}\n", line);
 }
 
-std::string unit_list(const session::UnitMap& units) {
+std::string unit_list(const device::SimulatedUnitMap& units) {
     std::vector<int> ids;
     for (const auto& [unit, handler] : units) ids.push_back(unit);
     return fmt::format("{}", fmt::join(ids, ", "));
 }
 
 int run_simulate(SimulateOptions options, const ProfileOptions& profiles) {
-    auto url = simulated_link(options);
-    if (!url) return report_error(url.error());
+    auto where = device::simulator_link(options.link, options.pty);
+    if (!where) return report_error(where.error());
     std::optional<std::chrono::microseconds> limit;
     if (!options.duration.empty()) {
         auto parsed = parse_duration(options.duration, "--duration");
@@ -131,10 +109,10 @@ int run_simulate(SimulateOptions options, const ProfileOptions& profiles) {
     environment.seed = options.seed;
     auto registry = profiles.load();
     if (!registry) return report_error(registry.error());
-    auto served_units = build_simulated_units(*registry, options.units, options.devices, *url, environment);
+    auto served_units = device::models::build_simulated_units(*registry, options.units, options.devices, where->url, environment);
     if (!served_units) return report_error(served_units.error());
     for (const std::string& fault : options.faults) {
-        if (auto applied = apply_fault_option(*served_units, fault); !applied) return report_error(applied.error());
+        if (auto applied = device::models::apply_fault_option(*served_units, fault); !applied) return report_error(applied.error());
     }
     std::optional<device::SimulatorStateFile> state;
     if (!options.state.empty()) {
@@ -146,30 +124,20 @@ int run_simulate(SimulateOptions options, const ProfileOptions& profiles) {
     announce(*served_units);
     const std::string units_text = unit_list(served_units->units);
     StopSignal stop(limit);
-    session::SlaveOptions slave_options;
+    device::SimulatorOptions slave_options;
     if (options.verbose) slave_options.trace = stderr_trace();
-    session::Slave slave(*url, std::move(served_units->units), slave_options);
+    auto server = device::SimulatorServer::open(*where, std::move(served_units->units), std::move(slave_options));
+    if (!server) return report_error(server.error());
     std::optional<StateSaver> saver;
     if (state) saver.emplace(*state);
-    Result<void> served;
-    if (url->is_serial()) {
-        auto stream = open_serial_side(options, *url);
-        if (!stream) return report_error(stream.error());
-        fmt::print(stderr, "loopwire: simulating unit(s) {} on {} ({}); Ctrl-C to stop\n", units_text,
-                   url->to_string(), (*stream)->describe());
-        served = slave.serve_stream(**stream, stop.token());
-    } else {
-        auto listener = transport::TcpListener::listen(url->host, url->port);
-        if (!listener) return report_error(listener.error());
-        fmt::print(stderr, "loopwire: simulating unit(s) {} on {} (listening on port {}); Ctrl-C to stop\n",
-                   units_text, url->to_string(), (*listener)->port());
-        served = slave.serve_listener(**listener, stop.token());
-    }
+    fmt::print(stderr, "loopwire: simulating unit(s) {} on {} ({}); Ctrl-C to stop\n", units_text, where->url.to_string(),
+               (*server)->opened());
+    const Result<void> served = (*server)->serve(stop.token());
     if (saver) {
         if (auto saved = saver->finish(); !saved) return report_error(saved.error());
     }
     if (!served) return report_error(served.error());
-    fmt::print(stderr, "loopwire: stopped after serving {} request(s)\n", slave.requests_served());
+    fmt::print(stderr, "loopwire: stopped after serving {} request(s)\n", (*server)->requests_served());
     return exit_ok;
 }
 

@@ -35,7 +35,7 @@ codec::Request make_write(bool coils, bool multiple, std::uint16_t address, std:
 
 // A value of several registers always goes with function 16: written one register at a time,
 // the device would hold half of it between the two writes.
-Result<void> write_range(session::Master& master, std::uint8_t unit, const RawWrite& write, bool multiple, unsigned per_request) {
+Result<void> write_range(device::Master& master, std::uint8_t unit, const RawWrite& write, bool multiple, unsigned per_request) {
     const bool coils = write.target.table->bits;
     const auto& words = write.words;
     for (std::size_t done = 0; done < words.size();) {
@@ -119,7 +119,8 @@ void add_write_command(CLI::App& app, int& exit_code, const ProfileOptions& prof
     command->add_option("arguments", options->arguments,
                         "TABLE ADDRESS VALUE...: holding|coils, the first address (0-based wire address, 1-based with --base 1, "
                         "or a reference such as 40001 in place of TABLE ADDRESS), values (registers 0..65535 or -32768..-1, decimal, "
-                        "0x.. or ..h; with --type numbers of that type, each taking 1, 2 or 4 registers; coils 0/1/on/off). With "
+                        "0x.. or ..h; with --type numbers of that type, each taking 1, 2 or 4 registers, or one text with --type string; "
+                        "coils 0/1/on/off). With "
                         "--device: NAME=VALUE in engineering units or enum labels");
     options->typing.add_to(*command);
     command->add_flag("--multiple", options->multiple, "Use function 16/15 even for a single value (always for values of 2 or 4 registers)");

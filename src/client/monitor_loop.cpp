@@ -108,17 +108,28 @@ void run_monitor(const std::vector<MonitorTarget>& targets, const MonitorSetting
         polled.push_back(Polled{std::move(guard), std::move(client), &target, RetryBackoff(settings.interval, settings.backoff_cap)});
         watched.push_back(watch(label_of(target.device), target.parameters));
     }
-    SampleSchedule schedule(MonitorClock::now(), settings.interval);
-    unsigned missed = 0;  // slots skipped before the sample about to start
-    for (unsigned index = 1; !stop.stop_requested() && (!settings.count || index <= *settings.count); ++index) {
+    SampleSteps steps;
+    steps.poll = [&](unsigned missed) {
         const auto sample_start = MonitorClock::now();
-        const auto wall = std::chrono::system_clock::now();
         for (std::size_t i = 0; i < polled.size() && !stop.stop_requested(); ++i) {
             watched[i].missed += missed;
             poll(polled[i], watched[i], sample_start);
         }
+    };
+    steps.write = [&](unsigned index, std::chrono::system_clock::time_point time, unsigned missed) {
+        sink.write(SampleView{index, time, MonitorClock::now(), &watched, missed});
+    };
+    run_sample_schedule(settings, steps, stop);
+}
+
+void run_sample_schedule(const MonitorSettings& settings, const SampleSteps& steps, const std::stop_token& stop) {
+    SampleSchedule schedule(MonitorClock::now(), settings.interval);
+    unsigned missed = 0;  // slots skipped before the sample about to start
+    for (unsigned index = 1; !stop.stop_requested() && (!settings.count || index <= *settings.count); ++index) {
+        const auto wall = std::chrono::system_clock::now();
+        steps.poll(missed);
         if (stop.stop_requested()) break;
-        sink.write(SampleView{index, wall, MonitorClock::now(), &watched, missed});
+        steps.write(index, wall, missed);
         if (settings.count && index == *settings.count) break;
         const auto next = schedule.after(MonitorClock::now());
         missed = next.missed;

@@ -37,8 +37,9 @@ struct SampleView {
     unsigned missed = 0;
 };
 
-// What consumes samples: the terminal table, CSV and JSON-lines files (app/monitor_output.hpp),
-// and later the gateway's fronts. Called on the poller's thread, once per sample, in order.
+// What consumes samples: CSV and JSON-lines files (client/monitor_file.hpp), the CLI's terminal
+// table (app/monitor_output.hpp) and the gateway's fronts. Called on the poller's thread, once
+// per sample, in order.
 class SampleSink {
 public:
     virtual ~SampleSink() = default;
@@ -81,5 +82,16 @@ struct MonitorSettings {
 // `count` samples were taken or `stop` is requested.
 void run_monitor(const std::vector<MonitorTarget>& targets, const MonitorSettings& settings, SampleSink& sink,
                  std::stop_token stop);
+
+// The one poll loop of every monitor (named parameters above, raw registers in
+// client/register_monitor.hpp): samples start on the fixed schedule of `settings.interval`; each
+// runs `poll` (given the slots missed just before it), then, unless `stop` came meanwhile,
+// `write` (given the sample's 1-based index, its wall-clock start and the slots missed). Returns
+// when `settings.count` samples were written or `stop` is requested.
+struct SampleSteps {
+    std::function<void(unsigned missed)> poll;
+    std::function<void(unsigned index, std::chrono::system_clock::time_point time, unsigned missed)> write;
+};
+void run_sample_schedule(const MonitorSettings& settings, const SampleSteps& steps, const std::stop_token& stop);
 
 }  // namespace loopwire::device

@@ -19,13 +19,14 @@ struct TypeEntry {
     unsigned registers;
 };
 
-constexpr std::array<TypeEntry, 6> types{{
+constexpr std::array<TypeEntry, 7> types{{
     {RawType::int16, "int16", 1},
     {RawType::uint16, "uint16", 1},
     {RawType::int32, "int32", 2},
     {RawType::uint32, "uint32", 2},
     {RawType::float32, "float32", 2},
     {RawType::float64, "float64", 4},
+    {RawType::string, "string", 1},
 }};
 
 const TypeEntry& entry_of(RawType type) {
@@ -57,6 +58,43 @@ double float_as_meant(float value) {
 }
 
 bool is_digit(char c) { return c >= '0' && c <= '9'; }
+
+// Two characters a register, the first in the high byte unless the bytes are swapped; the text
+// ends at the first NUL.
+std::string registers_text(std::span<const std::uint16_t> registers, bool byte_swap) {
+    std::string text;
+    for (std::uint16_t word : registers) {
+        if (byte_swap) word = swapped_bytes(word);
+        for (const auto byte : {static_cast<char>(word >> 8), static_cast<char>(word & 0xFF)}) {
+            if (byte == '\0') return text;
+            const auto code = static_cast<unsigned char>(byte);
+            // Shown, printed and put in JSON as it is only when it is printable ASCII: anything
+            // else a device holds there is escaped, so it cannot garble a terminal or a JSON line.
+            if (code < 0x20 || code > 0x7E) text += fmt::format("\\x{:02X}", code);
+            else text += byte;
+        }
+    }
+    return text;
+}
+
+Result<std::vector<std::uint16_t>> text_registers(std::string_view text, bool byte_swap) {
+    for (const char c : text) {
+        const auto byte = static_cast<unsigned char>(c);
+        if (byte < 0x20 || byte > 0x7E) {
+            return make_error(ErrorKind::usage, fmt::format("'{}' is not printable ASCII text: a string register holds two ASCII "
+                                                            "characters (space to ~); byte 0x{:02X} is not one", text, byte));
+        }
+    }
+    if (text.empty()) return std::vector<std::uint16_t>{0};  // the NUL alone: a string that reads back empty
+    std::vector<std::uint16_t> words;
+    for (std::size_t i = 0; i < text.size(); i += 2) {
+        const auto high = static_cast<unsigned char>(text[i]);
+        const auto low = i + 1 < text.size() ? static_cast<unsigned char>(text[i + 1]) : 0u;  // an odd length ends in NUL
+        const auto word = static_cast<std::uint16_t>((high << 8) | low);
+        words.push_back(byte_swap ? swapped_bytes(word) : word);
+    }
+    return words;
+}
 
 struct ByteOrderEntry {
     std::string_view name;
@@ -241,6 +279,7 @@ std::string_view word_order_name(WordOrder order) { return order == WordOrder::b
 unsigned registers_per_value(RawType type) { return entry_of(type).registers; }
 
 RawNumber decode_value(std::span<const std::uint16_t> registers, const RawLayout& layout) {
+    if (layout.type == RawType::string) return registers_text(registers, layout.byte_swap);
     const std::uint64_t bits = joined(registers, layout);
     switch (layout.type) {
         case RawType::int16: return std::int64_t{static_cast<std::int16_t>(bits)};
@@ -249,6 +288,7 @@ RawNumber decode_value(std::span<const std::uint16_t> registers, const RawLayout
         case RawType::uint32: return static_cast<std::int64_t>(bits);
         case RawType::float32: return float_as_meant(std::bit_cast<float>(static_cast<std::uint32_t>(bits)));
         case RawType::float64: return std::bit_cast<double>(bits);
+        case RawType::string: break;
     }
     return std::int64_t{0};
 }
@@ -294,6 +334,7 @@ Result<RawScale> parse_scale(std::string_view text) {
 }
 
 double scaled(const RawNumber& value, const RawScale& scale) {
+    if (std::holds_alternative<std::string>(value)) return 0.0;  // never asked: a string takes no --scale
     const double number = std::holds_alternative<std::int64_t>(value) ? static_cast<double>(std::get<std::int64_t>(value))
                                                                      : std::get<double>(value);
     const double product = number * static_cast<double>(scale.mantissa);
@@ -304,12 +345,14 @@ double scaled(const RawNumber& value, const RawScale& scale) {
 
 Result<std::vector<std::uint16_t>> encode_value(std::string_view text, const RawLayout& layout,
                                                 const std::optional<RawScale>& scale) {
+    if (layout.type == RawType::string) return text_registers(text, layout.byte_swap);
     auto bits = is_float(layout.type) ? float_bits(text, layout.type, scale) : integer_bits(text, layout.type, scale);
     if (!bits) return bits.error();
     return split(*bits, layout);
 }
 
 std::string number_text(const RawNumber& value) {
+    if (const auto* text = std::get_if<std::string>(&value)) return *text;
     if (const auto* integer = std::get_if<std::int64_t>(&value)) return fmt::format("{}", *integer);
     const double number = std::get<double>(value);
     if (std::isnan(number)) return "nan";

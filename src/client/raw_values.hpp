@@ -1,7 +1,8 @@
 #pragma once
 // Registers of a device loopwire has no profile for, read as the numbers they hold: 16-, 32- and
 // 64-bit integers and IEEE 754 floats spread over consecutive registers, in either word order,
-// with or without the bytes of each register swapped, optionally scaled. Pure: no I/O.
+// with or without the bytes of each register swapped, optionally scaled; and ASCII text, two
+// characters a register. Pure: no I/O.
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -14,7 +15,7 @@
 
 namespace loopwire::device {
 
-enum class RawType { int16, uint16, int32, uint32, float32, float64 };
+enum class RawType { int16, uint16, int32, uint32, float32, float64, string };
 
 // Which register of a 32/64-bit value comes first: big = the most significant (the Modbus
 // convention, "ABCD"), little = the least significant ("CDAB").
@@ -26,7 +27,7 @@ struct RawLayout {
     bool byte_swap = false;  // the two bytes of every register swapped ("BADC", or "DCBA" with little)
 };
 
-inline constexpr std::string_view raw_type_choices = "int16, uint16, int32, uint32, float32 or float64";
+inline constexpr std::string_view raw_type_choices = "int16, uint16, int32, uint32, float32, float64 or string";
 
 // "float32" -> RawType::float32; anything else is a usage error listing the choices.
 Result<RawType> parse_raw_type(std::string_view text);
@@ -45,15 +46,23 @@ std::string_view byte_order_name(const RawLayout& layout);
 std::string_view raw_type_name(RawType type);
 std::string_view word_order_name(WordOrder order);
 
-// Registers one value of the type takes: 1, 2 or 4.
+// Registers one value of the type takes: 1, 2 or 4; 1 for a string, which takes as many as it
+// is given (see decode_value).
 unsigned registers_per_value(RawType type);
 
 // A decoded value: integer types exactly; floats as doubles. A float32 becomes the double
 // nearest to its shortest decimal form (0x3DCCCCCD is 0.1, not 0.10000000149011612), which is
 // the number the device meant and what every text and JSON output shows.
-using RawNumber = std::variant<std::int64_t, double>;
+// A string is text: ASCII, two characters a register, the first one in each register's high
+// byte unless the layout's bytes are swapped (--byte-swap, BADC or DCBA: low byte first, as some
+// devices store them). The registers keep the text's order whatever the word order: text has no
+// most significant register. The text ends at the first NUL (an odd length is padded with one,
+// an empty text is one register of NULs); a byte read that is not printable ASCII is shown as
+// \xHH.
+using RawNumber = std::variant<std::int64_t, double, std::string>;
 
-// One value from exactly registers_per_value(layout.type) registers, in the order read.
+// One value from exactly registers_per_value(layout.type) registers, in the order read; for a
+// string, all the registers given.
 RawNumber decode_value(std::span<const std::uint16_t> registers, const RawLayout& layout);
 
 // Every value of `registers`, in order; a usage error when they do not make whole values
@@ -68,18 +77,20 @@ struct RawScale {
 };
 // [+-]digits[.digits], not zero, at most 15 significant digits.
 Result<RawScale> parse_scale(std::string_view text);
-// value * scale, as a double.
+// value * scale, as a double; a string is not scaled (parse_raw_request refuses --scale with it).
 double scaled(const RawNumber& value, const RawScale& scale);
 
 // The registers that hold `text` as one value of the layout's type, in the order they are
 // written; with `scale`, `text` is the scaled number (what a read with the same --scale shows)
 // and the registers hold text / scale. Usage errors say what was wrong: not a number, not a
 // whole number for an integer type ("12.34 with --scale 0.1 is 123.4 units of 0.1"), out of
-// the type's range (naming the range in the scaled unit).
+// the type's range (naming the range in the scaled unit). A string takes as many registers as its
+// text needs; a character that is not printable ASCII is a usage error.
 Result<std::vector<std::uint16_t>> encode_value(std::string_view text, const RawLayout& layout,
                                                 const std::optional<RawScale>& scale = std::nullopt);
 
-// The shortest text that reads back as the same number: "-3", "12.5", "0.1", "nan", "inf".
+// The shortest text that reads back as the same number: "-3", "12.5", "0.1", "nan", "inf"; a
+// string as it is.
 std::string number_text(const RawNumber& value);
 
 }  // namespace loopwire::device

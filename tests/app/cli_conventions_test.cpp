@@ -1,5 +1,5 @@
-// CLI conventions: options before the command's name, the monitor table fitted to the terminal
-// with traces above it, and scan's check that a line ignores its settings.
+// CLI conventions: options before the command's name, and the monitor table fitted to the
+// terminal with traces above it.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -9,7 +9,6 @@
 
 #include "app/argument_order.hpp"
 #include "app/monitor_screen.hpp"
-#include "app/scan_report.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -101,14 +100,6 @@ TEST(TableOnTheTerminal, TracesGoAboveTheTableWhichIsRedrawnUnderThem) {
     // The next frame overwrites only the table, leaving the trace above it.
     EXPECT_NE(text.find("\x1b[2F\rtitle\x1b[K\n\rrow2\x1b[K\n", trace_at), std::string::npos) << text;
     EXPECT_NE(text.find("\x1b[?25h"), std::string::npos);  // cursor shown at the end
-}
-
-TEST(ScanReport, SameUnitsAtEverySettingMeanTheLineIgnoresThem) {
-    EXPECT_TRUE(ignores_line_settings({{1, 3}, {1, 3}, {1, 3}}));
-    EXPECT_FALSE(ignores_line_settings({{1, 3}, {}, {}}));        // found at one setting only: a real line
-    EXPECT_FALSE(ignores_line_settings({{1, 3}}));                // nothing swept
-    EXPECT_FALSE(ignores_line_settings({{}, {}}));                // nobody answered
-    EXPECT_FALSE(ignores_line_settings({{1}, {1, 3}}));
 }
 
 }  // namespace

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Generic Modbus devices through the CLI: read and monitor of raw registers with --type,
-# --word-order, --byte-swap, --scale and --base, against a simulated register bank holding known
-# IEEE 754 and two's complement words, and the errors of each option.
+# Generic Modbus devices through the CLI: read and monitor of raw registers with --type (strings
+# too), --word-order, --byte-swap, --scale and --base, against a simulated register bank holding
+# known IEEE 754 and two's complement words, and the errors of each option.
 set -u
 loopwire=${1:?usage: raw_types_test.sh path/to/loopwire}
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -45,7 +45,7 @@ check base-1-plain-words 0 '"address":121,"base":1,"values":[1234]' "${read5[@]}
 check plain-words-unchanged 0 '{"unit":5,"table":"holding","address":120,"values":[1234,65535]}' "${read5[@]}" holding 120 2 --json
 
 # Errors: exit 2, saying what is wrong and what the choices are.
-check unknown-type 2 "unknown type 'float': choose int16, uint16, int32, uint32, float32 or float64" "${read5[@]}" holding 100 --type float
+check unknown-type 2 "unknown type 'float': choose int16, uint16, int32, uint32, float32, float64 or string" "${read5[@]}" holding 100 --type float
 check unknown-word-order 2 "unknown word order 'middle': choose big" "${read5[@]}" holding 100 --type float32 --word-order middle
 check type-on-coils 2 'apply to registers (holding, input); coils are single bits' "${read5[@]}" coils 0 4 --type int16
 check base-1-address-0 2 'address 0 does not exist with --base 1' "${read5[@]}" holding 0 --base 1
@@ -120,4 +120,31 @@ check monitor-type-with-device 2 'a --device profile already says' \
 check monitor-odd-type 2 "unknown type 'real'" "$loopwire" monitor "${link[@]}" --unit 5 holding 100 --type real --count 1
 check help-count-is-values 0 'holding 100 2 --type float32 reads registers 100-103' "$loopwire" read --help
 check monitor-help-count-is-values 0 'holding 100 2 --type float32 reads registers 100-103' "$loopwire" monitor --help
+# Strings: ASCII two characters a register, high byte first (or low with --byte-swap, BADC,
+# DCBA), an odd length padded with NUL, read up to the first NUL; COUNT counts registers.
+write5=("$loopwire" write "${link[@]}" --unit 5)
+check string-write 0 '"values":["AB12c"],"registers":[16706,12594,25344]' "${write5[@]}" holding 300 --type string "AB12c" --json
+check string-read 0 '"type":"string","word_order":"big","byte_swap":false,"scale":null,"values":["AB12c"],"registers":[16706,12594,25344]' \
+  "${read5[@]}" holding 300 3 --type string --json
+check string-read-text 0 '    300                     AB12c  (4142 3132 6300)' "${read5[@]}" holding 300 3 --type string
+"${write5[@]}" holding 312 0x4344 >/dev/null 2>&1 || fail "writing CD after the string"
+check string-padded 0 '"registers":[16706,12544]' "${write5[@]}" holding 310 --type string "AB1" --json
+check string-stops-at-nul 0 '"values":["AB1"]' "${read5[@]}" holding 310 3 --type string --json
+check string-count-is-registers 0 '"values":["AB12"],"registers":[16706,12594]' "${read5[@]}" holding 300 2 --type string --json
+check string-low-byte-first 0 '"registers":[26952,33]' "${write5[@]}" holding 320 --type string --byte-swap "Hi!" --json
+check string-badc 0 '"values":["Hi!"]' "${read5[@]}" holding 320 2 --type string --word-order BADC --json
+check string-dcba 0 '"values":["Hi!"]' "${read5[@]}" holding 320 2 --type string --word-order DCBA --json
+check string-other-byte-order 0 '"values":["iH"]' "${read5[@]}" holding 320 2 --type string --json
+check string-monitor 0 ',ok,0,AB12c' "$loopwire" monitor "${link[@]}" --unit 5 holding 300 3 --type string --count 1 --format csv
+"${write5[@]}" holding 330 --type string 'say "a,b"' >/dev/null 2>&1 || fail "writing a string with a comma"
+check string-monitor-csv-quoted 0 ',ok,0,"say ""a,b"""' "$loopwire" monitor "${link[@]}" --unit 5 holding 330 5 --type string --count 1 --format csv
+check string-not-ascii 2 "'Grüße' is not printable ASCII text" "${write5[@]}" holding 300 --type string "Grüße"
+check string-too-long 2 'its 250 characters take 125 registers, and one write carries at most 123 (246 characters)' \
+  "${write5[@]}" holding 300 --type string "$(printf 'x%.0s' {1..250})"
+check string-past-the-end 2 'only 1 remain up to the last address 65535' "${write5[@]}" holding 65535 --type string "ABC"
+check string-count-past-the-end 2 'a string of 2 registers from holding 65535' "${read5[@]}" holding 65535 2 --type string
+check string-one-text 2 '--type string writes one text, 2 were given' "${write5[@]}" holding 300 --type string AB CD
+check string-no-scale 2 '--scale multiplies numbers; a string is text' "${read5[@]}" holding 300 2 --type string --scale 0.1
+check string-help 0 'or string (ASCII, two characters a register' "$loopwire" read --help
+check string-write-help 0 'string (ASCII, two characters a register' "$loopwire" write --help
 finish

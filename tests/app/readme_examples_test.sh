@@ -66,5 +66,6 @@ check readme-float32-little 0 "12.5" "$loopwire" read --link "$tcp" --unit 1 hol
 check readme-int32-json 0 '"values":[-2]' "$loopwire" read --link "$tcp" --unit 1 holding 204 --type int32 --json
 check readme-typed-write 0 '"values":[12.5,-7.75]' "$loopwire" read --link "$tcp" --unit 1 holding 300 2 --type float32 --word-order CDAB --json
 check readme-reference-hex 0 "  40302  0x4148" "$loopwire" read --link "$tcp" --unit 1 40301 2 --format hex
+check readme-string 0 '"values":["TC10 oven 3"]' "$loopwire" read --link "$tcp" --unit 1 holding 400 8 --type string --json
 check readme-scale-base 0 "1671.2" "$loopwire" read --link "$tcp" --unit 1 holding 201 1 --type uint16 --scale 0.1 --base 1
 finish

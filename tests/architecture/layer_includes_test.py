@@ -1,8 +1,12 @@
 #!/usr/bin/env python3
-"""Fails when a file includes a layer above its own (docs/DESIGN.md, "Layers").
+"""Fails when a file includes a layer above its own (docs/DESIGN.md, "Layers"), or a layer its
+own may not reach past the ones in between.
 
 Layers, lowest first; siblings (client and simulation; gateway and api) may not include each other:
     common < codec < transport < session < profile < client | simulation < devices < gateway | api < app
+Skips: app/ (the CLI, which parses and prints only) includes nothing from session/ or transport/;
+it opens links, traces frames and serves simulators through client/, simulation/, devices/ or
+the public API, so no wire detail is handled in the CLI.
 Run: layer_includes_test.py SRC_DIR  (prints every offending include with file and line).
 """
 import pathlib
@@ -11,6 +15,9 @@ import sys
 
 RANK = {"common": 0, "codec": 1, "transport": 2, "session": 3, "profile": 4,
         "client": 5, "simulation": 5, "devices": 6, "gateway": 7, "api": 7, "app": 8}
+# Layers a layer must not include although they are below it, and why.
+SKIPPED = {"app": {"session": "reach it through client/, simulation/ or the public API",
+                   "transport": "reach it through client/, simulation/ or the public API"}}
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([a-z_]+)/')
 
 
@@ -29,6 +36,8 @@ def violations(src: pathlib.Path):
             target = match.group(1)
             if target != layer and RANK[target] >= RANK[layer]:
                 yield f"{path}:{number}: layer '{layer}' includes '{target}', which is not below it"
+            elif target in SKIPPED.get(layer, {}):
+                yield f"{path}:{number}: layer '{layer}' includes '{target}', which it must skip: {SKIPPED[layer][target]}"
 
 
 def main() -> int:

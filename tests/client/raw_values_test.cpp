@@ -100,7 +100,7 @@ TEST(RawValues, TypeNamesAndTheirErrors) {
     EXPECT_EQ(registers_per_value(RawType::float64), 4u);
     auto unknown = parse_raw_type("float");
     ASSERT_FALSE(unknown);
-    EXPECT_EQ(unknown.error().message, "unknown type 'float': choose int16, uint16, int32, uint32, float32 or float64");
+    EXPECT_EQ(unknown.error().message, "unknown type 'float': choose int16, uint16, int32, uint32, float32, float64 or string");
     EXPECT_FALSE(parse_raw_type("Float32"));
     EXPECT_TRUE(parse_word_order("little"));
     auto order = parse_word_order("middle");
@@ -219,6 +219,37 @@ TEST(RawValues, ScaleIsExactToTheDecimal) {
             EXPECT_EQ(refused.error().kind, ErrorKind::usage) << bad;
         }
     }
+}
+
+TEST(RawValues, StringsAreTwoAsciiCharactersARegisterInEitherByteOrder) {
+    const RawLayout high_first{RawType::string, WordOrder::big, false};
+    const RawLayout low_first{RawType::string, WordOrder::big, true};
+    auto odd = encode_value("AB1", high_first);
+    ASSERT_TRUE(odd) << odd.error().message;
+    EXPECT_EQ(*odd, (std::vector<std::uint16_t>{0x4142, 0x3100}));  // padded with NUL
+    auto swapped = encode_value("AB1", low_first);
+    ASSERT_TRUE(swapped);
+    EXPECT_EQ(*swapped, (std::vector<std::uint16_t>{0x4241, 0x0031}));
+    EXPECT_EQ(*encode_value("", high_first), std::vector<std::uint16_t>{0});
+    // Reading stops at the first NUL; the word order leaves the text's registers in order.
+    const std::vector<std::uint16_t> words{0x4142, 0x3100, 0x4344};
+    EXPECT_EQ(decode_value(words, high_first), RawNumber(std::string("AB1")));
+    EXPECT_EQ(decode_value(words, RawLayout{RawType::string, WordOrder::little, false}), RawNumber(std::string("AB1")));
+    EXPECT_EQ(decode_value(std::vector<std::uint16_t>{0x4241, 0x0031}, low_first), RawNumber(std::string("AB1")));
+    EXPECT_EQ(decode_value(std::vector<std::uint16_t>{0x4142, 0x4344}, high_first), RawNumber(std::string("ABCD")));  // no NUL: all of it
+    EXPECT_EQ(number_text(decode_value(words, high_first)), "AB1");
+}
+
+TEST(RawValues, StringsRefuseWhatIsNotAsciiAndEscapeItWhenRead) {
+    auto accented = encode_value("Grüße", RawLayout{RawType::string, WordOrder::big, false});
+    ASSERT_FALSE(accented);
+    EXPECT_EQ(accented.error().kind, ErrorKind::usage);
+    EXPECT_NE(accented.error().message.find("is not printable ASCII text"), std::string::npos) << accented.error().message;
+    EXPECT_FALSE(encode_value("tab\there", RawLayout{RawType::string, WordOrder::big, false}));
+    // A device's bytes that are not printable ASCII cannot reach a terminal or a JSON line raw.
+    EXPECT_EQ(decode_value(std::vector<std::uint16_t>{0x41FF, 0x0742}, RawLayout{RawType::string, WordOrder::big, false}),
+              RawNumber(std::string("A\\xFF\\x07B")));
+    EXPECT_TRUE(parse_raw_type("string"));
 }
 
 }  // namespace

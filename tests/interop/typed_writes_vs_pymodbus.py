@@ -8,8 +8,9 @@ Usage: typed_writes_vs_pymodbus.py LOOPWIRE
 For each of the four byte orders Modbus tools name (ABCD, CDAB, BADC, DCBA) loopwire writes
 float32 and float64 values; the slave's registers, read back as plain words, must decode with
 pymodbus to exactly the numbers written. Then scaled integers, reference addresses (40001 is
-holding register 1) and the refusals a user meets: a fraction for an integer type, a value
-out of range, a word order given twice.
+holding register 1), strings against pymodbus's own string registers, and the refusals a user
+meets: a fraction for an integer type, a value out of range, a word order given twice, text that
+is not ASCII or too long.
 """
 
 import os
@@ -62,6 +63,41 @@ def float32_as_meant(value):
         if struct.unpack(">f", struct.pack(">f", float(text)))[0] == single:
             return float(text)
     return single
+
+
+def pymodbus_string_registers(text):
+    """The registers pymodbus's own BinaryPayloadBuilder makes of `text` (high byte first)."""
+    from pymodbus.payload import BinaryPayloadBuilder
+
+    builder = BinaryPayloadBuilder()
+    builder.add_string(text)
+    return builder.to_registers()
+
+
+def check_strings(loopwire, master, words_at):
+    """Strings both ways: loopwire's registers decoded by pymodbus, pymodbus's registers read by
+    loopwire; an odd length padded with NUL; the low-byte-first order is pymodbus's registers
+    with their bytes swapped."""
+    from pymodbus.payload import BinaryPayloadDecoder
+
+    text = "Modbus 1.1b3!"  # odd: the last register is "!" and NUL
+    support.run_loopwire(loopwire, ["write", *master, "holding", "900", text, "--type", "string"])
+    words = words_at(900, 7)
+    support.check_equal(words, pymodbus_string_registers(text), "string: the registers pymodbus makes of the same text")
+    decoded = BinaryPayloadDecoder.fromRegisters(words).decode_string(14)
+    support.check_equal(decoded, text.encode("ascii") + b"\0", "string decoded by pymodbus, NUL-padded")
+
+    theirs = pymodbus_string_registers("TC10 oven")
+    support.run_loopwire(loopwire, ["write", *master, "holding", "920", *map(str, theirs)])
+    read = support.run_loopwire(loopwire, ["read", *master, "holding", "920", str(len(theirs)), "--type", "string", "--json"])
+    support.check_equal(read["values"], ["TC10 oven"], "pymodbus's string registers read by loopwire up to the NUL")
+
+    swapped = [((word & 0xFF) << 8) | (word >> 8) for word in pymodbus_string_registers("Hi there")]
+    support.run_loopwire(loopwire, ["write", *master, "holding", "940", "Hi there", "--type", "string", "--byte-swap"])
+    support.check_equal(words_at(940, 4), swapped, "string --byte-swap: low byte first")
+    for order in ("BADC", "DCBA"):
+        read = support.run_loopwire(loopwire, ["read", *master, "holding", "940", "4", "--type", "string", "--word-order", order, "--json"])
+        support.check_equal(read["values"], ["Hi there"], f"string read back with --word-order {order}")
 
 
 def test():
@@ -131,6 +167,8 @@ def test():
         support.check_equal((shown["table"], shown["address"], shown["values"]), ("holding", 40701, [1234, 0xFFFE]),
                             "read 40701 2 shows reference addresses")
 
+        check_strings(loopwire, master, words_at)
+
         # Refusals say what was wrong and write nothing.
         before = words_at(800, 2)
         for args, expected in (
@@ -143,6 +181,8 @@ def test():
             (["input", "800", "1"], "input are read-only"),
             (["coils", "800", "1", "--type", "int16"], "coils are single bits"),
             (["holding", "65535", "1.5", "--type", "float32"], "only 1 remain"),
+            (["holding", "800", "Grüße", "--type", "string"], "is not printable ASCII text"),
+            (["holding", "800", "x" * 247, "--type", "string"], "one write carries at most 123 (246 characters)"),
         ):
             done = subprocess.run([loopwire, "write", *master, *args], capture_output=True, text=True, timeout=10, check=False)
             support.check_equal((done.returncode, expected in done.stderr), (2, True),

@@ -80,7 +80,7 @@ for mode in "${modes[@]}"; do
     offers "groups for describe --group" "loopwire describe tc10 --group " "$(loopwire describe tc10 --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["parameters"][0]["group"])')"
     offers_only "the tables of read" "loopwire read --link tcp://127.0.0.1:1502 --unit 1 " holding input coils discrete
     offers_only "the tables of write" "loopwire write --unit 1 " holding coils
-    offers_only "the types of --type" "loopwire write --type " int16 uint16 int32 uint32 float32 float64
+    offers_only "the types of --type" "loopwire write --type " int16 uint16 int32 uint32 float32 float64 string
     offers_only "the word orders" "loopwire read --word-order " big little ABCD CDAB BADC DCBA
     offers_only "the formats of read" "loopwire read --format " dec hex bin
     offers_only "nothing that is not there" "loopwire read --device tc10@3 zzz"

@@ -1,4 +1,4 @@
-#include "app/monitor_file.hpp"
+#include "client/monitor_file.hpp"
 
 #include <sys/stat.h>
 
@@ -11,7 +11,7 @@
 
 #include <fmt/format.h>
 
-namespace loopwire::app {
+namespace loopwire::device {
 namespace {
 
 std::string extension_of(std::string_view path) {
@@ -246,10 +246,10 @@ void FileSampleSink::rotate(std::chrono::system_clock::time_point time) {
     started_.reset();
 }
 
-void FileSampleSink::write(const device::SampleView& sample) {
+void FileSampleSink::write(const SampleView& sample) {
     const std::string header = format_ == MonitorFormat::csv ? csv_header(*sample.devices) : "";
     if (!appended_header_.empty()) explain_units(header);
-    write_text(sample.time, sample.index, sample_line(sample, format_, options_.time, false), header);
+    write_text(sample.time, sample.index, record_line(sample, format_, options_.time, false), header);
 }
 
 void FileSampleSink::write_row(std::chrono::system_clock::time_point time, unsigned index, const std::string& row) {
@@ -270,4 +270,4 @@ void FileSampleSink::write_text(std::chrono::system_clock::time_point time, unsi
     if (!started_) started_ = time;
 }
 
-}  // namespace loopwire::app
+}  // namespace loopwire::device

@@ -10,13 +10,13 @@
 
 #include <unistd.h>
 
-#include "app/monitor_file.hpp"
-#include "app/monitor_output.hpp"
+#include "client/monitor_file.hpp"
+#include "client/monitor_records.hpp"
 #include "client/monitor_state.hpp"
 #include "client/read_report_of.hpp"
 #include "common/time_text.hpp"
 
-namespace loopwire::app {
+namespace loopwire::device {
 namespace {
 
 using namespace std::chrono_literals;
@@ -168,7 +168,7 @@ TEST(MonitorCsv, SpecialStatesAreWrittenByName) {
     ASSERT_TRUE(profile);
     const auto* measured = (*profile)->find("measured_value");
     std::vector<device::WatchedDevice> devices{device::watch("tc10@3", {measured})};
-    device::record_poll(devices[0], testing::report_of(**profile, {{"measured_value", 10000}}), true, {}, device::MonitorClock::now());
+    device::record_poll(devices[0], app::testing::report_of(**profile, {{"measured_value", 10000}}), true, {}, device::MonitorClock::now());
     const auto row = csv_row(device::SampleView{1, before_midnight, device::MonitorClock::now(), &devices});
     EXPECT_EQ(row, "2026-11-23T23:59:58.000Z,1,ok,0,out-of-range\n");
 }
@@ -187,4 +187,4 @@ TEST(MonitorTime, LocalTimeCarriesItsOffset) {
 }
 
 }  // namespace
-}  // namespace loopwire::app
+}  // namespace loopwire::device

@@ -10,10 +10,10 @@
 #include <string>
 #include <string_view>
 
-#include "app/monitor_output.hpp"
+#include "client/monitor_records.hpp"
 #include "common/result.hpp"
 
-namespace loopwire::app {
+namespace loopwire::device {
 
 // The format of --output FILE's extension: .csv, .jsonl or .ndjson; nothing for others.
 std::optional<MonitorFormat> format_of_extension(std::string_view path);
@@ -45,7 +45,7 @@ std::string rotated_name(const std::string& path, std::chrono::system_clock::tim
 // under the same name before the sample that would overflow it or that starts a new day, so
 // every sample lands whole in exactly one file. A failure to rotate is reported on stderr once
 // and writing goes on in the current file: a log that grows beats a log that loses samples.
-class FileSampleSink final : public device::SampleSink {
+class FileSampleSink final : public SampleSink {
 public:
     // `csv_header` is the header this monitor writes (empty for JSON lines): with --append, an
     // existing non-empty file must start with it, or this fails saying how they differ. A column
@@ -58,7 +58,7 @@ public:
     FileSampleSink(const FileSampleSink&) = delete;
     FileSampleSink& operator=(const FileSampleSink&) = delete;
 
-    void write(const device::SampleView& sample) override;
+    void write(const SampleView& sample) override;
     // One sample as text, for monitors whose samples are not SampleViews (raw registers): `row`,
     // preceded by the CSV header when it starts a file.
     void write_row(std::chrono::system_clock::time_point time, unsigned index, const std::string& row);
@@ -82,4 +82,4 @@ private:
     std::string appended_header_;
 };
 
-}  // namespace loopwire::app
+}  // namespace loopwire::device

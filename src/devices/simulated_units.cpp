@@ -1,4 +1,4 @@
-#include "app/simulated_units.hpp"
+#include "devices/simulated_units.hpp"
 
 #include <algorithm>
 
@@ -8,7 +8,7 @@
 #include "devices/registry.hpp"
 #include "simulation/register_bank.hpp"
 
-namespace loopwire::app {
+namespace loopwire::device::models {
 namespace {
 
 std::string parity_text(transport::Parity parity) {
@@ -27,7 +27,7 @@ bool listed(const std::vector<std::string>& list, const std::string& item) {
 // The simulator serves whatever link it is given (a test may want the "wrong" settings), but
 // says so when the real device could not be set that way (profile protocols and
 // serial_defaults.parities; e.g. the ramp/soak controller has no 'no parity', §1 Level 3).
-std::vector<std::string> link_mismatches(const device::Profile& profile, std::uint8_t unit, const transport::LinkUrl& link) {
+std::vector<std::string> link_mismatches(const Profile& profile, std::uint8_t unit, const transport::LinkUrl& link) {
     std::vector<std::string> warnings;
     if (!link.is_serial()) return warnings;
     const std::string framing = transport::framing_name(link.framing);
@@ -53,15 +53,15 @@ Result<void> claim(SimulatedUnits& result, int unit) {
 
 }  // namespace
 
-Result<SimulatedUnits> build_simulated_units(const device::ProfileRegistry& profiles, const std::vector<int>& bank_units, const std::vector<std::string>& devices,
+Result<SimulatedUnits> build_simulated_units(const ProfileRegistry& profiles, const std::vector<int>& bank_units, const std::vector<std::string>& devices,
                                              const transport::LinkUrl& link,
-                                             const device::SimulationEnvironment& environment) {
+                                             const SimulationEnvironment& environment) {
     SimulatedUnits result;
     for (const std::string& text : devices) {
-        auto device = device::parse_device_address(profiles, text);
+        auto device = parse_device_address(profiles, text);
         if (!device) return device.error();
         if (auto free = claim(result, device->unit); !free) return free.error();
-        auto simulated = device::models::make_simulated_device(
+        auto simulated = models::make_simulated_device(
             device->profile, environment.on_line(device->unit, link));
         result.units[device->unit] = simulated;
         result.devices[device->unit] = simulated;
@@ -85,7 +85,7 @@ Result<void> apply_fault_option(SimulatedUnits& units, const std::string& option
         return make_error(ErrorKind::usage, fmt::format("--fault '{}': write DEVICE@UNIT:FAULT, e.g. tc10@3:open-input", option));
     }
     // Compared with the simulated units only, so the id needs no profile lookup here.
-    auto address = device::split_device_address(option.substr(0, colon));
+    auto address = split_device_address(option.substr(0, colon));
     if (!address) return address.error();
     const auto found = units.devices.find(address->unit);
     if (found == units.devices.end() || found->second->profile().id != address->id) {
@@ -98,4 +98,4 @@ Result<void> apply_fault_option(SimulatedUnits& units, const std::string& option
     return {};
 }
 
-}  // namespace loopwire::app
+}  // namespace loopwire::device::models

@@ -1,0 +1,129 @@
+#include "gateway/service.hpp"
+
+#include <memory>
+#include <utility>
+
+#include <fmt/format.h>
+
+#include "gateway/modbus_tcp_front.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+void say(const GatewayLog& log, const std::string& line) {
+    if (log) log(line);
+}
+
+// The Modbus TCP front `config` asks for: `front` itself when it listens as asked (a reload
+// that left [modbus_tcp] alone keeps every client's connection), else a new one (or none).
+Result<void> keep_or_open_front(const GatewayConfig& config, const GatewayOptions& options, const ServiceLog& log,
+                                std::unique_ptr<ModbusTcpFront>& front) {
+    if (front && front->listens_as(config.modbus_tcp) && !front->failed().stop_requested()) {
+        const auto open = front->statistics().open;
+        say(log.info, fmt::format("Modbus TCP front kept on port {}: {} client connection(s) stay up", front->port(), open));
+        return {};
+    }
+    front.reset();  // before the new one: it may listen on the same port
+    if (!config.modbus_tcp.enabled) return {};
+    auto opened = ModbusTcpFront::open(config.modbus_tcp, {options.trace, options.debug_log});
+    if (!opened) return opened.error();
+    front = std::move(*opened);
+    return {};
+}
+
+// What one call of serve_with_reloads keeps between its rounds.
+struct Service {
+    GatewayOptions options;
+    ConfigReloads& reloads;
+    const std::stop_token& stop;
+    const ServiceLog& log;
+    const ServiceHooks& hooks;
+    std::unique_ptr<ModbusTcpFront> front;  // kept across reloads that leave [modbus_tcp] alone
+
+    // Serves `config` until `stop` or a reload is requested; the error when it cannot be opened.
+    Result<void> round(const GatewayConfig& config) {
+        if (log.set_level) log.set_level(config.log.level);
+        const std::stop_token reload = reloads.start_round(config);
+        if (auto kept = keep_or_open_front(config, options, log, front); !kept) return kept.error();
+        GatewayOptions round_options = options;
+        round_options.front = front.get();
+        auto running = Gateway::open(config, round_options);
+        if (!running) return running.error();
+        if (hooks.serving) hooks.serving(config, **running);
+        std::stop_source either;
+        std::stop_callback on_stop(stop, [&either] { either.request_stop(); });
+        std::stop_callback on_reload(reload, [&either] { either.request_stop(); });
+        auto served = (*running)->serve(either.get_token());
+        if (auto next = reloads.next(); next && !stop.stop_requested()) (*running)->hand_over_to(*next);
+        for (const auto& line : (*running)->report()) say(log.info, describe(line));
+        if (config.modbus_tcp.enabled) say(log.info, describe((*running)->front_report()));
+        return served;
+    }
+};
+
+}  // namespace
+
+void ConfigReloads::hangup() {
+    auto loaded = load_gateway_config(file_, profiles_);
+    if (!loaded) {
+        say(log_.warning, fmt::format("configuration not reloaded, the running one is kept: {}", loaded.error().message));
+        return;
+    }
+    std::lock_guard lock(mutex_);
+    if (serving_ && !reload_needs_restart(*serving_, *loaded)) {
+        // Nothing the gateway runs has changed: everything stays up; a new log level applies now.
+        const bool level_changed = serving_->log.level != loaded->log.level;
+        serving_->log.level = loaded->log.level;
+        if (log_.set_level) log_.set_level(loaded->log.level);
+        say(log_.info, fmt::format("configuration {} re-read: {}; lines, listeners, connections and MQTT stay up", file_,
+                                   level_changed ? "only the log level changed" : "nothing changed"));
+        return;
+    }
+    next_ = std::move(*loaded);
+    running_.request_stop();
+}
+
+std::stop_token ConfigReloads::start_round(const GatewayConfig& config) {
+    std::lock_guard lock(mutex_);
+    serving_ = config;
+    running_ = std::stop_source();
+    return running_.get_token();
+}
+
+std::optional<GatewayConfig> ConfigReloads::next() {
+    std::lock_guard lock(mutex_);
+    return next_;
+}
+
+std::optional<GatewayConfig> ConfigReloads::take() {
+    std::lock_guard lock(mutex_);
+    return std::exchange(next_, std::nullopt);
+}
+
+Result<void> serve_with_reloads(GatewayConfig config, const GatewayOptions& options, ConfigReloads& reloads,
+                                const std::stop_token& stop, const ServiceLog& log, const ServiceHooks& hooks) {
+    Service service{options, reloads, stop, log, hooks, nullptr};
+    GatewayConfig current = std::move(config);
+    std::optional<GatewayConfig> previous;
+    for (;;) {
+        auto served = service.round(current);
+        if (!served && !previous) return served.error();
+        if (!served) {
+            // The new configuration loaded but could not be opened (an address taken, a history
+            // database it cannot read; a missing port is only a line that is down): back to the
+            // one that ran.
+            say(log.warning, fmt::format("the reloaded configuration cannot be served ({}); going back to the previous one",
+                                         served.error().message));
+            current = std::move(*std::exchange(previous, std::nullopt));
+            continue;
+        }
+        if (stop.stop_requested()) return {};
+        if (auto next = reloads.take()) {
+            if (hooks.reloading) hooks.reloading();
+            say(log.info, fmt::format("configuration {} reloaded", reloads.file()));
+            previous = std::exchange(current, std::move(*next));
+        }
+    }
+}
+
+}  // namespace loopwire::gateway

@@ -1,0 +1,213 @@
+// The gateway's service life (gateway/service.hpp): SIGHUP's reload keeps the running
+// configuration when the new one does not load, applies a new log level in place, and restarts
+// the gateway for anything else; a reloaded configuration that cannot be served gives way to the
+// one before it.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <condition_variable>
+#include <fstream>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "gateway/service.hpp"
+#include "support/history_test_support.hpp"
+#include "support/profile_test_support.hpp"
+
+namespace loopwire::gateway {
+namespace {
+
+using namespace std::chrono_literals;
+using ::testing::HasSubstr;
+
+const device::ProfileRegistry& profiles() { return device::testing::builtin_registry(); }
+
+// One TC10 simulated on a virtual line; `extra` ends the file (the [modbus_tcp] table).
+std::string plant(const std::string& poll, const std::string& level = "info", const std::string& modbus_tcp = "enabled = false\n") {
+    return fmt::format(R"toml(
+[log]
+level = "{}"
+
+[[lines]]
+name = "sim"
+link = "rtu:virtual?baud=115200&parity=none"
+timeout = "500ms"
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@3"
+poll = "{}"
+parameters = ["measured_value"]
+
+[modbus_tcp]
+{})toml",
+                       level, poll, modbus_tcp);
+}
+
+// Every line each part of the service logged, and the levels it was told to apply.
+struct RecordedLog {
+    std::mutex mutex;
+    std::vector<std::string> info, warning;
+    std::vector<LogConfig::Level> levels;
+
+    ServiceLog log() {
+        ServiceLog log;
+        log.info = [this](const std::string& line) { add(info, line); };
+        log.warning = [this](const std::string& line) { add(warning, line); };
+        log.debug = [](const std::string&) {};
+        log.set_level = [this](LogConfig::Level level) {
+            std::lock_guard lock(mutex);
+            levels.push_back(level);
+        };
+        return log;
+    }
+    void add(std::vector<std::string>& lines, const std::string& line) {
+        std::lock_guard lock(mutex);
+        lines.push_back(line);
+    }
+};
+
+class GatewayService : public ::testing::Test {
+protected:
+    void write(const std::string& text) { std::ofstream(file, std::ios::binary | std::ios::trunc) << text; }
+    GatewayConfig load() {
+        auto config = load_gateway_config(file, profiles());
+        EXPECT_TRUE(config) << config.error().message;
+        return *config;
+    }
+
+    testing::TempFolder folder{"loopwire-service"};
+    std::string file = (folder.path / "gateway.toml").string();
+    RecordedLog recorded;
+};
+
+TEST_F(GatewayService, AReloadThatDoesNotLoadKeepsTheRunningConfiguration) {
+    write(plant("100ms"));
+    ConfigReloads reloads(file, profiles(), recorded.log());
+    const auto round = reloads.start_round(load());
+    write("[[lines]]\nname = 3\n");
+    reloads.hangup();
+    EXPECT_FALSE(round.stop_requested());
+    EXPECT_FALSE(reloads.next());
+    ASSERT_EQ(recorded.warning.size(), 1u);
+    EXPECT_THAT(recorded.warning[0], HasSubstr("configuration not reloaded, the running one is kept: " + file));
+}
+
+TEST_F(GatewayService, ANewLogLevelAppliesInPlace) {
+    write(plant("100ms"));
+    ConfigReloads reloads(file, profiles(), recorded.log());
+    const auto round = reloads.start_round(load());
+    write(plant("100ms", "debug"));
+    reloads.hangup();
+    EXPECT_FALSE(round.stop_requested());
+    EXPECT_EQ(recorded.levels, std::vector<LogConfig::Level>{LogConfig::Level::debug});
+    ASSERT_EQ(recorded.info.size(), 1u);
+    EXPECT_THAT(recorded.info[0], HasSubstr("re-read: only the log level changed"));
+    reloads.hangup();  // the same file again: now nothing changed
+    EXPECT_THAT(recorded.info.at(1), HasSubstr("re-read: nothing changed"));
+}
+
+TEST_F(GatewayService, AnyOtherChangeStopsTheRoundAndHandsTheConfigurationOver) {
+    write(plant("100ms"));
+    ConfigReloads reloads(file, profiles(), recorded.log());
+    const auto round = reloads.start_round(load());
+    write(plant("200ms"));
+    reloads.hangup();
+    EXPECT_TRUE(round.stop_requested());
+    ASSERT_TRUE(reloads.next());
+    auto taken = reloads.take();
+    ASSERT_TRUE(taken);
+    EXPECT_EQ(taken->lines.at(0).devices.at(0).poll, 200ms);
+    EXPECT_FALSE(reloads.take());
+}
+
+// Stops `stop` after a minute unless destroyed first, so a service that never stops fails its
+// test instead of hanging it.
+class Watchdog {
+public:
+    explicit Watchdog(std::stop_source& stop)
+        : thread_([&stop](std::stop_token own) {
+              std::mutex mutex;
+              std::condition_variable_any woken;
+              std::unique_lock lock(mutex);
+              if (!woken.wait_for(lock, own, 60s, [] { return false; }) && !own.stop_requested()) {
+                  ADD_FAILURE() << "the service was still serving after a minute";
+                  stop.request_stop();
+              }
+          }) {}
+
+private:
+    std::jthread thread_;
+};
+
+// A port something else listens on: a Modbus TCP front cannot open there.
+class TakenPort {
+public:
+    TakenPort() : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
+        sockaddr_in address{};
+        address.sin_family = AF_INET;
+        address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        socklen_t size = sizeof address;
+        EXPECT_EQ(::bind(fd_, reinterpret_cast<sockaddr*>(&address), size), 0);
+        EXPECT_EQ(::listen(fd_, 1), 0);
+        EXPECT_EQ(::getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &size), 0);
+        port = ntohs(address.sin_port);
+    }
+    ~TakenPort() { ::close(fd_); }
+    TakenPort(const TakenPort&) = delete;
+    TakenPort& operator=(const TakenPort&) = delete;
+    std::uint16_t port = 0;
+
+private:
+    int fd_;
+};
+
+TEST_F(GatewayService, AReloadThatCannotBeServedGivesWayToThePreviousConfiguration) {
+    TakenPort taken;
+    write(plant("100ms"));
+    ConfigReloads reloads(file, profiles(), recorded.log());
+    std::stop_source stop;
+    std::vector<std::chrono::milliseconds> served;  // the poll of each configuration served, in order
+    unsigned reloading = 0;
+    ServiceHooks hooks;
+    // Each reload is asked for while a gateway serves, as SIGHUP would: first to a configuration
+    // whose Modbus TCP front cannot listen, then to one that works; then the service is stopped.
+    hooks.serving = [&](const GatewayConfig& config, const Gateway&) {
+        served.push_back(config.lines.at(0).devices.at(0).poll);
+        if (served.size() == 1) write(plant("100ms", "info", fmt::format("enabled = true\nlisten = \"127.0.0.1:{}\"\n", taken.port)));
+        if (served.size() == 2) write(plant("200ms"));
+        if (served.size() < 3) reloads.hangup();
+        else stop.request_stop();
+    };
+    hooks.reloading = [&reloading] { ++reloading; };
+    Watchdog watchdog(stop);
+    auto result = serve_with_reloads(load(), {}, reloads, stop.get_token(), recorded.log(), hooks);
+    ASSERT_TRUE(result) << result.error().message;
+    EXPECT_EQ(served, (std::vector<std::chrono::milliseconds>{100ms, 100ms, 200ms}));
+    EXPECT_EQ(reloading, 2u);
+    ASSERT_EQ(recorded.warning.size(), 1u);
+    EXPECT_THAT(recorded.warning[0], HasSubstr("the reloaded configuration cannot be served"));
+    EXPECT_THAT(recorded.warning[0], HasSubstr("going back to the previous one"));
+}
+
+TEST_F(GatewayService, AFirstConfigurationThatCannotBeServedIsAnError) {
+    TakenPort taken;
+    write(plant("100ms", "info", fmt::format("enabled = true\nlisten = \"127.0.0.1:{}\"\n", taken.port)));
+    ConfigReloads reloads(file, profiles(), recorded.log());
+    std::stop_source stop;
+    Watchdog watchdog(stop);
+    auto result = serve_with_reloads(load(), {}, reloads, stop.get_token(), recorded.log(), {});
+    EXPECT_FALSE(result);
+}
+
+}  // namespace
+}  // namespace loopwire::gateway
