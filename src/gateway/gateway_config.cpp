@@ -978,6 +978,16 @@ Result<std::optional<HistoryConfig>> parse_history(const Context& ctx, const tom
         return ctx.fail(source_of(*table, "database"), "history.database",
                         "expected the database file's path, e.g. \"plant.db\" (relative to this file's folder)");
     }
+    // The historian's string where the local file goes: the SQLite file stays, as the buffer.
+    const bool historian = database->rfind("postgresql:", 0) == 0 || database->rfind("postgres:", 0) == 0 ||
+                           database->find("host=") != std::string::npos;
+    if (historian) {
+        return ctx.fail(source_of(*table, "database"), "history.database",
+                        fmt::format("\"{}\" is a PostgreSQL connection string; database is the gateway's own SQLite "
+                                    "file, which buffers what is forwarded: write database = \"plant.db\" and "
+                                    "forward_to = \"{}\"",
+                                    *database, *database));
+    }
     config.database_as_written = *database;
     config.written_at = fmt::format("{}:{}", ctx.source, source_of(*table, "database").begin.line);
     const std::filesystem::path path(*database);

@@ -1120,6 +1120,13 @@ TEST(GatewayConfig, BadHistoryForwardingIsRefusedWithTheKey) {
     EXPECT_THAT(error_of(forwarded("forward_to = \"postgresql://h/plant?nonsense=1\"\n")),
                 HasSubstr("history.forward_to: libpq cannot read it: invalid URI query parameter"));
     EXPECT_THAT(error_of(forwarded("forward_to = \"host=/tmp dbname\"\n")), HasSubstr("history.forward_to: libpq cannot read it"));
+    // The historian named as the local file: told where it goes instead.
+    EXPECT_THAT(error_of(one_device("device = \"tc10@3\"\n") + "[history]\ndatabase = \"postgresql://gw@historian/plant\"\n"),
+                HasSubstr("history.database: \"postgresql://gw@historian/plant\" is a PostgreSQL connection string; "
+                          "database is the gateway's own SQLite file, which buffers what is forwarded: write database = "
+                          "\"plant.db\" and forward_to = \"postgresql://gw@historian/plant\""));
+    EXPECT_THAT(error_of(one_device("device = \"tc10@3\"\n") + "[history]\ndatabase = \"host=/run/postgresql dbname=plant\"\n"),
+                HasSubstr("is a PostgreSQL connection string"));
     // Without [gateway] name the shared historian could not tell this gateway's series apart.
     EXPECT_THAT(error_of(one_device("device = \"tc10@3\"\n") +
                          "[history]\ndatabase = \"plant.db\"\nforward_to = \"postgresql:///plant\"\n"),
