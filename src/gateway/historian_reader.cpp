@@ -11,6 +11,33 @@ constexpr const char* query_canceled = "57014";  // SQLSTATE of a statement stop
 
 }  // namespace
 
+// Holds the connection's turn from a successful take() until destroyed.
+class HistorianReader::Turn {
+public:
+    explicit Turn(HistorianReader& reader) : reader_(reader) {}
+    ~Turn() {
+        if (!held_) return;
+        {
+            std::lock_guard lock(reader_.mutex_);
+            reader_.busy_ = false;
+        }
+        reader_.turn_ended_.notify_one();
+    }
+    Turn(const Turn&) = delete;
+    Turn& operator=(const Turn&) = delete;
+
+    bool take(std::chrono::milliseconds within) {
+        std::unique_lock lock(reader_.mutex_);
+        if (!reader_.turn_ended_.wait_for(lock, within, [this] { return !reader_.busy_; })) return false;
+        reader_.busy_ = held_ = true;
+        return true;
+    }
+
+private:
+    HistorianReader& reader_;
+    bool held_ = false;
+};
+
 HistorianReader::HistorianReader(std::string conninfo, std::optional<std::string> password, HistorianLimits limits)
     : conninfo_(std::move(conninfo)), password_(std::move(password)), limits_(limits) {}
 
@@ -29,8 +56,8 @@ Result<void> HistorianReader::connect() {
 template <typename T, typename Ask>
 Result<T> HistorianReader::with_connection(Ask ask) {
     const auto turn = std::chrono::seconds(limits_.connect_timeout_seconds) + limits_.statement_timeout;
-    std::unique_lock lock(mutex_, std::defer_lock);
-    if (!lock.try_lock_for(turn)) {
+    Turn held(*this);
+    if (!held.take(std::chrono::duration_cast<std::chrono::milliseconds>(turn))) {
         return make_error(ErrorKind::timeout, "the historian is still busy with earlier requests; try again");
     }
     if (auto connected = connect(); !connected) return connected.error();

@@ -11,6 +11,7 @@
 // answering in the middle of a statement without closing its socket still holds its request
 // until the kernel gives up on the connection.
 #include <chrono>
+#include <condition_variable>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -46,7 +47,13 @@ private:
     std::string conninfo_;
     std::optional<std::string> password_;
     HistorianLimits limits_;
-    std::timed_mutex mutex_;  // one request at a time on the connection
+    // One request at a time on the connection, waited for within a bound. A flag under a plain
+    // mutex and a condition variable, not std::timed_mutex: ThreadSanitizer (GCC 12's) does not
+    // see the clock lock a timed_mutex takes, and reports its unlock as one of an unlocked mutex.
+    class Turn;
+    std::mutex mutex_;
+    std::condition_variable turn_ended_;
+    bool busy_ = false;  // under mutex_
     std::optional<postgres::Connection> db_;
 };
 
