@@ -8,16 +8,12 @@
 
 namespace {
 
-// The TC10's temperatures carry no unit in its profile: the device's own temperature_unit
-// word says whether they are in °C or °F (manual §5.3.1 #5).
-std::string unit_of(const loopwire::Reading& reading, const std::string& temperature_unit) {
-    return reading.unit.empty() ? temperature_unit : reading.unit;
-}
-
-void print(const loopwire::Reading& reading, const std::string& temperature_unit) {
-    std::cout << reading.name << " (" << reading.mnemonic << ") = " << reading.text << ' '
-              << unit_of(reading, temperature_unit);
-    if (reading.status != "ok") std::cout << " [" << reading.status << ']';
+// The unit is the device's own: a TC10's temperatures follow its temperature_unit word (°C or
+// °F, manual §5.3.1 #5), which the read takes with the value.
+void print(const loopwire::Reading& reading) {
+    std::cout << reading.name << " (" << reading.mnemonic << ") = " << reading.text << ' ' << reading.unit;
+    if (reading.state != loopwire::ValueStatus::ok) std::cout << " [" << reading.status << ']';
+    if (reading.min && reading.max) std::cout << " (" << *reading.min << " to " << *reading.max << ')';
     std::cout << '\n';
 }
 
@@ -32,13 +28,12 @@ int main(int argc, char** argv) {
 
         loopwire::Link link = loopwire::Link::open(simulator.url());
         loopwire::Device oven(link, "tc10@3");
-        const std::string temperature_unit = "°" + oven.read("temperature_unit").text;
 
-        print(oven.read("measured_value"), temperature_unit);
-        print(oven.read("set_point"), temperature_unit);
+        print(oven.read("measured_value"));
+        print(oven.read("set_point"));
         oven.write("set_point", set_point);
         std::cout << "wrote set_point = " << set_point << '\n';
-        print(oven.read("set_point"), temperature_unit);
+        print(oven.read("set_point"));
 
         simulator.stop();
     } catch (const loopwire::Failure& failure) {

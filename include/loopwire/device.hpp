@@ -11,17 +11,33 @@
 
 namespace loopwire {
 
+// What a reading is: a value, a state the device reports instead of one, or a failure.
+enum class ValueStatus {
+    ok,             // a value as the device means it
+    special_state,  // the device reports a state instead of a value (`status` names it: "under-range")
+    unlisted_code,  // an enum word whose code the profile does not list ("unknown-label"); `number` holds it
+    error,          // not read: `error` says why
+};
+
 struct Reading {
     std::string name;              // the parameter's name ("measured_value")
     std::string mnemonic;          // as the device's display shows it ("rV")
     std::optional<double> number;  // the value in engineering units, when it is a number
     std::string text;              // as people read it: "137.0", "heating", "—" for special states
-    std::string unit;              // "°C", "%", "s"; empty when the profile gives none
-    std::string status;            // "ok", a special state ("out-of-range", ...), or "error"
+    // "°C", "%", "s" as the device is configured (a TC10's temperatures follow its unit word:
+    // °C or °F); empty when the value has no unit, "?" when the word it follows could not be read.
+    std::string unit;
+    // The limits a write is checked against, in engineering units as the device holds them now
+    // (a fixed range scaled by the present decimals, or the value of the parameter that bounds
+    // it: a set point between its low and high limits); none where there is no limit.
+    std::optional<double> min;
+    std::optional<double> max;
+    ValueStatus state = ValueStatus::error;
+    std::string status;            // state as text: "ok", the special state's name, "unknown-label" or "error"
     std::uint16_t raw = 0;         // the word on the wire
     std::string error;             // why the read failed, when status is "error"
 
-    bool failed() const { return status == "error"; }
+    bool failed() const { return state == ValueStatus::error; }
 };
 
 class Device {

@@ -6,6 +6,7 @@
 #include "api/failure_translation.hpp"
 #include "api/link_state.hpp"
 #include "client/device_client.hpp"
+#include "client/resolved_value.hpp"
 #include "profile/request_planner.hpp"
 #include "profile/value_format.hpp"
 
@@ -18,22 +19,25 @@ struct Device::State {
 
 namespace {
 
-Reading to_reading(const device::ParameterReading& reading) {
+// The library's reading is the resolved view every front shows (client/resolved_value.hpp).
+Reading to_reading(const device::ParameterReading& reading, const device::RawValues& known) {
     const device::Parameter& parameter = *reading.parameter;
+    const device::ResolvedValue resolved = device::resolve_reading(reading, known);
     Reading result;
     result.name = parameter.name;
     result.mnemonic = parameter.mnemonic;
-    result.unit = parameter.unit;
-    if (!reading.value) {
-        result.status = "error";
-        result.error = reading.error;
-        return result;
-    }
-    const device::EngineeringValue& value = *reading.value;
-    if (const double* number = std::get_if<double>(&value.value)) result.number = *number;
-    result.text = device::value_text(parameter, value);
-    result.status = value.status;
-    result.raw = value.raw;
+    result.number = resolved.number;
+    result.text = resolved.text;
+    result.unit = resolved.unit;
+    result.min = resolved.limits.min;
+    result.max = resolved.limits.max;
+    result.status = resolved.status;
+    result.error = resolved.error;
+    result.raw = resolved.raw.value_or(0);
+    if (!resolved.raw) result.state = ValueStatus::error;
+    else if (resolved.status == "ok") result.state = ValueStatus::ok;
+    else if (resolved.status == device::unknown_label_status) result.state = ValueStatus::unlisted_code;
+    else result.state = ValueStatus::special_state;
     return result;
 }
 
@@ -60,18 +64,18 @@ int Device::unit() const { return state_->client.device().unit; }
 
 std::vector<Reading> Device::read(const std::vector<std::string>& names) {
     const auto parameters = api::value_or_throw(device::resolve_parameters(*state_->client.device().profile, names));
-    const device::ReadReport report = state_->client.read(parameters);
+    const device::ReadReport report = state_->client.read_with_limits(parameters);
     std::vector<Reading> readings;
     readings.reserve(report.readings.size());
-    for (const auto& reading : report.readings) readings.push_back(to_reading(reading));
+    for (const auto& reading : report.readings) readings.push_back(to_reading(reading, report.raw));
     return readings;
 }
 
 Reading Device::read(const std::string& name) {
     const device::Parameter& parameter = single_parameter(*state_->client.device().profile, name);
-    const device::ReadReport report = state_->client.read({&parameter});
+    const device::ReadReport report = state_->client.read_with_limits({&parameter});
     if (report.first_error) api::throw_failure(*report.first_error);
-    return to_reading(report.readings.front());
+    return to_reading(report.readings.front(), report.raw);
 }
 
 void Device::write(const std::string& name, const std::string& value) { write({{name, value}}); }

@@ -9,6 +9,7 @@
 #include "app/exit_codes.hpp"
 #include "profile/value_format.hpp"
 #include "client/device_client.hpp"
+#include "client/resolved_value.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -48,8 +49,8 @@ void print_readings(const MasterCommandOptions& options, const device::DeviceAdd
     if (options.json) {
         nlohmann::ordered_json values = nlohmann::ordered_json::object();
         for (const auto& reading : report.readings) {
-            values[reading.parameter->name] = reading.value ? device::value_json(*reading.parameter, *reading.value)
-                                                            : nlohmann::ordered_json{{"value", nullptr}, {"raw", nullptr}, {"unit", reading.parameter->unit}, {"status", "error"}, {"error", reading.error}};
+            const auto* value = reading.value ? &*reading.value : nullptr;
+            values[reading.parameter->name] = device::resolved_json(*reading.parameter, value, device::resolve_reading(reading, report.raw));
         }
         nlohmann::ordered_json out{{"unit", device.unit}, {"device", device.profile->id}, {"values", values}};
         if (failure) {  // the one JSON document says it failed, as error_json would
@@ -61,13 +62,13 @@ void print_readings(const MasterCommandOptions& options, const device::DeviceAdd
     }
     for (const auto& reading : report.readings) {
         const auto& p = *reading.parameter;
-        if (!reading.value) {
-            fmt::print("{:<34} {:<8} error: {}\n", p.name, p.mnemonic, reading.error);
+        const auto resolved = device::resolve_reading(reading, report.raw);
+        if (!resolved.raw) {
+            fmt::print("{:<34} {:<8} error: {}\n", p.name, p.mnemonic, resolved.error);
             continue;
         }
-        const auto& v = *reading.value;
-        fmt::print("{:<34} {:<8} {:>12} {:<6} {}{}\n", p.name, p.mnemonic, device::value_text(p, v), device::shown_unit(p, &v),
-                   v.status == "ok" ? "" : v.status + " ", fmt::format("(raw {})", v.raw));
+        fmt::print("{:<34} {:<8} {:>12} {:<6} {}{}\n", p.name, p.mnemonic, resolved.text, resolved.unit,
+                   resolved.status == "ok" ? "" : resolved.status + " ", fmt::format("(raw {})", *resolved.raw));
     }
 }
 
@@ -86,7 +87,7 @@ int run_device_read(const device::ProfileRegistry& profiles, const MasterCommand
         auto same = client.confirm_identity();
         if (!same) return report_error(same.error());
     }
-    const auto report = client.read(*parameters);
+    const auto report = client.read_with_limits(*parameters);
     const auto failure = read_failure(report);
     print_readings(options, connected->device, report, failure);
     if (failure) {

@@ -206,10 +206,24 @@ Result<void> DeviceClient::confirm_identity() {
     return {};
 }
 
-ReadReport DeviceClient::read(const std::vector<const Parameter*>& parameters) {
+ReadReport DeviceClient::read(const std::vector<const Parameter*>& parameters) { return read_planned(parameters, plan(parameters)); }
+
+ReadReport DeviceClient::read_with_limits(const std::vector<const Parameter*>& parameters) {
+    std::vector<const Parameter*> with_bounds = with_dependencies(*device_.profile, parameters);
+    std::set<const Parameter*> seen(with_bounds.begin(), with_bounds.end());
+    for (const Parameter* parameter : parameters) {
+        for (const std::string& name : dependencies_of(*parameter)) {  // bounds and their decimals too
+            const Parameter* dependency = device_.profile->find(name);
+            if (dependency && dependency->readable && seen.insert(dependency).second) with_bounds.push_back(dependency);
+        }
+    }
+    return read_planned(parameters, plan_reads(*device_.profile, with_bounds, device_.address_offset));
+}
+
+ReadReport DeviceClient::read_planned(const std::vector<const Parameter*>& parameters, const std::vector<ReadBlock>& blocks) {
     ReadReport report;
     Failures failures;
-    for (const ReadBlock& block : plan(parameters)) {
+    for (const ReadBlock& block : blocks) {
         const bool may_split = block.parameters.size() > 1;
         if (file_block(block, master_.execute(device_.unit, read_request_of(block)), report, failures, may_split)) continue;
         for (const ReadBlock& single : split(block)) {

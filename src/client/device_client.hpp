@@ -72,6 +72,10 @@ public:
     // Reads `parameters` and whatever their values depend on (decimals from other words), in
     // planned blocks. A failed block marks its parameters as failed; the others are still read.
     ReadReport read(const std::vector<const Parameter*>& parameters);
+    // As read, and the words that bound the values too (a TC10's SP.LL and SP.HL for its SP), so
+    // their limits resolve (limits_of over the report's words): what one-shot reads by name show.
+    // Polls leave them out and read them on a slower schedule of their own (gateway/poll_groups).
+    ReadReport read_with_limits(const std::vector<const Parameter*>& parameters);
 
     // The same without blocking, for a poller on an event loop: the blocks go one after another
     // by the master's execute_async, each from the completion of the one before, and `done` runs
@@ -117,6 +121,7 @@ private:
 
     codec::Request read_request_of(const ReadBlock& block) const;
     std::vector<ReadBlock> plan(const std::vector<const Parameter*>& parameters) const;
+    ReadReport read_planned(const std::vector<const Parameter*>& parameters, const std::vector<ReadBlock>& blocks);
     std::vector<ReadBlock> split(const ReadBlock& block) const;
     // Files one block's reply. false: the device refused the block with an exception and
     // `may_split` was set (the caller splits it); otherwise the block's values or failures are

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/monitor_state.hpp"
+#include "client/resolved_value.hpp"
 #include "common/peer_text.hpp"
 #include "gateway/dashboard_assets.hpp"
 #include "gateway/http_text.hpp"
@@ -335,17 +336,14 @@ HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const
         const bool polled = std::find(device.polled.begin(), device.polled.end(), &parameter) != device.polled.end();
         if (parameter.hidden && !polled) continue;
         if (std::find(groups.begin(), groups.end(), parameter.group) == groups.end()) groups.push_back(parameter.group);
-        // The unit as the device is configured (a TC10's °C or °F), as the events and MQTT give it.
-        const std::string unit = device::shown_unit(parameter, watched && watched->last ? &*watched->last : nullptr);
+        // The resolved view the command line and the library show (client/resolved_value.hpp):
+        // the unit as the device is configured (a TC10's °C or °F), the limits as it holds them.
+        const device::EngineeringValue* last = watched && watched->last ? &*watched->last : nullptr;
+        const auto resolved = device::resolve_value(parameter, last, cached ? cached->state.known : device::RawValues{});
         Json p{{"name", parameter.name}, {"mnemonic", parameter.mnemonic}, {"group", parameter.group},
-               {"description", parameter.description}, {"unit", unit}, {"polled", polled}};
-        if (watched && watched->last) {
-            p["value"] = value_json(*watched->last);
-            p["text"] = device::value_text(parameter, *watched->last);
-        } else {
-            p["value"] = nullptr;
-            p["text"] = "";
-        }
+               {"description", parameter.description}, {"unit", resolved.unit}, {"polled", polled}};
+        p["value"] = last ? value_json(*last) : Json(nullptr);
+        p["text"] = resolved.text;
         p["status"] = watched ? device::value_status(cached->state, *watched) : std::string(polled ? "waiting" : "not-polled");
         const auto age = watched ? device::age_seconds(*watched, now) : std::nullopt;
         p["age"] = age ? Json(*age) : Json(nullptr);
@@ -354,7 +352,7 @@ HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const
         p["writable"] = parameter.writable;
         // In engineering units as the device holds them (what a write is checked against); the
         // profile's bound (a fixed number, or the bounding parameter's name) while not known.
-        const auto limits = device::limits_of(parameter, cached ? cached->state.known : device::RawValues{});
+        const auto& limits = resolved.limits;
         p["min"] = limits.min ? Json(*limits.min) : resolved_bound(parameter.min, cached ? &cached->state : nullptr);
         p["max"] = limits.max ? Json(*limits.max) : resolved_bound(parameter.max, cached ? &cached->state : nullptr);
         // Fixed min/max still in display counts: the decimal point that scales them is not known.

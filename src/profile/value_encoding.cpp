@@ -240,6 +240,15 @@ Result<std::uint16_t> encode_value(const Parameter& parameter, std::string_view 
 }
 
 ValueLimits limits_of(const Parameter& parameter, const RawValues& known) {
+    // An enumeration's range is the codes it takes (TC10 control_state 0..2): what a code
+    // written as a number is checked against, shown as it is by every front.
+    if (parameter.type == ValueType::enumeration) {
+        const auto fixed = [](const std::optional<Bound>& bound) {
+            const double* number = bound ? std::get_if<double>(&*bound) : nullptr;
+            return number ? std::optional<double>(*number) : std::nullopt;
+        };
+        return {fixed(parameter.min), fixed(parameter.max)};
+    }
     if (parameter.type != ValueType::int16 && parameter.type != ValueType::uint16) return {};
     const auto decimals = decimals_of(parameter, known);
     // Without its decimals a bound in display counts cannot be scaled; a named or plain one can.
@@ -250,7 +259,7 @@ ValueLimits limits_of(const Parameter& parameter, const RawValues& known) {
 
 bool raw_in_range(const Parameter& parameter, std::uint16_t raw, const RawValues& known) {
     const auto decoded = decode_value(parameter, raw, known);
-    if (!decoded || decoded->status == "unknown-label") return false;
+    if (!decoded || decoded->status == unknown_label_status) return false;
     if (decoded->status != "ok") return true;
     const auto text = format_value(parameter, *decoded, known);
     if (!text) return false;

@@ -40,7 +40,7 @@ EngineeringValue decode_bits(const Parameter& parameter, std::uint16_t raw) {
 
 EngineeringValue decode_enumeration(const Parameter& parameter, std::uint16_t raw) {
     if (const std::string* label = label_for(parameter, raw)) return with(*label, raw);
-    return with(static_cast<double>(word_number(parameter, raw)), raw, "unknown-label");
+    return with(static_cast<double>(word_number(parameter, raw)), raw, unknown_label_status);
 }
 
 Result<EngineeringValue> decode_number(const Parameter& parameter, std::uint16_t raw, const RawValues& known) {

@@ -39,6 +39,9 @@ struct EngineeringValue {
 // does not list: the unit is not known, which is not the same as having none.
 inline constexpr const char* unknown_unit = "?";
 
+// EngineeringValue::status of an enum word whose code the profile does not list.
+inline constexpr const char* unknown_label_status = "unknown-label";
+
 // The unit of `parameter`'s values given what is known: its fixed unit, or the first of its
 // unit_from rules whose word is known and holds a listed value (compared as int16 and uint16);
 // unknown_unit when it has rules and none applies; empty when it has no unit.

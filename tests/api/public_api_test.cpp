@@ -65,6 +65,38 @@ TEST_F(SimulatedTc10, ReadsByNameOrMnemonicInEngineeringUnits) {
     EXPECT_EQ(oven.unit(), 3);
 }
 
+// The reading is the resolved view every front shows (issue 21): the unit from the device's
+// unit word, not the profile's default (which a TC10's temperatures do not have), and the
+// limits as numbers from the words that bound the value.
+TEST_F(SimulatedTc10, ReadingCarriesTheDevicesUnitLimitsAndStatus) {
+    const loopwire::Reading pv = oven.read("measured_value");
+    const std::string degrees = "°" + oven.read("temperature_unit").text;
+    EXPECT_EQ(pv.unit, degrees);
+    EXPECT_EQ(pv.state, loopwire::ValueStatus::ok);
+
+    oven.write("set_point_low_limit", "-50");
+    oven.write("set_point_high_limit", "650");
+    const loopwire::Reading sp = oven.read("set_point");
+    EXPECT_EQ(sp.unit, degrees);
+    ASSERT_TRUE(sp.min && sp.max);
+    EXPECT_DOUBLE_EQ(*sp.min, -50.0);
+    EXPECT_DOUBLE_EQ(*sp.max, 650.0);
+
+    oven.write("temperature_unit", oven.read("temperature_unit").text == "C" ? "F" : "C");
+    EXPECT_NE(oven.read("set_point").unit, degrees) << "the unit follows the unit word as it is now";
+}
+
+TEST(Reading, WithoutAReplyIsAnErrorWithItsReason) {
+    Simulator simulator = Simulator::start("tcp://127.0.0.1:0", {"tc10@3"});
+    Link link = Link::open(simulator.url(), {std::chrono::milliseconds(300), 0});
+    Device absent(link, "tc10@4");  // nothing answers at unit 4
+    const auto readings = absent.read(std::vector<std::string>{"set_point"});
+    ASSERT_EQ(readings.size(), 1u);
+    EXPECT_EQ(readings[0].state, loopwire::ValueStatus::error);
+    EXPECT_TRUE(readings[0].failed());
+    EXPECT_FALSE(readings[0].error.empty());
+}
+
 TEST_F(SimulatedTc10, ReadsSeveralNamesAndGroupsInTheOrderAsked) {
     const auto readings = oven.read(std::vector<std::string>{"set_point", "measured_value"});
     ASSERT_EQ(readings.size(), 2u);

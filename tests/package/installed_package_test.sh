@@ -34,6 +34,7 @@ output=$("$work/examples/tc10_set_point" 123) || fail "the example failed: $outp
 echo "$output"
 grep -qx "loopwire $version" <<<"$output" || fail "the example does not print the installed version $version"
 grep -q '^measured_value (rV) = -\?[0-9.]* °C$' <<<"$output" || fail "no measured value in °C"
-grep -A1 '^wrote set_point = 123$' <<<"$output" | grep -qx 'set_point (SP) = 123 °C' \
-    || fail "the written set point 123 does not read back as '123 °C'"
+# The unit from the device's unit word, the limits from its SP.LL and SP.HL words.
+grep -A1 '^wrote set_point = 123$' <<<"$output" | grep -qx 'set_point (SP) = 123 °C (-\?[0-9.]* to [0-9.]*)' \
+    || fail "the written set point 123 does not read back as '123 °C (LOW to HIGH)'"
 echo "PASS: the installed package builds and runs the example"

@@ -193,7 +193,9 @@ TEST(Tc10Values, LimitsAreTheNumbersAWriteIsCheckedAgainst) {
     const Parameter& band = parameter(*tc10, "proportional_band");
     EXPECT_EQ(limits_of(band, {{"decimal_point", 1}}), (ValueLimits{0.1, 999.9}));
     EXPECT_EQ(limits_of(band, {}), ValueLimits{}) << "counts without the decimal point are no number";
-    EXPECT_EQ(limits_of(parameter(*tc10, "control_state"), {}), ValueLimits{}) << "an enumeration has labels, not limits";
+    EXPECT_EQ(limits_of(parameter(*tc10, "control_state"), {}), (ValueLimits{0.0, 2.0}))
+        << "an enumeration's limits are its range of codes, as a code written as a number is checked";
+    EXPECT_EQ(limits_of(parameter(*tc10, "alarm_status"), {}), ValueLimits{}) << "bits have no limits";
 }
 
 TEST(Tc10Values, UnknownBoundIsReportedAsSuch) {

@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# One truth on every front (issue 21): a gateway polls a simulated TC10 and AC20 with their
+# default watch lists and serves them over Modbus TCP, HTTP and MQTT with Home Assistant
+# discovery; cross_front_check.py reads every polled value through the HTTP API, MQTT and its
+# /meta, the discovery documents, /metrics, `loopwire read --json`, `loopwire monitor --format csv`
+# and the public library, and wants the same text, unit, numeric limits and status from all.
+# Then the TC10's unit word is changed (°C to °F) through the HTTP API and every front must
+# follow.
+set -u
+loopwire=${1:?usage: cross_front_test.sh path/to/loopwire path/to/api_read_by_name}
+read_by_name=${2:?usage: cross_front_test.sh path/to/loopwire path/to/api_read_by_name}
+source "$(dirname "$0")/../support/test_lib.sh"
+python=/usr/bin/python3
+broker_program=/usr/sbin/mosquitto
+skip() { echo "SKIP: $1 (scripts/setup installs it)"; exit 77; }
+[[ -x $broker_program ]] || skip "$broker_program is not installed (Debian package mosquitto)"
+$python -c 'import paho.mqtt' 2>/dev/null || skip "paho.mqtt is not importable by $python (Debian package python3-paho-mqtt)"
+
+# A port nothing listens on now (mosquitto cannot be given port 0); a small race, accepted.
+mqtt_port=$($python -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+printf 'listener %s 127.0.0.1\nallow_anonymous true\npersistence false\n' "$mqtt_port" >"$WORK_DIR/mosquitto.conf"
+start_background broker.log timeout 200 "$broker_program" -c "$WORK_DIR/mosquitto.conf"
+wait_for_text "$WORK_DIR/broker.log" "running"
+
+token_file=$WORK_DIR/token
+head -c 24 /dev/urandom | base64 >"$token_file"
+chmod 600 "$token_file"
+# No parameters lists: the profiles' default watch lists (PV, SP, OUT, status words, mode).
+cat >"$WORK_DIR/plant.toml" <<TOML
+[gateway]
+name = "plant1"
+
+[[lines]]
+name = "sim"
+link = "rtu:virtual?baud=19200"
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+poll = "300ms"
+
+[[lines.devices]]
+name = "furnace"
+device = "ac20@1"
+poll = "300ms"
+
+[modbus_tcp]
+listen = "127.0.0.1:0"
+
+[http]
+listen = "127.0.0.1:0"
+token_file = "$token_file"
+
+[mqtt]
+broker = "mqtt://127.0.0.1:$mqtt_port"
+writes = true
+discovery = "homeassistant"
+TOML
+
+start_background gateway.log timeout 200 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+modbus_port=$(wait_for_log gateway.log 'Modbus TCP on 127\.0\.0\.1 \(listening on port ([0-9]+)\)' 20)
+http_port=$(wait_for_log gateway.log 'HTTP API and dashboard on http:..127\.0\.0\.1:([0-9]+)' 20)
+wait_for_text "$WORK_DIR/gateway.log" "device oven (tc10@3) answers"
+wait_for_text "$WORK_DIR/gateway.log" "device furnace (ac20@1) answers"
+
+checker=("$python" "$(dirname "$0")/cross_front_check.py" "$loopwire" "$read_by_name" "$modbus_port" "$http_port" "$mqtt_port"
+         "$token_file")
+# run_checker NAME ARGS... : one run of the checker (up to 20 rounds of every front), its report shown.
+run_checker() {
+    local name=$1
+    shift
+    if timeout 150 "${checker[@]}" "$@" >"$WORK_DIR/$name.out" 2>&1; then count_pass; else count_failure "$name" "$WORK_DIR/$name.out"; fi
+    cat "$WORK_DIR/$name.out"
+}
+run_checker every-front-agrees --expect-unit measured_value=°C
+run_checker every-front-follows-the-unit-word --write oven temperature_unit=F --expect-unit measured_value=°F \
+  --expect-unit set_point=°F
+finish
