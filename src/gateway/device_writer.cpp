@@ -37,16 +37,18 @@ struct DeviceWriter::LineWriter {
     // The write under way: the client and master it goes through live until its end.
     struct Running {
         Running(std::shared_ptr<LineScheduler> line, const WritableDevice& device, std::chrono::milliseconds left)
-            : master(std::move(line), "write " + device.name, Priority::write, left), client(master, device.address) {}
+            : name(device.name), master(std::move(line), "write " + device.name, Priority::write, left), client(master, device.address) {}
+        std::string name;  // the device's, as configured
         ScheduledMaster master;
         device::DeviceClient client;
     };
 
     LineWriter(asio::io_context& engine_loop, std::shared_ptr<LineScheduler> scheduler, std::chrono::milliseconds given_up_after,
-               std::size_t queue_limit)
-        : loop(engine_loop), line(std::move(scheduler)), write_limit(given_up_after), limit(queue_limit) {}
+               std::size_t queue_limit, std::shared_ptr<const WrittenHook> hook)
+        : loop(engine_loop), written_hook(std::move(hook)), line(std::move(scheduler)), write_limit(given_up_after), limit(queue_limit) {}
 
     asio::io_context& loop;
+    std::shared_ptr<const WrittenHook> written_hook;
     std::shared_ptr<LineScheduler> line;
     std::chrono::milliseconds write_limit;
     std::size_t limit;
@@ -112,6 +114,7 @@ struct DeviceWriter::LineWriter {
                                    // go on the loop, its last hold is never dropped here.
                                    asio::post(loop, [this, finished = std::move(running), done = std::move(done),
                                                      outcome = std::move(outcome)]() mutable {
+                                       if (outcome && *written_hook) (*written_hook)(finished->name, *outcome);
                                        done(std::move(outcome));
                                        done = nullptr;
                                        finished.reset();
@@ -148,7 +151,7 @@ DeviceWriter::DeviceWriter(Engine& engine, std::vector<WritableDevice> devices, 
             if (line->line == device.line) writer = line.get();
         }
         if (!writer) {
-            lines_.push_back(std::make_unique<LineWriter>(engine.loop(), device.line, write_limit, queue_limit));
+            lines_.push_back(std::make_unique<LineWriter>(engine.loop(), device.line, write_limit, queue_limit, written_hook_));
             writer = lines_.back().get();
         }
         targets_.push_back(std::make_unique<Target>(Target{std::move(device), writer}));
@@ -218,6 +221,8 @@ Result<WrittenValues> DeviceWriter::write(const std::string& device, const std::
     }
     return future.get();
 }
+
+void DeviceWriter::on_written(WrittenHook hook) { *written_hook_ = std::move(hook); }
 
 std::size_t DeviceWriter::pending() const {
     std::size_t total = 0;

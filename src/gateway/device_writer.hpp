@@ -81,9 +81,16 @@ public:
     // Writes queued or under way on every line now.
     std::size_t pending() const;
 
+    // Told of every write that landed (the device's configured name and what was written),
+    // on the engine's loop, before its asker: the polls read again the limits it may have
+    // moved (PollGroups::written). Set once, before the first write.
+    using WrittenHook = std::function<void(const std::string& device, const WrittenValues& written)>;
+    void on_written(WrittenHook hook);
+
 private:
     struct Target;
     struct LineWriter;
+    std::shared_ptr<WrittenHook> written_hook_ = std::make_shared<WrittenHook>();
     std::vector<std::unique_ptr<Target>> targets_;
     std::vector<std::unique_ptr<LineWriter>> lines_;  // one a line scheduler; stopped first
 };

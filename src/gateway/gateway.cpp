@@ -236,6 +236,12 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         }
     }
     parts->writer = std::make_unique<DeviceWriter>(parts->engine, std::move(writable), write_limit);
+    // A write of a word that bounds a polled value shows in every front's limits at the next poll.
+    parts->writer->on_written([polls = parts->polls.get()](const std::string& device, const WrittenValues& written) {
+        std::vector<std::string> parameters;
+        for (const auto& [name, text] : written.values) parameters.push_back(name);
+        polls->written(device, parameters);
+    });
     if (config.mqtt) {
         // Started here, not in serve(): it needs nothing from the TCP front, and a broker that
         // cannot be reached is retried in the background, never an error.

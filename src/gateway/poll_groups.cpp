@@ -179,6 +179,7 @@ struct PollGroups::Group {
     std::vector<std::unique_ptr<device::DeviceClient>> clients;
     std::vector<device::MonitorTarget> targets;
     std::vector<device::WatchedDevice> watched;
+    std::vector<std::string> names;  // per device: its configured name
     // Per device: the words bounding its values, when they were last read, whether this poll reads them.
     std::vector<std::vector<const device::Parameter*>> bounds;
     std::vector<std::optional<device::MonitorClock::time_point>> limits_read_at;
@@ -318,6 +319,7 @@ PollGroups::PollGroups(Engine& engine, const GatewayConfig& config,
             group->watched.push_back(device::watch(fmt::format("{}@{}", device.address.profile->id, unit),
                                                    group->targets.back().parameters));
             group->bounds.push_back(bound_words(*device.address.profile, group->targets.back().parameters));
+            group->names.push_back(device.name);
             group->limits_read_at.emplace_back();
             group->reading_limits.push_back(false);
             names[device.poll].push_back(device.name);
@@ -342,5 +344,18 @@ PollGroups::PollGroups(Engine& engine, const GatewayConfig& config,
 }
 
 PollGroups::~PollGroups() { state_->stop(engine_); }
+
+void PollGroups::written(const std::string& device, const std::vector<std::string>& parameters) {
+    for (auto& group : state_->groups) {
+        for (std::size_t i = 0; i < group->names.size(); ++i) {
+            if (group->names[i] != device) continue;
+            const auto& bounds = group->bounds[i];
+            const bool moves_a_limit = std::any_of(bounds.begin(), bounds.end(), [&](const device::Parameter* bound) {
+                return std::find(parameters.begin(), parameters.end(), bound->name) != parameters.end();
+            });
+            if (moves_a_limit) group->limits_read_at[i].reset();
+        }
+    }
+}
 
 }  // namespace loopwire::gateway

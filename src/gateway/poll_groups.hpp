@@ -42,6 +42,12 @@ public:
 
     std::size_t size() const { return size_; }
 
+    // A front wrote these parameters (profile names) of the device (its configured name): where
+    // one bounds a polled value (a TC10's SP.HL for its SP), the device's next poll reads its
+    // bounding words again, so every front shows the new limit then, not at the 5-minute
+    // refresh. On the engine's loop (DeviceWriter::on_written).
+    void written(const std::string& device, const std::vector<std::string>& parameters);
+
 private:
     struct Group;
     struct State;

@@ -10,8 +10,8 @@ when the API gave the same text before and after the round; its unit, limits and
 Fronts that lag by a poll get a few rounds to agree; the last round's disagreements are printed.
 
 usage: cross_front_check.py LOOPWIRE READ_BY_NAME MODBUS_PORT HTTP_PORT MQTT_PORT TOKEN_FILE \
-           [--expect-unit PARAMETER=UNIT]... [--write DEVICE PARAMETER=VALUE]
-Exits 0 when every front agreed (and, with --expect-unit, the unit is the one expected).
+           [--expect-unit PARAMETER=UNIT]... [--expect-max PARAMETER=NUMBER]... [--write DEVICE PARAMETER=VALUE]
+Exits 0 when every front agreed (and the units and limits expected are the API's).
 """
 import argparse
 import csv
@@ -194,6 +194,10 @@ def compare(args, retained):
                 parameter, wanted = expected.split("=", 1)
                 if parameter == name and unit != wanted:
                     problems.append(f"{where}: unit {unit!r}, expected {wanted!r}")
+            for expected in args.expect_max:
+                parameter, wanted = expected.split("=", 1)
+                if parameter == name and not same_number(mx, float(wanted)):
+                    problems.append(f"{where}: max {mx}, expected {wanted}")
             counted += 1
     return counted, problems
 
@@ -206,6 +210,7 @@ def main():
         parser.add_argument(name, type=int)
     parser.add_argument("token_file")
     parser.add_argument("--expect-unit", action="append", default=[])
+    parser.add_argument("--expect-max", action="append", default=[])
     parser.add_argument("--write", nargs=2, metavar=("DEVICE", "PARAMETER=VALUE"))
     args = parser.parse_args()
     retained = Retained(args.mqtt_port)

@@ -4,8 +4,8 @@
 # discovery; cross_front_check.py reads every polled value through the HTTP API, MQTT and its
 # /meta, the discovery documents, /metrics, `loopwire read --json`, `loopwire monitor --format csv`
 # and the public library, and wants the same text, unit, numeric limits and status from all.
-# Then the TC10's unit word is changed (°C to °F) through the HTTP API and every front must
-# follow.
+# Then the TC10's unit word is changed (°C to °F), and the word bounding its set point, through
+# the HTTP API, and every front must follow.
 set -u
 loopwire=${1:?usage: cross_front_test.sh path/to/loopwire path/to/api_read_by_name}
 read_by_name=${2:?usage: cross_front_test.sh path/to/loopwire path/to/api_read_by_name}
@@ -75,4 +75,7 @@ run_checker() {
 run_checker every-front-agrees --expect-unit measured_value=°C
 run_checker every-front-follows-the-unit-word --write oven temperature_unit=F --expect-unit measured_value=°F \
   --expect-unit set_point=°F
+# A write of the word that bounds the set point (SP.HL, not polled itself): every front's limit
+# follows at the next poll, not at the bounds' 5-minute refresh.
+run_checker every-front-follows-a-new-limit --write oven set_point_high_limit=650 --expect-max set_point=650
 finish
