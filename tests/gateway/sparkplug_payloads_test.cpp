@@ -159,6 +159,36 @@ TEST(SparkplugPayloads, ABirthCarriesNameDatatypeAndProperties) {
     EXPECT_EQ(property(out, "Quality")->int_value(), 192u);
 }
 
+// engLow/engHigh are the limits the device holds (its SP.LL/SP.HL, resolved by the polls), as
+// the API, MQTT and Home Assistant give them, not the profile's default.
+TEST(SparkplugPayloads, ABirthCarriesTheDevicesOwnLimits) {
+    const auto tc10 = profile("tc10");
+    ASSERT_TRUE(tc10);
+    const auto& sp = device::testing::parameter(*tc10, "set_point");
+    std::uint64_t alias = 3;
+    const auto metric = parameter_metrics(sp, alias).front();
+    device::EngineeringValue value;
+    value.value = 200.0;
+    value.unit = "°C";
+    auto change = change_of(sp, value, "200");
+    change.limits = {-50.0, 650.0};
+    const auto properties = properties_of(metric, &change);
+    ASSERT_TRUE(properties.low && properties.high);
+    EXPECT_DOUBLE_EQ(*properties.low, -50.0);
+    EXPECT_DOUBLE_EQ(*properties.high, 650.0);
+
+    PayloadWriter writer(5, 1);
+    writer.birth_metric(metric, sample_of(metric, change), &properties);
+    const auto out = decoded(writer).metrics(0);
+    ASSERT_NE(property(out, "engHigh"), nullptr);
+    EXPECT_DOUBLE_EQ(property(out, "engHigh")->double_value(), 650.0);
+    ASSERT_NE(property(out, "engLow"), nullptr);
+    EXPECT_DOUBLE_EQ(property(out, "engLow")->double_value(), -50.0);
+
+    change.limits = {-50.0, 500.0};
+    EXPECT_NE(properties_of(metric, &change), properties) << "a new limit is a new birth";
+}
+
 TEST(SparkplugPayloads, CommandsAreDecodedAndTurnedIntoWriteTexts) {
     const auto ac20 = profile("ac20");
     ASSERT_TRUE(ac20);

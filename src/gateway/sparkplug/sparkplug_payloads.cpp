@@ -212,8 +212,11 @@ MetricProperties properties_of(const MetricDefinition& metric, const ValueChange
     } else if (latest && latest->value && std::holds_alternative<double>(latest->value->value)) {
         properties.decimals = decimals_in(latest->text);
     }
-    properties.low = fixed_limit(parameter, parameter.min, properties.decimals);
-    properties.high = fixed_limit(parameter, parameter.max, properties.decimals);
+    // The limits as the device holds them (a set point's SP.LL and SP.HL), as every other front
+    // shows them; the profile's fixed ones until the polls know them. A change is a new birth.
+    const device::ValueLimits known = latest ? latest->limits : device::ValueLimits{};
+    properties.low = known.min ? known.min : fixed_limit(parameter, parameter.min, properties.decimals);
+    properties.high = known.max ? known.max : fixed_limit(parameter, parameter.max, properties.decimals);
     return properties;
 }
 
