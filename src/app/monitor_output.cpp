@@ -4,6 +4,7 @@
 
 #include <fmt/format.h>
 
+#include "client/device_status.hpp"
 #include "common/time_text.hpp"
 #include "profile/value_format.hpp"
 
@@ -18,9 +19,10 @@ std::string age_text(const device::WatchedValue& value, device::MonitorClock::ti
 
 // "tc10@3  ok  errors 0", or for a unit in trouble also when it is tried next and why.
 std::string device_line(const device::WatchedDevice& device, device::MonitorClock::time_point now) {
-    std::string line = fmt::format("{}  {}  errors {}", device.label, device.status, device.errors);
+    std::string line =
+        fmt::format("{}  {}  errors {}", device.label, device::status_text(device.status), device.errors);
     if (const auto retry = device::retry_in(device, now)) line += fmt::format("  retry in {:.1f}s", *retry);
-    if (device.status != "ok") line += "  " + device.last_error.substr(0, 60);
+    if (device.status != device::DeviceStatus::ok) line += "  " + device.last_error.substr(0, 60);
     return line;
 }
 

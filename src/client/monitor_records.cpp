@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "client/device_status.hpp"
 #include "common/time_text.hpp"
 #include "profile/value_format.hpp"
 
@@ -45,8 +46,8 @@ nlohmann::ordered_json sample_json(const SampleView& sample, TimeStyle time) {
     for (const auto& device : *sample.devices) {
         nlohmann::ordered_json values = nlohmann::ordered_json::object();
         for (const auto& value : device.values) values[value.parameter->name] = value_entry(device, value, sample.now);
-        devices[device.label] = {{"status", device.status}, {"errors", device.errors}};
-        if (device.status != "ok") devices[device.label]["error"] = device.last_error;
+        devices[device.label] = {{"status", status_text(device.status)}, {"errors", device.errors}};
+        if (device.status != DeviceStatus::ok) devices[device.label]["error"] = device.last_error;
         if (const auto retry = retry_in(device, sample.now)) devices[device.label]["retry_in"] = *retry;
         devices[device.label]["values"] = values;
     }
@@ -73,7 +74,7 @@ std::string csv_header(const std::vector<WatchedDevice>& devices) {
 std::string csv_row(const SampleView& sample, TimeStyle time) {
     std::vector<std::string> fields{iso8601(sample.time, time == TimeStyle::utc), std::to_string(sample.index)};
     for (const auto& device : *sample.devices) {
-        fields.push_back(device.status);
+        fields.emplace_back(status_text(device.status));
         fields.push_back(std::to_string(device.errors));
         for (const auto& value : device.values) {
             fields.push_back(value.fresh ? csv_field(csv_value(*value.parameter, *value.last)) : "");

@@ -33,10 +33,10 @@ void record_value(WatchedValue& value, const device::ParameterReading* reading, 
 }
 
 // A poll that read nothing: every value keeps its last reading, none is fresh.
-void record_failed_poll(WatchedDevice& device, std::string status, const std::string& failure) {
+void record_failed_poll(WatchedDevice& device, DeviceStatus status, const std::string& failure) {
     ++device.polls;
     ++device.errors;
-    device.status = std::move(status);
+    device.status = status;
     device.last_error = failure;
     for (auto& value : device.values) {
         value.fresh = false;
@@ -47,7 +47,9 @@ void record_failed_poll(WatchedDevice& device, std::string status, const std::st
 
 }  // namespace
 
-void record_line_down(WatchedDevice& device, const std::string& failure) { record_failed_poll(device, "line-down", failure); }
+void record_line_down(WatchedDevice& device, const std::string& failure) {
+    record_failed_poll(device, DeviceStatus::line_down, failure);
+}
 
 void record_outcome(WatchedDevice& device, const device::ReadReport& report, const std::optional<Error>& stopped_by,
                     MonitorClock::time_point now) {
@@ -59,7 +61,7 @@ void record_outcome(WatchedDevice& device, const device::ReadReport& report, con
 
 void record_poll(WatchedDevice& device, const device::ReadReport& report, bool answered, const std::string& failure,
                  MonitorClock::time_point now) {
-    if (!answered) return record_failed_poll(device, "no-reply", failure);
+    if (!answered) return record_failed_poll(device, DeviceStatus::no_reply, failure);
     ++device.polls;
     for (const auto& [name, raw] : report.raw) device.known.insert_or_assign(name, raw);
     bool all_read = true;
@@ -71,11 +73,11 @@ void record_poll(WatchedDevice& device, const device::ReadReport& report, bool a
         ++device.errors;
         device.last_error = report.first_error ? report.first_error->message : "a value could not be decoded";
     }
-    device.status = all_read ? "ok" : "partial";
+    device.status = all_read ? DeviceStatus::ok : DeviceStatus::partial;
 }
 
 void record_skipped(WatchedDevice& device) {
-    device.status = "waiting";
+    device.status = DeviceStatus::waiting;
     for (auto& value : device.values) {
         value.fresh = false;
         value.changed = false;
@@ -90,11 +92,9 @@ std::optional<double> age_seconds(const WatchedValue& value, MonitorClock::time_
 
 std::string value_status(const WatchedDevice& device, const WatchedValue& value) {
     if (value.fresh) return value.last->status;
-    if (device.status == "no-reply" || device.status == "line-down" || device.status == "waiting" ||
-        device.status == "stale") {
-        return device.status;
-    }
-    return "error";
+    // A device that answered did not give this value; otherwise the device's status says why.
+    if (answered(device.status)) return std::string(failed_value_status);
+    return std::string(status_text(device.status));
 }
 
 }  // namespace loopwire::device

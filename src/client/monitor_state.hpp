@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "client/device_client.hpp"
+#include "client/device_status.hpp"
 
 namespace loopwire::device {
 
@@ -21,15 +22,12 @@ struct WatchedValue {
     std::string error;     // why it is not fresh, when it is not
 };
 
-// "ok": every value read; "partial": the device answered but some values failed (exception,
-// undecodable word); "no-reply": this sample's poll timed out; "line-down": the link the device
-// is on failed or is down, so it could not be asked; "waiting": not polled this sample because
-// the device is in back-off after failing. The gateway adds "stale" (gateway/value_cache.hpp):
-// its last poll answered but the next is long overdue.
+// Its status (client/device_status.hpp) says whether the latest poll read everything, part, or
+// nothing and why; the gateway alone sets `stale` (gateway/value_cache.hpp).
 struct WatchedDevice {
     std::string label;  // "tc10@3"
     std::vector<WatchedValue> values;
-    std::string status = "waiting";
+    DeviceStatus status = DeviceStatus::waiting;
     unsigned errors = 0;  // failed polls so far
     unsigned polls = 0;
     // Samples of the fixed schedule it missed: the sample before ran past their start.
@@ -63,8 +61,14 @@ void record_skipped(WatchedDevice& device);
 // Seconds since the value was last read, or nothing when it never was.
 std::optional<double> age_seconds(const WatchedValue& value, MonitorClock::time_point now);
 
+// A value's status when the device answered but did not give that value (an exception, an
+// undecodable word): the value failed, not the device.
+inline constexpr std::string_view failed_value_status = "error";
+
 // The status shown for one value: the value's own ("ok", a special state such as
-// "under-range") when fresh, else why it is not ("no-reply", "line-down", "waiting", "stale", "error").
+// "under-range") when fresh, else why it is not: the device's status unless its latest poll
+// answered and is not overdue ("no-reply", "line-down", "waiting", "stale"), else
+// failed_value_status ("error").
 std::string value_status(const WatchedDevice& device, const WatchedValue& value);
 
 }  // namespace loopwire::device

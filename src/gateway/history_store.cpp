@@ -4,6 +4,8 @@
 
 #include <fmt/format.h>
 
+#include "client/device_status.hpp"
+#include "client/monitor_state.hpp"
 #include "gateway/history_query.hpp"
 #include "gateway/history_schema.hpp"
 #include "gateway/postgres_history_query.hpp"
@@ -304,7 +306,10 @@ namespace {
 // reading nobody made, which is how a frozen value used to look fresh for minutes.
 bool repeatable(const std::optional<std::string>& status) {
     if (!status) return true;  // "ok"
-    return *status != "stale" && *status != "no-reply" && *status != "error" && *status != "waiting";
+    using device::DeviceStatus;
+    const auto is = [&](DeviceStatus device_status) { return *status == device::status_text(device_status); };
+    return !is(DeviceStatus::stale) && !is(DeviceStatus::no_reply) && *status != device::failed_value_status &&
+           !is(DeviceStatus::waiting);
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "client/device_status.hpp"
 #include "client/monitor_state.hpp"
 #include "client/resolved_value.hpp"
 #include "common/peer_text.hpp"
@@ -310,7 +311,8 @@ HttpResponse HttpApi::State::devices_list() const {
                             {"title", device.address.profile->title},
                             {"line", device.line},
                             {"unit", device.address.unit},
-                            {"status", cached != snapshot.end() ? cached->state.status : std::string("waiting")}});
+                            {"status", device::status_text(cached != snapshot.end() ? cached->state.status
+                                                                                    : device::DeviceStatus::waiting)}});
     }
     return json_response(200, list);
 }
@@ -321,8 +323,9 @@ HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const
     const device::Profile& profile = *device.address.profile;
     Json out{{"name", device.name}, {"device", profile.id}, {"title", profile.title}, {"line", device.line},
              {"unit", device.address.unit}};
-    out["status"] = cached ? cached->state.status : std::string("waiting");
-    out["error"] = cached && cached->state.status != "ok" ? cached->state.last_error : std::string();
+    out["status"] = device::status_text(cached ? cached->state.status : device::DeviceStatus::waiting);
+    out["error"] =
+        cached && cached->state.status != device::DeviceStatus::ok ? cached->state.last_error : std::string();
     out["sampled"] = cached ? Json(iso_time(cached->sampled)) : Json(nullptr);
     Json groups = Json::array();
     Json parameters = Json::array();
@@ -344,7 +347,9 @@ HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const
                {"description", parameter.description}, {"unit", resolved.unit}, {"polled", polled}};
         p["value"] = last ? value_json(*last) : Json(nullptr);
         p["text"] = resolved.text;
-        p["status"] = watched ? device::value_status(cached->state, *watched) : std::string(polled ? "waiting" : "not-polled");
+        // A polled parameter not in the cache yet waits for its device's first poll.
+        p["status"] = watched ? device::value_status(cached->state, *watched)
+                              : std::string(polled ? device::status_text(device::DeviceStatus::waiting) : "not-polled");
         const auto age = watched ? device::age_seconds(*watched, now) : std::nullopt;
         p["age"] = age ? Json(*age) : Json(nullptr);
         p["error"] = watched && !watched->fresh ? watched->error : std::string();

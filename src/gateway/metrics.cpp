@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <functional>
+#include <iterator>
 #include <variant>
 
 #include <fmt/format.h>
 
+#include "client/device_status.hpp"
 #include "client/monitor_state.hpp"
 #include "profile/value_format.hpp"
 
@@ -48,9 +50,19 @@ void sample(std::string& out, const char* name, const std::string& labels, Value
 
 double seconds(std::chrono::microseconds time) { return static_cast<double>(time.count()) / 1e6; }
 
-// The statuses a device can have (client/monitor_state.hpp): each gets its sample, 1 for the
-// current one, so that a query can select on status without the series coming and going.
-constexpr const char* device_statuses[] = {"ok", "partial", "no-reply", "line-down", "stale", "waiting"};
+// The statuses a device can have (client/device_status.hpp): each gets its sample, 1 for the
+// current one, so that a query can select on status without the series coming and going. In
+// the order the samples have always come in.
+constexpr device::DeviceStatus device_statuses[] = {device::DeviceStatus::ok,       device::DeviceStatus::partial,
+                                                    device::DeviceStatus::no_reply, device::DeviceStatus::line_down,
+                                                    device::DeviceStatus::stale,    device::DeviceStatus::waiting};
+constexpr bool each_status_once() {
+    for (const device::DeviceStatus status : device::all_device_statuses) {
+        if (std::count(std::begin(device_statuses), std::end(device_statuses), status) != 1) return false;
+    }
+    return std::size(device_statuses) == std::size(device::all_device_statuses);
+}
+static_assert(each_status_once(), "every status has its sample, once");
 
 // The Modbus TCP front's connections ([modbus_tcp] max_connections and idle_timeout at work).
 void front_connections(std::string& out, const FrontReport& front) {
@@ -101,7 +113,9 @@ void poll_shortfall(std::string& out, const std::vector<LineReport>& lines, cons
     for (const auto& line : lines) {
         unsigned stale = 0;
         for (std::size_t i = 0; i < devices.size(); ++i) {
-            if (devices[i].line == line.name && found[i] && found[i]->state.status == "stale") ++stale;
+            if (devices[i].line == line.name && found[i] && found[i]->state.status == device::DeviceStatus::stale) {
+                ++stale;
+            }
         }
         sample(out, "line_devices_stale", fmt::format("line=\"{}\"", label(line.name)), stale);
     }
@@ -202,9 +216,10 @@ std::string prometheus_text(const std::vector<LineReport>& lines, const std::vec
 
     family(out, "device_status", "gauge", "1 for the device's status now (ok, partial, no-reply, line-down, stale, waiting), 0 for the others.");
     for (std::size_t i = 0; i < devices.size(); ++i) {
-        const std::string status = found[i] ? found[i]->state.status : "waiting";
-        for (const char* candidate : device_statuses) {
-            sample(out, "device_status", fmt::format("device=\"{}\",status=\"{}\"", label(devices[i].name), candidate),
+        const device::DeviceStatus status = found[i] ? found[i]->state.status : device::DeviceStatus::waiting;
+        for (const device::DeviceStatus candidate : device_statuses) {
+            sample(out, "device_status",
+                   fmt::format("device=\"{}\",status=\"{}\"", label(devices[i].name), device::status_text(candidate)),
                    status == candidate ? 1 : 0);
         }
     }

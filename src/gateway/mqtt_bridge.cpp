@@ -16,6 +16,7 @@
 #include <mosquitto.h>
 #include <nlohmann/json.hpp>
 
+#include "client/device_status.hpp"
 #include "common/peer_text.hpp"
 #include "gateway/mqtt_client.hpp"
 #include "gateway/mqtt_commands.hpp"
@@ -45,11 +46,17 @@ constexpr int goodbye_turn_ms = 50;
 // "line-down" (the cable or adapter, not the device, is what to look at; the value's meta gives
 // the reason) or "stale" (its poll is overdue: its values may no longer be the device's;
 // value_cache.hpp).
-std::string device_status_word(const std::string& status) {
-    if (status == "ok") return "online";
-    if (status == "no-reply") return "offline";
-    if (status == "partial") return "error";
-    return status;
+// "waiting" is never published: a device skipped in back-off keeps its last word.
+std::string device_status_word(device::DeviceStatus status) {
+    switch (status) {
+        case device::DeviceStatus::ok: return "online";
+        case device::DeviceStatus::no_reply: return "offline";
+        case device::DeviceStatus::partial: return "error";
+        case device::DeviceStatus::line_down:
+        case device::DeviceStatus::stale:
+        case device::DeviceStatus::waiting: return std::string(device::status_text(status));
+    }
+    return std::string(device::status_text(status));  // not reached: every status is handled above
 }
 
 struct Publication {
@@ -96,7 +103,7 @@ std::uint64_t command_digest(std::string_view topic, std::string_view payload) {
 
 // What the last poll said about a device.
 struct DeviceSeen {
-    std::string status;  // "ok", "partial", "no-reply", "line-down", "stale"
+    device::DeviceStatus status = device::DeviceStatus::waiting;
     std::string error;
 };
 
@@ -174,8 +181,9 @@ struct MqttBridge::State {
         assert(topic_level(change.device) && (change.about_device() || topic_level(change.parameter)));
         if (change.about_device()) {
             std::lock_guard lock(mutex);
-            devices[change.device] = {change.status, change.error};
-            queue_locked({topic(change.device, "status"), device_status_word(change.status), true, qos_at_least_once});
+            devices[change.device] = {change.device_status, change.error};
+            queue_locked(
+                {topic(change.device, "status"), device_status_word(change.device_status), true, qos_at_least_once});
             return;
         }
         const std::string base = topic(change.device, change.parameter);
@@ -422,7 +430,7 @@ struct MqttBridge::State {
     std::optional<std::string> not_answering(const std::string& device) {
         std::lock_guard lock(mutex);
         const auto found = devices.find(device);
-        if (found == devices.end() || found->second.status != "no-reply") return std::nullopt;
+        if (found == devices.end() || found->second.status != device::DeviceStatus::no_reply) return std::nullopt;
         return fmt::format("device {} does not answer ({}); nothing was sent: write again once {} is \"online\"", device,
                            found->second.error.empty() ? "its polls time out" : found->second.error,
                            topic(device, "status"));

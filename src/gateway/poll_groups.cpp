@@ -12,6 +12,8 @@
 #include <boost/asio/steady_timer.hpp>
 #include <fmt/format.h>
 
+#include "client/device_status.hpp"
+
 namespace loopwire::gateway {
 namespace {
 
@@ -72,8 +74,8 @@ private:
     void note_answering(std::size_t i, const device::WatchedDevice& device) {
         // Not polled this time, or the poll could not reach it (the line logs that itself):
         // nothing new about whether the device answers.
-        if (device.status == "waiting" || device.status == "line-down") return;
-        const bool answers = device.status != "no-reply";
+        if (!device::polled(device.status) || device.status == device::DeviceStatus::line_down) return;
+        const bool answers = device.status != device::DeviceStatus::no_reply;
         if (answering_[i] == answers) return;
         const bool first = !answering_[i].has_value();
         answering_[i] = answers;

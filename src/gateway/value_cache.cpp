@@ -61,11 +61,11 @@ using detail::ValueHub;
 using detail::ValueSubscriber;
 using SystemTime = std::chrono::system_clock::time_point;
 
-// "waiting": the poller skipped a device in back-off; it learned nothing new about it.
-bool polled(const device::WatchedDevice& state) { return state.status != "waiting"; }
+// Not `waiting`: the poller did not skip the device in back-off, so it learned something new.
+bool polled(const device::WatchedDevice& state) { return device::polled(state.status); }
 
 // Values were read: what can go stale.
-bool answered(const device::WatchedDevice& state) { return state.status == "ok" || state.status == "partial"; }
+bool answered(const device::WatchedDevice& state) { return device::answered(state.status); }
 
 // When the device's last answered poll is overdue by more than the allowance; none when it
 // cannot go stale (no interval declared, no answer to be stale).
@@ -94,7 +94,7 @@ std::string overdue_reason(const DeviceEntry& entry, Instant now) {
 // age, for those who ask for the detail), the device stale.
 device::WatchedDevice stale_state(const device::WatchedDevice& polled_state, const std::string& why) {
     device::WatchedDevice state = polled_state;
-    state.status = "stale";
+    state.status = device::DeviceStatus::stale;
     state.last_error = why;
     for (device::WatchedValue& value : state.values) {
         value.fresh = false;
@@ -116,8 +116,9 @@ CachedDevice as_seen(const DeviceEntry& entry, Instant now) {
 ValueChange device_change(const std::string& name, const device::WatchedDevice& state, SystemTime sampled) {
     ValueChange change;
     change.device = name;
-    change.status = state.status;
-    if (state.status != "ok") change.error = state.last_error;
+    change.device_status = state.status;
+    change.status = device::status_text(state.status);
+    if (state.status != device::DeviceStatus::ok) change.error = state.last_error;
     change.sampled = sampled;
     return change;
 }

@@ -37,7 +37,7 @@ constexpr int overdue_intervals_allowed = 2;
 // One device as the last poll found it, or `stale` when that poll is overdue (above).
 struct CachedDevice {
     std::string name;             // the configured device name
-    device::WatchedDevice state;  // values, status ("ok", "no-reply", "stale", ...), errors
+    device::WatchedDevice state;  // values, status (ok, no_reply, stale, ...), errors
     std::chrono::system_clock::time_point sampled;
     std::chrono::milliseconds interval{0};  // how often it is polled; 0 when not declared
     // Since its last poll that answered, on the cache's clock; none before one, and after a
@@ -56,10 +56,12 @@ struct ValueChange {
     // A number's limits in engineering units as the device holds them (device::limits_of over
     // every word the polls read): what the API, /meta and Home Assistant's number all show.
     device::ValueLimits limits = {};
-    // A value's: "ok", its special state ("under-range", ...), "no-reply", "error" or "stale".
-    // The device's: "ok", "partial" (some values failed), "no-reply" or "stale". A stale value
-    // carries no value: the last one read is no longer known to be the device's.
+    // A value's: "ok", its special state ("under-range", ...), "no-reply", "error" or "stale"
+    // (device::value_status). The device's: the text of device_status. A stale value carries no
+    // value: the last one read is no longer known to be the device's.
     std::string status;
+    // The device's status, when this is about the device (its text is `status`).
+    device::DeviceStatus device_status = device::DeviceStatus::waiting;
     // Why there is no value, or why the device is not "ok".
     std::string error;
     // When the sample that found it started; for a change to `stale`, when it was found stale.

@@ -54,7 +54,7 @@ TEST(MonitorState, AnsweredPollMakesValuesFreshAndMarksChangedRawWords) {
     auto device = device::watch("rampsoak@5", {p->find("output_percentage"), p->find("controller_status")});
     const auto t0 = device::MonitorClock::now();
     device::record_poll(device, report_of(*p, {{"output_percentage", 125}, {"controller_status", 0}}), true, {}, t0);
-    EXPECT_EQ(device.status, "ok");
+    EXPECT_EQ(device.status, device::DeviceStatus::ok);
     EXPECT_TRUE(device.values[0].fresh);
     EXPECT_FALSE(device.values[0].changed);  // the first reading has nothing to differ from
     device::record_poll(device, report_of(*p, {{"output_percentage", 130}, {"controller_status", 0}}), true, {}, t0 + 1s);
@@ -70,7 +70,7 @@ TEST(MonitorState, UnansweredPollKeepsTheOldValueButNeverAsCurrent) {
     const auto t0 = device::MonitorClock::now();
     device::record_poll(device, report_of(*p, {{"output_percentage", 125}}), true, {}, t0);
     device::record_poll(device, device::ReadReport{}, false, "no reply from unit 5", t0 + 2s);
-    EXPECT_EQ(device.status, "no-reply");
+    EXPECT_EQ(device.status, device::DeviceStatus::no_reply);
     EXPECT_EQ(device.errors, 1u);
     EXPECT_FALSE(device.values[0].fresh);
     EXPECT_EQ(device::value_status(device, device.values[0]), "no-reply");
@@ -106,7 +106,7 @@ TEST(MonitorState, ValuesTheDeviceRefusedShowAsErrorsWhileTheRestIsCurrent) {
     report.readings.push_back(device::ParameterReading{p->find("controller_status"), std::nullopt, "exception 2"});
     report.first_error = make_error(ErrorKind::exception, "exception 2");
     device::record_poll(device, report, true, {}, device::MonitorClock::now());
-    EXPECT_EQ(device.status, "partial");
+    EXPECT_EQ(device.status, device::DeviceStatus::partial);
     EXPECT_EQ(device.errors, 1u);
     EXPECT_TRUE(device.values[0].fresh);
     EXPECT_EQ(device::value_status(device, device.values[1]), "error");

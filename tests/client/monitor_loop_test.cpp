@@ -79,7 +79,7 @@ TEST(MonitorLoop, APollThatFailsOnTheLinkIsLineDownNotNoReply) {
     const auto states = run(target, 3);
     ASSERT_EQ(states.size(), 3u);
     for (const auto& state : states) {
-        EXPECT_EQ(state.status, "line-down");
+        EXPECT_EQ(state.status, DeviceStatus::line_down);
         EXPECT_EQ(state.last_error, "line furnace (rtu:/dev/ttyUSB0) is down: no such port; retrying in 4 s");
         EXPECT_EQ(value_status(state, state.values.at(0)), "line-down");
         EXPECT_FALSE(state.next_try) << "the device backed off for its line";
@@ -93,7 +93,7 @@ TEST(MonitorLoop, WithHeldUntilASilentDeviceIsPolledWheneverTheCarrierSaysSo) {
     target.held_until = [] { return std::optional<MonitorClock::time_point>(); };
     const auto states = run(target, 4);
     ASSERT_EQ(states.size(), 4u);
-    for (const auto& state : states) EXPECT_EQ(state.status, "no-reply");
+    for (const auto& state : states) EXPECT_EQ(state.status, DeviceStatus::no_reply);
     EXPECT_EQ(master.requests, 4u) << "the poller backed off on its own as well";
 }
 
@@ -105,7 +105,7 @@ TEST(MonitorLoop, WhileHeldTheDeviceIsSkippedAndTheTimeIsTheCarriers) {
     const auto states = run(target, 2);
     ASSERT_EQ(states.size(), 2u);
     for (const auto& state : states) {
-        EXPECT_EQ(state.status, "waiting");
+        EXPECT_EQ(state.status, DeviceStatus::waiting);
         EXPECT_EQ(state.next_try, until);
     }
     EXPECT_EQ(master.requests, 0u);

@@ -155,7 +155,7 @@ device::WatchedDevice cached_state(Gateway& gateway, const std::string& name) {
 // Its status, or "" before its first poll has put it in the cache (for waits).
 std::string cached_status(Gateway& gateway, const std::string& name) {
     for (const auto& device : gateway.values()) {
-        if (device.name == name) return device.state.status;
+        if (device.name == name) return std::string(device::status_text(device.state.status));
     }
     return {};
 }
@@ -220,7 +220,7 @@ Truth write_constants(RunningGateway& running, const std::vector<PlantDevice>& d
 // Whether the cache shows `name` answering, every value fresh and as the device holds it.
 bool cached_ok(RunningGateway& running, const Truth& truth, const std::string& name) {
     const auto state = cached_state(running.gateway(), name);
-    if (state.status != "ok") return false;
+    if (state.status != device::DeviceStatus::ok) return false;
     for (const auto& value : state.values) {
         if (!value.fresh || shown(*value.parameter, *value.last) != truth.at(name).at(value.parameter->name)) {
             return false;
@@ -243,13 +243,13 @@ struct Audit {
         const auto fail = [&](const std::string& what) {
             wrong.push_back(fmt::format("{}: {} {}", where, device.label, what));
         };
-        if (device.status != "ok") {
+        if (device.status != device::DeviceStatus::ok) {
             ++failures;
-            if (device.last_error.empty()) fail(device.status + " with no error");
+            if (device.last_error.empty()) fail(std::string(device::status_text(device.status)) + " with no error");
         }
         for (const auto& value : device.values) {
             const std::string& name = value.parameter->name;
-            if (device.status == "ok" && !value.fresh) fail(name + " not fresh in an ok poll");
+            if (device.status == device::DeviceStatus::ok && !value.fresh) fail(name + " not fresh in an ok poll");
             if (!value.fresh && value.error.empty()) fail(name + " stale with no reason");
             if (!value.last) {
                 if (value.fresh) fail(name + " fresh without a value");
@@ -396,7 +396,8 @@ PollOutcomes poll_outcomes(const std::vector<Sample>& samples) {
     PollOutcomes outcomes;
     for (const auto& sample : samples) {
         for (std::size_t i = 0; i < sample.devices.size(); ++i) {
-            ++(sample.devices[i].status == "ok" ? outcomes.ok : outcomes.failed)[three_devices.at(i).name];
+            const bool ok = sample.devices[i].status == device::DeviceStatus::ok;
+            ++(ok ? outcomes.ok : outcomes.failed)[three_devices.at(i).name];
         }
     }
     return outcomes;
@@ -553,7 +554,8 @@ TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItRe
     const auto died = Clock::now();
     dead->unit = 2;
     constexpr auto window = 2400ms;
-    ASSERT_TRUE(wait_until([&] { return cached_state(running.gateway(), "kiln").status == "no-reply"; }, 5s))
+    ASSERT_TRUE(wait_until(
+        [&] { return cached_state(running.gateway(), "kiln").status == device::DeviceStatus::no_reply; }, 5s))
         << "the cache never showed the kiln as not answering";
     const auto silent = Clock::now();
     std::this_thread::sleep_until(died + window);
@@ -568,8 +570,9 @@ TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItRe
             const auto& name = devices[i].name;
             const auto& device = sample.devices.at(i);
             polls.check(device, truth.at(name), fmt::format("sample at {:.2f} s", seconds(sample.arrived - died)));
-            if (name == "kiln" && sample.arrived > silent) fresh_after_silence += device.status == "ok";
-            if (device.status != "ok") continue;
+            const bool ok = device.status == device::DeviceStatus::ok;
+            if (name == "kiln" && sample.arrived > silent) fresh_after_silence += ok;
+            if (!ok) continue;
             ++fresh[name];
             const auto since = last_fresh.count(name) ? last_fresh[name] : died;
             longest_gap[name] = std::max(longest_gap[name], sample.arrived - since);
@@ -734,7 +737,7 @@ TEST(GatewayOnFaultyBus, ARequestTheDeviceIgnoresCostsItsClientA0BhNotTheDeviceI
     ASSERT_TRUE(wait_until([&] { return cached_state(running.gateway(), "furnace").polls >= polls + 5; }, 30s))
         << "the polls stopped";
     for (const auto& sample : samples.between(asked, Clock::now())) {
-        EXPECT_EQ(sample.devices.at(0).status, "ok") << sample.devices.at(0).last_error;
+        EXPECT_EQ(sample.devices.at(0).status, device::DeviceStatus::ok) << sample.devices.at(0).last_error;
     }
     const auto statuses = seen.statuses();
     ASSERT_FALSE(statuses.empty());  // the subscription starts with the current state

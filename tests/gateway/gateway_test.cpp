@@ -217,7 +217,7 @@ TEST(Gateway, TenClientsReadingBackToBackDoNotStopThePolls) {
     double oldest = 0;
     while (std::chrono::steady_clock::now() < watch_until) {
         const CachedDevice seen = gateway.values().at(0);
-        ASSERT_EQ(seen.state.status, "ok") << seen.state.last_error;
+        ASSERT_EQ(seen.state.status, device::DeviceStatus::ok) << seen.state.last_error;
         const auto age = device::age_seconds(seen.state.values.at(0), device::MonitorClock::now());
         ASSERT_TRUE(age);
         oldest = std::max(oldest, *age);

@@ -898,7 +898,7 @@ TEST(PrometheusText, AValueIsExportedOnlyWhileTheLatestPollReadIt) {
     const device::Parameter& pv = device::testing::parameter(*profile, "measured_value");
     const device::Parameter& sp = device::testing::parameter(*profile, "set_point");
     device::WatchedDevice state = device::watch("tc10@3", {&pv, &sp});
-    state.status = "partial";
+    state.status = device::DeviceStatus::partial;
     state.values[0].last = device::EngineeringValue{181.5, "ok", 1815, "°C"};
     state.values[0].fresh = true;
     state.values[0].read_at = device::MonitorClock::now() - 2s;
@@ -912,7 +912,7 @@ TEST(PrometheusText, AValueIsExportedOnlyWhileTheLatestPollReadIt) {
     EXPECT_THAT(text, HasSubstr("loopwire_value_age_seconds{device=\"oven\",parameter=\"measured_value\",unit=\"°C\"} 2."));
     EXPECT_THAT(text, Not(HasSubstr("parameter=\"set_point\""))) << "a value the latest poll did not read";
 
-    oven.state.status = "stale";
+    oven.state.status = device::DeviceStatus::stale;
     for (auto& value : oven.state.values) value.fresh = false;
     const std::string stale = prometheus_text({}, {{"oven", "sim"}}, {oven}, nullptr);
     EXPECT_THAT(stale, Not(HasSubstr("loopwire_value{"))) << stale;
@@ -975,7 +975,7 @@ device = "tc10@3"
         const device::Parameter* measured = (*profile)->find("measured_value");
         ASSERT_NE(measured, nullptr);
         device::WatchedDevice state = device::watch("tc10@3", {measured});
-        state.status = "ok";
+        state.status = device::DeviceStatus::ok;
         state.values[0].last = device::EngineeringValue{value, "ok", 0, ""};
         state.values[0].fresh = true;
         state.values[0].read_at = device::MonitorClock::now();

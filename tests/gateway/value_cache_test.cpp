@@ -193,7 +193,7 @@ TEST(ValueCache, ASampleThatSkipsADeviceInBackOffTellsNothing) {
     EXPECT_TRUE(told.changes.empty()) << told.names().size();
     // Skipped in back-off it is still what its last poll found, on every front: subscribers were
     // told no-reply, and so says the snapshot (the API, /metrics), not "waiting".
-    EXPECT_EQ(cache.snapshot().at(0).state.status, "no-reply");
+    EXPECT_EQ(cache.snapshot().at(0).state.status, device::DeviceStatus::no_reply);
     cache.update("oven1", oven.answered(tenths(250), tenths(1375)), sample_time + 2s);
     EXPECT_EQ(told.names(), (std::vector<std::string>{"(ok)", "measured_value", "set_point"}));
 }
@@ -219,7 +219,7 @@ TEST_F(ValueCacheStaleness, APollMoreThanTwoIntervalsOverdueMakesTheDeviceAndIts
     clock->advance(3s);
     wall.advance(3s);
     EXPECT_TRUE(cache.mark_overdue().empty());
-    EXPECT_EQ(cache.snapshot().at(0).state.status, "ok");
+    EXPECT_EQ(cache.snapshot().at(0).state.status, device::DeviceStatus::ok);
     EXPECT_EQ(cache.snapshot().at(0).since_answered, 3s);
     EXPECT_TRUE(told.changes.empty());
 
@@ -227,7 +227,7 @@ TEST_F(ValueCacheStaleness, APollMoreThanTwoIntervalsOverdueMakesTheDeviceAndIts
     wall.advance(1ms);
     // Read from the clock at once, before any timer has told the subscribers.
     const auto seen = cache.snapshot().at(0);
-    EXPECT_EQ(seen.state.status, "stale");
+    EXPECT_EQ(seen.state.status, device::DeviceStatus::stale);
     EXPECT_NE(seen.state.last_error.find("not polled for 3.0 s (polled every 1.0 s)"), std::string::npos) << seen.state.last_error;
     const auto& measured = seen.state.values.at(0);
     EXPECT_EQ(device::value_status(seen.state, measured), "stale");
@@ -261,7 +261,7 @@ TEST_F(ValueCacheStaleness, TheNextPollMakesItOkAgain) {
     ASSERT_EQ(told.names(), (std::vector<std::string>{"(ok)", "measured_value", "set_point"}));
     EXPECT_EQ(told.changes[1].text, "397.1");
     EXPECT_EQ(told.changes[2].text, "137.5") << "an unchanged value is told again: it was stale";
-    EXPECT_EQ(cache.snapshot().at(0).state.status, "ok");
+    EXPECT_EQ(cache.snapshot().at(0).state.status, device::DeviceStatus::ok);
     EXPECT_TRUE(cache.mark_overdue().empty());
 }
 
@@ -275,9 +275,9 @@ TEST_F(ValueCacheStaleness, NoReplyAndUndeclaredDevicesDoNotGoStale) {
     cache.update("oven1", oven.backing_off(), sample_time + 1h);
     EXPECT_TRUE(cache.mark_overdue().empty());
     const auto devices = cache.snapshot();
-    EXPECT_EQ(devices.at(0).state.status, "no-reply");
+    EXPECT_EQ(devices.at(0).state.status, device::DeviceStatus::no_reply);
     EXPECT_FALSE(devices.at(0).since_answered);
-    EXPECT_EQ(devices.at(1).state.status, "ok");
+    EXPECT_EQ(devices.at(1).state.status, device::DeviceStatus::ok);
     EXPECT_EQ(devices.at(1).interval, 0ms);
 }
 
@@ -329,7 +329,7 @@ TEST(ValueCacheStalenessThreads, AStaleFoundAsAPollArrivesNeverOvertakesIt) {
     for (std::size_t i = 1; i < statuses.size(); ++i) {
         ASSERT_NE(statuses[i], statuses[i - 1]) << "told " << statuses[i] << " twice in a row at " << i;
     }
-    EXPECT_EQ(statuses.back(), cache.snapshot().at(0).state.status);
+    EXPECT_EQ(statuses.back(), device::status_text(cache.snapshot().at(0).state.status));
 }
 
 TEST(ValueCache, ALateSubscriberIsToldTheWholePictureFirst) {
@@ -361,7 +361,7 @@ TEST(ValueCache, TheSnapshotHoldsTheLastSampleOfEachDeviceInTheOrderFirstSeen) {
     EXPECT_EQ(devices[0].sampled, sample_time + 1s);
     EXPECT_EQ(devices[0].state.values.at(0).last->raw, 251);
     EXPECT_EQ(devices[1].name, "kiln");
-    EXPECT_EQ(devices[1].state.status, "no-reply");
+    EXPECT_EQ(devices[1].state.status, device::DeviceStatus::no_reply);
 }
 
 TEST(ValueCache, AnEndedSubscriptionIsToldNothingMore) {

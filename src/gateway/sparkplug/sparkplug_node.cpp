@@ -13,6 +13,7 @@
 #include <mosquitto.h>
 #include <nlohmann/json.hpp>
 
+#include "client/device_status.hpp"
 #include "common/peer_text.hpp"
 #include "gateway/mqtt_client.hpp"
 #include "gateway/sparkplug/sparkplug_payloads.hpp"
@@ -38,15 +39,18 @@ std::uint64_t now_ms() {
 }
 
 // A device's polls find it answering: it has a birth. "stale" still has one (its values are
-// sent null), "no-reply" and "line-down" are its death.
-bool alive(const std::string& status) { return status == "ok" || status == "partial" || status == "stale"; }
+// sent null), "no-reply" and "line-down" are its death, as is no status yet (the cache told
+// nothing about the device).
+bool alive(std::optional<device::DeviceStatus> status) {
+    return status && (device::answered(*status) || *status == device::DeviceStatus::stale);
+}
 
 // What the polls said last about a device: its status and each parameter's latest change, read
 // whole from the cache (ValueCache::told), never pieced together from callbacks that may be in
 // the middle of one sample's changes (a device coming back would be born with the outage's
 // nulls).
 struct DevicePicture {
-    std::string status;
+    std::optional<device::DeviceStatus> status;
     std::map<std::string, ValueChange> latest;  // by parameter name
 };
 
@@ -150,7 +154,7 @@ struct SparkplugNode::State {
         DevicePicture picture;
         for (auto& change : cache->told(device)) {
             if (change.about_device()) {
-                picture.status = change.status;
+                picture.status = change.device_status;
             } else {
                 picture.latest.insert_or_assign(change.parameter, std::move(change));
             }

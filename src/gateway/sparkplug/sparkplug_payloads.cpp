@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include "client/device_status.hpp"
 #include "common/peer_text.hpp"
 
 #include "sparkplug/sparkplug_b.pb.h"  // generated from sparkplug_b.proto
@@ -183,7 +184,7 @@ MetricSample sample_of(const MetricDefinition& metric, const ValueChange& change
     MetricSample sample;
     sample.timestamp = static_cast<std::uint64_t>(
         std::chrono::duration_cast<std::chrono::milliseconds>(change.sampled.time_since_epoch()).count());
-    if (change.status == "stale") {
+    if (change.status == device::status_text(device::DeviceStatus::stale)) {
         sample.quality = quality_stale;
     } else if (!change.value || !metric.parameter) {
         sample.quality = quality_bad;
