@@ -301,15 +301,15 @@ Result<std::uint64_t> HistoryStore::commit(const std::vector<QueuedRow>& rows) {
 namespace {
 
 // Whether a row holds what a poll read (a value, or a special state of one), which a heartbeat
-// may repeat; a row that says nothing was read (no reply, an error, a device in back-off or
-// whose poll is overdue) is not repeated: a heartbeat of it would stamp the present on a
+// may repeat; a row that says nothing was read (no reply, its line down, an error, a device in
+// back-off or whose poll is overdue) is not repeated: a heartbeat of it would stamp the present on a
 // reading nobody made, which is how a frozen value used to look fresh for minutes.
 bool repeatable(const std::optional<std::string>& status) {
     if (!status) return true;  // "ok"
     using device::DeviceStatus;
     const auto is = [&](DeviceStatus device_status) { return *status == device::status_text(device_status); };
-    return !is(DeviceStatus::stale) && !is(DeviceStatus::no_reply) && *status != device::failed_value_status &&
-           !is(DeviceStatus::waiting);
+    return !is(DeviceStatus::stale) && !is(DeviceStatus::no_reply) && !is(DeviceStatus::line_down) &&
+           *status != device::failed_value_status && !is(DeviceStatus::waiting);
 }
 
 }  // namespace

@@ -173,6 +173,24 @@ TEST(HistoryStore, AHeartbeatRewritesAValueThatHoldsStill) {
     EXPECT_EQ(buckets[2].start, t0 + 120s);
 }
 
+// A row that says nothing was read is never stamped again by a heartbeat: the present would
+// be put on a reading nobody made. Whatever the reason: no reply, a line down, an overdue poll.
+TEST(HistoryStore, AHeartbeatNeverRepeatsARowOfNothingRead) {
+    for (const char* status : {"no-reply", "line-down", "stale", "waiting", "error"}) {
+        TempFolder folder;
+        VirtualWall wall(t0);
+        auto options = options_at(folder.path / "plant.db", wall);
+        options.heartbeat = 60s;
+        auto store = open_store(options);
+        ASSERT_TRUE(store);
+        store->record(special("measured_value", status, t0, false));
+        ASSERT_TRUE(store->write_pending());
+        wall.set(t0 + 180s);
+        ASSERT_TRUE(store->write_pending());
+        EXPECT_EQ(store->rows_written(), 1u) << status << " was repeated by a heartbeat";
+    }
+}
+
 TEST(HistoryStore, SpecialStatesAreRowsButNoPartOfTheBuckets) {
     TempFolder folder;
     VirtualWall wall(t0);

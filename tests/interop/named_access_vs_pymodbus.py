@@ -44,8 +44,11 @@ def test():
         device = ["--device", f"tc10@{UNIT}"]
 
         values = support.run_loopwire(loopwire, ["read", *link, *device, "measured_value", "SP", "sp.ll", "measured_value_b", "--json"])["values"]
-        support.check_equal(values["measured_value"], {"value": 123.4, "raw": 1234, "unit": values["measured_value"]["unit"], "status": "ok"}, "measured value with dP = 1")
+        support.check_equal(values["measured_value"], {"value": 123.4, "raw": 1234, "unit": values["measured_value"]["unit"], "status": "ok",
+                                                       "text": "123.4", "min": None, "max": None}, "measured value with dP = 1")
         support.check_equal(values["set_point"]["value"], 50.0, "SP by mnemonic")
+        # Its limits as numbers, read from SP.LL and SP.HL (2000 at one decimal).
+        support.check_equal((values["set_point"]["min"], values["set_point"]["max"]), (0.0, 200.0), "SP's limits from SP.LL/SP.HL")
         support.check_equal(values["set_point_low_limit"]["value"], 0.0, "SP.LL, mnemonic in lower case")
         support.check_equal((values["measured_value_b"]["value"], values["measured_value_b"]["status"]), (None, "out-of-range"),
                             "10000 decoded as a special state")
