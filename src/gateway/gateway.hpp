@@ -29,8 +29,8 @@ struct GatewayOptions {
     GatewayLog debug_log;
     // Faults on the simulated (virtual-bus) lines' frames, for tests and benchmarks.
     transport::FaultInjector virtual_bus_faults;
-    // Also given every sample the gateway's polls take, on the polls' thread (one for every poll
-    // interval, gateway/poll_groups.hpp): the demo's live table. Must outlive the gateway.
+    // Also given every sample the gateway's polls take, on the polls' thread (one for every line
+    // and poll interval, gateway/poll_groups.hpp): the demo's live table. Must outlive the gateway.
     device::SampleSink* samples = nullptr;
     // With [modbus_tcp] enabled: the front to route the units through, kept by the caller across
     // reloads (it must listen as the configuration asks, ModbusTcpFront::listens_as, and outlive

@@ -304,13 +304,18 @@ PollGroups::PollGroups(Engine& engine, const GatewayConfig& config,
                        device::SampleSink* also)
     : engine_(engine), state_(std::make_unique<State>(engine.loop())) {
     State& state = *state_;
-    std::map<std::chrono::milliseconds, std::unique_ptr<Group>> by_interval;
-    std::map<std::chrono::milliseconds, std::vector<std::string>> names;
-    std::map<std::chrono::milliseconds, std::vector<std::string>> group_lines;
+    // A group per line and interval: a sample ends when all its devices are read, so a group
+    // spanning lines would hold a line's next polls until the slowest other line was done.
+    using Key = std::pair<std::string, std::chrono::milliseconds>;
+    std::map<Key, std::unique_ptr<Group>> by_interval;
+    std::map<Key, std::vector<std::string>> names;
+    std::chrono::milliseconds shortest = std::chrono::milliseconds::max();
     for (const auto& line : config.lines) {
         const auto& scheduler = lines.at(line.name);
         for (const auto& device : line.devices) {
-            auto& group = by_interval[device.poll];
+            const Key key{line.name, device.poll};
+            shortest = std::min(shortest, device.poll);
+            auto& group = by_interval[key];
             if (!group) group = std::make_unique<Group>(state.loop, device.poll);
             // A poll waiting longer than its interval would only be stale when it came back.
             group->masters.push_back(std::make_unique<ScheduledMaster>(scheduler, line.link.to_string(), Priority::poll, device.poll));
@@ -324,20 +329,18 @@ PollGroups::PollGroups(Engine& engine, const GatewayConfig& config,
             group->names.push_back(device.name);
             group->limits_read_at.emplace_back();
             group->reading_limits.push_back(false);
-            names[device.poll].push_back(device.name);
-            auto& on = group_lines[device.poll];
-            if (std::find(on.begin(), on.end(), line.name) == on.end()) on.push_back(line.name);
+            names[key].push_back(device.name);
             cache.expect_polls(device.name, device.poll);
         }
     }
-    for (auto& [interval, group] : by_interval) {
-        group->sink = std::make_unique<CachingSink>(interval, std::move(names[interval]), std::move(group_lines[interval]), cache,
+    for (auto& [key, group] : by_interval) {
+        group->sink = std::make_unique<CachingSink>(key.second, std::move(names[key]), std::vector<std::string>{key.first}, cache,
                                                     log, also);
         state.groups.push_back(std::move(group));
     }
     if (by_interval.empty()) return;
     // Started on the loop's thread, which alone touches the groups and their timers from now on.
-    const auto tick = staleness_tick(by_interval.begin()->first);
+    const auto tick = staleness_tick(shortest);
     asio::post(state.loop, [&state, &cache, tick, log = std::move(log)] {
         state.staleness = std::make_unique<StalenessWatch>(state.loop, cache, tick, log);
         for (auto& group : state.groups) state.start_sample(*group);

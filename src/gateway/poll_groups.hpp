@@ -1,16 +1,16 @@
 #pragma once
-// The gateway's own polling. Devices polled at the same interval form a poll group. Every group
-// runs on the gateway's event loop (gateway/engine.hpp), however many devices and intervals
-// there are: a timer
-// starts each sample on the fixed schedule of the client's poller (client/monitor_loop.hpp), its
-// devices are read at once without blocking (DeviceClient::read_async), each through its line's
-// scheduler at poll priority, where polls share the line with the clients' requests by turns
-// (line_scheduler.hpp); a silent device or a slow line delays no other line's polls. A sample
-// ends when all its devices have answered or failed. What each poll finds goes into the value
-// cache (gateway/value_cache.hpp), and a device that stops or starts answering is logged.
+// The gateway's own polling. Devices on one line polled at the same interval form a poll group.
+// Every group runs on the gateway's event loop (gateway/engine.hpp), however many devices and
+// intervals there are: a timer starts each sample on the fixed schedule of the client's poller
+// (client/monitor_loop.hpp), its devices are read at once without blocking
+// (DeviceClient::read_async), each through its line's scheduler at poll priority, where polls
+// share the line with the clients' requests by turns (line_scheduler.hpp). A sample ends when all
+// its devices have answered or failed, and the next waits for that: groups are per line so that
+// a silent device or a slow line delays no other line's polls. What each poll finds goes into the
+// value cache (gateway/value_cache.hpp), and a device that stops or starts answering is logged.
 //
 // Polls that cannot keep their rate are reported two ways. A group whose sample ran past its
-// interval (its lines cannot carry its polls beside everything else) is logged once when it
+// interval (its line cannot carry its polls beside everything else) is logged once when it
 // falls behind and once when it keeps its interval again, and its skipped samples are counted
 // in each device's `missed` (/metrics). And a timer on the same loop, a quarter of the shortest
 // interval (50 ms to 1 s), has the cache mark the devices whose poll is overdue `stale`, since

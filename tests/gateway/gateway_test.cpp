@@ -277,6 +277,37 @@ TEST(Gateway, WithAHistoryThePolledValuesAreRecorded) {
     EXPECT_EQ((*plain)->history(), nullptr);
 }
 
+// Each line keeps its own polls' pace (poll_groups.hpp): a line too slow for its devices' interval
+// skips samples, and a device polled at the same interval on a fast line of its own skips none
+// for it (once the two shared a sample, and the fast line waited for the slow one).
+TEST(Gateway, ASlowLineDoesNotHoldAnotherLinesPolls) {
+    const std::string plant =
+        "[[lines]]\nname = \"slow\"\nlink = \"rtu:virtual?baud=1200&parity=none\"\ntimeout = \"2s\"\n"
+        "[[lines.devices]]\nname = \"kiln\"\ndevice = \"rampsoak@1\"\npoll = \"200ms\"\n"
+        "[[lines]]\nname = \"fast\"\nlink = \"rtu:virtual?baud=115200&parity=none\"\ntimeout = \"2s\"\n"
+        "[[lines.devices]]\nname = \"oven\"\ndevice = \"tc10@2\"\npoll = \"200ms\"\nparameters = [\"measured_value\"]\n"
+        "[modbus_tcp]\nenabled = false\n";
+    auto config = parse_gateway_config(plant, "plant.toml", profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    auto opened = Gateway::open(*config);
+    ASSERT_TRUE(opened) << opened.error().message;
+    const auto device = [&](const std::string& name) {
+        for (const auto& cached : (*opened)->values()) {
+            if (cached.name == name) return cached.state;
+        }
+        return device::WatchedDevice{};
+    };
+    const auto give_up = std::chrono::steady_clock::now() + 30s;
+    while (device("kiln").missed < 6 && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(20ms);
+    const auto kiln = device("kiln");
+    const auto oven = device("oven");
+    std::cout << "samples skipped: kiln (slow line) " << kiln.missed << " in " << kiln.polls << " polls, oven (fast line) "
+              << oven.missed << " in " << oven.polls << " polls\n";
+    ASSERT_GE(kiln.missed, 6U) << "the slow line kept its pace: the test proves nothing";
+    EXPECT_GT(oven.polls, kiln.polls * 2) << "the fast line was held to the slow line's pace";
+    EXPECT_LT(oven.missed * 4, kiln.missed) << "the fast line skipped samples for the slow one";
+}
+
 // The threads of this process now.
 std::size_t threads_now() {
     return static_cast<std::size_t>(std::distance(std::filesystem::directory_iterator("/proc/self/task"),

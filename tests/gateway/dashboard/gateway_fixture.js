@@ -1,6 +1,8 @@
 // The real gateway for the browser tests: `loopwire gateway` on a TOML with a simulated line
-// (rtu:virtual) holding the three simulated controllers, its HTTP front on a port the kernel
-// chooses, and a token file for writes.
+// (rtu:virtual) holding three simulated controllers, a second line on a pseudo-terminal served
+// by `loopwire simulate` (a TC10 the tests can cut off by killing its simulator, and bring back),
+// its history recorded in an SQLite file, its HTTP front on a port the kernel chooses, and a
+// token file for writes.
 const { spawn } = require("node:child_process");
 const net = require("node:net");
 const fs = require("node:fs");
@@ -9,7 +11,7 @@ const path = require("node:path");
 
 const TOKEN = "dashboard-test-token";
 
-function plantToml(tokenFile, httpPort) {
+function plantToml(tokenFile, httpPort, benchPty, historyFile) {
   return `
 [[lines]]
 name = "plant"
@@ -34,6 +36,20 @@ name = "oven"
 device = "tc10@3"
 poll = "500ms"
 parameters = ["measured_value", "set_point", "output_power", "alarm_status"]
+
+[[lines]]
+name = "bench"
+link = "rtu:${benchPty}?baud=19200&parity=none"
+timeout = "300ms"
+
+[[lines.devices]]
+name = "dryer"
+device = "tc10@4"
+poll = "500ms"
+parameters = ["measured_value", "set_point", "output_power", "set_point_low_limit", "set_point_high_limit"]
+
+[history]
+database = "${historyFile}"
 
 [modbus_tcp]
 listen = "127.0.0.1:0"
@@ -71,6 +87,43 @@ async function waitForApi(base, output, timeout) {
   }
 }
 
+async function waitForPath(file, output, timeout) {
+  const deadline = Date.now() + timeout;
+  while (!fs.existsSync(file)) {
+    if (output.exited) throw new Error(`the simulator exited before it made ${file}:\n${output.text}`);
+    if (Date.now() > deadline) throw new Error(`waited ${timeout} ms for ${file}; the simulator said:\n${output.text}`);
+    await new Promise((resolve) => setTimeout(resolve, 20));
+  }
+}
+
+function started(program, args, env) {
+  const child = spawn(program, args, { env, stdio: ["ignore", "pipe", "pipe"] });
+  const output = { text: "", exited: false };
+  child.stdout.on("data", (chunk) => { output.text += chunk; });
+  child.stderr.on("data", (chunk) => { output.text += chunk; });
+  child.on("exit", () => { output.exited = true; });
+  return { child, output };
+}
+
+// Until CHILD has exited: SIGTERM, then SIGKILL after 5 s (or SIGNAL at once).
+function ended({ child, output }, signal = "SIGTERM") {
+  return new Promise((resolve) => {
+    if (output.exited) return resolve();
+    const timer = setTimeout(() => child.kill("SIGKILL"), 5_000);
+    child.on("exit", () => { clearTimeout(timer); resolve(); });
+    child.kill(signal);
+  });
+}
+
+// `loopwire simulate` serving the bench line's TC10 on a pseudo-terminal at PTY, its
+// non-volatile memory (set point, limits) in STATE so that it survives being killed.
+async function startSimulator(loopwire, pty, state, env) {
+  const simulator = started(loopwire, ["simulate", "--link", "rtu:/unused?baud=19200&parity=none", "--pty", pty,
+    "--device", "tc10@4", "--speed", "10", "--state", state], env);
+  await waitForPath(pty, simulator.output, 10_000);
+  return simulator;
+}
+
 async function startGateway() {
   const loopwire = process.env.LOOPWIRE;
   if (!loopwire) throw new Error("LOOPWIRE must name the loopwire program (dashboard_test.sh sets it)");
@@ -79,28 +132,39 @@ async function startGateway() {
   fs.writeFileSync(tokenFile, `${TOKEN}\n`, { mode: 0o600 });
   const config = path.join(dir, "plant.toml");
   const httpPort = await freePort();
-  fs.writeFileSync(config, plantToml(tokenFile, httpPort));
+  const benchPty = path.join(dir, "ttyBench");
+  const benchState = path.join(dir, "bench.state");
+  fs.writeFileSync(config, plantToml(tokenFile, httpPort, benchPty, path.join(dir, "history.db")));
   const env = { ...process.env, XDG_CONFIG_HOME: path.join(dir, "config") };
-  const child = spawn(loopwire, ["gateway", "--config", config], { env, stdio: ["ignore", "pipe", "pipe"] });
-  const output = { text: "", exited: false };
-  child.stdout.on("data", (chunk) => { output.text += chunk; });
-  child.stderr.on("data", (chunk) => { output.text += chunk; });
-  child.on("exit", () => { output.exited = true; });
+  let simulator = await startSimulator(loopwire, benchPty, benchState, env);
+  const gateway = started(loopwire, ["gateway", "--config", config], env);
+  const { output } = gateway;
   const base = `http://127.0.0.1:${httpPort}`;
-  await waitForApi(base, output, 15_000);
+  try {
+    await waitForApi(base, output, 15_000);
+  } catch (error) {
+    await ended(gateway);
+    await ended(simulator);
+    throw error;
+  }
   return {
     base,
     token: TOKEN,
     output,
+    // The bench line cut off as a pulled USB-RS485 adapter cuts it: its simulator killed
+    // (SIGKILL), so the pseudo-terminal hangs up, and its link removed as udev removes an
+    // adapter's (left behind, it would name whatever terminal takes the number next).
+    async breakBenchLine() {
+      await ended(simulator, "SIGKILL");
+      fs.rmSync(benchPty, { force: true });
+    },
+    // The bench line's device back on the same path, holding what it held.
+    async restoreBenchLine() {
+      simulator = await startSimulator(loopwire, benchPty, benchState, env);
+    },
     async stop() {
-      if (!output.exited) {
-        child.kill("SIGTERM");
-        await new Promise((resolve) => {
-          const timer = setTimeout(() => { child.kill("SIGKILL"); resolve(); }, 5_000);
-          child.on("exit", () => { clearTimeout(timer); resolve(); });
-          if (output.exited) { clearTimeout(timer); resolve(); }
-        });
-      }
+      await ended(gateway);
+      await ended(simulator);
       fs.rmSync(dir, { recursive: true, force: true });
     },
   };

@@ -288,6 +288,8 @@ export class Trend {
       return "";
     }).join(",");
     this.container.dataset.zoomed = String(this.zoomed);
+    // The parameters drawn, in the order of the columns below, for tests and tools.
+    this.container.dataset.series = this.parameters.map((p) => p.name).join(",");
     // Where each column's line breaks (a run of nulls after a value), for tests and tools.
     this.container.dataset.gaps = data.slice(1).map((column) => {
       let gaps = 0;
