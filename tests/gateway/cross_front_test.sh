@@ -16,11 +16,8 @@ skip() { echo "SKIP: $1 (scripts/setup installs it)"; exit 77; }
 [[ -x $broker_program ]] || skip "$broker_program is not installed (Debian package mosquitto)"
 $python -c 'import paho.mqtt' 2>/dev/null || skip "paho.mqtt is not importable by $python (Debian package python3-paho-mqtt)"
 
-# A port nothing listens on now (mosquitto cannot be given port 0); a small race, accepted.
-mqtt_port=$($python -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-printf 'listener %s 127.0.0.1\nallow_anonymous true\npersistence false\n' "$mqtt_port" >"$WORK_DIR/mosquitto.conf"
-start_background broker.log timeout 200 "$broker_program" -c "$WORK_DIR/mosquitto.conf"
-wait_for_text "$WORK_DIR/broker.log" "running"
+start_mosquitto 200
+mqtt_port=$MQTT_PORT
 
 token_file=$WORK_DIR/token
 head -c 24 /dev/urandom | base64 >"$token_file"

@@ -19,11 +19,8 @@ for client in mosquitto_pub mosquitto_sub; do
 done
 $python -c 'import paho.mqtt' 2>/dev/null || skip "paho.mqtt is not importable by $python (Debian package python3-paho-mqtt)"
 
-# A port nothing listens on now (mosquitto cannot be given port 0); a small race, accepted.
-port=$($python -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-printf 'listener %s 127.0.0.1\nallow_anonymous true\npersistence false\n' "$port" >"$WORK_DIR/mosquitto.conf"
-start_background broker.log timeout 200 "$broker_program" -c "$WORK_DIR/mosquitto.conf"
-wait_for_text "$WORK_DIR/broker.log" "running"
+start_mosquitto 200
+port=$MQTT_PORT
 
 # plant_config [POLL] [EXTRA_DEVICE_TABLE]: the gateway's configuration.
 plant_config() {

@@ -43,14 +43,10 @@ sp() { "${checker[@]}" "$@"; }
 # The observer must notice broken messages before its silence about the gateway's means anything.
 check checker-selftest 0 "selftest: ok" "${checker[@]}" selftest
 
-# A port nothing listens on now (mosquitto cannot be given port 0); a small race, accepted.
 # log_type subscribe: the broker's log says when the node has subscribed to the host's STATE.
-port=$($python -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-printf '%s\n' "listener $port 127.0.0.1" "allow_anonymous true" "persistence false" "log_dest stderr" \
-  "log_type error" "log_type warning" "log_type notice" "log_type information" "log_type subscribe" \
-  >"$WORK_DIR/mosquitto.conf"
-start_background broker.log timeout 230 "$broker_program" -c "$WORK_DIR/mosquitto.conf"
-wait_for_text "$WORK_DIR/broker.log" "running" 30
+start_mosquitto 230 "log_dest stderr" "log_type error" "log_type warning" "log_type notice" "log_type information" \
+  "log_type subscribe"
+port=$MQTT_PORT
 
 # The recorder subscribes before any gateway starts: the recording holds every message of
 # every run, in the order the broker delivered them.

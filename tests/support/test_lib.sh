@@ -110,6 +110,19 @@ wait_for_log() {
     sed -nE "s/.*${regex}.*/\\1/p" "$log" | head -n 1
 }
 
+# start_mosquitto LIFETIME [CONFIG_LINE]... : a mosquitto broker (Debian's /usr/sbin/mosquitto) for
+# LIFETIME seconds on a loopback port nothing listens on now (mosquitto cannot be given port 0; a
+# small race, accepted), with the extra configuration lines given; returns once it runs, its
+# port in MQTT_PORT and its log in $WORK_DIR/broker.log.
+start_mosquitto() {
+    local lifetime=$1
+    shift
+    MQTT_PORT=$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+    printf '%s\n' "listener $MQTT_PORT 127.0.0.1" "allow_anonymous true" "persistence false" "$@" >"$WORK_DIR/mosquitto.conf"
+    start_background broker.log timeout "$lifetime" /usr/sbin/mosquitto -c "$WORK_DIR/mosquitto.conf"
+    wait_for_text "$WORK_DIR/broker.log" "running" 30
+}
+
 # socat_pair A B : a connected pseudo-terminal pair with links at the two paths.
 socat_pair() {
     start_background socat.log timeout "$PEER_LIFETIME" socat \
