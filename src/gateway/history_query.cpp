@@ -189,6 +189,27 @@ Result<std::vector<HistoryGap>> gaps_of(sqlite::Connection& db, std::int64_t ser
     return gaps;
 }
 
+// The value in force at `from` (HistorySeries::before): the last row before it, if no older
+// than `look_back` and holding a value read. A row without a value, or saying nothing was read,
+// gives none (the line starts broken: gaps_of opens the gap at `from`).
+Result<std::optional<HistoryBefore>> before_of(sqlite::Connection& db, std::int64_t series, std::int64_t from,
+                                               std::int64_t look_back) {
+    auto statement =
+        db.prepare("SELECT t, value, status FROM samples WHERE series_id = ?1 AND t < ?2 AND t >= ?3 ORDER BY t DESC LIMIT 1");
+    if (!statement) return statement.error();
+    statement->bind(1, series);
+    statement->bind(2, from);
+    statement->bind(3, from - std::max<std::int64_t>(0, look_back));
+    auto row = statement->step();
+    if (!row) return row.error();
+    if (!*row || statement->is_null(1)) return std::optional<HistoryBefore>{};
+    const std::optional<std::string> status =
+        statement->is_null(2) ? std::nullopt : std::optional<std::string>(statement->text(2));
+    if (!holds_reading(status)) return std::optional<HistoryBefore>{};
+    return std::optional(HistoryBefore{std::chrono::system_clock::time_point(milliseconds(statement->integer(0))),
+                                       statement->real(1)});
+}
+
 struct SeriesRow {
     std::int64_t id = 0;
     std::string parameter;
@@ -279,7 +300,12 @@ Result<std::vector<HistorySeries>> run_query(sqlite::Connection& db, const Histo
             (void)db.execute("ROLLBACK");
             return gaps.error();
         }
-        result.push_back({series.parameter, series.unit, std::move(*buckets), std::move(*gaps)});
+        auto before = before_of(db, series.id, from, query.look_back.count());
+        if (!before) {
+            (void)db.execute("ROLLBACK");
+            return before.error();
+        }
+        result.push_back({series.parameter, series.unit, std::move(*buckets), std::move(*gaps), *before});
     }
     (void)db.execute("COMMIT");
     return result;

@@ -21,6 +21,12 @@ struct HistoryQuery {
     std::chrono::system_clock::time_point from;
     std::chrono::system_clock::time_point to;
     std::size_t points = 500;             // at most this many buckets per parameter
+    // How far before `from` the value in force there (HistorySeries::before) is looked for.
+    // Every value still read is written again each heartbeat, so a last row older than a
+    // heartbeat or two means nothing was recorded since (the gateway was stopped): not a value
+    // known to hold at `from`. The history store sets twice its own heartbeat; this default is
+    // twice the default heartbeat (60 s).
+    std::chrono::milliseconds look_back{120000};
 };
 
 // One bucket of a downsampled series: min and max keep the spikes a mean would hide.
@@ -40,11 +46,22 @@ struct HistoryGap {
     std::optional<std::chrono::system_clock::time_point> end;  // none: it lasts (up to now)
 };
 
+// The value in force at the query's `from`: the last row recorded before it, when that row
+// holds a value that was read (not a row saying nothing was read, nor a special state) and is
+// no older than the query's look_back. Values are recorded on change, so without it a value
+// that held since before `from` has nothing to draw until the first row inside the range.
+// Not a bucket: the buckets' statistics stay those of the rows inside [from, to].
+struct HistoryBefore {
+    std::chrono::system_clock::time_point time;  // when the row was recorded (before `from`)
+    double value = 0;
+};
+
 struct HistorySeries {
     std::string parameter;
     std::string unit;
     std::vector<HistoryBucket> buckets;  // in time order
     std::vector<HistoryGap> gaps;        // in time order; the gaps that overlap the query's range
+    std::optional<HistoryBefore> before = std::nullopt;  // none: no value known to hold at `from`
 };
 
 // The forwarding to a PostgreSQL historian (gateway/history_forwarder.hpp), for GET /metrics.

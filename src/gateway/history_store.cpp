@@ -298,21 +298,16 @@ Result<std::uint64_t> HistoryStore::commit(const std::vector<QueuedRow>& rows) {
     return inserted;
 }
 
-namespace {
-
-// Whether a row holds what a poll read (a value, or a special state of one), which a heartbeat
-// may repeat; a row that says nothing was read (no reply, its line down, an error, a device in
-// back-off or whose poll is overdue) is not repeated: a heartbeat of it would stamp the present on a
-// reading nobody made, which is how a frozen value used to look fresh for minutes.
-bool repeatable(const std::optional<std::string>& status) {
+// A row that says nothing was read is never repeated by a heartbeat: a heartbeat of it would
+// stamp the present on a reading nobody made, which is how a frozen value used to look fresh
+// for minutes.
+bool holds_reading(const std::optional<std::string>& status) {
     if (!status) return true;  // "ok"
     using device::DeviceStatus;
     const auto is = [&](DeviceStatus device_status) { return *status == device::status_text(device_status); };
     return !is(DeviceStatus::stale) && !is(DeviceStatus::no_reply) && !is(DeviceStatus::line_down) &&
            *status != device::failed_value_status && !is(DeviceStatus::waiting);
 }
-
-}  // namespace
 
 // Every value whose last row is `heartbeat` old or older is written again at the current time,
 // so a value that holds still draws a flat line, not a gap. Only a value still current: once it
@@ -328,7 +323,7 @@ void HistoryStore::add_heartbeats(std::vector<QueuedRow>& batch) {
     const std::int64_t now = to_ms(wall_now());
     const std::int64_t interval = options_.heartbeat.count();
     for (auto& [key, last] : last_) {
-        if (now - last.t < interval || !repeatable(last.status)) continue;
+        if (now - last.t < interval || !holds_reading(last.status)) continue;
         last.t = now;
         last.heartbeat = true;
         batch.push_back(last);
@@ -424,10 +419,21 @@ Result<void> HistoryStore::enforce_retention() {
     return {};
 }
 
+// Twice the heartbeat: a value still read is written again at least every heartbeat (and the
+// writer's commit interval), so a value in force at `from` has a row within one heartbeat
+// before it; the second one allows for a late commit (a retried write). An older last row
+// means the gateway recorded nothing since (it was stopped): no value is known at `from`.
+// Another gateway's history is asked with the same bound: gateways sharing a historian are
+// expected to share a heartbeat; one with a longer one only loses its starting value.
+HistoryQuery HistoryStore::with_look_back(HistoryQuery query) const {
+    query.look_back = 2 * options_.heartbeat;
+    return query;
+}
+
 Result<std::vector<HistorySeries>> HistoryStore::query(const HistoryQuery& query) const {
     if (!query.gateway.empty() && (!options_.forward || query.gateway != options_.forward->gateway)) return historian_query(query);
     std::lock_guard lock(reader_->mutex);
-    return history::run_query(*reader_->db, query);
+    return history::run_query(*reader_->db, with_look_back(query));
 }
 
 Result<std::vector<std::string>> HistoryStore::historian_gateways() const {
@@ -442,7 +448,7 @@ Result<std::vector<HistorySeries>> HistoryStore::historian_query(const HistoryQu
         return make_error(ErrorKind::usage, fmt::format("gateway=\"{}\": only this gateway's history is kept here; another's "
                                                         "needs [history] forward_to, the historian they share", query.gateway));
     }
-    return historian_->query(query.gateway, query);
+    return historian_->query(query.gateway, with_look_back(query));
 }
 
 }  // namespace loopwire::gateway

@@ -128,6 +128,7 @@ private:
     Result<bool> retention_step(bool force);  // false: nothing was due
     void log(const std::string& message) const;
     Result<std::vector<HistorySeries>> historian_query(const HistoryQuery& query) const;
+    HistoryQuery with_look_back(HistoryQuery query) const;  // look_back: twice the heartbeat
 
     HistoryOptions options_;
     std::unique_ptr<Writer> writer_;        // the writer's connection and state; its lock held
@@ -144,6 +145,11 @@ private:
     std::unique_ptr<HistoryForwarder> forwarder_;
     std::jthread thread_;  // last: stops and joins before the rest goes
 };
+
+// Whether a row with this status (none: "ok") holds what a poll read: a value, or a special state
+// of one. A row that says nothing was read (no reply, its line down, stale, waiting, an error)
+// does not: a heartbeat never repeats it, and it is never the value in force at a query's `from`.
+bool holds_reading(const std::optional<std::string>& status);
 
 // The rows of one parameter's buckets: how a series over [from, to] is cut into at most `points`
 // buckets (exposed for the benchmark, which checks them against a plain GROUP BY).

@@ -542,7 +542,11 @@ HttpResponse HttpApi::State::history_reply(const ParsedHistoryQuery& query, cons
         for (const auto& gap : one.gaps) {
             gaps.push_back(Json{{"from", iso_time(gap.start)}, {"to", gap.end ? Json(iso_time(*gap.end)) : Json(nullptr)}});
         }
-        list.push_back(Json{{"parameter", one.parameter}, {"unit", one.unit}, {"buckets", std::move(buckets)}, {"gaps", std::move(gaps)}});
+        // The value in force at `from` (recorded before it and holding there), null when none is
+        // known: where a chart's line starts, left out of the buckets' statistics.
+        Json before = one.before ? Json{{"time", iso_time(one.before->time)}, {"value", one.before->value}} : Json(nullptr);
+        list.push_back(Json{{"parameter", one.parameter}, {"unit", one.unit}, {"before", std::move(before)},
+                            {"buckets", std::move(buckets)}, {"gaps", std::move(gaps)}});
     }
     return json_response(200, Json{{"device", query.query.device}, {"from", iso_time(query.query.from)},
                                    {"to", iso_time(query.query.to)}, {"series", std::move(list)}});

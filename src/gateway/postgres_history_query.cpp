@@ -130,6 +130,20 @@ Result<std::vector<HistoryGap>> gaps_of(postgres::Connection& db, const Series& 
     return gaps;
 }
 
+// The value in force at `from`, as the local query finds it (history_query.cpp): the last row
+// before it, no older than `look_back`, when it holds a value read.
+Result<std::optional<HistoryBefore>> before_of(postgres::Connection& db, const Series& series, std::int64_t from,
+                                               std::int64_t look_back) {
+    auto row = db.execute(
+        "SELECT t, value, status FROM loopwire_samples WHERE series_id = $1 AND t < $2 AND t >= $3 ORDER BY t DESC LIMIT 1",
+        {series.id, number(from), number(from - std::max<std::int64_t>(0, look_back))});
+    if (!row) return row.error();
+    if (row->rows() == 0 || row->is_null(0, 1)) return std::optional<HistoryBefore>{};
+    const std::optional<std::string> status = row->is_null(0, 2) ? std::nullopt : std::optional<std::string>(row->text(0, 2));
+    if (!holds_reading(status)) return std::optional<HistoryBefore>{};
+    return std::optional(HistoryBefore{from_ms(row->integer(0, 0)), std::stod(row->text(0, 1))});
+}
+
 }  // namespace
 
 Result<std::vector<HistorySeries>> run_query(postgres::Connection& db, const std::string& gateway, const HistoryQuery& query) {
@@ -156,7 +170,12 @@ Result<std::vector<HistorySeries>> run_query(postgres::Connection& db, const std
             done = gaps.error();
             break;
         }
-        result.push_back({series.parameter, series.unit, std::move(*buckets), std::move(*gaps)});
+        auto before = before_of(db, series, from, query.look_back.count());
+        if (!before) {
+            done = before.error();
+            break;
+        }
+        result.push_back({series.parameter, series.unit, std::move(*buckets), std::move(*gaps), *before});
     }
     (void)db.run(done ? "COMMIT" : "ROLLBACK");
     if (!done) return done.error();

@@ -478,6 +478,47 @@ TEST_F(HistoryForward, AnotherGatewaysHistoryIsAskedFromTheHistorian) {
     EXPECT_THAT(unknown.error().message, HasSubstr("the historian has no device \"oven1\" of gateway \"west\""));
 }
 
+// The value in force at `from` of another gateway's series, from the historian as from the file:
+// the last row before `from` when it holds a value read, and no older than twice the asking
+// gateway's heartbeat.
+TEST_F(HistoryForward, TheValueInForceAtFromComesFromTheHistorianToo) {
+    HistoryOptions north_options = forwarding(folder.path / "north.db", wall, server->url(), "north");
+    north_options.heartbeat = 60s;
+    auto north = HistoryStore::open(north_options);
+    auto south = HistoryStore::open(forwarding(folder.path / "south.db", wall, server->url(), "south"));
+    ASSERT_TRUE(north && south);
+    (*south)->record(number("oven1", "measured_value", 137, t0));
+    (*south)->record(number("oven1", "measured_value", 140.5, t0 + 50s));
+    ValueChange silent = number("oven1", "measured_value", 0, t0 + 100s);
+    silent.value.reset();
+    silent.status = "no-reply";
+    (*south)->record(silent);
+    (*south)->record(number("oven1", "set_point", 250, t0));
+    ASSERT_TRUE((*south)->write_pending());
+    ASSERT_TRUE((*south)->forwarder()->forward_pending());
+    const auto ask_south = [&](const std::string& parameter, SystemTime from) {
+        HistoryQuery query;
+        query.device = "oven1";
+        query.gateway = "south";
+        query.parameters = {parameter};
+        query.from = from;
+        query.to = from + 5min;
+        query.points = 600;
+        auto answer = (*north)->query(query);
+        EXPECT_TRUE(answer) << answer.error().message;
+        return answer ? answer->front().before : std::nullopt;
+    };
+    const auto held = ask_south("measured_value", t0 + 60s);
+    ASSERT_TRUE(held);
+    EXPECT_EQ(held->time, t0 + 50s);
+    EXPECT_EQ(held->value, 140.5);
+    EXPECT_FALSE(ask_south("measured_value", t0 + 110s)) << "a row of nothing read: the line starts broken";
+    const auto within = ask_south("set_point", t0 + 120s);
+    ASSERT_TRUE(within);
+    EXPECT_EQ(within->value, 250);
+    EXPECT_FALSE(ask_south("set_point", t0 + 121s)) << "older than twice the heartbeat";
+}
+
 // The historian's buckets from its raw samples, grouped as `plan` groups them: what the rollup
 // must agree with.
 std::vector<HistoryBucket> raw_buckets(postgres::Connection& db, const BucketPlan& plan, std::int64_t from, std::int64_t to) {

@@ -260,6 +260,118 @@ TEST(HistoryStore, GapsRunFromASampleWithoutAValueToTheNextWithOne) {
     EXPECT_TRUE((*held)[0].buckets.empty());
 }
 
+// Values are recorded on change (and a heartbeat): a value that held since before `from` has no
+// row at `from`, so each series carries the last row before it, the value in force there, which
+// is where a chart's line starts. Not a bucket: the buckets' statistics stay the range's own.
+TEST(HistoryStore, AValueRecordedBeforeFromIsTheValueInForceAtFrom) {
+    TempFolder folder;
+    VirtualWall wall(t0);
+    auto options = options_at(folder.path / "plant.db", wall);
+    options.heartbeat = 60s;
+    auto store = open_store(options);
+    ASSERT_TRUE(store);
+    store->record(number("measured_value", 137, t0));
+    store->record(number("measured_value", 140, t0 + 50s));
+    store->record(number("measured_value", 150, t0 + 100s));
+    ASSERT_TRUE(store->write_pending());
+
+    // The 5 minutes from t0 + 30 s: 137 holds there, recorded 30 s before.
+    auto series = store->query(ask("measured_value", t0 + 30s, t0 + 330s, 600));
+    ASSERT_TRUE(series) << series.error().message;
+    ASSERT_TRUE((*series)[0].before);
+    EXPECT_EQ((*series)[0].before->time, t0);
+    EXPECT_EQ((*series)[0].before->value, 137);
+    ASSERT_EQ((*series)[0].buckets.size(), 2u) << "the buckets are the rows inside the range only";
+    EXPECT_EQ((*series)[0].buckets[0].mean, 140);
+    EXPECT_TRUE((*series)[0].gaps.empty());
+    // The last row before `from`, not the first: from t0 + 60 s, 140.
+    auto later = store->query(ask("measured_value", t0 + 60s, t0 + 360s, 600));
+    ASSERT_TRUE(later) << later.error().message;
+    ASSERT_TRUE((*later)[0].before);
+    EXPECT_EQ((*later)[0].before->time, t0 + 50s);
+    EXPECT_EQ((*later)[0].before->value, 140);
+    // Wide buckets (the minute table) carry it the same.
+    auto wide = store->query(ask("measured_value", t0 + 30s, t0 + 24h, 10));
+    ASSERT_TRUE(wide) << wide.error().message;
+    ASSERT_TRUE((*wide)[0].before);
+    EXPECT_EQ((*wide)[0].before->value, 137);
+    // A value holding still is written again each heartbeat: its heartbeat is the row before.
+    wall.set(t0 + 100s + 60s);
+    ASSERT_TRUE(store->write_pending());
+    auto held = store->query(ask("measured_value", t0 + 200s, t0 + 500s, 600));
+    ASSERT_TRUE(held) << held.error().message;
+    ASSERT_TRUE((*held)[0].before);
+    EXPECT_EQ((*held)[0].before->time, t0 + 160s);
+    EXPECT_EQ((*held)[0].before->value, 150);
+    EXPECT_TRUE((*held)[0].buckets.empty());
+}
+
+// A row saying nothing was read (or a special state) before `from`: the line starts broken, with
+// the gap open at `from`, not with the value before it.
+TEST(HistoryStore, ARowOfNothingReadBeforeFromGivesNoValueInForce) {
+    for (const char* status : {"no-reply", "line-down", "stale", "waiting", "error", "under-range"}) {
+        TempFolder folder;
+        VirtualWall wall(t0);
+        auto store = open_store(options_at(folder.path / "plant.db", wall));
+        ASSERT_TRUE(store);
+        store->record(number("measured_value", 137, t0));
+        store->record(special("measured_value", status, t0 + 10s, std::string(status) == "under-range"));
+        ASSERT_TRUE(store->write_pending());
+        auto series = store->query(ask("measured_value", t0 + 30s, t0 + 330s, 600));
+        ASSERT_TRUE(series) << series.error().message;
+        EXPECT_FALSE((*series)[0].before) << status;
+        ASSERT_EQ((*series)[0].gaps.size(), 1u) << status;
+        EXPECT_EQ((*series)[0].gaps[0].start, t0 + 30s) << status;
+    }
+    // A stale row that kept the last value is still no value read.
+    TempFolder folder;
+    VirtualWall wall(t0);
+    auto store = open_store(options_at(folder.path / "plant.db", wall));
+    ASSERT_TRUE(store);
+    ValueChange stale = number("measured_value", 137, t0);
+    stale.status = "stale";
+    store->record(stale);
+    ASSERT_TRUE(store->write_pending());
+    auto series = store->query(ask("measured_value", t0 + 30s, t0 + 330s, 600));
+    ASSERT_TRUE(series) << series.error().message;
+    EXPECT_FALSE((*series)[0].before);
+}
+
+// The look-back is twice the heartbeat: a value still read is written again each heartbeat, so
+// a last row older than that means nothing was recorded since (the gateway was stopped), and no
+// value is known at `from`.
+TEST(HistoryStore, ARowOlderThanTwoHeartbeatsGivesNoValueInForce) {
+    TempFolder folder;
+    VirtualWall wall(t0);
+    auto options = options_at(folder.path / "plant.db", wall);
+    options.heartbeat = 60s;
+    auto store = open_store(options);
+    ASSERT_TRUE(store);
+    store->record(number("measured_value", 137, t0));
+    ASSERT_TRUE(store->write_pending());
+    auto within = store->query(ask("measured_value", t0 + 120s, t0 + 420s, 600));
+    ASSERT_TRUE(within) << within.error().message;
+    ASSERT_TRUE((*within)[0].before) << "120 s after the row: within two heartbeats";
+    EXPECT_EQ((*within)[0].before->value, 137);
+    auto older = store->query(ask("measured_value", t0 + 120s + 1ms, t0 + 420s, 600));
+    ASSERT_TRUE(older) << older.error().message;
+    EXPECT_FALSE((*older)[0].before) << "older than two heartbeats";
+    EXPECT_TRUE((*older)[0].gaps.empty()) << "not a gap either: nothing is known";
+
+    // The bound follows the configured heartbeat.
+    TempFolder other;
+    auto slow_options = options_at(other.path / "plant.db", wall);
+    slow_options.heartbeat = 10min;
+    auto slow = open_store(slow_options);
+    ASSERT_TRUE(slow);
+    slow->record(number("measured_value", 42, t0));
+    ASSERT_TRUE(slow->write_pending());
+    auto late = slow->query(ask("measured_value", t0 + 15min, t0 + 20min, 600));
+    ASSERT_TRUE(late) << late.error().message;
+    ASSERT_TRUE((*late)[0].before);
+    EXPECT_EQ((*late)[0].before->value, 42);
+}
+
 // Three hours at 1 s with spikes, asked for in buckets that start mid-minute, so that every
 // bucket mixes minute rows and samples: each must equal what the samples alone give.
 TEST(HistoryStore, WideBucketsFromTheMinuteTableMatchTheSamples) {

@@ -712,6 +712,8 @@ public:
         series.buckets.push_back({start + std::chrono::seconds(60), 22.0, 25.5, 23.0, 3});
         series.gaps.push_back({start + std::chrono::seconds(90), start + std::chrono::seconds(150)});
         series.gaps.push_back({start + std::chrono::seconds(170), std::nullopt});
+        // The value in force at `from`, recorded 40 s before it; none known of another gateway's.
+        if (query.gateway.empty()) series.before = HistoryBefore{start - std::chrono::seconds(40), 19.5};
         return std::vector<HistorySeries>{series};
     }
     std::uint64_t rows_written() const override { return 1234; }
@@ -796,6 +798,20 @@ TEST_F(HttpHistoryTest, TheQueryIsPassedOnAndTheSeriesComeBackAsJson) {
     // The times without a value, for a chart to break its line there; one that lasts has no end.
     EXPECT_EQ(series.at("gaps"), Json::parse(R"([{"from": "2026-12-02T08:01:30.000Z", "to": "2026-12-02T08:02:30.000Z"},
                                                  {"from": "2026-12-02T08:02:50.000Z", "to": null}])"));
+    // The value in force at `from`, where a chart's line starts: no bucket, so no statistics.
+    EXPECT_EQ(series.at("before"), Json::parse(R"({"time": "2026-12-02T07:59:20.000Z", "value": 19.5})"));
+}
+
+// No value known to hold at `from` (none recorded shortly before it, or a row of nothing read):
+// `before` is null, and the line starts at the first bucket.
+TEST_F(HttpHistoryTest, NoValueInForceAtFromIsNull) {
+    const Reply reply = get(server_->port(), "/api/history?device=kiln&gateway=south&from=2026-12-02T08:00:00Z&to=2026-12-02T09:00:00Z");
+    ASSERT_EQ(reply.status, 200u) << reply.body;
+    const Json json = reply.json();
+    const Json& series = json.at("series")[0];
+    ASSERT_TRUE(series.contains("before"));
+    EXPECT_TRUE(series.at("before").is_null());
+    EXPECT_EQ(series.at("buckets").size(), 2u);
 }
 
 TEST_F(HttpHistoryTest, CsvHasAHeaderAndARowABucket) {

@@ -132,6 +132,36 @@ test("the trend draws recorded values as steps and breaks its line over a gap", 
   expect(drawn.values).toEqual([100, 180, null, 25, 25]);
 });
 
+// A value that held since before the window has no row inside it (values are recorded on change,
+// and a heartbeat a minute): the answer's `before`, the value in force at `from`, starts the line
+// at the window's left edge. Without one, or with a gap open at `from`, nothing is drawn there.
+test("the value in force before the window is drawn from its left edge, and a gap there stays a gap", async ({ page }) => {
+  await page.goto(gateway.base);
+  const drawn = await page.evaluate(async (from) => {
+    const { historyPoints, windowColumn, alignColumns } = await import("/assets/trend.js");
+    const iso = (ms) => new Date(ms).toISOString();
+    const none = { t: [], v: [] };
+    const draw = (series) => {
+      const [times, [values]] = alignColumns([windowColumn(historyPoints(series), none, from)], from + 300_000);
+      return { times: times.map((t) => (t - from) / 1000), values };
+    };
+    return {
+      held: draw({ before: { time: iso(from - 40_000), value: 137 }, buckets: [{ time: iso(from + 50_000), mean: 140 }], gaps: [] }),
+      unknown: draw({ before: null, buckets: [{ time: iso(from + 50_000), mean: 140 }], gaps: [] }),
+      broken: draw({ before: null, buckets: [{ time: iso(from + 50_000), mean: 140 }], gaps: [{ from: iso(from), to: iso(from + 50_000) }] }),
+    };
+  }, Date.now() - 300_000);
+  // 137 from the left edge to the step to 140, held to now.
+  expect(drawn.held.times).toEqual([0, 50, 300]);
+  expect(drawn.held.values).toEqual([137, 140, 140]);
+  // Nothing known at `from`: the line starts at the first bucket.
+  expect(drawn.unknown.times).toEqual([50, 300]);
+  expect(drawn.unknown.values).toEqual([140, 140]);
+  // A gap open at `from`: null from the left edge to the gap's end.
+  expect(drawn.broken.times).toEqual([0, 50, 300]);
+  expect(drawn.broken.values).toEqual([null, 140, 140]);
+});
+
 // The same with the gateway's own recorded history and a real outage: the dryer's line (a
 // pseudo-terminal) is cut by killing its simulator, as pulling a USB-RS485 adapter cuts it, and
 // brought back. The issue speaks of 60 s; what makes the gap is the rows the gateway records

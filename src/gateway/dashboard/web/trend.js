@@ -33,7 +33,11 @@ function bucketTime(bucket) {
 
 // A recorded series as points in time order: each bucket's mean, and a null where each gap
 // begins (a time without a value: no reply, a special state). A bucket that starts inside a gap
-// takes its point where the gap ends, so no value is drawn inside it.
+// takes its point where the gap ends, so no value is drawn inside it. The series' `before`, the
+// value in force at the query's `from` (recorded before it), is a point at its own time, so the
+// line starts at the window's left edge (windowColumn); it is left out when a bucket starts no
+// later (a wide bucket, rounded down to its minute, already starts the line). Without one, or
+// with a gap open at `from`, the line starts at the first point, or stays broken.
 export function historyPoints(series) {
   const gaps = (series.gaps || []).map((gap) => ({ from: Date.parse(gap.from), to: gap.to ? Date.parse(gap.to) : Infinity }));
   const points = [];
@@ -46,6 +50,11 @@ export function historyPoints(series) {
       time = inside.to;
     }
     points.push([time, bucket.mean]);
+  }
+  const before = series.before;
+  if (before && typeof before.value === "number") {
+    const time = bucketTime(before);
+    if (Number.isFinite(time) && !points.some((p) => p[0] <= time)) points.push([time, before.value]);
   }
   for (const gap of gaps) if (Number.isFinite(gap.from)) points.push([gap.from, null]);
   // At one time a value wins over a gap's start: the value is what came after it.
@@ -68,6 +77,23 @@ export function alignColumns(columns, now) {
     });
   });
   return [sorted, aligned];
+}
+
+// One parameter's points in the window from `from` on (Map time -> value or null): the recorded
+// ones (`past`, historyPoints) up to the first live one, then the live ones. The value in force
+// at the window's start (the last point before it, recorded or live: a value, or a gap's null)
+// is its first point, at `from`, so a value that held since before the window is drawn from
+// its left edge, and a gap open there stays a gap.
+export function windowColumn(past, live, from) {
+  const firstLive = live.t.length ? live.t[0] : Infinity;
+  const points = new Map();
+  let before;
+  for (let i = 0; i < past.t.length && past.t[i] < from; i++) before = past.v[i];
+  for (let i = 0; i < live.t.length && live.t[i] < from; i++) before = live.v[i];
+  if (before !== undefined) points.set(from, before);
+  for (let i = 0; i < past.t.length; i++) if (past.t[i] >= from && past.t[i] < firstLive) points.set(past.t[i], past.v[i]);
+  for (let i = 0; i < live.t.length; i++) if (live.t[i] >= from) points.set(live.t[i], live.v[i]);
+  return points;
 }
 
 export class Trend {
@@ -167,17 +193,7 @@ export class Trend {
     const columns = this.parameters.map((p) => {
       const live = this.gateway ? { t: [], v: [] } : samplesOf(this.device, p.name);
       const past = this.history.get(p.name) || { t: [], v: [] };
-      const firstLive = live.t.length ? live.t[0] : Infinity;
-      const points = new Map();
-      // The value in force at the window's start is its first point, so a value that held
-      // since before the window is drawn from its left edge.
-      let before;
-      for (let i = 0; i < past.t.length && past.t[i] < from; i++) before = past.v[i];
-      for (let i = 0; i < live.t.length && live.t[i] < from; i++) before = live.v[i];
-      if (before !== undefined) points.set(from, before);
-      for (let i = 0; i < past.t.length; i++) if (past.t[i] >= from && past.t[i] < firstLive) points.set(past.t[i], past.v[i]);
-      for (let i = 0; i < live.t.length; i++) if (live.t[i] >= from) points.set(live.t[i], live.v[i]);
-      return points;
+      return windowColumn(past, live, from);
     });
     if (!columns.some((c) => c.size)) return [[], ...columns.map(() => [])];
     // The newest point received (the columns reach on to now, where nothing was received).
