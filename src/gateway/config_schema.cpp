@@ -1,7 +1,9 @@
 #include "gateway/config_schema.hpp"
 
 #include <array>
+#include <limits>
 #include <sstream>
+#include <stdexcept>
 
 #include <fmt/format.h>
 
@@ -57,7 +59,7 @@ constexpr std::array keys{
               "1"},
     ConfigKey{"lines", "speed", "number", "1.0", "0.001..100000; a simulated line only",
               "Process seconds per real second of the simulated devices, as `loopwire simulate --speed`.", "1.0"},
-    ConfigKey{"lines", "seed", "integer", "1", "0 or more; a simulated line only",
+    ConfigKey{"lines", "seed", "integer", "1", "0..4294967295; a simulated line only",
               "Seed of the simulated measurement noise, as `loopwire simulate --seed`.", "1"},
 
     ConfigKey{"lines.devices", "name", "string", "", "letters, digits, '-' and '_'; unique in the file",
@@ -187,6 +189,37 @@ constexpr std::array keys{
               "[]"},
 };
 
+constexpr double unbounded = std::numeric_limits<double>::infinity();
+
+constexpr std::array ranges{
+    ConfigRange{"lines", "retries", 0, 10},
+    // Modbus TCP servers take as many transactions at once as they were built for
+    // (NumberMaxOfServerTransaction, MODBUS Messaging on TCP/IP Implementation Guide V1.0b); 1
+    // is what every device takes, and past a few dozen a gateway's queue only moves into the
+    // device's.
+    ConfigRange{"lines", "max_in_flight", 1, 64},
+    ConfigRange{"lines", "speed", 0.001, 100000},
+    ConfigRange{"lines", "seed", 0, 4294967295.0},
+    ConfigRange{"lines.devices", "tcp_unit", 1, 247},  // Modbus unit ids end at 247
+    ConfigRange{"modbus_tcp", "max_connections", 1, 10000},
+    ConfigRange{"mqtt", "max_payload", 16, 65536},
+    ConfigRange{"http", "max_connections", 1, 10000},
+    ConfigRange{"http", "max_connections_per_client", 1, 10000},
+    // Durations, in milliseconds.
+    ConfigRange{"lines", "timeout", 1, unbounded},
+    // A late reply comes at most a few timeouts late; a longer window would only stall the line.
+    ConfigRange{"lines", "late_reply_window", 1, 60'000},
+    ConfigRange{"lines.devices", "poll", 1, unbounded},
+    ConfigRange{"modbus_tcp", "max_age", 1, unbounded},
+    ConfigRange{"modbus_tcp", "idle_timeout", 1'000, 86'400'000},
+    // Closer together, the figures would bury everything else in the log.
+    ConfigRange{"log", "statistics", 1'000, unbounded},
+    ConfigRange{"mqtt", "republish", 100, unbounded},
+    ConfigRange{"history", "heartbeat", 1'000, unbounded},
+    ConfigRange{"http", "read_timeout", 100, 600'000},
+    ConfigRange{"http", "send_timeout", 100, 600'000},
+};
+
 // A table's last level: "devices" of "lines.devices".
 std::string_view last_level(std::string_view name) { return name.substr(name.rfind('.') + 1); }
 
@@ -223,6 +256,22 @@ void print_key(std::ostringstream& out, const ConfigKey& key) {
 
 std::span<const ConfigTable> config_tables() { return tables; }
 std::span<const ConfigKey> config_keys() { return keys; }
+
+std::span<const ConfigRange> config_ranges() { return ranges; }
+
+const ConfigKey& config_key(std::string_view table, std::string_view key) {
+    for (const ConfigKey& described : keys) {
+        if (described.table == table && described.key == key) return described;
+    }
+    throw std::logic_error(fmt::format("the configuration schema does not describe {}.{}", table, key));
+}
+
+const ConfigRange& config_range(std::string_view table, std::string_view key) {
+    for (const ConfigRange& range : ranges) {
+        if (range.table == table && range.key == key) return range;
+    }
+    throw std::logic_error(fmt::format("the configuration schema gives {}.{} no range", table, key));
+}
 
 std::vector<std::string_view> config_keys_of(std::string_view table) {
     std::vector<std::string_view> names;

@@ -31,9 +31,26 @@ struct ConfigKey {
     bool required() const { return default_value.empty(); }
 };
 
+// The numbers an integer, number or duration key takes (a duration's in milliseconds; `most`
+// infinite when only its least is bounded). The parser (gateway_config.cpp) enforces these,
+// read from here, and a test holds each key's `bounds` words to them.
+struct ConfigRange {
+    std::string_view table;
+    std::string_view key;
+    double least = 0;
+    double most = 0;
+};
+
 // In the order a configuration file is written.
 std::span<const ConfigTable> config_tables();
 std::span<const ConfigKey> config_keys();
+std::span<const ConfigRange> config_ranges();
+
+// The range of an integer or number key; throws std::logic_error for a key the schema gives
+// none (a parser asking for it is a programming error, which the configuration tests meet).
+const ConfigRange& config_range(std::string_view table, std::string_view key);
+// The key's description; throws std::logic_error for a key the schema does not describe.
+const ConfigKey& config_key(std::string_view table, std::string_view key);
 
 // What a table of that name may hold: its keys and the tables below it ("lines" holds
 // "devices"); "" is the file's top level, which holds the top tables.

@@ -1,6 +1,7 @@
 #include "gateway/gateway_config.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cctype>
 #include <cerrno>
 #include <initializer_list>
@@ -45,13 +46,6 @@ namespace {
 using std::chrono::milliseconds;
 
 constexpr std::uintmax_t max_file_size = 1024 * 1024;  // a real configuration is a few kilobytes
-constexpr long long max_retries = 10;
-// A late reply comes at most a few timeouts late; a longer window would only stall the line.
-constexpr std::chrono::milliseconds max_late_reply_window{60000};
-// Modbus TCP servers take as many transactions at once as they were built for
-// (NumberMaxOfServerTransaction, MODBUS Messaging on TCP/IP Implementation Guide V1.0b); 1 is
-// what every device takes, and past a few dozen a gateway's queue only moves into the device's.
-constexpr long long max_in_flight_limit = 64;
 
 // ---------------------------------------------------------------------------------------------
 // Locations: every message starts "FILE:LINE: KEY.PATH: ", so an editor can jump to the spot.
@@ -135,8 +129,32 @@ Result<std::optional<milliseconds>> optional_duration(const Context& ctx, const 
     return std::optional<milliseconds>{std::chrono::round<milliseconds>(*duration)};
 }
 
+// A duration within the range the schema gives the key (config_schema.hpp); refused outside it
+// with the schema's words for the range and `hint` (an example; what "off" means).
+Result<std::optional<milliseconds>> bounded_duration(const Context& ctx, const toml::table& table, const std::string& path,
+                                                     std::string_view schema_table, std::string_view key, std::string_view hint) {
+    const ConfigRange& range = config_range(schema_table, key);
+    const milliseconds least{static_cast<long long>(range.least)};
+    // A range of only "at least 1ms" is the duration parser's own ("give at least 1ms"); any
+    // other is quoted here as the schema words it, never as 1ms.
+    const bool bounded = std::isfinite(range.most);
+    auto duration = optional_duration(ctx, table, path, key, !bounded && least <= milliseconds(1) ? least : milliseconds(0));
+    if (!duration || !*duration) return duration;
+    const bool too_long = bounded && **duration > milliseconds(static_cast<long long>(range.most));
+    if (**duration < least || too_long) {
+        return ctx.fail(source_of(table, key), key_path(path, key),
+                        fmt::format("expected {} ({})", config_key(schema_table, key).bounds, hint));
+    }
+    return duration;
+}
+
+// Integers and numbers take the range the schema gives the key (config_schema.hpp), in
+// `schema_table` ("lines.devices"), so the bounds checked are the ones the man page states.
 Result<std::optional<long long>> optional_integer(const Context& ctx, const toml::table& table, const std::string& path,
-                                                  std::string_view key, long long min, long long max) {
+                                                  std::string_view schema_table, std::string_view key) {
+    const ConfigRange& range = config_range(schema_table, key);
+    const auto min = static_cast<long long>(range.least);
+    const auto max = static_cast<long long>(range.most);
     const std::string expected = fmt::format("an integer {}..{}", min, max);
     auto value = optional_value<std::int64_t>(ctx, table, path, key, expected);
     if (!value) return value.error();
@@ -148,7 +166,10 @@ Result<std::optional<long long>> optional_integer(const Context& ctx, const toml
 }
 
 Result<std::optional<double>> optional_number(const Context& ctx, const toml::table& table, const std::string& path,
-                                              std::string_view key, double min, double max) {
+                                              std::string_view schema_table, std::string_view key) {
+    const ConfigRange& range = config_range(schema_table, key);
+    const double min = range.least;
+    const double max = range.most;
     const std::string expected = fmt::format("a number {}..{}", min, max);
     const toml::node* node = table.get(key);
     if (!node) return std::optional<double>{};
@@ -300,13 +321,13 @@ Result<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, 
     auto address = device::parse_device_address(ctx.profiles, *text);
     if (!address) return ctx.fail(source_of(table, "device"), key_path(path, "device"), address.error().message);
     device.address = std::move(*address);
-    auto poll = optional_duration(ctx, table, path, "poll");
+    auto poll = bounded_duration(ctx, table, path, "lines.devices", "poll", "e.g. \"1s\"");
     if (!poll) return poll.error();
     if (*poll) device.poll = **poll;
     auto parameters = parameter_names(ctx, table, path, *device.address.profile, device.name);
     if (!parameters) return parameters.error();
     device.parameters = std::move(*parameters);
-    auto tcp_unit = optional_integer(ctx, table, path, "tcp_unit", 1, 247);
+    auto tcp_unit = optional_integer(ctx, table, path, "lines.devices", "tcp_unit");
     if (!tcp_unit) return tcp_unit.error();
     // The manuals allow units past 247 (AC20: 1-255, TC10: up to 254), Modbus TCP clients reach
     // 1..247 only (application protocol V1.1b3, 4.2: 248-255 reserved).
@@ -346,9 +367,9 @@ Result<void> parse_devices(const Context& ctx, const toml::table& table, const s
 
 // `speed` and `seed` set the simulation of a virtual line and mean nothing on a real one.
 Result<void> parse_line_simulation(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
-    auto speed = optional_number(ctx, table, path, "speed", 0.001, 100000.0);
+    auto speed = optional_number(ctx, table, path, "lines", "speed");
     if (!speed) return speed.error();
-    auto seed = optional_integer(ctx, table, path, "seed", 0, std::numeric_limits<std::int64_t>::max());
+    auto seed = optional_integer(ctx, table, path, "lines", "seed");
     if (!seed) return seed.error();
     if (!is_virtual_bus(line.link)) {
         for (std::string_view key : {"speed", "seed"}) {
@@ -369,7 +390,7 @@ Result<void> parse_line_simulation(const Context& ctx, const toml::table& table,
 // A serial line carries one request at a time: RTU, ASCII and Linking replies say nothing of
 // which request they answer, and neither does RTU through a device server (rtu+tcp).
 Result<void> parse_max_in_flight(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
-    auto in_flight = optional_integer(ctx, table, path, "max_in_flight", 1, max_in_flight_limit);
+    auto in_flight = optional_integer(ctx, table, path, "lines", "max_in_flight");
     if (!in_flight) return in_flight.error();
     if (!*in_flight) return {};
     if (**in_flight > 1 && line.link.framing != transport::Framing::tcp) {
@@ -388,21 +409,16 @@ Result<void> parse_line_settings(const Context& ctx, const toml::table& table, c
     auto link = transport::parse_link_url(*link_text);
     if (!link) return ctx.fail(source_of(table, "link"), key_path(path, "link"), link.error().message);
     line.link = std::move(*link);
-    auto timeout = optional_duration(ctx, table, path, "timeout");
+    auto timeout = bounded_duration(ctx, table, path, "lines", "timeout", "e.g. \"1s\"");
     if (!timeout) return timeout.error();
     if (*timeout) line.timeout = **timeout;
-    auto retries = optional_integer(ctx, table, path, "retries", 0, max_retries);
+    auto retries = optional_integer(ctx, table, path, "lines", "retries");
     if (!retries) return retries.error();
     if (*retries) line.retries = static_cast<unsigned>(**retries);  // 0..10, checked
-    auto late_reply_window = optional_duration(ctx, table, path, "late_reply_window");
+    auto late_reply_window = bounded_duration(ctx, table, path, "lines", "late_reply_window",
+                                              "e.g. \"500ms\", default: the line's timeout");
     if (!late_reply_window) return late_reply_window.error();
-    if (*late_reply_window) {
-        if (**late_reply_window > max_late_reply_window) {
-            return ctx.fail(source_of(table, "late_reply_window"), key_path(path, "late_reply_window"),
-                            "expected 1ms..1min (e.g. \"500ms\", default: the line's timeout)");
-        }
-        line.late_reply_window = **late_reply_window;
-    }
+    if (*late_reply_window) line.late_reply_window = **late_reply_window;
     if (auto in_flight = parse_max_in_flight(ctx, table, path, line); !in_flight) return in_flight.error();
     return parse_line_simulation(ctx, table, path, line);
 }
@@ -499,13 +515,10 @@ Result<LogConfig::Level> log_level(const Context& ctx, const toml::table& table)
 Result<std::chrono::milliseconds> statistics_interval(const Context& ctx, const toml::table& table) {
     const toml::node* node = table.get("statistics");
     if (node && node->value<std::string>() == "off") return milliseconds(0);
-    auto interval = optional_duration(ctx, table, "log", "statistics", milliseconds(0));
+    auto interval = bounded_duration(ctx, table, "log", "log", "statistics",
+                                     "closer together they would bury the log in figures; e.g. \"60s\", or \"off\" for only at exit");
     if (!interval) return interval.error();
     if (!*interval) return LogConfig{}.statistics;
-    if (**interval < std::chrono::seconds(1)) {
-        return ctx.fail(source_of(table, "statistics"), "log.statistics",
-                        "less than 1s apart would bury the log in figures (give e.g. \"60s\", or \"off\" for only at exit)");
-    }
     return **interval;
 }
 
@@ -561,13 +574,8 @@ std::optional<HostPort> split_listen(std::string_view text) {
 Result<std::optional<milliseconds>> front_idle_timeout(const Context& ctx, const toml::table& table) {
     const toml::node* node = table.get("idle_timeout");
     if (node && node->value<std::string>() == "off") return std::optional<milliseconds>{milliseconds(0)};
-    auto timeout = optional_duration(ctx, table, "modbus_tcp", "idle_timeout");
-    if (!timeout) return timeout.error();
-    if (*timeout && (**timeout < std::chrono::seconds(1) || **timeout > std::chrono::hours(24))) {
-        return ctx.fail(source_of(table, "idle_timeout"), "modbus_tcp.idle_timeout",
-                        "expected 1s..24h (e.g. \"60s\"), or \"off\" to keep idle connections open");
-    }
-    return *timeout;
+    return bounded_duration(ctx, table, "modbus_tcp", "modbus_tcp", "idle_timeout",
+                            "e.g. \"60s\"; \"off\" keeps idle connections open");
 }
 
 Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& root) {
@@ -596,10 +604,10 @@ Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& 
     auto enabled = optional_value<bool>(ctx, *table, "modbus_tcp", "enabled", "true or false");
     if (!enabled) return enabled.error();
     config.enabled = enabled->value_or(config.enabled);
-    auto max_age = optional_duration(ctx, *table, "modbus_tcp", "max_age");
+    auto max_age = bounded_duration(ctx, *table, "modbus_tcp", "modbus_tcp", "max_age", "e.g. \"250ms\"");
     if (!max_age) return max_age.error();
     config.max_age = max_age->value_or(config.max_age);
-    auto max_connections = optional_integer(ctx, *table, "modbus_tcp", "max_connections", 1, 10000);
+    auto max_connections = optional_integer(ctx, *table, "modbus_tcp", "modbus_tcp", "max_connections");
     if (!max_connections) return max_connections.error();
     if (*max_connections) config.max_connections = static_cast<std::size_t>(**max_connections);  // 1..10000, checked
     auto idle_timeout = front_idle_timeout(ctx, *table);
@@ -761,12 +769,9 @@ Result<void> parse_mqtt_publishing(const Context& ctx, const toml::table& table,
     if (*republish == "off") {
         config.republish.reset();
     } else if (*republish) {
-        auto every = optional_duration(ctx, table, "mqtt", "republish");
+        auto every = bounded_duration(ctx, table, "mqtt", "mqtt", "republish",
+                                      "e.g. \"5m\"; \"off\": values are then published only when they change");
         if (!every) return every.error();
-        if (**every < std::chrono::milliseconds(100)) {
-            return ctx.fail(source_of(table, "republish"), "mqtt.republish",
-                            "expected at least \"100ms\" (or \"off\": values are then published only when they change)");
-        }
         config.republish = **every;
     }
     auto discovery = optional_value<std::string>(ctx, table, "mqtt", "discovery", "\"homeassistant\" or \"none\"");
@@ -851,7 +856,7 @@ Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::tab
     }
     if (auto publishing = parse_mqtt_publishing(ctx, *table, config); !publishing) return publishing.error();
     // A value is a few bytes; 64 KiB is far beyond any, and still small to hold a few hundred of.
-    auto max_payload = optional_integer(ctx, *table, "mqtt", "max_payload", 16, 64 * 1024);
+    auto max_payload = optional_integer(ctx, *table, "mqtt", "mqtt", "max_payload");
     if (!max_payload) return max_payload.error();
     if (*max_payload) config.max_payload = static_cast<std::size_t>(**max_payload);  // 16..65536, checked
     return std::optional<MqttConfig>{std::move(config)};
@@ -928,13 +933,10 @@ Result<std::chrono::seconds> history_keep(const Context& ctx, const toml::table&
 // `heartbeat = "60s"`: every value is written at least this often, so a value that holds
 // still draws a line, not a gap.
 Result<std::chrono::milliseconds> history_heartbeat(const Context& ctx, const toml::table& table) {
-    auto heartbeat = optional_duration(ctx, table, "history", "heartbeat");
+    auto heartbeat = bounded_duration(ctx, table, "history", "history", "heartbeat",
+                                      "closer together it would write rows nobody needs; e.g. \"60s\"");
     if (!heartbeat) return heartbeat.error();
     if (!*heartbeat) return HistoryConfig{}.heartbeat;
-    if (**heartbeat < std::chrono::seconds(1)) {
-        return ctx.fail(source_of(table, "heartbeat"), "history.heartbeat",
-                        "less than 1s apart would write rows nobody needs (give e.g. \"60s\", at most \"24h\")");
-    }
     return **heartbeat;
 }
 
@@ -1090,26 +1092,16 @@ Result<std::vector<std::string>> http_hosts(const Context& ctx, const toml::tabl
 
 // The limits that keep a few clients from taking every connection.
 Result<void> parse_http_limits(const Context& ctx, const toml::table& table, HttpConfig& config) {
-    auto read_timeout = optional_duration(ctx, table, "http", "read_timeout");
+    auto read_timeout = bounded_duration(ctx, table, "http", "http", "read_timeout", "e.g. \"10s\"");
     if (!read_timeout) return read_timeout.error();
-    if (*read_timeout) {
-        if (**read_timeout < milliseconds(100) || **read_timeout > std::chrono::minutes(10)) {
-            return ctx.fail(source_of(table, "read_timeout"), "http.read_timeout", "expected 100ms..10min (e.g. \"10s\")");
-        }
-        config.read_timeout = **read_timeout;
-    }
-    auto send_timeout = optional_duration(ctx, table, "http", "send_timeout");
+    if (*read_timeout) config.read_timeout = **read_timeout;
+    auto send_timeout = bounded_duration(ctx, table, "http", "http", "send_timeout", "e.g. \"10s\"");
     if (!send_timeout) return send_timeout.error();
-    if (*send_timeout) {
-        if (**send_timeout < milliseconds(100) || **send_timeout > std::chrono::minutes(10)) {
-            return ctx.fail(source_of(table, "send_timeout"), "http.send_timeout", "expected 100ms..10min (e.g. \"10s\")");
-        }
-        config.send_timeout = **send_timeout;
-    }
-    auto max_connections = optional_integer(ctx, table, "http", "max_connections", 1, 10000);
+    if (*send_timeout) config.send_timeout = **send_timeout;
+    auto max_connections = optional_integer(ctx, table, "http", "http", "max_connections");
     if (!max_connections) return max_connections.error();
     if (*max_connections) config.max_connections = static_cast<unsigned>(**max_connections);  // 1..10000, checked
-    auto per_client = optional_integer(ctx, table, "http", "max_connections_per_client", 1, 10000);
+    auto per_client = optional_integer(ctx, table, "http", "http", "max_connections_per_client");
     if (!per_client) return per_client.error();
     if (*per_client) config.max_connections_per_client = static_cast<unsigned>(**per_client);  // 1..10000, checked
     return {};

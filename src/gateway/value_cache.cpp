@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 
+#include "client/resolved_value.hpp"
 #include "profile/value_format.hpp"
 
 namespace loopwire::gateway {
@@ -129,13 +130,16 @@ ValueChange value_change(const std::string& name, const device::WatchedDevice& s
     ValueChange change;
     change.device = name;
     change.parameter = parameter.name;
-    change.unit = device::shown_unit(parameter, value.last ? &*value.last : nullptr);  // as the device is configured
-    change.limits = device::limits_of(parameter, state.known);
+    // The view the command line, the library and the HTTP API show (client/resolved_value.hpp):
+    // the unit as the device is configured, its limits as it holds them, the text.
+    const auto resolved = device::resolve_value(parameter, value.last ? &*value.last : nullptr, state.known);
+    change.unit = resolved.unit;
+    change.limits = resolved.limits;
     change.status = device::value_status(state, value);
     change.sampled = sampled;
     if (value.fresh) {
         change.value = value.last;
-        change.text = device::value_text(parameter, *value.last);
+        change.text = resolved.text;
     } else {
         change.error = value.error;
     }

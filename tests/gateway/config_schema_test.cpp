@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <stdexcept>
 #include <string>
 
 #include <fmt/format.h>
@@ -56,6 +58,63 @@ TEST(ConfigSchema, EveryKeyItDescribesIsReadByTheParser) {
         auto config = parse(text);
         ASSERT_FALSE(config) << key.table << "." << key.key << " took an inline table";
         EXPECT_THAT(config.error().message, HasSubstr(std::string(key.key))) << key.table << "." << key.key;
+    }
+}
+
+// The numbers an integer or number key takes are the schema's: its words (the man page's
+// "Values:") begin with them, and the parser refuses one step outside either end, quoting them.
+TEST(ConfigSchema, TheRangesItStatesAreTheOnesEnforced) {
+    for (const ConfigKey& key : config_keys()) {
+        if (key.type != "integer" && key.type != "number") continue;
+        SCOPED_TRACE(fmt::format("{}.{}", key.table, key.key));
+        const ConfigRange& range = config_range(key.table, key.key);
+        EXPECT_THAT(std::string(key.bounds), ::testing::StartsWith(fmt::format("{}..{}", range.least, range.most)));
+        const bool integer = key.type == "integer";
+        const double step = integer ? 1.0 : range.least / 2;
+        for (const double outside : {range.least - step, range.most + (integer ? 1.0 : range.most)}) {
+            const std::string value = integer ? fmt::format("{}", static_cast<long long>(outside)) : fmt::format("{:.6f}", outside);
+            auto config = parse(configuration_with(key.table, fmt::format("{} = {}\n", key.key, value)));
+            ASSERT_FALSE(config) << value << " was taken";
+            EXPECT_THAT(config.error().message,
+                        HasSubstr(fmt::format("out of range (expected {} {}..{})", integer ? "an integer" : "a number",
+                                              range.least, range.most)));
+        }
+    }
+    EXPECT_THROW(config_range("lines", "name"), std::logic_error) << "a string has no range";
+}
+
+// A duration in the words the schema uses: 1ms, 100ms, 1s, 1min, 24h.
+std::string duration_words(double ms) {
+    const auto whole = static_cast<long long>(ms);
+    if (whole % 3'600'000 == 0) return fmt::format("{}h", whole / 3'600'000);
+    if (whole % 60'000 == 0) return fmt::format("{}min", whole / 60'000);
+    if (whole % 1'000 == 0) return fmt::format("{}s", whole / 1'000);
+    return fmt::format("{}ms", whole);
+}
+
+// Durations too: the words state the schema's range ("1ms..1min", "at least 1s"), the parser
+// refuses a millisecond outside it and quotes those words, never a minimum it does not enforce.
+TEST(ConfigSchema, TheDurationRangesItStatesAreTheOnesEnforced) {
+    for (const ConfigKey& key : config_keys()) {
+        if (key.type != "duration") continue;
+        SCOPED_TRACE(fmt::format("{}.{}", key.table, key.key));
+        const ConfigRange& range = config_range(key.table, key.key);
+        const bool bounded = std::isfinite(range.most);
+        const std::string words = bounded ? fmt::format("{}..{}", duration_words(range.least), duration_words(range.most))
+                                          : fmt::format("at least {}", duration_words(range.least));
+        EXPECT_THAT(std::string(key.bounds), ::testing::StartsWith(words));
+        std::vector<double> outside{range.least - 1};
+        if (bounded) outside.push_back(range.most + 1);
+        for (const double ms : outside) {
+            auto config = parse(configuration_with(key.table, fmt::format("{} = \"{}ms\"\n", key.key, static_cast<long long>(ms))));
+            ASSERT_FALSE(config) << ms << " ms was taken";
+            // Past a day the duration parser itself says so ("give at most 24h"), which is this range's end.
+            EXPECT_THAT(config.error().message,
+                        ::testing::AnyOf(HasSubstr(words), HasSubstr(fmt::format("at most {}", duration_words(range.most)))))
+                << "the refusal quotes the range";
+        }
+        auto at_least = parse(configuration_with(key.table, fmt::format("{} = \"{}ms\"\n", key.key, static_cast<long long>(range.least))));
+        EXPECT_TRUE(at_least) << at_least.error().message;
     }
 }
 

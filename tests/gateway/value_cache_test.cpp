@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "gateway/value_cache.hpp"
+#include "support/profile_test_support.hpp"
 
 namespace loopwire::gateway {
 namespace {
@@ -113,6 +114,27 @@ TEST(ValueCache, TheFirstSampleTellsTheDevicesStatusAndEveryParameter) {
     EXPECT_EQ(set_point.status, "ok");
     EXPECT_EQ(set_point.error, "");
     EXPECT_EQ(set_point.sampled, sample_time);
+}
+
+// A value is told with the view every front resolves (client/resolved_value.hpp): a set point
+// not read yet has the unit its configuration word says and the limits its bounding words set,
+// as the HTTP API and the command line show them, not the profile's default.
+TEST(ValueCache, AValueNotReadYetHasItsConfiguredUnitAndLimits) {
+    const auto tc10 = device::testing::builtin("tc10");
+    ASSERT_TRUE(tc10);
+    const device::Parameter& sp = device::testing::parameter(*tc10, "set_point");
+    device::WatchedDevice state = device::watch("tc10@3", {&sp});
+    state.status = device::DeviceStatus::no_reply;
+    state.known = {{"temperature_unit", 1}, {"decimal_point", 0}, {"set_point_low_limit", 10}, {"set_point_high_limit", 500}};
+    ValueCache cache;
+    Told told;
+    auto subscription = cache.subscribe(told.collect());
+    cache.update("oven1", state, sample_time);
+    ASSERT_EQ(told.changes.size(), 2u);
+    const ValueChange& change = told.changes[1];
+    EXPECT_FALSE(change.value.has_value());
+    EXPECT_EQ(change.unit, "°F");
+    EXPECT_EQ(change.limits, (device::ValueLimits{10.0, 500.0}));
 }
 
 TEST(ValueCache, AnUnchangedSampleTellsNothing) {
