@@ -167,6 +167,27 @@ void DeviceClient::decode_readings(const std::vector<const Parameter*>& paramete
     }
 }
 
+std::optional<DeviceAddress> identify_unit(session::Master& master, int unit) {
+    for (const auto& id : builtin_profile_ids()) {
+        auto address = parse_device_address(id + "@" + std::to_string(unit));
+        if (!address) continue;
+        const auto& profile = *address->profile;
+        std::vector<const Parameter*> checks;
+        for (const auto& check : profile.identification) {
+            if (const auto* p = profile.find(check.parameter)) checks.push_back(p);
+        }
+        if (checks.empty()) continue;
+        const auto report = DeviceClient(master, *address).read(checks);
+        bool all_hold = !report.first_error;
+        for (const auto& check : profile.identification) {
+            auto raw = report.raw.find(check.parameter);
+            all_hold = all_hold && raw != report.raw.end() && static_cast<std::int16_t>(raw->second) == static_cast<std::int16_t>(check.equals);
+        }
+        if (all_hold) return *address;
+    }
+    return std::nullopt;
+}
+
 Result<void> DeviceClient::confirm_identity() {
     const Profile& profile = *device_.profile;
     std::vector<const Parameter*> words;
@@ -175,11 +196,15 @@ Result<void> DeviceClient::confirm_identity() {
     }
     if (words.empty()) return {};
     const auto report = read(words);
+    // Named by what answers there when a built-in profile recognises it (an AC20 asked for as a
+    // TC10), else the way to find out.
     const auto not_it = [&](const std::string& found) {
-        return make_error(ErrorKind::mismatch,
-                          fmt::format("the device at unit {0} is not {1}@{0}: {2}. `loopwire scan --link URL --units {0}` tells "
-                                      "what it is; --no-identify talks to it as {1} anyway",
-                                      device_.unit, profile.id, found));
+        const auto there = identify_unit(master_, device_.unit);
+        const std::string what = there ? fmt::format("It answers as {}@{}", there->profile->id, device_.unit)
+                                       : fmt::format("`loopwire scan --link URL --units {}` tells what it is", device_.unit);
+        return make_error(ErrorKind::mismatch, fmt::format("the device at unit {0} is not {1}@{0}: {2}. {3}; --no-identify talks to "
+                                                           "it as {1} anyway",
+                                                           device_.unit, profile.id, found, what));
     };
     for (const auto& check : profile.identification) {
         const auto* p = profile.find(check.parameter);

@@ -65,6 +65,10 @@ struct WriteReport {
 // The end of a read_async: the report, and the timeout or link failure that ended it early.
 using ReadDone = std::function<void(ReadReport report, std::optional<Error> stopped_by)>;
 
+// The built-in profile whose identification words all hold at `unit`, as DEVICE@UNIT, if any:
+// what `loopwire scan` names a unit by, and what a refused identification says is there.
+std::optional<DeviceAddress> identify_unit(session::Master& master, int unit);
+
 class DeviceClient {
 public:
     DeviceClient(session::Master& master, DeviceAddress device);

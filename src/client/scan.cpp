@@ -65,31 +65,9 @@ std::string line_text(const transport::LinkUrl& url) {
     return fmt::format("{} {}{}{}", url.serial.baud, url.serial.data_bits, parity, url.serial.stop_bits);
 }
 
-// The unit as the first profile whose identification words all hold, if any.
-std::optional<DeviceAddress> matching_device(session::Master& master, int unit) {
-    for (const auto& id : builtin_profile_ids()) {
-        auto address = parse_device_address(id + "@" + std::to_string(unit));
-        if (!address) continue;
-        const auto& profile = *address->profile;
-        std::vector<const Parameter*> checks;
-        for (const auto& check : profile.identification) {
-            if (const auto* p = profile.find(check.parameter)) checks.push_back(p);
-        }
-        if (checks.empty()) continue;
-        const auto report = DeviceClient(master, *address).read(checks);
-        bool all_hold = !report.first_error;
-        for (const auto& check : profile.identification) {
-            auto raw = report.raw.find(check.parameter);
-            all_hold = all_hold && raw != report.raw.end() && static_cast<std::int16_t>(raw->second) == static_cast<std::int16_t>(check.equals);
-        }
-        if (all_hold) return *address;
-    }
-    return std::nullopt;
-}
-
 // Names the unit by its profile and reads the words that profile shows when it identifies one.
 void identify(session::Master& master, FoundUnit& found) {
-    const auto address = matching_device(master, found.unit);
+    const auto address = identify_unit(master, found.unit);
     if (!address) return;
     const Profile* profile = address->profile.get();
     found.device = profile->id;

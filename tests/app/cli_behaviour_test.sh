@@ -108,6 +108,14 @@ check wrong-device-write-refused 6 "the device at unit 1 is not tc10@1: its inst
 check wrong-device-write-sent-nothing 0 '"values":[0]' "$loopwire" read --link "tcp://127.0.0.1:$port" --unit 1 holding 717 --json
 check wrong-device-json-once 6 '"kind":"mismatch"' "$loopwire" read --json --link "tcp://127.0.0.1:$port" --device tc10@1 SP
 check no-identify-reads-anyway 0 "set_point" "$loopwire" read --no-identify --link "tcp://127.0.0.1:$port" --device tc10@1 SP
+check wrong-device-unknown-says-how-to-find-out 6 "\`loopwire scan --link URL --units 1\` tells what it is" \
+  "$loopwire" read --link "tcp://127.0.0.1:$port" --device tc10@1 SP
+# A TC10 asked of a simulated AC20: the refusal names both, the one asked for and the one there.
+start_tcp_server ac20.log "$loopwire" simulate --link tcp://127.0.0.1:0 --device ac20@1 --duration 60s
+check tc10-asked-of-an-ac20-names-both 6 "the device at unit 1 is not tc10@1: its instrument_id (word 21) reads" \
+  "$loopwire" read --link "tcp://127.0.0.1:$PORT" --device tc10@1 SP
+check tc10-asked-of-an-ac20-says-what-is-there 6 "It answers as ac20@1; --no-identify talks to it as tc10 anyway" \
+  "$loopwire" read --link "tcp://127.0.0.1:$PORT" --device tc10@1 SP
 check right-device-still-reads 0 "measured_value" "$loopwire" read --link "rtu:$tc10_pty" --device tc10@3 PV
 check write-above-sp-hl-refused 5 "exception 3" "$loopwire" write --link "rtu:$tc10_pty" --unit 3 holding 717 30000
 # TC10 §4.1, §5.3.7 #62: Pb "1 ... 9999" is in display counts, so at dP = 1 the master refuses
