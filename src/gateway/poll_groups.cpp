@@ -275,6 +275,9 @@ struct PollGroups::State {
     // once their outcomes have been handled the groups go, on the loop's thread.
     void stop(Engine& engine) {
         stopping.request_stop();
+        // A sample the loop was starting as the stop came may still be starting its reads: once
+        // the loop has run this, every sample has either seen the stop or counted its reads.
+        engine.take_down([] {});
         {
             std::unique_lock lock(reads_mutex);
             no_reads.wait(lock, [this] { return reads == 0; });
