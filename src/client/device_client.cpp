@@ -167,21 +167,35 @@ void DeviceClient::decode_readings(const std::vector<const Parameter*>& paramete
     }
 }
 
+namespace {
+
+// The words a profile identifies its device by (scan and the check before a read by name).
+std::vector<const Parameter*> identification_words(const Profile& profile) {
+    std::vector<const Parameter*> words;
+    for (const auto& check : profile.identification) {
+        if (const auto* p = profile.find(check.parameter)) words.push_back(p);
+    }
+    return words;
+}
+
+// Compared as int16: the profiles write identification values as the manuals print them.
+bool identification_holds(const IdentificationCheck& check, std::uint16_t raw) {
+    return static_cast<std::int16_t>(raw) == static_cast<std::int16_t>(check.equals);
+}
+
+}  // namespace
+
 std::optional<DeviceAddress> identify_unit(session::Master& master, int unit) {
     for (const auto& id : builtin_profile_ids()) {
         auto address = parse_device_address(id + "@" + std::to_string(unit));
         if (!address) continue;
-        const auto& profile = *address->profile;
-        std::vector<const Parameter*> checks;
-        for (const auto& check : profile.identification) {
-            if (const auto* p = profile.find(check.parameter)) checks.push_back(p);
-        }
+        const auto checks = identification_words(*address->profile);
         if (checks.empty()) continue;
         const auto report = DeviceClient(master, *address).read(checks);
         bool all_hold = !report.first_error;
-        for (const auto& check : profile.identification) {
-            auto raw = report.raw.find(check.parameter);
-            all_hold = all_hold && raw != report.raw.end() && static_cast<std::int16_t>(raw->second) == static_cast<std::int16_t>(check.equals);
+        for (const auto& check : address->profile->identification) {
+            const auto raw = report.raw.find(check.parameter);
+            all_hold = all_hold && raw != report.raw.end() && identification_holds(check, raw->second);
         }
         if (all_hold) return *address;
     }
@@ -190,10 +204,7 @@ std::optional<DeviceAddress> identify_unit(session::Master& master, int unit) {
 
 Result<void> DeviceClient::confirm_identity() {
     const Profile& profile = *device_.profile;
-    std::vector<const Parameter*> words;
-    for (const auto& check : profile.identification) {
-        if (const auto* p = profile.find(check.parameter)) words.push_back(p);
-    }
+    const std::vector<const Parameter*> words = identification_words(profile);
     if (words.empty()) return {};
     const auto report = read(words);
     // Named by what answers there when a built-in profile recognises it (an AC20 asked for as a
@@ -211,7 +222,7 @@ Result<void> DeviceClient::confirm_identity() {
         if (p == nullptr) continue;
         const auto raw = report.raw.find(p->name);
         if (raw != report.raw.end()) {
-            if (static_cast<std::int16_t>(raw->second) == static_cast<std::int16_t>(check.equals)) continue;
+            if (identification_holds(check, raw->second)) continue;
             return not_it(fmt::format("its {} (word {}) reads {} where the {} profile expects {}", p->name, p->address,
                                       static_cast<std::int16_t>(raw->second), profile.id, check.equals));
         }
@@ -234,10 +245,11 @@ Result<void> DeviceClient::confirm_identity() {
 ReadReport DeviceClient::read(const std::vector<const Parameter*>& parameters) { return read_planned(parameters, plan(parameters)); }
 
 ReadReport DeviceClient::read_with_limits(const std::vector<const Parameter*>& parameters) {
-    std::vector<const Parameter*> with_bounds = with_dependencies(*device_.profile, parameters);
+    std::vector<const Parameter*> with_bounds = parameters;
     std::set<const Parameter*> seen(with_bounds.begin(), with_bounds.end());
     for (const Parameter* parameter : parameters) {
-        for (const std::string& name : dependencies_of(*parameter)) {  // bounds and their decimals too
+        // Decimals and unit words, as read() takes them, and the bounds with their decimals.
+        for (const std::string& name : dependencies_of(*parameter)) {
             const Parameter* dependency = device_.profile->find(name);
             if (dependency && dependency->readable && seen.insert(dependency).second) with_bounds.push_back(dependency);
         }
