@@ -10,6 +10,7 @@
 #include <memory>
 #include <mutex>
 #include <stdexcept>
+#include <string>
 #include <thread>
 
 #include "client/device_client.hpp"
@@ -26,9 +27,11 @@ using FaultPolicy = std::function<transport::BusFault(const std::string& from, B
 
 class FaultyBusRig {
 public:
-    // `devices`: "tc10@3", "rampsoak@5", ... all served by one slave.
-    FaultyBusRig(const std::vector<std::string>& devices, std::chrono::milliseconds timeout) {
-        const auto link = transport::parse_link_url("rtu:virtual?baud=9600&parity=none");
+    // `devices`: "tc10@3", "rampsoak@5", ... all served by one slave, on a line of `baud` (8N1).
+    // The wire time is real time: a test that sends hundreds of frames runs faster, and none of
+    // the faults it injects depends on the speed.
+    FaultyBusRig(const std::vector<std::string>& devices, std::chrono::milliseconds timeout, std::uint32_t baud = 9600) {
+        const auto link = transport::parse_link_url("rtu:virtual?baud=" + std::to_string(baud) + "&parity=none");
         if (!link) throw std::runtime_error(link.error().message);
         bus_ = transport::VirtualBus::create(link->serial.baud, 10);
         bus_->set_fault_injector([this](const std::string& from, ByteView bytes) { return fault_for(from, bytes); });
