@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <charconv>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
@@ -22,7 +23,9 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
+#include <utility>
 #include <string_view>
 #include <thread>
 #include <vector>
@@ -76,7 +79,10 @@ public:
     // Waits until `count` values of sample `sample` (or later) came, at most `limit`.
     bool wait(long sample, std::size_t count, std::chrono::milliseconds limit) {
         std::unique_lock lock(mutex_);
-        return changed_.wait_for(lock, limit, [&] { return arrivals_[sample] >= count; });
+        awaited_ = {sample, count};
+        const bool arrived = changed_.wait_for(lock, limit, [&] { return arrivals_[sample] >= count; });
+        awaited_.reset();
+        return arrived;
     }
     void expect(long sample, SteadyClock::time_point sent) {
         std::lock_guard lock(mutex_);
@@ -105,7 +111,10 @@ private:
     std::vector<double> values_of(const mosquitto_message& message) const {
         if (!sparkplug_) {
             if (std::string_view(message.topic).ends_with("/status")) return {};  // PREFIX/DEVICE/status, not a value
-            return {std::stod(std::string(static_cast<const char*>(message.payload), static_cast<std::size_t>(message.payloadlen)))};
+            const char* text = static_cast<const char*>(message.payload);
+            double value = 0;
+            std::from_chars(text, text + message.payloadlen, value);
+            return {value};
         }
         loopwire::sparkplug::b::Payload payload;
         if (!payload.ParseFromArray(message.payload, message.payloadlen)) return {};
@@ -129,13 +138,16 @@ private:
                 latencies_.push_back(std::chrono::duration<double, std::milli>(now - found->second).count());
             }
         }
-        changed_.notify_all();
+        // The instrument must cost less than what it measures (mosquitto_sub, the peer's
+        // subscriber, is a plain C loop): the waiter is woken only when what it waits for came.
+        if (awaited_ && arrivals_[awaited_->first] >= awaited_->second) changed_.notify_all();
     }
 
     bool sparkplug_ = false;
     mosquitto* client_ = nullptr;
     std::mutex mutex_;
     std::condition_variable changed_;
+    std::optional<std::pair<long, std::size_t>> awaited_;  // (sample, count) the waiter wants
     std::map<long, std::size_t> arrivals_;
     std::size_t total_ = 0;
     std::map<long, SteadyClock::time_point> sent_;

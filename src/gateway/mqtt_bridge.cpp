@@ -7,6 +7,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <unordered_map>
 #include <set>
 #include <string_view>
 #include <stop_token>
@@ -126,6 +127,7 @@ struct MqttBridge::State {
     // error, and what was announced to Home Assistant: each parameter's unit and decimals (by
     // its state topic), each device's control loop.
     std::map<std::string, std::string> last_errors;
+    std::map<std::string, std::string> meta_inputs_of;  // per value topic: what its meta was last made of
     std::map<std::string, std::string> discovered;
     struct LoopSeen {
         std::optional<std::string> pv_unit;
@@ -137,7 +139,7 @@ struct MqttBridge::State {
     std::map<std::string, LoopSeen> loops;
 
     // The network thread's own: every retained topic's payload, republished on each connection.
-    std::map<std::string, RetainedTopic> retained;
+    std::unordered_map<std::string, RetainedTopic> retained;
     std::deque<TakenCommand> taken;  // the last commands of this session, oldest first
     bool told_unreachable = false;
     bool told_refused = false;
@@ -191,7 +193,14 @@ struct MqttBridge::State {
         const device::Parameter* parameter = device ? device->address.profile->find(change.parameter) : nullptr;
         std::string& last_error = last_errors[base];
         if (!change.error.empty()) last_error = change.error;
-        const nlohmann::json meta = meta_document(change, parameter, last_error);
+        // Built only when something in it changed: a new value alone leaves it as it was.
+        std::string& meta_made_of = meta_inputs_of[base];
+        std::string inputs = meta_inputs(change, parameter, last_error);
+        std::optional<std::string> meta;
+        if (inputs != meta_made_of) {
+            meta = json_text(meta_document(change, parameter, last_error));
+            meta_made_of = std::move(inputs);
+        }
         std::vector<DiscoveryDocument> discoveries;
         if (config.discovery == MqttConfig::Discovery::homeassistant && parameter) {
             discoveries = discover(change, base, *device->address.profile, *parameter);
@@ -199,7 +208,7 @@ struct MqttBridge::State {
         std::lock_guard lock(mutex);
         queue_locked({base, change.value ? change.text : change.status, true, 0, true});
         // A device's texts (an error, an enum label) are its own and may not be valid UTF-8.
-        queue_locked({base + "/meta", json_text(meta), true, 0});
+        if (meta) queue_locked({base + "/meta", std::move(*meta), true, 0});
         for (const auto& discovery : discoveries) {
             const std::string payload = discovery.config.is_null() ? std::string() : json_text(discovery.config);
             queue_locked({discovery.topic, payload, true, qos_at_least_once});

@@ -123,6 +123,19 @@ nlohmann::json meta_document(const ValueChange& change, const device::Parameter*
     return meta;
 }
 
+std::string meta_inputs(const ValueChange& change, const device::Parameter* parameter, const std::string& last_error) {
+    // As meta_document reads them: without a parameter only what the change says; with one, the
+    // parameter (the same for every change of a topic), the limits, and of the value only the
+    // decimals its text shows when another parameter sets them.
+    const std::string said = fmt::format("{}\x1f{}\x1f{}\x1f{}", change.unit, change.status, change.error, last_error);
+    if (!parameter) return said;
+    const auto bound = [](const std::optional<double>& value) { return value ? fmt::format("{}", *value) : std::string("-"); };
+    const bool decimals_from_text = !std::holds_alternative<int>(parameter->decimals) && change.value &&
+                                    std::holds_alternative<double>(change.value->value);
+    return fmt::format("{}\x1f{}\x1f{}\x1f{}", said, decimals_from_text ? decimals_in(change.text) : -1,
+                       bound(change.limits.min), bound(change.limits.max));
+}
+
 int shown_decimals(const device::Parameter& parameter, const ValueChange* latest) {
     if (const int* fixed = std::get_if<int>(&parameter.decimals)) return *fixed;
     if (latest && latest->value && std::holds_alternative<double>(latest->value->value)) return decimals_in(latest->text);

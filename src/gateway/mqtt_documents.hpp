@@ -24,6 +24,11 @@ std::string sanitized_level(const std::string& text);
 // `parameter` may be null (a name the profile does not know): then only what the change says.
 nlohmann::json meta_document(const ValueChange& change, const device::Parameter* parameter, const std::string& last_error);
 
+// What meta_document is made of from a change, in one string: equal inputs make an equal
+// document, so a front can tell a value's change from one that changes its meta without building
+// the JSON (most changes are a new value and nothing else).
+std::string meta_inputs(const ValueChange& change, const device::Parameter* parameter, const std::string& last_error);
+
 // A discovery document for Home Assistant's MQTT integration ("MQTT discovery"), published
 // retained on `topic`.
 struct DiscoveryDocument {
