@@ -5,6 +5,7 @@
 #include <map>
 #include <mutex>
 #include <thread>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -12,6 +13,7 @@
 #include "session/master.hpp"
 #include "session/reply_check.hpp"
 #include "session/transaction_text.hpp"
+#include "session/write_batching.hpp"
 #include "transport/tcp.hpp"
 
 namespace loopwire::session {
@@ -39,6 +41,12 @@ public:
           reader_([this] { read_loop(); }) {}
 
     ~TcpMaster() override {
+        {
+            // A flush still to come at the end of a loop's round finds no master (and one running
+            // now is waited for).
+            std::lock_guard lock(batch_->mutex);
+            batch_->master = nullptr;
+        }
         {
             std::lock_guard lock(mutex_);
             running_ = false;
@@ -121,11 +129,61 @@ private:
         trace(TraceDirection::sent, frame, pending.transaction);
         pending.deadline = Clock::now() + (pending.broadcast ? options_.turnaround : options_.timeout);
         auto [entry, added] = pending_.insert_or_assign(transaction, std::move(pending));
+        if (batched(transaction, frame)) return std::nullopt;
         auto written = stream_->write(frame);
         if (written) return std::nullopt;
         Finished failed{std::move(entry->second.done), written.error()};
         pending_.erase(entry);
         return failed;
+    }
+
+    // Called with mutex_ held. On a loop that batches writes (session/write_batching.hpp), the
+    // frame joins the ones to be written at the end of the loop's round, and true is returned.
+    bool batched(std::uint16_t transaction, const Bytes& frame) {
+        if (!batch_flush_due_) {
+            std::weak_ptr<BatchTarget> target = batch_;
+            if (!WriteBatching::defer([target] { flush_batch(target); })) return false;
+            batch_flush_due_ = true;
+        }
+        outgoing_.insert(outgoing_.end(), frame.begin(), frame.end());
+        outgoing_transactions_.push_back(transaction);
+        return true;
+    }
+
+    struct BatchTarget {
+        explicit BatchTarget(TcpMaster* owner) : master(owner) {}
+        std::mutex mutex;  // held while a flush runs, and by the destructor to end them
+        TcpMaster* master;
+    };
+
+    static void flush_batch(const std::weak_ptr<BatchTarget>& weak) {
+        auto target = weak.lock();
+        if (!target) return;
+        std::lock_guard lock(target->mutex);
+        if (target->master) target->master->write_batch();
+    }
+
+    // One write of every frame noted since the last. When it fails, its requests fail with the
+    // error, as a single request's failed write does in send() (and the reader drops the
+    // connection).
+    void write_batch() {
+        std::vector<Finished> failed;
+        {
+            std::lock_guard lock(mutex_);
+            batch_flush_due_ = false;
+            const Bytes frames = std::exchange(outgoing_, {});
+            const auto transactions = std::exchange(outgoing_transactions_, {});
+            if (frames.empty() || !stream_) return;
+            auto written = stream_->write(frames);
+            if (written) return;
+            for (const std::uint16_t transaction : transactions) {
+                auto entry = pending_.find(transaction);
+                if (entry == pending_.end()) continue;
+                failed.emplace_back(std::move(entry->second.done), written.error());
+                pending_.erase(entry);
+            }
+        }
+        for (auto& [done, result] : failed) done(std::move(result));
     }
 
     void trace(TraceDirection direction, ByteView bytes, std::string note) const {
@@ -159,6 +217,8 @@ private:
         {
             std::lock_guard lock(mutex_);
             old = std::move(stream_);
+            outgoing_.clear();  // frames of the requests failed below: not for the next connection
+            outgoing_transactions_.clear();
         }
         fail_all(make_error(ErrorKind::link, fmt::format("connection to {} lost: {}", link_.to_string(), error.message)));
     }
@@ -258,6 +318,10 @@ private:
     std::map<std::uint16_t, PendingRequest> pending_;
     std::uint16_t next_transaction_ = 1;
     bool running_ = true;
+    Bytes outgoing_;                // frames waiting for the end of the loop's round
+    std::vector<std::uint16_t> outgoing_transactions_;  // theirs
+    bool batch_flush_due_ = false;  // a flush of outgoing_ is deferred
+    std::shared_ptr<BatchTarget> batch_ = std::make_shared<BatchTarget>(this);
     std::thread reader_;  // last: starts once everything above exists
 };
 

@@ -17,6 +17,7 @@
 
 #include "session/slave.hpp"
 #include "session/tcp_slave_connection.hpp"
+#include "session/write_batching.hpp"
 
 namespace loopwire::session {
 namespace {
@@ -102,6 +103,9 @@ Result<void> TcpSlaveServer::serve(transport::TcpListener& listener, std::stop_t
         // The callback may run on the stopping thread, or here at once if stop was requested
         // already; post() is thread-safe and the loop runs the graceful stop on its own thread.
         std::stop_callback on_stop(stop, [this] { asio::post(loop_, [this] { stop_gracefully(); }); });
+        // Requests forwarded to a pipelined TCP line while handling this round's clients go out
+        // in one write at its end (session/write_batching.hpp).
+        WriteBatching::Scope batching([this](std::function<void()> work) { asio::post(loop_, std::move(work)); });
         loop_.run();
     }
     shut_down();
