@@ -103,8 +103,12 @@ LineRequest ForwardingUnit::line_request(Bytes request_pdu, bool broadcast, cons
     request.client = asker.origin;
     request.still_wanted = asker.still_wanted;
     request.deadline = clock_->now() + settings_.queue_limit;
-    request.done = [function, broadcast, update = std::move(update), reply = std::move(reply)](Result<Bytes> answered) {
+    std::function<void()> on_written = write ? settings_.on_write_answered : nullptr;
+    request.done = [function, broadcast, update = std::move(update), on_written = std::move(on_written),
+                    reply = std::move(reply)](Result<Bytes> answered) {
         update(answered);
+        // A normal reply: the function code echoed, not function + 80h. A broadcast has none.
+        if (on_written && answered && !answered->empty() && ((*answered)[0] & 0x80) == 0) on_written();
         if (broadcast) return reply(std::nullopt);  // nobody answers a broadcast (2.1 of the serial spec)
         reply(answered ? std::move(*answered) : failure_reply(function, answered.error()));
     };

@@ -29,6 +29,9 @@ struct ForwardingSettings {
     // old; 0: every request goes to the line.
     std::chrono::milliseconds max_age{0};
     std::size_t cache_entries = ReadCache::default_capacity;
+    // Told, on the line's thread, of every write a client made through this unit that the device
+    // answered with a normal reply: a word that bounds a polled value may have moved.
+    std::function<void()> on_write_answered = {};
 };
 
 // What the gateway says of refused or failed requests (for its log). A line that begins with

@@ -46,6 +46,36 @@ struct OpenLine {
     std::shared_ptr<LineScheduler> scheduler;
 };
 
+// Carries the Modbus TCP front's "a client wrote to this device" to the polls
+// (PollGroups::written_unknown), on the engine's loop. The forwarding units hold it weakly and may
+// outlive the gateway (a kept front holds them until the next one is routed); close() is called
+// before the polls go, and waits for a notice being posted, so none reaches them afterwards.
+class FrontWriteNotices {
+public:
+    void open(Engine& engine, PollGroups& polls) {
+        std::lock_guard lock(mutex_);
+        engine_ = &engine;
+        polls_ = &polls;
+    }
+    void close() {
+        std::lock_guard lock(mutex_);
+        engine_ = nullptr;
+        polls_ = nullptr;
+    }
+    // On a line's thread.
+    void written(const std::string& device) {
+        std::lock_guard lock(mutex_);
+        if (!engine_) return;
+        // Posted before close(), so it runs before the polls' take-down (engine.hpp).
+        boost::asio::post(engine_->loop(), [polls = polls_, device] { polls->written_unknown(device); });
+    }
+
+private:
+    std::mutex mutex_;
+    Engine* engine_ = nullptr;
+    PollGroups* polls_ = nullptr;
+};
+
 // A virtual line's devices: each simulated from its profile, as `loopwire simulate` would.
 session::UnitMap simulated_devices(const LineConfig& line) {
     device::SimulationEnvironment environment;
@@ -156,6 +186,8 @@ LineReport report_of(const OpenLine& line);  // below
 constexpr std::chrono::milliseconds write_limit{10000};
 
 struct Gateway::Parts {
+    ~Parts() { front_writes->close(); }  // before any member goes: the polls are still there
+
     std::chrono::milliseconds statistics_interval{0};
     GatewayLog log;
     // First, so it goes last: the polls, the writer and the statistics run on its loop and take
@@ -169,6 +201,8 @@ struct Gateway::Parts {
     std::unique_ptr<HistoryStore> history;
     ValueSubscription history_subscription;
     std::unique_ptr<PollGroups> polls;
+    // Closed before the polls go (~Parts), which it posts to.
+    std::shared_ptr<FrontWriteNotices> front_writes = std::make_shared<FrontWriteNotices>();
     // The front the units are routed through: `own_front`, or the caller's (GatewayOptions).
     std::unique_ptr<ModbusTcpFront> own_front;
     ModbusTcpFront* front = nullptr;
@@ -207,6 +241,9 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
             settings.writes_allowed = config.modbus_tcp.writes;
             settings.carries_broadcasts = std::exchange(first, false);
             settings.max_age = config.modbus_tcp.max_age;
+            settings.on_write_answered = [notices = std::weak_ptr<FrontWriteNotices>(parts->front_writes), name = device.name] {
+                if (auto open = notices.lock()) open->written(name);
+            };
             units[device.tcp_unit] = std::make_shared<ForwardingUnit>(opened->scheduler, settings, clock, options.log);
         }
         parts->lines.push_back(std::move(*opened));
@@ -221,6 +258,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
             parts->cache.subscribe([store = parts->history.get()](const ValueChange& change) { store->record(change); });
     }
     parts->polls = std::make_unique<PollGroups>(parts->engine, config, schedulers, parts->cache, options.log, options.samples);
+    parts->front_writes->open(parts->engine, *parts->polls);
     if (config.modbus_tcp.enabled && options.front) {
         parts->front = options.front;
     } else if (config.modbus_tcp.enabled) {

@@ -354,14 +354,23 @@ PollGroups::PollGroups(Engine& engine, const GatewayConfig& config,
 PollGroups::~PollGroups() { state_->stop(engine_); }
 
 void PollGroups::written(const std::string& device, const std::vector<std::string>& parameters) {
+    refresh_limits_of(device, [&](const device::Parameter& bound) {
+        return std::find(parameters.begin(), parameters.end(), bound.name) != parameters.end();
+    });
+}
+
+void PollGroups::written_unknown(const std::string& device) {
+    refresh_limits_of(device, [](const device::Parameter&) { return true; });
+}
+
+void PollGroups::refresh_limits_of(const std::string& device, const std::function<bool(const device::Parameter&)>& moved) {
     for (auto& group : state_->groups) {
         for (std::size_t i = 0; i < group->names.size(); ++i) {
             if (group->names[i] != device) continue;
             const auto& bounds = group->bounds[i];
-            const bool moves_a_limit = std::any_of(bounds.begin(), bounds.end(), [&](const device::Parameter* bound) {
-                return std::find(parameters.begin(), parameters.end(), bound->name) != parameters.end();
-            });
-            if (moves_a_limit) group->limits_read_at[i].reset();
+            if (std::any_of(bounds.begin(), bounds.end(), [&](const device::Parameter* bound) { return moved(*bound); })) {
+                group->limits_read_at[i].reset();
+            }
         }
     }
 }

@@ -16,6 +16,7 @@
 // interval (50 ms to 1 s), has the cache mark the devices whose poll is overdue `stale`, since
 // a poll stuck on its line reports nothing itself; each device going stale or fresh is logged.
 #include <chrono>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -47,10 +48,15 @@ public:
     // bounding words again, so every front shows the new limit then, not at the 5-minute
     // refresh. On the engine's loop (DeviceWriter::on_written).
     void written(const std::string& device, const std::vector<std::string>& parameters);
+    // The same for a write whose parameters are not known (a Modbus TCP client's raw registers):
+    // the device's next poll reads every bounding word again.
+    void written_unknown(const std::string& device);
 
 private:
     struct Group;
     struct State;
+    // Has the device's next poll read its bounds again where one of them is `moved`.
+    void refresh_limits_of(const std::string& device, const std::function<bool(const device::Parameter&)>& moved);
     Engine& engine_;
     std::unique_ptr<State> state_;
     std::size_t size_ = 0;

@@ -212,6 +212,8 @@ def main():
     parser.add_argument("--expect-unit", action="append", default=[])
     parser.add_argument("--expect-max", action="append", default=[])
     parser.add_argument("--write", nargs=2, metavar=("DEVICE", "PARAMETER=VALUE"))
+    parser.add_argument("--write-modbus", nargs=2, metavar=("DEVICE", "PARAMETER=VALUE"),
+                        help="written by a Modbus TCP client through the gateway's front (raw registers to the gateway)")
     args = parser.parse_args()
     retained = Retained(args.mqtt_port)
     if args.write:
@@ -220,6 +222,11 @@ def main():
         token = open(args.token_file).read().strip()
         answer = http_json(args.http_port, f"/api/devices/{device}/write", json.dumps({parameter: value}).encode(), token)
         print(f"wrote {device}.{parameter} = {value} through the HTTP API: {json.dumps(answer)}")
+    if args.write_modbus:
+        device, assignment = args.write_modbus
+        link = f"tcp://127.0.0.1:{args.modbus_port}"
+        run([args.loopwire, "write", "--timeout", "3s", "--link", link, "--device", DEVICES[device], assignment])
+        print(f"wrote {device} {assignment} through the Modbus TCP front")
     problems = ["no round was made"]
     for round_number in range(1, ROUNDS + 1):
         time.sleep(1)  # the retained messages arrive; a poll after a change lands

@@ -75,4 +75,8 @@ run_checker every-front-follows-the-unit-word --write oven temperature_unit=F --
 # A write of the word that bounds the set point (SP.HL, not polled itself): every front's limit
 # follows at the next poll, not at the bounds' 5-minute refresh.
 run_checker every-front-follows-a-new-limit --write oven set_point_high_limit=650 --expect-max set_point=650
+# The same word written by a Modbus TCP client through the front: raw registers to the gateway,
+# which has the device's next poll read its bounds again all the same.
+run_checker every-front-follows-a-limit-a-modbus-client-wrote --write-modbus oven set_point_high_limit=620 \
+  --expect-max set_point=620
 finish

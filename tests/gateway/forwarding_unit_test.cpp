@@ -119,6 +119,26 @@ TEST(ForwardingUnit, ARequestTheLinesFramingCannotCarryIsIllegalFunction) {
     EXPECT_EQ(to_hex(*replies.got[0]), "C1 01");
 }
 
+// A client's raw write may move a word that bounds a polled value (gateway.cpp tells the polls):
+// the unit says so for each write the device took, and for nothing else.
+TEST(ForwardingUnit, AWriteTheDeviceTookIsToldAndNothingElse) {
+    Front front;
+    int told = 0;
+    auto unit = front.unit({.line_unit = 3, .on_write_answered = [&told] { ++told; }});
+    Replies replies;
+    unit->handle_async(hex("06 02 CC 02 58"), false, 1, replies.collect());
+    front.line->answer(hex("06 02 CC 02 58"));
+    EXPECT_EQ(told, 1) << "a write the device echoed";
+    unit->handle_async(hex("06 02 CC 7F FF"), false, 1, replies.collect());
+    front.line->answer(hex("86 03"));
+    unit->handle_async(hex("10 02 CC 00 01 02 00 01"), false, 1, replies.collect());
+    front.line->answer(make_error(ErrorKind::timeout, "no reply"));
+    unit->handle_async(hex("03 02 CC 00 01"), false, 1, replies.collect());
+    front.line->answer(hex("03 02 02 58"));
+    EXPECT_EQ(told, 1) << "an exception reply, a timeout or a read was told as a write taken";
+    ASSERT_EQ(replies.got.size(), 4u);
+}
+
 TEST(ForwardingUnit, AReadOnlyGatewayRefusesWritesItselfAndLogsThem) {
     Front front;
     auto unit = front.unit({.line_unit = 3, .writes_allowed = false});
