@@ -5,7 +5,6 @@
 #include <cctype>
 #include <cerrno>
 #include <initializer_list>
-#include <limits>
 #include <map>
 #include <optional>
 #include <set>

@@ -99,14 +99,14 @@ wait_for_path() {
 
 # wait_for_text FILE TEXT [SECONDS] : until FILE holds TEXT (a fixed string; 10 s by default).
 wait_for_text() {
-    wait_for "${3:-10}" "'$2' in $1" grep -qF -- "$2" "$1"
+    wait_for "${3:-10}" "'$2' in $1" grep -qsF -- "$2" "$1"
 }
 
 # wait_for_log LOG REGEX [SECONDS] : until $WORK_DIR/LOG has a line matching the extended REGEX
 # (10 s by default); prints the first capture group of the first such line (sed -E: \1).
 wait_for_log() {
     local log=$WORK_DIR/$1 regex=$2
-    wait_for "${3:-10}" "/${regex}/ in $1" grep -qE -- "$regex" "$log"
+    wait_for "${3:-10}" "/${regex}/ in $1" grep -qsE -- "$regex" "$log"
     sed -nE "s/.*${regex}.*/\\1/p" "$log" | head -n 1
 }
 
