@@ -113,7 +113,8 @@ private:
             if (std::string_view(message.topic).ends_with("/status")) return {};  // PREFIX/DEVICE/status, not a value
             const char* text = static_cast<const char*>(message.payload);
             double value = 0;
-            std::from_chars(text, text + message.payloadlen, value);
+            // A status word in place of a value ("no-reply") is no sample: not counted as one.
+            if (std::from_chars(text, text + message.payloadlen, value).ec != std::errc{}) return {};
             return {value};
         }
         loopwire::sparkplug::b::Payload payload;

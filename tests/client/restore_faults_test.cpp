@@ -61,8 +61,8 @@ testing::FaultPolicy hit(Fault fault, unsigned frame) {
     };
 }
 
-// A restore is some 40 exchanges and each fault met costs one: at 38400 baud their wire time is a
-// quarter of 9600's (the virtual bus takes it in real time). The speed plays no part in what is
+// Each fault met costs a whole restore (the AC20's test runs 45 of them), and the virtual bus
+// takes its wire time in real time: at 38400 baud a quarter of 9600's. The speed plays no part in what is
 // tested here, the order of the writes and the honesty of the outcome.
 constexpr std::uint32_t restore_baud = 38400;
 
