@@ -3,6 +3,8 @@
 #include <csignal>
 #include <ctime>
 
+#include "common/thread_name.hpp"
+
 namespace loopwire::app {
 
 namespace {
@@ -33,6 +35,7 @@ StopSignal::StopSignal(std::optional<std::chrono::microseconds> limit, std::func
         }
         source_.request_stop();
     });
+    name_thread(waiter_.native_handle(), "lw-signals");
 }
 
 StopSignal::~StopSignal() {

@@ -4,9 +4,21 @@
 
 #include <boost/asio/post.hpp>
 
+#include "common/thread_name.hpp"
+#include "session/write_batching.hpp"
+
 namespace loopwire::gateway {
 
-Engine::Engine() : busy_(boost::asio::make_work_guard(loop_)), thread_([this] { loop_.run(); }) {}
+Engine::Engine()
+    : busy_(boost::asio::make_work_guard(loop_)), thread_([this] {
+          // What the loop's handlers send to a pipelined Modbus TCP line in one round (a poll
+          // sample's devices, writes by name) goes to the device in one write, as the Modbus TCP
+          // front's requests do (session/write_batching.hpp).
+          session::WriteBatching::Scope batching([this](std::function<void()> work) { boost::asio::post(loop_, std::move(work)); });
+          loop_.run();
+      }) {
+    name_thread(thread_.native_handle(), "lw-engine");
+}
 
 Engine::~Engine() { stop(); }
 

@@ -3,7 +3,8 @@
 // their reads, gateway/poll_groups.hpp), the writes by name from MQTT and HTTP
 // (gateway/device_writer.hpp) and the statistics timer, however many lines, devices and poll
 // intervals there are. What runs on it must not block: requests go to the lines' schedulers
-// asynchronously and their completions are posted back into the loop.
+// asynchronously and their completions are posted back into the loop. Frames its handlers send
+// to a pipelined Modbus TCP line in one round go out in one write (session/write_batching.hpp).
 //
 // Lifetime: whatever posts work or holds timers on the loop is taken down with take_down()
 // before it goes, and the engine outlives all of them.

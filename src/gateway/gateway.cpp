@@ -22,23 +22,15 @@
 #include "gateway/sparkplug/sparkplug_node.hpp"
 #include "session/master.hpp"
 #include "session/slave.hpp"
+#include "simulation/simulated_lines.hpp"
 
 namespace loopwire::gateway {
 namespace {
-
-// The simulated devices of a virtual line, answering on their end of its bus.
-struct SimulatedLine {
-    std::shared_ptr<transport::VirtualBus> bus;  // the gateway attaches to it again on a reopen
-    std::unique_ptr<transport::ByteStream> port;
-    std::unique_ptr<session::Slave> devices;
-    std::jthread thread;  // last: stops and joins before the port and the devices go
-};
 
 struct OpenLine {
     std::string name;
     std::string link;
     std::shared_ptr<std::atomic<std::uint64_t>> garbled;  // counted from the master's trace
-    std::unique_ptr<SimulatedLine> simulation;  // virtual lines only
     // Held here as well as by the scheduler, and declared first so that it goes last: the
     // master joins its own thread when destroyed, which must not be the thread that destroys the
     // scheduler from a completion (line_scheduler.hpp, ownership).
@@ -90,19 +82,16 @@ session::UnitMap simulated_devices(const LineConfig& line) {
     return units;
 }
 
-// The bus of a virtual line with its simulated devices serving on it.
-std::shared_ptr<transport::VirtualBus> open_virtual_line(const LineConfig& line, const GatewayOptions& options,
-                                                         OpenLine& opened) {
+// The bus of a virtual line with its simulated devices serving on it, from the thread that
+// serves every virtual line's devices (created with the first).
+Result<std::shared_ptr<transport::VirtualBus>> open_virtual_line(const LineConfig& line, const GatewayOptions& options,
+                                                                 std::unique_ptr<simulation::SimulatedLines>& simulations) {
     auto bus = transport::VirtualBus::create(line.link.serial.baud, line.link.serial.bits_per_character());
     if (options.virtual_bus_faults) bus->set_fault_injector(options.virtual_bus_faults);
-    auto simulation = std::make_unique<SimulatedLine>();
-    simulation->bus = bus;
-    simulation->port = bus->attach("simulated devices");
-    simulation->devices = std::make_unique<session::Slave>(line.link, simulated_devices(line));
-    simulation->thread = std::jthread([s = simulation.get()](std::stop_token stop) {
-        (void)s->devices->serve_stream(*s->port, std::move(stop));
-    });
-    opened.simulation = std::move(simulation);
+    if (!simulations) simulations = std::make_unique<simulation::SimulatedLines>();
+    auto served = simulations->add(bus->attach("simulated devices", transport::VirtualBus::Writes::return_at_once),
+                                   std::make_unique<session::Slave>(line.link, simulated_devices(line)));
+    if (!served) return served.error();
     return bus;
 }
 
@@ -116,30 +105,34 @@ session::TraceSink counting_trace(std::shared_ptr<std::atomic<std::uint64_t>> ga
 
 // How the line's master is opened, the first time and after each failure: the port or
 // connection the link names, or a fresh attachment to the virtual line's bus.
-MasterOpener line_opener(const LineConfig& line, const GatewayOptions& options, OpenLine& opened,
-                         session::MasterOptions master_options) {
+Result<MasterOpener> line_opener(const LineConfig& line, const GatewayOptions& options,
+                                 std::unique_ptr<simulation::SimulatedLines>& simulations,
+                                 session::MasterOptions master_options) {
     if (!line.simulation) {
-        return [link = line.link, master_options] { return session::open_master(link, master_options); };
+        return MasterOpener([link = line.link, master_options] { return session::open_master(link, master_options); });
     }
-    auto bus = open_virtual_line(line, options, opened);
-    return [bus, link = line.link, master_options]() -> Result<std::unique_ptr<session::Master>> {
+    auto bus = open_virtual_line(line, options, simulations);
+    if (!bus) return bus.error();
+    return MasterOpener([bus = *bus, link = line.link, master_options]() -> Result<std::unique_ptr<session::Master>> {
         return session::make_serial_master(bus->attach("gateway"), link, master_options);
-    };
+    });
 }
 
 // A line whose port cannot be opened now is not an error: it starts down and is reopened with
 // back-off (gateway/reopening_master.hpp) while the other lines serve. Only a configuration the
 // port can never take (ErrorKind::usage) is.
-Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options) {
-    OpenLine opened{line.name, line.link.to_string(), std::make_shared<std::atomic<std::uint64_t>>(0), nullptr, nullptr, nullptr};
+Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options,
+                           std::unique_ptr<simulation::SimulatedLines>& simulations) {
+    OpenLine opened{line.name, line.link.to_string(), std::make_shared<std::atomic<std::uint64_t>>(0), nullptr, nullptr};
     session::MasterOptions master_options;
     master_options.timeout = line.timeout;
     master_options.retries = line.retries;
     master_options.late_reply_window = line.late_reply_window;
     master_options.trace = counting_trace(opened.garbled, options.trace);
-    auto open = line_opener(line, options, opened, std::move(master_options));
+    auto open = line_opener(line, options, simulations, std::move(master_options));
+    if (!open) return open.error();
     opened.master = std::make_shared<ReopeningMaster>(
-        line.name, opened.link, std::move(open), ReopenSchedule{}, steady_clock(), options.log,
+        line.name, opened.link, std::move(*open), ReopenSchedule{}, steady_clock(), options.log,
         line.max_in_flight > 1 ? LinkConcurrency::several : LinkConcurrency::one);
     if (auto started = opened.master->start(); !started) return started.error();
     LineSchedulerOptions scheduling;
@@ -193,6 +186,8 @@ struct Gateway::Parts {
     // First, so it goes last: the polls, the writer and the statistics run on its loop and take
     // themselves down from it before they go.
     Engine engine;
+    // The simulated devices of the virtual lines, if any; after the lines have gone.
+    std::unique_ptr<simulation::SimulatedLines> simulations;
     // The front is destroyed first, then the polls (members go in reverse order): no request
     // reaches a line scheduler that is gone.
     std::vector<OpenLine> lines;
@@ -232,7 +227,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
     session::UnitMap& units = parts->units;
     auto clock = steady_clock();
     for (const auto& line : config.lines) {
-        auto opened = open_line(line, options);
+        auto opened = open_line(line, options, parts->simulations);
         if (!opened) return opened.error();
         bool first = true;
         for (const auto& device : line.devices) {

@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "common/thread_name.hpp"
 #include "gateway/forward_batch.hpp"
 #include "gateway/postgres_history_schema.hpp"
 
@@ -79,6 +80,7 @@ Result<std::unique_ptr<HistoryForwarder>> HistoryForwarder::start(const std::fil
     forwarder->refresh_waiting();
     if (forwarder->options_.thread) {
         forwarder->thread_ = std::jthread([f = forwarder.get()](std::stop_token stop) { f->run(std::move(stop)); });
+        name_thread(forwarder->thread_.native_handle(), "lw-forwarder");
     }
     return forwarder;
 }

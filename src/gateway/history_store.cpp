@@ -6,6 +6,7 @@
 
 #include "client/device_status.hpp"
 #include "client/monitor_state.hpp"
+#include "common/thread_name.hpp"
 #include "gateway/history_query.hpp"
 #include "gateway/history_schema.hpp"
 #include "gateway/postgres_history_query.hpp"
@@ -138,6 +139,7 @@ Result<std::unique_ptr<HistoryStore>> HistoryStore::open(HistoryOptions options,
     }
     if (store->options_.writer_thread) {
         store->thread_ = std::jthread([s = store.get()](std::stop_token stop) { s->run(std::move(stop)); });
+        name_thread(store->thread_.native_handle(), "lw-history");
     }
     return store;
 }

@@ -15,6 +15,8 @@
 #include <boost/beast/http.hpp>
 #include <fmt/format.h>
 
+#include "common/thread_name.hpp"
+
 namespace loopwire::gateway {
 namespace {
 
@@ -486,6 +488,7 @@ Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& s
     state->port = state->acceptor.local_endpoint().port();
     state->accept();
     state->thread = std::thread([s = state.get()] { s->loop.run(); });
+    name_thread(state->thread.native_handle(), "lw-http");
     return std::unique_ptr<HttpServer>(new HttpServer(std::move(state)));
 }
 

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include "common/thread_name.hpp"
 #include "transport/link_url.hpp"
 
 namespace loopwire::gateway {
@@ -64,6 +65,7 @@ ModbusTcpFront::ModbusTcpFront(const ModbusTcpConfig& config, std::unique_ptr<tr
         }
         failed_.request_stop();
     });
+    name_thread(thread_.native_handle(), "lw-modbus-tcp");
 }
 
 ModbusTcpFront::~ModbusTcpFront() {

@@ -19,6 +19,7 @@
 
 #include "client/device_status.hpp"
 #include "common/peer_text.hpp"
+#include "common/thread_name.hpp"
 #include "gateway/mqtt_client.hpp"
 #include "gateway/mqtt_commands.hpp"
 #include "gateway/mqtt_documents.hpp"
@@ -484,6 +485,7 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
         [&s](const std::string& line) { s.say(line); },
         [&s](const std::string& device) { return s.not_answering(device); });
     s.network = std::jthread([&s](std::stop_token stop) { s.run_network(stop); });
+    name_thread(s.network.native_handle(), "lw-mqtt");
     s.subscription = cache.subscribe([&s](const ValueChange& change) { s.on_change(change); });
 }
 

@@ -34,7 +34,8 @@ struct ReopeningMaster::State {
           schedule(chosen),
           clock(std::move(time)),
           log(std::move(logger)),
-          backoff(schedule.first, schedule.max) {}
+          backoff(schedule.first, schedule.max),
+          worker("lw-line " + name) {}
 
     // --- carrying requests (on the worker thread, or a caller of the blocking calls) ---------
 

@@ -6,13 +6,17 @@
 #include <deque>
 #include <functional>
 #include <mutex>
+#include <string>
 #include <thread>
+
+#include "common/thread_name.hpp"
 
 namespace loopwire::session {
 
 class JobQueue {
 public:
-    JobQueue() = default;
+    // `thread_name`: what its thread is called (common/thread_name.hpp).
+    explicit JobQueue(std::string thread_name = "lw-jobs") : thread_name_(std::move(thread_name)) {}
     JobQueue(const JobQueue&) = delete;
     JobQueue& operator=(const JobQueue&) = delete;
 
@@ -31,7 +35,10 @@ public:
 
     void push(std::function<void()> job) {
         std::lock_guard lock(mutex_);
-        if (!worker_.joinable()) worker_ = std::thread([this] { run(); });
+        if (!worker_.joinable()) {
+            worker_ = std::thread([this] { run(); });
+            name_thread(worker_.native_handle(), thread_name_);
+        }
         jobs_.push_back(std::move(job));
         ready_.notify_one();
     }
@@ -54,6 +61,7 @@ private:
     std::condition_variable ready_;
     std::deque<std::function<void()>> jobs_;
     bool stopping_ = false;
+    std::string thread_name_;
     std::thread worker_;
 };
 

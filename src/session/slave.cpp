@@ -151,41 +151,57 @@ void Slave::answer_async(const codec::Frame& frame, const UnitHandler::Asker& as
 // A serial-line slave may only answer once the request has ended, i.e. after 3.5 characters of
 // silence (Modbus over serial line V1.02, 2.5.1.1). Frames found by length end earlier than
 // that, so the reply waits out the rest of the gap.
-void Slave::reply_after_silence(transport::ByteStream& stream, const Bytes& reply, Instant request_end) {
-    if (link_.is_serial()) {
-        const auto gap = codec::CharacterTiming{link_.serial.baud, link_.serial.bits_per_character()}.t3_5();
-        clock_->sleep_until(request_end + gap);
-    }
-    if (tracing()) trace(TraceDirection::sent, reply, "reply");
-    (void)stream.write(reply);  // a failed write surfaces as a read error on the next turn
+Instant Slave::reply_time(Instant request_end) const {
+    if (!link_.is_serial()) return request_end;
+    return request_end + codec::CharacterTiming{link_.serial.baud, link_.serial.bits_per_character()}.t3_5();
 }
 
 Result<void> Slave::serve_stream(transport::ByteStream& stream, std::stop_token stop) {
-    auto codec = make_frame_codec(link_, codec::Direction::request);
+    StreamSteps steps(*this);
     std::array<std::uint8_t, 1024> buffer{};
     while (!stop.stop_requested()) {
-        auto got = stream.read_some(buffer, until(codec->flush_deadline(), clock_->now(), milliseconds(100)));
+        auto got = stream.read_some(buffer, until(steps.flush_deadline(), clock_->now(), milliseconds(100)));
         if (!got) return got.error();
-        const auto now = clock_->now();
-        codec::FrameEvents events;
-        if (*got > 0) {
-            auto fed = codec->feed(ByteView(buffer.data(), *got), now);
-            if (!fed) return fed.error();
-            events = std::move(*fed);
-        } else {
-            events = codec->flush(now);
+        auto replies = steps.heard(ByteView(buffer.data(), *got), clock_->now());
+        if (!replies) return replies.error();
+        for (const auto& reply : *replies) {
+            clock_->sleep_until(reply.not_before);
+            steps.sending(reply);
+            (void)stream.write(reply.frame);  // a failed write surfaces as a read error on the next turn
         }
-        for (const auto& event : events) {
-            if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
-                if (tracing()) trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
-                line_activity(*units());  // a bad check or noise: still bytes on the line
-                continue;
-            }
-            if (auto reply = answer(std::get<codec::Frame>(event), *codec)) reply_after_silence(stream, *reply, now);
-        }
-        if (auto broken = codec->stream_error()) return *broken;  // after answering what came before
+        if (auto broken = steps.broken()) return *broken;  // after answering what came before
     }
     return {};
+}
+
+Slave::StreamSteps::StreamSteps(Slave& slave)
+    : slave_(slave), codec_(make_frame_codec(slave.link_, codec::Direction::request)) {}
+
+Result<std::vector<Slave::TimedReply>> Slave::StreamSteps::heard(ByteView bytes, Instant now) {
+    codec::FrameEvents events;
+    if (!bytes.empty()) {
+        auto fed = codec_->feed(bytes, now);
+        if (!fed) return fed.error();
+        events = std::move(*fed);
+    } else {
+        events = codec_->flush(now);
+    }
+    std::vector<TimedReply> replies;
+    for (const auto& event : events) {
+        if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
+            if (slave_.tracing()) slave_.trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
+            line_activity(*slave_.units());  // a bad check or noise: still bytes on the line
+            continue;
+        }
+        if (auto reply = slave_.answer(std::get<codec::Frame>(event), *codec_)) {
+            replies.push_back({slave_.reply_time(now), std::move(*reply)});
+        }
+    }
+    return replies;
+}
+
+void Slave::StreamSteps::sending(const TimedReply& reply) const {
+    if (slave_.tracing()) slave_.trace(TraceDirection::sent, reply.frame, "reply");
 }
 
 TcpConnectionStatistics Slave::tcp_statistics() const {

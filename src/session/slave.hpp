@@ -10,8 +10,10 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <stop_token>
 #include <string>
+#include <vector>
 
 #include "common/clock.hpp"
 #include "common/result.hpp"
@@ -84,6 +86,33 @@ public:
     // port, one TCP connection) until `stop` is requested or the stream fails.
     Result<void> serve_stream(transport::ByteStream& stream, std::stop_token stop);
 
+    // A reply frame and when it may go on the wire.
+    struct TimedReply {
+        Instant not_before;
+        Bytes frame;
+    };
+
+    // Serving one byte stream as steps, without reading or waiting: what serve_stream does on a
+    // thread of its own, and what a loop serving several streams on one thread does for each
+    // (simulation/simulated_lines.hpp). The caller reads, hands what it read to heard(), calls
+    // heard() with nothing once flush_deadline() has passed, and sends each reply at its time.
+    class StreamSteps {
+    public:
+        explicit StreamSteps(Slave& slave);
+        // `bytes` arrived at `now` (empty: the line was quiet until `now`): the replies they
+        // call for. An error: the stream cannot be resynchronised (MBAP garbage); broken()
+        // says the same after the frames before the garbage were answered.
+        Result<std::vector<TimedReply>> heard(ByteView bytes, Instant now);
+        std::optional<Instant> flush_deadline() const { return codec_->flush_deadline(); }
+        std::optional<Error> broken() const { return codec_->stream_error(); }
+        // Traces a reply as it goes on the wire.
+        void sending(const TimedReply& reply) const;
+
+    private:
+        Slave& slave_;
+        std::unique_ptr<FrameCodec> codec_;
+    };
+
     // Serves every connection `listener` accepts (tcp and rtu+tcp links) until `stop`, all on
     // one event loop (session/tcp_slave_server.hpp).
     Result<void> serve_listener(transport::TcpListener& listener, std::stop_token stop);
@@ -126,7 +155,8 @@ private:
     };
     Route route(const codec::Frame& frame);
     std::shared_ptr<const UnitMap> units() const;
-    void reply_after_silence(transport::ByteStream& stream, const Bytes& reply, Instant request_end);
+    // When a reply to a request that ended at `request_end` may go (serial lines keep a gap).
+    Instant reply_time(Instant request_end) const;
 
     transport::LinkUrl link_;
     mutable std::mutex units_mutex_;  // guards the pointer; the map it points to never changes

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "codec/tcp.hpp"
+#include "common/thread_name.hpp"
 #include "session/master.hpp"
 #include "session/reply_check.hpp"
 #include "session/transaction_text.hpp"
@@ -38,7 +39,9 @@ public:
     TcpMaster(std::unique_ptr<transport::ByteStream> stream, const transport::LinkUrl& link,
               MasterOptions options)
         : link_(link), options_(std::move(options)), stream_(std::move(stream)),
-          reader_([this] { read_loop(); }) {}
+          reader_([this] { read_loop(); }) {
+        name_thread(reader_.native_handle(), "lw-tcp-reader");
+    }
 
     ~TcpMaster() override {
         {

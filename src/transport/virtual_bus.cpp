@@ -15,7 +15,8 @@
 //   the wire) — concurrent writers are serialised, as if every station waited for silence
 //   before talking, instead of modelling collisions. Byte i of a write becomes readable at
 //   start + (i + 1) character times on every other port, never on the sender's.
-// - write() returns once its last byte has left (like tcdrain on a real port).
+// - write() returns once its last byte has left (like tcdrain on a real port), or at once on a
+//   port attached with Writes::return_at_once.
 // - Faults, decided per write by the test's injector: noise bytes go on the wire first and
 //   take wire time; a dropped write still occupies the wire (the sender did transmit) but
 //   reaches nobody; corrupt_bytes indexes past the end are ignored; extra_delay is latency
@@ -135,8 +136,8 @@ namespace {
 
 class BusPort final : public ByteStream {
 public:
-    BusPort(std::shared_ptr<VirtualBus> bus, VirtualBus::Impl& impl, const std::string& name)
-        : bus_(std::move(bus)), impl_(impl) {
+    BusPort(std::shared_ptr<VirtualBus> bus, VirtualBus::Impl& impl, const std::string& name, VirtualBus::Writes writes)
+        : bus_(std::move(bus)), impl_(impl), writes_(writes) {
         station_.name = name;
         station_.timer = detail::FileDescriptor(::timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC));
         std::lock_guard lock(impl_.mutex);
@@ -162,6 +163,7 @@ private:
 
     std::shared_ptr<VirtualBus> bus_;  // keeps impl_ alive
     VirtualBus::Impl& impl_;
+    VirtualBus::Writes writes_;
     Station station_;
 };
 
@@ -185,7 +187,7 @@ Result<void> BusPort::write(ByteView bytes) {
     }
     if (fault.truncate_to && *fault.truncate_to < payload.size()) payload.resize(*fault.truncate_to);
     const Instant end = impl_.transmit(station_, fault.noise_before, payload, fault);
-    std::this_thread::sleep_until(end);
+    if (writes_ == VirtualBus::Writes::wait_for_wire) std::this_thread::sleep_until(end);
     return {};
 }
 
@@ -221,8 +223,8 @@ std::shared_ptr<VirtualBus> VirtualBus::create(std::uint32_t baud, unsigned bits
 VirtualBus::VirtualBus(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 VirtualBus::~VirtualBus() = default;
 
-std::unique_ptr<ByteStream> VirtualBus::attach(const std::string& name) {
-    return std::make_unique<BusPort>(shared_from_this(), *impl_, name);
+std::unique_ptr<ByteStream> VirtualBus::attach(const std::string& name, Writes writes) {
+    return std::make_unique<BusPort>(shared_from_this(), *impl_, name, writes);
 }
 
 void VirtualBus::set_fault_injector(FaultInjector injector) {

@@ -8,6 +8,8 @@
 // - The wire is shared and half-duplex; a write that starts while another is on the wire waits
 //   for it (serialised) rather than colliding. write() returns once its last byte has left.
 // - A port never hears its own writes.
+// - write() returns once its last byte has left, unless the port was attached with
+//   Writes::return_at_once.
 // - A dropped write still occupies the wire; noise_before takes wire time before the write;
 //   extra_delay and duplicate_after are latency only (the sender and the wire do not wait for
 //   them); a truncated write takes the wire time of what is sent.
@@ -49,8 +51,14 @@ class VirtualBus : public std::enable_shared_from_this<VirtualBus> {
 public:
     static std::shared_ptr<VirtualBus> create(std::uint32_t baud, unsigned bits_per_character);
 
+    // Whether a port's write() waits until its last byte has left, as a real port's does
+    // (tcdrain), or returns at once, its bytes still taking their wire time: for a loop that
+    // serves several buses on one thread and must not wait on one of them
+    // (simulation/simulated_lines.hpp).
+    enum class Writes { wait_for_wire, return_at_once };
+
     // A new station on the bus. The port keeps the bus alive.
-    std::unique_ptr<ByteStream> attach(const std::string& name);
+    std::unique_ptr<ByteStream> attach(const std::string& name, Writes writes = Writes::wait_for_wire);
     void set_fault_injector(FaultInjector injector);
     std::chrono::microseconds character_time() const;
 

@@ -14,6 +14,8 @@
 #include <fstream>
 #include <condition_variable>
 #include <mutex>
+#include <set>
+#include <string>
 #include <thread>
 
 #include <fmt/format.h>
@@ -314,6 +316,36 @@ std::size_t threads_now() {
                                                   std::filesystem::directory_iterator{}));
 }
 
+// The names of this process's threads now (common/thread_name.hpp names the gateway's).
+std::multiset<std::string> thread_names() {
+    std::multiset<std::string> names;
+    for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+        std::ifstream comm(task.path() / "comm");
+        std::string name;
+        if (std::getline(comm, name)) names.insert(name);
+    }
+    return names;
+}
+
+std::size_t named_like(const std::multiset<std::string>& names, const std::string& prefix) {
+    return static_cast<std::size_t>(
+        std::count_if(names.begin(), names.end(), [&](const std::string& name) { return name.starts_with(prefix); }));
+}
+
+// Until every device of the gateway has been polled at least once.
+void wait_until_all_polled(const GatewayConfig& config, const Gateway& gateway) {
+    std::size_t configured = 0;
+    for (const auto& line : config.lines) configured += line.devices.size();
+    const auto all_polled = [&] {
+        const auto devices = gateway.values();
+        return devices.size() == configured &&
+               std::all_of(devices.begin(), devices.end(), [](const CachedDevice& device) { return device.state.polls > 0; });
+    };
+    const auto give_up = std::chrono::steady_clock::now() + 30s;
+    while (!all_polled() && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(10ms);
+    EXPECT_TRUE(all_polled()) << "not every device was polled in 30 s";
+}
+
 // The threads of a gateway on `plant` once every device has been polled.
 std::size_t threads_of_gateway(const std::string& plant) {
     auto config = parse_gateway_config(plant, "plant.toml", profiles());
@@ -323,16 +355,7 @@ std::size_t threads_of_gateway(const std::string& plant) {
     auto opened = Gateway::open(*config);
     EXPECT_TRUE(opened) << opened.error().message;
     if (!opened) return 0;
-    std::size_t configured = 0;
-    for (const auto& line : config->lines) configured += line.devices.size();
-    const auto all_polled = [&] {
-        const auto devices = (*opened)->values();
-        return devices.size() == configured &&
-               std::all_of(devices.begin(), devices.end(), [](const CachedDevice& device) { return device.state.polls > 0; });
-    };
-    const auto give_up = std::chrono::steady_clock::now() + 30s;
-    while (!all_polled() && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(10ms);
-    EXPECT_TRUE(all_polled()) << "not every device was polled in 30 s";
+    wait_until_all_polled(*config, **opened);
     return threads_now() - before;
 }
 
@@ -355,6 +378,32 @@ TEST(Gateway, ThePollsTakeOneThreadHoweverManyDevicesAndIntervals) {
               << " for 3 devices at 3 intervals\n";
     EXPECT_GT(for_one, 0U);
     EXPECT_EQ(for_three, for_one);
+}
+
+// The gateway's threads by role, with four virtual lines of three devices polled at three
+// intervals: the simulated devices of all four lines answer from one thread
+// (simulation/simulated_lines.hpp) and the polls run on the engine's; what each line still has
+// of its own is the worker that carries its requests (gateway/reopening_master.hpp).
+TEST(Gateway, FourVirtualLinesShareOneSimulationThread) {
+    std::string plant;
+    for (int line = 0; line < 4; ++line) {
+        plant += fmt::format("[[lines]]\nname = \"line{}\"\nlink = \"rtu:virtual?baud=115200&parity=none\"\n", line);
+        for (int unit = 1; unit <= 3; ++unit) {
+            plant += fmt::format("[[lines.devices]]\nname = \"oven{}{}\"\ndevice = \"tc10@{}\"\npoll = \"{}ms\"\ntcp_unit = {}\n",
+                                 line, unit, unit, 100 * unit, line * 3 + unit);
+        }
+    }
+    plant += "[modbus_tcp]\nenabled = false\n";
+    auto config = parse_gateway_config(plant, "plant.toml", profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    auto opened = Gateway::open(*config);
+    ASSERT_TRUE(opened) << opened.error().message;
+    wait_until_all_polled(*config, **opened);
+    const auto names = thread_names();
+    EXPECT_EQ(names.count("lw-simulation"), 1U);
+    EXPECT_EQ(names.count("lw-engine"), 1U);
+    EXPECT_EQ(named_like(names, "lw-line "), 4U);
+    EXPECT_EQ(names.count("lw-line line2"), 1U);
 }
 
 // A Modbus TCP device that answers reads of address 1000 onwards only once it holds `batch` of

@@ -32,7 +32,7 @@
 #include "gateway/http_api.hpp"
 #include "gateway/http_server.hpp"
 #include "gateway/metrics.hpp"
-#include "support/held_replies.hpp"
+#include "support/held_requests.hpp"
 #include "support/profile_test_support.hpp"
 
 namespace loopwire::gateway {
@@ -611,7 +611,7 @@ TEST(HttpApiWithoutToken, WritesAreRefusedSayingHowToEnableThem) {
 }
 
 // Two lines: the oven on one, the kiln (unit 4) on the other, whose replies the test can hold.
-std::unique_ptr<Gateway> open_two_lines(const std::string& token_path, support::HeldReplies& kiln) {
+std::unique_ptr<Gateway> open_two_lines(const std::string& token_path, support::HeldRequests& kiln) {
     const std::string text = fmt::format(R"toml(
 [[lines]]
 name = "fast"
@@ -653,9 +653,9 @@ token_file = "{}"
 
 TEST(HttpApiLines, AWriteToOneLineIsAnsweredWhileAnotherLineHoldsItsWrites) {
     TokenFile token_file(token);
-    support::HeldReplies kiln(4);
+    support::HeldRequests kiln(4);
     auto gateway = open_two_lines(token_file.path().string(), kiln);
-    support::HeldReplies::Release release{kiln};
+    support::HeldRequests::Release release{kiln};
     const std::uint16_t port = gateway->http_port();
     const auto status_of = [port](const std::string& device) {
         const Reply reply = get(port, "/api/devices/" + device);
@@ -674,7 +674,7 @@ TEST(HttpApiLines, AWriteToOneLineIsAnsweredWhileAnotherLineHoldsItsWrites) {
                                              "Authorization: Bearer {}\r\nContent-Type: application/json\r\n"
                                              "Content-Length: {}\r\n\r\n{}", token, body.size(), body));
     }
-    ASSERT_TRUE(eventually([&] { return kiln.holding_a_reply(); })) << "nothing of the kiln's reached its line";
+    ASSERT_TRUE(eventually([&] { return kiln.holding_a_request(); })) << "nothing of the kiln's reached its line";
 
     // A write to the oven's line goes through all the same, while the kiln's wait.
     const Reply oven = post_write(port, "oven", R"({"set_point": "190"})");

@@ -30,7 +30,7 @@
 
 #include "gateway/gateway.hpp"
 #include "gateway/mqtt_documents.hpp"
-#include "support/held_replies.hpp"
+#include "support/held_requests.hpp"
 #include "support/log_lines.hpp"
 #include "support/mosquitto_broker.hpp"
 #include "sparkplug/sparkplug_b.pb.h"
@@ -827,7 +827,7 @@ TEST(MqttBridge, AWriteToOneLineIsAnsweredWhileAnotherLineHoldsItsWrites) {
     REQUIRE_BROKER();
     Broker broker(free_port());
     Watcher watcher(broker.port());
-    support::HeldReplies kiln(4);
+    support::HeldRequests kiln(4);
     const std::string text = fmt::format(R"toml(
 [[lines]]
 name = "fast"
@@ -866,14 +866,14 @@ writes = true
     auto opened = Gateway::open(*config, std::move(options));
     ASSERT_TRUE(opened) << opened.error().message;
     auto gateway = std::move(*opened);
-    support::HeldReplies::Release release{kiln};
+    support::HeldRequests::Release release{kiln};
     ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "online"));
     ASSERT_TRUE(watcher.wait_for(prefix + "/kiln/status", "online"));
 
     // The kiln's line stops answering; writes to the kiln wait for it, in order.
     kiln.hold();
     const auto give_up = std::chrono::steady_clock::now() + deadline;
-    while (!kiln.holding_a_reply()) {
+    while (!kiln.holding_a_request()) {
         ASSERT_LT(std::chrono::steady_clock::now(), give_up) << "nothing of the kiln's reached its line";
         std::this_thread::sleep_for(20ms);
     }

@@ -15,6 +15,7 @@
 
 #include "client/device_status.hpp"
 #include "common/peer_text.hpp"
+#include "common/thread_name.hpp"
 #include "gateway/mqtt_client.hpp"
 #include "gateway/sparkplug/sparkplug_payloads.hpp"
 
@@ -631,6 +632,7 @@ SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice
         if (message) static_cast<State*>(state)->on_message(*message);
     });
     s.network = std::jthread([&s](std::stop_token stop) { s.run_network(stop); });
+    name_thread(s.network.native_handle(), "lw-sparkplug");
     s.subscription = cache.subscribe([&s](const ValueChange& change) { s.on_change(change); });
 }
 
