@@ -77,17 +77,24 @@ Result<std::vector<gateway::HistorySeries>> ask(const HistoryCommandOptions& opt
     return gateway::history::run_query(*db, query);
 }
 
+// Each series in time order: the value in force at the start (recorded before --from; no
+// bucket, so no count), then its buckets and gaps as they come, as the CSV has them.
 void print_table(const std::vector<gateway::HistorySeries>& series) {
     fmt::print("{:<24} {:<8} {:<24} {:>12} {:>12} {:>12} {:>6}\n", "parameter", "unit", "time", "min", "max", "mean", "count");
     for (const auto& one : series) {
-        for (const auto& bucket : one.buckets) {
-            fmt::print("{:<24} {:<8} {:<24} {:>12g} {:>12g} {:>12g} {:>6}\n", one.parameter, one.unit,
-                       gateway::iso_time(bucket.start), bucket.min, bucket.max, bucket.mean, bucket.count);
-        }
-        for (const auto& gap : one.gaps) {
-            fmt::print("{:<24} {:<8} no value from {} to {}\n", one.parameter, one.unit, gateway::iso_time(gap.start),
-                       gap.end ? gateway::iso_time(*gap.end) : "now");
-        }
+        gateway::visit_in_time_order(
+            one, {[&](const gateway::HistoryBefore& before) {
+                      fmt::print("{:<24} {:<8} {:<24} {:>12g} in force at the start (the last value recorded before it)\n",
+                                 one.parameter, one.unit, gateway::iso_time(before.time), before.value);
+                  },
+                  [&](const gateway::HistoryBucket& bucket) {
+                      fmt::print("{:<24} {:<8} {:<24} {:>12g} {:>12g} {:>12g} {:>6}\n", one.parameter, one.unit,
+                                 gateway::iso_time(bucket.start), bucket.min, bucket.max, bucket.mean, bucket.count);
+                  },
+                  [&](const gateway::HistoryGap& gap) {
+                      fmt::print("{:<24} {:<8} no value from {} to {}\n", one.parameter, one.unit, gateway::iso_time(gap.start),
+                                 gap.end ? gateway::iso_time(*gap.end) : "now");
+                  }});
     }
 }
 

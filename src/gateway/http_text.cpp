@@ -196,13 +196,32 @@ Result<ParsedHistoryQuery> history_query(std::string_view text, system_clock::ti
     return parsed;
 }
 
+void visit_in_time_order(const HistorySeries& series, const HistoryRowVisitor& visit) {
+    if (series.before) visit.before(*series.before);
+    auto gap = series.gaps.begin();
+    for (const auto& bucket : series.buckets) {
+        while (gap != series.gaps.end() && gap->start < bucket.start) visit.gap(*gap++);
+        visit.bucket(bucket);
+    }
+    while (gap != series.gaps.end()) visit.gap(*gap++);
+}
+
 std::string history_csv(const std::vector<HistorySeries>& series) {
-    std::string out = "parameter,unit,time,min,max,mean,count\r\n";
+    std::string out = "parameter,unit,time,min,max,mean,count,kind,until\r\n";
     for (const auto& one : series) {
-        for (const auto& bucket : one.buckets) {
-            out += fmt::format("{},{},{},{},{},{},{}\r\n", csv_field(one.parameter), csv_field(one.unit), iso_time(bucket.start),
-                               bucket.min, bucket.max, bucket.mean, bucket.count);
-        }
+        const std::string name = csv_field(one.parameter) + "," + csv_field(one.unit);
+        visit_in_time_order(one, {[&](const HistoryBefore& before) {
+                                      out += fmt::format("{},{},{},{},{},,before,\r\n", name, iso_time(before.time), before.value,
+                                                         before.value, before.value);
+                                  },
+                                  [&](const HistoryBucket& bucket) {
+                                      out += fmt::format("{},{},{},{},{},{},bucket,\r\n", name, iso_time(bucket.start), bucket.min,
+                                                         bucket.max, bucket.mean, bucket.count);
+                                  },
+                                  [&](const HistoryGap& gap) {
+                                      out += fmt::format("{},{},,,,,gap,{}\r\n", name, iso_time(gap.start),
+                                                         gap.end ? iso_time(*gap.end) : "");
+                                  }});
     }
     return out;
 }

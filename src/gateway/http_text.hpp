@@ -2,6 +2,7 @@
 // The small texts of the HTTP API: times in ISO 8601, URL query strings, the history query
 // they carry and its CSV form.
 #include <chrono>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -38,7 +39,22 @@ struct ParsedHistoryQuery {
 // how it should look.
 Result<ParsedHistoryQuery> history_query(std::string_view query, std::chrono::system_clock::time_point now);
 
-// parameter,unit,time,min,max,mean,count: one row a bucket, with a header line.
+// parameter,unit,time,min,max,mean,count,kind,until with a header line, each series' rows in
+// time order, `kind` saying what a row is:
+// - before: the value in force at `from` (HistorySeries::before), recorded at `time`, before
+//   `from`; min, max and mean hold it, count is empty: it is no bucket;
+// - bucket: min, max, mean and count of the rows from `time` to the next bucket;
+// - gap: no value from `time` until `until` (empty while it lasts); no figures.
 std::string history_csv(const std::vector<HistorySeries>& series);
+
+// What a series holds, in time order: the value in force at `from` first, then its buckets and
+// gaps as they come (a gap and a bucket starting together: the bucket first, as its values came
+// then). For the CSV above and `loopwire history`'s table.
+struct HistoryRowVisitor {
+    std::function<void(const HistoryBefore&)> before;
+    std::function<void(const HistoryBucket&)> bucket;
+    std::function<void(const HistoryGap&)> gap;
+};
+void visit_in_time_order(const HistorySeries& series, const HistoryRowVisitor& visit);
 
 }  // namespace loopwire::gateway

@@ -80,7 +80,7 @@ expect_equal "$(pg_sql "SELECT string_agg(DISTINCT gateway, ',' ORDER BY gateway
   "gateways in the historian"
 # `loopwire history` reads any gateway's history from the historian, and a gateway's own file.
 historian="postgresql://postgres@/plant?host=$PG_HOST&port=$PG_PORT"
-check history-cli-historian 0 "parameter,unit,time,min,max,mean,count" \
+check history-cli-historian 0 "parameter,unit,time,min,max,mean,count,kind,until" \
   "$loopwire" history --database "$historian" --gateway south --device oven --from -1h --format csv
 check history-cli-historian-rows 0 "measured_value" \
   "$loopwire" history --database "$historian" --gateway south --device oven --parameters measured_value

@@ -814,14 +814,19 @@ TEST_F(HttpHistoryTest, NoValueInForceAtFromIsNull) {
     EXPECT_EQ(series.at("buckets").size(), 2u);
 }
 
-TEST_F(HttpHistoryTest, CsvHasAHeaderAndARowABucket) {
+// The CSV says what the JSON says, in rows in time order: the value in force at `from` (no
+// bucket: no count), the buckets, and the gaps with their ends (none while one lasts).
+TEST_F(HttpHistoryTest, CsvHasAHeaderAndARowABucketGapAndTheValueInForceAtFrom) {
     const Reply reply = get(server_->port(), "/api/history?device=oven&from=2026-12-02T08:00:00.5Z&to=2026-12-02T09:00:00Z&format=csv");
     ASSERT_EQ(reply.status, 200u) << reply.body;
     EXPECT_EQ(reply.header("content-type"), "text/csv; charset=utf-8");
     EXPECT_EQ(reply.body,
-              "parameter,unit,time,min,max,mean,count\r\n"
-              "measured_value,°C,2026-12-02T08:00:00.500Z,20.5,22,21.25,4\r\n"
-              "measured_value,°C,2026-12-02T08:01:00.500Z,22,25.5,23,3\r\n");
+              "parameter,unit,time,min,max,mean,count,kind,until\r\n"
+              "measured_value,°C,2026-12-02T07:59:20.500Z,19.5,19.5,19.5,,before,\r\n"
+              "measured_value,°C,2026-12-02T08:00:00.500Z,20.5,22,21.25,4,bucket,\r\n"
+              "measured_value,°C,2026-12-02T08:01:00.500Z,22,25.5,23,3,bucket,\r\n"
+              "measured_value,°C,2026-12-02T08:01:30.500Z,,,,,gap,2026-12-02T08:02:30.500Z\r\n"
+              "measured_value,°C,2026-12-02T08:02:50.500Z,,,,,gap,\r\n");
 }
 
 TEST_F(HttpHistoryTest, DefaultsAreTheLastHourAndFiveHundredPoints) {

@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# `loopwire history` on a gateway's own history file, as a user runs it after the gateway has
+# recorded a while: the table and the CSV have the buckets, and for a window that starts after
+# the last row, the value in force at its start (the last value recorded before it, no bucket),
+# as GET /api/history's `before` has it (docs/DESIGN.md, history).
+set -u
+loopwire=${1:?usage: history_command_test.sh path/to/loopwire}
+source "$(dirname "$0")/../support/test_lib.sh"
+
+cat >"$WORK_DIR/plant.toml" <<TOML
+[[lines]]
+name = "line"
+link = "rtu:virtual?baud=115200&parity=none"
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@1"
+poll = "200ms"
+parameters = ["measured_value", "set_point"]
+
+[modbus_tcp]
+enabled = false
+
+[history]
+database = "$WORK_DIR/plant.db"
+TOML
+database=$WORK_DIR/plant.db
+
+start_background gateway.log timeout 120 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+gateway=$LAST_PID
+recorded() { "$loopwire" history --database "$database" --device oven --format csv 2>/dev/null | grep -q ',bucket,'; }
+wait_for 60 "the gateway's first rows in $database" recorded
+kill -TERM "$gateway"
+wait "$gateway" 2>/dev/null
+
+check table 0 "measured_value" "$loopwire" history --database "$database" --device oven --from -1h
+check table-unit 0 "°C" "$loopwire" history --database "$database" --device oven --from -1h --parameters measured_value
+check csv-header 0 "parameter,unit,time,min,max,mean,count,kind,until" \
+  "$loopwire" history --database "$database" --device oven --format csv
+check csv-bucket 0 ",bucket," "$loopwire" history --database "$database" --device oven --format csv --parameters set_point
+
+# A window that starts 1 ms after the last row: no bucket in it, and the value then in force is
+# the last one recorded, at that row's time.
+last=$(sqlite3 "$database" "SELECT max(t) FROM samples")
+[[ $last =~ ^[0-9]+$ ]] || fail "no rows in $database: '$last'"
+iso() { date -u -d "@$(($1 / 1000)).$(printf %03d $(($1 % 1000)))" +%Y-%m-%dT%H:%M:%S.%3NZ; }
+from=$(iso $((last + 1)))
+value=$(sqlite3 "$database" "SELECT printf('%g', value) FROM samples JOIN series ON series.id = series_id
+                               WHERE device = 'oven' AND parameter = 'measured_value' ORDER BY t DESC LIMIT 1")
+check csv-before 0 "measured_value,°C,$(iso "$last"),$value,$value,$value,,before," \
+  "$loopwire" history --database "$database" --device oven --format csv --from "$from"
+out=$("$loopwire" history --database "$database" --device oven --format csv --from "$from" --parameters measured_value)
+expect csv-before-only test "$(grep -c ',bucket,' <<<"$out")" -eq 0
+check table-before 0 "in force at the start" \
+  "$loopwire" history --database "$database" --device oven --from "$from" --parameters measured_value
+finish
