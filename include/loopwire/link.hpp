@@ -8,7 +8,7 @@ namespace loopwire {
 
 struct LinkOptions {
     std::chrono::milliseconds timeout{1000};  // per try
-    unsigned retries = 0;                     // extra tries after a timeout
+    unsigned retries = 0;                     // extra tries after a timeout (or a reply refused as a probable copy)
 };
 
 class Link {

@@ -137,7 +137,7 @@ void add_dump_command(CLI::App& app, int& exit_code, const ProfileOptions& profi
     command->add_option("--output", options->output, "Write the document to FILE (atomically: all of it or nothing; a new file is private to you, an existing one keeps "
                         "its mode and owner, a link is followed, a FIFO or device such as /dev/stdout is written into); default stdout");
     command->add_option("--timeout", options->master.timeout, "Time to wait for each reply")->capture_default_str();
-    command->add_option("--retries", options->master.retries, "Extra tries after a timeout")->capture_default_str();
+    command->add_option("--retries", options->master.retries, "Extra tries after a timeout or a reply refused as a probable copy")->capture_default_str();
     command->add_flag("-v,--verbose", options->master.verbose, "Print every frame sent and received, with timestamps, on stderr");
     command->footer(exit_code_help);
     command->callback([options, &exit_code, &profiles] { exit_code = run_dump(*options, profiles); });

@@ -14,7 +14,7 @@ void MasterCommandOptions::add_to(CLI::App& command, bool with_device) {
         command.add_option("--numbering", numbering, "The device's alternative numbering in use (ac20: jbus, when its word 526 says so)");
     }
     command.add_option("--timeout", timeout, "Time to wait for each reply: 500ms, 2s, ...")->capture_default_str();
-    command.add_option("--retries", retries, "Extra tries after a timeout")->capture_default_str();
+    command.add_option("--retries", retries, "Extra tries after a timeout or a reply refused as a probable copy")->capture_default_str();
     command.add_flag("-v,--verbose", verbose, "Print every frame sent and received, with timestamps, on stderr");
     command.add_flag("--json", json, "Print the result as JSON");
 }

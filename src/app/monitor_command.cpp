@@ -164,7 +164,7 @@ void add_monitor_command(CLI::App& app, int& exit_code, const ProfileOptions& pr
     command->add_option("--rotate", options->rotate, "daily: start a new FILE on each new day; the finished one is renamed FILE-STEM.DATE.EXT");
     command->add_flag("--utc", options->utc, "Write times in UTC (...Z) instead of local time with its offset (...+01:00)");
     command->add_option("--timeout", options->master.timeout, "Time to wait for each reply")->capture_default_str();
-    command->add_option("--retries", options->master.retries, "Extra tries after a timeout")->capture_default_str();
+    command->add_option("--retries", options->master.retries, "Extra tries after a timeout or a reply refused as a probable copy")->capture_default_str();
     command->add_flag("-v,--verbose", options->master.verbose,
                       "Print every frame sent and received, with timestamps, on stderr (above the table, which is redrawn "
                       "under them, when both are on the terminal)");

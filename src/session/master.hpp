@@ -21,7 +21,9 @@ using std::chrono::milliseconds;
 
 struct MasterOptions {
     milliseconds timeout{1000};   // per try
-    unsigned retries = 0;         // extra tries after a timeout (never after an exception reply)
+    // Extra tries after a timeout, or after a reply refused as a probable copy of another
+    // request's (serial lines); never after an exception reply.
+    unsigned retries = 0;
     // Silence after a broadcast before the next request, so slaves can execute it
     // (Modbus over serial line V1.02, 2.4.1: "turnaround delay", typically 100 to 200 ms).
     milliseconds turnaround{100};

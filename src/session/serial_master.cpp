@@ -111,7 +111,11 @@ private:
             // A try that took no reply may still get one, late: the next request must not take it.
             // (A retry of this request may: it asks the same.)
             if (!reply.ok() && is_unanswered(reply.error().kind)) unsettled_[unit] = clock_->now();
-            if (reply.ok() || reply.error().kind != ErrorKind::timeout) return reply;
+            if (reply.ok()) return reply;
+            // A try whose reply was refused as a probable copy (not_a_duplicate) may have lost
+            // its real reply, as a try that timed out has: it is tried again while tries remain.
+            const bool timed_out = reply.error().kind == ErrorKind::timeout;
+            if (!timed_out && (!last_try_refused_a_copy_ || attempt == options_.retries)) return reply;
         }
         return timeout_error(unit, transaction, context);
     }
@@ -210,8 +214,9 @@ private:
         const Instant deadline = sent_at + options_.timeout;
         const LatencyKey key{unit, pdu[0]};
         const Duration usual = latencies_[key].expected();
-        Awaited awaited{unit, pdu, transaction, answers, context, sent_at, usual, {}, {}, true};
+        Awaited awaited{unit, pdu, transaction, answers, context, sent_at, usual, {}, {}, true, false};
         auto accepted = await_reply(awaited, deadline);
+        last_try_refused_a_copy_ = awaited.refused_a_copy;
         line_quiet_since_ = clock_->now();
         if (!accepted) return accepted.error();
         const Duration took = clock_->now() - sent_at;
@@ -232,6 +237,7 @@ private:
         std::optional<Error> wrong_reply;  // the last frame from `unit` that did not answer the request
         codec::FrameEvents after_accepted;  // what arrived with the accepted frame, after it
         bool clean;  // nothing but the accepted frame arrived
+        bool refused_a_copy;  // a frame that answered in shape was refused as a probable copy
     };
 
     // Reads until a frame answers the request or the deadline passes.
@@ -306,7 +312,10 @@ private:
             return std::nullopt;
         }
         auto answered = awaited.answers(frame.pdu);
-        if (answered) answered = not_a_duplicate(awaited, frame.raw);
+        if (answered) {
+            answered = not_a_duplicate(awaited, frame.raw);
+            if (!answered) awaited.refused_a_copy = true;
+        }
         remember(frame.raw, awaited.request);
         if (!answered) {
             awaited.clean = false;
@@ -323,14 +332,20 @@ private:
     // usually come; not when it comes later than that (the real reply, usually on time, has not
     // come: a copy is the likelier), nor at all on a line seen sending copies within the last
     // ten minutes, where a request may fail (0Bh) rather than risk another request's value.
+    // Lateness alone is suspicion, not proof: a loaded host delivers a real reply late now and
+    // then, so it does not mark the line as one that sends copies (a copy heard between
+    // exchanges, or a second frame for one request, does), and the request is tried again
+    // (exchange) while tries remain, so that a late reply equal to another register's costs
+    // its request one more try, not every such request for ten minutes.
     Result<void> not_a_duplicate(const Awaited& awaited, ByteView raw) {
         const auto copied = earlier_copy(raw, awaited.request);
         if (!copied) return {};
         const auto now = clock_->now();
         const bool late =
             awaited.usual > Duration::zero() && now - awaited.sent_at > awaited.usual + inter_frame_gap_ + reply_jitter;
-        if (!late && !line_sends_copies()) return {};
-        copy_seen_at_ = now;
+        const bool marked = line_sends_copies();
+        if (!late && !marked) return {};
+        if (marked) copy_seen_at_ = now;
         return make_error(ErrorKind::mismatch,
                           fmt::format("the same bytes as the reply to another request {} ms ago, {}: a duplicate, "
                                       "probably; not taken",
@@ -497,7 +512,8 @@ private:
     static constexpr std::size_t recent_frames_kept = 16;
     std::deque<SeenFrame> recent_frames_;
     std::optional<Instant> copy_seen_at_;  // when a copy of a frame was last seen
-    JobQueue jobs_;  // last member: its thread stops before the rest is destroyed
+    bool last_try_refused_a_copy_ = false;  // the last try's wait refused a frame as a probable copy
+    JobQueue jobs_{"lw-serial"};  // last member: its thread stops before the rest is destroyed
 };
 
 }  // namespace

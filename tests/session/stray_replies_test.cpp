@@ -112,7 +112,7 @@ struct TracedMaster {
 
     // `device` decides, per request (counted from 0), what arrives when.
     explicit TracedMaster(std::function<void(TimedLine&, ByteView, Instant, unsigned)> device,
-                          std::optional<std::chrono::milliseconds> late_reply_window = std::nullopt) {
+                          std::optional<std::chrono::milliseconds> late_reply_window = std::nullopt, unsigned retries = 0) {
         auto counted = [device = std::move(device), n = 0u](TimedLine& l, ByteView request, Instant at) mutable {
             device(l, request, at, n++);
         };
@@ -121,6 +121,7 @@ struct TracedMaster {
         MasterOptions options;
         options.timeout = 1s;
         options.late_reply_window = late_reply_window;
+        options.retries = retries;
         options.clock = clock;
         options.trace = [this](const TraceEvent& event) { trace.push_back(event); };
         master = make_serial_master(std::move(stream), rtu_link(), options);
@@ -312,6 +313,39 @@ TEST(StrayReplies, ACopyOnTimeWithTheRealReplyALittleLateIsAmbiguous) {
     const auto before = m.clock->now();
     ASSERT_TRUE(m.master->forward(unit, read_pdu(779)).ok());
     EXPECT_LT(m.clock->now() - before, latency + 5ms);
+}
+
+// A real reply that comes late (a loaded host) with the same bytes as the reply to another
+// request (two registers holding the same value) looks like a copy and is refused, as the
+// request's own reply may have been lost. With a retry allowed the request is tried again and
+// its reply, on time, taken; lateness alone does not mark the line as one that sends copies, so
+// the next equal reply on time is taken too.
+TEST(StrayReplies, ALateReplyEqualToAnotherRequestsIsRefusedAndTheRequestTriedAgain) {
+    const Bytes zero_pdu{0x03, 0x02, 0x00, 0x00};  // every register holds 0: every reply is alike
+    const auto device = [&zero_pdu](TimedLine& line, ByteView, Instant at, unsigned n) {
+        line.arrive(at + (n == 3 ? latency + 300ms : latency), codec::rtu_encode(unit, zero_pdu));
+    };
+    TracedMaster once(device);
+    TracedMaster twice(device, std::nullopt, 1);
+    for (TracedMaster* m : {&once, &twice}) {
+        for (const std::uint16_t address : {std::uint16_t{10}, std::uint16_t{11}, std::uint16_t{12}}) {
+            ASSERT_TRUE(m->master->forward(unit, read_pdu(address)).ok());
+        }
+    }
+    auto refused = once.master->forward(unit, read_pdu(13));
+    ASSERT_FALSE(refused.ok()) << "took " << to_hex(*refused) << " with no retry allowed";
+    EXPECT_NE(refused.error().message.find("a duplicate, probably"), std::string::npos) << refused.error().message;
+
+    auto retried = twice.master->forward(unit, read_pdu(13));
+    ASSERT_TRUE(retried.ok()) << retried.error().message;
+    EXPECT_EQ(*retried, zero_pdu);
+    EXPECT_EQ(twice.discarded_with("a duplicate, probably"), 1u);
+    EXPECT_EQ(twice.line->writes().size(), 5u) << "the fourth request is sent twice";
+    for (TracedMaster* m : {&once, &twice}) {
+        auto next = m->master->forward(unit, read_pdu(14));
+        ASSERT_TRUE(next.ok()) << next.error().message;
+    }
+    EXPECT_EQ(twice.discarded_with("a duplicate, probably"), 1u);
 }
 
 // A copy that arrives between exchanges is read and examined before it is dropped: the line is
