@@ -14,7 +14,6 @@
 #include <fstream>
 #include <condition_variable>
 #include <mutex>
-#include <set>
 #include <string>
 #include <thread>
 
@@ -28,6 +27,7 @@
 #include "transport/link_url.hpp"
 #include "transport/tcp.hpp"
 #include "support/profile_test_support.hpp"
+#include "support/thread_names.hpp"
 
 namespace loopwire::gateway {
 namespace {
@@ -316,22 +316,6 @@ std::size_t threads_now() {
                                                   std::filesystem::directory_iterator{}));
 }
 
-// The names of this process's threads now (common/thread_name.hpp names the gateway's).
-std::multiset<std::string> thread_names() {
-    std::multiset<std::string> names;
-    for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
-        std::ifstream comm(task.path() / "comm");
-        std::string name;
-        if (std::getline(comm, name)) names.insert(name);
-    }
-    return names;
-}
-
-std::size_t named_like(const std::multiset<std::string>& names, const std::string& prefix) {
-    return static_cast<std::size_t>(
-        std::count_if(names.begin(), names.end(), [&](const std::string& name) { return name.starts_with(prefix); }));
-}
-
 // Until every device of the gateway has been polled at least once.
 void wait_until_all_polled(const GatewayConfig& config, const Gateway& gateway) {
     std::size_t configured = 0;
@@ -399,10 +383,10 @@ TEST(Gateway, FourVirtualLinesShareOneSimulationThread) {
     auto opened = Gateway::open(*config);
     ASSERT_TRUE(opened) << opened.error().message;
     wait_until_all_polled(*config, **opened);
-    const auto names = thread_names();
+    const auto names = testing::thread_names();
     EXPECT_EQ(names.count("lw-simulation"), 1U);
     EXPECT_EQ(names.count("lw-engine"), 1U);
-    EXPECT_EQ(named_like(names, "lw-line "), 4U);
+    EXPECT_EQ(testing::threads_named_like("lw-line "), 4U);
     EXPECT_EQ(names.count("lw-line line2"), 1U);
 }
 

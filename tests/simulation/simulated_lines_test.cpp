@@ -2,9 +2,6 @@
 // every line answered correctly, one thread for all, and no line's reply held up by another's.
 #include <gtest/gtest.h>
 
-#include <dirent.h>
-
-#include <fstream>
 #include <future>
 #include <string>
 #include <thread>
@@ -12,27 +9,13 @@
 #include "session/master.hpp"
 #include "simulation/register_bank.hpp"
 #include "simulation/simulated_lines.hpp"
+#include "support/thread_names.hpp"
 #include "transport/virtual_bus.hpp"
 
 namespace loopwire::simulation {
 namespace {
 
 using namespace std::chrono_literals;
-
-// How many threads of this process carry `name` (/proc/self/task/*/comm).
-int threads_named(const std::string& name) {
-    int count = 0;
-    DIR* tasks = ::opendir("/proc/self/task");
-    if (tasks == nullptr) return -1;
-    while (const dirent* task = ::readdir(tasks)) {
-        if (task->d_name[0] == '.') continue;
-        std::ifstream comm(std::string("/proc/self/task/") + task->d_name + "/comm");
-        std::string line;
-        if (std::getline(comm, line) && line == name) ++count;
-    }
-    ::closedir(tasks);
-    return count;
-}
 
 struct Line {
     transport::LinkUrl link;
@@ -70,7 +53,7 @@ TEST(SimulatedLines, OneThreadAnswersTheDevicesOfEveryLine) {
         served.back().bank->set(codec::Table::holding_registers, 10, static_cast<std::uint16_t>(100 + i));
     }
     EXPECT_EQ(lines.lines(), 4U);
-    EXPECT_EQ(threads_named("lw-simulation"), 1);
+    EXPECT_EQ(testing::thread_names().count("lw-simulation"), 1U);
     // All four lines asked at once, 20 times each: every reply the right one.
     std::vector<std::future<int>> answered;
     for (std::uint16_t i = 0; i < 4; ++i) {
