@@ -115,7 +115,8 @@ private:
             // A try whose reply was refused as a probable copy (not_a_duplicate) may have lost
             // its real reply, as a try that timed out has: it is tried again while tries remain.
             const bool timed_out = reply.error().kind == ErrorKind::timeout;
-            if (!timed_out && (!last_try_refused_a_copy_ || attempt == options_.retries)) return reply;
+            const bool refused_copy = reply.error().kind == ErrorKind::mismatch && last_try_refused_a_copy_;
+            if (!timed_out && (!refused_copy || attempt == options_.retries)) return reply;
         }
         return timeout_error(unit, transaction, context);
     }
@@ -194,6 +195,7 @@ private:
 
     Result<Bytes> attempt_once(std::uint8_t unit, ByteView pdu, const std::string& transaction,
                                const ReplyCheck& answers, TimeoutContext& context, bool retry) {
+        last_try_refused_a_copy_ = false;  // a try that fails before it waits refused nothing
         auto frame = codec_->encode(unit, pdu, 0);
         if (!frame) return frame.error();
         clock_->sleep_until(line_quiet_since_ + inter_frame_gap_);
