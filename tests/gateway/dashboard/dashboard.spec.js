@@ -255,7 +255,9 @@ test("a real outage leaves a gap in the recorded trend, a written set point is a
     // before it) to the first read again after the simulator came back.
     const outage = gaps.find((gap) => gap.from <= back && gap.to > back);
     expect(outage, `${name}: a gap over the outage in ${JSON.stringify(series.gaps)}`).toBeTruthy();
-    expect(outage.from, `${name}: the gap starts at the cut`).toBeGreaterThanOrEqual(cut - 1_000);
+    // A poll under way at the cut may have begun before it; on a sanitizer's build a busy machine
+    // may also have let the value go stale just before it, which the outage's gap then joins.
+    expect(outage.from, `${name}: the gap starts at the cut`).toBeGreaterThanOrEqual(cut - 1_000 * SLOWDOWN);
     expect(outage.from, `${name}: the gap starts at the cut`).toBeLessThanOrEqual(cut + 2_000 * SLOWDOWN);
     expect(outage.to, `${name}: the gap lasts until the device is back`).toBeLessThanOrEqual(up);
     expect(outage.to - outage.from, `${name}: the gap is the whole outage`).toBeGreaterThanOrEqual(OUTAGE_MS);
