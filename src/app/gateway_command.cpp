@@ -113,8 +113,10 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
     log.set_level(config->log.level);
     raise_descriptor_limit(log.debug);
     gateway::ConfigReloads reloads(options.config, *registry, log);
-    StopSignal stop(std::nullopt, [&reloads] { reloads.hangup(); });  // before any thread starts
+    // Before any thread starts. The serving thread takes the signals while it waits.
+    StopSignal stop(std::nullopt, [&reloads] { reloads.hangup(); }, StopSignal::Waits::caller);
     gateway::GatewayOptions gateway_options;
+    gateway_options.wait_for_stop = [&stop](const std::stop_token& until) { stop.wait(until); };
     gateway_options.log = log.info;
     gateway_options.debug_log = log.debug;
     if (options.verbose) gateway_options.trace = stderr_trace();

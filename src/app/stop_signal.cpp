@@ -18,29 +18,38 @@ sigset_t handled_signals(bool hangup) {
 }
 }  // namespace
 
-StopSignal::StopSignal(std::optional<std::chrono::microseconds> limit, std::function<void()> on_hangup)
-    : signals_(handled_signals(static_cast<bool>(on_hangup))) {
+StopSignal::StopSignal(std::optional<std::chrono::microseconds> limit, std::function<void()> on_hangup, Waits waits)
+    : signals_(handled_signals(static_cast<bool>(on_hangup))),
+      deadline_(limit ? std::optional(std::chrono::steady_clock::now() + *limit) : std::nullopt),
+      on_hangup_(std::move(on_hangup)) {
     pthread_sigmask(SIG_BLOCK, &signals_, nullptr);
-    const auto deadline = limit ? std::optional(std::chrono::steady_clock::now() + *limit) : std::nullopt;
-    waiter_ = std::jthread([this, deadline, on_hangup = std::move(on_hangup)](std::stop_token own) {
-        const timespec tick{0, 50'000'000};
-        while (!own.stop_requested() && !source_.stop_requested()) {
-            const int received = sigtimedwait(&signals_, nullptr, &tick);
-            if (received == SIGHUP) {
-                on_hangup();
-                continue;
-            }
-            if (received > 0) break;
-            if (deadline && std::chrono::steady_clock::now() >= *deadline) break;
-        }
+    if (waits == Waits::caller) return;
+    waiter_ = std::jthread([this](std::stop_token own) {
+        while (!own.stop_requested() && !source_.stop_requested()) take_signal();
         source_.request_stop();
     });
     name_thread(waiter_.native_handle(), "lw-signals");
 }
 
+void StopSignal::wait(const std::stop_token& until) {
+    while (!until.stop_requested() && !source_.stop_requested()) take_signal();
+}
+
+void StopSignal::take_signal() {
+    const timespec tick{0, 50'000'000};
+    const int received = sigtimedwait(&signals_, nullptr, &tick);
+    if (received == SIGHUP) {
+        on_hangup_();
+        return;
+    }
+    if (received > 0 || (deadline_ && std::chrono::steady_clock::now() >= *deadline_)) source_.request_stop();
+}
+
 StopSignal::~StopSignal() {
-    waiter_.request_stop();
-    waiter_.join();
+    if (waiter_.joinable()) {
+        waiter_.request_stop();
+        waiter_.join();
+    }
     // A stop signal sent twice (timeout(1) signals its child and then its whole process group)
     // would otherwise stay pending and kill the process the moment it is unblocked, at the end
     // of a clean shutdown: the stop was asked for and done, so the repeats are consumed here.

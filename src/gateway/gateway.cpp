@@ -20,6 +20,7 @@
 #include "gateway/http_server.hpp"
 #include "gateway/mqtt_bridge.hpp"
 #include "gateway/sparkplug/sparkplug_node.hpp"
+#include "session/line_loop.hpp"
 #include "session/master.hpp"
 #include "session/slave.hpp"
 #include "simulation/simulated_lines.hpp"
@@ -122,18 +123,23 @@ Result<MasterOpener> line_opener(const LineConfig& line, const GatewayOptions& o
 // back-off (gateway/reopening_master.hpp) while the other lines serve. Only a configuration the
 // port can never take (ErrorKind::usage) is.
 Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options,
-                           std::unique_ptr<simulation::SimulatedLines>& simulations) {
+                           std::unique_ptr<simulation::SimulatedLines>& simulations,
+                           const std::shared_ptr<session::LineLoop>& line_loop) {
     OpenLine opened{line.name, line.link.to_string(), std::make_shared<std::atomic<std::uint64_t>>(0), nullptr, nullptr};
     session::MasterOptions master_options;
     master_options.timeout = line.timeout;
     master_options.retries = line.retries;
     master_options.late_reply_window = line.late_reply_window;
     master_options.trace = counting_trace(opened.garbled, options.trace);
+    // Every line that speaks a serial framing (a port, a virtual line, RTU through a device
+    // server) is carried on the lines' shared loop; a Modbus TCP device keeps its master's reader.
+    const bool on_loop = line.link.framing != transport::Framing::tcp;
+    if (on_loop) master_options.loop = line_loop;
     auto open = line_opener(line, options, simulations, std::move(master_options));
     if (!open) return open.error();
     opened.master = std::make_shared<ReopeningMaster>(
         line.name, opened.link, std::move(*open), ReopenSchedule{}, steady_clock(), options.log,
-        line.max_in_flight > 1 ? LinkConcurrency::several : LinkConcurrency::one);
+        line.max_in_flight > 1 ? LinkConcurrency::several : on_loop ? LinkConcurrency::on_loop : LinkConcurrency::one);
     if (auto started = opened.master->start(); !started) return started.error();
     LineSchedulerOptions scheduling;
     scheduling.max_in_flight = line.max_in_flight;
@@ -183,11 +189,15 @@ struct Gateway::Parts {
 
     std::chrono::milliseconds statistics_interval{0};
     GatewayLog log;
+    std::function<void(const std::stop_token&)> wait_for_stop;  // GatewayOptions::wait_for_stop
     // First, so it goes last: the polls, the writer and the statistics run on its loop and take
     // themselves down from it before they go.
     Engine engine;
     // The simulated devices of the virtual lines, if any; after the lines have gone.
     std::unique_ptr<simulation::SimulatedLines> simulations;
+    // The loop that carries the serial lines (session/line_loop.hpp); the lines' masters hold it
+    // too, and it goes once they have.
+    std::shared_ptr<session::LineLoop> line_loop = std::make_shared<session::LineLoop>();
     // The front is destroyed first, then the polls (members go in reverse order): no request
     // reaches a line scheduler that is gone.
     std::vector<OpenLine> lines;
@@ -224,10 +234,11 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
     auto parts = std::make_unique<Parts>();
     parts->statistics_interval = config.log.statistics;
     parts->log = options.log;
+    parts->wait_for_stop = options.wait_for_stop;
     session::UnitMap& units = parts->units;
     auto clock = steady_clock();
     for (const auto& line : config.lines) {
-        auto opened = open_line(line, options, parts->simulations);
+        auto opened = open_line(line, options, parts->simulations, parts->line_loop);
         if (!opened) return opened.error();
         bool first = true;
         for (const auto& device : line.devices) {
@@ -350,11 +361,16 @@ bool lines_idle(const std::vector<OpenLine>& lines) {
 
 // Waits for `stop`, then until every line is idle (or the drain limit passes): a request a
 // client sent before SIGTERM still gets its answer before the front closes.
-void wait_then_drain(const std::vector<OpenLine>& lines, const std::stop_token& stop) {
+void wait_then_drain(const std::vector<OpenLine>& lines, const std::stop_token& stop,
+                     const std::function<void(const std::stop_token&)>& wait_for_stop) {
     std::mutex mutex;
     std::condition_variable_any woken;
     std::unique_lock lock(mutex);
-    woken.wait(lock, stop, [] { return false; });
+    if (wait_for_stop) {
+        wait_for_stop(stop);
+    } else {
+        woken.wait(lock, stop, [] { return false; });
+    }
     const auto give_up = std::chrono::steady_clock::now() + drain_limit;
     while (!lines_idle(lines) && std::chrono::steady_clock::now() < give_up) {
         woken.wait_for(lock, std::chrono::milliseconds(10), [] { return false; });
@@ -424,7 +440,7 @@ Result<void> Gateway::serve(std::stop_token stop) {
     std::stop_callback on_stop(stop, end);
     std::optional<std::stop_callback<decltype(end)>> on_front_failure;
     if (parts_->front) on_front_failure.emplace(parts_->front->failed(), end);
-    wait_then_drain(parts_->lines, either.get_token());
+    wait_then_drain(parts_->lines, either.get_token(), parts_->wait_for_stop);
     Result<void> served;
     if (parts_->front && parts_->front->failed().stop_requested()) served = parts_->front->error();
     if (parts_->own_front) {

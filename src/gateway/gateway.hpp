@@ -1,6 +1,7 @@
 #pragma once
 // The running gateway: the lines it owns (one master and one scheduler each) and the Modbus TCP
 // front that shares them (docs/DESIGN.md, gateway).
+#include <functional>
 #include <memory>
 #include <stop_token>
 #include <string>
@@ -39,6 +40,11 @@ struct GatewayOptions {
     // reloads (it must listen as the configuration asks, ModbusTcpFront::listens_as, and outlive
     // the gateway). None: the gateway opens its own, closed when serve() returns.
     ModbusTcpFront* front = nullptr;
+    // How serve() waits for its stop: on a condition variable when empty. The gateway command
+    // passes its signal handling here (app/stop_signal.hpp, StopSignal::Waits::caller), so the
+    // serving thread takes SIGTERM and SIGHUP while it waits and no thread is kept for them.
+    // Must return once the token is stopped.
+    std::function<void(const std::stop_token&)> wait_for_stop;
 };
 
 struct LineReport {

@@ -27,7 +27,7 @@ std::string seconds_text(std::chrono::microseconds time) {
 
 struct ReopeningMaster::State {
     State(std::string line_name, std::string line_link, MasterOpener opener, ReopenSchedule chosen,
-          std::shared_ptr<Clock> time, LinkLog logger)
+          std::shared_ptr<Clock> time, LinkLog logger, session::JobQueue::WhenIdle worker_idle)
         : name(std::move(line_name)),
           link(std::move(line_link)),
           open(std::move(opener)),
@@ -35,7 +35,7 @@ struct ReopeningMaster::State {
           clock(std::move(time)),
           log(std::move(logger)),
           backoff(schedule.first, schedule.max),
-          worker("lw-line " + name) {}
+          worker("lw-line " + name, worker_idle) {}
 
     // --- carrying requests (on the worker thread, or a caller of the blocking calls) ---------
 
@@ -267,7 +267,9 @@ ReopeningMaster::ReopeningMaster(std::string name, std::string link, MasterOpene
     : link_(link),
       concurrency_(concurrency),
       state_(std::make_unique<State>(std::move(name), std::move(link), std::move(open), schedule, std::move(clock),
-                                     std::move(log))) {}
+                                     std::move(log),
+                                     concurrency == LinkConcurrency::on_loop ? session::JobQueue::WhenIdle::end_thread
+                                                                             : session::JobQueue::WhenIdle::keep_thread)) {}
 
 ReopeningMaster::~ReopeningMaster() {
     state_->worker.finish();  // what is queued is carried on the open master, as it was asked
@@ -294,7 +296,7 @@ Result<codec::Reply> ReopeningMaster::execute(std::uint8_t unit, const codec::Re
 }
 
 void ReopeningMaster::execute_async(std::uint8_t unit, codec::Request request, Completion done) {
-    if (concurrency_ == LinkConcurrency::several &&
+    if (concurrency_ != LinkConcurrency::one &&
         state_->send_directly(done, [&](session::Master& line, Completion sent) {
             line.execute_async(unit, std::move(request), std::move(sent));
         })) {
@@ -311,7 +313,7 @@ Result<Bytes> ReopeningMaster::forward(std::uint8_t unit, ByteView pdu) {
 }
 
 void ReopeningMaster::forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) {
-    if (concurrency_ == LinkConcurrency::several &&
+    if (concurrency_ != LinkConcurrency::one &&
         state_->send_directly(done, [&](session::Master& line, ForwardCompletion sent) {
             line.forward_async(unit, std::move(pdu), std::move(sent));
         })) {

@@ -19,6 +19,12 @@
 // run there too, or on the caller's thread for a request refused at once while the line is down.
 // Like the serial master, it joins its worker when destroyed: never destroy it from a completion.
 //
+// On a loop (LinkConcurrency::on_loop, a serial master carried by the lines' shared loop,
+// session/line_loop.hpp): requests go to the opened master as in the concurrent case below (it
+// queues them on the loop and never blocks the caller), and the worker thread exists only while
+// there is work for it: reopening the line, or closing a master that failed. So a line that is
+// up costs no thread of its own.
+//
 // Concurrent (LinkConcurrency::several, a Modbus TCP master that pairs replies by transaction id):
 // while the line is up, *_async calls go straight to the opened master, several at once, and
 // their completions run on its reader thread. A link failure one of them meets is handed to the
@@ -59,8 +65,10 @@ struct LinkHealth {
 // that is not retried.
 using MasterOpener = std::function<Result<std::unique_ptr<session::Master>>()>;
 
-// Whether the opened master may carry several requests at once (LineSchedulerOptions::max_in_flight).
-enum class LinkConcurrency { one, several };
+// Whether the opened master may carry several requests at once (LineSchedulerOptions::max_in_flight),
+// or one at a time on a loop shared with other lines (MasterOptions::loop); both take requests
+// directly, without the worker.
+enum class LinkConcurrency { one, several, on_loop };
 
 // The gateway's log (gateway/forwarding_unit.hpp's GatewayLog has the same shape).
 using LinkLog = std::function<void(const std::string&)>;

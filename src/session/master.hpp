@@ -19,6 +19,8 @@ namespace loopwire::session {
 
 using std::chrono::milliseconds;
 
+class LineLoop;
+
 struct MasterOptions {
     milliseconds timeout{1000};   // per try
     // Extra tries after a timeout, or after a reply refused as a probable copy of another
@@ -39,6 +41,11 @@ struct MasterOptions {
     // virtual clock only makes sense with a stream that reads the same clock. The TCP master
     // runs on the steady clock.
     std::shared_ptr<Clock> clock = steady_clock();
+    // Serial masters: carry the exchanges on this loop (session/line_loop.hpp), shared with
+    // other lines, instead of a thread of the master's own; *_async calls then only queue, and
+    // completions run on the loop's thread. The loop runs on the steady clock, which `clock` is
+    // then taken to be. Null: the blocking calls run on the caller's thread.
+    std::shared_ptr<LineLoop> loop;
 };
 
 class Master {

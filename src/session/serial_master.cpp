@@ -1,6 +1,10 @@
 // The master on a serial line (RTU, ASCII, Linking) or behind a serial device server (rtu+tcp).
 #include <algorithm>
 #include <array>
+#include <coroutine>
+#include <cstdio>
+#include <cstdlib>
+#include <future>
 #include <iterator>
 #include <map>
 #include <mutex>
@@ -10,8 +14,10 @@
 #include <fmt/format.h>
 
 #include "codec/rtu.hpp"
+#include "common/task.hpp"
 #include "session/frame_codec.hpp"
 #include "session/job_queue.hpp"
+#include "session/line_loop.hpp"
 #include "session/master.hpp"
 #include "session/reply_check.hpp"
 #include "session/transaction_text.hpp"
@@ -54,34 +60,193 @@ public:
         : stream_(std::move(stream)),
           codec_(make_frame_codec(link, codec::Direction::reply, options.linking_ram_only)),
           options_(std::move(options)),
-          clock_(options_.clock ? options_.clock : steady_clock()),
+          loop_(options_.loop),
+          clock_(loop_ || !options_.clock ? steady_clock() : options_.clock),
           inter_frame_gap_(gap_for(link)),
           name_(link.to_string()) {}
 
+    // On a loop: waits until what was queued has been carried (as the blocking master's job
+    // queue does), so that nothing on the loop refers to it any more.
+    ~SerialMaster() override {
+        if (!loop_) return;
+        if (loop_->on_loop_thread()) {
+            std::fputs("loopwire: a serial master on the lines' loop was destroyed by the loop itself\n", stderr);
+            std::abort();
+        }
+        std::promise<void> idle;
+        loop_->post([this, &idle] {
+            closing_ = &idle;
+            tell_if_idle();
+        });
+        idle.get_future().wait();
+    }
+
     Result<codec::Reply> execute(std::uint8_t unit, const codec::Request& request) override {
-        auto pdu = codec::encode_request(request);
-        if (!pdu) return pdu.error();
-        return typed_reply(unit, request, exchange(unit, *pdu, describe_transaction(unit, request), answers_request(request)));
+        if (loop_) return wait_for<codec::Reply>([&](Completion done) { execute_async(unit, request, std::move(done)); });
+        return run_blocking(execute_task(unit, request));
     }
 
     void execute_async(std::uint8_t unit, codec::Request request, Completion done) override {
+        if (loop_) {
+            return enqueue<codec::Reply>(
+                [this, unit, request = std::move(request)] { return execute_task(unit, request); }, std::move(done));
+        }
         jobs_.push([this, unit, request = std::move(request), done = std::move(done)] {
             done(execute(unit, request));
         });
     }
 
     Result<Bytes> forward(std::uint8_t unit, ByteView pdu) override {
-        if (auto forwardable = check_forwardable(pdu); !forwardable) return forwardable.error();
-        return exchange(unit, pdu, describe_forwarded(unit, pdu), answers_forwarded(Bytes(pdu.begin(), pdu.end())));
+        if (loop_) {
+            return wait_for<Bytes>([&](ForwardCompletion done) {
+                forward_async(unit, Bytes(pdu.begin(), pdu.end()), std::move(done));
+            });
+        }
+        return run_blocking(forward_task(unit, Bytes(pdu.begin(), pdu.end())));
     }
 
     void forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) override {
+        if (loop_) {
+            return enqueue<Bytes>([this, unit, pdu = std::move(pdu)] { return forward_task(unit, pdu); },
+                                  std::move(done));
+        }
         jobs_.push([this, unit, pdu = std::move(pdu), done = std::move(done)] { done(forward(unit, pdu)); });
     }
 
     std::string describe() const override { return name_; }
 
 private:
+    Task<Result<codec::Reply>> execute_task(std::uint8_t unit, codec::Request request) {
+        auto pdu = codec::encode_request(request);
+        if (!pdu) co_return pdu.error();
+        const std::string transaction = describe_transaction(unit, request);
+        const ReplyCheck answers = answers_request(request);
+        auto replied = co_await exchange(unit, *pdu, transaction, answers);
+        co_return typed_reply(unit, request, std::move(replied));
+    }
+
+    Task<Result<Bytes>> forward_task(std::uint8_t unit, Bytes pdu) {
+        if (auto forwardable = check_forwardable(pdu); !forwardable) co_return forwardable.error();
+        const std::string transaction = describe_forwarded(unit, pdu);
+        const ReplyCheck answers = answers_forwarded(pdu);
+        co_return co_await exchange(unit, pdu, transaction, answers);
+    }
+
+    // --- carrying exchanges on the loop (MasterOptions::loop), one at a time -------------------
+
+    // From any thread: `make` is run on the loop, in turn, and the task it makes is carried there.
+    template <typename Value, typename Make>
+    void enqueue(Make make, std::function<void(Result<Value>)> done) {
+        loop_->post([this, make = std::move(make), done = std::move(done)]() mutable {
+            queued_.push_back([this, make = std::move(make), done = std::move(done)]() mutable {
+                return deliver<Result<Value>>(make(), [this, done = std::move(done)](Result<Value> result) {
+                    done(std::move(result));
+                    loop_->post([this] { job_ended(); });
+                });
+            });
+            start_next();
+        });
+    }
+
+    // On the loop.
+    void start_next() {
+        if (current_ || queued_.empty()) return;
+        auto make = std::move(queued_.front());
+        queued_.pop_front();
+        current_.emplace(make());
+        current_->start();
+    }
+
+    // On the loop, once the job's completion has returned.
+    void job_ended() {
+        current_.reset();
+        start_next();
+        tell_if_idle();
+    }
+
+    // On the loop: lets the destructor go on once nothing is queued or carried. The last thing
+    // done here: the master may be gone as soon as it is told.
+    void tell_if_idle() {
+        if (closing_ == nullptr || current_ || !queued_.empty()) return;
+        std::exchange(closing_, nullptr)->set_value();
+    }
+
+    // A blocking call on a master that runs on the loop: queued there, waited for here.
+    template <typename Value, typename Start>
+    Result<Value> wait_for(Start start) {
+        if (loop_->on_loop_thread()) {
+            return make_error(ErrorKind::usage, name_ + ": a blocking request on the lines' loop itself would never end");
+        }
+        std::promise<Result<Value>> answered;
+        start([&answered](Result<Value> result) { answered.set_value(std::move(result)); });
+        return answered.get_future().get();
+    }
+
+    // --- waiting: blocking the thread without a loop, suspending on the loop with one -------
+
+    // Bytes that arrive within `wait` (0: none came), as ByteStream::read_some.
+    struct Reading {
+        SerialMaster& master;
+        std::span<std::uint8_t> buffer;
+        milliseconds wait;
+        Result<std::size_t> got = std::size_t{0};
+
+        bool await_ready() {
+            if (!master.loop_) {
+                got = master.stream_->read_some(buffer, wait);
+                return true;
+            }
+            got = master.stream_->read_some(buffer, milliseconds::zero());
+            return !got || *got > 0 || wait <= milliseconds::zero();
+        }
+        void await_suspend(std::coroutine_handle<> resume) {
+            master.read_on_loop(*this, std::chrono::steady_clock::now() + wait, resume);
+        }
+        Result<std::size_t> await_resume() { return std::move(got); }
+    };
+
+    void read_on_loop(Reading& reading, Instant deadline, std::coroutine_handle<> resume) {
+        loop_->wait(stream_->poll_handle(), deadline, [this, &reading, deadline, resume] {
+            reading.got = stream_->read_some(reading.buffer, milliseconds::zero());
+            // Readable but nothing for us (a wake-up that found nothing): wait on.
+            if (reading.got && *reading.got == 0 && std::chrono::steady_clock::now() < deadline) {
+                return read_on_loop(reading, deadline, resume);
+            }
+            resume.resume();
+        });
+    }
+
+    Reading read_for(std::span<std::uint8_t> buffer, milliseconds wait) { return Reading{*this, buffer, wait}; }
+
+    struct Sleeping {
+        SerialMaster& master;
+        Instant until;
+
+        bool await_ready() {
+            if (!master.loop_) {
+                master.clock_->sleep_until(until);
+                return true;
+            }
+            return master.clock_->now() >= until;
+        }
+        void await_suspend(std::coroutine_handle<> resume) {
+            master.loop_->wait(-1, until, [resume] { resume.resume(); });
+        }
+        void await_resume() {}
+    };
+
+    Sleeping sleep_until(Instant until) { return Sleeping{*this, until}; }
+
+    // Writes a frame and returns once it has left: the stream waits for that without a loop,
+    // the loop's timer with one, so that a frame's wire time holds no other line.
+    Task<Result<void>> send(ByteView frame) {
+        if (!loop_) co_return stream_->write(frame);
+        auto left = stream_->write_without_waiting(frame);
+        if (!left) co_return left.error();
+        co_await sleep_until(*left);
+        co_return Result<void>{};
+    }
+
     // RTU needs 3.5 characters of silence between frames (Modbus over serial line V1.02,
     // 2.5.1.1); libmodbus does not keep it, and multi-drop lines with several slaves break on
     // that. Through a device server the server times the line. ASCII needs no gap (2.5.2.1),
@@ -98,27 +263,30 @@ private:
 
     // One request on the line, tried again after each timeout up to the retries allowed: the PDU
     // of the frame that answers it (exception replies included), empty for a broadcast.
-    Result<Bytes> exchange(std::uint8_t unit, ByteView pdu, const std::string& transaction, const ReplyCheck& answers) {
-        std::lock_guard lock(line_);  // one outstanding request per serial line
+    // One request at a time: blocking callers queue on `line_`, the loop carries one job at a
+    // time.
+    Task<Result<Bytes>> exchange(std::uint8_t unit, ByteView pdu, const std::string& transaction, const ReplyCheck& answers) {
+        std::unique_lock lock(line_, std::defer_lock);
+        if (!loop_) lock.lock();
         if (auto unsettled = unsettled_.find(unit); unsettled != unsettled_.end()) {
-            if (auto quiet = wait_for_quiet_line(unsettled->second); !quiet) return quiet.error();
+            if (auto quiet = co_await wait_for_quiet_line(unsettled->second); !quiet) co_return quiet.error();
             unsettled_.erase(unit);
         }
         TimeoutContext context{name_, options_.timeout.count(), 0, 0};
         for (unsigned attempt = 0; attempt <= options_.retries; ++attempt) {
             ++context.tries;
-            auto reply = attempt_once(unit, pdu, transaction, answers, context, attempt > 0);
+            auto reply = co_await attempt_once(unit, pdu, transaction, answers, context, attempt > 0);
             // A try that took no reply may still get one, late: the next request must not take it.
             // (A retry of this request may: it asks the same.)
             if (!reply.ok() && is_unanswered(reply.error().kind)) unsettled_[unit] = clock_->now();
-            if (reply.ok()) return reply;
+            if (reply.ok()) co_return reply;
             // A try whose reply was refused as a probable copy (not_a_duplicate) may have lost
             // its real reply, as a try that timed out has: it is tried again while tries remain.
             const bool timed_out = reply.error().kind == ErrorKind::timeout;
             const bool refused_copy = reply.error().kind == ErrorKind::mismatch && last_try_refused_a_copy_;
-            if (!timed_out && (!refused_copy || attempt == options_.retries)) return reply;
+            if (!timed_out && (!refused_copy || attempt == options_.retries)) co_return reply;
         }
-        return timeout_error(unit, transaction, context);
+        co_return timeout_error(unit, transaction, context);
     }
 
     static bool is_unanswered(ErrorKind kind) {
@@ -137,7 +305,7 @@ private:
     // do not take (at worst it garbles their reply: no reply, not a wrong one), so a dead unit
     // costs the others no more than its timeouts. A line that never falls quiet holds the master
     // for at most four windows.
-    Result<void> wait_for_quiet_line(Instant unsettled_since) {
+    Task<Result<void>> wait_for_quiet_line(Instant unsettled_since) {
         const Duration window = late_reply_window();
         codec_->reset();
         Instant quiet_since = unsettled_since;
@@ -147,18 +315,18 @@ private:
             const Instant now = clock_->now();
             const Instant quiet_enough = quiet_since + window;
             if (now >= quiet_enough || now >= give_up) break;
-            auto got = stream_->read_some(buffer, std::chrono::ceil<milliseconds>(std::min(quiet_enough, give_up) - now));
-            if (!got) return got.error();
+            auto got = co_await read_for(buffer, std::chrono::ceil<milliseconds>(std::min(quiet_enough, give_up) - now));
+            if (!got) co_return got.error();
             if (*got == 0) continue;
             quiet_since = clock_->now();
             auto fed = codec_->feed(ByteView(buffer.data(), *got), quiet_since);
-            if (!fed) return fed.error();
+            if (!fed) co_return fed.error();
             discard_late(*fed);
         }
         discard_late(codec_->flush(clock_->now() + inter_frame_gap_));
         codec_->reset();
         line_quiet_since_ = std::max(line_quiet_since_, quiet_since);
-        return {};
+        co_return Result<void>{};
     }
 
     // What arrived between exchanges (a late reply, a copy) is read, traced and examined before
@@ -193,38 +361,38 @@ private:
         }
     }
 
-    Result<Bytes> attempt_once(std::uint8_t unit, ByteView pdu, const std::string& transaction,
-                               const ReplyCheck& answers, TimeoutContext& context, bool retry) {
+    Task<Result<Bytes>> attempt_once(std::uint8_t unit, ByteView pdu, const std::string& transaction,
+                                     const ReplyCheck& answers, TimeoutContext& context, bool retry) {
         last_try_refused_a_copy_ = false;  // a try that fails before it waits refused nothing
         auto frame = codec_->encode(unit, pdu, 0);
-        if (!frame) return frame.error();
-        clock_->sleep_until(line_quiet_since_ + inter_frame_gap_);
+        if (!frame) co_return frame.error();
+        co_await sleep_until(line_quiet_since_ + inter_frame_gap_);
         hear_out_stray_input();
         stream_->discard_input();  // a late reply to an earlier try must not answer this one
         codec_->reset();
         trace(TraceDirection::sent, *frame, transaction);
-        auto written = stream_->write(*frame);
+        auto written = co_await send(*frame);
         const Instant sent_at = clock_->now();
         line_quiet_since_ = sent_at;
-        if (!written) return written.error();
+        if (!written) co_return written.error();
         if (unit == 0) {
             // Broadcast: nobody answers; give every slave the turnaround delay to execute it.
-            clock_->sleep_for(options_.turnaround);
+            co_await sleep_until(clock_->now() + options_.turnaround);
             line_quiet_since_ = clock_->now();
-            return Bytes{};
+            co_return Bytes{};
         }
         const Instant deadline = sent_at + options_.timeout;
         const LatencyKey key{unit, pdu[0]};
         const Duration usual = latencies_[key].expected();
         Awaited awaited{unit, pdu, transaction, answers, context, sent_at, usual, {}, {}, true, false};
-        auto accepted = await_reply(awaited, deadline);
+        auto accepted = co_await await_reply(awaited, deadline);
         last_try_refused_a_copy_ = awaited.refused_a_copy;
         line_quiet_since_ = clock_->now();
-        if (!accepted) return accepted.error();
+        if (!accepted) co_return accepted.error();
         const Duration took = clock_->now() - sent_at;
-        auto settled = settle(awaited, std::move(*accepted), sent_at + usual, deadline, retry);
+        auto settled = co_await settle(awaited, std::move(*accepted), sent_at + usual, deadline, retry);
         if (settled && awaited.clean) latencies_[key].record(took);
-        return settled;
+        co_return settled;
     }
 
     // What one wait for a reply has seen so far.
@@ -243,21 +411,23 @@ private:
     };
 
     // Reads until a frame answers the request or the deadline passes.
-    Result<codec::Frame> await_reply(Awaited& awaited, Instant deadline) {
+    Task<Result<codec::Frame>> await_reply(Awaited& awaited, Instant deadline) {
         std::array<std::uint8_t, 512> buffer{};
         for (;;) {
             const auto now = clock_->now();
             // A reply that came but was wrong is what went wrong, not silence: it is reported as
             // such (exit 6, as on TCP), and not retried. The wait still runs to the deadline, as
             // the right reply may follow a stale one.
-            if (now >= deadline) return awaited.wrong_reply ? *awaited.wrong_reply : make_error(ErrorKind::timeout, "no reply");
-            auto events = read_events(buffer, deadline - now);
-            if (!events) return events.error();
+            if (now >= deadline) {
+                co_return awaited.wrong_reply ? *awaited.wrong_reply : make_error(ErrorKind::timeout, "no reply");
+            }
+            auto events = co_await read_events(buffer, deadline - now);
+            if (!events) co_return events.error();
             for (std::size_t i = 0; i < events->size(); ++i) {
                 if (auto frame = consider(awaited, (*events)[i])) {
                     awaited.after_accepted.assign(std::make_move_iterator(events->begin() + static_cast<std::ptrdiff_t>(i + 1)),
                                                   std::make_move_iterator(events->end()));
-                    return std::move(*frame);
+                    co_return std::move(*frame);
                 }
             }
         }
@@ -266,34 +436,34 @@ private:
     // Waits up to `limit` (or until a pending partial frame is due to be flushed) and returns the
     // frames and discarded runs that brings. Streams wait in whole milliseconds: `limit` is
     // rounded up, so a wait for a reply never ends before its deadline.
-    Result<codec::FrameEvents> read_events(std::span<std::uint8_t> buffer, Duration limit) {
+    Task<Result<codec::FrameEvents>> read_events(std::span<std::uint8_t> buffer, Duration limit) {
         const auto now = clock_->now();
         auto wait = limit;
         if (auto flush_at = codec_->flush_deadline()) {
             wait = std::min<Duration>(wait, std::max<Duration>(*flush_at - now, Duration::zero()));
         }
-        return read_events_for(buffer, std::chrono::ceil<milliseconds>(wait));
+        co_return co_await read_events_for(buffer, std::chrono::ceil<milliseconds>(wait));
     }
 
-    Result<codec::FrameEvents> read_events_for(std::span<std::uint8_t> buffer, milliseconds wait) {
-        auto got = stream_->read_some(buffer, wait);
-        if (!got) return got.error();
-        if (*got == 0) return codec_->flush(clock_->now());
+    Task<Result<codec::FrameEvents>> read_events_for(std::span<std::uint8_t> buffer, milliseconds wait) {
+        auto got = co_await read_for(buffer, wait);
+        if (!got) co_return got.error();
+        if (*got == 0) co_return codec_->flush(clock_->now());
         last_heard_ = clock_->now();
         auto fed = codec_->feed(ByteView(buffer.data(), *got), last_heard_);
-        if (!fed) return fed.error();
-        return std::move(*fed);
+        if (!fed) co_return fed.error();
+        co_return std::move(*fed);
     }
 
     // Listens until `until` and not past it (the silence after a reply must cost no more than
     // the 3.5 characters kept anyway): whole milliseconds on the stream, then the rest slept,
     // then what has arrived meanwhile.
-    Result<codec::FrameEvents> listen_until(std::span<std::uint8_t> buffer, Instant until) {
+    Task<Result<codec::FrameEvents>> listen_until(std::span<std::uint8_t> buffer, Instant until) {
         const auto now = clock_->now();
         const auto whole = std::chrono::floor<milliseconds>(until - now);
-        if (whole > milliseconds::zero()) return read_events_for(buffer, whole);
-        clock_->sleep_until(until);
-        return read_events_for(buffer, milliseconds::zero());
+        if (whole > milliseconds::zero()) co_return co_await read_events_for(buffer, whole);
+        co_await sleep_until(until);
+        co_return co_await read_events_for(buffer, milliseconds::zero());
     }
 
     // A frame that answers the request ends the wait; anything else is traced and skipped, and
@@ -410,7 +580,7 @@ private:
     // On a healthy line it costs nothing: the real reply comes at the usual time, so only the
     // 3.5 characters kept anyway are waited. On a retry the replies of the earlier tries answer
     // the same request, so a second frame is no ambiguity there.
-    Result<Bytes> settle(Awaited& awaited, codec::Frame accepted, Instant usual_start, Instant deadline, bool retry) {
+    Task<Result<Bytes>> settle(Awaited& awaited, codec::Frame accepted, Instant usual_start, Instant deadline, bool retry) {
         std::optional<std::string> ambiguity;
         const Instant accepted_at = clock_->now();
         Instant quiet_until = std::max(accepted_at, usual_start) + inter_frame_gap_;
@@ -440,8 +610,8 @@ private:
             }
             // A partial frame pending is heard out: flushed once its own silence has passed.
             const auto flush_at = codec_->flush_deadline();
-            auto events = listen_until(buffer, flush_at ? std::max(quiet_until, *flush_at) : quiet_until);
-            if (!events) return events.error();
+            auto events = co_await listen_until(buffer, flush_at ? std::max(quiet_until, *flush_at) : quiet_until);
+            if (!events) co_return events.error();
             if (last_heard_ > accepted_at) quiet_until = std::max(quiet_until, last_heard_ + inter_frame_gap_);
             examine(*events);
         }
@@ -457,10 +627,10 @@ private:
                             "real one, so neither is taken",
                             *ambiguity));
             trace(TraceDirection::discarded, accepted.raw, why.message);
-            return wrong_reply_error(awaited.unit, awaited.transaction, why, accepted.raw);
+            co_return wrong_reply_error(awaited.unit, awaited.transaction, why, accepted.raw);
         }
         trace(TraceDirection::received, accepted.raw, reply_note(awaited.unit, accepted.pdu));
-        return std::move(accepted.pdu);
+        co_return std::move(accepted.pdu);
     }
 
     // Whether `event`, arriving while the accepted reply settles, is another frame from `unit`
@@ -501,6 +671,7 @@ private:
     std::unique_ptr<transport::ByteStream> stream_;
     std::unique_ptr<FrameCodec> codec_;
     MasterOptions options_;
+    std::shared_ptr<LineLoop> loop_;  // null: the blocking calls run on the caller's thread
     std::shared_ptr<Clock> clock_;
     Duration inter_frame_gap_;
     std::string name_;
@@ -515,6 +686,11 @@ private:
     std::deque<SeenFrame> recent_frames_;
     std::optional<Instant> copy_seen_at_;  // when a copy of a frame was last seen
     bool last_try_refused_a_copy_ = false;  // the last try's wait refused a frame as a probable copy
+    // On the loop (MasterOptions::loop): the jobs waiting, the one carried, and the destructor
+    // waiting for both to end.
+    std::deque<std::function<DetachedTask()>> queued_;
+    std::optional<DetachedTask> current_;
+    std::promise<void>* closing_ = nullptr;
     JobQueue jobs_{"lw-serial"};  // last member: its thread stops before the rest is destroyed
 };
 

@@ -38,6 +38,14 @@ public:
 
     // Writes every byte (blocking until the kernel took them all) or fails with ErrorKind::link.
     virtual Result<void> write(ByteView bytes) = 0;
+    // For a loop that carries several lines on one thread (session/line_loop.hpp): hands the
+    // bytes over without waiting for them to leave the wire, and returns when the last one will
+    // have left, for the caller to wait out on its own timer. A stream without a wire time of its
+    // own writes as write() does and returns the time it returned.
+    virtual Result<Instant> write_without_waiting(ByteView bytes) {
+        if (auto written = write(bytes); !written) return written.error();
+        return std::chrono::steady_clock::now();
+    }
     // Waits up to `timeout` for bytes; returns how many were stored in `buffer` (0 = timeout).
     // A closed peer is ErrorKind::link ("connection closed by peer").
     virtual Result<std::size_t> read_some(std::span<std::uint8_t> buffer, milliseconds timeout) = 0;

@@ -31,6 +31,11 @@ Result<void> DescriptorStream::wait_writable(Instant stall_deadline) {
 }
 
 Result<void> DescriptorStream::write(ByteView bytes) {
+    if (auto handed = hand_over(bytes); !handed) return handed;
+    return after_write();
+}
+
+Result<void> DescriptorStream::hand_over(ByteView bytes) {
     std::size_t sent = 0;
     while (sent < bytes.size()) {
         const ssize_t n = transmit(bytes.subspan(sent));
@@ -49,7 +54,7 @@ Result<void> DescriptorStream::write(ByteView bytes) {
         if (is_hang_up(err)) return closed_error(err);
         return make_error(ErrorKind::link, describe() + ": write failed: " + errno_text(err));
     }
-    return after_write();
+    return {};
 }
 
 // One read after poll() reported activity. `retry` is set when nothing was there after all

@@ -34,6 +34,9 @@ protected:
 
     // Hands bytes to the kernel once, with ::write() semantics (-1 and errno on failure).
     virtual ssize_t transmit(ByteView bytes);
+    // Hands every byte to the kernel, waiting for room when its buffer is full (not for the
+    // bytes to leave: after_write is what waits for that).
+    Result<void> hand_over(ByteView bytes);
     // Runs once the kernel accepted every byte; serial ports wait there until the UART sent
     // them, so the caller's clock starts when the frame is really on the wire.
     virtual Result<void> after_write() { return {}; }

@@ -27,7 +27,15 @@ class SerialPortStream final : public detail::DescriptorStream {
 public:
     SerialPortStream(FileDescriptor fd, const std::string& path, const SerialSettings& settings)
         : DescriptorStream(std::move(fd), "serial " + path + " (" + detail::settings_text(settings) + ")"),
-          path_(path) {}
+          path_(path),
+          character_time_(std::chrono::microseconds(1'000'000) * settings.bits_per_character() / settings.baud) {}
+
+    // The UART shifts the bytes out at the line's speed: they have left once that time has
+    // passed (what write() waits for with tcdrain).
+    Result<Instant> write_without_waiting(ByteView bytes) override {
+        if (auto handed = hand_over(bytes); !handed) return handed.error();
+        return std::chrono::steady_clock::now() + character_time_ * static_cast<long>(bytes.size());
+    }
 
     ~SerialPortStream() override {
         // The exclusive flag belongs to the terminal, not to our descriptor: on a pseudo-terminal
@@ -60,6 +68,7 @@ protected:
 
 private:
     std::string path_;
+    std::chrono::microseconds character_time_;
 };
 
 Error busy_error(const std::string& path) {

@@ -150,6 +150,7 @@ public:
     }
 
     Result<void> write(ByteView bytes) override;
+    Result<Instant> write_without_waiting(ByteView bytes) override;
     Result<std::size_t> read_some(std::span<std::uint8_t> buffer, milliseconds timeout) override;
     void discard_input() override;
     int poll_handle() const override { return station_.timer.get(); }
@@ -179,16 +180,21 @@ BusFault BusPort::decide_fault(ByteView bytes) {
 }
 
 Result<void> BusPort::write(ByteView bytes) {
-    if (bytes.empty()) return {};
+    auto end = write_without_waiting(bytes);
+    if (!end) return end.error();
+    if (writes_ == VirtualBus::Writes::wait_for_wire) std::this_thread::sleep_until(*end);
+    return {};
+}
+
+Result<Instant> BusPort::write_without_waiting(ByteView bytes) {
+    if (bytes.empty()) return Clock::now();
     const BusFault fault = decide_fault(bytes);
     Bytes payload(bytes.begin(), bytes.end());
     for (const std::size_t index : fault.corrupt_bytes) {
         if (index < payload.size()) payload[index] ^= 0xFF;
     }
     if (fault.truncate_to && *fault.truncate_to < payload.size()) payload.resize(*fault.truncate_to);
-    const Instant end = impl_.transmit(station_, fault.noise_before, payload, fault);
-    if (writes_ == VirtualBus::Writes::wait_for_wire) std::this_thread::sleep_until(end);
-    return {};
+    return impl_.transmit(station_, fault.noise_before, payload, fault);
 }
 
 Result<std::size_t> BusPort::read_some(std::span<std::uint8_t> buffer, milliseconds timeout) {

@@ -17,6 +17,12 @@
 #include <vector>
 
 #include "gateway/reopening_master.hpp"
+#include "session/line_loop.hpp"
+#include "session/slave.hpp"
+#include "simulation/register_bank.hpp"
+#include "simulation/simulated_lines.hpp"
+#include "support/thread_names.hpp"
+#include "transport/virtual_bus.hpp"
 
 namespace loopwire::gateway {
 namespace {
@@ -419,6 +425,85 @@ TEST(ConcurrentReopeningMaster, CarriesSeveralAtOnceAndClosesALinkThatFailedUnde
     line.forward_async(1, read_pdu(), record);
     line.forward_async(1, read_pdu(), record);
     EXPECT_EQ(second->waiting(), 2U);
+}
+
+// A bus port that fails as an unplugged adapter does while the test says so.
+class BreakableStream final : public transport::ByteStream {
+public:
+    BreakableStream(std::unique_ptr<transport::ByteStream> port, std::shared_ptr<std::atomic<bool>> broken)
+        : port_(std::move(port)), broken_(std::move(broken)) {}
+
+    Result<void> write(ByteView bytes) override {
+        if (*broken_) return unplugged();
+        return port_->write(bytes);
+    }
+    Result<Instant> write_without_waiting(ByteView bytes) override {
+        if (*broken_) return unplugged();
+        return port_->write_without_waiting(bytes);
+    }
+    Result<std::size_t> read_some(std::span<std::uint8_t> buffer, std::chrono::milliseconds timeout) override {
+        return port_->read_some(buffer, timeout);
+    }
+    void discard_input() override { port_->discard_input(); }
+    int poll_handle() const override { return port_->poll_handle(); }
+    std::string describe() const override { return port_->describe(); }
+
+private:
+    static Error unplugged() { return make_error(ErrorKind::link, "serial port /dev/ttyUSB3 hung up: the adapter was unplugged"); }
+
+    std::unique_ptr<transport::ByteStream> port_;
+    std::shared_ptr<std::atomic<bool>> broken_;
+};
+
+// LinkConcurrency::on_loop: a serial line carried by the lines' loop. While it is up no thread
+// is the line's own; a link failure takes it down, the next request due reopens it on a worker
+// thread, and that worker ends once it has nothing left to do.
+TEST(ReopeningMasterOnALoop, AnUpLineHasNoThreadOfItsOwnAndItsWorkerEndsOnceTheLineIsBack) {
+    const auto link = *transport::parse_link_url("rtu:virtual?baud=115200");
+    auto bus = transport::VirtualBus::create(115200, link.serial.bits_per_character());
+    auto bank = std::make_shared<session::RegisterBank>();
+    bank->set(codec::Table::holding_registers, 0, 42);
+    simulation::SimulatedLines devices;
+    ASSERT_TRUE(devices.add(bus->attach("devices", transport::VirtualBus::Writes::return_at_once),
+                            std::make_unique<session::Slave>(link, session::UnitMap{{1, bank}})));
+    auto loop = std::make_shared<session::LineLoop>();
+    auto broken = std::make_shared<std::atomic<bool>>(false);
+    std::atomic<int> opened{0};
+    MasterOpener open = [&]() -> Result<std::unique_ptr<session::Master>> {
+        ++opened;
+        session::MasterOptions options;
+        options.timeout = 2s;
+        options.retries = 2;
+        options.loop = loop;
+        return session::make_serial_master(std::make_unique<BreakableStream>(bus->attach("gateway"), broken), link, options);
+    };
+    auto clock = std::make_shared<VirtualClock>();
+    ReopeningMaster line("kiln", link.to_string(), open, ReopenSchedule{}, clock, {}, LinkConcurrency::on_loop);
+    ASSERT_TRUE(line.start().ok());
+    const auto ask = [&line] {
+        std::promise<Result<Bytes>> answered;
+        line.forward_async(1, read_pdu(), [&answered](Result<Bytes> result) { answered.set_value(std::move(result)); });
+        auto future = answered.get_future();
+        if (future.wait_for(30s) != std::future_status::ready) return Result<Bytes>(make_error(ErrorKind::timeout, "no answer in 30 s"));
+        return future.get();
+    };
+    for (int i = 0; i < 5; ++i) EXPECT_EQ(ask().value(), normal_reply());
+    EXPECT_EQ(testing::threads_named_like("lw-line "), 0U);
+    EXPECT_EQ(testing::thread_names().count("lw-serial"), 0U);
+
+    *broken = true;
+    auto failed = ask();
+    ASSERT_FALSE(failed);
+    EXPECT_THAT(failed.error().message, HasSubstr("unplugged"));
+    ASSERT_TRUE(eventually([&] { return !line.health().up; }, "the line went down"));
+
+    *broken = false;
+    clock->advance(1s);
+    EXPECT_EQ(ask().value(), normal_reply());
+    EXPECT_TRUE(line.health().up);
+    EXPECT_EQ(opened.load(), 2);
+    EXPECT_TRUE(eventually([] { return testing::threads_named_like("lw-line ") == 0; }, "the worker ended once idle"));
+    EXPECT_EQ(ask().value(), normal_reply());
 }
 
 }  // namespace
