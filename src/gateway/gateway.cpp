@@ -83,13 +83,14 @@ session::UnitMap simulated_devices(const LineConfig& line) {
     return units;
 }
 
-// The bus of a virtual line with its simulated devices serving on it, from the thread that
-// serves every virtual line's devices (created with the first).
+// The bus of a virtual line with its simulated devices serving on it, from the lines' loop,
+// which carries the masters too (created with the first).
 Result<std::shared_ptr<transport::VirtualBus>> open_virtual_line(const LineConfig& line, const GatewayOptions& options,
-                                                                 std::unique_ptr<simulation::SimulatedLines>& simulations) {
+                                                                 std::unique_ptr<simulation::SimulatedLines>& simulations,
+                                                                 const std::shared_ptr<session::LineLoop>& line_loop) {
     auto bus = transport::VirtualBus::create(line.link.serial.baud, line.link.serial.bits_per_character());
     if (options.virtual_bus_faults) bus->set_fault_injector(options.virtual_bus_faults);
-    if (!simulations) simulations = std::make_unique<simulation::SimulatedLines>();
+    if (!simulations) simulations = std::make_unique<simulation::SimulatedLines>(line_loop);
     auto served = simulations->add(bus->attach("simulated devices", transport::VirtualBus::Writes::return_at_once),
                                    std::make_unique<session::Slave>(line.link, simulated_devices(line)));
     if (!served) return served.error();
@@ -112,7 +113,7 @@ Result<MasterOpener> line_opener(const LineConfig& line, const GatewayOptions& o
     if (!line.simulation) {
         return MasterOpener([link = line.link, master_options] { return session::open_master(link, master_options); });
     }
-    auto bus = open_virtual_line(line, options, simulations);
+    auto bus = open_virtual_line(line, options, simulations, master_options.loop);
     if (!bus) return bus.error();
     return MasterOpener([bus = *bus, link = line.link, master_options]() -> Result<std::unique_ptr<session::Master>> {
         return session::make_serial_master(bus->attach("gateway"), link, master_options);

@@ -29,9 +29,9 @@ struct GatewayOptions {
     // front's limits): for a log at debug level.
     GatewayLog debug_log;
     // Faults on the simulated (virtual-bus) lines' frames, for tests and benchmarks. Called from
-    // the writing thread: the line's for the gateway's requests ("gateway"), the one thread of
-    // every virtual line's simulated devices for their replies ("simulated devices"), which an
-    // injector that takes its time would hold for every virtual line.
+    // the writing thread, for the gateway's requests ("gateway") and the simulated devices'
+    // replies ("simulated devices") alike: the lines' loop (session/line_loop.hpp), which an
+    // injector that takes its time would hold for every line.
     transport::FaultInjector virtual_bus_faults;
     // Also given every sample the gateway's polls take, on the polls' thread (one for every line
     // and poll interval, gateway/poll_groups.hpp): the demo's live table. Must outlive the gateway.

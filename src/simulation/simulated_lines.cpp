@@ -1,27 +1,18 @@
 #include "simulation/simulated_lines.hpp"
 
-#include <poll.h>
-#include <sys/eventfd.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <array>
 #include <atomic>
 #include <deque>
+#include <future>
 #include <mutex>
-#include <thread>
+#include <optional>
 #include <vector>
-
-#include "common/thread_name.hpp"
 
 namespace loopwire::simulation {
 namespace {
 
 using std::chrono::steady_clock;
-
-// The longest wait without a reason to wake: bounds how late a stop is noticed if the wake-up
-// write were ever lost.
-constexpr auto longest_wait = std::chrono::milliseconds(100);
 
 struct ServedLine {
     ServedLine(std::unique_ptr<transport::ByteStream> stream, std::unique_ptr<session::Slave> served)
@@ -32,6 +23,7 @@ struct ServedLine {
     session::Slave::StreamSteps steps;
     std::deque<session::Slave::TimedReply> replies;  // in the order they were called for
     bool failed = false;
+    std::optional<session::LineLoop::WaitId> waiting;  // the port's wait on the loop
 
     // What `bytes` (empty: the silence until `now`) call for, queued to go at their times.
     void heard(ByteView bytes, Instant now) {
@@ -79,87 +71,64 @@ struct ServedLine {
 }  // namespace
 
 struct SimulatedLines::State {
-    State() : wake(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {}
-    ~State() {
-        if (wake >= 0) ::close(wake);
-    }
+    explicit State(std::shared_ptr<session::LineLoop> lines_loop) : loop(std::move(lines_loop)) {}
 
-    void notify() const {
-        const std::uint64_t one = 1;
-        (void)!::write(wake, &one, sizeof one);
-    }
-
-    std::vector<ServedLine*> snapshot() {
-        std::lock_guard lock(mutex);
-        std::vector<ServedLine*> served;
-        for (const auto& line : lines) served.push_back(line.get());
-        return served;
-    }
-
-    void run(const std::stop_token& stop);
-    void wait(const std::vector<ServedLine*>& served, Instant now);
-
-    const int wake;  // eventfd: a line added, or stop
-    mutable std::mutex mutex;
-    std::vector<std::unique_ptr<ServedLine>> lines;  // appended only; served by the thread alone
-    std::atomic<std::size_t> failed{0};
-    std::jthread thread;  // last: stops before the lines go
-};
-
-// Each round reads what every port has before it looks at the silences: a frame's bytes read
-// late (the thread scheduled late, or busy with another line) must reach the framing before it
-// takes the time since its last bytes for a silence that ends the frame (codec/rtu.hpp: a
-// silence the reader observes itself is never second-guessed), as Slave::serve_stream flushes
-// only after a read that found nothing.
-void SimulatedLines::State::run(const std::stop_token& stop) {
-    std::stop_callback wake_on_stop(stop, [this] { notify(); });
-    while (!stop.stop_requested()) {
-        const auto served = snapshot();
-        for (ServedLine* line : served) {
-            if (line->failed) continue;
+    // On the loop: serves `line` whenever its port has bytes or its next deadline comes. Each
+    // wake reads what the port has before it looks at the silences: a frame's bytes read late
+    // (the loop busy with another line) must reach the framing before it takes the time since
+    // its last bytes for a silence that ends the frame (codec/rtu.hpp: a silence the reader
+    // observes itself is never second-guessed), as Slave::serve_stream flushes only after a
+    // read that found nothing.
+    void watch(ServedLine* line) {
+        const int handle = line->port->poll_handle();
+        line->waiting = loop->wait(handle, line->next_due().value_or(Instant::max()), [this, line] {
+            line->waiting.reset();
             line->read_available();
             if (!line->failed) line->serve_due(steady_clock::now());
-            if (line->failed) failed.fetch_add(1, std::memory_order_relaxed);
-        }
-        wait(served, steady_clock::now());
+            if (line->failed) {
+                failed.fetch_add(1, std::memory_order_relaxed);
+                return;
+            }
+            watch(line);
+        });
     }
-}
 
-// Until a port has bytes, a line has something due, a line is added or stop is asked.
-void SimulatedLines::State::wait(const std::vector<ServedLine*>& served, Instant now) {
-    Instant until = now + longest_wait;
-    std::vector<pollfd> waited{{wake, POLLIN, 0}};
-    for (const ServedLine* line : served) {
-        if (line->failed) continue;
-        if (auto next = line->next_due()) until = std::min(until, *next);
-        waited.push_back({line->port->poll_handle(), POLLIN, 0});
+    // From the destructor: once this has returned, no wait on the loop refers to a line.
+    void leave_loop() {
+        std::promise<void> left;
+        loop->post([this, &left] {
+            {
+                std::lock_guard lock(mutex);
+                for (const auto& line : lines) {
+                    if (line->waiting) loop->cancel(*line->waiting);
+                }
+            }
+            left.set_value();
+        });
+        left.get_future().wait();
     }
-    const auto left = std::max(until - steady_clock::now(), Instant::duration::zero());
-    const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(left).count();
-    const timespec timeout{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
-    (void)::ppoll(waited.data(), waited.size(), &timeout, nullptr);
-    if ((waited[0].revents & POLLIN) != 0) {
-        std::uint64_t count = 0;
-        (void)!::read(wake, &count, sizeof count);
-    }
-}
 
-SimulatedLines::SimulatedLines() : state_(std::make_unique<State>()) {
-    state_->thread = std::jthread([s = state_.get()](const std::stop_token& stop) { s->run(stop); });
-    name_thread(state_->thread.native_handle(), "lw-simulation");  // common/thread_name.hpp
-}
+    const std::shared_ptr<session::LineLoop> loop;
+    mutable std::mutex mutex;  // guards `lines`, appended from any thread
+    std::vector<std::unique_ptr<ServedLine>> lines;  // each served on the loop alone
+    std::atomic<std::size_t> failed{0};
+};
 
-SimulatedLines::~SimulatedLines() { state_->thread = std::jthread(); }
+SimulatedLines::SimulatedLines(std::shared_ptr<session::LineLoop> loop) : state_(std::make_unique<State>(std::move(loop))) {}
+
+SimulatedLines::~SimulatedLines() { state_->leave_loop(); }
 
 Result<void> SimulatedLines::add(std::unique_ptr<transport::ByteStream> port, std::unique_ptr<session::Slave> devices) {
     if (port->poll_handle() < 0) {
         return make_error(ErrorKind::usage, port->describe() + " has no handle to wait on with the other simulated lines");
     }
+    ServedLine* added = nullptr;
     {
         std::lock_guard lock(state_->mutex);
         state_->lines.push_back(std::make_unique<ServedLine>(std::move(port), std::move(devices)));
+        added = state_->lines.back().get();
     }
-    state_->notify();
+    state_->loop->post([s = state_.get(), added] { s->watch(added); });
     return {};
 }
 

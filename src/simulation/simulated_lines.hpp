@@ -1,18 +1,19 @@
 #pragma once
-// The simulated devices of several lines, served from one thread. A gateway simulates the
-// devices of each of its virtual lines (rtu:virtual); one thread answers them all, however many
-// lines there are, rather than a thread per line (docs/DESIGN.md, gateway: the thread count
-// does not grow with the lines).
+// The simulated devices of several lines, served from one thread: the lines' loop
+// (session/line_loop.hpp), the thread that carries a gateway's masters too, so simulating a
+// line's devices costs no thread at all (docs/DESIGN.md, gateway: the thread count does not grow
+// with the lines).
 //
 // Each line is a port on its bus and the Slave serving its devices. The port should be attached
 // with VirtualBus::Writes::return_at_once, so that a reply on one line never waits for the wire
-// time of a reply on another. The thread waits in ppoll() on every port's poll handle, the next
-// frame deadline and the next reply due, and serves each port through Slave::StreamSteps: the
-// framing and reply timing of Slave::serve_stream, on a shared thread.
+// time of a reply on another. Each port is a wait on the loop, woken by its bytes or by its next
+// deadline (a frame's silence, a reply due), and served through Slave::StreamSteps: the framing
+// and reply timing of Slave::serve_stream, on a shared thread.
 #include <cstddef>
 #include <memory>
 
 #include "common/result.hpp"
+#include "session/line_loop.hpp"
 #include "session/slave.hpp"
 #include "transport/byte_stream.hpp"
 
@@ -20,8 +21,8 @@ namespace loopwire::simulation {
 
 class SimulatedLines {
 public:
-    SimulatedLines();
-    ~SimulatedLines();  // stops serving and joins the thread
+    explicit SimulatedLines(std::shared_ptr<session::LineLoop> loop);
+    ~SimulatedLines();  // stops serving: no wait on the loop refers to a line afterwards
     SimulatedLines(const SimulatedLines&) = delete;
     SimulatedLines& operator=(const SimulatedLines&) = delete;
 

@@ -463,10 +463,10 @@ TEST(ReopeningMasterOnALoop, AnUpLineHasNoThreadOfItsOwnAndItsWorkerEndsOnceTheL
     auto bus = transport::VirtualBus::create(115200, link.serial.bits_per_character());
     auto bank = std::make_shared<session::RegisterBank>();
     bank->set(codec::Table::holding_registers, 0, 42);
-    simulation::SimulatedLines devices;
+    auto loop = std::make_shared<session::LineLoop>();
+    simulation::SimulatedLines devices(loop);
     ASSERT_TRUE(devices.add(bus->attach("devices", transport::VirtualBus::Writes::return_at_once),
                             std::make_unique<session::Slave>(link, session::UnitMap{{1, bank}})));
-    auto loop = std::make_shared<session::LineLoop>();
     auto broken = std::make_shared<std::atomic<bool>>(false);
     std::atomic<int> opened{0};
     MasterOpener open = [&]() -> Result<std::unique_ptr<session::Master>> {

@@ -89,8 +89,8 @@ private:
 };
 
 TEST(SerialMastersOnALoop, FourLinesAreCarriedByOneThreadEveryReplyRight) {
-    simulation::SimulatedLines devices;
     auto loop = std::make_shared<LineLoop>();
+    simulation::SimulatedLines devices(loop);  // the devices answer from the masters' loop too
     std::vector<Line> lines;
     std::vector<std::unique_ptr<Master>> masters;
     for (std::uint16_t i = 0; i < 4; ++i) {
@@ -116,8 +116,8 @@ TEST(SerialMastersOnALoop, FourLinesAreCarriedByOneThreadEveryReplyRight) {
 // Line A waits out a 3 s timeout (nobody is unit 9); meanwhile line B, on the same loop, is
 // asked and answered. A loop that waited for A would answer B after A's timeout.
 TEST(SerialMastersOnALoop, ALineWaitingOutATimeoutHoldsNoOtherLine) {
-    simulation::SimulatedLines devices;
     auto loop = std::make_shared<LineLoop>();
+    simulation::SimulatedLines devices(loop);  // the devices answer from the masters' loop too
     Line a = served_line(devices, 19200);
     Line b = served_line(devices, 19200);
     b.bank->set(codec::Table::holding_registers, 0, 4242);
@@ -138,8 +138,8 @@ TEST(SerialMastersOnALoop, ALineWaitingOutATimeoutHoldsNoOtherLine) {
 
 // A blocking call from the loop's own thread (inside a completion) could never end: refused.
 TEST(SerialMastersOnALoop, ABlockingCallOnTheLoopItselfIsRefused) {
-    simulation::SimulatedLines devices;
     auto loop = std::make_shared<LineLoop>();
+    simulation::SimulatedLines devices(loop);  // the devices answer from the masters' loop too
     Line line = served_line(devices, 115200);
     auto master = master_on(line, loop, 2s, 2);
     std::promise<Result<codec::Reply>> inner;
@@ -155,8 +155,8 @@ TEST(SerialMastersOnALoop, ABlockingCallOnTheLoopItselfIsRefused) {
 // A master destroyed with requests still queued carries them first, as the blocking master's
 // job queue does: every completion runs, with the right value.
 TEST(SerialMastersOnALoop, DestroyingAMasterCarriesWhatWasQueuedFirst) {
-    simulation::SimulatedLines devices;
     auto loop = std::make_shared<LineLoop>();
+    simulation::SimulatedLines devices(loop);  // the devices answer from the masters' loop too
     Line line = served_line(devices, 115200);
     line.bank->set(codec::Table::holding_registers, 3, 77);
     auto master = master_on(line, loop, 2s, 2);
@@ -170,8 +170,8 @@ TEST(SerialMastersOnALoop, DestroyingAMasterCarriesWhatWasQueuedFirst) {
 // never taken for the next request's reply. Registers r hold 1000 + r, so a value taken from
 // another request's reply shows.
 TEST(SerialMastersOnALoop, CopiedRepliesNeverBecomeWrongValues) {
-    simulation::SimulatedLines devices;
     auto loop = std::make_shared<LineLoop>();
+    simulation::SimulatedLines devices(loop);  // the devices answer from the masters' loop too
     Line line = served_line(devices, 38400);
     for (std::uint16_t r = 0; r < 8; ++r) line.bank->set(codec::Table::holding_registers, r, static_cast<std::uint16_t>(1000 + r));
     line.bus->set_fault_injector([](const std::string& from, ByteView) {

@@ -1,11 +1,13 @@
-// Several virtual lines' simulated devices served from one thread (simulation/simulated_lines.hpp):
-// every line answered correctly, one thread for all, and no line's reply held up by another's.
+// Several virtual lines' simulated devices served from one thread, the lines' loop
+// (simulation/simulated_lines.hpp): every line answered correctly, one thread for all, and no
+// line's reply held up by another's.
 #include <gtest/gtest.h>
 
 #include <future>
 #include <string>
 #include <thread>
 
+#include "session/line_loop.hpp"
 #include "session/master.hpp"
 #include "simulation/register_bank.hpp"
 #include "simulation/simulated_lines.hpp"
@@ -46,14 +48,14 @@ codec::Request read_holding(std::uint16_t address, std::uint16_t count) {
 }
 
 TEST(SimulatedLines, OneThreadAnswersTheDevicesOfEveryLine) {
-    SimulatedLines lines;
+    SimulatedLines lines(std::make_shared<session::LineLoop>());
     std::vector<Line> served;
     for (std::uint16_t i = 0; i < 4; ++i) {
         served.push_back(served_line(lines, 19200));
         served.back().bank->set(codec::Table::holding_registers, 10, static_cast<std::uint16_t>(100 + i));
     }
     EXPECT_EQ(lines.lines(), 4U);
-    EXPECT_EQ(testing::thread_names().count("lw-simulation"), 1U);
+    EXPECT_EQ(testing::thread_names().count("lw-lines"), 1U);
     // All four lines asked at once, 20 times each: every reply the right one.
     std::vector<std::future<int>> answered;
     for (std::uint16_t i = 0; i < 4; ++i) {
@@ -75,7 +77,7 @@ TEST(SimulatedLines, OneThreadAnswersTheDevicesOfEveryLine) {
 // 115200 baud is asked with a 1 s timeout. Had the shared thread waited for A's wire, B's reply
 // would come after A's had left, too late.
 TEST(SimulatedLines, AReplyOnOneLineDoesNotWaitForAnotherLinesWire) {
-    SimulatedLines lines;
+    SimulatedLines lines(std::make_shared<session::LineLoop>());
     Line slow = served_line(lines, 1200);
     Line fast = served_line(lines, 115200);
     fast.bank->set(codec::Table::holding_registers, 0, 4242);
@@ -108,7 +110,7 @@ public:
 };
 
 TEST(SimulatedLines, RefusesAStreamItCannotWaitOn) {
-    SimulatedLines lines;
+    SimulatedLines lines(std::make_shared<session::LineLoop>());
     auto link = *transport::parse_link_url("rtu:virtual");
     auto added = lines.add(std::make_unique<NoHandleStream>(), std::make_unique<session::Slave>(link, session::UnitMap{}));
     ASSERT_FALSE(added);
