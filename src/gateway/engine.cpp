@@ -10,7 +10,10 @@
 namespace loopwire::gateway {
 
 Engine::Engine()
-    : busy_(boost::asio::make_work_guard(loop_)), thread_([this] {
+    : own_loop_(std::make_unique<boost::asio::io_context>()),
+      loop_(*own_loop_),
+      busy_(boost::asio::make_work_guard(loop_)),
+      thread_([this] {
           // What the loop's handlers send to a pipelined Modbus TCP line in one round (a poll
           // sample's devices, writes by name) goes to the device in one write, as the Modbus TCP
           // front's requests do (session/write_batching.hpp).
@@ -20,10 +23,17 @@ Engine::Engine()
     name_thread(thread_.native_handle(), "lw-engine");
 }
 
+// The loop's owner runs it and batches its handlers' writes (gateway/modbus_tcp_front.cpp: the
+// TCP slave holds a WriteBatching::Scope on its thread). The thread is named for what it now
+// carries, so that `top -H` shows the polls' time where it is spent.
+Engine::Engine(boost::asio::io_context& shared) : loop_(shared), busy_(boost::asio::make_work_guard(loop_)) {
+    boost::asio::post(loop_, [] { name_thread(pthread_self(), "lw-engine"); });
+}
+
 Engine::~Engine() { stop(); }
 
 void Engine::take_down(const std::function<void()>& work) {
-    if (loop_.stopped() || !thread_.joinable()) return work();
+    if (loop_.stopped() || (own_loop_ && !thread_.joinable())) return work();
     std::promise<void> ran;
     auto done = ran.get_future();
     boost::asio::post(loop_, [&work, &ran] {
@@ -35,6 +45,7 @@ void Engine::take_down(const std::function<void()>& work) {
 
 void Engine::stop() {
     busy_.reset();
+    if (!own_loop_) return;
     loop_.stop();
     if (thread_.joinable()) thread_.join();
 }

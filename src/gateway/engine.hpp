@@ -8,7 +8,13 @@
 //
 // Lifetime: whatever posts work or holds timers on the loop is taken down with take_down()
 // before it goes, and the engine outlives all of them.
+//
+// On a shared loop (the kept Modbus TCP front's, gateway/modbus_tcp_front.hpp) the engine has
+// no thread: the loop's owner runs it, and keeps running it for as long as the engine exists;
+// stop() then only ends the engine's own part (nothing is dropped from a loop it does not own,
+// which is why every part takes itself down first).
 #include <functional>
+#include <memory>
 #include <thread>
 
 #include <boost/asio/io_context.hpp>
@@ -18,7 +24,8 @@ namespace loopwire::gateway {
 
 class Engine {
 public:
-    Engine();   // the loop runs from here on
+    Engine();   // the loop runs from here on, on a thread named lw-engine
+    explicit Engine(boost::asio::io_context& shared);
     ~Engine();  // stop()
     Engine(const Engine&) = delete;
     Engine& operator=(const Engine&) = delete;
@@ -35,9 +42,10 @@ public:
     void stop();
 
 private:
-    boost::asio::io_context loop_;
+    std::unique_ptr<boost::asio::io_context> own_loop_;  // none on a shared loop
+    boost::asio::io_context& loop_;
     boost::asio::executor_work_guard<boost::asio::io_context::executor_type> busy_;
-    std::thread thread_;  // last: starts once the loop exists
+    std::thread thread_;  // last: starts once the loop exists; none on a shared loop
 };
 
 }  // namespace loopwire::gateway

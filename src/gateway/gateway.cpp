@@ -186,6 +186,10 @@ LineReport report_of(const OpenLine& line);  // below
 constexpr std::chrono::milliseconds write_limit{10000};
 
 struct Gateway::Parts {
+    // A front kept by the caller (GatewayOptions::front) lends its loop to the engine: the
+    // clients, the polls and the writes by name on one thread (gateway/modbus_tcp_front.hpp).
+    explicit Parts(ModbusTcpFront* kept_front)
+        : engine(kept_front ? std::make_unique<Engine>(kept_front->loop()) : std::make_unique<Engine>()) {}
     ~Parts() { front_writes->close(); }  // before any member goes: the polls are still there
 
     std::chrono::milliseconds statistics_interval{0};
@@ -193,7 +197,7 @@ struct Gateway::Parts {
     std::function<void(const std::stop_token&)> wait_for_stop;  // GatewayOptions::wait_for_stop
     // First, so it goes last: the polls, the writer and the statistics run on its loop and take
     // themselves down from it before they go.
-    Engine engine;
+    std::unique_ptr<Engine> engine;
     // The simulated devices of the virtual lines, if any; after the lines have gone.
     std::unique_ptr<simulation::SimulatedLines> simulations;
     // The loop that carries the serial lines (session/line_loop.hpp); the lines' masters hold it
@@ -232,7 +236,7 @@ Gateway::~Gateway() {
 }
 
 Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, GatewayOptions options) {
-    auto parts = std::make_unique<Parts>();
+    auto parts = std::make_unique<Parts>(config.modbus_tcp.enabled ? options.front : nullptr);
     parts->statistics_interval = config.log.statistics;
     parts->log = options.log;
     parts->wait_for_stop = options.wait_for_stop;
@@ -264,8 +268,8 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         parts->history_subscription =
             parts->cache.subscribe([store = parts->history.get()](const ValueChange& change) { store->record(change); });
     }
-    parts->polls = std::make_unique<PollGroups>(parts->engine, config, schedulers, parts->cache, options.log, options.samples);
-    parts->front_writes->open(parts->engine, *parts->polls);
+    parts->polls = std::make_unique<PollGroups>(*parts->engine, config, schedulers, parts->cache, options.log, options.samples);
+    parts->front_writes->open(*parts->engine, *parts->polls);
     if (config.modbus_tcp.enabled && options.front) {
         parts->front = options.front;
     } else if (config.modbus_tcp.enabled) {
@@ -280,7 +284,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
             writable.push_back({device.name, device.address, parts->lines[i].scheduler});
         }
     }
-    parts->writer = std::make_unique<DeviceWriter>(parts->engine, std::move(writable), write_limit);
+    parts->writer = std::make_unique<DeviceWriter>(*parts->engine, std::move(writable), write_limit);
     // A write of a word that bounds a polled value shows in every front's limits at the next poll.
     parts->writer->on_written([polls = parts->polls.get()](const std::string& device, const WrittenValues& written) {
         std::vector<std::string> parameters;
@@ -433,7 +437,7 @@ private:
 Result<void> Gateway::serve(std::stop_token stop) {
     std::optional<StatisticsLog> statistics;
     if (parts_->log && parts_->statistics_interval.count() > 0) {
-        statistics.emplace(parts_->engine, parts_->lines, parts_->statistics_interval, parts_->log);
+        statistics.emplace(*parts_->engine, parts_->lines, parts_->statistics_interval, parts_->log);
     }
     // Ended by `stop`, or by the front when it fails.
     std::stop_source either;

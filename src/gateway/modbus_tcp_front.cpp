@@ -1,5 +1,6 @@
 #include "gateway/modbus_tcp_front.hpp"
 
+#include <boost/asio/executor_work_guard.hpp>
 #include <fmt/format.h>
 
 #include "common/thread_name.hpp"
@@ -57,13 +58,19 @@ ModbusTcpFront::ModbusTcpFront(const ModbusTcpConfig& config, std::unique_ptr<tr
                                std::unique_ptr<session::Slave> slave)
     : config_(config), listener_(std::move(listener)), slave_(std::move(slave)) {
     thread_ = std::jthread([this](std::stop_token stop) {
-        auto served = slave_->serve_listener(*listener_, std::move(stop));
+        auto served = slave_->serve_listener(*listener_, stop, loop_);
         if (served) return;
         {
             std::lock_guard lock(mutex_);
             error_ = served.error();
         }
         failed_.request_stop();
+        // Failed, the front still runs its loop until it is destroyed: an engine on it
+        // (loop()) takes itself down through it.
+        auto busy = boost::asio::make_work_guard(loop_);
+        loop_.restart();
+        std::stop_callback on_stop(stop, [this] { loop_.stop(); });
+        loop_.run();
     });
     name_thread(thread_.native_handle(), "lw-modbus-tcp");
 }

@@ -1,15 +1,22 @@
 #pragma once
 // The gateway's Modbus TCP front (docs/DESIGN.md, gateway): the listener and the slave that
-// serves the lines' units to TCP clients, on a thread of its own. It outlives the gateway that
-// routes to it: a reload that reopens the gateway with [modbus_tcp] unchanged keeps the front,
-// and with it every client's connection (issue 20, item 8); the gateway opened next routes the
-// units to its own lines (route_to).
+// serves the lines' units to TCP clients, on an event loop and a thread of its own. It outlives
+// the gateway that routes to it: a reload that reopens the gateway with [modbus_tcp] unchanged
+// keeps the front, and with it every client's connection (issue 20, item 8); the gateway opened
+// next routes the units to its own lines (route_to).
+//
+// A gateway given a front to keep runs its engine on the front's loop (loop(), gateway/engine.hpp):
+// one thread then carries the clients, the polls and the writes by name, and is named lw-engine
+// from then on (lw-modbus-tcp while it serves the clients alone). The loop runs for as
+// long as the front exists, even after the front failed, so an engine on it never waits in vain.
 #include <cstdint>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <stop_token>
 #include <thread>
+
+#include <boost/asio/io_context.hpp>
 
 #include "common/result.hpp"
 #include "gateway/forwarding_unit.hpp"
@@ -41,6 +48,10 @@ public:
 
     std::uint16_t port() const { return listener_->port(); }
 
+    // The event loop the front serves on, for a gateway's engine to run on too; it runs until the
+    // front is destroyed.
+    boost::asio::io_context& loop() { return loop_; }
+
     // Requests from now on go to `units` (a gateway's forwarding units, by TCP unit id); the
     // ones already handed to the previous units are answered by them.
     void route_to(session::UnitMap units);
@@ -64,7 +75,10 @@ private:
     std::stop_source failed_;
     mutable std::mutex mutex_;
     Error error_{ErrorKind::link, ""};  // the thread's, guarded by `mutex_`
-    std::jthread thread_;  // last: stops and joins before the slave and the listener go
+    // After the slave: handlers still queued when the loop ends (the connections they hold)
+    // go while the slave is there.
+    boost::asio::io_context loop_{1};
+    std::jthread thread_;  // last: stops and joins before the loop, the slave and the listener go
 };
 
 }  // namespace loopwire::gateway

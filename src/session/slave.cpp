@@ -229,4 +229,8 @@ Result<void> Slave::serve_listener(transport::TcpListener& listener, std::stop_t
     return serve_tcp_clients(*this, listener, std::move(stop));
 }
 
+Result<void> Slave::serve_listener(transport::TcpListener& listener, std::stop_token stop, boost::asio::io_context& loop) {
+    return serve_tcp_clients(*this, listener, std::move(stop), &loop);
+}
+
 }  // namespace loopwire::session

@@ -24,6 +24,10 @@
 #include "transport/link_url.hpp"
 #include "transport/tcp.hpp"
 
+namespace boost::asio {
+class io_context;
+}
+
 namespace loopwire::session {
 
 using UnitMap = std::map<std::uint8_t, std::shared_ptr<UnitHandler>>;
@@ -116,6 +120,10 @@ public:
     // Serves every connection `listener` accepts (tcp and rtu+tcp links) until `stop`, all on
     // one event loop (session/tcp_slave_server.hpp).
     Result<void> serve_listener(transport::TcpListener& listener, std::stop_token stop);
+    // The same on the caller's event loop, run by this thread until the serving ends, and shared
+    // with whatever else the caller posts to it (a gateway's engine, gateway/engine.hpp). The
+    // loop is stopped when the serving ends; what is still queued on it is the caller's.
+    Result<void> serve_listener(transport::TcpListener& listener, std::stop_token stop, boost::asio::io_context& loop);
 
     // The reply frame (wire bytes) for one received frame, or nullopt for silence.
     std::optional<Bytes> answer(const codec::Frame& frame, FrameCodec& codec);

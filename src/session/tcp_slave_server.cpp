@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <memory>
 #include <unordered_map>
 #include <vector>
 
@@ -37,7 +38,8 @@ bool concerns_one_client(const error_code& error) {
 
 class TcpSlaveServer final : public detail::ConnectionOwner {
 public:
-    explicit TcpSlaveServer(Slave& slave) : slave_(slave) {}
+    TcpSlaveServer(Slave& slave, asio::io_context* shared)
+        : slave_(slave), own_loop_(shared ? nullptr : std::make_unique<asio::io_context>(1)), loop_(shared ? *shared : *own_loop_) {}
     TcpSlaveServer(const TcpSlaveServer&) = delete;
     TcpSlaveServer& operator=(const TcpSlaveServer&) = delete;
     ~TcpSlaveServer() override { shut_down(); }
@@ -64,8 +66,10 @@ private:
     void shut_down();
 
     Slave& slave_;
-    // Declared first, destroyed last: pending handlers (and the connections they hold) go with it.
-    asio::io_context loop_{1};
+    // Declared first, destroyed last: pending handlers (and the connections they hold) go with
+    // it. On a caller's loop they go with that loop, which outlives the server.
+    std::unique_ptr<asio::io_context> own_loop_;
+    asio::io_context& loop_;
     tcp::acceptor acceptor_{loop_};
     asio::steady_timer accept_pause_{loop_};
     asio::steady_timer stop_limit_{loop_};
@@ -264,8 +268,8 @@ void TcpSlaveServer::shut_down() {
 
 }  // namespace
 
-Result<void> serve_tcp_clients(Slave& slave, transport::TcpListener& listener, std::stop_token stop) {
-    TcpSlaveServer server(slave);
+Result<void> serve_tcp_clients(Slave& slave, transport::TcpListener& listener, std::stop_token stop, asio::io_context* loop) {
+    TcpSlaveServer server(slave, loop);
     return server.serve(listener, std::move(stop));
 }
 

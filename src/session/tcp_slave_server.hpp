@@ -4,6 +4,8 @@
 // by the others' latency (DESIGN.md). Per-frame decisions stay in Slave::answer_async.
 #include <stop_token>
 
+#include <boost/asio/io_context.hpp>
+
 #include "common/result.hpp"
 #include "transport/tcp.hpp"
 
@@ -13,6 +15,8 @@ class Slave;
 
 // Serves every connection `listener` accepts until `stop` is requested, with the limits in
 // slave.options().tcp. The listener stays usable afterwards. Idle costs no wake-ups at all.
-Result<void> serve_tcp_clients(Slave& slave, transport::TcpListener& listener, std::stop_token stop);
+// `loop`: the caller's event loop to serve on (Slave::serve_listener); none: one of its own.
+Result<void> serve_tcp_clients(Slave& slave, transport::TcpListener& listener, std::stop_token stop,
+                               boost::asio::io_context* loop = nullptr);
 
 }  // namespace loopwire::session
