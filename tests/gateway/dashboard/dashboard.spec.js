@@ -94,6 +94,9 @@ test("a trend updates within 2 s as the process moves", async ({ page }) => {
 // numbers (the next test has the gateway's own): 100 °C, a step to 180 °C, an outage of two
 // minutes, then 25 °C.
 test("the trend draws recorded values as steps and breaks its line over a gap", async ({ page }) => {
+  // Recorded values only: a live value that comes late on a loaded machine (a sanitizer's build
+  // beside other tests) is drawn as a gap of its own, which this test is not about.
+  await page.route("**/api/events", (route) => route.abort());
   const now = Date.now();
   const iso = (ms) => new Date(ms).toISOString();
   const bucket = (ms, value) => ({ time: iso(ms), min: value, max: value, mean: value, count: 1 });
