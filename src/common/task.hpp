@@ -69,7 +69,6 @@ public:
         handle_.resume();
         return handle_.done();
     }
-    bool done() const { return handle_ && handle_.done(); }
     // The value of a task that has ended.
     T take() { return std::move(*handle_.promise().value); }
 
@@ -116,12 +115,8 @@ public:
         if (handle_) handle_.destroy();
     }
 
-    // Runs until the first suspension; true if it has already ended.
-    bool start() {
-        handle_.resume();
-        return handle_.done();
-    }
-    bool done() const { return handle_ && handle_.done(); }
+    // Runs until the first suspension (or the end, if nothing waits).
+    void start() { handle_.resume(); }
 
 private:
     explicit DetachedTask(std::coroutine_handle<promise_type> handle) : handle_(handle) {}
@@ -129,7 +124,8 @@ private:
 };
 
 // Wraps `task` so that its value goes to `done`. The frame stays until the returned object goes,
-// so a caller keeps it while the task runs and drops it once done() says it has ended.
+// so a caller keeps it while the task runs and drops it once `done` has been called (not from
+// inside `done`: the frame is still running it).
 template <typename T>
 DetachedTask deliver(Task<T> task, std::function<void(T)> done) {
     done(co_await task);
