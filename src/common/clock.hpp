@@ -14,6 +14,9 @@
 //   one thread drives the session and everything it waits for is scheduled on the same clock,
 //   which is how the virtual-time tests are built (a master against a scripted stream, a
 //   slave's serve_stream against a scripted line, each on the test's thread).
+// - The lines' loop (session/line_loop.hpp) on a VirtualClock is the exception: every line and
+//   its simulated devices run on that one thread, so it moves the clock only when it is idle
+//   (the gateway's line soak, tests/gateway/line_soak_test.cpp, runs a day of four lines so).
 // - The virtual bus (transport/virtual_bus.hpp) keeps wall time. Its stations run on separate
 //   threads; a clock that jumps when one thread sleeps would expire another thread's deadline
 //   while that thread is still working, a timeout that no real line would produce. Virtual time

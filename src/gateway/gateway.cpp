@@ -140,7 +140,8 @@ Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options
     if (!open) return open.error();
     opened.master = std::make_shared<ReopeningMaster>(
         line.name, opened.link, std::move(*open), ReopenSchedule{}, steady_clock(), options.log,
-        line.max_in_flight > 1 ? LinkConcurrency::several : on_loop ? LinkConcurrency::on_loop : LinkConcurrency::one);
+        line.max_in_flight > 1 ? LinkConcurrency::several : on_loop ? LinkConcurrency::on_loop : LinkConcurrency::one,
+        on_loop ? line_loop : nullptr);
     if (auto started = opened.master->start(); !started) return started.error();
     LineSchedulerOptions scheduling;
     scheduling.max_in_flight = line.max_in_flight;

@@ -27,13 +27,15 @@ std::string seconds_text(std::chrono::microseconds time) {
 
 struct ReopeningMaster::State {
     State(std::string line_name, std::string line_link, MasterOpener opener, ReopenSchedule chosen,
-          std::shared_ptr<Clock> time, LinkLog logger, session::JobQueue::WhenIdle worker_idle)
+          std::shared_ptr<Clock> time, LinkLog logger, std::shared_ptr<session::LineLoop> lines_loop,
+          session::JobQueue::WhenIdle worker_idle)
         : name(std::move(line_name)),
           link(std::move(line_link)),
           open(std::move(opener)),
           schedule(chosen),
           clock(std::move(time)),
           log(std::move(logger)),
+          loop(std::move(lines_loop)),
           backoff(schedule.first, schedule.max),
           worker("lw-line " + name, worker_idle) {}
 
@@ -150,6 +152,46 @@ struct ReopeningMaster::State {
         return true;
     }
 
+    // On a loop: the worker opens the line (if a try is due) and hands the request to the opened
+    // master as a direct one, which never waits on the loop; the loop's time stays held until
+    // then. A request that finds the line down is refused as on the worker's path.
+    template <typename Outcome, typename Send>
+    void reopen_and_send(std::function<void(Outcome)> done, Send send) {
+        worker.push([this, done = std::move(done), send = std::move(send), hold = hold_for_reopen()]() mutable {
+            Result<session::Master*> line = make_error(ErrorKind::link, "");
+            {
+                std::lock_guard carrying(use);
+                line = ready();
+            }
+            if (!line) {
+                hold.reset();
+                return done(line.error());
+            }
+            const bool sent = send_directly(done, std::move(send));
+            hold.reset();
+            if (!sent) done(unavailable());
+        });
+    }
+
+    // The loop's time, held while the worker opens a line that is down (nothing while it is up:
+    // closing a failed master waits for the loop to finish with it).
+    std::shared_ptr<void> hold_for_reopen() {
+        if (!loop) return nullptr;
+        {
+            std::lock_guard lock(mutex);
+            if (master) return nullptr;
+        }
+        return loop->hold_time();
+    }
+
+    // Why a request just reopened for could not be sent: the master failed or is closing already.
+    Error unavailable() {
+        std::lock_guard lock(mutex);
+        if (closing) return make_error(ErrorKind::link, fmt::format("line {} ({}) is closing", name, link));
+        if (!master) return refuse();
+        return make_error(ErrorKind::link, fmt::format("line {} ({}) failed as it was reopened", name, link));
+    }
+
     // A request sent directly met a link failure (on the master's thread, which must not close
     // its own master): the worker closes it.
     void failed_underneath(std::uint64_t opened_as, const Error& failure) {
@@ -244,6 +286,7 @@ struct ReopeningMaster::State {
     const ReopenSchedule schedule;
     const std::shared_ptr<Clock> clock;
     const LinkLog log;
+    const std::shared_ptr<session::LineLoop> loop;  // on_loop: whose time a reopen holds
 
     std::mutex use;  // held while a request is carried or the line opened
     mutable std::mutex mutex;  // guards what follows
@@ -263,11 +306,12 @@ struct ReopeningMaster::State {
 };
 
 ReopeningMaster::ReopeningMaster(std::string name, std::string link, MasterOpener open, ReopenSchedule schedule,
-                                 std::shared_ptr<Clock> clock, LinkLog log, LinkConcurrency concurrency)
+                                 std::shared_ptr<Clock> clock, LinkLog log, LinkConcurrency concurrency,
+                                 std::shared_ptr<session::LineLoop> loop)
     : link_(link),
       concurrency_(concurrency),
       state_(std::make_unique<State>(std::move(name), std::move(link), std::move(open), schedule, std::move(clock),
-                                     std::move(log),
+                                     std::move(log), std::move(loop),
                                      concurrency == LinkConcurrency::on_loop ? session::JobQueue::WhenIdle::end_thread
                                                                              : session::JobQueue::WhenIdle::keep_thread)) {}
 
@@ -303,6 +347,11 @@ void ReopeningMaster::execute_async(std::uint8_t unit, codec::Request request, C
         return;
     }
     if (auto refused = state_->refusal()) return done(*refused);
+    if (concurrency_ == LinkConcurrency::on_loop) {
+        return state_->reopen_and_send(std::move(done), [unit, request](session::Master& line, Completion sent) {
+            line.execute_async(unit, request, std::move(sent));
+        });
+    }
     state_->worker.push([state = state_.get(), unit, request = std::move(request), done = std::move(done)] {
         done(state->carry([&](session::Master& line) { return line.execute(unit, request); }));
     });
@@ -320,6 +369,11 @@ void ReopeningMaster::forward_async(std::uint8_t unit, Bytes pdu, ForwardComplet
         return;
     }
     if (auto refused = state_->refusal()) return done(*refused);
+    if (concurrency_ == LinkConcurrency::on_loop) {
+        return state_->reopen_and_send(std::move(done), [unit, pdu](session::Master& line, ForwardCompletion sent) {
+            line.forward_async(unit, pdu, std::move(sent));
+        });
+    }
     state_->worker.push([state = state_.get(), unit, pdu = std::move(pdu), done = std::move(done)] {
         done(state->carry([&](session::Master& line) { return line.forward(unit, pdu); }));
     });

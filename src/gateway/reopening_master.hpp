@@ -23,7 +23,10 @@
 // session/line_loop.hpp): requests go to the opened master as in the concurrent case below (it
 // queues them on the loop and never blocks the caller), and the worker thread exists only while
 // there is work for it: reopening the line, or closing a master that failed. So a line that is
-// up costs no thread of its own.
+// up costs no thread of its own. The request that reopens the line is handed to the opened
+// master as a direct one, and the loop's time (when virtual, in a soak) is held from the moment
+// the request is handed to the worker until then, so the lines' time does not run on while the
+// worker opens (LineLoop::hold_time).
 //
 // Concurrent (LinkConcurrency::several, a Modbus TCP master that pairs replies by transaction id):
 // while the line is up, *_async calls go straight to the opened master, several at once, and
@@ -39,6 +42,7 @@
 
 #include "common/clock.hpp"
 #include "common/result.hpp"
+#include "session/line_loop.hpp"
 #include "session/master.hpp"
 
 namespace loopwire::gateway {
@@ -76,9 +80,10 @@ using LinkLog = std::function<void(const std::string&)>;
 class ReopeningMaster final : public session::Master {
 public:
     // `name` and `link` are the line's, for messages: "line furnace (rtu:/dev/ttyUSB0?...)".
+    // `loop`: the loop the opened masters run on (LinkConcurrency::on_loop only).
     ReopeningMaster(std::string name, std::string link, MasterOpener open, ReopenSchedule schedule = {},
                     std::shared_ptr<Clock> clock = steady_clock(), LinkLog log = {},
-                    LinkConcurrency concurrency = LinkConcurrency::one);
+                    LinkConcurrency concurrency = LinkConcurrency::one, std::shared_ptr<session::LineLoop> loop = nullptr);
     ~ReopeningMaster() override;
 
     // The first open, when the gateway starts. A link error leaves the line down (logged, and

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -25,7 +26,8 @@ struct LineLoop::State {
         std::function<void()> wake;
     };
 
-    State() : wakeup(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {
+    State(std::shared_ptr<Clock> time, std::shared_ptr<VirtualClock> virtual_time)
+        : clock(std::move(time)), virtual_clock(std::move(virtual_time)), wakeup(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {
         if (wakeup < 0) {
             std::perror("loopwire: eventfd for the lines' loop");
             std::abort();
@@ -53,7 +55,7 @@ struct LineLoop::State {
     void run() {
         for (;;) {
             if (!run_posted()) return;
-            wake_due(std::chrono::steady_clock::now());
+            wake_due(clock->now());
             sleep_until_something();
         }
     }
@@ -99,8 +101,12 @@ struct LineLoop::State {
         }
         timespec timeout{};
         const timespec* limit = nullptr;
-        if (earliest != Instant::max()) {
-            const auto left = std::max(earliest - std::chrono::steady_clock::now(), Instant::duration::zero());
+        if (virtual_clock) {
+            // A look, not a sleep: time is moved below. With no deadline, or the time held: until
+            // something is posted or ready.
+            if (earliest != Instant::max() && holds.load() == 0) limit = &timeout;
+        } else if (earliest != Instant::max()) {
+            const auto left = std::max(earliest - clock->now(), Instant::duration::zero());
             const auto seconds = std::chrono::duration_cast<std::chrono::seconds>(left);
             timeout.tv_sec = static_cast<time_t>(seconds.count());
             timeout.tv_nsec = static_cast<long>(std::chrono::duration_cast<std::chrono::nanoseconds>(left - seconds).count());
@@ -119,9 +125,20 @@ struct LineLoop::State {
         for (std::size_t i = 1; i < watched.size(); ++i) {
             if (watched[i].revents != 0) wake(owners[i]);
         }
+        if (virtual_clock && ready == 0 && earliest != Instant::max() && holds.load() == 0 && nothing_posted()) {
+            virtual_clock->sleep_until(earliest);
+        }
     }
 
+    bool nothing_posted() const {
+        std::lock_guard lock(mutex);
+        return posted.empty();
+    }
+
+    const std::shared_ptr<Clock> clock;
+    const std::shared_ptr<VirtualClock> virtual_clock;  // null in steady time
     const int wakeup;
+    std::atomic<int> holds{0};  // LineLoop::hold_time()
     mutable std::mutex mutex;  // guards `posted` and `stopping`
     std::deque<std::function<void()>> posted;
     bool stopping = false;
@@ -130,7 +147,9 @@ struct LineLoop::State {
     std::thread thread;  // last: started once the rest exists
 };
 
-LineLoop::LineLoop() : state_(std::make_unique<State>()) {}
+LineLoop::LineLoop() : state_(std::make_unique<State>(steady_clock(), nullptr)) {}
+
+LineLoop::LineLoop(std::shared_ptr<VirtualClock> clock) : state_(std::make_unique<State>(clock, clock)) {}
 
 LineLoop::~LineLoop() {
     if (on_loop_thread()) {
@@ -149,6 +168,21 @@ void LineLoop::post(std::function<void()> job) {
 }
 
 bool LineLoop::on_loop_thread() const { return std::this_thread::get_id() == state_->thread.get_id(); }
+
+const std::shared_ptr<Clock>& LineLoop::clock() const { return state_->clock; }
+
+std::shared_ptr<void> LineLoop::hold_time() {
+    if (!state_->virtual_clock) return nullptr;
+    struct Hold {
+        explicit Hold(State& held) : state(held) { ++state.holds; }
+        ~Hold() {
+            --state.holds;
+            state.signal();  // the loop may move the time again
+        }
+        State& state;
+    };
+    return std::make_shared<Hold>(*state_);
+}
 
 LineLoop::WaitId LineLoop::wait(int fd, Instant deadline, std::function<void()> wake) {
     const WaitId id = state_->next_id++;

@@ -43,8 +43,8 @@ struct MasterOptions {
     std::shared_ptr<Clock> clock = steady_clock();
     // Serial masters: carry the exchanges on this loop (session/line_loop.hpp), shared with
     // other lines, instead of a thread of the master's own; *_async calls then only queue, and
-    // completions run on the loop's thread. The loop runs on the steady clock, which `clock` is
-    // then taken to be. Null: the blocking calls run on the caller's thread.
+    // completions run on the loop's thread. The loop's clock is then the master's, and `clock`
+    // is not used. Null: the blocking calls run on the caller's thread.
     std::shared_ptr<LineLoop> loop;
 };
 

@@ -61,7 +61,7 @@ public:
           codec_(make_frame_codec(link, codec::Direction::reply, options.linking_ram_only)),
           options_(std::move(options)),
           loop_(options_.loop),
-          clock_(loop_ || !options_.clock ? steady_clock() : options_.clock),
+          clock_(loop_ ? loop_->clock() : options_.clock ? options_.clock : steady_clock()),
           inter_frame_gap_(gap_for(link)),
           name_(link.to_string()) {}
 
@@ -200,7 +200,7 @@ private:
             return !got || *got > 0 || wait <= milliseconds::zero();
         }
         void await_suspend(std::coroutine_handle<> resume) {
-            master.read_on_loop(*this, std::chrono::steady_clock::now() + wait, resume);
+            master.read_on_loop(*this, master.clock_->now() + wait, resume);
         }
         Result<std::size_t> await_resume() { return std::move(got); }
     };
@@ -209,7 +209,7 @@ private:
         loop_->wait(stream_->poll_handle(), deadline, [this, &reading, deadline, resume] {
             reading.got = stream_->read_some(reading.buffer, milliseconds::zero());
             // Readable but nothing for us (a wake-up that found nothing): wait on.
-            if (reading.got && *reading.got == 0 && std::chrono::steady_clock::now() < deadline) {
+            if (reading.got && *reading.got == 0 && clock_->now() < deadline) {
                 return read_on_loop(reading, deadline, resume);
             }
             resume.resume();

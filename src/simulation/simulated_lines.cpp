@@ -12,8 +12,6 @@
 namespace loopwire::simulation {
 namespace {
 
-using std::chrono::steady_clock;
-
 struct ServedLine {
     ServedLine(std::unique_ptr<transport::ByteStream> stream, std::unique_ptr<session::Slave> served)
         : port(std::move(stream)), devices(std::move(served)), steps(*devices) {}
@@ -53,8 +51,8 @@ struct ServedLine {
         return next;
     }
 
-    // Reads everything the port has now.
-    void read_available() {
+    // Reads everything the port has now (at `now`).
+    void read_available(const Clock& clock) {
         std::array<std::uint8_t, 1024> buffer{};
         while (!failed) {
             auto got = port->read_some(buffer, std::chrono::milliseconds::zero());
@@ -63,7 +61,7 @@ struct ServedLine {
                 return;
             }
             if (*got == 0) return;
-            heard(ByteView(buffer.data(), *got), steady_clock::now());
+            heard(ByteView(buffer.data(), *got), clock.now());
         }
     }
 };
@@ -83,8 +81,8 @@ struct SimulatedLines::State {
         const int handle = line->port->poll_handle();
         line->waiting = loop->wait(handle, line->next_due().value_or(Instant::max()), [this, line] {
             line->waiting.reset();
-            line->read_available();
-            if (!line->failed) line->serve_due(steady_clock::now());
+            line->read_available(*loop->clock());
+            if (!line->failed) line->serve_due(loop->clock()->now());
             if (line->failed) {
                 failed.fetch_add(1, std::memory_order_relaxed);
                 return;

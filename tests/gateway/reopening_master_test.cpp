@@ -478,7 +478,7 @@ TEST(ReopeningMasterOnALoop, AnUpLineHasNoThreadOfItsOwnAndItsWorkerEndsOnceTheL
         return session::make_serial_master(std::make_unique<BreakableStream>(bus->attach("gateway"), broken), link, options);
     };
     auto clock = std::make_shared<VirtualClock>();
-    ReopeningMaster line("kiln", link.to_string(), open, ReopenSchedule{}, clock, {}, LinkConcurrency::on_loop);
+    ReopeningMaster line("kiln", link.to_string(), open, ReopenSchedule{}, clock, {}, LinkConcurrency::on_loop, loop);
     ASSERT_TRUE(line.start().ok());
     const auto ask = [&line] {
         std::promise<Result<Bytes>> answered;

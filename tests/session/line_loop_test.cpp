@@ -118,5 +118,39 @@ TEST(LineLoop, ACancelledWaitNeverWakesAndAWaitWakesOnce) {
     EXPECT_EQ(kept_runs, 1);
 }
 
+// On a VirtualClock the loop never sleeps on a deadline: idle, it moves the clock to the
+// earliest one, so a day of deadlines passes at once and each wakes at its exact instant. While
+// a hold lives (another thread working for the lines), the clock stands still.
+TEST(LineLoop, OnAVirtualClockIdleTimeJumpsToTheNextDeadlineUnlessHeld) {
+    auto clock = std::make_shared<VirtualClock>();
+    LineLoop loop(clock);
+    const Instant start = clock->now();
+    std::promise<std::vector<Instant>> woke;
+    on_loop(loop, [&] {
+        auto times = std::make_shared<std::vector<Instant>>();
+        for (const Instant::duration after : {Instant::duration(24h), Instant::duration(1h), Instant::duration(1ms)}) {
+            loop.wait(-1, start + after, [&, times] {
+                times->push_back(clock->now());
+                if (times->size() == 3) woke.set_value(*times);
+            });
+        }
+    });
+    auto future = woke.get_future();
+    ASSERT_EQ(future.wait_for(30s), std::future_status::ready) << "a day of virtual time did not pass in 30 s";
+    EXPECT_EQ(future.get(), (std::vector<Instant>{start + 1ms, start + 1h, start + 24h}));
+
+    std::shared_ptr<void> hold = loop.hold_time();
+    ASSERT_NE(hold, nullptr);
+    std::promise<void> later;
+    on_loop(loop, [&] { loop.wait(-1, clock->now() + 1s, [&] { later.set_value(); }); });
+    auto future_later = later.get_future();
+    EXPECT_EQ(future_later.wait_for(200ms), std::future_status::timeout) << "the time moved while held";
+    EXPECT_EQ(clock->now(), start + 24h);
+    hold.reset();
+    ASSERT_EQ(future_later.wait_for(30s), std::future_status::ready) << "the time did not move once let go";
+    EXPECT_EQ(clock->now(), start + 24h + 1s);
+    EXPECT_EQ(LineLoop().hold_time(), nullptr);  // steady time: nothing to hold
+}
+
 }  // namespace
 }  // namespace loopwire::session

@@ -79,13 +79,6 @@ TEST_F(SlaveOnBus, BadCrcGetsNoReply) {
 }
 
 
-TEST_F(SlaveOnBus, UnknownFunctionGetsIllegalFunction) {
-    // A function the RTU framer cannot size ends only at the 3.5-character silence the slave's
-    // reader waits through itself; on a loaded machine that can take longer than the default
-    // wait, and the wait ends as soon as the reply is complete, so a long one costs nothing.
-    EXPECT_EQ(to_hex(exchange(codec::rtu_encode(2, hex("2B 0E 01 00")), 3s)), to_hex(codec::rtu_encode(2, hex("AB 01"))));
-}
-
 TEST_F(SlaveOnBus, BadQuantityGetsIllegalDataValue) {
     EXPECT_EQ(to_hex(exchange(codec::rtu_encode(1, hex("03 00 00 00 7E")))), to_hex(codec::rtu_encode(1, hex("83 03"))));
 }
@@ -177,6 +170,15 @@ TEST_F(SlaveInVirtualTime, RepliesExactlyThreeAndAHalfCharactersAfterTheRequest)
     ASSERT_EQ(writes.size(), 1u);
     EXPECT_EQ(to_hex(writes[0].bytes), "01 03 02 03 E8 B8 FA");
     EXPECT_EQ(writes[0].at - start, (500ms + codec::CharacterTiming{9600, 10}.t3_5()));
+}
+
+// A function the RTU framer cannot size ends only at the 3.5-character silence after it, which
+// the slave waits through itself. In virtual time: on the wall clock's virtual bus a loaded host
+// that wakes the slave's reader late splits such a frame at a silence the wire never had.
+TEST_F(SlaveInVirtualTime, UnknownFunctionGetsIllegalFunction) {
+    const auto& writes = serve({codec::rtu_encode(2, hex("2B 0E 01 00"))});
+    ASSERT_EQ(writes.size(), 1u);
+    EXPECT_EQ(to_hex(writes[0].bytes), to_hex(codec::rtu_encode(2, hex("AB 01"))));
 }
 
 // Silence is checked to the end of the line, not for a window of wall time.
