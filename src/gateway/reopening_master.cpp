@@ -158,11 +158,10 @@ struct ReopeningMaster::State {
     template <typename Outcome, typename Send>
     void reopen_and_send(std::function<void(Outcome)> done, Send send) {
         worker.push([this, done = std::move(done), send = std::move(send), hold = hold_for_reopen()]() mutable {
-            Result<session::Master*> line = make_error(ErrorKind::link, "");
-            {
+            const auto line = [this] {
                 std::lock_guard carrying(use);
-                line = ready();
-            }
+                return ready();
+            }();
             if (!line) {
                 hold.reset();
                 return done(line.error());
