@@ -24,9 +24,10 @@ target_compile_features(loopwire_library INTERFACE cxx_std_17)
 # What a static library's users must link besides it. nlohmann-json, Boost.Asio and valijson
 # are header-only and used inside loopwire only, so they are not asked of users.
 target_link_libraries(loopwire_library INTERFACE fmt::fmt Threads::Threads)
-# A sanitized build's objects need the sanitizer runtimes in every program linking them.
+# A sanitized build's objects need the sanitizer runtimes in every program linking them, and
+# those of an ASan build, compiled without -fpie (CMakeLists.txt), a program that is not a PIE.
 if(LOOPWIRE_SANITIZE)
-  target_link_options(loopwire_library INTERFACE -fsanitize=address,undefined)
+  target_link_options(loopwire_library INTERFACE -fsanitize=address,undefined -no-pie)
 elseif(LOOPWIRE_TSAN)
   target_link_options(loopwire_library INTERFACE -fsanitize=thread)
 endif()
