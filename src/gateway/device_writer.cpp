@@ -170,6 +170,13 @@ const WritableDevice* DeviceWriter::find(const std::string& name) const {
     return nullptr;
 }
 
+std::vector<std::string> DeviceWriter::device_names() const {
+    std::vector<std::string> names;
+    names.reserve(targets_.size());
+    for (const auto& target : targets_) names.push_back(target->device.name);
+    return names;
+}
+
 bool DeviceWriter::write_async(const std::string& device, std::vector<WriteAssignment> assignments, WriteCompletion done) const {
     const Target* target = nullptr;
     for (const auto& candidate : targets_) {

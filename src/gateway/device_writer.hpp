@@ -64,6 +64,8 @@ public:
 
     // The device of that configured name, or nullptr.
     const WritableDevice* find(const std::string& name) const;
+    // Every device's configured name, in the configuration's order.
+    std::vector<std::string> device_names() const;
 
     // Validates every assignment, then writes them in planned blocks; nothing is sent when one
     // is invalid. The error says which name or value was wrong, or how the device refused, in

@@ -124,6 +124,10 @@ struct MqttBridge::State {
     std::deque<Publication> outgoing;  // from the value stream and the writes' results
     mqtt::Wakeup wakeup;  // notified when `outgoing` gets its first publication, and on stop
     std::map<std::string, DeviceSeen> devices;  // by configured name
+    // Every device of the configuration, whether or not its polls have said anything yet: a stop
+    // says each of them "offline", or a stop just after a reload, before the first poll, would
+    // leave the previous round's retained "online" standing.
+    std::vector<std::string> configured_devices;
     // The poll threads' own (one subscriber's callbacks never overlap): each parameter's last
     // error, and what was announced to Home Assistant: each parameter's unit and decimals (by
     // its state topic), each device's control loop.
@@ -407,12 +411,15 @@ struct MqttBridge::State {
     // "offline" themselves (but what a reload hands over), then the broker gets a moment to take it.
     void say_goodbye() {
         send_queued();
-        std::vector<std::string> names;
+        std::set<std::string> names;
         bool gateway_stays = false;
         {
             std::lock_guard lock(mutex);
+            for (const auto& name : configured_devices) {
+                if (!continuing_devices.contains(name)) names.insert(name);
+            }
             for (const auto& [name, seen] : devices) {
-                if (!continuing_devices.contains(name)) names.push_back(name);
+                if (!continuing_devices.contains(name)) names.insert(name);
             }
             gateway_stays = gateway_continues;
         }
@@ -455,6 +462,7 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
     s.timing = timing;
     s.log = std::move(log);
     s.writer = &writer;
+    s.configured_devices = writer.device_names();
     const std::string id = s.config.client_id.empty() ? "loopwire-" + s.config.prefix : s.config.client_id;
     // A persistent session (clean session off, MQTT 3.1.1, 3.1.2.4): the broker keeps the
     // subscription and the QoS 1 commands sent while the connection is down, and redelivers the

@@ -151,6 +151,52 @@ TEST(MqttBridge, PublishesTheGatewayStatusEachDeviceAndItsValues) {
     EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "offline")) << "no device offline on a clean stop";
 }
 
+// A stop that comes before the first poll has said anything of a device (a SIGTERM just after a
+// reload) still says it "offline": the "online" a previous run left retained must not stand.
+TEST(MqttBridge, AStopBeforeTheFirstPollSaysEveryDeviceOffline) {
+    REQUIRE_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port());
+    watcher.publish(prefix + "/oven/status", "online", true);
+    ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "online"));
+    GatewayOptions options;
+    // Nothing reaches unit 3, and its line waits 3 s for a reply: its first poll ends after the
+    // stop (which waits for the exchange under way).
+    options.virtual_bus_faults = [](const std::string&, ByteView bytes) {
+        transport::BusFault fault;
+        fault.drop = !bytes.empty() && bytes[0] == 3;
+        return fault;
+    };
+    const std::string text = fmt::format(R"toml(
+[[lines]]
+name = "sim"
+link = "rtu:virtual?baud=115200&parity=none"
+timeout = "3s"
+retries = 0
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+poll = "1s"
+parameters = ["measured_value"]
+
+[modbus_tcp]
+enabled = false
+
+[mqtt]
+broker = "mqtt://127.0.0.1:{}"
+prefix = "{}"
+)toml", broker.port(), prefix);
+    auto config = parse_gateway_config(text, "plant.toml", profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    auto gateway = Gateway::open(*config, std::move(options));
+    ASSERT_TRUE(gateway) << gateway.error().message;
+    ASSERT_TRUE(watcher.wait_for(prefix + "/status", "online"));
+    gateway->reset();
+    EXPECT_TRUE(watcher.wait_for(prefix + "/status", "offline"));
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "offline")) << "the oven's retained status stayed \"online\"";
+}
+
 TEST(MqttBridge, WritesGoToTheDeviceAndBadOnesAreRefused) {
     REQUIRE_BROKER();
     Broker broker(free_port());
