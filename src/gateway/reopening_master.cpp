@@ -112,8 +112,8 @@ struct ReopeningMaster::State {
     }
 
     // With `mutex` held.
-    void mark_down(std::string why) {
-        const auto now = clock->now();
+    void mark_down(std::string why, std::optional<Instant> since = std::nullopt) {
+        const auto now = since ? *since : clock->now();
         reason = std::move(why);
         down_since = now;
         attempts_at_down = counts.reopen_attempts;
@@ -154,7 +154,9 @@ struct ReopeningMaster::State {
 
     // On a loop: the worker opens the line (if a try is due) and hands the request to the opened
     // master as a direct one, which never waits on the loop; the loop's time stays held until
-    // then. A request that finds the line down is refused as on the worker's path.
+    // then. A request that finds the line down is refused as on the worker's path, its refusal
+    // answered on the loop like every other outcome (what it starts next belongs there), and
+    // posted before the time is let go: the plant time between the two is none.
     template <typename Outcome, typename Send>
     void reopen_and_send(std::function<void(Outcome)> done, Send send) {
         worker.push([this, done = std::move(done), send = std::move(send), hold = hold_for_reopen()]() mutable {
@@ -162,14 +164,14 @@ struct ReopeningMaster::State {
                 std::lock_guard carrying(use);
                 return ready();
             }();
-            if (!line) {
-                hold.reset();
-                return done(line.error());
-            }
-            const bool sent = send_directly(done, std::move(send));
-            hold.reset();
-            if (!sent) done(unavailable());
+            if (!line) return answer_on_loop(std::move(done), line.error());
+            if (!send_directly(done, std::move(send))) answer_on_loop(std::move(done), unavailable());
         });
+    }
+
+    template <typename Outcome>
+    void answer_on_loop(std::function<void(Outcome)> done, Error error) {
+        loop->post([done = std::move(done), error = std::move(error)] { done(error); });
     }
 
     // The loop's time, held while the worker opens a line that is down (nothing while it is up:
@@ -199,6 +201,9 @@ struct ReopeningMaster::State {
             if (closing || failing || !master || opened_as != generation) return;
             failing = true;
             failing_reason = failure.message;
+            // The line went down now, not when the worker gets to close it: the back-off runs
+            // from here (in virtual time the loop's clock may run on before the worker closes).
+            failing_since = clock->now();
         }
         worker.push([this] {
             std::lock_guard carrying(use);
@@ -216,7 +221,7 @@ struct ReopeningMaster::State {
             no_senders.wait(lock, [this] { return senders == 0; });
             failing = false;
             closed = std::move(master);
-            mark_down(std::move(failing_reason));
+            mark_down(std::move(failing_reason), failing_since);
         }
         closed.reset();
     }
@@ -295,6 +300,7 @@ struct ReopeningMaster::State {
     std::condition_variable no_senders;
     bool failing = false;          // a direct request found the link failed; the worker closes it
     std::string failing_reason;
+    Instant failing_since{};
     bool closing = false;          // the wrapper is being destroyed
     device::RetryBackoff backoff;  // the reopen schedule
     std::string reason;

@@ -351,9 +351,7 @@ private:
                 trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
             } else {
                 const auto& frame = std::get<codec::Frame>(event);
-                // From a unit whose last request went unanswered it is that request's late reply,
-                // which may well equal an earlier reply to the same request: no sign of copies.
-                if (!unsettled_.contains(frame.unit) && is_copy_of_recent(frame.raw)) copy_seen_at_ = clock_->now();
+                note_if_copy(frame);
                 trace(TraceDirection::discarded, frame.raw,
                       fmt::format("late reply from unit {}, after a try that got none: not taken for the next request",
                                   frame.unit));
@@ -479,6 +477,7 @@ private:
         auto& frame = std::get<codec::Frame>(event);
         if (frame.unit != awaited.unit) {
             awaited.clean = false;
+            note_if_copy(frame);
             heard_from(frame.unit);
             trace(TraceDirection::received, frame.raw, fmt_unit_skip(frame.unit, awaited.unit));
             return std::nullopt;
@@ -487,6 +486,8 @@ private:
         if (answered) {
             answered = not_a_duplicate(awaited, frame.raw);
             if (!answered) awaited.refused_a_copy = true;
+        } else {
+            note_if_copy(frame);
         }
         remember(frame.raw, awaited.request);
         if (!answered) {
@@ -554,6 +555,18 @@ private:
         return std::ranges::any_of(recent_frames_, [&](const SeenFrame& seen) {
             return seen.at >= recent && std::ranges::equal(seen.raw, raw);
         });
+    }
+
+    // A frame that cannot be the reply awaited (another unit's, or not this request's shape) and
+    // has the bytes of a recent one is a copy: the line sends copies, and from now on a reply
+    // equal to another request's is not taken (not_a_duplicate). Every such sighting counts, so
+    // that a copy racing a lost reply finds the line marked already: the first copy a line
+    // sends, taken on time for a request of the same shape whose real reply is lost, is the
+    // one case RTU leaves open (the soak, tests/gateway/line_soak_test.cpp, found it). From a unit
+    // whose last request went unanswered the frame may be that request's late reply, which may
+    // equal an earlier reply to it: no sign of copies.
+    void note_if_copy(const codec::Frame& frame) {
+        if (!unsettled_.contains(frame.unit) && is_copy_of_recent(frame.raw)) copy_seen_at_ = clock_->now();
     }
 
     bool line_sends_copies() const {
