@@ -374,6 +374,33 @@ TEST(StrayReplies, ACopyHeardBetweenExchangesMarksTheLineSoALaterOnTimeCopyIsRef
         << copied.error().message;
 }
 
+// A copy heard while a request to another unit is under way (a repeater's copy of unit 1's
+// reply landing in unit 2's exchange) marks the line as well, so that a later copy, on time in
+// place of a reply to unit 1 that is lost, is refused. The line soak found this: before, only a
+// copy heard between exchanges marked the line, and a client's read took another read's copy.
+TEST(StrayReplies, ACopyHeardDuringAnotherUnitsExchangeMarksTheLine) {
+    Bytes previous_reply;
+    TracedMaster m([&previous_reply](TimedLine& line, ByteView request, Instant at, unsigned n) {
+        const std::uint8_t asked = request[0];
+        const Bytes real = codec::rtu_encode(asked, reply_pdu(read_be16(request, 2), read_be16(request, 4)));
+        if (n == 2) {
+            line.arrive(at + latency, previous_reply);  // unit 1's real reply is lost
+            return;
+        }
+        if (n == 1) line.arrive(at + 1ms, previous_reply);  // in unit 2's exchange
+        line.arrive(at + latency, real);
+        if (asked == unit) previous_reply = real;
+    });
+    ASSERT_TRUE(m.master->forward(unit, read_pdu(10)).ok());
+    auto other = m.master->forward(2, read_pdu(50));
+    ASSERT_TRUE(other.ok()) << other.error().message;
+    EXPECT_EQ(to_hex(*other), to_hex(reply_pdu(50)));
+    auto copied = m.master->forward(unit, read_pdu(30));
+    ASSERT_FALSE(copied.ok()) << "took " << to_hex(*copied) << " for register 30";
+    EXPECT_NE(copied.error().message.find("on a line that has sent copies"), std::string::npos)
+        << copied.error().message;
+}
+
 // A late reply to a request that timed out may equal an earlier reply to the same request (the
 // value has not changed): that is no copy, and the line is not taken for one that sends copies,
 // so a later reply that equals another register's (two registers holding the same value) is
