@@ -56,6 +56,9 @@ void record_outcome(WatchedDevice& device, const device::ReadReport& report, con
     device.next_try.reset();
     if (!stopped_by) return record_poll(device, report, true, {}, now);
     if (stopped_by->kind == ErrorKind::link) return record_line_down(device, stopped_by->message);
+    // Blocks read before it are dropped too: a device half read this time is not a device that
+    // answered part of its parameters (`partial`).
+    if (never_sent(*stopped_by)) return record_unsent(device, stopped_by->message);
     record_poll(device, report, false, stopped_by->message, now);
 }
 
@@ -82,6 +85,15 @@ void record_skipped(WatchedDevice& device) {
         value.fresh = false;
         value.changed = false;
         value.error = "waiting to retry: " + device.last_error;
+    }
+}
+
+void record_unsent(WatchedDevice& device, const std::string& why) {
+    device.status = DeviceStatus::waiting;
+    for (auto& value : device.values) {
+        value.fresh = false;
+        value.changed = false;
+        value.error = "not polled this time: " + why;
     }
 }
 

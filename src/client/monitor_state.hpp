@@ -51,12 +51,19 @@ void record_poll(WatchedDevice& device, const device::ReadReport& report, bool a
 void record_line_down(WatchedDevice& device, const std::string& failure);
 
 // Folds a whole poll into the device's state: `stopped_by` is the timeout (no reply) or link
-// failure (line down) that ended it, if one did.
+// failure (line down) that ended it, if one did. A poll that was never sent (never_sent(): the
+// line was busy with other requests until its deadline) learnt nothing of the device: it counts
+// as not polled (record_unsent), not as a device that does not answer.
 void record_outcome(WatchedDevice& device, const device::ReadReport& report, const std::optional<Error>& stopped_by,
                     MonitorClock::time_point now);
 
 // The device was not polled this sample (back-off): nothing is fresh.
 void record_skipped(WatchedDevice& device);
+
+// The sample's poll of the device never went out (`why`): nothing is fresh and the status is
+// `waiting`, so whoever keeps the device's picture (gateway/value_cache.hpp) keeps what its last
+// poll found, until the staleness watch finds that poll overdue.
+void record_unsent(WatchedDevice& device, const std::string& why);
 
 // Seconds since the value was last read, or nothing when it never was.
 std::optional<double> age_seconds(const WatchedValue& value, MonitorClock::time_point now);

@@ -30,7 +30,7 @@ Error stopping_error() { return make_error(ErrorKind::link, "gateway stopping: t
 
 Error expired_error(std::uint8_t unit) {
     return make_error(ErrorKind::timeout,
-                      fmt::format("unit {}: the deadline passed before the line was free; not sent", unit));
+                      fmt::format("unit {}: the deadline passed before the line was free; not sent", unit), not_sent_code);
 }
 
 Error abandoned_error(std::uint8_t unit) {

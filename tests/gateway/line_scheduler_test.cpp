@@ -292,6 +292,7 @@ TEST_F(LineSchedulerTest, RequestPastItsDeadlineIsNeverSent) {
     const auto& expired = only_answer(2);
     ASSERT_FALSE(expired.ok());
     EXPECT_EQ(expired.error().kind, ErrorKind::timeout);
+    EXPECT_TRUE(never_sent(expired.error())) << "a poll that expired here says nothing of its device";
     EXPECT_NE(expired.error().message.find("deadline passed before the line was free"), std::string::npos)
         << expired.error().message;
     EXPECT_TRUE(only_answer(3).ok());

@@ -70,6 +70,17 @@ public:
         device::record_skipped(state_);
         return state_;
     }
+    // The poll's first block was read, its second expired in the line's queue (never sent).
+    const device::WatchedDevice& unsent(device::EngineeringValue measured) {
+        device::ReadReport report;
+        report.readings.push_back({&measured_, measured, ""});
+        report.readings.push_back({&set_point_, std::nullopt, "unit 3: the deadline passed before the line was free; not sent"});
+        device::record_outcome(state_, report,
+                               make_error(ErrorKind::timeout, "unit 3: the deadline passed before the line was free; not sent",
+                                          not_sent_code),
+                               device::MonitorClock::now());
+        return state_;
+    }
 
 private:
     device::Parameter measured_ = parameter("measured_value", "°C");
@@ -218,6 +229,29 @@ TEST(ValueCache, ASampleThatSkipsADeviceInBackOffTellsNothing) {
     EXPECT_EQ(cache.snapshot().at(0).state.status, device::DeviceStatus::no_reply);
     cache.update("oven1", oven.answered(tenths(250), tenths(1375)), sample_time + 2s);
     EXPECT_EQ(told.names(), (std::vector<std::string>{"(ok)", "measured_value", "set_point"}));
+}
+
+// A poll the line never sent (busy with writes and clients until the poll's deadline) is no news
+// of the device: it stays what its last poll found, with its values, on every front; it does not
+// become `no-reply`, a `partial` read or an offline device (the Sparkplug node's DDEATH).
+TEST(ValueCache, APollThatWasNeverSentTellsNothing) {
+    ValueCache cache;
+    Told told;
+    auto subscription = cache.subscribe(told.collect());
+    Device oven;
+    cache.update("oven1", oven.answered(tenths(250), tenths(1375)), sample_time);
+    told.changes.clear();
+    const auto& state = oven.unsent(tenths(251));
+    EXPECT_EQ(state.status, device::DeviceStatus::waiting);
+    EXPECT_EQ(state.errors, 0U) << "not a failed poll";
+    cache.update("oven1", state, sample_time + 1s);
+    EXPECT_TRUE(told.changes.empty()) << told.names().size();
+    const auto seen = cache.snapshot().at(0);
+    EXPECT_EQ(seen.state.status, device::DeviceStatus::ok);
+    EXPECT_EQ(seen.state.values.at(1).last->raw, 1375);
+    EXPECT_TRUE(seen.state.values.at(1).fresh);
+    cache.update("oven1", oven.answered(tenths(252), tenths(2100)), sample_time + 2s);
+    EXPECT_EQ(told.names(), (std::vector<std::string>{"measured_value", "set_point"}));
 }
 
 // Staleness, in virtual time: a device polled every second whose poll stops coming back.
