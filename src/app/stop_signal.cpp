@@ -42,6 +42,7 @@ void StopSignal::take_signal() {
         on_hangup_();
         return;
     }
+    if (received > 0) stopped_by_signal_ = true;
     if (received > 0 || (deadline_ && std::chrono::steady_clock::now() >= *deadline_)) source_.request_stop();
 }
 
@@ -56,7 +57,11 @@ StopSignal::~StopSignal() {
     const timespec now{0, 0};
     while (sigtimedwait(&signals_, nullptr, &now) > 0) {
     }
-    pthread_sigmask(SIG_UNBLOCK, &signals_, nullptr);
+    // A stop that came by signal leaves them blocked: on a loaded machine timeout(1)'s second
+    // signal can come after the drain above, and unblocked it killed a gateway that had stopped
+    // cleanly (exit 143 instead of 0). The command returns once this object goes, so nothing
+    // is left for a later Ctrl-C to interrupt.
+    if (!stopped_by_signal_) pthread_sigmask(SIG_UNBLOCK, &signals_, nullptr);
 }
 
 }  // namespace loopwire::app

@@ -8,6 +8,7 @@
 // thread while it waits in wait() (Waits::caller: the gateway's serving thread, which has
 // nothing else to do meanwhile, so no thread is kept for signals alone). Either way the
 // signals are blocked in every thread and taken with sigtimedwait, never in a handler.
+#include <atomic>
 #include <csignal>
 #include <chrono>
 #include <functional>
@@ -44,6 +45,7 @@ private:
     sigset_t signals_;
     std::optional<std::chrono::steady_clock::time_point> deadline_;
     std::function<void()> on_hangup_;
+    std::atomic<bool> stopped_by_signal_{false};  // SIGINT or SIGTERM came (not the time limit)
     std::jthread waiter_;
 };
 

@@ -90,6 +90,7 @@ void record_skipped(WatchedDevice& device) {
 
 void record_unsent(WatchedDevice& device, const std::string& why) {
     device.status = DeviceStatus::waiting;
+    device.last_error = why;  // not counted in `errors`: nothing failed at the device
     for (auto& value : device.values) {
         value.fresh = false;
         value.changed = false;

@@ -244,6 +244,7 @@ TEST(ValueCache, APollThatWasNeverSentTellsNothing) {
     const auto& state = oven.unsent(tenths(251));
     EXPECT_EQ(state.status, device::DeviceStatus::waiting);
     EXPECT_EQ(state.errors, 0U) << "not a failed poll";
+    EXPECT_NE(state.last_error.find("not sent"), std::string::npos) << "the sample says why: " << state.last_error;
     cache.update("oven1", state, sample_time + 1s);
     EXPECT_TRUE(told.changes.empty()) << told.names().size();
     const auto seen = cache.snapshot().at(0);
