@@ -1,5 +1,7 @@
 #include "client/monitor_state.hpp"
 
+#include "common/never_sent.hpp"
+
 namespace loopwire::device {
 
 WatchedDevice watch(std::string label, const std::vector<const device::Parameter*>& parameters) {

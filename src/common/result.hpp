@@ -21,17 +21,12 @@ enum class ErrorKind {
 struct Error {
     ErrorKind kind;
     std::string message;   // says what was wrong and, where it can, what to do
-    int code = 0;          // ErrorKind::exception: the exception code; ErrorKind::timeout: not_sent_code or 0
+    int code = 0;          // ErrorKind::exception: the exception code; otherwise 0
 };
 
 inline Error make_error(ErrorKind kind, std::string message, int code = 0) {
     return Error{kind, std::move(message), code};
 }
-
-// A timeout's code when the request never went on the wire: its deadline passed while the line
-// was busy with other requests. It says nothing about the device asked.
-inline constexpr int not_sent_code = 1;
-inline bool never_sent(const Error& error) { return error.kind == ErrorKind::timeout && error.code == not_sent_code; }
 
 template <typename T>
 class [[nodiscard]] Result {

@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 
 #include "client/monitor_backoff.hpp"
+#include "common/never_sent.hpp"
 
 namespace loopwire::gateway {
 namespace {

@@ -14,6 +14,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/never_sent.hpp"
 #include "gateway/line_scheduler.hpp"
 
 namespace loopwire::gateway {

@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "gateway/value_cache.hpp"
+#include "common/never_sent.hpp"
 #include "support/profile_test_support.hpp"
 
 namespace loopwire::gateway {
