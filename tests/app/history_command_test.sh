@@ -23,13 +23,18 @@ enabled = false
 
 [history]
 database = "$WORK_DIR/plant.db"
+heartbeat = "1s"
 TOML
 database=$WORK_DIR/plant.db
 
 start_background gateway.log timeout 120 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
 gateway=$LAST_PID
-recorded() { "$loopwire" history --database "$database" --device oven --format csv 2>/dev/null | grep -q ',bucket,'; }
-wait_for 60 "the gateway's first rows in $database" recorded
+measured_rows() {
+  sqlite3 "$database" "SELECT count(*) FROM samples JOIN series ON series.id = series_id
+                       WHERE device = 'oven' AND parameter = 'measured_value'" 2>/dev/null
+}
+recorded() { (( $(measured_rows || echo 0) >= 2 )); }
+wait_for 60 "two measured_value rows in $database" recorded
 kill -TERM "$gateway"
 wait "$gateway" 2>/dev/null
 
@@ -39,18 +44,22 @@ check csv-header 0 "parameter,unit,time,min,max,mean,count,kind,until" \
   "$loopwire" history --database "$database" --device oven --format csv
 check csv-bucket 0 ",bucket," "$loopwire" history --database "$database" --device oven --format csv --parameters set_point
 
-# A window that starts 1 ms after the last row: no bucket in it, and the value then in force is
-# the last one recorded, at that row's time.
-last=$(sqlite3 "$database" "SELECT max(t) FROM samples")
-[[ $last =~ ^[0-9]+$ ]] || fail "no rows in $database: '$last'"
+# A window between the last two rows of measured_value (from 1 ms after the one before the last
+# to 1 ms before the last): no bucket in it, and the value then in force is the one recorded at
+# the earlier row. Not a window after the last row: the gateway's stop may come within 1 ms of it,
+# and then the stop's gap is what is in force there.
+rows=$(sqlite3 -separator ' ' "$database" "SELECT t, printf('%g', value) FROM samples JOIN series ON series.id = series_id
+                                             WHERE device = 'oven' AND parameter = 'measured_value' ORDER BY t DESC LIMIT 2")
+read -r -d '' later _ last value <<<"$rows"
+[[ ${last:-} =~ ^[0-9]+$ && $later =~ ^[0-9]+$ ]] || fail "fewer than two measured_value rows in $database: '$rows'"
+(( later - last >= 3 )) || fail "the last two rows are $((later - last)) ms apart (poll 200ms): '$rows'"
 iso() { date -u -d "@$(($1 / 1000)).$(printf %03d $(($1 % 1000)))" +%Y-%m-%dT%H:%M:%S.%3NZ; }
 from=$(iso $((last + 1)))
-value=$(sqlite3 "$database" "SELECT printf('%g', value) FROM samples JOIN series ON series.id = series_id
-                               WHERE device = 'oven' AND parameter = 'measured_value' ORDER BY t DESC LIMIT 1")
+to=$(iso $((later - 1)))
 check csv-before 0 "measured_value,°C,$(iso "$last"),$value,$value,$value,,before," \
-  "$loopwire" history --database "$database" --device oven --format csv --from "$from"
-out=$("$loopwire" history --database "$database" --device oven --format csv --from "$from" --parameters measured_value)
+  "$loopwire" history --database "$database" --device oven --format csv --from "$from" --to "$to"
+out=$("$loopwire" history --database "$database" --device oven --format csv --from "$from" --to "$to" --parameters measured_value)
 expect csv-before-only test "$(grep -c ',bucket,' <<<"$out")" -eq 0
 check table-before 0 "in force at the start" \
-  "$loopwire" history --database "$database" --device oven --from "$from" --parameters measured_value
+  "$loopwire" history --database "$database" --device oven --from "$from" --to "$to" --parameters measured_value
 finish
