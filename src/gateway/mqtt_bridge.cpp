@@ -469,6 +469,7 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
     // ones not yet acknowledged; on_message takes each only once.
     s.client = mosquitto_new(id.c_str(), false, &s);
     if (!s.client) throw std::bad_alloc();
+    mqtt::send_without_delay(s.client);
     mqtt::configure_security(s.client, s.config.tls, s.config.username, s.config.password,
                              [&s](const std::string& line) { s.say(line); });
     // Called on the network thread, inside mosquitto_loop.

@@ -54,6 +54,8 @@ void configure_security(mosquitto* client, const std::optional<MqttTls>& tls, co
     }
 }
 
+void send_without_delay(mosquitto* client) { (void)mosquitto_int_option(client, MOSQ_OPT_TCP_NODELAY, 1); }
+
 int turn(mosquitto* client, const Wakeup& wakeup, std::chrono::milliseconds idle) {
     const int socket = mosquitto_socket(client);
     if (socket < 0) return MOSQ_ERR_NO_CONN;

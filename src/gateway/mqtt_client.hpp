@@ -41,6 +41,13 @@ private:
 void configure_security(mosquitto* client, const std::optional<MqttTls>& tls, const std::string& username,
                         const std::string& password, const std::function<void(const std::string&)>& say);
 
+// A value goes out as soon as it is published: Nagle's algorithm off (libmosquitto leaves it on),
+// or a burst of small messages waits on the broker's delayed acknowledgement (up to 40 ms on
+// Linux; bench/mqtt_throughput.sh measured, at 500 parameters, p99 49-54 ms with it and 18-25 ms
+// without). TCP_CORK around a batch, tried as well, did not help: mosquitto reads each packet
+// with reads of its own whatever the segments.
+void send_without_delay(mosquitto* client);
+
 // One turn of the network loop on libmosquitto's external-loop interface: waits up to `idle`
 // for the socket or the wake-up, then reads, writes and does the keep-alive work. Returns
 // libmosquitto's code (MOSQ_ERR_SUCCESS, or why the connection is gone). mosquitto_loop()

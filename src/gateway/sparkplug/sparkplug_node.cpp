@@ -621,6 +621,7 @@ SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice
     // while the node was away are not for it, its births make the host application's picture.
     s.client = mosquitto_new(s.config.client_id.c_str(), true, &s);
     if (!s.client) throw std::bad_alloc();
+    mqtt::send_without_delay(s.client);
     mqtt::configure_security(s.client, s.config.tls, s.config.username, s.config.password,
                              [&s](const std::string& line) { s.say(line); });
     mosquitto_connect_callback_set(s.client, [](mosquitto*, void* state, int code) { static_cast<State*>(state)->on_connect(code); });
