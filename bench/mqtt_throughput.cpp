@@ -2,7 +2,10 @@
 // MQTT front (issue 12) or the Sparkplug B edge node (issue 22):
 //   rate     value changes/s the front carries from the poller's cache to a subscriber, with
 //            every parameter changing in every sample, as fast as they go through;
-//   latency  poll -> subscriber at 10 samples/s of every parameter (p50, p99, max);
+//   latency  poll -> subscriber at 10 samples/s of every parameter (p50, p99, max), and the
+//            peer in the same run (MQTT front only): a plain libmosquitto publisher that sends
+//            each sample as the same retained messages in a tight loop, the broker's floor for a
+//            burst of that size (the broker reads and forwards one message at a time);
 //   memory   resident memory the cache and the front take per 1,000 parameters, published.
 // The parameters are synthetic (int16, one decimal, "°C"), 50 per device; the samples are what
 // the poll groups hand the value cache. The subscriber reads the MQTT front's values as text
@@ -239,10 +242,57 @@ private:
     std::unique_ptr<gateway::SparkplugNode> node_;
 };
 
+// The peer of the latency figure: the front's messages (PREFIX/DEVICE/PARAMETER, the value as
+// text, retained, QoS 0) from a client that does nothing else, written as it publishes.
+class PlainPublisher {
+public:
+    PlainPublisher(int port, std::size_t parameters) {
+        client_ = mosquitto_new(nullptr, true, nullptr);
+        (void)mosquitto_int_option(client_, MOSQ_OPT_TCP_NODELAY, 1);
+        if (mosquitto_connect(client_, "127.0.0.1", port, 30) != MOSQ_ERR_SUCCESS) throw std::runtime_error("no broker");
+        for (std::size_t i = 0; i < parameters; ++i) topics_.push_back(fmt::format("{}/d{:03}/p{:04}", prefix, i / per_device, i));
+    }
+    ~PlainPublisher() {
+        mosquitto_disconnect(client_);
+        mosquitto_destroy(client_);
+    }
+    void sample(long number) {
+        const std::string text = fmt::format("{:.1f}", static_cast<double>(number) / 10.0);
+        for (const auto& topic : topics_) {
+            mosquitto_publish(client_, nullptr, topic.c_str(), static_cast<int>(text.size()), text.data(), 0, true);
+        }
+        (void)mosquitto_loop(client_, 0, 1);  // the broker's acknowledgements and pings, not waited for
+    }
+
+private:
+    mosquitto* client_ = nullptr;
+    std::vector<std::string> topics_;
+};
+
 double percentile(std::vector<double> values, double share) {
     if (values.empty()) return 0;
     std::sort(values.begin(), values.end());
     return values[std::min(values.size() - 1, static_cast<std::size_t>(share * static_cast<double>(values.size())))];
+}
+
+// Sends a burst of every parameter's new value 10 times a second for `seconds` and returns each
+// value's time from the burst's start to its arrival (empty, and said, if some never came).
+template <typename Send>
+std::vector<double> latencies_ms(Subscriber& subscriber, long& sample, std::size_t parameters, std::chrono::seconds seconds,
+                                 Send send) {
+    subscriber.clear();
+    const auto end = SteadyClock::now() + seconds;
+    while (SteadyClock::now() < end) {
+        ++sample;
+        subscriber.expect(sample, SteadyClock::now());
+        send(sample);
+        std::this_thread::sleep_for(100ms);
+    }
+    if (!subscriber.wait(sample, parameters, 30s)) {
+        std::fprintf(stderr, "the latency samples did not all arrive\n");
+        return {};
+    }
+    return subscriber.latencies_ms();
 }
 
 }  // namespace
@@ -297,22 +347,19 @@ int main(int argc, char** argv) {
                 before, after);
 
     // Latency: 10 samples per second, every parameter changing in each.
-    subscriber.clear();
-    const auto latency_end = SteadyClock::now() + seconds;
-    while (SteadyClock::now() < latency_end) {
-        ++sample;
-        subscriber.expect(sample, SteadyClock::now());
-        plant.sample(cache, sample);
-        std::this_thread::sleep_for(100ms);
-    }
-    if (!subscriber.wait(sample, parameters, 30s)) {
-        std::fprintf(stderr, "the latency samples did not all arrive\n");
-        return 1;
-    }
-    const auto latencies = subscriber.latencies_ms();
+    const auto latencies = latencies_ms(subscriber, sample, parameters, seconds, [&](long number) { plant.sample(cache, number); });
+    if (latencies.empty()) return 1;
     std::printf("%s latency poll -> subscriber at %zu parameters, 10 samples/s: p50 %.2f ms, p99 %.2f ms, max %.2f ms (%zu values)\n",
                 name.c_str(), parameters, percentile(latencies, 0.5), percentile(latencies, 0.99), percentile(latencies, 1.0),
                 latencies.size());
+    if (!sparkplug) {
+        PlainPublisher peer(port, parameters);
+        const auto floor = latencies_ms(subscriber, sample, parameters, seconds, [&](long number) { peer.sample(number); });
+        if (floor.empty()) return 1;
+        std::printf("%s latency plain publisher -> subscriber, the same bursts: p50 %.2f ms, p99 %.2f ms; front/plain p50: %.2f\n",
+                    name.c_str(), percentile(floor, 0.5), percentile(floor, 0.99),
+                    percentile(latencies, 0.5) / percentile(floor, 0.5));
+    }
 
     // Rate: samples back to back for SECONDS, then until the last has arrived. What counts is
     // what arrived: a front may send only the latest of values that changed faster than it
