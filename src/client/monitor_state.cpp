@@ -57,10 +57,10 @@ void record_outcome(WatchedDevice& device, const device::ReadReport& report, con
                     MonitorClock::time_point now) {
     device.next_try.reset();
     if (!stopped_by) return record_poll(device, report, true, {}, now);
-    if (stopped_by->kind == ErrorKind::link) return record_line_down(device, stopped_by->message);
     // Blocks read before it are dropped too: a device half read this time is not a device that
     // answered part of its parameters (`partial`).
-    if (never_sent(*stopped_by)) return record_unsent(device, stopped_by->message);
+    if (says_nothing_of_the_device(*stopped_by)) return record_unsent(device, stopped_by->message);
+    if (stopped_by->kind == ErrorKind::link) return record_line_down(device, stopped_by->message);
     record_poll(device, report, false, stopped_by->message, now);
 }
 

@@ -191,7 +191,13 @@ struct Gateway::Parts {
     // clients, the polls and the writes by name on one thread (gateway/modbus_tcp_front.hpp).
     explicit Parts(ModbusTcpFront* kept_front)
         : engine(kept_front ? std::make_unique<Engine>(kept_front->loop()) : std::make_unique<Engine>()) {}
-    ~Parts() { front_writes->close(); }  // before any member goes: the polls are still there
+    // Before any member goes: the notices, while the polls are still there; and the lines' masters,
+    // so that a read under way ends now instead of holding the polls' stop (and with it a SIGTERM)
+    // until its reply timeout passes. Its end is marked abandoned: no device is told anything.
+    ~Parts() {
+        front_writes->close();
+        for (const auto& line : lines) line.master->close();
+    }
 
     std::chrono::milliseconds statistics_interval{0};
     GatewayLog log;
@@ -358,15 +364,16 @@ namespace {
 // How long a stopping gateway keeps serving so that the requests already taken are answered.
 constexpr auto drain_limit = std::chrono::seconds(5);
 
+// No client's request or write is queued or on the wire: the gateway's own polls do not count,
+// since nobody waits for their answer (a poll waiting for a silent device held every stop for
+// the whole drain limit).
 bool lines_idle(const std::vector<OpenLine>& lines) {
-    return std::all_of(lines.begin(), lines.end(), [](const OpenLine& line) {
-        const auto stats = line.scheduler->statistics();
-        return stats.queued == 0 && !stats.on_wire;
-    });
+    return std::all_of(lines.begin(), lines.end(), [](const OpenLine& line) { return line.scheduler->statistics().asked == 0; });
 }
 
-// Waits for `stop`, then until every line is idle (or the drain limit passes): a request a
-// client sent before SIGTERM still gets its answer before the front closes.
+// Waits for `stop`, then until no line has a request of a client or a write to answer (or the
+// drain limit passes): a request a client sent before SIGTERM still gets its answer before the
+// front closes.
 void wait_then_drain(const std::vector<OpenLine>& lines, const std::stop_token& stop,
                      const std::function<void(const std::stop_token&)>& wait_for_stop) {
     std::mutex mutex;

@@ -282,6 +282,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
             return *refusal;
         }
         if (in_flight++ == 0) busy_since = now;
+        if (request.priority != Priority::poll) ++asked_in_flight;
         sending = true;
         ++stats.sent;
         // Turns count requests that used the line: one dropped unsent costs its kind no turn.
@@ -346,6 +347,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
             if (--in_flight == 0) {
                 stats.busy += std::chrono::duration_cast<std::chrono::microseconds>(clock->now() - busy_since);
             }
+            if (flight.priority != Priority::poll) --asked_in_flight;
             record(flight, result);
         }
         deliver(flight.done, std::move(result));
@@ -417,6 +419,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         auto copy = stats;
         copy.queued = writes.size() + clients.size() + polls.size();
         copy.on_wire = in_flight > 0;
+        copy.asked = writes.size() + clients.size() + asked_in_flight;
         copy.in_flight = in_flight;
         copy.open = std::chrono::duration_cast<std::chrono::microseconds>(clock->now() - opened);
         return copy;
@@ -437,6 +440,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
     Instant busy_since{};  // since in_flight last went from 0 to 1
 
     std::size_t in_flight = 0;  // requests on the wire
+    std::size_t asked_in_flight = 0;  // of which clients' requests and writes
     bool pumping = false;    // a thread is in pump()
     bool sending = false;    // a thread is inside master->forward_async
     bool stopping = false;

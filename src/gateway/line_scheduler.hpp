@@ -85,6 +85,7 @@ struct LineStatistics {
     std::uint64_t refused_busy = 0;  // refused unqueued: max_queued were waiting
     std::size_t queued = 0;          // waiting now
     bool on_wire = false;            // a request is on the line now
+    std::size_t asked = 0;           // clients' requests and writes queued or on the line now
     std::size_t in_flight = 0;       // how many (at most max_in_flight)
     // How long the line has carried at least one request (from sending to its outcome) and how
     // long the scheduler has existed: busy / open is the line's utilisation.

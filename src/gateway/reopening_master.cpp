@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "client/monitor_backoff.hpp"
+#include "common/never_sent.hpp"
 #include "session/job_queue.hpp"
 
 namespace loopwire::gateway {
@@ -50,7 +51,7 @@ struct ReopeningMaster::State {
         auto line = ready();
         if (!line) return line.error();
         auto result = call(**line);
-        if (!result && result.error().kind == ErrorKind::link) return went_down(result.error());
+        if (!result && result.error().kind == ErrorKind::link && !abandoned(result.error())) return went_down(result.error());
         return result;
     }
 
@@ -60,7 +61,7 @@ struct ReopeningMaster::State {
         close_failing();
         {
             std::lock_guard lock(mutex);
-            if (closing) return make_error(ErrorKind::link, fmt::format("line {} ({}) is closing", name, link));
+            if (closing) return closing_error();
             if (master) return master.get();
             if (!backoff.due(clock->now())) return refuse();
         }
@@ -141,7 +142,9 @@ struct ReopeningMaster::State {
             ++senders;
         }
         send(*line, [this, opened_as, done = std::move(done)](Outcome outcome) {
-            if (!outcome && outcome.error().kind == ErrorKind::link) failed_underneath(opened_as, outcome.error());
+            if (!outcome && outcome.error().kind == ErrorKind::link && !abandoned(outcome.error())) {
+                failed_underneath(opened_as, outcome.error());
+            }
             done(std::move(outcome));
         });
         {
@@ -185,10 +188,15 @@ struct ReopeningMaster::State {
         return loop->hold_time();
     }
 
+    // A request that comes once the line is closing: it tells nothing of its device.
+    Error closing_error() const {
+        return make_error(ErrorKind::link, fmt::format("line {} ({}) is closing", name, link), abandoned_code);
+    }
+
     // Why a request just reopened for could not be sent: the master failed or is closing already.
     Error unavailable() {
         std::lock_guard lock(mutex);
-        if (closing) return make_error(ErrorKind::link, fmt::format("line {} ({}) is closing", name, link));
+        if (closing) return closing_error();
         if (!master) return refuse();
         return make_error(ErrorKind::link, fmt::format("line {} ({}) failed as it was reopened", name, link));
     }
@@ -224,6 +232,13 @@ struct ReopeningMaster::State {
             mark_down(std::move(failing_reason), failing_since);
         }
         closed.reset();
+    }
+
+    // ReopeningMaster::close: what the open master carries ends now, and nothing more is sent.
+    void close_now() {
+        std::lock_guard lock(mutex);
+        closing = true;
+        if (master) master->close();  // posts to the master's loop: never blocks
     }
 
     // For the destructor, once the worker has finished: the master goes while this state is
@@ -328,6 +343,8 @@ ReopeningMaster::ReopeningMaster(std::string name, std::string link, MasterOpene
                                      std::move(log), std::move(loop),
                                      concurrency == LinkConcurrency::on_loop ? session::JobQueue::WhenIdle::end_thread
                                                                              : session::JobQueue::WhenIdle::keep_thread)) {}
+
+void ReopeningMaster::close() { state_->close_now(); }
 
 ReopeningMaster::~ReopeningMaster() {
     state_->worker.finish();  // what is queued is carried on the open master, as it was asked

@@ -95,6 +95,9 @@ public:
     Result<Bytes> forward(std::uint8_t unit, ByteView pdu) override;
     void forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) override;
     std::string describe() const override { return link_; }
+    // What the open master carries ends now, and every request from now on is refused (both
+    // marked abandoned: no line goes down, no device is told anything), for a gateway that stops.
+    void close() override;
 
     LinkHealth health() const;
 

@@ -78,6 +78,13 @@ public:
     virtual void forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) = 0;
 
     virtual std::string describe() const = 0;
+
+    // Ends what is under way now and refuses what comes after, each with a link error saying
+    // the line is being closed (marked abandoned, common/never_sent.hpp: it tells nothing of
+    // the device): for a master about to go with a gateway that stops or reloads, so that
+    // nothing waits out a reply timeout. From any thread. The default does nothing: the
+    // master's calls end by themselves.
+    virtual void close() {}
 };
 
 // RTU, ASCII and Linking on a serial line, pseudo-terminal or virtual bus port, and RTU frames

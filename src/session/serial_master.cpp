@@ -4,16 +4,19 @@
 #include <coroutine>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 #include <future>
 #include <iterator>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <utility>
 
 #include <fmt/format.h>
 
 #include "codec/rtu.hpp"
+#include "common/never_sent.hpp"
 #include "common/task.hpp"
 #include "session/frame_codec.hpp"
 #include "session/job_queue.hpp"
@@ -65,8 +68,11 @@ public:
           inter_frame_gap_(gap_for(link)),
           name_(link.to_string()) {}
 
-    // On a loop: waits until what was queued has been carried (as the blocking master's job
-    // queue does), so that nothing on the loop refers to it any more.
+    // On a loop: waits until what was queued has ended, so that nothing on the loop refers to it
+    // any more. What is under way is not waited out: its wait for a reply (or a silence) ends at
+    // once with a link error, and nothing more is sent. A gateway told to stop, or a line being
+    // reopened, would otherwise wait up to a whole timeout per line (a 20 s timeout held a
+    // SIGTERM 17 s).
     ~SerialMaster() override {
         if (!loop_) return;
         if (loop_->on_loop_thread()) {
@@ -76,6 +82,8 @@ public:
         std::promise<void> idle;
         loop_->post([this, &idle] {
             closing_ = &idle;
+            closed_ = true;
+            abandon_waiting();
             tell_if_idle();
         });
         idle.get_future().wait();
@@ -114,6 +122,14 @@ public:
     }
 
     std::string describe() const override { return name_; }
+
+    void close() override {
+        if (!loop_) return;  // the blocking master's calls end by themselves
+        loop_->post([this] {
+            closed_ = true;
+            abandon_waiting();
+        });
+    }
 
 private:
     Task<Result<codec::Reply>> execute_task(std::uint8_t unit, codec::Request request) {
@@ -171,6 +187,31 @@ private:
         std::exchange(closing_, nullptr)->set_value();
     }
 
+    // On the loop, closed: the wait under way ends now (the coroutine carries on from it and
+    // finds the master closed). Reading, sending and sleeping check `closed_` before waiting.
+    void abandon_waiting() {
+        if (!waiting_) return;
+        loop_->cancel(*waiting_);
+        waiting_.reset();
+        std::exchange(abandon_, {})();
+    }
+
+    Error closing_error() const {
+        return make_error(ErrorKind::link, name_ + ": the line is being closed (the gateway stops or reopens it); not waited for",
+                          abandoned_code);
+    }
+
+    // On the loop: waits as LineLoop::wait does, and notes the wait so that closing can end it
+    // at once with `abandon`.
+    void wait_on_loop(int fd, Instant deadline, std::function<void()> wake, std::function<void()> abandon) {
+        abandon_ = std::move(abandon);
+        waiting_ = loop_->wait(fd, deadline, [this, wake = std::move(wake)] {
+            waiting_.reset();
+            abandon_ = {};
+            wake();
+        });
+    }
+
     // A blocking call on a master that runs on the loop: queued there, waited for here.
     template <typename Value, typename Start>
     Result<Value> wait_for(Start start) {
@@ -196,6 +237,10 @@ private:
                 got = master.stream_->read_some(buffer, wait);
                 return true;
             }
+            if (master.closed_) {
+                got = master.closing_error();
+                return true;
+            }
             got = master.stream_->read_some(buffer, milliseconds::zero());
             return !got || *got > 0 || wait <= milliseconds::zero();
         }
@@ -206,14 +251,20 @@ private:
     };
 
     void read_on_loop(Reading& reading, Instant deadline, std::coroutine_handle<> resume) {
-        loop_->wait(stream_->poll_handle(), deadline, [this, &reading, deadline, resume] {
-            reading.got = stream_->read_some(reading.buffer, milliseconds::zero());
-            // Readable but nothing for us (a wake-up that found nothing): wait on.
-            if (reading.got && *reading.got == 0 && clock_->now() < deadline) {
-                return read_on_loop(reading, deadline, resume);
-            }
-            resume.resume();
-        });
+        wait_on_loop(
+            stream_->poll_handle(), deadline,
+            [this, &reading, deadline, resume] {
+                reading.got = stream_->read_some(reading.buffer, milliseconds::zero());
+                // Readable but nothing for us (a wake-up that found nothing): wait on.
+                if (reading.got && *reading.got == 0 && clock_->now() < deadline) {
+                    return read_on_loop(reading, deadline, resume);
+                }
+                resume.resume();
+            },
+            [this, &reading, resume] {
+                reading.got = closing_error();
+                resume.resume();
+            });
     }
 
     Reading read_for(std::span<std::uint8_t> buffer, milliseconds wait) { return Reading{*this, buffer, wait}; }
@@ -227,10 +278,10 @@ private:
                 master.clock_->sleep_until(until);
                 return true;
             }
-            return master.clock_->now() >= until;
+            return master.closed_ || master.clock_->now() >= until;
         }
         void await_suspend(std::coroutine_handle<> resume) {
-            master.loop_->wait(-1, until, [resume] { resume.resume(); });
+            master.wait_on_loop(-1, until, [resume] { resume.resume(); }, [resume] { resume.resume(); });
         }
         void await_resume() {}
     };
@@ -241,6 +292,7 @@ private:
     // the loop's timer with one, so that a frame's wire time holds no other line.
     Task<Result<void>> send(ByteView frame) {
         if (!loop_) co_return stream_->write(frame);
+        if (closed_) co_return closing_error();
         auto left = stream_->write_without_waiting(frame);
         if (!left) co_return left.error();
         co_await sleep_until(*left);
@@ -704,6 +756,9 @@ private:
     std::deque<std::function<DetachedTask()>> queued_;
     std::optional<DetachedTask> current_;
     std::promise<void>* closing_ = nullptr;
+    bool closed_ = false;  // close() or the destructor came: nothing more is sent or waited for
+    std::optional<LineLoop::WaitId> waiting_;  // the wait under way on the loop, if any
+    std::function<void()> abandon_;  // ends that wait early, when closing
     JobQueue jobs_{"lw-serial"};  // last member: its thread stops before the rest is destroyed
 };
 

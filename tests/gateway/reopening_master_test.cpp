@@ -16,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/never_sent.hpp"
 #include "gateway/reopening_master.hpp"
 #include "session/line_loop.hpp"
 #include "session/slave.hpp"
@@ -504,6 +505,55 @@ TEST(ReopeningMasterOnALoop, AnUpLineHasNoThreadOfItsOwnAndItsWorkerEndsOnceTheL
     EXPECT_EQ(opened.load(), 2);
     EXPECT_TRUE(eventually([] { return testing::threads_named_like("lw-line ") == 0; }, "the worker ended once idle"));
     EXPECT_EQ(ask().value(), normal_reply());
+}
+
+// close(), as a stopping gateway calls it: a read waiting for a unit that never answers (the
+// timeout a minute) ends at once, and so does every request after it, each with a link error
+// marked abandoned (common/never_sent.hpp), so that a poll's outcome tells nothing of its device;
+// and the line is not taken for down (no outage logged, no reopening).
+TEST(ReopeningMasterOnALoop, CloseEndsTheReadUnderWayAndTheLineIsNotDown) {
+    const auto link = *transport::parse_link_url("rtu:virtual?baud=115200");
+    auto bus = transport::VirtualBus::create(115200, link.serial.bits_per_character());
+    auto bank = std::make_shared<session::RegisterBank>();
+    auto loop = std::make_shared<session::LineLoop>();
+    simulation::SimulatedLines devices(loop);
+    ASSERT_TRUE(devices.add(bus->attach("devices", transport::VirtualBus::Writes::return_at_once),
+                            std::make_unique<session::Slave>(link, session::UnitMap{{1, bank}})));
+    MasterOpener open = [&]() -> Result<std::unique_ptr<session::Master>> {
+        session::MasterOptions options;
+        options.timeout = 60s;
+        options.loop = loop;
+        return session::make_serial_master(bus->attach("gateway"), link, options);
+    };
+    std::vector<std::string> logged;
+    std::mutex log_mutex;
+    LinkLog log = [&](const std::string& line) {
+        std::lock_guard lock(log_mutex);
+        logged.push_back(line);
+    };
+    ReopeningMaster line("kiln", link.to_string(), open, ReopenSchedule{}, steady_clock(), log, LinkConcurrency::on_loop, loop);
+    ASSERT_TRUE(line.start().ok());
+    std::promise<Result<Bytes>> answered;
+    line.forward_async(7, read_pdu(), [&answered](Result<Bytes> result) { answered.set_value(std::move(result)); });  // nobody is unit 7
+    line.close();
+    auto future = answered.get_future();
+    ASSERT_EQ(future.wait_for(30s), std::future_status::ready) << "the read waited on after close()";
+    const auto ended = future.get();
+    ASSERT_FALSE(ended);
+    EXPECT_TRUE(abandoned(ended.error())) << ended.error().message;
+
+    std::promise<Result<Bytes>> refused;
+    line.forward_async(1, read_pdu(), [&refused](Result<Bytes> result) { refused.set_value(std::move(result)); });
+    const auto after = refused.get_future().get();
+    ASSERT_FALSE(after);
+    EXPECT_TRUE(abandoned(after.error())) << after.error().message;
+    EXPECT_THAT(after.error().message, HasSubstr("is closing"));
+
+    const auto health = line.health();
+    EXPECT_TRUE(health.up);
+    EXPECT_EQ(health.down_periods, 0U);
+    std::lock_guard lock(log_mutex);
+    EXPECT_TRUE(logged.empty()) << logged.front();
 }
 
 }  // namespace

@@ -71,15 +71,16 @@ public:
         device::record_skipped(state_);
         return state_;
     }
-    // The poll's first block was read, its second expired in the line's queue (never sent).
-    const device::WatchedDevice& unsent(device::EngineeringValue measured) {
+    // The poll's first block was read, its second expired in the line's queue (never sent), or
+    // ended with `why` (a line closed under it).
+    const device::WatchedDevice& unsent(device::EngineeringValue measured,
+                                        const Error& why = make_error(ErrorKind::timeout,
+                                                                      "unit 3: the deadline passed before the line was free; not sent",
+                                                                      not_sent_code)) {
         device::ReadReport report;
         report.readings.push_back({&measured_, measured, ""});
-        report.readings.push_back({&set_point_, std::nullopt, "unit 3: the deadline passed before the line was free; not sent"});
-        device::record_outcome(state_, report,
-                               make_error(ErrorKind::timeout, "unit 3: the deadline passed before the line was free; not sent",
-                                          not_sent_code),
-                               device::MonitorClock::now());
+        report.readings.push_back({&set_point_, std::nullopt, why.message});
+        device::record_outcome(state_, report, why, device::MonitorClock::now());
         return state_;
     }
 
@@ -254,6 +255,25 @@ TEST(ValueCache, APollThatWasNeverSentTellsNothing) {
     EXPECT_TRUE(seen.state.values.at(1).fresh);
     cache.update("oven1", oven.answered(tenths(252), tenths(2100)), sample_time + 2s);
     EXPECT_EQ(told.names(), (std::vector<std::string>{"measured_value", "set_point"}));
+}
+
+// A poll whose line was closed under it (a gateway stopping or reloading, Master::close) is no
+// news of the device either: not `line-down`, nothing told, the values kept.
+TEST(ValueCache, APollWhoseLineWasClosedUnderItTellsNothing) {
+    ValueCache cache;
+    Told told;
+    auto subscription = cache.subscribe(told.collect());
+    Device oven;
+    cache.update("oven1", oven.answered(tenths(250), tenths(1375)), sample_time);
+    told.changes.clear();
+    const auto& state = oven.unsent(tenths(251), make_error(ErrorKind::link, "line kiln (rtu:/dev/ttyUSB0) is closing", abandoned_code));
+    EXPECT_EQ(state.status, device::DeviceStatus::waiting);
+    EXPECT_EQ(state.errors, 0U) << "not a failed poll";
+    cache.update("oven1", state, sample_time + 1s);
+    EXPECT_TRUE(told.changes.empty()) << told.names().size();
+    const auto seen = cache.snapshot().at(0);
+    EXPECT_EQ(seen.state.status, device::DeviceStatus::ok);
+    EXPECT_TRUE(seen.state.values.at(1).fresh);
 }
 
 // Staleness, in virtual time: a device polled every second whose poll stops coming back.

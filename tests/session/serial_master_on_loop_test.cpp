@@ -152,9 +152,10 @@ TEST(SerialMastersOnALoop, ABlockingCallOnTheLoopItselfIsRefused) {
     EXPECT_NE(refused.error().message.find("would never end"), std::string::npos) << refused.error().message;
 }
 
-// A master destroyed with requests still queued carries them first, as the blocking master's
-// job queue does: every completion runs, with the right value.
-TEST(SerialMastersOnALoop, DestroyingAMasterCarriesWhatWasQueuedFirst) {
+// A master destroyed with requests still queued ends each of them: every completion runs, with
+// the right value (what was carried before the destruction reached the loop) or the closing
+// error, never a wrong value and never lost.
+TEST(SerialMastersOnALoop, DestroyingAMasterEndsWhatWasQueued) {
     auto loop = std::make_shared<LineLoop>();
     simulation::SimulatedLines devices(loop);  // the devices answer from the masters' loop too
     Line line = served_line(devices, 115200);
@@ -163,7 +164,32 @@ TEST(SerialMastersOnALoop, DestroyingAMasterCarriesWhatWasQueuedFirst) {
     Answers answers;
     for (int n = 0; n < 5; ++n) master->execute_async(1, read_holding(3, 1), answers.expect({77}));
     master.reset();
-    EXPECT_EQ(answers.right(), 5) << answers.last_error();
+    EXPECT_EQ(answers.right() + answers.failed(), 5);
+    EXPECT_EQ(answers.wrong(), 0);
+    if (answers.failed() > 0) {
+        EXPECT_NE(answers.last_error().find("the line is being closed"), std::string::npos) << answers.last_error();
+    }
+}
+
+// A master destroyed while it waits for a reply that will not come (nobody is unit 9, the
+// timeout a minute) does not wait the timeout out: the request ends at once with the closing
+// error, not a timeout (a gateway told to stop held its SIGTERM for the rest of a 20 s timeout).
+TEST(SerialMastersOnALoop, DestroyingAMasterEndsTheWaitUnderWay) {
+    auto loop = std::make_shared<LineLoop>();
+    simulation::SimulatedLines devices(loop);
+    Line line = served_line(devices, 115200);
+    line.bank->set(codec::Table::holding_registers, 3, 77);
+    auto master = master_on(line, loop, 60s, 0);
+    ASSERT_TRUE(master->execute(1, read_holding(3, 1)).ok());  // the line works
+    std::promise<Result<codec::Reply>> ended;
+    master->execute_async(9, read_holding(3, 1), [&ended](Result<codec::Reply> reply) { ended.set_value(std::move(reply)); });
+    master.reset();
+    auto reply = ended.get_future();
+    ASSERT_EQ(reply.wait_for(0s), std::future_status::ready) << "the destruction returned before the request ended";
+    const auto result = reply.get();
+    ASSERT_FALSE(result.ok());
+    EXPECT_EQ(result.error().kind, ErrorKind::link) << result.error().message;
+    EXPECT_NE(result.error().message.find("the line is being closed"), std::string::npos) << result.error().message;
 }
 
 // Every reply comes twice, the copy 25 ms after the first: on a loop as on a thread, a copy is
