@@ -71,12 +71,9 @@ public:
         device::record_skipped(state_);
         return state_;
     }
-    // The poll's first block was read, its second expired in the line's queue (never sent), or
-    // ended with `why` (a line closed under it).
-    const device::WatchedDevice& unsent(device::EngineeringValue measured,
-                                        const Error& why = make_error(ErrorKind::timeout,
-                                                                      "unit 3: the deadline passed before the line was free; not sent",
-                                                                      not_sent_code)) {
+    // The poll's first block was read, its second ended with `why`, which tells nothing of the
+    // device (common/never_sent.hpp): it expired in the line's queue, or the line was closed.
+    const device::WatchedDevice& unsent(device::EngineeringValue measured, const Error& why) {
         device::ReadReport report;
         report.readings.push_back({&measured_, measured, ""});
         report.readings.push_back({&set_point_, std::nullopt, why.message});
@@ -233,47 +230,34 @@ TEST(ValueCache, ASampleThatSkipsADeviceInBackOffTellsNothing) {
     EXPECT_EQ(told.names(), (std::vector<std::string>{"(ok)", "measured_value", "set_point"}));
 }
 
-// A poll the line never sent (busy with writes and clients until the poll's deadline) is no news
-// of the device: it stays what its last poll found, with its values, on every front; it does not
-// become `no-reply`, a `partial` read or an offline device (the Sparkplug node's DDEATH).
-TEST(ValueCache, APollThatWasNeverSentTellsNothing) {
-    ValueCache cache;
-    Told told;
-    auto subscription = cache.subscribe(told.collect());
-    Device oven;
-    cache.update("oven1", oven.answered(tenths(250), tenths(1375)), sample_time);
-    told.changes.clear();
-    const auto& state = oven.unsent(tenths(251));
-    EXPECT_EQ(state.status, device::DeviceStatus::waiting);
-    EXPECT_EQ(state.errors, 0U) << "not a failed poll";
-    EXPECT_NE(state.last_error.find("not sent"), std::string::npos) << "the sample says why: " << state.last_error;
-    cache.update("oven1", state, sample_time + 1s);
-    EXPECT_TRUE(told.changes.empty()) << told.names().size();
-    const auto seen = cache.snapshot().at(0);
-    EXPECT_EQ(seen.state.status, device::DeviceStatus::ok);
-    EXPECT_EQ(seen.state.values.at(1).last->raw, 1375);
-    EXPECT_TRUE(seen.state.values.at(1).fresh);
-    cache.update("oven1", oven.answered(tenths(252), tenths(2100)), sample_time + 2s);
-    EXPECT_EQ(told.names(), (std::vector<std::string>{"measured_value", "set_point"}));
-}
-
-// A poll whose line was closed under it (a gateway stopping or reloading, Master::close) is no
-// news of the device either: not `line-down`, nothing told, the values kept.
-TEST(ValueCache, APollWhoseLineWasClosedUnderItTellsNothing) {
-    ValueCache cache;
-    Told told;
-    auto subscription = cache.subscribe(told.collect());
-    Device oven;
-    cache.update("oven1", oven.answered(tenths(250), tenths(1375)), sample_time);
-    told.changes.clear();
-    const auto& state = oven.unsent(tenths(251), make_error(ErrorKind::link, "line kiln (rtu:/dev/ttyUSB0) is closing", abandoned_code));
-    EXPECT_EQ(state.status, device::DeviceStatus::waiting);
-    EXPECT_EQ(state.errors, 0U) << "not a failed poll";
-    cache.update("oven1", state, sample_time + 1s);
-    EXPECT_TRUE(told.changes.empty()) << told.names().size();
-    const auto seen = cache.snapshot().at(0);
-    EXPECT_EQ(seen.state.status, device::DeviceStatus::ok);
-    EXPECT_TRUE(seen.state.values.at(1).fresh);
+// A poll the line never sent (busy with writes and clients until the poll's deadline), or whose
+// line was closed under it (a gateway stopping or reloading, Master::close), is no news of the
+// device: it stays what its last poll found, with its values, on every front; it does not become
+// `no-reply`, `line-down`, a `partial` read or an offline device (the Sparkplug node's DDEATH).
+TEST(ValueCache, APollThatWasNeverSentOrAbandonedTellsNothing) {
+    const Error never_sent = make_error(ErrorKind::timeout, "unit 3: the deadline passed before the line was free; not sent", not_sent_code);
+    const Error abandoned = make_error(ErrorKind::link, "line kiln (rtu:/dev/ttyUSB0) is closing", abandoned_code);
+    for (const Error& why : {never_sent, abandoned}) {
+        SCOPED_TRACE(why.message);
+        ValueCache cache;
+        Told told;
+        auto subscription = cache.subscribe(told.collect());
+        Device oven;
+        cache.update("oven1", oven.answered(tenths(250), tenths(1375)), sample_time);
+        told.changes.clear();
+        const auto& state = oven.unsent(tenths(251), why);
+        EXPECT_EQ(state.status, device::DeviceStatus::waiting);
+        EXPECT_EQ(state.errors, 0U) << "not a failed poll";
+        EXPECT_EQ(state.last_error, why.message) << "the sample says why";
+        cache.update("oven1", state, sample_time + 1s);
+        EXPECT_TRUE(told.changes.empty()) << told.names().size();
+        const auto seen = cache.snapshot().at(0);
+        EXPECT_EQ(seen.state.status, device::DeviceStatus::ok);
+        EXPECT_EQ(seen.state.values.at(1).last->raw, 1375);
+        EXPECT_TRUE(seen.state.values.at(1).fresh);
+        cache.update("oven1", oven.answered(tenths(252), tenths(2100)), sample_time + 2s);
+        EXPECT_EQ(told.names(), (std::vector<std::string>{"measured_value", "set_point"}));
+    }
 }
 
 // Staleness, in virtual time: a device polled every second whose poll stops coming back.
