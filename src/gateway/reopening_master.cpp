@@ -235,10 +235,24 @@ struct ReopeningMaster::State {
     }
 
     // ReopeningMaster::close: what the open master carries ends now, and nothing more is sent.
+    // The master's close runs outside `mutex`, counted as a sender so that it is not closed for
+    // good under it: a TCP master fails what it awaits right there, and those completions may
+    // hand the line its next request.
     void close_now() {
-        std::lock_guard lock(mutex);
-        closing = true;
-        if (master) master->close();  // posts to the master's loop: never blocks
+        session::Master* line = nullptr;
+        {
+            std::lock_guard lock(mutex);
+            closing = true;
+            if (!master) return;
+            line = master.get();
+            ++senders;
+        }
+        line->close();
+        {
+            std::lock_guard lock(mutex);
+            --senders;
+        }
+        no_senders.notify_all();
     }
 
     // For the destructor, once the worker has finished: the master goes while this state is

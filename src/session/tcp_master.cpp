@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "codec/tcp.hpp"
+#include "common/never_sent.hpp"
 #include "common/thread_name.hpp"
 #include "session/master.hpp"
 #include "session/reply_check.hpp"
@@ -88,7 +89,24 @@ public:
 
     std::string describe() const override { return link_.to_string(); }
 
+    // What awaits its reply fails now, on this thread, and what comes after at once; frames
+    // still waiting for the end of a loop's round are not written.
+    void close() override {
+        {
+            std::lock_guard lock(mutex_);
+            closed_ = true;
+            outgoing_.clear();
+            outgoing_transactions_.clear();
+        }
+        fail_all(closing_error());
+    }
+
 private:
+    Error closing_error() const {
+        return make_error(ErrorKind::link, link_.to_string() + ": the line is being closed (the gateway stops or reopens it); not waited for",
+                          abandoned_code);
+    }
+
     // Blocks until the completion `start` is given has run, and returns what it was given.
     template <typename T, typename Start>
     static Result<T> wait_for(Start start) {
@@ -100,6 +118,10 @@ private:
 
     void submit(PendingRequest pending) {
         std::unique_lock lock(mutex_);
+        if (closed_) {
+            lock.unlock();
+            return pending.done(closing_error());
+        }
         if (auto connected = ensure_connected(); !connected) {
             lock.unlock();
             return pending.done(connected.error());
@@ -321,6 +343,7 @@ private:
     std::map<std::uint16_t, PendingRequest> pending_;
     std::uint16_t next_transaction_ = 1;
     bool running_ = true;
+    bool closed_ = false;  // close(): nothing more is sent
     Bytes outgoing_;                // frames waiting for the end of the loop's round
     std::vector<std::uint16_t> outgoing_transactions_;  // theirs
     bool batch_flush_due_ = false;  // a flush of outgoing_ is deferred

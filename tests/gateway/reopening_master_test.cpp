@@ -337,6 +337,15 @@ public:
         script_->held.push_back(std::move(done));
     }
     std::string describe() const override { return "held link"; }
+    // As the TCP master's: what it holds fails now, on the caller's thread, marked abandoned.
+    void close() override {
+        std::deque<ForwardCompletion> left;
+        {
+            std::lock_guard lock(script_->mutex);
+            left.swap(script_->held);
+        }
+        for (auto& done : left) done(make_error(ErrorKind::link, "held link: closed, not waited for", abandoned_code));
+    }
 
 private:
     std::shared_ptr<HeldLinkScript> script_;
@@ -426,6 +435,45 @@ TEST(ConcurrentReopeningMaster, CarriesSeveralAtOnceAndClosesALinkThatFailedUnde
     line.forward_async(1, read_pdu(), record);
     line.forward_async(1, read_pdu(), record);
     EXPECT_EQ(second->waiting(), 2U);
+}
+
+// A gateway that stops closes its lines: on a Modbus TCP line the link fails what it awaits right
+// there, on the closing thread, and a completion that hands the line its next request (as the
+// line's scheduler does) is refused at once, marked abandoned, without deadlocking on the line;
+// the line is not taken for down.
+TEST(ConcurrentReopeningMaster, CloseEndsWhatTheLinkAwaitsAndRefusesWhatComesNextWithoutTakingTheLineDown) {
+    auto clock = std::make_shared<VirtualClock>();
+    auto script = std::make_shared<HeldLinkScript>();
+    MasterOpener open = [script]() -> Result<std::unique_ptr<session::Master>> {
+        return std::unique_ptr<session::Master>(std::make_unique<HeldLink>(script));
+    };
+    ReopeningMaster line("plc", "tcp://192.0.2.7:502", open, ReopenSchedule{}, clock, {}, LinkConcurrency::several);
+    ASSERT_TRUE(line.start().ok());
+    std::promise<Result<Bytes>> next;
+    std::optional<Result<Bytes>> awaited;
+    line.forward_async(1, read_pdu(), [&](Result<Bytes> result) {
+        awaited.emplace(std::move(result));
+        line.forward_async(1, read_pdu(), [&next](Result<Bytes> refused) { next.set_value(std::move(refused)); });
+    });
+    ASSERT_EQ(script->waiting(), 1U);
+
+    auto closed = std::async(std::launch::async, [&line] { line.close(); });
+    if (closed.wait_for(30s) != std::future_status::ready) {
+        ADD_FAILURE() << "close() did not return: the completion it ran could not reach the line";
+        std::abort();  // the closing thread still refers to the line
+    }
+    ASSERT_TRUE(awaited.has_value());
+    ASSERT_FALSE(awaited->ok());
+    EXPECT_TRUE(abandoned(awaited->error())) << awaited->error().message;
+    auto refused = next.get_future();
+    ASSERT_EQ(refused.wait_for(30s), std::future_status::ready);
+    const auto after = refused.get();
+    ASSERT_FALSE(after.ok());
+    EXPECT_TRUE(abandoned(after.error())) << after.error().message;
+    EXPECT_THAT(after.error().message, HasSubstr("line plc (tcp://192.0.2.7:502) is closing"));
+    EXPECT_EQ(script->waiting(), 0U) << "a request reached the link after close()";
+    EXPECT_TRUE(line.health().up);
+    EXPECT_EQ(line.health().down_periods, 0U);
 }
 
 // A bus port that fails as an unplugged adapter does while the test says so.

@@ -5,6 +5,7 @@
 #include <thread>
 
 #include "codec/tcp.hpp"
+#include "common/never_sent.hpp"
 #include "session/master.hpp"
 #include "simulation/register_bank.hpp"
 #include "session/slave.hpp"
@@ -89,6 +90,37 @@ TEST(TcpMaster, TimesOutWhenTheServerStaysSilent) {
     EXPECT_EQ(reply.error().kind, ErrorKind::timeout);
     EXPECT_NE(reply.error().message.find("2 tries"), std::string::npos) << reply.error().message;
     EXPECT_GE(std::chrono::steady_clock::now() - start, 200ms);
+}
+
+// A gateway that stops or reloads closes its lines' masters: what awaits a reply from a server
+// that will not answer ends then, not at its timeout (an hour here), and nothing more is sent.
+TEST(TcpMaster, CloseEndsWhatAwaitsItsReplyAndSendsNothingMore) {
+    auto [listener, link] = listen_on_loopback();
+    MasterOptions options;
+    options.timeout = 1h;
+    auto master = open_master(link, options);
+    ASSERT_TRUE(master.ok());
+    auto accepted = listener->accept(10s);
+    ASSERT_TRUE(accepted.ok() && *accepted);
+    std::promise<Result<codec::Reply>> awaited;
+    (*master)->execute_async(1, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1),
+                             [&awaited](Result<codec::Reply> reply) { awaited.set_value(std::move(reply)); });
+    std::array<std::uint8_t, 64> buffer{};
+    const auto request = (*accepted)->read_some(buffer, 10s);
+    ASSERT_TRUE(request.ok() && *request == 12U) << "the request never reached the server";
+
+    (*master)->close();
+    auto ended = awaited.get_future();
+    ASSERT_EQ(ended.wait_for(30s), std::future_status::ready) << "close() did not end the request awaiting its reply";
+    const auto reply = ended.get();
+    ASSERT_FALSE(reply.ok());
+    EXPECT_TRUE(abandoned(reply.error())) << reply.error().message;
+
+    const auto after = (*master)->execute(1, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1));
+    ASSERT_FALSE(after.ok());
+    EXPECT_TRUE(abandoned(after.error())) << after.error().message;
+    const auto sent = (*accepted)->read_some(buffer, 100ms);
+    EXPECT_TRUE(sent.ok() && *sent == 0U) << "a request was sent after close()";
 }
 
 TEST(TcpMaster, RefusedConnectionIsALinkError) {
