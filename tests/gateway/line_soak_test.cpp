@@ -109,6 +109,24 @@ private:
 enum Spoiled { late, repeated, flipped, cut_short, garbage, spoil_kinds };
 constexpr std::array<const char*, spoil_kinds> spoiled_names{"late", "repeated", "bit-flipped", "cut short", "garbage"};
 
+long long milliseconds_at(Instant at) {
+    return static_cast<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(at.time_since_epoch()).count());
+}
+
+struct Noted {
+    Instant at;
+    std::string what;
+};
+
+// What was noted in [from, until), one line each with its time.
+std::string noted_between(const std::vector<Noted>& notes, Instant from, Instant until) {
+    std::string text;
+    for (const auto& note : notes) {
+        if (note.at >= from && note.at < until) text += fmt::format("\n  {} ms {}", milliseconds_at(note.at), note.what);
+    }
+    return text;
+}
+
 // Everything counted, on the loop's thread only (copied out when the day ends).
 struct Tally {
     std::uint64_t polls_answered = 0;
@@ -132,6 +150,11 @@ struct Tally {
     // the end of the day.
     std::size_t resident_settled = 0;
     std::size_t resident_at_end = 0;
+    // What the lines logged (reopening_master.hpp: down, still down, up again) and why each
+    // device's polls failed in the five minutes after each outage: shown for a device that came
+    // back late.
+    std::vector<std::vector<Noted>> line_log = std::vector<std::vector<Noted>>(line_count);
+    std::vector<std::vector<Noted>> failed_after_outage = std::vector<std::vector<Noted>>(line_count * units_per_line);
 };
 
 std::size_t resident_bytes() {
@@ -209,7 +232,7 @@ private:
             for (int unit = 1; unit <= units_per_line; ++unit) devices.push_back(std::make_shared<Device>(index, unit));
             master = std::make_shared<ReopeningMaster>(
                 fmt::format("line{}", index), link().to_string(), [this] { return open(); }, ReopenSchedule{}, soak.clock_,
-                LinkLog{}, LinkConcurrency::on_loop, soak.loop_);
+                [this](const std::string& said) { log(said); }, LinkConcurrency::on_loop, soak.loop_);
             scheduler = std::make_unique<LineScheduler>(master, LineSchedulerOptions{}, soak.clock_);
         }
 
@@ -237,10 +260,20 @@ private:
         // On the loop: the master's last frames, shown with a wrong value.
         void remember(const session::TraceEvent& event) {
             static constexpr const char* directions[] = {"sent", "received", "discarded"};
-            const auto at = std::chrono::duration_cast<std::chrono::milliseconds>(event.at.time_since_epoch()).count();
+            const auto at = milliseconds_at(event.at);
             recent_frames.push_back(fmt::format("{} ms {} {:02x} ({})", at, directions[static_cast<int>(event.direction)],
                                                 fmt::join(event.bytes, " "), event.note));
             if (recent_frames.size() > 24) recent_frames.pop_front();
+        }
+
+        // On the loop or the line's reopening worker.
+        void log(const std::string& said) {
+            std::lock_guard lock(log_mutex);
+            said_.push_back({soak.clock_->now(), said});
+        }
+        std::vector<Noted> said() {
+            std::lock_guard lock(log_mutex);
+            return said_;
         }
 
         // On the loop.
@@ -258,6 +291,8 @@ private:
         std::mutex mutex;     // guards wire and unplugged_until: open() runs on the reopening worker
         std::shared_ptr<testing::VirtualTimeWire> wire;
         Instant unplugged_until{};
+        std::mutex log_mutex;  // guards said_
+        std::vector<Noted> said_;
         std::shared_ptr<ReopeningMaster> master;
         std::unique_ptr<LineScheduler> scheduler;  // after the master: goes first
     };
@@ -341,16 +376,22 @@ private:
         Line& line = *lines_[static_cast<std::size_t>(line_index)];
         const std::size_t device = static_cast<std::size_t>(line_index * units_per_line + unit - 1);
         if (polling_[device]) return void(++tally_.polls_overlapping);
-        if (line.scheduler->hold_poll(static_cast<std::uint8_t>(unit))) return void(++tally_.polls_held);
+        if (const auto held = line.scheduler->hold_poll(static_cast<std::uint8_t>(unit))) {
+            ++tally_.polls_held;
+            return note_after_outage(line_index, unit, fmt::format("poll held until {} ms", milliseconds_at(*held)));
+        }
         polling_[device] = true;
         LineRequest request;
         request.unit = static_cast<std::uint8_t>(unit);
         request.pdu = read_pdu(0, polled_registers);
         request.priority = Priority::poll;
         request.deadline = tick + poll_interval;
-        request.done = completion([this, device, line_index, expected = expected_read(line_index, unit, 0, polled_registers)](Result<Bytes> reply) {
+        request.done = completion([this, device, line_index, unit, expected = expected_read(line_index, unit, 0, polled_registers)](Result<Bytes> reply) {
             polling_[device] = false;
-            if (!reply) return void(++tally_.polls_failed);
+            if (!reply) {
+                ++tally_.polls_failed;
+                return note_after_outage(line_index, unit, "poll failed: " + reply.error().message);
+            }
             if (!judge(*reply, expected, "poll", line_index)) return;
             ++tally_.polls_answered;
             tally_.answered_polls[device].push_back(clock_->now());
@@ -393,6 +434,17 @@ private:
         lines_[static_cast<std::size_t>(line)]->scheduler->submit(std::move(request));
     }
 
+    // On the loop: what happened to a device's poll, kept if an outage of the device ended in the
+    // last five minutes.
+    void note_after_outage(int line, int unit, const std::string& what) {
+        const Instant now = clock_->now();
+        const bool after_outage = std::any_of(outages_.begin(), outages_.end(), [&](const Outage& outage) {
+            return outage.affects(line, unit) && now >= outage.until && now < outage.until + 5min;
+        });
+        if (!after_outage) return;
+        tally_.failed_after_outage[static_cast<std::size_t>(line * units_per_line + unit - 1)].push_back({now, what});
+    }
+
     bool judge(const Bytes& reply, const Bytes& expected, const char* what, int line) {
         if (reply == expected) return true;
         ++tally_.wrong;
@@ -424,6 +476,7 @@ private:
             tally_.bad_replies += statistics.bad_replies;
             tally_.timeouts += statistics.timeouts;
             tally_.reopened += line->master->health().reopened;
+            tally_.line_log[static_cast<std::size_t>(line->index)] = line->said();
         }
         tally_.resident_at_end = resident_bytes();
         day.set_value(tally_);
@@ -517,7 +570,11 @@ TEST(LineSoak, ADayOfFaultsOnFourLinesServesNoWrongValueAndEveryDeviceComesBack)
                     << std::chrono::duration_cast<std::chrono::milliseconds>(*back - outage.until).count()
                     << " ms after its outage ended, "
                     << std::chrono::duration_cast<std::chrono::milliseconds>(*back - since).count()
-                    << " ms after the outage or the last spoiled reply since";
+                    << " ms after the outage or the last spoiled reply since (outage " << milliseconds_at(outage.from) << " to "
+                    << milliseconds_at(outage.until) << " ms)\nthe line's log:"
+                    << noted_between(tally.line_log[static_cast<std::size_t>(line)], outage.from - 1min, *back)
+                    << "\nthe device's polls that failed or were held since:"
+                    << noted_between(tally.failed_after_outage[static_cast<std::size_t>(line * units_per_line + unit - 1)], outage.until, *back);
                 // And not a poll was answered while the device could not answer.
                 const auto during = first_answer(answered, outage.from + 1s);
                 if (during) {
