@@ -14,6 +14,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "common/never_sent.hpp"
@@ -553,6 +554,82 @@ TEST(ReopeningMasterOnALoop, AnUpLineHasNoThreadOfItsOwnAndItsWorkerEndsOnceTheL
     EXPECT_EQ(opened.load(), 2);
     EXPECT_TRUE(eventually([] { return testing::threads_named_like("lw-line ") == 0; }, "the worker ended once idle"));
     EXPECT_EQ(ask().value(), normal_reply());
+}
+
+// A link on the loop that fails every request as a pulled adapter does, and whose closing takes
+// as long as the test says (a loaded machine's worker).
+class SlowToCloseLink final : public session::Master {
+public:
+    SlowToCloseLink(std::shared_ptr<session::LineLoop> loop, std::shared_future<void> closed_when, std::promise<void>& closing)
+        : loop_(std::move(loop)), closed_when_(std::move(closed_when)), closing_(closing) {}
+    ~SlowToCloseLink() override {
+        closing_.set_value();
+        closed_when_.wait();
+    }
+    Result<codec::Reply> execute(std::uint8_t, const codec::Request&) override { return unplugged(); }
+    void execute_async(std::uint8_t, codec::Request, Completion done) override {
+        loop_->post([done = std::move(done)] { done(unplugged()); });
+    }
+    Result<Bytes> forward(std::uint8_t, ByteView) override { return unplugged(); }
+    void forward_async(std::uint8_t, Bytes, ForwardCompletion done) override {
+        loop_->post([done = std::move(done)] { done(unplugged()); });
+    }
+    std::string describe() const override { return "slow to close"; }
+
+private:
+    static Error unplugged() { return make_error(ErrorKind::link, "serial port /dev/ttyUSB3 hung up: the adapter was unplugged"); }
+
+    std::shared_ptr<session::LineLoop> loop_;
+    std::shared_future<void> closed_when_;
+    std::promise<void>& closing_;
+};
+
+// In virtual time the line's time stands still while its worker closes a master a request found
+// failed: otherwise the plant clock runs on to the next deadline (here a timer 10 minutes on)
+// with the line down and refusing, however soon the adapter is back (the soak's line came back
+// 197 s of plant time after its outage when a loaded machine's worker was slow to close).
+TEST(ReopeningMasterOnALoop, ClosingAFailedMasterHoldsTheLoopsVirtualTime) {
+    auto clock = std::make_shared<VirtualClock>();
+    auto loop = std::make_shared<session::LineLoop>(clock);
+    std::promise<void> release;
+    std::promise<void> closing;
+    std::shared_future<void> closed_when = release.get_future().share();
+    MasterOpener open = [&]() -> Result<std::unique_ptr<session::Master>> {
+        return std::unique_ptr<session::Master>(std::make_unique<SlowToCloseLink>(loop, closed_when, closing));
+    };
+    ReopeningMaster line("kiln", "rtu:/dev/ttyUSB3?baud=19200", open, ReopenSchedule{}, clock, {}, LinkConcurrency::on_loop, loop);
+    ASSERT_TRUE(line.start().ok());
+    // Lets the worker go at the end whatever failed (the line joins it as it goes).
+    struct ReleaseAtEnd {
+        std::promise<void>& release;
+        bool released = false;
+        void now() {
+            if (!std::exchange(released, true)) release.set_value();
+        }
+        ~ReleaseAtEnd() { now(); }
+    } release_at_end{release};
+    const Instant start = clock->now();
+    std::promise<Instant> timer_fired;
+    std::promise<Result<Bytes>> failed;
+    loop->post([&] {
+        loop->wait(-1, start + 10min, [&] { timer_fired.set_value(clock->now()); });
+        line.forward_async(1, read_pdu(), [&](Result<Bytes> result) { failed.set_value(std::move(result)); });
+    });
+    auto failure = failed.get_future();
+    ASSERT_EQ(failure.wait_for(30s), std::future_status::ready);
+    EXPECT_THAT(failure.get().error().message, HasSubstr("unplugged"));
+    ASSERT_EQ(closing.get_future().wait_for(30s), std::future_status::ready) << "the failed master was never closed";
+
+    // The worker is inside the master's destructor: given time, a loop whose time is not held
+    // would jump to the timer.
+    auto fired = timer_fired.get_future();
+    EXPECT_EQ(fired.wait_for(200ms), std::future_status::timeout) << "the plant clock ran on while the worker closed the line";
+    EXPECT_LT(clock->now(), start + 1s);
+
+    release_at_end.now();
+    ASSERT_EQ(fired.wait_for(30s), std::future_status::ready) << "the time was never let go";
+    EXPECT_EQ(fired.get(), start + 10min);
+    EXPECT_FALSE(line.health().up);
 }
 
 // close(), as a stopping gateway calls it: a read waiting for a unit that never answers (the
