@@ -10,12 +10,21 @@ const artifacts = process.env.LOOPWIRE_ARTIFACTS || "test-results";
 const PHONE = { width: 390, height: 844 };
 let gateway;
 
+// A request that gets no answer at all (the connection closed or reset) says whether the gateway
+// still runs and what it said last: a crash under a sanitizer shows its report there.
 async function api(request, method, url, body) {
-  const response = await request.fetch(`${gateway.base}${url}`, {
-    method,
-    headers: { Authorization: `Bearer ${gateway.token}`, "Content-Type": "application/json" },
-    data: body ? JSON.stringify(body) : undefined,
-  });
+  let response;
+  try {
+    response = await request.fetch(`${gateway.base}${url}`, {
+      method,
+      headers: { Authorization: `Bearer ${gateway.token}`, "Content-Type": "application/json" },
+      data: body ? JSON.stringify(body) : undefined,
+    });
+  } catch (error) {
+    const said = gateway.output.text.split("\n").slice(-40).join("\n");
+    throw new Error(`${method} ${url}: no answer (${error.message.split("\n")[0]}); the gateway ${gateway.output.exited ? "has exited" : "still runs"}; ` +
+      `its last words:\n${said}`);
+  }
   return { status: response.status(), body: await response.json().catch(() => null) };
 }
 
