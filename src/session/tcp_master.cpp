@@ -303,6 +303,9 @@ private:
         std::vector<Finished> finished;
         {
             std::lock_guard lock(mutex_);
+            // Closing: close() fails everything pending right after it lets the mutex go; a
+            // request overdue in that window is neither sent again nor told it timed out.
+            if (closed_) return;
             const auto now = Clock::now();
             for (auto it = pending_.begin(); it != pending_.end();) {
                 if (it->second.deadline > now) { ++it; continue; }
