@@ -423,6 +423,7 @@ private:
         trace(TraceDirection::sent, *frame, transaction);
         auto written = co_await send(*frame);
         const Instant sent_at = clock_->now();
+        if (!reads_only(pdu[0])) written_at_[unit] = sent_at;
         line_quiet_since_ = sent_at;
         if (!written) co_return written.error();
         if (unit == 0) {
@@ -555,27 +556,33 @@ private:
     // may be a copy of it (a repeater sending a frame twice), or the real reply of a register
     // that holds the same value. It is taken as the reply when it comes when this unit's replies
     // usually come; not when it comes later than that (the real reply, usually on time, has not
-    // come: a copy is the likelier), nor at all on a line seen sending copies within the last
-    // ten minutes, where a request may fail (0Bh) rather than risk another request's value.
+    // come: a copy is the likelier), nor when a damaged frame or another unit's came first in the
+    // wait (that may have been the real reply, spoiled), nor at all on a line seen sending copies
+    // within the last ten minutes, where a request may fail (0Bh) rather than risk another
+    // request's value. The same read asked again after a write to the unit counts as another
+    // request: a copy of its reply from before the write would be a value the write replaced
+    // (a client's read-modify-write read back; the soak, tests/gateway/line_soak_test.cpp,
+    // found it).
     // Lateness alone is suspicion, not proof: a loaded host delivers a real reply late now and
     // then, so it does not mark the line as one that sends copies (a copy heard between
     // exchanges, or a second frame for one request, does), and the request is tried again
     // (exchange) while tries remain, so that a late reply equal to another register's costs
     // its request one more try, not every such request for ten minutes.
     Result<void> not_a_duplicate(const Awaited& awaited, ByteView raw) {
-        const auto copied = earlier_copy(raw, awaited.request);
+        const auto copied = earlier_copy(raw, awaited.request, awaited.unit);
         if (!copied) return {};
         const auto now = clock_->now();
         const bool late =
             awaited.usual > Duration::zero() && now - awaited.sent_at > awaited.usual + inter_frame_gap_ + reply_jitter;
         const bool marked = line_sends_copies();
-        if (!late && !marked) return {};
+        if (!late && !marked && awaited.clean) return {};
         if (marked) copy_seen_at_ = now;
+        const char* why = late ? "and later than this unit answers"
+                               : (marked ? "on a line that has sent copies" : "after a damaged or another unit's frame");
         return make_error(ErrorKind::mismatch,
                           fmt::format("the same bytes as the reply to another request {} ms ago, {}: a duplicate, "
                                       "probably; not taken",
-                                      std::chrono::duration_cast<milliseconds>(now - copied->at).count(),
-                                      late ? "and later than this unit answers" : "on a line that has sent copies"));
+                                      std::chrono::duration_cast<milliseconds>(now - copied->at).count(), why));
     }
 
     // The last frames from the units asked, with the request each came for.
@@ -590,16 +597,29 @@ private:
         recent_frames_.push_back({Bytes(raw.begin(), raw.end()), Bytes(request.begin(), request.end()), clock_->now()});
     }
 
-    // A frame seen with the same bytes for another request (for `request` itself it would be its
-    // answer all the same), recently enough for a copy of it to be still on its way.
-    std::optional<SeenFrame> earlier_copy(ByteView raw, ByteView request) const {
+    // A frame seen with the same bytes for another request, recently enough for a copy of it to
+    // be still on its way. For `request` itself it would be its answer all the same, unless the
+    // unit was written since (then it is another request's: the one before the write).
+    std::optional<SeenFrame> earlier_copy(ByteView raw, ByteView request, std::uint8_t unit) const {
         const auto recent = clock_->now() - (options_.timeout + late_reply_window());
         for (const auto& seen : recent_frames_) {
-            if (seen.at >= recent && std::ranges::equal(seen.raw, raw) && !std::ranges::equal(seen.request, request)) {
+            if (seen.at >= recent && std::ranges::equal(seen.raw, raw) &&
+                (!std::ranges::equal(seen.request, request) || written_since(unit, seen.at))) {
                 return seen;
             }
         }
         return std::nullopt;
+    }
+
+    // Functions 1-4 read; anything else may change what a read of the unit answers.
+    static bool reads_only(std::uint8_t function) { return function >= 1 && function <= 4; }
+
+    // Whether a request that may change the unit's registers (to it, or broadcast) was sent after `at`.
+    bool written_since(std::uint8_t unit, Instant at) const {
+        return std::ranges::any_of(std::array<std::uint8_t, 2>{unit, std::uint8_t{0}}, [&](std::uint8_t to) {
+            const auto found = written_at_.find(to);
+            return found != written_at_.end() && found->second > at;
+        });
     }
 
     bool is_copy_of_recent(ByteView raw) const {
@@ -653,7 +673,7 @@ private:
         // just when this reply was due, with the real reply a little behind it: the silence is
         // kept for the reply jitter too, so that the real one, if it comes, makes it ambiguous.
         // Only replies equal to a recent one pay this wait.
-        if (!retry && earlier_copy(accepted.raw, awaited.request)) {
+        if (!retry && earlier_copy(accepted.raw, awaited.request, awaited.unit)) {
             quiet_until = std::max(quiet_until, usual_start + reply_jitter + inter_frame_gap_);
         }
         // A line that keeps talking after the reply cannot settle the question: give up at the
@@ -684,7 +704,7 @@ private:
         if (ambiguity && !retry) {
             // The frame taken first was a copy of another request's reply, and the real one came:
             // this line sends copies.
-            if (earlier_copy(accepted.raw, awaited.request)) copy_seen_at_ = clock_->now();
+            if (earlier_copy(accepted.raw, awaited.request, awaited.unit)) copy_seen_at_ = clock_->now();
             awaited.clean = false;
             const auto why = make_error(
                 ErrorKind::mismatch,
@@ -750,6 +770,7 @@ private:
     static constexpr std::size_t recent_frames_kept = 16;
     std::deque<SeenFrame> recent_frames_;
     std::optional<Instant> copy_seen_at_;  // when a copy of a frame was last seen
+    std::map<std::uint8_t, Instant> written_at_;  // when a request that may write was last sent, by unit (0: broadcast)
     bool last_try_refused_a_copy_ = false;  // the last try's wait refused a frame as a probable copy
     // On the loop (MasterOptions::loop): the jobs waiting, the one carried, and the destructor
     // waiting for both to end.

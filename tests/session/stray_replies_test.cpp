@@ -315,6 +315,47 @@ TEST(StrayReplies, ACopyOnTimeWithTheRealReplyALittleLateIsAmbiguous) {
     EXPECT_LT(m.clock->now() - before, latency + 5ms);
 }
 
+// A client's read-modify-write: it reads a register, writes it, and reads it back. The read-back's
+// real reply is spoiled on the line, and a repeater's copy of the first read's reply comes just
+// after: the same request's bytes, but from before the write, so the value it carries is the one
+// the write replaced. Not taken (the soak, tests/gateway/line_soak_test.cpp, found a client
+// reading back its old value). Without the write in between, the copy answers the read as well
+// as the real reply would, and is taken.
+TEST(StrayReplies, ACopyOfTheReplyBeforeAWriteIsNotTakenForTheSameReadAfterIt) {
+    for (const bool written : {true, false}) {
+        Bytes first_reply;
+        TracedMaster m([&first_reply](TimedLine& line, ByteView request, Instant at, unsigned n) {
+            if (request[1] == 0x06) return line.arrive(at + latency, Bytes(request.begin(), request.end()));  // the echo
+            const Bytes real = reply_frame_to(request);
+            if (n == 3) first_reply = real;
+            if (n >= 4) {  // the read-back
+                line.arrive(at + latency, Bytes{0x5b, 0xaf, 0x13, 0xf2, 0x2f, 0xac, 0x19});  // the real reply, garbled
+                line.arrive(at + latency + 3ms, first_reply);                                 // the copy
+                return;
+            }
+            line.arrive(at + latency, real);
+        });
+        for (const std::uint16_t address : {std::uint16_t{10}, std::uint16_t{11}, std::uint16_t{12}, std::uint16_t{777}}) {
+            ASSERT_TRUE(m.master->forward(unit, read_pdu(address)).ok());
+        }
+        if (written) {
+            Bytes write{0x06};
+            append_be16(write, 777);
+            append_be16(write, 5);
+            ASSERT_TRUE(m.master->forward(unit, write).ok());
+        }
+        auto read_back = m.master->forward(unit, read_pdu(777));
+        if (written) {
+            ASSERT_FALSE(read_back.ok()) << "took " << to_hex(*read_back) << ", the value from before the write";
+            EXPECT_EQ(read_back.error().kind, ErrorKind::mismatch);
+            EXPECT_EQ(m.discarded_with("a duplicate, probably"), 1u);
+        } else {
+            ASSERT_TRUE(read_back.ok()) << read_back.error().message;
+            EXPECT_EQ(to_hex(*read_back), to_hex(reply_pdu(777)));
+        }
+    }
+}
+
 // A real reply that comes late (a loaded host) with the same bytes as the reply to another
 // request (two registers holding the same value) looks like a copy and is refused, as the
 // request's own reply may have been lost. With a retry allowed the request is tried again and
