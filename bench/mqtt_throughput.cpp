@@ -37,6 +37,7 @@
 #include <mosquitto.h>
 
 #include "gateway/device_writer.hpp"
+#include "gateway/engine.hpp"
 #include "gateway/mqtt_bridge.hpp"
 #include "gateway/sparkplug/sparkplug_node.hpp"
 #include "gateway/value_cache.hpp"

@@ -6,7 +6,6 @@
 #include <mutex>
 #include <utility>
 
-#include <boost/asio/post.hpp>
 #include <fmt/format.h>
 
 #include "gateway/scheduled_master.hpp"
@@ -14,8 +13,6 @@
 
 namespace loopwire::gateway {
 
-namespace asio = boost::asio;
-using Clock = std::chrono::steady_clock;
 
 struct DeviceWriter::Target {
     WritableDevice device;
@@ -30,24 +27,26 @@ struct DeviceWriter::LineWriter {
         const Target* target = nullptr;
         std::vector<std::pair<const device::Parameter*, std::string>> planned;
         WrittenValues written;
-        Clock::time_point given_up;  // not started after this: the front's asker has waited enough
+        Instant given_up;  // not started after this: the front's asker has waited enough
         WriteCompletion done;
     };
 
     // The write under way: the client and master it goes through live until its end.
     struct Running {
-        Running(std::shared_ptr<LineScheduler> line, const WritableDevice& device, std::chrono::milliseconds left)
-            : name(device.name), master(std::move(line), "write " + device.name, Priority::write, left), client(master, device.address) {}
+        Running(std::shared_ptr<LineScheduler> line, const WritableDevice& device, std::chrono::milliseconds left,
+                std::shared_ptr<Clock> clock)
+            : name(device.name), master(std::move(line), "write " + device.name, Priority::write, left, std::move(clock)),
+              client(master, device.address) {}
         std::string name;  // the device's, as configured
         ScheduledMaster master;
         device::DeviceClient client;
     };
 
-    LineWriter(asio::io_context& engine_loop, std::shared_ptr<LineScheduler> scheduler, std::chrono::milliseconds given_up_after,
+    LineWriter(EventLoop& engine_loop, std::shared_ptr<LineScheduler> scheduler, std::chrono::milliseconds given_up_after,
                std::size_t queue_limit, std::shared_ptr<const WrittenHook> hook)
         : loop(engine_loop), written_hook(std::move(hook)), line(std::move(scheduler)), write_limit(given_up_after), limit(queue_limit) {}
 
-    asio::io_context& loop;
+    EventLoop& loop;
     std::shared_ptr<const WrittenHook> written_hook;
     std::shared_ptr<LineScheduler> line;
     std::chrono::milliseconds write_limit;
@@ -66,7 +65,7 @@ struct DeviceWriter::LineWriter {
             queue.push_back(std::move(job));
             start = !std::exchange(busy, true);
         }
-        if (start) asio::post(loop, [this] { start_next(); });
+        if (start) loop.post([this] { start_next(); });
         return true;
     }
 
@@ -89,7 +88,7 @@ struct DeviceWriter::LineWriter {
                 job = std::move(queue.front());
                 queue.pop_front();
             }
-            const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(job.given_up - Clock::now());
+            const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(job.given_up - loop.clock()->now());
             if (left <= std::chrono::milliseconds(0)) {
                 job.done(make_error(ErrorKind::timeout,
                                     fmt::format("device \"{}\": its line was busy with other writes for {} ms; nothing was "
@@ -97,7 +96,7 @@ struct DeviceWriter::LineWriter {
                 continue;
             }
             // Each request of the write may wait for the line only as long as the write has left.
-            auto running = std::make_shared<Running>(line, job.target->device, left);
+            auto running = std::make_shared<Running>(line, job.target->device, left, loop.clock());
             auto& client = running->client;
             client.write_async(std::move(job.planned),
                                [this, running, written = std::move(job.written), done = std::move(job.done)](
@@ -112,8 +111,8 @@ struct DeviceWriter::LineWriter {
                                    // completion may hold its front's connection (the HTTP API's),
                                    // whose timers belong to the front's thread: answered and let
                                    // go on the loop, its last hold is never dropped here.
-                                   asio::post(loop, [this, finished = std::move(running), done = std::move(done),
-                                                     outcome = std::move(outcome)]() mutable {
+                                   loop.post([this, finished = std::move(running), done = std::move(done),
+                                              outcome = std::move(outcome)]() mutable {
                                        if (outcome && *written_hook) (*written_hook)(finished->name, *outcome);
                                        done(std::move(outcome));
                                        done = nullptr;
@@ -143,15 +142,16 @@ struct DeviceWriter::LineWriter {
     }
 };
 
-DeviceWriter::DeviceWriter(Engine& engine, std::vector<WritableDevice> devices, std::chrono::milliseconds write_limit,
-                           std::size_t queue_limit) {
+DeviceWriter::DeviceWriter(EventLoop& loop, std::vector<WritableDevice> devices, std::chrono::milliseconds write_limit,
+                           std::size_t queue_limit)
+    : loop_(loop) {
     for (auto& device : devices) {
         LineWriter* writer = nullptr;
         for (const auto& line : lines_) {
             if (line->line == device.line) writer = line.get();
         }
         if (!writer) {
-            lines_.push_back(std::make_unique<LineWriter>(engine.loop(), device.line, write_limit, queue_limit, written_hook_));
+            lines_.push_back(std::make_unique<LineWriter>(loop, device.line, write_limit, queue_limit, written_hook_));
             writer = lines_.back().get();
         }
         targets_.push_back(std::make_unique<Target>(Target{std::move(device), writer}));
@@ -212,7 +212,7 @@ bool DeviceWriter::write_async(const std::string& device, std::vector<WriteAssig
         job.written.values.emplace_back(parameter->name, assignment.text);
         job.planned.emplace_back(parameter, std::move(assignment.text));
     }
-    job.given_up = Clock::now() + target->line->write_limit;
+    job.given_up = loop_.clock()->now() + target->line->write_limit;
     job.done = std::move(done);
     return target->line->submit(std::move(job));
 }

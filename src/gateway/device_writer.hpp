@@ -8,7 +8,8 @@
 // carried by the line's scheduler without blocking. A front hands a write over with
 // write_async() and hears the outcome from the completion, so a write waiting for a slow or
 // dead line never holds up a write to another line, nor the front's own thread. Each line's
-// queue is bounded: beyond `queue_limit` writes waiting, more are refused as busy.
+// queue is bounded: beyond `queue_limit` writes waiting, more are refused as busy. Time is the
+// loop's clock (gateway/event_loop.hpp): virtual in the soak (tests/gateway/line_soak_test.cpp).
 #include <chrono>
 #include <cstddef>
 #include <functional>
@@ -19,7 +20,7 @@
 
 #include "client/device_client.hpp"
 #include "common/result.hpp"
-#include "gateway/engine.hpp"
+#include "gateway/event_loop.hpp"
 #include "gateway/line_scheduler.hpp"
 
 namespace loopwire::gateway {
@@ -54,7 +55,7 @@ public:
 
     // `write_limit`: how long a write may wait for its line, from the moment it is queued,
     // before it is given up unsent. `queue_limit`: writes that may wait for one line.
-    DeviceWriter(Engine& engine, std::vector<WritableDevice> devices, std::chrono::milliseconds write_limit,
+    DeviceWriter(EventLoop& loop, std::vector<WritableDevice> devices, std::chrono::milliseconds write_limit,
                  std::size_t queue_limit = default_queue_limit);
     // Fails the writes still queued (ErrorKind::link, "gateway stopping"); each line's write
     // under way finishes and its completion runs first.
@@ -92,6 +93,7 @@ public:
 private:
     struct Target;
     struct LineWriter;
+    EventLoop& loop_;
     std::shared_ptr<WrittenHook> written_hook_ = std::make_shared<WrittenHook>();
     std::vector<std::unique_ptr<Target>> targets_;
     std::vector<std::unique_ptr<LineWriter>> lines_;  // one a line scheduler; stopped first

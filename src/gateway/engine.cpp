@@ -32,6 +32,23 @@ Engine::Engine(boost::asio::io_context& shared) : loop_(shared), busy_(boost::as
 
 Engine::~Engine() { stop(); }
 
+void Engine::post(std::function<void()> work) { boost::asio::post(loop_, std::move(work)); }
+
+EventLoop::TimerId Engine::at(Instant when, std::function<void()> work) {
+    const TimerId id = next_timer_++;
+    auto& timer = timers_->try_emplace(id, loop_).first->second;
+    timer.expires_at(when);
+    timer.async_wait([timers = std::weak_ptr<Timers>(timers_), id, work = std::move(work)](const boost::system::error_code& error) {
+        const auto table = timers.lock();
+        // Cancelled (the wait aborted, or due already and then taken out of the table).
+        if (error || !table || table->erase(id) == 0) return;
+        work();
+    });
+    return id;
+}
+
+void Engine::cancel(TimerId id) { timers_->erase(id); }
+
 void Engine::take_down(const std::function<void()>& work) {
     if (loop_.stopped() || (own_loop_ && !thread_.joinable())) return work();
     std::promise<void> ran;

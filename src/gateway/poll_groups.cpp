@@ -8,16 +8,12 @@
 #include <stop_token>
 #include <utility>
 
-#include <boost/asio/post.hpp>
-#include <boost/asio/steady_timer.hpp>
 #include <fmt/format.h>
 
 #include "client/device_status.hpp"
 
 namespace loopwire::gateway {
 namespace {
-
-namespace asio = boost::asio;
 
 // A group that fell behind is said to keep its interval again only after this many samples on
 // time in a row: a line at the edge of its capacity is one warning, not one per sample.
@@ -123,18 +119,15 @@ private:
 // stale or fresh again is logged once.
 class StalenessWatch {
 public:
-    StalenessWatch(asio::io_context& loop, ValueCache& cache, std::chrono::milliseconds tick, GatewayLog log)
-        : timer_(loop), cache_(cache), tick_(tick), log_(std::move(log)) {
+    StalenessWatch(EventLoop& loop, ValueCache& cache, std::chrono::milliseconds tick, GatewayLog log)
+        : loop_(loop), timer_(loop), cache_(cache), tick_(tick), log_(std::move(log)) {
         arm();
     }
 
 private:
     void arm() {
-        timer_.expires_after(tick_);
-        // A tick that had already expired when the watch was destroyed still runs, with no error
-        // (asio cancels only waits still pending): `alive` tells it the watch is gone.
-        timer_.async_wait([this, alive = std::weak_ptr<const bool>(alive_)](const boost::system::error_code& error) {
-            if (error || alive.expired()) return;  // cancelled or destroyed: the polls are stopping
+        // Cancelled when the watch goes (LoopTimer).
+        timer_.set(loop_.clock()->now() + tick_, [this] {
             look();
             arm();
         });
@@ -157,12 +150,12 @@ private:
         stale_ = now;
     }
 
-    asio::steady_timer timer_;
+    EventLoop& loop_;
+    LoopTimer timer_;
     ValueCache& cache_;
     std::chrono::milliseconds tick_;
     GatewayLog log_;
     std::set<std::string> stale_;
-    std::shared_ptr<const bool> alive_ = std::make_shared<const bool>(true);  // dies with the watch
 };
 
 }  // namespace
@@ -173,8 +166,7 @@ std::chrono::milliseconds staleness_tick(std::chrono::milliseconds shortest_inte
 
 // One poll group: its devices, and the sample in progress. Lives on the engine's loop thread.
 struct PollGroups::Group {
-    Group(asio::io_context& loop, std::chrono::milliseconds every)
-        : interval(every), timer(loop), schedule(device::MonitorClock::now(), every) {}
+    Group(EventLoop& loop, std::chrono::milliseconds every) : interval(every), timer(loop), schedule(loop.clock()->now(), every) {}
 
     std::chrono::milliseconds interval;
     std::vector<std::unique_ptr<ScheduledMaster>> masters;  // one per device: each names its line
@@ -187,7 +179,7 @@ struct PollGroups::Group {
     std::vector<std::optional<device::MonitorClock::time_point>> limits_read_at;
     std::vector<bool> reading_limits;
     std::unique_ptr<CachingSink> sink;
-    asio::steady_timer timer;
+    LoopTimer timer;  // cancelled when the group goes
     device::SampleSchedule schedule;
     unsigned index = 0;       // of the sample in progress, 1-based
     unsigned missed = 0;      // slots skipped before it
@@ -198,12 +190,14 @@ struct PollGroups::Group {
 // Every group's timers and polls, on the engine's loop (one thread for all of them), and the
 // reads in flight on the lines' threads (each ends by posting its outcome into the loop).
 struct PollGroups::State {
-    explicit State(asio::io_context& engine_loop) : loop(engine_loop) {}
+    explicit State(EventLoop& engine_loop) : loop(engine_loop) {}
+
+    Instant now() const { return loop.clock()->now(); }
 
     void start_sample(Group& group) {
         if (stopping.stop_requested()) return;
         ++group.index;
-        group.wall = std::chrono::system_clock::now();
+        group.wall = loop.wall_now();
         group.polling = 0;
         for (std::size_t i = 0; i < group.clients.size(); ++i) {
             auto& watched = group.watched[i];
@@ -218,8 +212,8 @@ struct PollGroups::State {
             read_started();
             group.clients[i]->read_async(parameters_of(group, i), stopping.get_token(),
                                          [this, &group, i](device::ReadReport report, std::optional<Error> stopped_by) {
-                                             asio::post(loop, [this, &group, i, report = std::move(report),
-                                                               stopped_by = std::move(stopped_by)] {
+                                             loop.post([this, &group, i, report = std::move(report),
+                                                        stopped_by = std::move(stopped_by)] {
                                                  if (!taken_down) device_polled(group, i, report, stopped_by);
                                              });
                                              read_ended();
@@ -229,33 +223,28 @@ struct PollGroups::State {
     }
 
     // The device's polled parameters, and the words bounding them when those are due again.
-    static std::vector<const device::Parameter*> parameters_of(Group& group, std::size_t i) {
+    std::vector<const device::Parameter*> parameters_of(Group& group, std::size_t i) const {
         auto parameters = group.targets[i].parameters;
         const auto& read_at = group.limits_read_at[i];
-        group.reading_limits[i] = !group.bounds[i].empty() &&
-                                  (!read_at || device::MonitorClock::now() - *read_at >= limits_refresh);
+        group.reading_limits[i] = !group.bounds[i].empty() && (!read_at || now() - *read_at >= limits_refresh);
         if (group.reading_limits[i]) parameters.insert(parameters.end(), group.bounds[i].begin(), group.bounds[i].end());
         return parameters;
     }
 
     void device_polled(Group& group, std::size_t i, const device::ReadReport& report, const std::optional<Error>& stopped_by) {
-        if (group.reading_limits[i] && !stopped_by) group.limits_read_at[i] = device::MonitorClock::now();
-        device::record_outcome(group.watched[i], report, stopped_by, device::MonitorClock::now());
+        if (group.reading_limits[i] && !stopped_by) group.limits_read_at[i] = now();
+        device::record_outcome(group.watched[i], report, stopped_by, now());
         if (--group.polling == 0) end_sample(group);
     }
 
     // Every device of the sample has been read (or skipped): the sample goes to the cache, and
     // the next one waits for its slot.
     void end_sample(Group& group) {
-        const auto now = device::MonitorClock::now();
-        group.sink->write(device::SampleView{group.index, group.wall, now, &group.watched, group.missed});
-        const auto next = group.schedule.after(now);
+        const auto ended = now();
+        group.sink->write(device::SampleView{group.index, group.wall, ended, &group.watched, group.missed});
+        const auto next = group.schedule.after(ended);
         group.missed = next.missed;
-        group.timer.expires_at(next.at);
-        // As StalenessWatch::arm: a wait that had expired before the take-down still runs.
-        group.timer.async_wait([this, &group, living = std::weak_ptr<const bool>(alive)](const boost::system::error_code& error) {
-            if (!error && !living.expired() && !stopping.stop_requested()) start_sample(group);
-        });
+        group.timer.set(next.at, [this, &group] { start_sample(group); });
     }
 
     void read_started() {
@@ -273,24 +262,23 @@ struct PollGroups::State {
 
     // No sample starts after this; the reads on the wire end (their next blocks unsent), and
     // once their outcomes have been handled the groups go, on the loop's thread.
-    void stop(Engine& engine) {
+    void stop() {
         stopping.request_stop();
         // A sample the loop was starting as the stop came may still be starting its reads: once
         // the loop has run this, every sample has either seen the stop or counted its reads.
-        engine.take_down([] {});
+        loop.take_down([] {});
         {
             std::unique_lock lock(reads_mutex);
             no_reads.wait(lock, [this] { return reads == 0; });
         }
-        engine.take_down([this] {
+        loop.take_down([this] {
             taken_down = true;  // an outcome posted after this finds no group to go to
-            alive.reset();
             staleness.reset();
             groups.clear();
         });
     }
 
-    asio::io_context& loop;
+    EventLoop& loop;
     std::stop_source stopping;
     std::mutex reads_mutex;
     std::condition_variable no_reads;
@@ -298,14 +286,12 @@ struct PollGroups::State {
     std::vector<std::unique_ptr<Group>> groups;
     std::unique_ptr<StalenessWatch> staleness;
     bool taken_down = false;  // on the loop's thread only
-    // Expires at the take-down: a timer's wait that had already expired still runs after it.
-    std::shared_ptr<const bool> alive = std::make_shared<const bool>(true);
 };
 
-PollGroups::PollGroups(Engine& engine, const GatewayConfig& config,
+PollGroups::PollGroups(EventLoop& loop, const GatewayConfig& config,
                        const std::map<std::string, std::shared_ptr<LineScheduler>>& lines, ValueCache& cache, GatewayLog log,
                        device::SampleSink* also)
-    : engine_(engine), state_(std::make_unique<State>(engine.loop())) {
+    : state_(std::make_unique<State>(loop)) {
     State& state = *state_;
     // A group per line and interval: a sample ends when all its devices are read, so a group
     // spanning lines would hold a line's next polls until the slowest other line was done.
@@ -321,7 +307,8 @@ PollGroups::PollGroups(Engine& engine, const GatewayConfig& config,
             auto& group = by_interval[key];
             if (!group) group = std::make_unique<Group>(state.loop, device.poll);
             // A poll waiting longer than its interval would only be stale when it came back.
-            group->masters.push_back(std::make_unique<ScheduledMaster>(scheduler, line.link.to_string(), Priority::poll, device.poll));
+            group->masters.push_back(
+                std::make_unique<ScheduledMaster>(scheduler, line.link.to_string(), Priority::poll, device.poll, loop.clock()));
             group->clients.push_back(std::make_unique<device::DeviceClient>(*group->masters.back(), device.address));
             const std::uint8_t unit = device.address.unit;
             group->targets.push_back({group->masters.back().get(), device.address, polled_parameters(device),
@@ -344,14 +331,14 @@ PollGroups::PollGroups(Engine& engine, const GatewayConfig& config,
     if (by_interval.empty()) return;
     // Started on the loop's thread, which alone touches the groups and their timers from now on.
     const auto tick = staleness_tick(shortest);
-    asio::post(state.loop, [&state, &cache, tick, log = std::move(log)] {
+    loop.post([&state, &cache, tick, log = std::move(log)] {
         state.staleness = std::make_unique<StalenessWatch>(state.loop, cache, tick, log);
         for (auto& group : state.groups) state.start_sample(*group);
     });
     size_ = state.groups.size();
 }
 
-PollGroups::~PollGroups() { state_->stop(engine_); }
+PollGroups::~PollGroups() { state_->stop(); }
 
 void PollGroups::written(const std::string& device, const std::vector<std::string>& parameters) {
     refresh_limits_of(device, [&](const device::Parameter& bound) {

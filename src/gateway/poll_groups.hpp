@@ -1,6 +1,7 @@
 #pragma once
 // The gateway's own polling. Devices on one line polled at the same interval form a poll group.
-// Every group runs on the gateway's event loop (gateway/engine.hpp), however many devices and
+// Every group runs on the gateway's event loop (gateway/engine.hpp; any EventLoop, whose clock
+// the polls and their staleness watch keep time by: virtual in tests), however many devices and
 // intervals there are: a timer starts each sample on the fixed schedule of the client's poller
 // (client/monitor_loop.hpp), its devices are read at once without blocking
 // (DeviceClient::read_async), each through its line's scheduler at poll priority, where polls
@@ -23,7 +24,7 @@
 #include <vector>
 
 #include "client/monitor_loop.hpp"
-#include "gateway/engine.hpp"
+#include "gateway/event_loop.hpp"
 #include "gateway/forwarding_unit.hpp"
 #include "gateway/gateway_config.hpp"
 #include "gateway/scheduled_master.hpp"
@@ -35,7 +36,8 @@ class PollGroups {
 public:
     // `lines`: the scheduler of each configured line, by line name. `also`, when given, gets
     // every sample too, on the polls' thread.
-    PollGroups(Engine& engine, const GatewayConfig& config, const std::map<std::string, std::shared_ptr<LineScheduler>>& lines,
+    // `loop`: what the groups run on (the gateway's Engine; a LineLoopEvents in virtual-time tests).
+    PollGroups(EventLoop& loop, const GatewayConfig& config, const std::map<std::string, std::shared_ptr<LineScheduler>>& lines,
                ValueCache& cache, GatewayLog log, device::SampleSink* also = nullptr);
     ~PollGroups();  // stops every group; a poll on the wire is finished first
     PollGroups(const PollGroups&) = delete;
@@ -57,7 +59,6 @@ private:
     struct State;
     // Has the device's next poll read its bounds again where one of them is `moved`.
     void refresh_limits_of(const std::string& device, const std::function<bool(const device::Parameter&)>& moved);
-    Engine& engine_;
     std::unique_ptr<State> state_;
     std::size_t size_ = 0;
 };

@@ -28,6 +28,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "gateway/engine.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/http_api.hpp"
 #include "gateway/http_server.hpp"

@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "gateway/engine.hpp"
 #include "gateway/mqtt_commands.hpp"
 
 namespace loopwire::gateway {

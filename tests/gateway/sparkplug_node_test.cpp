@@ -10,6 +10,7 @@
 
 #include <mutex>
 
+#include "gateway/engine.hpp"
 #include "gateway/sparkplug/sparkplug_node.hpp"
 #include "sparkplug/sparkplug_b.pb.h"
 #include "support/log_lines.hpp"
