@@ -13,7 +13,6 @@
 
 namespace loopwire::gateway {
 
-
 struct DeviceWriter::Target {
     WritableDevice device;
     LineWriter* line = nullptr;

@@ -480,13 +480,13 @@ private:
                 if (!written) return void(++tally_.writes_to_silent_failed);
                 // The last ones may be sent once the device answers again; not before.
                 if (clock_->now() >= outage.until) return;
-                ++tally_.wrong;
-                tally_.wrong_examples.push_back("a write by name to " + name + " was confirmed while the device was silent");
+                wrong("a write by name to " + name + " was confirmed while the device was silent");
             });
             if (!queued) ++tally_.writes_by_name_refused;
         }
         if (clock_->now() + 30s < outage.until) at(clock_->now() + 30s, [this, outage] { write_to_silent(outage); });
     }
+
     void end_outage(const Outage& outage) {
         if (outage.kind == Outage::silent) lines_[static_cast<std::size_t>(outage.line)]->devices[static_cast<std::size_t>(outage.unit - 1)]->fall_silent(false);
         // An unplugged adapter is back once the line's next reopening finds it.
@@ -504,12 +504,9 @@ private:
                 const auto expected = signature(line, unit, static_cast<int>(address));
                 const auto* number = std::get_if<double>(&value.last->value);
                 if (value.last->raw == expected && number && *number == expected) continue;
-                ++tally_.wrong;
-                if (tally_.wrong_examples.size() < 5) {
-                    tally_.wrong_examples.push_back(fmt::format("poll of {} on line {}: p{} read {}, expected {}; the line's last frames:\n  {}",
-                                                                watched.label, line, address, value.last->raw, expected,
-                                                                fmt::join(lines_[static_cast<std::size_t>(line)]->recent_frames, "\n  ")));
-                }
+                wrong(fmt::format("poll of {} on line {}: p{} read {}, expected {}; the line's last frames:\n  {}", watched.label, line,
+                                  address, value.last->raw, expected,
+                                  fmt::join(lines_[static_cast<std::size_t>(line)]->recent_frames, "\n  ")));
             }
             count_poll(line, unit, watched);
         }
@@ -596,9 +593,7 @@ private:
             if (written) {
                 ++tally_.writes_by_name_confirmed;
                 if (device.holding(setting_register) != value) {
-                    ++tally_.wrong;
-                    tally_.wrong_examples.push_back(fmt::format("write by name of {} to {} confirmed, the device holds {}", value, name,
-                                                                device.holding(setting_register)));
+                    wrong(fmt::format("write by name of {} to {} confirmed, the device holds {}", value, name, device.holding(setting_register)));
                 }
             } else {
                 ++tally_.writes_by_name_failed;
@@ -711,17 +706,18 @@ private:
         tally_.failed_after_outage[static_cast<std::size_t>(line * units_per_line + unit - 1)].push_back({now, what});
     }
 
-    bool judge(const Bytes& reply, const Bytes& expected, const char* what, int line) {
-        if (reply == expected) return true;
+    // A wrong value counted, and the first few kept to be shown.
+    void wrong(std::string example) {
         ++tally_.wrong;
-        if (tally_.wrong_examples.size() < 5) {
-            tally_.wrong_examples.push_back(fmt::format("{} on line {}: got {:02x}, expected {:02x}; the line's last frames:\n  {}", what, line,
-                                                        fmt::join(reply, " "), fmt::join(expected, " "),
-                                                        fmt::join(lines_[static_cast<std::size_t>(line)]->recent_frames, "\n  ")));
-        }
-        return false;
+        if (tally_.wrong_examples.size() < 5) tally_.wrong_examples.push_back(std::move(example));
     }
 
+    bool judge(const Bytes& reply, const Bytes& expected, const char* what, int line) {
+        if (reply == expected) return true;
+        wrong(fmt::format("{} on line {}: got {:02x}, expected {:02x}; the line's last frames:\n  {}", what, line, fmt::join(reply, " "),
+                          fmt::join(expected, " "), fmt::join(lines_[static_cast<std::size_t>(line)]->recent_frames, "\n  ")));
+        return false;
+    }
 
     void watch_queues() {
         for (const auto& line : lines_) tally_.most_queued = std::max(tally_.most_queued, line->scheduler->statistics().queued);
