@@ -22,4 +22,20 @@ std::optional<Table> table_named(std::string_view name);
 FunctionCode read_function(Table table);
 std::optional<Table> table_read_by(std::uint8_t function);
 
+// The data items a request reads or writes: a run of one table's addresses.
+struct DataSpan {
+    Table table;
+    std::uint16_t first;
+    std::uint32_t count;  // up to 65536: first + count may reach past 65535 in a malformed request
+    bool overlaps(const DataSpan& other) const {
+        return table == other.table && first < other.first + other.count && other.first < first + count;
+    }
+};
+// What a request of functions 1-4 reads; none for any other function or a PDU too short to say.
+std::optional<DataSpan> read_span(ByteView request_pdu);
+// What a request of functions 5, 6, 15, 16, 22 (mask write) or 23 (its write part) writes;
+// none for any other function (which may change anything: a caller must assume it does) or a
+// PDU too short to say.
+std::optional<DataSpan> written_span(ByteView request_pdu);
+
 }  // namespace loopwire::codec

@@ -1,6 +1,7 @@
 // The master on a serial line (RTU, ASCII, Linking) or behind a serial device server (rtu+tcp).
 #include <algorithm>
 #include <array>
+#include <deque>
 #include <coroutine>
 #include <cstdio>
 #include <cstdlib>
@@ -16,6 +17,7 @@
 #include <fmt/format.h>
 
 #include "codec/rtu.hpp"
+#include "codec/table.hpp"
 #include "common/never_sent.hpp"
 #include "common/task.hpp"
 #include "session/frame_codec.hpp"
@@ -423,7 +425,7 @@ private:
         trace(TraceDirection::sent, *frame, transaction);
         auto written = co_await send(*frame);
         const Instant sent_at = clock_->now();
-        if (!reads_only(pdu[0])) written_at_[unit] = sent_at;
+        if (!reads_only(pdu[0])) note_write(unit, pdu, sent_at);
         line_quiet_since_ = sent_at;
         if (!written) co_return written.error();
         if (unit == 0) {
@@ -559,10 +561,13 @@ private:
     // come: a copy is the likelier), nor when a damaged frame or another unit's came first in the
     // wait (that may have been the real reply, spoiled), nor at all on a line seen sending copies
     // within the last ten minutes, where a request may fail (0Bh) rather than risk another
-    // request's value. The same read asked again after a write to the unit counts as another
-    // request: a copy of its reply from before the write would be a value the write replaced
-    // (a client's read-modify-write read back; the soak, tests/gateway/line_soak_test.cpp,
-    // found it).
+    // request's value. The same read asked again after a write to what it reads counts as
+    // another request, and a copy of its reply from before the write is never taken, even on
+    // time: it would be the value the write replaced (a client's read-modify-write read back
+    // the old value when the read-back's real reply came late and a repeater's copy of the first
+    // read's reply on time; the soak, tests/gateway/line_soak_test.cpp, found both). A device
+    // that really answers the same (a write of the value there already) is heard again on the
+    // next try, whose reply is then taken.
     // Lateness alone is suspicion, not proof: a loaded host delivers a real reply late now and
     // then, so it does not mark the line as one that sends copies (a copy heard between
     // exchanges, or a second frame for one request, does), and the request is tried again
@@ -575,14 +580,24 @@ private:
         const bool late =
             awaited.usual > Duration::zero() && now - awaited.sent_at > awaited.usual + inter_frame_gap_ + reply_jitter;
         const bool marked = line_sends_copies();
-        if (!late && !marked && awaited.clean) return {};
+        // The same read's reply from before a write over what it reads: the value the write
+        // replaced. Taken only from a later try that hears these bytes again.
+        const bool replaced = std::ranges::equal(copied->request, awaited.request);
+        if (!late && !marked && awaited.clean && !replaced) return {};
         if (marked) copy_seen_at_ = now;
+        const auto ago = std::chrono::duration_cast<milliseconds>(now - copied->at).count();
+        if (replaced) {
+            return make_error(ErrorKind::mismatch,
+                              fmt::format("the same bytes as this read's reply {} ms ago, before a write to what it reads: "
+                                          "the value the write replaced, probably a copy; not taken",
+                                          ago));
+        }
         const char* why = late ? "and later than this unit answers"
                                : (marked ? "on a line that has sent copies" : "after a damaged or another unit's frame");
         return make_error(ErrorKind::mismatch,
                           fmt::format("the same bytes as the reply to another request {} ms ago, {}: a duplicate, "
                                       "probably; not taken",
-                                      std::chrono::duration_cast<milliseconds>(now - copied->at).count(), why));
+                                      ago, why));
     }
 
     // The last frames from the units asked, with the request each came for.
@@ -598,27 +613,47 @@ private:
     }
 
     // A frame seen with the same bytes for another request, recently enough for a copy of it to
-    // be still on its way. For `request` itself it would be its answer all the same, unless the
-    // unit was written since (then it is another request's: the one before the write).
+    // be still on its way. For `request` itself it would be its answer all the same, unless what
+    // it reads was written since (then it is another request's: the one before the write) and
+    // no try of it has had these bytes since the write (a write of the value there already).
     std::optional<SeenFrame> earlier_copy(ByteView raw, ByteView request, std::uint8_t unit) const {
-        const auto recent = clock_->now() - (options_.timeout + late_reply_window());
+        const auto recent = clock_->now() - copy_window();
+        const auto same_bytes = [&](const SeenFrame& seen) { return seen.at >= recent && std::ranges::equal(seen.raw, raw); };
+        const bool answered_since_write = std::ranges::any_of(recent_frames_, [&](const SeenFrame& seen) {
+            return same_bytes(seen) && std::ranges::equal(seen.request, request) && !written_over(unit, request, seen.at);
+        });
         for (const auto& seen : recent_frames_) {
-            if (seen.at >= recent && std::ranges::equal(seen.raw, raw) &&
-                (!std::ranges::equal(seen.request, request) || written_since(unit, seen.at))) {
-                return seen;
-            }
+            if (!same_bytes(seen)) continue;
+            if (!std::ranges::equal(seen.request, request)) return seen;
+            if (!answered_since_write && written_over(unit, request, seen.at)) return seen;
         }
         return std::nullopt;
     }
 
+    Duration copy_window() const { return options_.timeout + late_reply_window(); }
+
     // Functions 1-4 read; anything else may change what a read of the unit answers.
     static bool reads_only(std::uint8_t function) { return function >= 1 && function <= 4; }
 
-    // Whether a request that may change the unit's registers (to it, or broadcast) was sent after `at`.
-    bool written_since(std::uint8_t unit, Instant at) const {
+    void note_write(std::uint8_t unit, ByteView pdu, Instant sent_at) {
+        auto& writes = writes_[unit];
+        while (!writes.empty() && (writes.front().at < sent_at - copy_window() || writes.size() >= 64)) writes.pop_front();
+        writes.push_back({sent_at, codec::written_span(pdu)});
+    }
+
+    // Whether a request that may change what `request` reads of the unit (sent to it, or
+    // broadcast) went out at or after `at`: a write sent at the instant a frame was heard
+    // follows it (the master sends once the line is quiet). A write elsewhere in the unit is
+    // not counted (a read of other registers answers the same after it); one whose reach is not
+    // known, or a read whose reach is not known, is.
+    bool written_over(std::uint8_t unit, ByteView request, Instant at) const {
+        const auto read = codec::read_span(request);
         return std::ranges::any_of(std::array<std::uint8_t, 2>{unit, std::uint8_t{0}}, [&](std::uint8_t to) {
-            const auto found = written_at_.find(to);
-            return found != written_at_.end() && found->second > at;
+            const auto found = writes_.find(to);
+            if (found == writes_.end()) return false;
+            return std::ranges::any_of(found->second, [&](const SentWrite& write) {
+                return write.at >= at && (!read || !write.span || write.span->overlaps(*read));
+            });
         });
     }
 
@@ -770,7 +805,12 @@ private:
     static constexpr std::size_t recent_frames_kept = 16;
     std::deque<SeenFrame> recent_frames_;
     std::optional<Instant> copy_seen_at_;  // when a copy of a frame was last seen
-    std::map<std::uint8_t, Instant> written_at_;  // when a request that may write was last sent, by unit (0: broadcast)
+    // Requests that may write, by unit (0: broadcast), sent within the copy window: oldest first.
+    struct SentWrite {
+        Instant at;
+        std::optional<codec::DataSpan> span;  // none: it may change anything
+    };
+    std::map<std::uint8_t, std::deque<SentWrite>> writes_;
     bool last_try_refused_a_copy_ = false;  // the last try's wait refused a frame as a probable copy
     // On the loop (MasterOptions::loop): the jobs waiting, the one carried, and the destructor
     // waiting for both to end.

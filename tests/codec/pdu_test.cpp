@@ -3,6 +3,7 @@
 // Where a test uses bytes from a manual, the comment names the manual and section; the whole
 // RTU frames (with CRC) are replayed in rtu_test.cpp.
 #include "codec/pdu.hpp"
+#include "codec/table.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -564,6 +565,55 @@ TEST(PduMatchReply, MultipleWriteEchoes) {
     EXPECT_TRUE(match_reply(words, decoded_reply("10 00 8B 00 03")).ok());
     expect_mismatch(words, decoded_reply("10 00 8A 00 03"),
                     "FC16 reply: address echo 138 differs from the 139 requested");
+}
+
+}  // namespace
+}  // namespace loopwire::codec
+
+namespace loopwire::codec {
+namespace {
+
+// What a request reads and what it writes (Modbus application protocol V1.1b3, 6.1-6.17): the
+// serial master tells a copy of a read's reply from before a write over it by these.
+TEST(DataSpansRead, NameTheirTableAddressAndQuantity) {
+    const auto holding = read_span(Bytes{0x03, 0x03, 0x09, 0x00, 0x02});
+    ASSERT_TRUE(holding.has_value());
+    EXPECT_EQ(holding->table, Table::holding_registers);
+    EXPECT_EQ(holding->first, 777);
+    EXPECT_EQ(holding->count, 2u);
+    EXPECT_EQ(read_span(Bytes{0x01, 0x00, 0x10, 0x00, 0x08})->table, Table::coils);
+    EXPECT_EQ(read_span(Bytes{0x02, 0x00, 0x10, 0x00, 0x08})->table, Table::discrete_inputs);
+    EXPECT_EQ(read_span(Bytes{0x04, 0x00, 0x10, 0x00, 0x08})->table, Table::input_registers);
+    EXPECT_FALSE(read_span(Bytes{0x06, 0x00, 0x10, 0x00, 0x08}).has_value());
+    EXPECT_FALSE(read_span(Bytes{0x03, 0x00}).has_value()) << "too short to say";
+}
+
+TEST(DataSpansWritten, NameWhatEachWritingFunctionChanges) {
+    const auto spans = [](Bytes pdu) { return written_span(pdu); };
+    EXPECT_EQ(spans({0x05, 0x00, 0x07, 0xFF, 0x00})->table, Table::coils);
+    EXPECT_EQ(spans({0x06, 0x03, 0x09, 0x00, 0x05})->count, 1u);
+    const auto multiple = spans({0x10, 0x00, 0x0A, 0x00, 0x03, 0x06, 0, 1, 0, 2, 0, 3});
+    ASSERT_TRUE(multiple.has_value());
+    EXPECT_EQ(multiple->first, 10);
+    EXPECT_EQ(multiple->count, 3u);
+    EXPECT_EQ(spans({0x0F, 0x00, 0x0A, 0x00, 0x0C, 0x02, 0xFF, 0x0F})->count, 12u);
+    EXPECT_EQ(spans({0x16, 0x00, 0x04, 0x00, 0xF2, 0x00, 0x25})->first, 4);
+    const auto read_write = spans({0x17, 0x00, 0x03, 0x00, 0x06, 0x00, 0x0E, 0x00, 0x03, 0x06, 0, 0, 0, 0, 0, 0});
+    ASSERT_TRUE(read_write.has_value());
+    EXPECT_EQ(read_write->first, 14) << "the write part of 23";
+    EXPECT_EQ(read_write->count, 3u);
+    EXPECT_FALSE(spans({0x08, 0x00, 0x01, 0x00, 0x00}).has_value()) << "a function that may change anything";
+}
+
+TEST(DataSpansWritten, OverlapOnlyInOneTableAndSharedAddresses) {
+    const DataSpan asked{Table::holding_registers, 10, 5};  // 10-14
+    EXPECT_TRUE(asked.overlaps({Table::holding_registers, 14, 1}));
+    EXPECT_TRUE(asked.overlaps({Table::holding_registers, 8, 3}));
+    EXPECT_FALSE(asked.overlaps({Table::holding_registers, 15, 1}));
+    EXPECT_FALSE(asked.overlaps({Table::holding_registers, 0, 10}));
+    EXPECT_FALSE(asked.overlaps({Table::coils, 10, 5}));
+    const DataSpan top{Table::holding_registers, 65535, 1};
+    EXPECT_TRUE(top.overlaps({Table::holding_registers, 65530, 10}));
 }
 
 }  // namespace

@@ -7,27 +7,31 @@
 // deadline), a serial master on it per line, the line's ReopeningMaster and LineScheduler, the
 // devices served by simulation::SimulatedLines on the same loop, and on that loop too
 // (LineLoopEvents) the gateway's PollGroups and ValueCache, reading each device by parameter
-// name through its profile, and its DeviceWriter, which MQTT's and HTTP's writes go through. The
-// clients' requests go through a ForwardingUnit per device, as the Modbus TCP front hands them
-// on (with its ReadCache on two of the lines); only the sockets are left out.
+// name through its profile, and its DeviceWriter, with the HTTP API's and the MQTT front's
+// handlers writing through it as they do for a POST or a /set message (hostile ones among them).
+// The clients' requests go through a ForwardingUnit per device, as the Modbus TCP front hands
+// them on (with its ReadCache on two of the lines); only the sockets are left out.
 //
 // Asserted: no request or poll is ever answered with a reply that is not its own (every register
 // of every device holds a value no other register has, every write's echo is checked, and a
 // client reads back what it wrote, never the value before), no device reads `ok` (in the
-// cache's snapshot, or in what its subscribers - MQTT, history, the dashboard - were last told)
-// while its poll is overdue by more than two intervals, every device answers its polls again
+// cache's snapshot, in what its subscribers - MQTT, history, the dashboard - were last told, or
+// in the HTTP API's answer) while its poll is overdue by more than two intervals, every device answers its polls again
 // within one back-off after each outage ends, the polls keep their rate outside the outages, a
 // write by name to a device that can answer ends within a bound however the other lines fare
-// (issue 20, item 10), requests of a closed connection are dropped unsent, and the queues stay
-// bounded.
+// (issue 20, item 10), whichever front it came through, a hostile body or payload is refused
+// with an answer in JSON, every MQTT command is answered, requests of a closed connection are
+// dropped unsent, and the queues stay bounded.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 
 #include <algorithm>
 #include <array>
-#include <deque>
 #include <atomic>
+#include <deque>
+#include <map>
+#include <optional>
 #include <chrono>
 #include <cstdio>
 #include <future>
@@ -35,16 +39,20 @@
 #include <mutex>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include "codec/rtu.hpp"
 #include "gateway/device_writer.hpp"
 #include "gateway/event_loop.hpp"
 #include "gateway/forwarding_unit.hpp"
 #include "gateway/gateway_config.hpp"
+#include "gateway/http_api.hpp"
 #include "gateway/line_scheduler.hpp"
+#include "gateway/mqtt_commands.hpp"
 #include "gateway/poll_groups.hpp"
 #include "gateway/reopening_master.hpp"
 #include "gateway/value_cache.hpp"
@@ -76,6 +84,11 @@ constexpr std::uint16_t setting_register = 0x2000;
 // silence, with a spoiled reply of its own failing it by its timeout.
 constexpr Duration write_every = 7s;
 constexpr Duration write_bound = 2s;
+// The fronts a write by name comes through.
+enum WriteFront { by_writer, by_http, by_mqtt, write_fronts };
+constexpr std::array<const char*, write_fronts> front_names{"DeviceWriter", "HTTP", "MQTT"};
+constexpr const char* http_token = "soak-token";
+constexpr const char* mqtt_prefix = "soak";
 // How old a reply the units of lines 2 and 3 may answer a client's read with (modbus_tcp max_age).
 constexpr Duration read_cache_age = 2s;
 // The longest wait between two reopenings of a line, and between two polls of a unit that backs
@@ -151,6 +164,13 @@ GatewayConfig soak_config() {
         }
         config.lines.push_back(std::move(configured));
     }
+    HttpConfig http;
+    http.token = http_token;
+    config.http = http;
+    MqttConfig mqtt;
+    mqtt.prefix = mqtt_prefix;
+    mqtt.writes = true;
+    config.mqtt = mqtt;
     return config;
 }
 
@@ -206,6 +226,7 @@ struct Tally {
     // those, the ones where it still read `ok` (in the snapshot or in what subscribers were told).
     std::uint64_t overdue_checks = 0;
     std::uint64_t ok_while_overdue = 0;
+    std::uint64_t api_overdue_checks = 0;  // of those, looked at through the HTTP API
     std::vector<std::string> ok_while_overdue_examples;
     std::uint64_t stale_told = 0;  // devices the subscribers were told are `stale`
     // Writes by name (DeviceWriter): confirmed, failed, refused as busy; the longest a write took
@@ -214,6 +235,8 @@ struct Tally {
     std::uint64_t writes_by_name_failed = 0;
     std::uint64_t writes_by_name_refused = 0;
     std::uint64_t writes_to_silent_failed = 0;  // the bursts of writes to a silent device
+    std::array<std::uint64_t, write_fronts> writes_by_front{};  // ended, by the front they came through
+    std::uint64_t hostile_writes = 0;                           // refused, as they must be
     Duration longest_write_by_name{};
     std::vector<std::string> slow_writes;
     std::uint64_t requests_answered = 0;
@@ -283,12 +306,24 @@ std::vector<Outage> outages_for(Instant start, Duration length, std::mt19937& ra
     return outages;
 }
 
+// A write by name a front was asked for.
+struct FrontWrite {
+    Instant asked;
+    int line = 0;
+    int unit = 1;
+    std::uint16_t value = 0;
+    WriteFront front = by_writer;
+    bool hostile = false;  // a body or payload that must be refused
+};
+
 class LineSoak {
 public:
     LineSoak() : loop_(std::make_shared<session::LineLoop>(clock_)), simulated_(loop_) {
         for (int index = 0; index < line_count; ++index) lines_.push_back(std::make_unique<Line>(*this, index));
     }
     ~LineSoak() {
+        api_.reset();
+        mqtt_.reset();    // waits for its writes under way: they end on the loop
         writer_.reset();  // its writes and the polls' reads on the lines end first
         polls_.reset();
         told_.reset();
@@ -313,6 +348,10 @@ public:
             for (const auto& device : line.devices) writable.push_back({device.name, device.address, schedulers.at(line.name)});
         }
         writer_ = std::make_unique<DeviceWriter>(events_, std::move(writable), std::chrono::milliseconds(10000));
+        api_ = std::make_unique<HttpApi>(config_, HttpApiSources{&cache_, writer_.get(), {}, {}, nullptr});
+        mqtt_ = std::make_unique<MqttCommands>(
+            *config_.mqtt, *writer_, [this](std::string topic, std::string payload) { mqtt_published(topic, payload); }, GatewayLog{},
+            [this](const std::string& device) { return not_answering(device); });
         loop_->post([this, start, length, &day] { begin(start, length, day); });
         if (ended.wait_for(15min) != std::future_status::ready) {
             ADD_FAILURE() << "the soak did not end in 15 minutes of wall time";
@@ -562,56 +601,156 @@ private:
             ++tally_.overdue_checks;
             const bool snapshot_ok = cached.state.status == device::DeviceStatus::ok;
             const bool told_ok = now - answered.back() > overdue + watch_room && told_status_[device] == "ok";
-            if (!snapshot_ok && !told_ok) continue;
+            const std::string api_status = status_in_api(cached.name);
+            if (!snapshot_ok && !told_ok && api_status != "ok") continue;
             ++tally_.ok_while_overdue;
             if (tally_.ok_while_overdue_examples.size() < 5) {
                 tally_.ok_while_overdue_examples.push_back(fmt::format("{} at {} ms: last answered {} ms before, snapshot says {}, "
-                                                                       "subscribers were told {}",
+                                                                       "subscribers were told {}, the HTTP API says {}",
                                                                        cached.name, milliseconds_at(now),
                                                                        std::chrono::duration_cast<std::chrono::milliseconds>(now - answered.back()).count(),
-                                                                       device::status_text(cached.state.status), told_status_[device]));
+                                                                       device::status_text(cached.state.status), told_status_[device], api_status));
             }
         }
         at(now + 1s, [this] { watch_staleness(); });
     }
 
-    // Every write_every: a front writes a random value by name to a random device's "setting",
-    // as MQTT's /set and HTTP's PUT do. A write confirmed must have landed in the device; one to
-    // a device no outage touched must end within write_bound, whatever the other lines do.
+    // GET /api/devices/NAME's status, as the dashboard and any HTTP client read it.
+    std::string status_in_api(const std::string& device) {
+        ++tally_.api_overdue_checks;
+        HttpRequest request;
+        request.method = "GET";
+        request.host = "127.0.0.1";
+        request.path = "/api/devices/" + device;
+        const auto body = nlohmann::json::parse(api_->handle(request).response.body, nullptr, false);
+        return body.is_object() ? body.value("status", std::string("none")) : std::string("not JSON");
+    }
+
+    // The MQTT front's word on a device its writes cannot reach now (gateway/mqtt_bridge.cpp
+    // says the same from what it was told): its polls find it silent.
+    std::optional<std::string> not_answering(const std::string& device) {
+        const std::size_t index = device_index(device);
+        if (told_status_[index] != device::status_text(device::DeviceStatus::no_reply)) return std::nullopt;
+        return fmt::format("device {} does not answer; nothing was sent", device);
+    }
+
+    // Every write_every: a front writes a random value by name to a random device's "setting":
+    // in turn the DeviceWriter itself, HTTP's POST /api/devices/NAME/write and MQTT's
+    // PREFIX/NAME/setting/set, each through the front's own handler (only the sockets are left
+    // out). One HTTP or MQTT write in five is hostile (not JSON, not a number, out of range, an
+    // unknown name, bytes that are not text, too long): it must be refused, with an answer that
+    // is JSON. A write confirmed must have landed in the device; one to a device no outage
+    // touched must end within write_bound, whatever the other lines do.
     void write_by_name() {
         const Instant asked = clock_->now();
         at(asked + write_every, [this] { write_by_name(); });
-        const int line = std::uniform_int_distribution<int>(0, line_count - 1)(clients_random_);
-        const int unit = std::uniform_int_distribution<int>(1, units_per_line)(clients_random_);
-        const auto value = static_cast<std::uint16_t>(clients_random_());
-        const std::string name = fmt::format("line{}-unit{}", line, unit);
-        const bool queued = writer_->write_async(name, {{"setting", std::to_string(value)}}, [this, asked, line, unit, value, name](
-                                                                                                   Result<WrittenValues> written) {
-            if (over_) return;
-            const Instant ended = clock_->now();
-            const auto& device = *lines_[static_cast<std::size_t>(line)]->devices[static_cast<std::size_t>(unit - 1)];
-            if (written) {
-                ++tally_.writes_by_name_confirmed;
-                if (device.holding(setting_register) != value) {
-                    wrong(fmt::format("write by name of {} to {} confirmed, the device holds {}", value, name, device.holding(setting_register)));
-                }
-            } else {
-                ++tally_.writes_by_name_failed;
-            }
-            // Any outage on the write's own line: its writes go one after the other, so a write to a
-            // silent device's neighbour waits for the writes to the silent device before it.
-            const bool touched = std::any_of(outages_.begin(), outages_.end(), [&](const Outage& outage) {
-                return outage.line == line && outage.from < ended && outage.until + longest_backoff > asked;
-            });
-            if (touched) return;
-            tally_.longest_write_by_name = std::max(tally_.longest_write_by_name, ended - asked);
-            if (ended - asked > write_bound && tally_.slow_writes.size() < 5) {
-                tally_.slow_writes.push_back(fmt::format("write by name to {} at {} ms took {} ms: {}", name, milliseconds_at(asked),
-                                                         std::chrono::duration_cast<std::chrono::milliseconds>(ended - asked).count(),
-                                                         written ? std::string("confirmed") : written.error().message));
-            }
-        });
+        FrontWrite write;
+        write.asked = asked;
+        write.line = std::uniform_int_distribution<int>(0, line_count - 1)(clients_random_);
+        write.unit = std::uniform_int_distribution<int>(1, units_per_line)(clients_random_);
+        write.value = static_cast<std::uint16_t>(clients_random_());
+        write.front = static_cast<WriteFront>(writes_by_name_++ % write_fronts);
+        write.hostile = write.front != by_writer && std::uniform_int_distribution<int>(0, 4)(clients_random_) == 0;
+        if (write.front == by_http) return write_over_http(write);
+        if (write.front == by_mqtt) return write_over_mqtt(write);
+        const bool queued = writer_->write_async(device_name(write.line, write.unit), {{"setting", std::to_string(write.value)}},
+                                                 [this, write](Result<WrittenValues> written) {
+                                                     write_ended(write, written ? std::string() : written.error().message);
+                                                 });
         if (!queued) ++tally_.writes_by_name_refused;
+    }
+
+    static std::string device_name(int line, int unit) { return fmt::format("line{}-unit{}", line, unit); }
+
+    // What a hostile HTTP body or MQTT payload is, picked at random.
+    std::string hostile_value(WriteFront front) {
+        static const std::array<std::string, 6> http_bodies{"\xff\xfe{", R"({"setting": "12abc"})", R"({"setting": 70000})",
+                                                            R"({"no_such_parameter": 1})", R"([1, 2])", R"({"setting": {"a": [1]}})"};
+        static const std::array<std::string, 6> mqtt_payloads{"\xff\xfe", "12abc", "70000", "", "-1", std::string(2000, '7')};
+        const auto any = std::uniform_int_distribution<std::size_t>(0, 5)(clients_random_);
+        return front == by_http ? http_bodies[any] : mqtt_payloads[any];
+    }
+
+    void write_over_http(const FrontWrite& write) {
+        HttpRequest request;
+        request.method = "POST";
+        request.host = "127.0.0.1";
+        request.path = fmt::format("/api/devices/{}/write", device_name(write.line, write.unit));
+        request.authorization = fmt::format("Bearer {}", http_token);
+        request.body = write.hostile ? hostile_value(by_http) : fmt::format(R"({{"setting": {}}})", write.value);
+        HttpOutcome outcome = api_->handle(request);
+        const auto answered = [this, write](const HttpResponse& response) {
+            if (over_) return;
+            const auto body = nlohmann::json::parse(response.body, nullptr, false);
+            if (body.is_discarded()) return wrong(fmt::format("HTTP write answered {} with a body that is not JSON: {}", response.status, response.body));
+            write_ended(write, response.status == 200 ? std::string() : body.value("error", fmt::format("status {}", response.status)));
+        };
+        if (!outcome.deferred) return answered(outcome.response);
+        outcome.deferred([this, answered](HttpResponse response) {
+            loop_->post([answered, response = std::move(response)] { answered(response); });
+        });
+    }
+
+    void write_over_mqtt(const FrontWrite& write) {
+        const std::string topic = fmt::format("{}/{}/setting/set", mqtt_prefix, device_name(write.line, write.unit));
+        const std::string payload = write.hostile ? hostile_value(by_mqtt) : std::to_string(write.value);
+        mqtt_taking_ = write;
+        mqtt_->take(topic, payload);
+        // Not answered at once: its result comes once the line has answered, in the order taken.
+        if (mqtt_taking_) mqtt_pending_[topic + "/result"].push_back(write);
+        mqtt_taking_.reset();
+    }
+
+    // A set/result document the MQTT front publishes: for the command being taken (refused at
+    // once), or for the oldest one of its topic under way. Completions run on the loop.
+    void mqtt_published(const std::string& topic, const std::string& payload) {
+        if (over_) return;
+        std::optional<FrontWrite> write = std::exchange(mqtt_taking_, std::nullopt);
+        if (!write) {
+            auto& pending = mqtt_pending_[topic];
+            if (pending.empty()) return wrong(fmt::format("an MQTT result no command waited for: {} {}", topic, payload));
+            write = pending.front();
+            pending.pop_front();
+        }
+        const auto result = nlohmann::json::parse(payload, nullptr, false);
+        if (result.is_discarded() || !result.contains("ok")) return wrong(fmt::format("an MQTT result that is not a result document: {}", payload));
+        write_ended(*write, result.value("ok", false) ? std::string() : result.value("error", std::string("no error given")));
+    }
+
+    // A write by name ended, confirmed (no error) or not, whichever front it came through.
+    void write_ended(const FrontWrite& write, const std::string& error) {
+        if (over_) return;
+        const Instant ended = clock_->now();
+        const std::string name = device_name(write.line, write.unit);
+        const auto& device = *lines_[static_cast<std::size_t>(write.line)]->devices[static_cast<std::size_t>(write.unit - 1)];
+        if (write.hostile) {
+            ++tally_.hostile_writes;
+            if (error.empty()) wrong(fmt::format("a hostile write by {} to {} was confirmed", front_names[write.front], name));
+            return;
+        }
+        ++tally_.writes_by_front[write.front];
+        if (error.empty()) {
+            ++tally_.writes_by_name_confirmed;
+            if (device.holding(setting_register) != write.value) {
+                wrong(fmt::format("write by name ({}) of {} to {} confirmed, the device holds {}", front_names[write.front], write.value, name,
+                                  device.holding(setting_register)));
+            }
+        } else {
+            ++tally_.writes_by_name_failed;
+        }
+        // Any outage on the write's own line: its writes go one after the other, so a write to a
+        // silent device's neighbour waits for the writes to the silent device before it.
+        const bool touched = std::any_of(outages_.begin(), outages_.end(), [&](const Outage& outage) {
+            return outage.line == write.line && outage.from < ended && outage.until + longest_backoff > write.asked;
+        });
+        if (touched) return;
+        tally_.longest_write_by_name = std::max(tally_.longest_write_by_name, ended - write.asked);
+        if (ended - write.asked > write_bound && tally_.slow_writes.size() < 5) {
+            tally_.slow_writes.push_back(fmt::format("write by name ({}) to {} at {} ms took {} ms: {}", front_names[write.front], name,
+                                                     milliseconds_at(write.asked),
+                                                     std::chrono::duration_cast<std::chrono::milliseconds>(ended - write.asked).count(),
+                                                     error.empty() ? std::string("confirmed") : error));
+        }
     }
 
     // A client's next request, 1 to 20 s after its last was sent, through the device's
@@ -725,6 +864,12 @@ private:
     }
 
     void end_day(std::promise<Tally>& day) {
+        // Every MQTT command is answered: by the writer's limit (10 s) at the latest.
+        for (const auto& [topic, pending] : mqtt_pending_) {
+            for (const FrontWrite& write : pending) {
+                if (clock_->now() - write.asked > 15s) wrong(fmt::format("MQTT command to {} at {} ms never answered", topic, milliseconds_at(write.asked)));
+            }
+        }
         over_ = true;
         for (const auto& line : lines_) {
             const auto statistics = line->scheduler->statistics();
@@ -766,6 +911,12 @@ private:
     ValueSubscription told_;
     std::unique_ptr<PollGroups> polls_;
     std::unique_ptr<DeviceWriter> writer_;
+    // The HTTP API's and the MQTT front's handlers, on the loop, writing through the writer.
+    std::unique_ptr<HttpApi> api_;
+    std::unique_ptr<MqttCommands> mqtt_;
+    std::uint64_t writes_by_name_ = 0;
+    std::optional<FrontWrite> mqtt_taking_;                         // the command take() is answering
+    std::map<std::string, std::deque<FrontWrite>> mqtt_pending_;  // by result topic, oldest first
 };
 
 // The first poll a device answered at or after `from`, if any.
@@ -802,6 +953,10 @@ TEST(LineSoak, ADayOfFaultsOnFourLinesServesNoWrongValueAndEveryDeviceComesBack)
                 static_cast<unsigned long long>(tally.writes_by_name_confirmed), static_cast<unsigned long long>(tally.writes_by_name_failed),
                 static_cast<unsigned long long>(tally.writes_by_name_refused), static_cast<unsigned long long>(tally.writes_to_silent_failed),
                 static_cast<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(tally.longest_write_by_name).count()));
+    std::printf(" (by front: %llu DeviceWriter, %llu HTTP, %llu MQTT; %llu hostile ones refused); %llu overdue checks through the HTTP API",
+                static_cast<unsigned long long>(tally.writes_by_front[by_writer]), static_cast<unsigned long long>(tally.writes_by_front[by_http]),
+                static_cast<unsigned long long>(tally.writes_by_front[by_mqtt]), static_cast<unsigned long long>(tally.hostile_writes),
+                static_cast<unsigned long long>(tally.api_overdue_checks));
     std::printf("; lines: %llu bad replies, %llu timeouts, %llu dropped for a closed connection, %llu reopenings; most queued %zu; resident memory %.1f MiB "
                 "settled, %.1f MiB at the end; wrong values %llu\n",
                 static_cast<unsigned long long>(tally.bad_replies), static_cast<unsigned long long>(tally.timeouts),
@@ -828,6 +983,11 @@ TEST(LineSoak, ADayOfFaultsOnFourLinesServesNoWrongValueAndEveryDeviceComesBack)
     // Writes by name: each line's own, never waiting for another line's (issue 20, item 10).
     EXPECT_LE(tally.longest_write_by_name, write_bound) << fmt::format("{}", fmt::join(tally.slow_writes, "\n"));
     EXPECT_EQ(tally.writes_by_name_refused, 0U);
+    // Each front wrote (HTTP's and MQTT's handlers on the same loop), and the hostile bodies and
+    // payloads were all refused (a confirmed one counts as a wrong value above).
+    for (const auto ended : tally.writes_by_front) EXPECT_GT(static_cast<double>(ended), 100 * hours);
+    EXPECT_GT(static_cast<double>(tally.hostile_writes), 50 * hours);
+    EXPECT_EQ(tally.api_overdue_checks, tally.overdue_checks);
     EXPECT_GE(static_cast<double>(tally.writes_by_name_confirmed),
               0.9 * static_cast<double>(tally.writes_by_name_confirmed + tally.writes_by_name_failed));
     // The writes queued for silent devices all failed, and were many (some 40 an hour).
