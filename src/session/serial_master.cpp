@@ -327,7 +327,10 @@ private:
             unsettled_.erase(unit);
         }
         TimeoutContext context{name_, options_.timeout.count(), 0, 0};
-        for (unsigned attempt = 0; attempt <= options_.retries; ++attempt) {
+        // A reply refused as the value a write replaced gets one try more than `retries`: a
+        // device that answers the same bytes again was written the value it held (not_a_duplicate).
+        unsigned confirmation = 0;
+        for (unsigned attempt = 0; attempt <= options_.retries + confirmation; ++attempt) {
             ++context.tries;
             auto reply = co_await attempt_once(unit, pdu, transaction, answers, context, attempt > 0);
             // A try that took no reply may still get one, late: the next request must not take it.
@@ -338,7 +341,8 @@ private:
             // its real reply, as a try that timed out has: it is tried again while tries remain.
             const bool timed_out = reply.error().kind == ErrorKind::timeout;
             const bool refused_copy = reply.error().kind == ErrorKind::mismatch && last_try_refused_a_copy_;
-            if (!timed_out && (!refused_copy || attempt == options_.retries)) co_return reply;
+            if (refused_copy && last_try_refused_a_replaced_value_) confirmation = 1;
+            if (!timed_out && (!refused_copy || attempt == options_.retries + confirmation)) co_return reply;
         }
         co_return timeout_error(unit, transaction, context);
     }
@@ -416,6 +420,7 @@ private:
     Task<Result<Bytes>> attempt_once(std::uint8_t unit, ByteView pdu, const std::string& transaction,
                                      const ReplyCheck& answers, TimeoutContext& context, bool retry) {
         last_try_refused_a_copy_ = false;  // a try that fails before it waits refused nothing
+        last_try_refused_a_replaced_value_ = false;
         auto frame = codec_->encode(unit, pdu, 0);
         if (!frame) co_return frame.error();
         co_await sleep_until(line_quiet_since_ + inter_frame_gap_);
@@ -440,6 +445,7 @@ private:
         Awaited awaited{unit, pdu, transaction, answers, context, sent_at, usual, {}, {}, true, false};
         auto accepted = co_await await_reply(awaited, deadline);
         last_try_refused_a_copy_ = awaited.refused_a_copy;
+        last_try_refused_a_replaced_value_ = awaited.refused_a_replaced_value;
         line_quiet_since_ = clock_->now();
         if (!accepted) co_return accepted.error();
         const Duration took = clock_->now() - sent_at;
@@ -461,6 +467,7 @@ private:
         codec::FrameEvents after_accepted;  // what arrived with the accepted frame, after it
         bool clean;  // nothing but the accepted frame arrived
         bool refused_a_copy;  // a frame that answered in shape was refused as a probable copy
+        bool refused_a_replaced_value = false;  // ... of this read's reply from before a write over it
     };
 
     // Reads until a frame answers the request or the deadline passes.
@@ -540,7 +547,6 @@ private:
         auto answered = awaited.answers(frame.pdu);
         if (answered) {
             answered = not_a_duplicate(awaited, frame.raw);
-            if (!answered) awaited.refused_a_copy = true;
         } else {
             note_if_copy(frame);
         }
@@ -573,7 +579,7 @@ private:
     // exchanges, or a second frame for one request, does), and the request is tried again
     // (exchange) while tries remain, so that a late reply equal to another register's costs
     // its request one more try, not every such request for ten minutes.
-    Result<void> not_a_duplicate(const Awaited& awaited, ByteView raw) {
+    Result<void> not_a_duplicate(Awaited& awaited, ByteView raw) {
         const auto copied = earlier_copy(raw, awaited.request, awaited.unit);
         if (!copied) return {};
         const auto now = clock_->now();
@@ -581,9 +587,13 @@ private:
             awaited.usual > Duration::zero() && now - awaited.sent_at > awaited.usual + inter_frame_gap_ + reply_jitter;
         const bool marked = line_sends_copies();
         // The same read's reply from before a write over what it reads: the value the write
-        // replaced. Taken only from a later try that hears these bytes again.
+        // replaced. Taken only on time, in a clean wait, from a try after one that heard these
+        // bytes since the write (exchange gives it that try).
         const bool replaced = std::ranges::equal(copied->request, awaited.request);
-        if (!late && !marked && awaited.clean && !replaced) return {};
+        const bool confirmed = replaced && heard_since_write(raw, awaited.request, awaited.unit);
+        if (!late && awaited.clean && !marked && (!replaced || confirmed)) return {};
+        awaited.refused_a_copy = true;
+        awaited.refused_a_replaced_value = replaced;
         if (marked) copy_seen_at_ = now;
         const auto ago = std::chrono::duration_cast<milliseconds>(now - copied->at).count();
         if (replaced) {
@@ -613,21 +623,27 @@ private:
     }
 
     // A frame seen with the same bytes for another request, recently enough for a copy of it to
-    // be still on its way. For `request` itself it would be its answer all the same, unless what
-    // it reads was written since (then it is another request's: the one before the write) and
-    // no try of it has had these bytes since the write (a write of the value there already).
+    // be still on its way; or, failing that, for `request` itself before a write over what it
+    // reads (then it is another request's too: the one before the write). For `request` with
+    // nothing written since it would be its answer all the same.
     std::optional<SeenFrame> earlier_copy(ByteView raw, ByteView request, std::uint8_t unit) const {
         const auto recent = clock_->now() - copy_window();
-        const auto same_bytes = [&](const SeenFrame& seen) { return seen.at >= recent && std::ranges::equal(seen.raw, raw); };
-        const bool answered_since_write = std::ranges::any_of(recent_frames_, [&](const SeenFrame& seen) {
-            return same_bytes(seen) && std::ranges::equal(seen.request, request) && !written_over(unit, request, seen.at);
-        });
+        std::optional<SeenFrame> before_write;
         for (const auto& seen : recent_frames_) {
-            if (!same_bytes(seen)) continue;
+            if (seen.at < recent || !std::ranges::equal(seen.raw, raw)) continue;
             if (!std::ranges::equal(seen.request, request)) return seen;
-            if (!answered_since_write && written_over(unit, request, seen.at)) return seen;
+            if (!before_write && written_over(unit, request, seen.at)) before_write = seen;
         }
-        return std::nullopt;
+        return before_write;
+    }
+
+    // Whether a try of `request` heard these bytes after the last write over what it reads.
+    bool heard_since_write(ByteView raw, ByteView request, std::uint8_t unit) const {
+        const auto recent = clock_->now() - copy_window();
+        return std::ranges::any_of(recent_frames_, [&](const SeenFrame& seen) {
+            return seen.at >= recent && std::ranges::equal(seen.raw, raw) && std::ranges::equal(seen.request, request) &&
+                   !written_over(unit, request, seen.at);
+        });
     }
 
     Duration copy_window() const { return options_.timeout + late_reply_window(); }
@@ -812,6 +828,7 @@ private:
     };
     std::map<std::uint8_t, std::deque<SentWrite>> writes_;
     bool last_try_refused_a_copy_ = false;  // the last try's wait refused a frame as a probable copy
+    bool last_try_refused_a_replaced_value_ = false;  // ... as a read's reply from before a write over it
     // On the loop (MasterOptions::loop): the jobs waiting, the one carried, and the destructor
     // waiting for both to end.
     std::deque<std::function<DetachedTask()>> queued_;

@@ -348,7 +348,8 @@ TEST(StrayReplies, ACopyOfTheReplyBeforeAWriteIsNotTakenForTheSameReadAfterIt) {
         if (written) {
             ASSERT_FALSE(read_back.ok()) << "took " << to_hex(*read_back) << ", the value from before the write";
             EXPECT_EQ(read_back.error().kind, ErrorKind::mismatch);
-            EXPECT_EQ(m.discarded_with("the value the write replaced"), 1u);
+            // Refused on the try the master adds for it too: that try's wait was not clean either.
+            EXPECT_EQ(m.discarded_with("the value the write replaced"), 2u);
         } else {
             ASSERT_TRUE(read_back.ok()) << read_back.error().message;
             EXPECT_EQ(to_hex(*read_back), to_hex(reply_pdu(777)));
@@ -362,7 +363,8 @@ TEST(StrayReplies, ACopyOfTheReplyBeforeAWriteIsNotTakenForTheSameReadAfterIt) {
 // read tried again once the late reply has passed, and the new value taken (the soak found a
 // client reading back its old value so). A write elsewhere leaves the read's reply the same, and
 // it is taken at once; a write of the value there already makes the device answer the same
-// bytes, taken when the next try hears them again.
+// bytes, taken when the next try hears them again: a try the master adds for it, beyond
+// `retries` (none here), so that it costs a wait, not a failed read.
 TEST(StrayReplies, AReplyFromBeforeAWriteOverTheReadIsTakenOnlyWhenHeardAgainAfterIt) {
     const Bytes new_value{0x03, 0x02, 0x00, 0x05};
     enum Write { over_the_read, elsewhere, same_value };
@@ -378,7 +380,7 @@ TEST(StrayReplies, AReplyFromBeforeAWriteOverTheReadIsTakenOnlyWhenHeardAgainAft
                 return;
             }
             line.arrive(at + latency, n >= 2 && write == over_the_read ? codec::rtu_encode(unit, new_value) : reply_frame_to(request));
-        }, std::nullopt, 1);
+        });
         ASSERT_TRUE(m.master->forward(unit, read_pdu(777)).ok());
         Bytes written{0x06};
         append_be16(written, write == elsewhere ? 900 : 777);
