@@ -623,16 +623,18 @@ private:
     }
 
     // A frame seen with the same bytes for another request, recently enough for a copy of it to
-    // be still on its way; or, failing that, for `request` itself before a write over what it
-    // reads (then it is another request's too: the one before the write). For `request` with
-    // nothing written since it would be its answer all the same.
+    // be still on its way; or, failing that, for `request` itself, a read (functions 1-4),
+    // before a write over what it reads (then it is another request's too: the one before the
+    // write). For `request` with nothing written since it would be its answer all the same, and
+    // so for a write asked again: its echo is the same whatever the device held.
     std::optional<SeenFrame> earlier_copy(ByteView raw, ByteView request, std::uint8_t unit) const {
         const auto recent = clock_->now() - copy_window();
+        const auto read = codec::read_span(request);
         std::optional<SeenFrame> before_write;
         for (const auto& seen : recent_frames_) {
             if (seen.at < recent || !std::ranges::equal(seen.raw, raw)) continue;
             if (!std::ranges::equal(seen.request, request)) return seen;
-            if (!before_write && written_over(unit, request, seen.at)) before_write = seen;
+            if (read && !before_write && written_over(unit, *read, seen.at)) before_write = seen;
         }
         return before_write;
     }
@@ -640,9 +642,10 @@ private:
     // Whether a try of `request` heard these bytes after the last write over what it reads.
     bool heard_since_write(ByteView raw, ByteView request, std::uint8_t unit) const {
         const auto recent = clock_->now() - copy_window();
+        const auto read = codec::read_span(request);
         return std::ranges::any_of(recent_frames_, [&](const SeenFrame& seen) {
             return seen.at >= recent && std::ranges::equal(seen.raw, raw) && std::ranges::equal(seen.request, request) &&
-                   !written_over(unit, request, seen.at);
+                   read && !written_over(unit, *read, seen.at);
         });
     }
 
@@ -657,18 +660,17 @@ private:
         writes.push_back({sent_at, codec::written_span(pdu)});
     }
 
-    // Whether a request that may change what `request` reads of the unit (sent to it, or
+    // Whether a request that may change what `read` reads of the unit (sent to it, or
     // broadcast) went out at or after `at`: a write sent at the instant a frame was heard
     // follows it (the master sends once the line is quiet). A write elsewhere in the unit is
     // not counted (a read of other registers answers the same after it); one whose reach is not
-    // known, or a read whose reach is not known, is.
-    bool written_over(std::uint8_t unit, ByteView request, Instant at) const {
-        const auto read = codec::read_span(request);
+    // known is.
+    bool written_over(std::uint8_t unit, const codec::DataSpan& read, Instant at) const {
         return std::ranges::any_of(std::array<std::uint8_t, 2>{unit, std::uint8_t{0}}, [&](std::uint8_t to) {
             const auto found = writes_.find(to);
             if (found == writes_.end()) return false;
             return std::ranges::any_of(found->second, [&](const SentWrite& write) {
-                return write.at >= at && (!read || !write.span || write.span->overlaps(*read));
+                return write.at >= at && (!write.span || write.span->overlaps(read));
             });
         });
     }

@@ -394,6 +394,25 @@ TEST(StrayReplies, AReplyFromBeforeAWriteOverTheReadIsTakenOnlyWhenHeardAgainAft
     }
 }
 
+// A write asked again (a restore that retries, a client that writes the same set point twice)
+// is echoed with the same bytes as the first time, whatever the device held: the echo is its
+// answer, not a copy of a value the write replaced, even after a damaged frame in the wait
+// (the AC20's restore on a faulty bus failed every second write so).
+TEST(StrayReplies, AWriteAskedAgainTakesItsEchoThoughItEqualsTheFirst) {
+    TracedMaster m([](TimedLine& line, ByteView request, Instant at, unsigned n) {
+        if (n == 1) line.arrive(at + latency, Bytes{0x5b, 0xaf, 0x13});  // noise before the echo
+        line.arrive(at + latency + 3ms, Bytes(request.begin(), request.end()));
+    });
+    Bytes written{0x05};
+    append_be16(written, 218);
+    append_be16(written, 0xFF00);
+    ASSERT_TRUE(m.master->forward(unit, written).ok());
+    auto again = m.master->forward(unit, written);
+    ASSERT_TRUE(again.ok()) << again.error().message;
+    EXPECT_EQ(*again, written);
+    EXPECT_EQ(m.line->writes().size(), 2u);
+}
+
 // A real reply that comes late (a loaded host) with the same bytes as the reply to another
 // request (two registers holding the same value) looks like a copy and is refused, as the
 // request's own reply may have been lost. With a retry allowed the request is tried again and
