@@ -16,12 +16,12 @@
 // of every device holds a value no other register has, every write's echo is checked, and a
 // client reads back what it wrote, never the value before), no device reads `ok` (in the
 // cache's snapshot, in what its subscribers - MQTT, history, the dashboard - were last told, or
-// in the HTTP API's answer) while its poll is overdue by more than two intervals, every device answers its polls again
-// within one back-off after each outage ends, the polls keep their rate outside the outages, a
-// write by name to a device that can answer ends within a bound however the other lines fare
-// (issue 20, item 10), whichever front it came through, a hostile body or payload is refused
-// with an answer in JSON, every MQTT command is answered, requests of a closed connection are
-// dropped unsent, and the queues stay bounded.
+// in the HTTP API's answer) while its poll is overdue by more than two intervals, every device
+// answers its polls again within one back-off after each outage ends, the polls keep their rate
+// outside the outages, a write by name to a device that can answer ends within a bound however
+// the other lines fare (issue 20, item 10), whichever front it came through, a hostile body or
+// payload is refused with an answer in JSON, every MQTT command is answered, requests of a
+// closed connection are dropped unsent, and the queues stay bounded.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
@@ -29,14 +29,14 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <deque>
-#include <map>
-#include <optional>
 #include <chrono>
 #include <cstdio>
+#include <deque>
 #include <future>
+#include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <string>
 #include <utility>
