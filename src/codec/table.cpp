@@ -49,35 +49,29 @@ std::optional<Table> table_read_by(std::uint8_t function) {
     return std::nullopt;
 }
 
-namespace {
-std::uint16_t word_at(ByteView pdu, std::size_t at) {
-    return static_cast<std::uint16_t>((pdu[at] << 8) | pdu[at + 1]);
-}
-}  // namespace
-
 // Modbus application protocol V1.1b3, 6.1-6.4: function, starting address, quantity.
 std::optional<DataSpan> read_span(ByteView request_pdu) {
     if (request_pdu.size() < 5) return std::nullopt;
     static constexpr std::array<Table, 4> tables{Table::coils, Table::discrete_inputs, Table::holding_registers, Table::input_registers};
     const std::uint8_t function = request_pdu[0];
     if (function < 1 || function > 4) return std::nullopt;
-    return DataSpan{tables[function - 1u], word_at(request_pdu, 1), word_at(request_pdu, 3)};
+    return DataSpan{tables[function - 1u], read_be16(request_pdu, 1), read_be16(request_pdu, 3)};
 }
 
 // 6.5, 6.6, 6.11, 6.12: address, then value or quantity; 6.16 (22): one register; 6.17 (23):
 // read address and quantity, then the write address and quantity.
 std::optional<DataSpan> written_span(ByteView request_pdu) {
     if (request_pdu.size() < 5) return std::nullopt;
-    const std::uint16_t address = word_at(request_pdu, 1);
+    const std::uint16_t address = read_be16(request_pdu, 1);
     switch (request_pdu[0]) {
         case 5: return DataSpan{Table::coils, address, 1};
         case 6: return DataSpan{Table::holding_registers, address, 1};
-        case 15: return DataSpan{Table::coils, address, word_at(request_pdu, 3)};
-        case 16: return DataSpan{Table::holding_registers, address, word_at(request_pdu, 3)};
+        case 15: return DataSpan{Table::coils, address, read_be16(request_pdu, 3)};
+        case 16: return DataSpan{Table::holding_registers, address, read_be16(request_pdu, 3)};
         case 22: return DataSpan{Table::holding_registers, address, 1};
         case 23:
             if (request_pdu.size() < 9) return std::nullopt;
-            return DataSpan{Table::holding_registers, word_at(request_pdu, 5), word_at(request_pdu, 7)};
+            return DataSpan{Table::holding_registers, read_be16(request_pdu, 5), read_be16(request_pdu, 7)};
         default: return std::nullopt;
     }
 }

@@ -7,6 +7,7 @@
 #include <string_view>
 
 #include "codec/pdu.hpp"
+#include "common/bytes.hpp"
 
 namespace loopwire::codec {
 

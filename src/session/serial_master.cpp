@@ -1,10 +1,10 @@
 // The master on a serial line (RTU, ASCII, Linking) or behind a serial device server (rtu+tcp).
 #include <algorithm>
 #include <array>
-#include <deque>
 #include <coroutine>
 #include <cstdio>
 #include <cstdlib>
+#include <deque>
 #include <functional>
 #include <future>
 #include <iterator>

@@ -145,6 +145,9 @@ std::shared_ptr<const device::Profile> soak_profile(int line) {
     return std::make_shared<const device::Profile>(std::move(*profile));
 }
 
+// The configured name of unit `unit` on line `line`.
+std::string device_name(int line, int unit) { return fmt::format("line{}-unit{}", line, unit); }
+
 // The gateway's configuration of the soak's lines: every device polled for p0 ... p9.
 GatewayConfig soak_config() {
     GatewayConfig config;
@@ -156,7 +159,7 @@ GatewayConfig soak_config() {
         const auto profile = soak_profile(line);
         for (int unit = 1; unit <= units_per_line; ++unit) {
             DeviceConfig device;
-            device.name = fmt::format("line{}-unit{}", line, unit);
+            device.name = device_name(line, unit);
             device.address = {profile, static_cast<std::uint8_t>(unit)};
             device.poll = std::chrono::duration_cast<std::chrono::milliseconds>(poll_interval);
             for (int address = 0; address < polled_registers; ++address) device.parameters.push_back(fmt::format("p{}", address));
@@ -512,7 +515,7 @@ private:
     // again and again): each waits out its timeout on that line, and none may hold up a write to
     // another line.
     void write_to_silent(const Outage& outage) {
-        const std::string name = fmt::format("line{}-unit{}", outage.line, outage.unit);
+        const std::string name = device_name(outage.line, outage.unit);
         for (int write = 0; write < 10; ++write) {
             const bool queued = writer_->write_async(name, {{"setting", "1"}}, [this, name, outage](Result<WrittenValues> written) {
                 if (over_) return;
@@ -659,8 +662,6 @@ private:
                                                  });
         if (!queued) ++tally_.writes_by_name_refused;
     }
-
-    static std::string device_name(int line, int unit) { return fmt::format("line{}-unit{}", line, unit); }
 
     // What a hostile HTTP body or MQTT payload is, picked at random.
     std::string hostile_value(WriteFront front) {
