@@ -18,6 +18,7 @@
 #include "gateway/history_store.hpp"
 #include "gateway/http_api.hpp"
 #include "gateway/http_server.hpp"
+#include "gateway/line_keeper.hpp"
 #include "gateway/mqtt_bridge.hpp"
 #include "gateway/sparkplug/sparkplug_node.hpp"
 #include "session/line_loop.hpp"
@@ -27,17 +28,6 @@
 
 namespace loopwire::gateway {
 namespace {
-
-struct OpenLine {
-    std::string name;
-    std::string link;
-    std::shared_ptr<std::atomic<std::uint64_t>> garbled;  // counted from the master's trace
-    // Held here as well as by the scheduler, and declared first so that it goes last: the
-    // master joins its own thread when destroyed, which must not be the thread that destroys the
-    // scheduler from a completion (line_scheduler.hpp, ownership).
-    std::shared_ptr<ReopeningMaster> master;
-    std::shared_ptr<LineScheduler> scheduler;
-};
 
 // Carries the Modbus TCP front's "a client wrote to this device" to the polls
 // (PollGroups::written_unknown), on the engine's loop. The forwarding units hold it weakly and may
@@ -86,11 +76,11 @@ session::UnitMap simulated_devices(const LineConfig& line) {
 // The bus of a virtual line with its simulated devices serving on it, from the lines' loop,
 // which carries the masters too (created with the first).
 Result<std::shared_ptr<transport::VirtualBus>> open_virtual_line(const LineConfig& line, const GatewayOptions& options,
-                                                                 std::unique_ptr<simulation::SimulatedLines>& simulations,
+                                                                 std::shared_ptr<simulation::SimulatedLines>& simulations,
                                                                  const std::shared_ptr<session::LineLoop>& line_loop) {
     auto bus = transport::VirtualBus::create(line.link.serial.baud, line.link.serial.bits_per_character());
     if (options.virtual_bus_faults) bus->set_fault_injector(options.virtual_bus_faults);
-    if (!simulations) simulations = std::make_unique<simulation::SimulatedLines>(line_loop);
+    if (!simulations) simulations = std::make_shared<simulation::SimulatedLines>(line_loop);
     auto served = simulations->add(bus->attach("simulated devices", transport::VirtualBus::Writes::return_at_once),
                                    std::make_unique<session::Slave>(line.link, simulated_devices(line)));
     if (!served) return served.error();
@@ -108,7 +98,7 @@ session::TraceSink counting_trace(std::shared_ptr<std::atomic<std::uint64_t>> ga
 // How the line's master is opened, the first time and after each failure: the port or
 // connection the link names, or a fresh attachment to the virtual line's bus.
 Result<MasterOpener> line_opener(const LineConfig& line, const GatewayOptions& options,
-                                 std::unique_ptr<simulation::SimulatedLines>& simulations,
+                                 std::shared_ptr<simulation::SimulatedLines>& simulations,
                                  session::MasterOptions master_options) {
     if (!line.simulation) {
         return MasterOpener([link = line.link, master_options] { return session::open_master(link, master_options); });
@@ -124,9 +114,9 @@ Result<MasterOpener> line_opener(const LineConfig& line, const GatewayOptions& o
 // back-off (gateway/reopening_master.hpp) while the other lines serve. Only a configuration the
 // port can never take (ErrorKind::usage) is.
 Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options,
-                           std::unique_ptr<simulation::SimulatedLines>& simulations,
+                           std::shared_ptr<simulation::SimulatedLines>& simulations,
                            const std::shared_ptr<session::LineLoop>& line_loop) {
-    OpenLine opened{line.name, line.link.to_string(), std::make_shared<std::atomic<std::uint64_t>>(0), nullptr, nullptr};
+    OpenLine opened{line, line.link.to_string(), std::make_shared<std::atomic<std::uint64_t>>(0), nullptr, nullptr};
     session::MasterOptions master_options;
     master_options.timeout = line.timeout;
     master_options.retries = line.retries;
@@ -189,14 +179,26 @@ constexpr std::chrono::milliseconds write_limit{10000};
 struct Gateway::Parts {
     // A front kept by the caller (GatewayOptions::front) lends its loop to the engine: the
     // clients, the polls and the writes by name on one thread (gateway/modbus_tcp_front.hpp).
-    explicit Parts(ModbusTcpFront* kept_front)
-        : engine(kept_front ? std::make_unique<Engine>(kept_front->loop()) : std::make_unique<Engine>()) {}
+    Parts(ModbusTcpFront* kept_front, LineKeeper* line_keeper)
+        : engine(kept_front ? std::make_unique<Engine>(kept_front->loop()) : std::make_unique<Engine>()),
+          keeper(line_keeper),
+          simulations(line_keeper ? line_keeper->simulations() : nullptr),
+          line_loop(line_keeper ? line_keeper->loop() : std::make_shared<session::LineLoop>()) {}
     // Before any member goes: the notices, while the polls are still there; and the lines' masters,
     // so that a read under way ends now instead of holding the polls' stop (and with it a SIGTERM)
     // until its reply timeout passes. Its end is marked abandoned: no device is told anything.
+    // A line handed over for a reload (hand_over_to) is not closed: its scheduler answers every
+    // asker now instead, and the keeper holds it for the next gateway.
     ~Parts() {
         front_writes->close();
-        for (const auto& line : lines) line.master->close();
+        for (std::size_t i = 0; i < lines.size(); ++i) {
+            if (i < handed_over.size() && handed_over[i]) {
+                lines[i].scheduler->hand_over();
+                keeper->keep(lines[i]);
+            } else {
+                lines[i].master->close();
+            }
+        }
     }
 
     std::chrono::milliseconds statistics_interval{0};
@@ -205,11 +207,14 @@ struct Gateway::Parts {
     // First, so it goes last: the polls, the writer and the statistics run on its loop and take
     // themselves down from it before they go.
     std::unique_ptr<Engine> engine;
+    // The caller's, across reloads (GatewayOptions::lines); or none.
+    LineKeeper* keeper = nullptr;
+    std::vector<bool> handed_over;  // by line: kept for the next gateway (hand_over_to)
     // The simulated devices of the virtual lines, if any; after the lines have gone.
-    std::unique_ptr<simulation::SimulatedLines> simulations;
+    std::shared_ptr<simulation::SimulatedLines> simulations;
     // The loop that carries the serial lines (session/line_loop.hpp); the lines' masters hold it
     // too, and it goes once they have.
-    std::shared_ptr<session::LineLoop> line_loop = std::make_shared<session::LineLoop>();
+    std::shared_ptr<session::LineLoop> line_loop;
     // The front is destroyed first, then the polls (members go in reverse order): no request
     // reaches a line scheduler that is gone.
     std::vector<OpenLine> lines;
@@ -243,14 +248,15 @@ Gateway::~Gateway() {
 }
 
 Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, GatewayOptions options) {
-    auto parts = std::make_unique<Parts>(config.modbus_tcp.enabled ? options.front : nullptr);
+    auto parts = std::make_unique<Parts>(config.modbus_tcp.enabled ? options.front : nullptr, options.lines);
     parts->statistics_interval = config.log.statistics;
     parts->log = options.log;
     parts->wait_for_stop = options.wait_for_stop;
     session::UnitMap& units = parts->units;
     auto clock = steady_clock();
     for (const auto& line : config.lines) {
-        auto opened = open_line(line, options, parts->simulations, parts->line_loop);
+        auto kept = options.lines ? options.lines->take(line) : std::nullopt;
+        auto opened = kept ? Result<OpenLine>(std::move(*kept)) : open_line(line, options, parts->simulations, parts->line_loop);
         if (!opened) return opened.error();
         bool first = true;
         for (const auto& device : line.devices) {
@@ -266,8 +272,12 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         }
         parts->lines.push_back(std::move(*opened));
     }
+    if (options.lines) {
+        options.lines->close_untaken();
+        options.lines->simulations() = parts->simulations;
+    }
     std::map<std::string, std::shared_ptr<LineScheduler>> schedulers;
-    for (const auto& line : parts->lines) schedulers[line.name] = line.scheduler;
+    for (const auto& line : parts->lines) schedulers[line.config.name] = line.scheduler;
     if (config.history) {
         auto history = open_history(*config.history, config, options.log);
         if (!history) return history.error();
@@ -391,7 +401,7 @@ void wait_then_drain(const std::vector<OpenLine>& lines, const std::stop_token& 
 }
 
 LineReport report_of(const OpenLine& line) {
-    return {line.name, line.link, line.scheduler->statistics(), line.garbled->load(std::memory_order_relaxed),
+    return {line.config.name, line.link, line.scheduler->statistics(), line.garbled->load(std::memory_order_relaxed),
             line.master->health()};
 }
 
@@ -469,12 +479,31 @@ Result<void> Gateway::serve(std::stop_token stop) {
 }
 
 void Gateway::hand_over_to(const GatewayConfig& next) {
+    if (parts_->keeper) keep_lines_for(next);
     if (!parts_->mqtt) return;
     std::set<std::string> next_devices;
     for (const auto& line : next.lines) {
         for (const auto& device : line.devices) next_devices.insert(device.name);
     }
     parts_->mqtt->hand_over(next.mqtt, next_devices);
+}
+
+// The lines `next` runs as they run now stay open (line_keeper.hpp); the simulated ones only
+// when all of them do, since they share one simulation.
+void Gateway::keep_lines_for(const GatewayConfig& next) {
+    std::vector<LineConfig> running;
+    for (const auto& line : parts_->lines) running.push_back(line.config);
+    const bool simulations = simulations_kept_as(running, next.lines);
+    if (!simulations) parts_->keeper->simulations().reset();
+    parts_->handed_over.assign(parts_->lines.size(), false);
+    for (std::size_t i = 0; i < parts_->lines.size(); ++i) {
+        const LineConfig& line = parts_->lines[i].config;
+        if (line.simulation && !simulations) continue;
+        const bool kept = std::any_of(next.lines.begin(), next.lines.end(), [&](const LineConfig& to) { return line_kept_as(line, to); });
+        if (!kept) continue;
+        parts_->handed_over[i] = true;
+        if (parts_->log) parts_->log(fmt::format("line {} ({}) stays open across the reload", line.name, parts_->lines[i].link));
+    }
 }
 
 std::vector<LineReport> Gateway::report() const {

@@ -22,6 +22,8 @@
 
 namespace loopwire::gateway {
 
+class LineKeeper;
+
 struct GatewayOptions {
     session::TraceSink trace;  // every frame on the lines and the front (-v)
     GatewayLog log;            // refused requests and other events worth a line
@@ -40,6 +42,11 @@ struct GatewayOptions {
     // reloads (it must listen as the configuration asks, ModbusTcpFront::listens_as, and outlive
     // the gateway). None: the gateway opens its own, closed when serve() returns.
     ModbusTcpFront* front = nullptr;
+    // The lines kept across reloads (gateway/line_keeper.hpp): the lines this gateway runs as the
+    // keeper holds them are taken from it instead of opened, and its loop carries the others; on a
+    // reload, hand_over_to() leaves it the lines the next configuration runs alike. None: the
+    // gateway opens and closes its own. Must outlive the gateway.
+    LineKeeper* lines = nullptr;
     // How serve() waits for its stop: on a condition variable when empty. The gateway command
     // passes its signal handling here (app/stop_signal.hpp, StopSignal::Waits::caller), so the
     // serving thread takes SIGTERM and SIGHUP while it waits and no thread is kept for them.
@@ -88,7 +95,8 @@ public:
 
     // After serve() returned for a reload, before the gateway is destroyed: hands over to the
     // gateway that `next` opens what both publish (MqttBridge::hand_over), so that it does not
-    // flap offline and online across the reload.
+    // flap offline and online across the reload, and, with GatewayOptions::lines, the lines
+    // `next` runs alike, which stay open.
     void hand_over_to(const GatewayConfig& next);
 
     // The Modbus TCP front's connections so far; all zero when the front is disabled.
@@ -110,6 +118,7 @@ private:
     struct Parts;
     explicit Gateway(std::unique_ptr<Parts> parts);
     static Result<void> open_http(const HttpConfig& http, const GatewayConfig& config, Parts& parts);
+    void keep_lines_for(const GatewayConfig& next);
     static void open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConfig& config, Parts& parts, GatewayLog log);
     std::unique_ptr<Parts> parts_;
 };

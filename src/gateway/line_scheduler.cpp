@@ -29,6 +29,10 @@ void deliver(session::Master::ForwardCompletion& done, Result<Bytes> result) {
 
 Error stopping_error() { return make_error(ErrorKind::link, "gateway stopping: the request was not sent"); }
 
+Error reloading_error() {
+    return make_error(ErrorKind::link, "gateway reloading its configuration: the request's outcome is not awaited; ask again");
+}
+
 Error expired_error(std::uint8_t unit) {
     return make_error(ErrorKind::timeout,
                       fmt::format("unit {}: the deadline passed before the line was free; not sent", unit), not_sent_code);
@@ -134,7 +138,17 @@ private:
 struct Flight {
     std::uint8_t unit = 0;
     Priority priority = Priority::client;
-    session::Master::ForwardCompletion done;
+
+    void set_done(session::Master::ForwardCompletion completion) {
+        std::lock_guard lock(mutex_);
+        done_ = std::move(completion);
+    }
+    // The asker's completion, once: empty for whoever comes second (the outcome, or a hand-over
+    // that answered the asker before the outcome came).
+    session::Master::ForwardCompletion take_done() {
+        std::lock_guard lock(mutex_);
+        return std::exchange(done_, nullptr);
+    }
 
     // True if the completion is for the caller to handle now; false if forward_async has not
     // returned yet, in which case the result is kept for the sender.
@@ -154,6 +168,7 @@ struct Flight {
 
 private:
     std::mutex mutex_;
+    session::Master::ForwardCompletion done_;
     bool sender_returned_ = false;
     std::optional<Result<Bytes>> early_;
 };
@@ -173,6 +188,8 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
             std::lock_guard lock(mutex);
             if (stopping) {
                 refused = stopping_error();
+            } else if (handed_over) {
+                refused = reloading_error();
             } else if (request.priority != Priority::poll && !make_room(dropped)) {
                 ++stats.refused_busy;
                 refused = busy_error(request.unit, writes.size() + clients.size());
@@ -230,7 +247,11 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
             auto flight = std::make_shared<Flight>();
             flight->unit = request->unit;
             flight->priority = request->priority;
-            flight->done = std::move(request->done);
+            flight->set_done(std::move(request->done));
+            {
+                std::lock_guard lock(mutex);
+                flights.push_back(flight);
+            }
             if (auto early = send(**line, flight, std::move(request->pdu))) finish(*flight, std::move(*early));
         }
     }
@@ -242,7 +263,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
     std::optional<LineRequest> pop_next() {
         std::lock_guard lock(mutex);
         std::optional<LineRequest> next;
-        if (!stopping && in_flight < options.max_in_flight) {
+        if (!stopping && !handed_over && in_flight < options.max_in_flight) {
             next = writes.pop();
             if (!next) next = polls_turn() ? pop_poll() : clients.pop();
         }
@@ -267,6 +288,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         const bool gone = request.still_wanted && !request.still_wanted();
         std::lock_guard lock(mutex);
         if (stopping) return stopping_error();
+        if (handed_over) return reloading_error();
         if (gone) {
             ++stats.abandoned;
             return abandoned_error(request.unit);
@@ -333,7 +355,8 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
     static void landed(const std::weak_ptr<State>& weak, Flight& flight, Result<Bytes> result) {
         auto state = weak.lock();
         if (!state) {  // the scheduler is gone; the asker still hears what the unit said
-            deliver(flight.done, std::move(result));
+            auto done = flight.take_done();
+            deliver(done, std::move(result));
             return;
         }
         state->finish(flight, std::move(result));
@@ -348,9 +371,11 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
                 stats.busy += std::chrono::duration_cast<std::chrono::microseconds>(clock->now() - busy_since);
             }
             if (flight.priority != Priority::poll) --asked_in_flight;
+            std::erase_if(flights, [&flight](const std::shared_ptr<Flight>& flying) { return flying.get() == &flight; });
             record(flight, result);
         }
-        deliver(flight.done, std::move(result));
+        auto done = flight.take_done();
+        deliver(done, std::move(result));
     }
 
     // Every outcome is counted, but only the gateway's own polls move a unit's back-off: a
@@ -414,6 +439,39 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         for (auto& request : left) deliver(request.done, stopping_error());
     }
 
+    // For a reload that keeps the line: every asker is answered now, what is queued and what is
+    // on the wire alike, and nothing is taken until resume(). The requests on the wire stay there
+    // until their reply or timeout: their outcome still counts (statistics, back-off) but goes to
+    // no one, and the next gateway's first request waits behind it, as the line requires.
+    void hand_over() {
+        std::vector<LineRequest> left;
+        std::vector<std::shared_ptr<Flight>> flying;
+        {
+            std::unique_lock lock(mutex);
+            handed_over = true;
+            // A request being put on the wire is in `flights` once forward_async returns.
+            not_sending.wait(lock, [this] { return !sending; });
+            writes.take_all(left);
+            clients.take_all(left);
+            for (auto& poll : polls) left.push_back(std::move(poll));
+            polls.clear();
+            flying = flights;
+        }
+        for (auto& flight : flying) {
+            auto done = flight->take_done();
+            deliver(done, reloading_error());
+        }
+        for (auto& request : left) deliver(request.done, reloading_error());
+    }
+
+    void resume() {
+        {
+            std::lock_guard lock(mutex);
+            handed_over = false;
+        }
+        pump();
+    }
+
     LineStatistics statistics() const {
         std::lock_guard lock(mutex);
         auto copy = stats;
@@ -434,6 +492,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
     FairLane writes;
     FairLane clients;
     std::deque<LineRequest> polls;  // FIFO: polls are all the gateway's own, no one to be fair to
+    std::vector<std::shared_ptr<Flight>> flights;  // on the wire now
     std::map<std::uint8_t, device::RetryBackoff> backoffs;  // units whose last poll timed out
     LineStatistics stats;
     const Instant opened = clock->now();
@@ -444,6 +503,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
     bool pumping = false;    // a thread is in pump()
     bool sending = false;    // a thread is inside master->forward_async
     bool stopping = false;
+    bool handed_over = false;  // between hand_over() and resume(): every request refused
     bool poll_owed = false;  // a client's request went last: a waiting poll goes next
 };
 
@@ -458,5 +518,9 @@ void LineScheduler::submit(LineRequest request) { state_->submit(std::move(reque
 LineStatistics LineScheduler::statistics() const { return state_->statistics(); }
 
 std::optional<Instant> LineScheduler::hold_poll(std::uint8_t unit) { return state_->hold_poll(unit); }
+
+void LineScheduler::hand_over() { state_->hand_over(); }
+
+void LineScheduler::resume() { state_->resume(); }
 
 }  // namespace loopwire::gateway

@@ -119,6 +119,14 @@ public:
     // next one may go (and the poll is counted as held back); nothing when it may go now.
     std::optional<Instant> hold_poll(std::uint8_t unit);
 
+    // A reload keeps the line for the next gateway (gateway/line_keeper.hpp): every request queued
+    // or on the wire is answered now (ErrorKind::link, "gateway reloading"), so the gateway going
+    // away waits for none, and every request is refused so until resume(). A request on the wire
+    // stays there until its reply or timeout; its outcome counts for the line (statistics,
+    // back-off) and reaches no one. The statistics and back-offs carry on across.
+    void hand_over();
+    void resume();
+
 private:
     struct State;
     std::shared_ptr<State> state_;

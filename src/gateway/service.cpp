@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include "gateway/line_keeper.hpp"
 #include "gateway/modbus_tcp_front.hpp"
 
 namespace loopwire::gateway {
@@ -38,6 +39,8 @@ struct Service {
     const std::stop_token& stop;
     const ServiceLog& log;
     const ServiceHooks& hooks;
+    // The lines kept across reloads that leave them alone; after the front, which routes to them.
+    LineKeeper lines;
     std::unique_ptr<ModbusTcpFront> front;  // kept across reloads that leave [modbus_tcp] alone
 
     // Serves `config` until `stop` or a reload is requested; the error when it cannot be opened.
@@ -47,6 +50,7 @@ struct Service {
         if (auto kept = keep_or_open_front(config, options, log, front); !kept) return kept.error();
         GatewayOptions round_options = options;
         round_options.front = front.get();
+        round_options.lines = &lines;
         auto running = Gateway::open(config, round_options);
         if (!running) return running.error();
         if (hooks.serving) hooks.serving(config, **running);
@@ -102,7 +106,7 @@ std::optional<GatewayConfig> ConfigReloads::take() {
 
 Result<void> serve_with_reloads(GatewayConfig config, const GatewayOptions& options, ConfigReloads& reloads,
                                 const std::stop_token& stop, const ServiceLog& log, const ServiceHooks& hooks) {
-    Service service{options, reloads, stop, log, hooks, nullptr};
+    Service service{options, reloads, stop, log, hooks, {}, nullptr};
     GatewayConfig current = std::move(config);
     std::optional<GatewayConfig> previous;
     for (;;) {

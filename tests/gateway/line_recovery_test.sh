@@ -7,7 +7,8 @@
 #   virtual-line, simulated inside the gateway.
 # The gateway starts although later-line's port is missing, serves virtual-line's device,
 # reports the missing and the killed lines as down (log, /api/devices, 0Ah to Modbus TCP
-# clients), and each line comes up again by itself once its port is back.
+# clients), and each line comes up again by itself once its port is back. A reload that leaves
+# two of the lines alone keeps them open.
 set -u
 loopwire=${1:?usage: line_recovery_test.sh path/to/loopwire}
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -68,6 +69,7 @@ check check-warns-of-the-missing-port 0 "warning: port $later_pty does not exist
   "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
 
 start_tcp_server gateway.log timeout 100 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+gateway_pid=$(pgrep -P "$LAST_PID")  # the gateway itself, not `timeout` around it
 modbus="tcp://127.0.0.1:$PORT"
 http=$(wait_for_log gateway.log 'HTTP API and dashboard on http:..127\.0\.0\.1:([0-9]+)' 20)
 api="http://127.0.0.1:$http/api/devices"
@@ -123,5 +125,29 @@ metric() {  # REGEX : a line of /metrics matches
 expect furnace-line-down-counted metric '^loopwire_line_down_total\{line="furnace-line"\} 1$'
 expect later-line-reopen-attempts-counted metric '^loopwire_line_reopen_attempts_total\{line="later-line"\} [1-9]'
 expect later-line-up metric '^loopwire_line_up\{line="later-line"\} 1$'
+requests_before=$(sed -nE 's/^loopwire_line_requests_total\{line="furnace-line"\} ([0-9]+)$/\1/p' "$WORK_DIR/metrics.txt")
+
+# SIGHUP with only later-line retimed (issue 20, item 8): furnace-line and virtual-line stay open,
+# as the log says, and their figures go on (furnace-line's one down period is still counted, its
+# requests keep adding up); later-line is opened afresh, its figures from nothing. The reloaded
+# gateway's HTTP API listens on a new port (port 0 in the file).
+sed -i '/name = "later-line"/,/timeout/ s/timeout = "300ms"/timeout = "400ms"/' "$WORK_DIR/plant.toml"
+kill -HUP "$gateway_pid"
+wait_for_log gateway.log "configuration .*plant.toml (reloaded)" 30 >/dev/null
+wait_for_log gateway.log "line furnace-line \(rtu:[^)]*\) stays (open) across the reload" 10 >/dev/null
+wait_for_log gateway.log "line virtual-line \(rtu:[^)]*\) stays (open) across the reload" 10 >/dev/null
+expect later-line-not-kept bash -c "! grep -q 'line later-line .* stays open' '$WORK_DIR/gateway.log'"
+apis_announced() { (($(grep -c 'HTTP API and dashboard on' "$WORK_DIR/gateway.log") >= 2)); }
+wait_for 30 "the reloaded gateway's HTTP API" apis_announced
+http=$(grep -oE 'HTTP API and dashboard on http://127\.0\.0\.1:[0-9]+' "$WORK_DIR/gateway.log" | tail -1 | grep -oE '[0-9]+$')
+api="http://127.0.0.1:$http/api/devices"
+wait_for 30 "oven1 ok after the reload" status_is oven1 ok
+wait_for 30 "kiln ok after the reload" status_is kiln ok
+curl -sf "http://127.0.0.1:$http/metrics" >"$WORK_DIR/metrics.txt"
+expect furnace-line-down-count-kept metric '^loopwire_line_down_total\{line="furnace-line"\} 1$'
+expect later-line-opened-afresh metric '^loopwire_line_down_total\{line="later-line"\} 0$'
+requests_after=$(sed -nE 's/^loopwire_line_requests_total\{line="furnace-line"\} ([0-9]+)$/\1/p' "$WORK_DIR/metrics.txt")
+expect furnace-line-requests-go-on test "${requests_after:-0}" -gt "${requests_before:-0}"
+check read-after-reload 0 "" "$loopwire" read --link "$modbus" --device tc10@3 set_point
 
 finish

@@ -1,7 +1,7 @@
 // The line scheduler: one request on the wire at a time, writes before clients' requests before
 // polls, round robin between clients, requests past their deadline or whose asker has gone never
-// sent, a silent unit's polls held back until its back-off is due (which only polls move), and a
-// scheduler that can go while a request is still out.
+// sent, a silent unit's polls held back until its back-off is due (which only polls move), a
+// scheduler that can go while a request is still out, and one handed over across a reload.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -522,6 +522,39 @@ TEST_F(LineSchedulerTest, DestroyingFailsWhatIsQueuedAndALateReplyIsHarmless) {
     master->complete(normal_reply());  // the scheduler is gone; the asker still hears the unit
     EXPECT_EQ(only_answer(1).value(), normal_reply());
     EXPECT_EQ(master->sent_tags(), (std::vector<int>{1}));
+}
+
+// A reload that keeps the line (LineScheduler::hand_over): the gateway going away hears about
+// every request at once, the one on the wire too; nothing is taken until resume(); the reply
+// that comes meanwhile reaches no one but still counts, and the next request waits behind it.
+TEST_F(LineSchedulerTest, AHandOverAnswersEveryAskerAtOnceAndTheLineCarriesOnAfterResume) {
+    submit(1, Priority::poll, 2);  // on the wire
+    submit(2, Priority::poll);
+    submit(3, Priority::client);
+    submit(4, Priority::write);
+    scheduler->hand_over();
+    for (int tag : {1, 2, 3, 4}) {
+        const auto& failed = only_answer(tag);
+        ASSERT_FALSE(failed.ok());
+        EXPECT_EQ(failed.error().kind, ErrorKind::link);
+        EXPECT_NE(failed.error().message.find("gateway reloading"), std::string::npos) << failed.error().message;
+    }
+    submit(5);  // between the two gateways: refused, never sent
+    EXPECT_NE(only_answer(5).error().message.find("gateway reloading"), std::string::npos);
+
+    scheduler->resume();
+    submit(6);  // the next gateway's: behind the request still on the wire
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1}));
+    master->complete(timed_out());  // request 1's outcome: told to no one, counted for the line
+    EXPECT_EQ(answers[1].size(), 1U);
+    EXPECT_EQ(master->sent_tags(), (std::vector<int>{1, 6}));
+    master->complete(normal_reply());
+    EXPECT_EQ(only_answer(6).value(), normal_reply());
+    const auto stats = scheduler->statistics();
+    EXPECT_EQ(stats.sent, 2U);
+    EXPECT_EQ(stats.timeouts, 1U);
+    EXPECT_EQ(stats.answered, 1U);
+    EXPECT_TRUE(scheduler->hold_poll(2)) << "unit 2's silence did not start its back-off";
 }
 
 TEST_F(LineSchedulerTest, DoneMayDestroyTheScheduler) {

@@ -10,6 +10,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <condition_variable>
 #include <fstream>
 #include <mutex>
@@ -19,6 +20,7 @@
 
 #include <fmt/format.h>
 
+#include "gateway/gateway.hpp"
 #include "gateway/service.hpp"
 #include "support/history_test_support.hpp"
 #include "support/profile_test_support.hpp"
@@ -197,6 +199,69 @@ TEST_F(GatewayService, AReloadThatCannotBeServedGivesWayToThePreviousConfigurati
     ASSERT_EQ(recorded.warning.size(), 1u);
     EXPECT_THAT(recorded.warning[0], HasSubstr("the reloaded configuration cannot be served"));
     EXPECT_THAT(recorded.warning[0], HasSubstr("going back to the previous one"));
+}
+
+// Polls `done` every 10 ms until it holds or `limit` passes; false then.
+template <typename Condition>
+bool within(std::chrono::milliseconds limit, Condition done) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    while (!done()) {
+        if (std::chrono::steady_clock::now() > deadline) return false;
+        std::this_thread::sleep_for(10ms);
+    }
+    return true;
+}
+
+// Issue 20, item 8: a reload that leaves a line alone keeps it open - the line's figures go on
+// from where they were, its polls carry on, it never goes down - and one that changes the line
+// (here its timeout) opens it afresh.
+TEST_F(GatewayService, AReloadKeepsTheLinesItLeavesAloneOpen) {
+    write(plant("100ms"));
+    ConfigReloads reloads(file, profiles(), recorded.log());
+    std::stop_source stop;
+    std::vector<LineStatistics> at_start;  // each round's line, as the round began
+    std::vector<LineStatistics> at_end;    // and once it had polled a while
+    std::vector<LinkHealth> health;
+    ServiceHooks hooks;
+    hooks.serving = [&](const GatewayConfig&, const Gateway& gateway) {
+        at_start.push_back(gateway.report().at(0).statistics);
+        const auto answered_before = at_start.back().answered;
+        const bool polled = within(30s, [&] { return gateway.report().at(0).statistics.answered >= answered_before + 3; });
+        EXPECT_TRUE(polled) << "round " << at_start.size() << ": the line's polls were not answered";
+        at_end.push_back(gateway.report().at(0).statistics);
+        health.push_back(gateway.report().at(0).link_health);
+        if (at_start.size() == 1) write(plant("200ms"));  // the device's poll only: the line stays
+        if (at_start.size() == 2) {
+            std::string retimed = plant("200ms");
+            retimed.replace(retimed.find("timeout = \"500ms\""), 17, "timeout = \"400ms\"");
+            write(retimed);
+        }
+        if (at_start.size() < 3 && polled) reloads.hangup();
+        else stop.request_stop();
+    };
+    std::vector<std::string> gateway_log;
+    std::mutex gateway_log_mutex;
+    GatewayOptions options;
+    options.log = [&](const std::string& line) {
+        std::lock_guard lock(gateway_log_mutex);
+        gateway_log.push_back(line);
+    };
+    Watchdog watchdog(stop);
+    auto result = serve_with_reloads(load(), options, reloads, stop.get_token(), recorded.log(), hooks);
+    ASSERT_TRUE(result) << result.error().message;
+    ASSERT_EQ(at_start.size(), 3u);
+    // Kept: the second round's line begins with the first one's figures, never down between.
+    EXPECT_GE(at_start[1].sent, at_end[0].sent);
+    EXPECT_GE(at_start[1].answered, at_end[0].answered);
+    EXPECT_EQ(health[1].down_periods, health[0].down_periods);
+    EXPECT_TRUE(health[1].up);
+    // Retimed: a new line, its figures from nothing.
+    EXPECT_LT(at_start[2].sent, at_end[1].sent);
+    std::lock_guard lock(gateway_log_mutex);
+    EXPECT_EQ(std::count_if(gateway_log.begin(), gateway_log.end(),
+                            [](const std::string& line) { return line.find("stays open across the reload") != std::string::npos; }),
+              1)
+        << "the log said which line stayed open, once";
 }
 
 TEST_F(GatewayService, AFirstConfigurationThatCannotBeServedIsAnError) {
