@@ -42,10 +42,22 @@ HttpResponse too_large(const HttpServerSettings& settings) {
     return error_response(413, fmt::format("the request body is larger than {} bytes", settings.body_limit));
 }
 
+// The most a connection buffers of one request: its headers and body at their limits, and room
+// for the chunked framing around the body. Chunk-size lines, their extensions and the trailer
+// count against neither limit in the parser: unbounded, one connection that never ends a chunk
+// line grew the gateway by gigabytes.
+std::size_t read_buffer_limit(const HttpServerSettings& settings) { return settings.header_limit + settings.body_limit + 16 * 1024; }
+
+HttpResponse request_too_large(const HttpServerSettings& settings) {
+    return error_response(413, fmt::format("the request is larger than {} bytes with its headers and chunked framing",
+                                           read_buffer_limit(settings)));
+}
+
 // What a request that cannot be read gets: none when nothing can usefully be said (the client
 // went, or stalled past read_timeout), and the connection is just closed.
 std::optional<HttpResponse> refusal_for(const error_code& error, const HttpServerSettings& settings) {
     if (error == http::error::body_limit) return too_large(settings);
+    if (error == http::error::buffer_overflow) return request_too_large(settings);
     if (error == http::error::header_limit) {
         return error_response(431, fmt::format("the request's headers are larger than {} bytes", settings.header_limit));
     }
@@ -61,6 +73,21 @@ using RequestParser = http::request_parser<http::string_body>;
 void limit(RequestParser& parser, const HttpServerSettings& settings) {
     parser.header_limit(static_cast<std::uint32_t>(settings.header_limit));
     parser.body_limit(settings.body_limit);
+}
+
+// A request whose framing or target is ambiguous, refused before its body is read; the connection
+// is closed after the answer, since where the next request would begin is not known. RFC 9112,
+// 6.1: a Transfer-Encoding other than chunked (last) is not understood here, 501 (read as no body,
+// the body would be taken for the next request); RFC 9110, 7.2 and RFC 9112, 3.2: more than one
+// Host is a 400 (the first alone was checked against [http] hosts).
+std::optional<HttpResponse> framing_refusal(const RequestParser& parser) {
+    const auto& header = parser.get();
+    if (header.count(http::field::host) > 1) return error_response(400, "the request has more than one Host header");
+    if (header.count(http::field::transfer_encoding) > 0 && !parser.chunked()) {
+        return error_response(501, "the request's Transfer-Encoding is not supported: send its body with Content-Length, or "
+                                   "chunked");
+    }
+    return std::nullopt;
 }
 
 // The parsed message as the handler sees it: every text exactly as sent (the handler escapes
@@ -163,6 +190,7 @@ private:
 
     void on_header(const error_code& error) {
         if (error) return refuse_unreadable(error);
+        if (auto refused = framing_refusal(*parser_)) return send(*refused, true);
         const auto& header = parser_->get();
         if (header.payload_size() && *header.payload_size() > server_.settings.body_limit) {
             return send(too_large(server_.settings), true);
@@ -385,7 +413,7 @@ private:
     asio::ip::address client_;
     bool counted_ = true;
     beast::tcp_stream stream_;
-    beast::flat_buffer buffer_;
+    beast::flat_buffer buffer_{read_buffer_limit(server_.settings)};
     std::optional<http::request_parser<http::string_body>> parser_;
     std::shared_ptr<std::string> continue_;
     std::shared_ptr<std::array<char, 4096>> drain_;
@@ -519,6 +547,7 @@ ParsedHttpRequest parse_http_request(std::string_view bytes, const HttpServerSet
         error = {};
     }
     if (!parser.is_done()) return {};
+    if (auto refused = framing_refusal(parser)) return {std::nullopt, refused};
     // As the connection checks before it reads a body.
     if (parser.content_length() && *parser.content_length() > settings.body_limit) return {std::nullopt, too_large(settings)};
     return {to_request(parser.get()), std::nullopt};

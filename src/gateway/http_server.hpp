@@ -84,7 +84,8 @@ struct HttpServerSettings {
 };
 
 // What the server makes of the bytes of one request, without a socket: the request, or the
-// response that refuses it (400 malformed, 413, 431), or neither while more bytes are needed.
+// response that refuses it (400 malformed or with two Hosts, 413, 431, 501 for a Transfer-Encoding
+// other than chunked), or neither while more bytes are needed.
 // The network code reads requests with the same parser settings and the same mapping.
 struct ParsedHttpRequest {
     std::optional<HttpRequest> request;

@@ -1171,5 +1171,58 @@ TEST_F(HttpLimitsTest, OversizedHeadersAreAnswered431) {
     EXPECT_EQ(reply.status, 431u);
 }
 
+// A chunked request whose chunk-size line (here its extension) never ends counts against neither
+// the header nor the body limit in the parser: the connection's buffer bounds it, and the client
+// is answered 413 at once (or cut off with what it still sends unread), never held until
+// read_timeout while the gateway's memory grows.
+TEST_F(HttpLimitsTest, AChunkLineThatNeverEndsIsRefusedAtTheBufferBound) {
+    HttpServerSettings settings;
+    settings.read_timeout = 120s;  // far beyond the test's deadline: only the bound can end it
+    start(settings);
+    Socket client(server_->port());
+    const auto began = std::chrono::steady_clock::now();
+    client.send("GET /api/devices HTTP/1.1\r\nHost: 127.0.0.1\r\nTransfer-Encoding: chunked\r\n\r\n11;" +
+                std::string(200 * 1024, 'x'));
+    std::string answer;
+    std::optional<std::string> some = std::string();
+    while (some && std::chrono::steady_clock::now() - began < deadline) {
+        some = client.receive(100ms);
+        if (some) answer += *some;
+    }
+    EXPECT_FALSE(some) << "the connection was still open after " << deadline.count() << " s";
+    if (!answer.empty()) {
+        EXPECT_THAT(answer, HasSubstr("413"));
+        EXPECT_THAT(answer, HasSubstr("with its headers and chunked framing"));
+    }
+    EXPECT_EQ(get(server_->port(), "/api/devices").status, 200u);
+}
+
+// RFC 9112, 6.1: a Transfer-Encoding the server does not understand is refused, 501, and the
+// connection closed: read as a request without a body, its body would be answered as the next
+// request (here a GET of another device smuggled in a POST).
+TEST_F(HttpLimitsTest, ATransferEncodingOtherThanChunkedIsRefusedAndTheConnectionClosed) {
+    start(HttpServerSettings{});
+    Socket client(server_->port());
+    const std::string smuggled = "GET /api/devices/oven HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+    client.send("POST /api/devices/oven/write HTTP/1.1\r\nHost: 127.0.0.1\r\nTransfer-Encoding: gzip\r\n\r\n" + smuggled);
+    const std::string answer = client.receive_all();
+    EXPECT_EQ(parse_reply(answer).status, 501u) << answer;
+    EXPECT_THAT(answer, HasSubstr("Transfer-Encoding is not supported"));
+    EXPECT_EQ(answer.find("HTTP/1.1 200"), std::string::npos) << "the smuggled request was answered: " << answer;
+}
+
+// RFC 9110, 7.2: a request with two Host headers is a 400, whichever comes first: only the first
+// would have been checked against the names the front answers to.
+TEST_F(HttpLimitsTest, TwoHostHeadersAreRefused400) {
+    start(HttpServerSettings{});
+    for (const auto& [first, second] : {std::pair{"127.0.0.1", "evil.example"}, std::pair{"evil.example", "127.0.0.1"}}) {
+        Socket client(server_->port());
+        client.send(fmt::format("GET /api/devices HTTP/1.1\r\nHost: {}\r\nHost: {}\r\nConnection: close\r\n\r\n", first, second));
+        const Reply reply = parse_reply(client.receive_all());
+        EXPECT_EQ(reply.status, 400u) << first << ", then " << second << ": " << reply.body;
+        EXPECT_THAT(reply.body, HasSubstr("more than one Host header"));
+    }
+}
+
 }  // namespace
 }  // namespace loopwire::gateway
