@@ -1,5 +1,6 @@
 #include "client/dump_file.hpp"
 
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -104,6 +105,10 @@ Result<DumpFile> dump_from_document(const std::string& path, const nlohmann::jso
 }  // namespace
 
 Result<DumpFile> read_dump_file(const std::string& path) {
+    // A pipe is taken (restore /dev/stdin, or a FIFO a script writes into); a directory is said to
+    // be one rather than "not valid JSON".
+    std::error_code error;
+    if (std::filesystem::is_directory(path, error)) return bad_dump(path, "is a directory");
     std::ifstream file(path, std::ios::binary);
     if (!file) return make_error(ErrorKind::usage, fmt::format("cannot read {}: no such file or no permission", path));
     std::ostringstream text;
@@ -112,6 +117,7 @@ Result<DumpFile> read_dump_file(const std::string& path) {
 }
 
 Result<DumpFile> parse_dump_text(const std::string& text, const std::string& path) {
+    if (auto deep = json_nesting_problem(text)) return bad_dump(path, *deep);
     const auto document = nlohmann::json::parse(text, nullptr, false);
     if (document.is_discarded()) return bad_dump(path, "is not valid JSON");
     return dump_from_document(path, document);

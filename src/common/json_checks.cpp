@@ -1,5 +1,7 @@
 #include "common/json_checks.hpp"
 
+#include <algorithm>
+
 #include <fmt/format.h>
 
 namespace loopwire {
@@ -29,6 +31,39 @@ std::string describe_json(const nlohmann::json& value) {
         case nlohmann::json::value_t::object: return "an object";
         default: return "a value " + text;
     }
+}
+
+std::size_t json_nesting_depth(std::string_view text) {
+    std::size_t depth = 0;
+    std::size_t deepest = 0;
+    bool in_string = false;
+    bool escaped = false;
+    for (const char c : text) {
+        if (in_string) {
+            if (escaped) {
+                escaped = false;
+            } else if (c == '\\') {
+                escaped = true;
+            } else if (c == '"') {
+                in_string = false;
+            }
+            continue;
+        }
+        if (c == '"') {
+            in_string = true;
+        } else if (c == '[' || c == '{') {
+            deepest = std::max(deepest, ++depth);
+        } else if ((c == ']' || c == '}') && depth > 0) {
+            --depth;
+        }
+    }
+    return deepest;
+}
+
+std::optional<std::string> json_nesting_problem(std::string_view text) {
+    const std::size_t depth = json_nesting_depth(text);
+    if (depth <= json_nesting_limit) return std::nullopt;
+    return fmt::format("nests arrays and objects {} levels deep (at most {})", depth, json_nesting_limit);
 }
 
 std::optional<std::uint16_t> json_word(const nlohmann::json& value) {

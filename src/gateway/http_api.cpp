@@ -1,7 +1,9 @@
 #include "gateway/http_api.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
+#include <charconv>
 #include <map>
 #include <optional>
 #include <set>
@@ -384,12 +386,23 @@ HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const
 
 namespace {
 
+// A JSON number that is not an integer in plain decimal digits, as the profile's checks read
+// numbers: dump() writes 1e+308 or 1e-08, which they would refuse as "not a number" instead of
+// saying what is wrong with the value (out of range, too many decimals). The shortest digits
+// that read back as the same double (std::to_chars, fixed).
+std::string fixed_text(double value) {
+    std::array<char, 400> text{};  // the largest double has 309 digits before the point
+    const auto written = std::to_chars(text.data(), text.data() + text.size(), value, std::chars_format::fixed);
+    return std::string(text.data(), written.ptr);
+}
+
 // A value to write as the CLI would take it: a string as it is ("150", "manual"), a number as
 // its shortest text (Node-RED and scripts send 150 or 0.85, not "150"); the profile's checks then
 // refuse what the parameter cannot take (too many decimals, out of range). Anything else is not
 // a value.
 Result<std::string> written_text(const nlohmann::json& value) {
     if (value.is_string()) return value.get<std::string>();
+    if (value.is_number_float()) return fixed_text(value.get<double>());
     if (value.is_number()) return value.dump();
     return make_error(ErrorKind::usage, fmt::format("expected a number or a string as it would be typed (150, \"on\"), "
                                                     "not {}", value.type_name()));

@@ -1,5 +1,6 @@
 #include "gateway/http_text.hpp"
 
+#include <algorithm>
 #include <charconv>
 
 #include <fmt/format.h>
@@ -58,6 +59,9 @@ std::optional<system_clock::time_point> parse_iso_time(std::string_view text) {
     if (text[10] != 'T' && text[10] != 't' && text[10] != ' ') return std::nullopt;
     const year_month_day date{year{*y}, month{static_cast<unsigned>(*mo)}, day{static_cast<unsigned>(*d)}};
     if (!date.ok() || *h > 23 || *mi > 59 || *s > 60) return std::nullopt;
+    // The clock counts nanoseconds in 64 bits: 1677 to 2262. Outside the years below a time
+    // wrapped round (year 1 came back as 1754) instead of being refused.
+    if (*y < earliest_year || *y > latest_year) return std::nullopt;
     std::size_t at = 19;
     nanoseconds fraction{0};
     if (at < text.size() && (text[at] == '.' || text[at] == ',')) {
@@ -130,7 +134,8 @@ std::optional<system_clock::time_point> query_time(std::string_view text, system
     if (text == "now") return now;
     if (text.starts_with('-')) {
         auto before = parse_period(text.substr(1), "time");
-        if (!before) return std::nullopt;
+        // A century back at most: further, the clock's nanoseconds would wrap round.
+        if (!before || *before > hours(24 * 365 * 100)) return std::nullopt;
         return now - *before;
     }
     return parse_iso_time(text);
@@ -159,7 +164,9 @@ Result<ParsedHistoryQuery> history_query(std::string_view text, system_clock::ti
         while (!rest.empty()) {
             const auto comma = rest.find(',');
             const std::string_view one = rest.substr(0, comma);
-            if (!one.empty()) parsed.query.parameters.emplace_back(one);
+            // Each once: asked twice, a series would be answered twice.
+            auto& asked = parsed.query.parameters;
+            if (!one.empty() && std::find(asked.begin(), asked.end(), one) == asked.end()) asked.emplace_back(one);
             rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
         }
     }
@@ -170,8 +177,10 @@ Result<ParsedHistoryQuery> history_query(std::string_view text, system_clock::ti
         auto time = query_time(it->second, now);
         if (!time) {
             return make_error(ErrorKind::usage, fmt::format("{}=\"{}\" is not a time: give it in ISO 8601 with its zone "
-                                                            "(2026-12-02T08:00:00Z, 2026-12-02T09:00:00+01:00), as a time "
-                                                            "before now (-1h, -30m, -7d) or as now", name, it->second));
+                                                            "(2026-12-02T08:00:00Z, 2026-12-02T09:00:00+01:00) between the "
+                                                            "years {} and {}, as a time before now (-1h, -30m, -7d; at most a "
+                                                            "century) or as now",
+                                                            name, it->second, earliest_year, latest_year));
         }
         (std::string_view(name) == "from" ? parsed.query.from : parsed.query.to) = *time;
     }

@@ -18,7 +18,10 @@ namespace loopwire::gateway {
 std::string iso_time(std::chrono::system_clock::time_point time);
 
 // "2026-12-02T01:39:56Z", with optional fractions of a second, or an offset ("+01:00") instead
-// of Z. A time without a zone is refused: it would be read in some zone the caller did not mean.
+// of Z. A time without a zone is refused: it would be read in some zone the caller did not mean,
+// as is one outside the years below.
+constexpr int earliest_year = 1700;
+constexpr int latest_year = 2200;
 std::optional<std::chrono::system_clock::time_point> parse_iso_time(std::string_view text);
 
 // %XX and '+' (a space, in a query) decoded; none when a % is not followed by two hex digits.

@@ -1,5 +1,7 @@
 #include "profile/json_document.hpp"
 
+#include "common/json_checks.hpp"
+
 #include <set>
 
 #include <fmt/format.h>
@@ -123,6 +125,7 @@ Error document_error(const std::string& origin, const std::vector<DocumentProble
 }
 
 Result<nlohmann::json> parse_json_document(std::string_view text, const std::string& origin) {
+    if (auto deep = json_nesting_problem(text)) return make_error(ErrorKind::usage, fmt::format("{}: {}", origin, *deep));
     DuplicateKeyFinder finder;
     if (!Json::sax_parse(text, &finder)) {
         return make_error(ErrorKind::usage,

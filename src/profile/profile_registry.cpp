@@ -10,6 +10,8 @@
 #include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
 
+#include "common/json_checks.hpp"
+
 namespace loopwire::device {
 namespace {
 
@@ -26,7 +28,9 @@ std::string likely_profile_id(const fs::path& path) {
     if (file) {
         std::ostringstream text;
         text << file.rdbuf();
-        const auto document = nlohmann::json::parse(text.str(), nullptr, /*allow_exceptions=*/false);
+        const auto document = json_nesting_problem(text.str())
+                                  ? nlohmann::json()
+                                  : nlohmann::json::parse(text.str(), nullptr, /*allow_exceptions=*/false);
         if (document.is_object()) {
             const auto id = document.find("id");
             if (id != document.end() && id->is_string()) return id->get<std::string>();

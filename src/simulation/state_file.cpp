@@ -1,5 +1,6 @@
 #include "simulation/state_file.hpp"
 
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -7,12 +8,15 @@
 
 #include "common/atomic_file.hpp"
 #include "common/json_checks.hpp"
+#include "common/regular_file.hpp"
 #include "common/text_parsing.hpp"
 
 namespace loopwire::device {
 namespace {
 
 constexpr const char* format_name = "loopwire-simulator-state";
+// Far above what any simulator saves (a few kilobytes per device).
+constexpr std::size_t max_state_file_size = 64 * 1024 * 1024;
 
 Error bad_file(const std::string& path, const std::string& what) {
     return make_error(ErrorKind::usage, fmt::format("{}: {}; it was left untouched: give another --state file, or "
@@ -72,6 +76,7 @@ Result<void> check_document(const std::string& path, const nlohmann::json& docum
 }  // namespace
 
 Result<nlohmann::json> parse_state_text(const std::string& text, const std::string& path) {
+    if (auto deep = json_nesting_problem(text)) return bad_file(path, *deep);
     auto document = nlohmann::json::parse(text, nullptr, false);
     if (document.is_discarded()) return bad_file(path, "is not valid JSON");
     if (auto checked = check_document(path, document); !checked) return checked.error();
@@ -80,13 +85,16 @@ Result<nlohmann::json> parse_state_text(const std::string& text, const std::stri
 
 namespace {
 
+// A state file is the simulator's own, written whole by rename: anything but a regular file (a
+// FIFO, which would block the start forever, a directory, a device) is refused unopened.
 Result<nlohmann::json> read_document(const std::string& path, bool& exists) {
-    std::ifstream file(path, std::ios::binary);
-    exists = static_cast<bool>(file);
+    std::error_code error;
+    exists = std::filesystem::status(path, error).type() != std::filesystem::file_type::not_found;
     if (!exists) return nlohmann::json{{"format", format_name}, {"version", 1}, {"units", nlohmann::json::object()}};
-    std::ostringstream text;
-    text << file.rdbuf();
-    return parse_state_text(text.str(), path);
+    if (auto what = not_a_regular_file(path)) return bad_file(path, *what);
+    auto text = read_regular_file(path, max_state_file_size);
+    if (!text) return bad_file(path, text.error().message);
+    return parse_state_text(*text, path);
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Files that fight back: dump outputs that are links, FIFOs and device nodes; dump and state
-# files with values of the wrong JSON type or shape; a state file that cannot be saved, at start
+# files with values of the wrong JSON type or shape, nested too deep, FIFOs and directories; a state file that cannot be saved, at start
 # and while serving; temporaries left by a killed save; a device whose decimals word is nonsense.
 set -u
 loopwire=${1:?usage: hostile_files_test.sh path/to/loopwire}
@@ -78,6 +78,28 @@ state_refuses state-saved-string "{$header, \"units\": {\"3\": {\"profile\": \"t
 state_refuses state-saved-float "{$header, \"units\": {\"3\": {\"profile\": \"tc10\", \"saved\": {\"set_point\": 150.5}}}}" \
   'at /units/3/saved/set_point: expected a raw word'
 state_refuses state-unit-key "{$header, \"units\": {\"three\": {\"profile\": \"tc10\", \"saved\": {}}}}" 'at /units/three: expected a unit id 1..255'
+
+# 3b. Arrays nested 100 000 deep: refused before they are parsed, exit 2, in a dump, a state file,
+# a profile named with --profile, and a profile in the folder (a warning; the others load). Saying
+# what was found printed the value, which recursed once per level: a stack overflow, exit 139.
+$python -c "print('[' * 100000 + ']' * 100000)" >"$WORK_DIR/deep.json"
+deep="nests arrays and objects 100000 levels deep (at most 64)"
+check restore-deep-dump 2 "$deep" "$loopwire" restore --link "$link" --device tc10@3 "$WORK_DIR/deep.json" --dry-run
+state_refuses state-deep "$(cat "$WORK_DIR/deep.json")" "$deep"
+check profile-deep 2 "$deep" "$loopwire" --profile "$WORK_DIR/deep.json" devices
+mkdir -p "$WORK_DIR/xdg/loopwire/profiles" && cp "$WORK_DIR/deep.json" "$WORK_DIR/xdg/loopwire/profiles/"
+check profile-folder-deep-warns 0 "$deep" env XDG_CONFIG_HOME="$WORK_DIR/xdg" "$loopwire" describe tc10
+check profile-folder-deep-others-load 0 "Yokogawa TC10" env XDG_CONFIG_HOME="$WORK_DIR/xdg" "$loopwire" describe tc10
+
+# 3c. A state file that is not a regular file is refused unopened: a FIFO would hold the start
+# forever (nothing writes to it), a directory is not "not valid JSON". A dump may come through a
+# pipe (restore /dev/stdin), but a directory is said to be one.
+mkfifo "$WORK_DIR/state-fifo"
+check state-fifo-refused 2 "is a FIFO (named pipe), not a regular file" \
+  "$loopwire" simulate --pty "$WORK_DIR/ttyS" --device tc10@3 --state "$WORK_DIR/state-fifo" --duration 1s
+check state-directory-refused 2 "is a directory" \
+  "$loopwire" simulate --pty "$WORK_DIR/ttyS" --device tc10@3 --state "$WORK_DIR/a-directory" --duration 1s
+check restore-directory-refused 2 "is a directory" "$loopwire" restore --link "$link" --device tc10@3 "$WORK_DIR/a-directory" --dry-run
 
 # 4. A state file that cannot be saved is found at start, before anything is served. Root may
 # write anywhere, so an unprivileged user tries the read-only folder.

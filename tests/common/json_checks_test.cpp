@@ -32,5 +32,16 @@ TEST(DescribeJson, SaysWhatWasFoundAndShortensLongTexts) {
     EXPECT_NO_THROW(describe_json(nlohmann::json(std::string("\xff\xfe"))));
 }
 
+// Counted on the text without recursion, brackets in strings (escaped quotes too) left out, so
+// that a reader refuses a document nested too deep before anything recursive touches it.
+TEST(JsonNesting, CountsArraysAndObjectsOutsideStrings) {
+    EXPECT_EQ(json_nesting_depth("150"), 0u);
+    EXPECT_EQ(json_nesting_depth(R"({"a": [1, {"b": []}], "c": {}})"), 4u);
+    EXPECT_EQ(json_nesting_depth(R"({"text": "[[[[{{{{ \" [[[["})"), 1u);
+    EXPECT_FALSE(json_nesting_problem(std::string(64, '[') + std::string(64, ']')));
+    const std::string deep = std::string(100000, '[') + std::string(100000, ']');
+    EXPECT_EQ(json_nesting_problem(deep), "nests arrays and objects 100000 levels deep (at most 64)");
+}
+
 }  // namespace
 }  // namespace loopwire

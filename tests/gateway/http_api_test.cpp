@@ -381,6 +381,16 @@ TEST_F(HttpApiTest, AWriteTakesJsonNumbersAsWellAsText) {
     EXPECT_EQ(out_of_range.status, 422u) << out_of_range.body;
     const Reply fraction = post_write(port_, "oven", R"({"set_point": 200.123456})");
     EXPECT_EQ(fraction.status, 422u) << fraction.body;
+    // Numbers JSON writes with an exponent are read as their digits, and refused for what is
+    // wrong with them, never as "not a number".
+    for (const char* body : {R"({"set_point": 1e308})", R"({"set_point": 1e21})", R"({"set_point": 18446744073709551616})",
+                             R"({"set_point": 0.00000001})"}) {
+        const Reply refused = post_write(port_, "oven", body);
+        EXPECT_EQ(refused.status, 422u) << body << ": " << refused.body;
+        EXPECT_THAT(refused.body, Not(HasSubstr("not a number"))) << body;
+    }
+    const Reply tiny = post_write(port_, "oven", R"({"set_point": 0.00000001})");
+    EXPECT_THAT(tiny.body, HasSubstr("0.00000001 has 8 decimals"));
 }
 
 TEST_F(HttpApiTest, WritesWithoutTheRightTokenAreRefused) {
@@ -900,10 +910,15 @@ TEST_F(HttpHistoryTest, BadQueriesAreRefusedSayingWhatIsWrong) {
     };
     EXPECT_THAT(error_of("from=2026-12-02T08:00:00Z", 400), HasSubstr("missing device"));
     EXPECT_THAT(error_of("device=oven&from=yesterday", 400), HasSubstr("ISO 8601"));
-    EXPECT_THAT(error_of("device=oven&from=-1fortnight", 400), HasSubstr("a time before now (-1h, -30m, -7d)"));
+    EXPECT_THAT(error_of("device=oven&from=-1fortnight", 400), HasSubstr("a time before now (-1h, -30m, -7d; at most a century)"));
     EXPECT_THAT(error_of("device=oven&from=+1h", 400), HasSubstr("is not a time"));
     EXPECT_THAT(error_of("device=oven&from=2026-12-02T08:00:00", 400), HasSubstr("with its zone"));
     EXPECT_THAT(error_of("device=oven&from=2026-02-30T08:00:00Z", 400), HasSubstr("ISO 8601"));
+    // The clock's nanoseconds span 1677-2262: times outside the years taken wrapped round to
+    // others (year 1 answered for 1754).
+    EXPECT_THAT(error_of("device=oven&from=0001-01-01T00:00:00Z", 400), HasSubstr("between the years 1700 and 2200"));
+    EXPECT_THAT(error_of("device=oven&to=9999-12-31T23:59:59Z", 400), HasSubstr("between the years 1700 and 2200"));
+    EXPECT_THAT(error_of("device=oven&from=-100000000d", 400), HasSubstr("at most a century"));
     EXPECT_THAT(error_of("device=oven&from=2026-12-02T09:00:00Z&to=2026-12-02T08:00:00Z", 400), HasSubstr("must be before"));
     EXPECT_THAT(error_of("device=oven&points=0", 400), HasSubstr("1..10000"));
     EXPECT_THAT(error_of("device=oven&points=many", 400), HasSubstr("1..10000"));
