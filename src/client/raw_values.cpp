@@ -2,11 +2,12 @@
 
 #include <array>
 #include <bit>
-#include <charconv>
 #include <cctype>
-#include <limits>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
+#include <string>
 
 #include <fmt/format.h>
 
@@ -228,6 +229,23 @@ Result<std::uint64_t> integer_bits(std::string_view text, RawType type, const st
     return static_cast<std::uint64_t>(value) & (bits == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << bits) - 1);
 }
 
+// The smallest magnitude that rounds to infinity as a float32: the largest float plus half its
+// last place (2^128 - 2^103). Below it a number rounds to a finite float, the largest one among
+// them: 3.4028235e38, as the largest float32 is printed, is taken.
+const double float_overflow = std::ldexp(1.0, 128) - std::ldexp(1.0, 103);
+
+bool names_infinity(std::string_view text) {
+    if (!text.empty() && (text.front() == '+' || text.front() == '-')) text.remove_prefix(1);
+    std::string lower(text);
+    for (auto& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return lower == "inf" || lower == "infinity";
+}
+
+std::string largest_of(RawType type) {
+    return type == RawType::float64 ? fmt::format("{}", std::numeric_limits<double>::max())
+                                    : fmt::format("{}", std::numeric_limits<float>::max());
+}
+
 Result<std::uint64_t> float_bits(std::string_view text, RawType type, const std::optional<RawScale>& scale) {
     const auto number = any_number(text);
     if (!number) {
@@ -235,8 +253,14 @@ Result<std::uint64_t> float_bits(std::string_view text, RawType type, const std:
                                                         "-0.25 or 1e-3 (nan and inf are taken too)", text, raw_type_name(type)));
     }
     const double value = scale ? *number / factor_of(*scale) : *number;
+    // Infinity only when asked for by name ("inf", "-infinity"): a number too large for a double
+    // (1e999) read as infinity too, and was written as such.
+    if (std::isinf(value) && !names_infinity(text)) {
+        return make_error(ErrorKind::usage, fmt::format("{} is beyond the largest {}, {}: give a smaller number", text,
+                                                        raw_type_name(type), largest_of(type)));
+    }
     if (type == RawType::float64) return std::bit_cast<std::uint64_t>(value);
-    if (std::isfinite(value) && std::abs(value) > static_cast<double>(std::numeric_limits<float>::max())) {
+    if (std::isfinite(value) && std::abs(value) >= float_overflow) {
         return make_error(ErrorKind::usage, fmt::format("{} is beyond the largest float32, {}: give a smaller number or --type "
                                                         "float64", text, std::numeric_limits<float>::max()));
     }

@@ -181,9 +181,24 @@ TEST(RawValues, EncodingRefusesWhatTheTypeCannotHold) {
     EXPECT_EQ(refusal("2147483648", RawType::int32), "2147483648 does not fit int32: give -2147483648..2147483647");
     EXPECT_EQ(refusal("0x10000", RawType::int16), "0x10000 does not fit int16: give -32768..32767");
     EXPECT_NE(refusal("1e39", RawType::float32).find("beyond the largest float32"), std::string::npos);
+    // Too large for a double too: read as infinity, which only "inf" asks for.
+    EXPECT_EQ(refusal("1e999", RawType::float32), "1e999 is beyond the largest float32, 3.4028235e+38: give a smaller number");
+    EXPECT_EQ(refusal("-1e309", RawType::float64),
+              "-1e309 is beyond the largest float64, 1.7976931348623157e+308: give a smaller number");
     EXPECT_NE(refusal("12,5", RawType::float32).find("'12,5' is not a number for float32"), std::string::npos);
     EXPECT_NE(refusal(" 1", RawType::float64).find("is not a number"), std::string::npos);
     EXPECT_NE(refusal("", RawType::int16).find("is not a number"), std::string::npos);
+}
+
+// The largest float32 as it is printed, 3.4028235e+38, is a little above the float itself as a
+// double, yet rounds to it; infinity is written when named.
+TEST(RawValues, TheLargestFloatAsPrintedAndInfinityByNameAreTaken) {
+    using W = std::vector<std::uint16_t>;
+    EXPECT_EQ(encoded("3.4028235e38", RawType::float32), (W{0x7F7F, 0xFFFF}));
+    EXPECT_EQ(encoded("-3.4028235e+38", RawType::float32), (W{0xFF7F, 0xFFFF}));
+    EXPECT_EQ(encoded("inf", RawType::float32), (W{0x7F80, 0x0000}));
+    EXPECT_EQ(encoded("-Infinity", RawType::float32), (W{0xFF80, 0x0000}));
+    EXPECT_EQ(encoded("inf", RawType::float64), (W{0x7FF0, 0x0000, 0x0000, 0x0000}));
 }
 
 TEST(RawValues, WordOrdersByTheirByteOrderNames) {
