@@ -14,6 +14,18 @@ using std::chrono::milliseconds;
 // should accept unit FFh as "this server". With one unit served, FFh reaches it.
 constexpr std::uint8_t tcp_direct_unit = 0xFF;
 
+// Modbus over serial line V1.02, 2.1: broadcast requests are necessarily writing commands, and
+// nobody answers them. A function that only reads or reports (1-4, 7, 8, 11, 12, 17, 20, 23, 24,
+// 43) is never one: a Modbus TCP client asking it of unit 0 waits for a reply that would never
+// come, so it gets exception 01h at once instead. Vendor functions may write and are passed on.
+bool broadcastable(std::uint8_t function) {
+    switch (function) {
+        case 1: case 2: case 3: case 4: case 7: case 8: case 11: case 12: case 17: case 20: case 23: case 24: case 43:
+            return false;
+        default: return true;
+    }
+}
+
 milliseconds until(std::optional<Instant> deadline, Instant now, milliseconds longest) {
     if (!deadline) return longest;
     auto left = std::chrono::ceil<milliseconds>(*deadline - now);
@@ -74,6 +86,12 @@ Slave::Route Slave::route(const codec::Frame& frame) {
     const UnitMap& units = *where.units;
     line_activity(units);
     if (frame.pdu.empty()) return where;
+    if (frame.unit == 0 && link_.framing == transport::Framing::tcp && !broadcastable(frame.pdu[0])) {
+        if (tracing()) trace(TraceDirection::received, frame.raw, "unit 0 (broadcast) asks for a reply: refused, exception 01h");
+        where.kind = Route::Kind::own_reply;
+        where.reply_pdu = exception_pdu(frame.pdu[0], static_cast<std::uint8_t>(codec::ExceptionCode::illegal_function));
+        return where;
+    }
     if (frame.unit == 0) {
         if (tracing()) trace(TraceDirection::received, frame.raw, "broadcast: executed by every unit, not answered");
         ++requests_;

@@ -75,6 +75,20 @@ TEST_F(TcpSlaveWire, ImpossibleLengthClosesTheConnection) {
     EXPECT_TRUE(client.closed_by_server_within(2000ms));
 }
 
+// Unit 0 is the serial line's broadcast, which only writes and which nobody answers (serial line
+// V1.02, 2.1): a read asked of it gets exception 1 at once instead of a reply that never comes,
+// while a broadcast write is executed by every unit and, as on the line, not answered (the read
+// after it shows both that it was done and that nothing was sent for it).
+TEST_F(TcpSlaveWire, UnitZeroReadsGetIllegalFunctionAndBroadcastWritesAreDoneUnanswered) {
+    RawClient client(served.port());
+    ASSERT_TRUE(client.send(hex("00 01 00 00 00 06 00 03 00 00 00 01")));
+    EXPECT_EQ(client.receive(9), hex("00 01 00 00 00 03 00 83 01"));
+    ASSERT_TRUE(client.send(hex("00 02 00 00 00 06 00 06 00 05 12 34")));
+    ASSERT_TRUE(client.send(testing::read_one_register(3, 5)));
+    EXPECT_EQ(client.receive(11), hex("00 03 00 00 00 05 01 03 02 12 34"));
+    EXPECT_EQ(bank->get(Table::holding_registers, 5), 0x1234);
+}
+
 TEST_F(TcpSlaveWire, PipelinedRequestsAreAllAnsweredInOrder) {
     RawClient client(served.port());
     Bytes requests;
