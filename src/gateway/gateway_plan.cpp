@@ -15,6 +15,7 @@
 
 #include "client/monitor_names.hpp"
 #include "codec/rtu.hpp"
+#include "gateway/history_schema.hpp"
 #include "profile/request_planner.hpp"
 
 namespace loopwire::gateway {
@@ -232,6 +233,8 @@ Result<void> check_environment(const GatewayConfig& config) {
         return fail(fmt::format("the folder {} cannot be written by this user ({}); give it write access or name a file "
                                 "in another folder", folder.string(), std::strerror(errno)));
     }
+    // A file there already must be a history (a text file passed --check, then failed the start).
+    if (auto examined = history::examine(config.history->database); !examined) return fail(examined.error().message);
     return {};
 }
 

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include "common/regular_file.hpp"
+
 namespace loopwire::gateway::history {
 namespace {
 
@@ -135,7 +137,23 @@ Result<sqlite::Connection> open_for_writing(const std::filesystem::path& file) {
 Result<sqlite::Connection> open_for_reading(const std::filesystem::path& file) {
     auto db = sqlite::Connection::open(file.string(), sqlite::Connection::Mode::read_write_create);
     if (!db) return db.error();
+    // A file that is not a history said so, not a failed query ("no such table: series").
+    auto known = recognise(*db, file);
+    if (!known) return known.error();
+    if (!*known) return refuse(file, "is an empty SQLite database, not a loopwire history; name the file of a gateway's [history]");
     return db;
+}
+
+Result<void> examine(const std::filesystem::path& file) {
+    std::error_code error;
+    if (!std::filesystem::exists(file, error)) return {};  // created when the gateway starts
+    if (auto path = check_path(file); !path) return path.error();
+    if (auto what = not_a_regular_file(file)) return refuse(file, *what);
+    auto db = sqlite::Connection::open(file.string(), sqlite::Connection::Mode::read_only);
+    if (!db) return refuse(file, fmt::format("cannot be opened ({})", db.error().message));
+    auto known = recognise(*db, file);
+    if (!known) return known.error();
+    return {};
 }
 
 }  // namespace loopwire::gateway::history

@@ -16,7 +16,11 @@ constexpr std::int64_t schema_version = 1;
 // The writer's connection: the file created if missing, in WAL mode, its tables created or
 // checked. The error names the file and says what to do.
 Result<sqlite::Connection> open_for_writing(const std::filesystem::path& file);
-// A reader's connection to a database open_for_writing() prepared.
+// A reader's connection to a database open_for_writing() prepared; a file that is not a loopwire
+// history is refused, saying so.
 Result<sqlite::Connection> open_for_reading(const std::filesystem::path& file);
+// For `--check`, without changing anything: an existing file must be a loopwire history (or an
+// empty database), as open_for_writing() will want it; a missing one will be created.
+Result<void> examine(const std::filesystem::path& file);
 
 }  // namespace loopwire::gateway::history

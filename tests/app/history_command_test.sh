@@ -2,7 +2,8 @@
 # `loopwire history` on a gateway's own history file, as a user runs it after the gateway has
 # recorded a while: the table and the CSV have the buckets, and for a window that starts after
 # the last row, the value in force at its start (the last value recorded before it, no bucket),
-# as GET /api/history's `before` has it (docs/DESIGN.md, history).
+# as GET /api/history's `before` has it (docs/DESIGN.md, history). A file that is not a history
+# is refused, saying so.
 set -u
 loopwire=${1:?usage: history_command_test.sh path/to/loopwire}
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -62,4 +63,17 @@ out=$("$loopwire" history --database "$database" --device oven --format csv --fr
 expect csv-before-only test "$(grep -c ',bucket,' <<<"$out")" -eq 0
 check table-before 0 "in force at the start" \
   "$loopwire" history --database "$database" --device oven --from "$from" --to "$to" --parameters measured_value
+
+# A file that is not a history: said so, exit 2 (not a failed query naming a table, exit 3), by
+# `history` and by the gateway's --check, which used to pass it and let the start fail.
+echo secret >"$WORK_DIR/not-a-database"
+sqlite3 "$WORK_DIR/other.db" "CREATE TABLE notes(text)"
+check history-of-a-text-file 2 "cannot be read as an SQLite database" \
+  "$loopwire" history --database "$WORK_DIR/not-a-database" --device oven
+check history-of-another-database 2 "is an SQLite database of another program, not a loopwire history" \
+  "$loopwire" history --database "$WORK_DIR/other.db" --device oven
+sed "s|^database = .*|database = \"$WORK_DIR/not-a-database\"|" "$WORK_DIR/plant.toml" >"$WORK_DIR/not-a-database.toml"
+check check-refuses-a-text-file-as-history 2 "history.database: history database $WORK_DIR/not-a-database: cannot be read" \
+  "$loopwire" gateway --config "$WORK_DIR/not-a-database.toml" --check
+check check-takes-the-recorded-history 0 "history" "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
 finish
