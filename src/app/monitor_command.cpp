@@ -6,6 +6,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -157,7 +158,9 @@ void add_monitor_command(CLI::App& app, int& exit_code, const ProfileOptions& pr
     command->add_option("--format", options->format,
                         "table (live, redrawn in place), csv or jsonl (one line per sample, ISO 8601 time). "
                         "Default: from --output's extension (.csv, .jsonl, .ndjson); else table when stdout is a terminal, jsonl otherwise");
-    command->add_option("--count", options->count, "Stop after N samples (default: until Ctrl-C)");
+    // 0 would read as "none", yet meant "until Ctrl-C": refused, as the other commands refuse it.
+    command->add_option("--count", options->count, "Stop after N samples (default: until Ctrl-C)")
+        ->check(CLI::Range(1u, std::numeric_limits<unsigned>::max()));
     command->add_option("--output", options->output, "Write samples to FILE (csv or jsonl, chosen by its extension) instead of stdout; it is replaced unless --append");
     command->add_flag("--append", options->append, "Add to FILE instead of replacing it (a CSV file must have the same columns; its header is kept)");
     command->add_option("--rotate-size", options->rotate_size, "Start a new FILE before it would pass this size (10MB, 500kB, 1GiB); the full one is renamed FILE-STEM.DATE-TIME.EXT");

@@ -4,6 +4,8 @@
 // scan with what it found so far (exit 130).
 #include <unistd.h>
 
+#include <algorithm>
+
 #include <fmt/format.h>
 
 #include <nlohmann/json.hpp>
@@ -50,7 +52,11 @@ Result<std::vector<int>> parse_units(const std::string& text) {
         if (!first) return first.error();
         auto last = dash == std::string::npos ? first : parse_integer(part.substr(dash + 1), *first, 255, "last unit of '" + part + "'");
         if (!last) return last.error();
-        for (long long unit = *first; unit <= *last; ++unit) units.push_back(static_cast<int>(unit));
+        // Each unit once, in the order first named: "3,3" or "1-5,4" would probe a unit twice and list
+        // it answering twice.
+        for (long long unit = *first; unit <= *last; ++unit) {
+            if (std::find(units.begin(), units.end(), unit) == units.end()) units.push_back(static_cast<int>(unit));
+        }
     }
     if (units.empty()) return make_error(ErrorKind::usage, "--units names no unit (write e.g. 1-247 or 1,3,7-9)");
     return units;

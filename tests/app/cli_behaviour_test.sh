@@ -20,6 +20,7 @@ check timeout-zero-seconds 2 "--timeout '0s' is too short" "$loopwire" dump --li
 check scan-timeout-zero 2 "--timeout '0ms' is too short" "$loopwire" scan --link "rtu:$WORK_DIR/none" --units 1 --timeout 0ms
 check interval-zero 2 "--interval '0s' is too short: give at least 10ms" \
   "$loopwire" monitor --link "rtu:$WORK_DIR/none" --device tc10@3 --interval 0s
+check monitor-count-zero 2 "--count: Value 0 not in range 1" "$loopwire" monitor --link "rtu:$WORK_DIR/none" --device tc10@3 --count 0
 check interval-malformed 2 "--interval '1s2' is not a duration" "$loopwire" monitor --link "rtu:$WORK_DIR/none" --device tc10@3 --interval 1s2
 check simulate-duration-malformed 2 "--duration '5 s' is not a duration" "$loopwire" simulate --pty "$WORK_DIR/ttyDur" --unit 1 --duration "5 s"
 check read-broadcast 2 "unit 0 is broadcast" "$loopwire" read --link "rtu:$WORK_DIR/none" --unit 0 holding 0 1
@@ -97,6 +98,10 @@ start_background sim-tc10.log "$loopwire" simulate --pty "$tc10_pty" --device tc
 wait_for_path "$tc10_pty"
 check simulate-names-device 0 "unit 3: tc10" cat "$WORK_DIR/sim-tc10.log"
 check scan-finds-simulated-tc10 0 '{"unit":3,"device":"tc10"' "$loopwire" scan --link "rtu:$tc10_pty" --units 1-4 --timeout 200ms --json
+# A unit named twice is probed and listed once, answering at one line setting.
+scanned_twice=$("$loopwire" scan --link "rtu:$tc10_pty" --units 3,3,2-3 --timeout 200ms --json 2>/dev/null)
+expect scan-names-a-unit-once test "$(grep -o '"unit":3' <<<"$scanned_twice" | wc -l)" -eq 1
+expect scan-lists-the-unit-answering-once grep -q '"lines":\["19200 8E1"\]' <<<"$scanned_twice"
 check read-simulated-tc10-sp 0 "SP" "$loopwire" read --link "rtu:$tc10_pty" --device tc10@3 SP
 # A device named wrongly is not read as if it were right: the generic unit 1 on TCP and the TC10
 # read as an AC20 fail their identification words, a write to them sends nothing, and
