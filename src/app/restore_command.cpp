@@ -128,6 +128,11 @@ int run_restore(const RestoreCommandOptions& options, const ProfileOptions& prof
     if (!registry) return report_error(registry.error());
     auto device = device::parse_device_address(*registry, options.master.device, options.master.numbering);
     if (!device) return report_error(device.error());
+    if (dump->profile == device->profile->id) {
+        if (auto edited = device::check_texts_match_raw(*dump, *device->profile, options.file); !edited) {
+            return report_error(edited.error());
+        }
+    }
     if (options.force) {  // names of another profile cannot be written; the shared ones can
         std::erase_if(dump->values, [&](const auto& entry) { return device->profile->find(entry.first) == nullptr; });
         std::erase_if(dump->identification, [&](const auto& entry) { return device->profile->find(entry.first) == nullptr; });

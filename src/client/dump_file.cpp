@@ -90,6 +90,9 @@ Result<DumpFile> dump_from_document(const std::string& path, const nlohmann::jso
         auto word = parameter_word(path, name, entry, json_pointer("/parameters", name));
         if (!word) return word.error();
         if (*word) dump.values.emplace(name, **word);
+        if (const auto text = entry.find("text"); entry.is_object() && text != entry.end() && text->is_string()) {
+            dump.texts.emplace(name, text->get<std::string>());
+        }
     }
     if (const auto identification = document.find("identification"); identification != document.end()) {
         if (!identification->is_object()) return wrong_value(path, "/identification", "an object of raw words by name", *identification);
@@ -121,6 +124,23 @@ Result<DumpFile> parse_dump_text(const std::string& text, const std::string& pat
     const auto document = nlohmann::json::parse(text, nullptr, false);
     if (document.is_discarded()) return bad_dump(path, "is not valid JSON");
     return dump_from_document(path, document);
+}
+
+Result<void> check_texts_match_raw(const DumpFile& dump, const Profile& profile, const std::string& path) {
+    for (const auto& [name, text] : dump.texts) {
+        const Parameter* parameter = profile.find(name);
+        const auto raw = dump.values.find(name);
+        if (parameter == nullptr || raw == dump.values.end()) continue;
+        const auto decoded = decode_value(*parameter, raw->second, dump.values);
+        if (!decoded) continue;  // kept raw: nothing to compare with
+        const auto formatted = format_value(*parameter, *decoded, dump.values);
+        if (!formatted || *formatted == text) continue;
+        return bad_dump(path, fmt::format("at {}: its text \"{}\" is not what its raw word {} reads as (\"{}\"): restore "
+                                          "writes the raw words, so an edit of text or value would be lost; edit \"raw\", or "
+                                          "write the value with `loopwire write` after the restore",
+                                          json_pointer("/parameters", name), text, raw->second, *formatted));
+    }
+    return {};
 }
 
 }  // namespace loopwire::device

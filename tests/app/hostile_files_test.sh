@@ -61,6 +61,10 @@ restore_refuses restore-raw-fraction 'd["parameters"]["set_point"]["raw"] = [1.5
 restore_refuses restore-raw-two-words 'd["parameters"]["set_point"]["raw"] = [1, 2]' 'parameter set_point: expected one raw word, an integer 0..65535 in a list like [150], found 2 words'
 restore_refuses restore-raw-none-but-ok 'd["parameters"]["set_point"]["raw"] = []' 'only an "unread" parameter has none'
 restore_refuses restore-identification-string 'd["identification"] = {k: str(v) for k, v in d["identification"].items()}' 'at /identification/'
+# Restore writes raw words: a text (and value) edited without its raw word would be lost without
+# a word ("0 differences"); refused, naming the parameter and what to edit.
+restore_refuses restore-edited-text 'd["parameters"]["set_point"].update(text="9999", value=9999)' \
+  'at /parameters/set_point: its text "9999" is not what its raw word'
 check restore-good-dump-still-reads 0 "between the device" "$loopwire" restore --link "$link" --device tc10@3 "$WORK_DIR/good.json" --dry-run
 
 state_refuses() {  # name, file text, expected text
