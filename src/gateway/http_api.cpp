@@ -272,16 +272,18 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
     if (auto refusal = check_host(request)) return {*refusal, {}, {}};
     const std::string& path = request.path;
     const bool get = request.method == "GET";
+    // The server answers HEAD as GET without the body (http_server.hpp).
+    static const std::string readable = "GET, HEAD";
     const bool api = path.rfind("/api/", 0) == 0 || path == "/metrics";
     if (api && reads_need_token) {
         // Not on loopback: everyone on the network could read otherwise.
         if (auto refusal = check_token(request)) return {*refusal, {}, {}};
     }
-    if (path == "/api/devices") return {get ? devices_list() : not_allowed("GET"), {}, {}};
-    if (path == "/api/events") return get ? events(request) : HttpOutcome{not_allowed("GET"), {}, {}};
-    if (path == "/api/history") return {get ? history(request) : not_allowed("GET"), {}, {}};
-    if (path == "/api/history/gateways") return {get ? history_gateways() : not_allowed("GET"), {}, {}};
-    if (path == "/metrics") return {get ? metrics() : not_allowed("GET"), {}, {}};
+    if (path == "/api/devices") return {get ? devices_list() : not_allowed(readable), {}, {}};
+    if (path == "/api/events") return get ? events(request) : HttpOutcome{not_allowed(readable), {}, {}};
+    if (path == "/api/history") return {get ? history(request) : not_allowed(readable), {}, {}};
+    if (path == "/api/history/gateways") return {get ? history_gateways() : not_allowed(readable), {}, {}};
+    if (path == "/metrics") return {get ? metrics() : not_allowed(readable), {}, {}};
     constexpr std::string_view prefix = "/api/devices/";
     if (path.rfind(prefix, 0) == 0) {
         std::string rest = path.substr(prefix.size());
@@ -296,9 +298,9 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
         const ConfiguredDevice* device = find(*name);
         if (!device) return {error(404, fmt::format("no device \"{}\" on this gateway (GET /api/devices lists them)", *name)), {}, {}};
         if (is_write) return request.method == "POST" ? write(*device, request) : HttpOutcome{not_allowed("POST"), {}, {}};
-        return {get ? device_detail(*device) : not_allowed("GET"), {}, {}};
+        return {get ? device_detail(*device) : not_allowed(readable), {}, {}};
     }
-    if (!api && (path == "/" || assets.count(path) != 0)) return {get ? asset(request) : not_allowed("GET"), {}, {}};
+    if (!api && (path == "/" || assets.count(path) != 0)) return {get ? asset(request) : not_allowed(readable), {}, {}};
     return {error(404, fmt::format("no such resource: {} (the API is under /api/: devices, events, history; and /metrics)", path)),
             {}, {}};
 }

@@ -6,6 +6,7 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <utility>
 
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
@@ -96,7 +97,20 @@ HttpRequest to_request(const http::request<http::string_body>& message) {
     HttpRequest request;
     request.method = to_string(message.method_string());
     request.host = to_string(message[http::field::host]);
-    const std::string_view target(message.target().data(), message.target().size());
+    std::string_view target(message.target().data(), message.target().size());
+    // RFC 9112, 3.2.2: a server must accept the absolute form ("http://host:port/path", as proxies
+    // send it); its authority then stands for Host.
+    for (const std::string_view scheme : {"http://", "https://"}) {
+        const std::string_view start = target.substr(0, scheme.size());
+        if (!beast::iequals(beast::string_view(start.data(), start.size()), beast::string_view(scheme.data(), scheme.size()))) {
+            continue;
+        }
+        target.remove_prefix(scheme.size());
+        const auto slash = target.find_first_of("/?");
+        request.host = std::string(target.substr(0, slash));
+        target = slash == std::string_view::npos ? std::string_view("/") : target.substr(slash);
+        break;
+    }
     const auto question = target.find('?');
     request.path = std::string(target.substr(0, question));
     if (question != std::string_view::npos) request.query = std::string(target.substr(question + 1));
@@ -219,10 +233,20 @@ private:
         close();
     }
 
+    // RFC 9110, 9.3.2: HEAD is GET without the body (its length still said), which a general
+    // purpose server must support; a stream of events has no length, and ends at once.
     void dispatch() {
         const auto& message = parser_->get();
         keep_alive_ = message.keep_alive();
-        HttpOutcome outcome = server_.handler.handle(to_request(message));
+        head_ = message.method() == http::verb::head;
+        HttpRequest request = to_request(message);
+        if (head_) request.method = "GET";
+        HttpOutcome outcome = server_.handler.handle(request);
+        if (head_ && outcome.events) {
+            HttpResponse stream;
+            stream.content_type = "text/event-stream";
+            return send(stream, true);
+        }
         if (outcome.events) return start_events(outcome.events);
         if (outcome.deferred) return run_deferred(outcome.deferred);
         send(outcome.response, false);
@@ -270,6 +294,11 @@ private:
         const bool again = keep_alive_ && !close_after && !close_after_response_ && !server_.stopping;
         message->keep_alive(again);
         message->prepare_payload();
+        if (std::exchange(head_, false)) {
+            const auto length = message->body().size();
+            message->body().clear();
+            message->content_length(length);
+        }
         stream_.expires_after(server_.settings.read_timeout);
         http::async_write(stream_, *message, [self = shared_from_this(), message, again](const error_code& error, std::size_t) {
             if (error) return self->close();
@@ -418,6 +447,7 @@ private:
     std::shared_ptr<std::string> continue_;
     std::shared_ptr<std::array<char, 4096>> drain_;
     bool keep_alive_ = false;
+    bool head_ = false;  // the request being answered is a HEAD
     bool closed_ = false;
     bool waiting_for_worker_ = false;
     bool close_after_response_ = false;

@@ -440,10 +440,10 @@ TEST_F(HttpApiTest, MalformedAndOversizedBodiesAreRefused) {
 }
 
 TEST_F(HttpApiTest, MethodsAndPathsOutsideTheApiAreRefused) {
-    for (const char* method : {"DELETE", "HEAD", "OPTIONS", "PUT"}) {
+    for (const char* method : {"DELETE", "OPTIONS", "PUT"}) {
         const Reply reply = request(port_, method, "/api/devices");
         EXPECT_EQ(reply.status, 405u) << method;
-        EXPECT_EQ(reply.header("allow"), "GET") << method;
+        EXPECT_EQ(reply.header("allow"), "GET, HEAD") << method;
     }
     EXPECT_EQ(request(port_, "GET", "/api/devices/oven/write").status, 405u);
     EXPECT_EQ(request(port_, "GET", "/api/devices/oven/write").header("allow"), "POST");
@@ -1224,6 +1224,24 @@ TEST_F(HttpLimitsTest, ATransferEncodingOtherThanChunkedIsRefusedAndTheConnectio
     EXPECT_EQ(parse_reply(answer).status, 501u) << answer;
     EXPECT_THAT(answer, HasSubstr("Transfer-Encoding is not supported"));
     EXPECT_EQ(answer.find("HTTP/1.1 200"), std::string::npos) << "the smuggled request was answered: " << answer;
+}
+
+// RFC 9110, 9.3.2: HEAD is GET without the body, its length still said (it was 405); RFC 9112,
+// 3.2.2: the absolute form of the target is taken, its authority standing for Host.
+TEST_F(HttpLimitsTest, HeadIsGetWithoutItsBodyAndTheAbsoluteFormIsTaken) {
+    start(HttpServerSettings{});
+    const Reply got = get(server_->port(), "/api/devices");
+    ASSERT_EQ(got.status, 200u);
+    Socket client(server_->port());
+    client.send("HEAD /api/devices HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+    const Reply head = parse_reply(client.receive_all());
+    EXPECT_EQ(head.status, 200u);
+    EXPECT_EQ(head.header("content-length"), std::to_string(got.body.size()));
+    EXPECT_EQ(head.body, "");
+    EXPECT_EQ(request(server_->port(), "GET", "http://127.0.0.1/api/devices").status, 200u);
+    EXPECT_EQ(request(server_->port(), "GET", "HTTP://127.0.0.1/api/devices?x=1").status, 200u);
+    EXPECT_EQ(request(server_->port(), "GET", "http://evil.example/api/devices").status, 421u)
+        << "the authority of the absolute form was not checked as the Host";
 }
 
 // RFC 9110, 7.2: a request with two Host headers is a 400, whichever comes first: only the first
