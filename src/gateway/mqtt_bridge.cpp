@@ -147,6 +147,7 @@ struct MqttBridge::State {
     std::unordered_map<std::string, RetainedTopic> retained;
     std::deque<TakenCommand> taken;  // the last commands of this session, oldest first
     bool told_unreachable = false;
+    bool told_no_handshake = false;  // until a connection is accepted
     bool told_refused = false;
     bool just_connected = false;  // set by on_connect, acted on by the network loop
     // The QoS 1 publications of this connection the broker has not acknowledged yet.
@@ -333,6 +334,7 @@ struct MqttBridge::State {
         is_connected.store(true);
         told_unreachable = false;
         told_refused = false;
+        told_no_handshake = false;
         say("connected");
         const std::string status = config.prefix + "/status";
         publish({status, "online", true, qos_at_least_once});
@@ -395,7 +397,11 @@ struct MqttBridge::State {
                 delay = timing.reconnect_first;
             }
             if (rc != MOSQ_ERR_SUCCESS) {
-                if (is_connected.exchange(false)) say(fmt::format("connection lost ({})", mosquitto_strerror(rc)));
+                if (is_connected.exchange(false)) {
+                    say(fmt::format("connection lost ({})", mosquitto_strerror(rc)));
+                } else if (!std::exchange(told_no_handshake, true)) {
+                    say(mqtt::handshake_failure(rc));
+                }
                 unacknowledged.clear();  // libmosquitto sends them again on the next connection
                 have_socket = false;
                 told_unreachable = false;

@@ -82,4 +82,10 @@ std::string connect_failure(int rc) {
     return rc == MOSQ_ERR_ERRNO ? std::string(std::strerror(errno)) : std::string(mosquitto_strerror(rc));
 }
 
+std::string handshake_failure(int rc) {
+    return fmt::format("the connection was made but ended before the broker accepted it ({}): is this port an MQTT broker "
+                       "(not TLS, not another service)?; retrying in the background",
+                       connect_failure(rc));
+}
+
 }  // namespace loopwire::gateway::mqtt

@@ -60,4 +60,9 @@ void pause(const std::stop_token& stop, std::chrono::milliseconds delay);
 // Why mosquitto_connect failed, in words (errno's text for a socket error).
 std::string connect_failure(int rc);
 
+// A connection that ended before the broker acknowledged it (`rc`, from the network loop): the
+// port answered TCP but not MQTT, or the broker dropped the handshake. Without this a peer that
+// sends garbage was retried every few seconds with nothing in the log.
+std::string handshake_failure(int rc);
+
 }  // namespace loopwire::gateway::mqtt

@@ -272,6 +272,63 @@ TEST(MqttBridge, AGatewayStartsWithoutItsBroker) {
     EXPECT_TRUE(watcher.wait_for(prefix + "/oven/measured_value", is_number));
 }
 
+// A port that takes TCP connections and answers each CONNECT with bytes that are not MQTT, then
+// closes: another service where the broker was expected.
+class NotABroker {
+public:
+    NotABroker() : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
+        sockaddr_in address{};
+        address.sin_family = AF_INET;
+        address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        socklen_t size = sizeof address;
+        if (::bind(fd_, reinterpret_cast<sockaddr*>(&address), size) != 0 || ::listen(fd_, 8) != 0 ||
+            ::getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &size) != 0) {
+            throw std::runtime_error("NotABroker: cannot listen");
+        }
+        port = ntohs(address.sin_port);
+        thread_ = std::jthread([this](std::stop_token stop) { serve(stop); });
+    }
+    ~NotABroker() {
+        thread_.request_stop();
+        thread_.join();
+        ::close(fd_);
+    }
+    NotABroker(const NotABroker&) = delete;
+    NotABroker& operator=(const NotABroker&) = delete;
+    std::uint16_t port = 0;
+
+private:
+    void serve(const std::stop_token& stop) {
+        while (!stop.stop_requested()) {
+            pollfd ready{fd_, POLLIN, 0};
+            if (::poll(&ready, 1, 50) <= 0) continue;
+            const int client = ::accept(fd_, nullptr, nullptr);
+            if (client < 0) continue;
+            char connect[256];
+            pollfd readable{client, POLLIN, 0};
+            if (::poll(&readable, 1, 1000) > 0) (void)::recv(client, connect, sizeof connect, 0);
+            const char garbage[] = "HTTP/1.1 400 Bad Request\r\n\r\n";
+            (void)::send(client, garbage, sizeof garbage - 1, MSG_NOSIGNAL);
+            ::close(client);
+        }
+    }
+    int fd_;
+    std::jthread thread_;
+};
+
+// A port that answers TCP but not MQTT is said so once, not retried in silence.
+TEST(MqttBridge, APortThatIsNotABrokerIsSaidToBeOne) {
+    NotABroker not_a_broker;
+    testing::LogLines said;
+    GatewayOptions options;
+    options.log = said.sink();
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", not_a_broker.port), false, "", std::move(options));
+    EXPECT_TRUE(said.wait_for("ended before the broker accepted it")) << "nothing logged about the broker";
+    EXPECT_TRUE(said.has("is this port an MQTT broker"));
+    std::this_thread::sleep_for(1500ms);  // a few more tries (0.5 s, then 1 s): still said once
+    EXPECT_EQ(said.count("ended before the broker accepted it"), 1);
+}
+
 // Runs a program to its end; its output goes to `log`. True when it exits 0.
 bool run(const std::vector<std::string>& words, const fs::path& log) {
     posix_spawn_file_actions_t actions;

@@ -113,6 +113,7 @@ struct SparkplugNode::State {
     std::vector<Command> inbox;  // taken in libmosquitto's callback, acted on after it
     std::chrono::steady_clock::time_point next_node_data{};
     bool told_unreachable = false;
+    bool told_no_handshake = false;  // until a connection is accepted
     bool told_refused = false;
     int unacknowledged_goodbye = -1;
 
@@ -482,6 +483,7 @@ struct SparkplugNode::State {
         is_connected.store(true);
         told_unreachable = false;
         told_refused = false;
+        told_no_handshake = false;
         say(fmt::format("connected as edge node {}/{} (bdSeq {})", config.group_id, config.edge_node_id, bd_seq));
         (void)mosquitto_subscribe(client, nullptr, node_topic("NCMD").c_str(), qos_at_least_once);
         (void)mosquitto_subscribe(client, nullptr, device_topic("DCMD", "+").c_str(), qos_at_least_once);
@@ -546,6 +548,7 @@ struct SparkplugNode::State {
                 continue;
             }
             if (rc != MOSQ_ERR_SUCCESS) {
+                if (!is_connected.load() && !std::exchange(told_no_handshake, true)) say(mqtt::handshake_failure(rc));
                 lost(mosquitto_strerror(rc));
                 have_socket = false;
                 mqtt::pause(stop, delay);
