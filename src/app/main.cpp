@@ -1,4 +1,5 @@
 // loopwire: read, write, simulate and explain Modbus traffic of process controllers.
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -6,8 +7,10 @@
 #include <loopwire/version.hpp>
 
 #include "app/argument_order.hpp"
+#include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "app/json_errors.hpp"
 
 int main(int argc, char** argv) {
     using namespace loopwire::app;
@@ -34,9 +37,13 @@ int main(int argc, char** argv) {
     add_gateway_command(app, exit_code, profiles);
     add_history_command(app, exit_code);
     add_help_command(app, exit_code);
+    // As every other error the program reports (command_line.hpp, report_error).
+    app.failure_message([](const CLI::App*, const CLI::Error& error) {
+        return "loopwire: error: " + std::string(error.what()) + "\nRun with --help for more information.\n";
+    });
+    std::vector<std::string> arguments(argv + 1, argv + argc);
     try {
         // Options may also precede the command's name (`loopwire -v read ...`).
-        std::vector<std::string> arguments(argv + 1, argv + argc);
         // "loopwire reed": CLI11 would only say that a command is required.
         if (!arguments.empty()) {
             if (const auto refused = refuse_unknown_command(app, arguments.front())) return *refused;
@@ -46,6 +53,13 @@ int main(int argc, char** argv) {
         for (auto& argument : arguments) reordered.push_back(argument.data());
         app.parse(static_cast<int>(reordered.size()), reordered.data());
     } catch (const CLI::ParseError& error) {
+        // With --json a script reads stdout: a bad argument is a JSON document there too
+        // (json_errors.hpp), as every later error of the command is.
+        const bool json = std::find(arguments.begin(), arguments.end(), "--json") != arguments.end();
+        if (error.get_exit_code() != 0 && json) {
+            JsonErrors on(true);
+            return report_error(loopwire::make_error(loopwire::ErrorKind::usage, error.what()));
+        }
         const int printed = app.exit(error);
         return printed == 0 ? exit_ok : exit_usage;
     }

@@ -64,8 +64,10 @@ Result<DeviceAddress> device_address(const Result<std::shared_ptr<const Profile>
     // Each manual's own address range, not Modbus's 1..247 (AC20 Introduction and ramp/soak
     // §4.2: 1-255; TC10 #131 Add: up to 254).
     if (unsigned{name.unit} < (*profile)->first_unit || unsigned{name.unit} > (*profile)->last_unit) {
-        return make_error(ErrorKind::usage, fmt::format("{}@{}: a {} is set to a unit {}..{}", name.id, name.unit, name.id,
-                                                        (*profile)->first_unit, (*profile)->last_unit));
+        // "an ac20", "a tc10": the id as it is spoken, letter by letter or as a word.
+        const bool vowel = !name.id.empty() && std::string_view("aeiouAEIOU").find(name.id.front()) != std::string_view::npos;
+        return make_error(ErrorKind::usage, fmt::format("{}@{}: {} {} is set to a unit {}..{}", name.id, name.unit,
+                                                        vowel ? "an" : "a", name.id, (*profile)->first_unit, (*profile)->last_unit));
     }
     DeviceAddress device{*profile, name.unit, 0};
     if (!numbering.empty()) {

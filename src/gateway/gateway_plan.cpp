@@ -8,6 +8,7 @@
 #include <cstring>
 
 #include <filesystem>
+#include <optional>
 #include <sstream>
 #include <system_error>
 
@@ -214,7 +215,42 @@ std::vector<const device::Parameter*> polled_parameters(const DeviceConfig& devi
     return resolved ? *resolved : std::vector<const device::Parameter*>{};  // checked when parsed
 }
 
+namespace {
+
+// What a serial line's port is when it is there but is no serial port, in words; nothing when it
+// is a character device (a tty, a pseudo-terminal), or not there now (a warning, describe_plan:
+// the line starts down until it appears).
+std::optional<std::string> not_a_port(const std::string& path) {
+    std::error_code error;
+    const auto type = std::filesystem::status(path, error).type();
+    switch (type) {
+        case std::filesystem::file_type::directory: return "is a directory";
+        case std::filesystem::file_type::fifo: return "is a FIFO (named pipe)";
+        case std::filesystem::file_type::regular: return "is a regular file";
+        case std::filesystem::file_type::socket: return "is a socket";
+        case std::filesystem::file_type::block: return "is a block device";
+        default: return std::nullopt;
+    }
+}
+
+// A serial line whose port exists but is not one (a directory, a FIFO, a file) would stay down
+// for ever with the line's log saying why only at info level: refused at --check and start.
+Result<void> check_ports(const GatewayConfig& config) {
+    for (const LineConfig& line : config.lines) {
+        if (line.simulation || !line.link.is_serial()) continue;
+        if (auto what = not_a_port(line.link.path)) {
+            return make_error(ErrorKind::usage, fmt::format("{}: line {}: {} {}, not a serial port: name the adapter's device "
+                                                            "(e.g. /dev/ttyUSB0, or /dev/serial/by-id/...)",
+                                                            config.source, line.name, line.link.path, *what));
+        }
+    }
+    return {};
+}
+
+}  // namespace
+
 Result<void> check_environment(const GatewayConfig& config) {
+    if (auto ports = check_ports(config); !ports) return ports.error();
     if (!config.history) return {};
     // "plant.db" beside a configuration named without a folder is in the current folder.
     auto folder = config.history->database.parent_path();

@@ -1,7 +1,7 @@
 #include "profile/profile_checks.hpp"
 
 #include <algorithm>
-
+#include <cctype>
 #include <charconv>
 #include <map>
 #include <optional>
@@ -33,7 +33,25 @@ bool has_note(const Json& parameter) {
     return parameter.contains("note") && !parameter.at("note").get<std::string>().empty();
 }
 
+// "all" names every readable parameter on the command line (`loopwire read ... all`): a parameter,
+// mnemonic or group called so would be read instead of them.
+void check_reserved_words(const Json& parameters, std::vector<DocumentProblem>& problems) {
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+        for (const char* key : {"name", "mnemonic", "group"}) {
+            const auto found = parameters[i].find(key);
+            if (found == parameters[i].end() || !found->is_string()) continue;
+            std::string word = found->get<std::string>();
+            for (auto& c : word) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+            if (word != "all") continue;
+            problems.push_back({parameter_pointer(i, std::string("/") + key),
+                                fmt::format("\"{}\" is reserved: `loopwire read ... all` reads every readable parameter; "
+                                            "call it otherwise", found->get<std::string>())});
+        }
+    }
+}
+
 void check_unique_names(const Json& parameters, std::vector<DocumentProblem>& problems) {
+    check_reserved_words(parameters, problems);
     std::map<std::string, std::size_t> first_index;
     for (std::size_t i = 0; i < parameters.size(); ++i) {
         const auto name = parameters[i].at("name").get<std::string>();

@@ -51,6 +51,10 @@ check missing-port 3 "$WORK_DIR/none" "$loopwire" read --link "rtu:$WORK_DIR/non
 check decode-ac20-fc1 0 '{"protocol":"rtu","unit":100,"function":1,"kind":"request","address":201,"count":14,"values":[],"exception":null,"check_ok":true' \
   "$loopwire" decode --protocol rtu --json 64 01 00 C9 00 0E 64 05
 check decode-misprinted-crc 1 "computed CD C1" "$loopwire" decode --protocol rtu 01 90 02 C0 01
+# Hex that is not: the refusal says which part is wrong.
+check decode-odd-hex-digits 2 "'019' has an odd number of hex digits, and each byte takes two" "$loopwire" decode --protocol rtu 019
+check decode-not-a-hex-digit 2 "'g' is not a hex digit" "$loopwire" decode --protocol rtu 01 0g
+check decode-0x-bytes 0 "check_ok" "$loopwire" decode --protocol rtu --json 0x01 0x90 0x02 0xCD 0xC1
 check decode-ascii-text 0 '"values":[1000]' "$loopwire" decode --protocol ascii --json ':01030203E80F'
 check decode-not-hex 2 "not a frame in hex" "$loopwire" decode --protocol rtu 01 0G
 

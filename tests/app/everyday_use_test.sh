@@ -185,6 +185,15 @@ pyjson read-json-exception 5 'assert doc["kind"] == "exception" and doc["code"] 
   "$loopwire" read --json --link "$tcp" --unit 3 holding 9000 1
 pyjson read-json-usage 2 'assert doc["kind"] == "usage" and "unit 0 is broadcast" in doc["error"], doc' \
   "$loopwire" read --json --link "$tcp" --unit 0 holding 0 1
+# Arguments the command line itself refuses are a JSON document on stdout too, and said once.
+pyjson read-json-bad-unit 2 'assert doc["kind"] == "usage" and "--unit" in doc["error"], doc' \
+  "$loopwire" read --json --link "$tcp" --unit 256 holding 0 1
+if [[ ! -s json.err ]]; then count_pass; else count_failure read-json-bad-unit-says-it-once json.err; fi
+pyjson read-json-unknown-option 2 'assert doc["kind"] == "usage" and "--bogus" in doc["error"], doc' \
+  "$loopwire" read --json --link "$tcp" --unit 9 holding 0 --bogus
+pyjson read-json-no-link 2 'assert doc["kind"] == "usage" and "--link" in doc["error"], doc' \
+  "$loopwire" read --unit 9 holding 0 --json
+check bad-unit-without-json 2 "loopwire: error: --unit" "$loopwire" read --link "$tcp" --unit 256 holding 0 1
 
 # ---- exception names of every standard code ------------------------------------------------
 for code in "0A:gateway path unavailable" "0B:gateway target device failed to respond" "08:memory parity error" "06:server device busy"; do

@@ -67,6 +67,15 @@ TOML
 # --check: a port missing now is a warning, not an error.
 check check-warns-of-the-missing-port 0 "warning: port $later_pty does not exist now" \
   "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
+# A port that is there but is no serial port would never open: refused, at --check as at start.
+mkdir "$WORK_DIR/not-a-port"
+mkfifo "$WORK_DIR/fifo-port"
+sed "s|rtu:$later_pty?|rtu:$WORK_DIR/not-a-port?|" "$WORK_DIR/plant.toml" >"$WORK_DIR/dir-port.toml"
+sed "s|rtu:$later_pty?|rtu:$WORK_DIR/fifo-port?|" "$WORK_DIR/plant.toml" >"$WORK_DIR/fifo-port.toml"
+check check-refuses-a-directory-as-port 2 "line later-line: $WORK_DIR/not-a-port is a directory, not a serial port" \
+  "$loopwire" gateway --config "$WORK_DIR/dir-port.toml" --check
+check start-refuses-a-fifo-as-port 2 "line later-line: $WORK_DIR/fifo-port is a FIFO (named pipe), not a serial port" \
+  "$loopwire" gateway --config "$WORK_DIR/fifo-port.toml"
 
 start_tcp_server gateway.log timeout 100 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
 gateway_pid=$(pgrep -P "$LAST_PID")  # the gateway itself, not `timeout` around it

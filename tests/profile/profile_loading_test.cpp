@@ -190,6 +190,17 @@ TEST(ProfileLoading, DuplicateNameIsRefused) {
                                                 "\" (also /parameters/4)"));
 }
 
+// "all" reads every readable parameter (loopwire read ... all): a mnemonic so called would be read
+// alone instead.
+TEST(ProfileLoading, AllIsReservedForNamesMnemonicsAndGroups) {
+    Json document = tc10_document();
+    document["parameters"][3]["mnemonic"] = "ALL";
+    document["parameters"][4]["name"] = "all";
+    const std::string message = load_error(document);
+    EXPECT_THAT(message, HasSubstr("broken/tc10.json: /parameters/3/mnemonic: \"ALL\" is reserved: `loopwire read ... all`"));
+    EXPECT_THAT(message, HasSubstr("broken/tc10.json: /parameters/4/name: \"all\" is reserved"));
+}
+
 TEST(ProfileLoading, DuplicateAddressWithoutNotesIsRefused) {
     Json document = tc10_document();
     document["parameters"][5]["address"] = document["parameters"][4]["address"];
