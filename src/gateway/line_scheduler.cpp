@@ -29,8 +29,11 @@ void deliver(session::Master::ForwardCompletion& done, Result<Bytes> result) {
 
 Error stopping_error() { return make_error(ErrorKind::link, "gateway stopping: the request was not sent"); }
 
+// Marked abandoned (common/never_sent.hpp): it says nothing of the device, whose status the going
+// gateway's polls must not change (to "offline" on MQTT) in the moment before they go.
 Error reloading_error() {
-    return make_error(ErrorKind::link, "gateway reloading its configuration: the request's outcome is not awaited; ask again");
+    return make_error(ErrorKind::link, "gateway reloading its configuration: the request's outcome is not awaited; ask again",
+                      abandoned_code);
 }
 
 Error expired_error(std::uint8_t unit) {

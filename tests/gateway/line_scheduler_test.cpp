@@ -538,6 +538,7 @@ TEST_F(LineSchedulerTest, AHandOverAnswersEveryAskerAtOnceAndTheLineCarriesOnAft
         ASSERT_FALSE(failed.ok());
         EXPECT_EQ(failed.error().kind, ErrorKind::link);
         EXPECT_NE(failed.error().message.find("gateway reloading"), std::string::npos) << failed.error().message;
+        EXPECT_TRUE(abandoned(failed.error())) << "tag " << tag << ": would change the device's status";
     }
     submit(5);  // between the two gateways: refused, never sent
     EXPECT_NE(only_answer(5).error().message.find("gateway reloading"), std::string::npos);
