@@ -422,6 +422,18 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         }
     }
 
+    // Under the lock, once no sender is inside forward_async (that call only queues, so the wait
+    // is short, and afterwards the request it sent is in `flights`): every queued request.
+    std::vector<LineRequest> take_queued(std::unique_lock<std::mutex>& lock) {
+        not_sending.wait(lock, [this] { return !sending; });
+        std::vector<LineRequest> left;
+        writes.take_all(left);
+        clients.take_all(left);
+        for (auto& poll : polls) left.push_back(std::move(poll));
+        polls.clear();
+        return left;
+    }
+
     // For the destructor: nothing is sent after this, what is queued fails, and the master is
     // released on this thread (not a completion's, see the header).
     void stop() {
@@ -430,13 +442,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         {
             std::unique_lock lock(mutex);
             stopping = true;
-            // A sender inside forward_async still uses the master; that call only queues, so
-            // this wait is short, and afterwards nothing here touches the master again.
-            not_sending.wait(lock, [this] { return !sending; });
-            writes.take_all(left);
-            clients.take_all(left);
-            for (auto& poll : polls) left.push_back(std::move(poll));
-            polls.clear();
+            left = take_queued(lock);
             line = std::move(master);
         }
         for (auto& request : left) deliver(request.done, stopping_error());
@@ -452,12 +458,7 @@ struct LineScheduler::State : std::enable_shared_from_this<State> {
         {
             std::unique_lock lock(mutex);
             handed_over = true;
-            // A request being put on the wire is in `flights` once forward_async returns.
-            not_sending.wait(lock, [this] { return !sending; });
-            writes.take_all(left);
-            clients.take_all(left);
-            for (auto& poll : polls) left.push_back(std::move(poll));
-            polls.clear();
+            left = take_queued(lock);  // a request being put on the wire is in `flights` afterwards
             flying = flights;
         }
         for (auto& flight : flying) {

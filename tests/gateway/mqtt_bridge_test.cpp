@@ -32,6 +32,7 @@
 #include "gateway/mqtt_documents.hpp"
 #include "support/silenced_unit.hpp"
 #include "support/log_lines.hpp"
+#include "support/loopback_listener.hpp"
 #include "support/mosquitto_broker.hpp"
 #include "sparkplug/sparkplug_b.pb.h"
 #include "support/profile_test_support.hpp"
@@ -276,33 +277,15 @@ TEST(MqttBridge, AGatewayStartsWithoutItsBroker) {
 // closes: another service where the broker was expected.
 class NotABroker {
 public:
-    NotABroker() : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
-        sockaddr_in address{};
-        address.sin_family = AF_INET;
-        address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-        socklen_t size = sizeof address;
-        if (::bind(fd_, reinterpret_cast<sockaddr*>(&address), size) != 0 || ::listen(fd_, 8) != 0 ||
-            ::getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &size) != 0) {
-            throw std::runtime_error("NotABroker: cannot listen");
-        }
-        port = ntohs(address.sin_port);
-        thread_ = std::jthread([this](std::stop_token stop) { serve(stop); });
-    }
-    ~NotABroker() {
-        thread_.request_stop();
-        thread_.join();
-        ::close(fd_);
-    }
-    NotABroker(const NotABroker&) = delete;
-    NotABroker& operator=(const NotABroker&) = delete;
-    std::uint16_t port = 0;
+    NotABroker() : thread_([this](std::stop_token stop) { serve(stop); }) {}
+    std::uint16_t port() const { return listener_.port(); }
 
 private:
     void serve(const std::stop_token& stop) {
         while (!stop.stop_requested()) {
-            pollfd ready{fd_, POLLIN, 0};
+            pollfd ready{listener_.fd(), POLLIN, 0};
             if (::poll(&ready, 1, 50) <= 0) continue;
-            const int client = ::accept(fd_, nullptr, nullptr);
+            const int client = ::accept(listener_.fd(), nullptr, nullptr);
             if (client < 0) continue;
             char connect[256];
             pollfd readable{client, POLLIN, 0};
@@ -312,7 +295,7 @@ private:
             ::close(client);
         }
     }
-    int fd_;
+    testing::LoopbackListener listener_;  // before the thread, which uses it
     std::jthread thread_;
 };
 
@@ -322,7 +305,7 @@ TEST(MqttBridge, APortThatIsNotABrokerIsSaidToBeOne) {
     testing::LogLines said;
     GatewayOptions options;
     options.log = said.sink();
-    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", not_a_broker.port), false, "", std::move(options));
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", not_a_broker.port()), false, "", std::move(options));
     EXPECT_TRUE(said.wait_for("ended before the broker accepted it")) << "nothing logged about the broker";
     EXPECT_TRUE(said.has("is this port an MQTT broker"));
     std::this_thread::sleep_for(1500ms);  // a few more tries (0.5 s, then 1 s): still said once

@@ -5,11 +5,6 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <condition_variable>
 #include <fstream>
@@ -23,6 +18,7 @@
 #include "gateway/gateway.hpp"
 #include "gateway/service.hpp"
 #include "support/history_test_support.hpp"
+#include "support/loopback_listener.hpp"
 #include "support/profile_test_support.hpp"
 
 namespace loopwire::gateway {
@@ -152,26 +148,7 @@ private:
 };
 
 // A port something else listens on: a Modbus TCP front cannot open there.
-class TakenPort {
-public:
-    TakenPort() : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
-        sockaddr_in address{};
-        address.sin_family = AF_INET;
-        address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-        socklen_t size = sizeof address;
-        EXPECT_EQ(::bind(fd_, reinterpret_cast<sockaddr*>(&address), size), 0);
-        EXPECT_EQ(::listen(fd_, 1), 0);
-        EXPECT_EQ(::getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &size), 0);
-        port = ntohs(address.sin_port);
-    }
-    ~TakenPort() { ::close(fd_); }
-    TakenPort(const TakenPort&) = delete;
-    TakenPort& operator=(const TakenPort&) = delete;
-    std::uint16_t port = 0;
-
-private:
-    int fd_;
-};
+using TakenPort = testing::LoopbackListener;
 
 TEST_F(GatewayService, AReloadThatCannotBeServedGivesWayToThePreviousConfiguration) {
     TakenPort taken;
@@ -185,7 +162,7 @@ TEST_F(GatewayService, AReloadThatCannotBeServedGivesWayToThePreviousConfigurati
     // whose Modbus TCP front cannot listen, then to one that works; then the service is stopped.
     hooks.serving = [&](const GatewayConfig& config, const Gateway&) {
         served.push_back(config.lines.at(0).devices.at(0).poll);
-        if (served.size() == 1) write(plant("100ms", "info", fmt::format("enabled = true\nlisten = \"127.0.0.1:{}\"\n", taken.port)));
+        if (served.size() == 1) write(plant("100ms", "info", fmt::format("enabled = true\nlisten = \"127.0.0.1:{}\"\n", taken.port())));
         if (served.size() == 2) write(plant("200ms"));
         if (served.size() < 3) reloads.hangup();
         else stop.request_stop();
@@ -266,7 +243,7 @@ TEST_F(GatewayService, AReloadKeepsTheLinesItLeavesAloneOpen) {
 
 TEST_F(GatewayService, AFirstConfigurationThatCannotBeServedIsAnError) {
     TakenPort taken;
-    write(plant("100ms", "info", fmt::format("enabled = true\nlisten = \"127.0.0.1:{}\"\n", taken.port)));
+    write(plant("100ms", "info", fmt::format("enabled = true\nlisten = \"127.0.0.1:{}\"\n", taken.port())));
     ConfigReloads reloads(file, profiles(), recorded.log());
     std::stop_source stop;
     Watchdog watchdog(stop);
