@@ -2,7 +2,8 @@
 // gateway/http_api.hpp's router) on arbitrary bytes, without sockets: a gateway with a TC10 on a
 // line whose master fails every request at once, with a token. Properties: it never throws or
 // aborts; bytes that form a request are answered, each response a status 100..599 whose JSON
-// body (when it is JSON) parses; a refusal of the parser is 400, 413 or 431; a deferred write is
+// body (when it is JSON) parses; a refusal of the parser is 400, 413, 431 or 501 (a
+// Transfer-Encoding other than chunked); a deferred write is
 // answered exactly once; an event stream starts and stops.
 #include <atomic>
 #include <memory>
@@ -92,7 +93,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     fuzz::check(!(parsed.request && parsed.refusal), "a request or a refusal, not both");
     if (parsed.refusal) {
         const unsigned status = parsed.refusal->status;
-        fuzz::check(status == 400 || status == 413 || status == 431, "the parser refuses with 400, 413 or 431");
+        fuzz::check(status == 400 || status == 413 || status == 431 || status == 501,
+                    "the parser refuses with 400, 413, 431 or 501");
         check_response(*parsed.refusal);
     }
     if (!parsed.request) return 0;
