@@ -1,7 +1,6 @@
 // loopwire decode --protocol rtu|ascii|tcp|linking [--direction request|reply] HEX... [--json]
 // Explains one frame. Exit 0 for a valid frame, 1 for an invalid one (with the reason).
-#include <cctype>
-#include <string_view>
+#include <string>
 
 #include <fmt/format.h>
 
@@ -23,29 +22,6 @@ struct DecodeOptions {
     bool json = false;
 };
 
-// Why `text` is not hex, for the refusal: a character that is no hex digit, or a run of digits of
-// odd length (each byte is two: 9 is written 09).
-std::string hex_problem(std::string_view text) {
-    std::size_t run = 0;  // hex digits since the last separator
-    for (std::size_t i = 0; i <= text.size(); ++i) {
-        const char c = i < text.size() ? text[i] : ' ';
-        if (std::isxdigit(static_cast<unsigned char>(c))) {
-            ++run;
-        } else if ((c == 'x' || c == 'X') && run == 1 && text[i - 1] == '0') {
-            run = 0;  // "0x" before a byte
-        } else if (c == ' ' || c == ',' || c == ':' || c == '-' || c == '\t') {
-            if (run % 2 == 1) {
-                return fmt::format(": '{}' has an odd number of hex digits, and each byte takes two (write 9 as 09)",
-                                   text.substr(i - run, run));
-            }
-            run = 0;
-        } else {
-            return fmt::format(": '{}' is not a hex digit", c);
-        }
-    }
-    return "";
-}
-
 // ASCII frames may be given as their text (":0103008A000171") or as the hex of the characters.
 Result<Bytes> wire_bytes(const DecodeOptions& options) {
     std::string joined;
@@ -58,8 +34,9 @@ Result<Bytes> wire_bytes(const DecodeOptions& options) {
     for (const auto& part : options.frame) spaced += part + " ";
     auto bytes = parse_hex(spaced);
     if (!bytes || bytes->empty()) {
+        const auto why = hex_problem(spaced);
         return make_error(ErrorKind::usage, fmt::format("'{}' is not a frame in hex{} (like 01 03 00 8A 00 01 A5 E0)", spaced,
-                                                        hex_problem(spaced)));
+                                                        why ? ": " + *why : std::string()));
     }
     return std::move(*bytes);
 }

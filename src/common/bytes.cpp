@@ -1,5 +1,7 @@
 #include "common/bytes.hpp"
 
+#include <fmt/format.h>
+
 namespace loopwire {
 
 std::string to_hex(ByteView bytes) {
@@ -41,6 +43,27 @@ std::optional<Bytes> parse_hex(std::string_view text) {
         i += 2;
     }
     return out;
+}
+
+std::optional<std::string> hex_problem(std::string_view text) {
+    std::size_t run = 0;  // hex digits since the last separator
+    for (std::size_t i = 0; i <= text.size(); ++i) {
+        const char c = i < text.size() ? text[i] : ' ';
+        if (hex_value(c) >= 0) {
+            ++run;
+        } else if ((c == 'x' || c == 'X') && run == 1 && text[i - 1] == '0') {
+            run = 0;  // "0x" before a byte
+        } else if (is_separator(c)) {
+            if (run % 2 == 1) {
+                return fmt::format("'{}' has an odd number of hex digits, and each byte takes two (write 9 as 09)",
+                                   text.substr(i - run, run));
+            }
+            run = 0;
+        } else {
+            return fmt::format("'{}' is not a hex digit", c);
+        }
+    }
+    return std::nullopt;
 }
 
 }  // namespace loopwire

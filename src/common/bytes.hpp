@@ -22,6 +22,9 @@ std::string to_hex(ByteView bytes);
 // prefixes, separators space, ':', '-', ','. Returns nullopt on anything else (odd digit count,
 // non-hex character).
 std::optional<Bytes> parse_hex(std::string_view text);
+// Why parse_hex refuses `text`, in words: "'019' has an odd number of hex digits, ..." or "'g' is
+// not a hex digit"; nothing when it does not.
+std::optional<std::string> hex_problem(std::string_view text);
 
 inline std::uint16_t read_be16(ByteView b, std::size_t at) {
     return static_cast<std::uint16_t>((b[at] << 8) | b[at + 1]);

@@ -1,7 +1,6 @@
 #include "profile/profile_checks.hpp"
 
 #include <algorithm>
-#include <cctype>
 #include <charconv>
 #include <map>
 #include <optional>
@@ -11,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "codec/table.hpp"
+#include "profile/value_text.hpp"
 
 namespace loopwire::device {
 namespace {
@@ -40,9 +40,7 @@ void check_reserved_words(const Json& parameters, std::vector<DocumentProblem>& 
         for (const char* key : {"name", "mnemonic", "group"}) {
             const auto found = parameters[i].find(key);
             if (found == parameters[i].end() || !found->is_string()) continue;
-            std::string word = found->get<std::string>();
-            for (auto& c : word) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-            if (word != "all") continue;
+            if (!equal_ignoring_case(found->get<std::string>(), "all")) continue;
             problems.push_back({parameter_pointer(i, std::string("/") + key),
                                 fmt::format("\"{}\" is reserved: `loopwire read ... all` reads every readable parameter; "
                                             "call it otherwise", found->get<std::string>())});
