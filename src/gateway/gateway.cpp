@@ -237,7 +237,7 @@ struct Gateway::Parts {
     std::unique_ptr<MqttBridge> mqtt;
     std::unique_ptr<SparkplugNode> sparkplug;
     std::unique_ptr<HttpApi> http_api;
-    std::unique_ptr<HttpServer> http;  // last: stopped (its threads joined) before the API goes
+    std::unique_ptr<HttpServer> http;  // last: stopped (its connections closed) before the API goes
 };
 
 Gateway::Gateway(std::unique_ptr<Parts> parts) : parts_(std::move(parts)) {}
@@ -359,7 +359,9 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     settings.max_connections = http.max_connections;
     settings.max_connections_per_client = http.max_connections_per_client;
     settings.send_timeout = http.send_timeout;
-    auto server = HttpServer::open(settings, *parts.http_api);
+    // On the engine's loop: no thread of its own (issue 20: the thread count does not grow with
+    // the fronts); what would block there is deferred (http_server.hpp).
+    auto server = HttpServer::open(settings, *parts.http_api, &parts.engine->loop());
     if (!server) return server.error();
     parts.http = std::move(*server);
     return {};

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -75,6 +76,11 @@ struct ForwardStats {
 class HistorySource {
 public:
     virtual ~HistorySource() = default;
+    // Runs `work`, which may block on the database (a query, the historian's answer), where
+    // blocking holds up nothing else: the history's own thread, never the loop the HTTP API
+    // serves on (the engine's, with the polls). Here, at once, for a source without a thread.
+    // From any thread; `work` runs once, in the order given.
+    virtual void run_blocking(std::function<void()> work) const { work(); }
     // The error says what was wrong with the query (unknown device or parameter, from after to).
     virtual Result<std::vector<HistorySeries>> query(const HistoryQuery& query) const = 0;
     // Rows committed since the gateway started (GET /metrics).

@@ -138,6 +138,7 @@ Result<std::unique_ptr<HistoryStore>> HistoryStore::open(HistoryOptions options,
         store->forwarder_ = std::move(*forwarder);
     }
     if (store->options_.writer_thread) {
+        store->errands_thread_ = true;
         store->thread_ = std::jthread([s = store.get()](std::stop_token stop) { s->run(std::move(stop)); });
         name_thread(store->thread_.native_handle(), "lw-history");
     }
@@ -193,13 +194,41 @@ std::uint64_t HistoryStore::dropped() const {
 }
 
 void HistoryStore::run(std::stop_token stop) {
-    std::mutex wait_mutex;
-    std::unique_lock wait_lock(wait_mutex);
+    using steady = std::chrono::steady_clock;
+    auto next_commit = steady::now() + options_.commit_interval;
     while (!stop.stop_requested()) {
-        queue_woken_.wait_for(wait_lock, stop, options_.commit_interval, [] { return false; });
-        if (stop.stop_requested()) break;
+        std::vector<std::function<void()>> errands;
+        {
+            std::unique_lock lock(errands_mutex_);
+            errands_woken_.wait_until(lock, stop, next_commit, [this] { return !errands_.empty(); });
+            errands.swap(errands_);
+        }
+        for (auto& errand : errands) errand();
+        if (stop.stop_requested() || steady::now() < next_commit) continue;
         (void)write_pending();  // failures are logged there and retried on the next round
+        next_commit = steady::now() + options_.commit_interval;
     }
+    // Errands given from now on run where they are given; the ones left still run (an HTTP
+    // request waits for each).
+    std::vector<std::function<void()>> left;
+    {
+        std::lock_guard lock(errands_mutex_);
+        errands_thread_ = false;
+        left.swap(errands_);
+    }
+    for (auto& errand : left) errand();
+}
+
+void HistoryStore::run_blocking(std::function<void()> work) const {
+    {
+        std::lock_guard lock(errands_mutex_);
+        if (errands_thread_) {
+            errands_.push_back(std::move(work));
+            errands_woken_.notify_one();
+            return;
+        }
+    }
+    work();
 }
 
 Result<std::int64_t> HistoryStore::series_id(const std::string& device, const std::string& parameter, const std::string& unit) {

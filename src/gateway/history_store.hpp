@@ -8,7 +8,8 @@
 // a kill -9 loses at most the last second; WAL keeps every committed transaction whole, so the
 // file is never corrupted by a crash), writes the heartbeats when due and deletes expired rows
 // in small batches between commits. query() runs on the caller's thread on its own connection:
-// WAL lets it read while the writer writes.
+// WAL lets it read while the writer writes. The HTTP API asks on this thread (run_blocking), so
+// that a long query or a slow historian never holds up the engine's loop it serves on.
 //
 // Schema (history_schema.cpp): `series` (device, parameter, unit) with integer ids; `samples`
 // (series_id, t in ms since the epoch, value, text, status), WITHOUT ROWID with the key
@@ -98,6 +99,8 @@ public:
     std::uint64_t dropped() const;  // changes refused because the queue was full
     std::optional<ForwardStats> forward_stats() const override;
     Result<std::vector<std::string>> historian_gateways() const override;
+    // On the writer thread, before its next commit (at once when there is no thread).
+    void run_blocking(std::function<void()> work) const override;
     HistoryForwarder* forwarder() { return forwarder_.get(); }  // null unless forwarding
 
     const std::filesystem::path& database() const { return options_.database; }
@@ -136,7 +139,11 @@ private:
     std::unique_ptr<HistorianReader> historian_;  // other gateways' history, when forwarding
     mutable std::mutex writer_mutex_;
     mutable std::mutex queue_mutex_;
-    std::condition_variable_any queue_woken_;
+    // The writer thread's wake-up: for errands (run_blocking), and to stop.
+    mutable std::mutex errands_mutex_;
+    mutable std::condition_variable_any errands_woken_;
+    mutable std::vector<std::function<void()>> errands_;
+    bool errands_thread_ = false;  // errands go to the writer thread (errands lock)
     std::vector<QueuedRow> queue_;
     // The last row of each series, for the heartbeats (writer's lock).
     std::map<std::pair<std::string, std::string>, QueuedRow> last_;

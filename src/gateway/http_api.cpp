@@ -237,9 +237,8 @@ struct HttpApi::State {
     HttpResponse device_detail(const ConfiguredDevice& device) const;
     HttpOutcome write(const ConfiguredDevice& device, const HttpRequest& request) const;
     HttpOutcome events(const HttpRequest& request) const;
-    HttpResponse history(const HttpRequest& request) const;
-    HttpResponse history_gateways() const;
-    HttpResponse history_reply(const ParsedHistoryQuery& query, const Result<std::vector<HistorySeries>>& series) const;
+    HttpOutcome history(const HttpRequest& request) const;
+    HttpOutcome history_gateways() const;
     HttpResponse metrics() const;
     HttpResponse asset(const HttpRequest& request) const;
 };
@@ -281,8 +280,8 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
     }
     if (path == "/api/devices") return {get ? devices_list() : not_allowed(readable), {}, {}};
     if (path == "/api/events") return get ? events(request) : HttpOutcome{not_allowed(readable), {}, {}};
-    if (path == "/api/history") return {get ? history(request) : not_allowed(readable), {}, {}};
-    if (path == "/api/history/gateways") return {get ? history_gateways() : not_allowed(readable), {}, {}};
+    if (path == "/api/history") return get ? history(request) : HttpOutcome{not_allowed(readable), {}, {}};
+    if (path == "/api/history/gateways") return get ? history_gateways() : HttpOutcome{not_allowed(readable), {}, {}};
     if (path == "/metrics") return {get ? metrics() : not_allowed(readable), {}, {}};
     constexpr std::string_view prefix = "/api/devices/";
     if (path.rfind(prefix, 0) == 0) {
@@ -499,45 +498,9 @@ HttpResponse HttpApi::State::asset(const HttpRequest& request) const {
     return response;
 }
 
-HttpResponse HttpApi::State::history(const HttpRequest& request) const {
-    if (!sources.history) {
-        return error(404, "no [history] configured: add a [history] table to the gateway's configuration to record values");
-    }
-    auto query = history_query(request.query, std::chrono::system_clock::now());
-    if (!query) return error(400, query.error().message);
-    const ConfiguredDevice* device = find(query->query.device);
-    // Another gateway's device (gateway=NAME) is not configured here: its names go to the
-    // historian as written, and an unknown one is refused there.
-    if (!query->query.gateway.empty()) return history_reply(*query, sources.history->query(query->query));
-    if (!device) {
-        return error(404, fmt::format("no device \"{}\" on this gateway (GET /api/devices lists them)", query->query.device));
-    }
-    // Named as the CLI names them: an alias (PV, SP, OUT) or a mnemonic stands for its
-    // parameter; a name the profile does not know is left for the store to refuse.
-    for (auto& name : query->query.parameters) {
-        auto resolved = device::resolve_parameters(*device->address.profile, {name});
-        if (resolved && resolved->size() == 1) name = resolved->front()->name;
-    }
-    return history_reply(*query, sources.history->query(query->query));
-}
+namespace {
 
-// The gateways whose history the historian holds, for the dashboard's choice of whose trend
-// to show; 404 when there is no historian ([history] forward_to absent).
-HttpResponse HttpApi::State::history_gateways() const {
-    if (!sources.history) {
-        return error(404, "no [history] configured: add a [history] table to the gateway's configuration to record values");
-    }
-    auto names = sources.history->historian_gateways();
-    if (!names) {
-        const unsigned status = names.error().kind == ErrorKind::usage ? 404u : history_failure_status(names.error());
-        return error(status, names.error().message);
-    }
-    HttpResponse response = json_response(200, Json{{"this", gateway_name}, {"gateways", *names}});
-    response.headers.emplace_back("Cache-Control", "no-store");
-    return response;
-}
-
-HttpResponse HttpApi::State::history_reply(const ParsedHistoryQuery& query, const Result<std::vector<HistorySeries>>& series) const {
+HttpResponse history_reply(const ParsedHistoryQuery& query, const Result<std::vector<HistorySeries>>& series) {
     if (!series) return error(history_failure_status(series.error()), series.error().message);
     HttpResponse response;
     response.headers.emplace_back("Cache-Control", "no-store");
@@ -565,6 +528,65 @@ HttpResponse HttpApi::State::history_reply(const ParsedHistoryQuery& query, cons
     }
     return json_response(200, Json{{"device", query.query.device}, {"from", iso_time(query.query.from)},
                                    {"to", iso_time(query.query.to)}, {"series", std::move(list)}});
+}
+
+// The query runs where it may block (HistorySource::run_blocking, the history's thread), not on
+// the loop the API serves on: a month of history, or a historian slow to answer, holds up no
+// poll and no other client. What it captures outlives the server, which waits for the answer.
+HttpOutcome deferred_history(const HistorySource& history, ParsedHistoryQuery query) {
+    return {{}, [&history, query = std::move(query)](HttpResponder respond) {
+                history.run_blocking([&history, query, respond = std::move(respond)] {
+                    respond(history_reply(query, history.query(query.query)));
+                });
+            }, {}};
+}
+
+}  // namespace
+
+HttpOutcome HttpApi::State::history(const HttpRequest& request) const {
+    if (!sources.history) {
+        return {error(404, "no [history] configured: add a [history] table to the gateway's configuration to record values"),
+                {}, {}};
+    }
+    auto query = history_query(request.query, std::chrono::system_clock::now());
+    if (!query) return {error(400, query.error().message), {}, {}};
+    const ConfiguredDevice* device = find(query->query.device);
+    // Another gateway's device (gateway=NAME) is not configured here: its names go to the
+    // historian as written, and an unknown one is refused there.
+    if (!query->query.gateway.empty()) return deferred_history(*sources.history, std::move(*query));
+    if (!device) {
+        return {error(404, fmt::format("no device \"{}\" on this gateway (GET /api/devices lists them)", query->query.device)),
+                {}, {}};
+    }
+    // Named as the CLI names them: an alias (PV, SP, OUT) or a mnemonic stands for its
+    // parameter; a name the profile does not know is left for the store to refuse.
+    for (auto& name : query->query.parameters) {
+        auto resolved = device::resolve_parameters(*device->address.profile, {name});
+        if (resolved && resolved->size() == 1) name = resolved->front()->name;
+    }
+    return deferred_history(*sources.history, std::move(*query));
+}
+
+// The gateways whose history the historian holds, for the dashboard's choice of whose trend
+// to show; 404 when there is no historian ([history] forward_to absent). Asked on the
+// history's thread, as a query is.
+HttpOutcome HttpApi::State::history_gateways() const {
+    if (!sources.history) {
+        return {error(404, "no [history] configured: add a [history] table to the gateway's configuration to record values"),
+                {}, {}};
+    }
+    return {{}, [history = sources.history, name = gateway_name](HttpResponder respond) {
+                history->run_blocking([history, name, respond = std::move(respond)] {
+                    auto names = history->historian_gateways();
+                    if (!names) {
+                        const unsigned status = names.error().kind == ErrorKind::usage ? 404u : history_failure_status(names.error());
+                        return respond(error(status, names.error().message));
+                    }
+                    HttpResponse response = json_response(200, Json{{"this", name}, {"gateways", *names}});
+                    response.headers.emplace_back("Cache-Control", "no-store");
+                    respond(std::move(response));
+                });
+            }, {}};
 }
 
 }  // namespace loopwire::gateway

@@ -2,6 +2,7 @@
 
 #include <array>
 #include <atomic>
+#include <condition_variable>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -143,8 +144,12 @@ struct EventQueue {
 
 class Connection;
 
-struct HttpServer::State {
-    State(const HttpServerSettings& s, HttpHandler& h) : settings(s), handler(h) {}
+// Shared by the server and every handler and connection on the loop: on a loop another runs,
+// the last of them may go after the server has (an accept's cancelled completion).
+struct HttpServer::State : std::enable_shared_from_this<HttpServer::State> {
+    State(const HttpServerSettings& s, HttpHandler& h, asio::io_context* shared)
+        : settings(s), handler(h), own_loop(shared ? nullptr : std::make_unique<asio::io_context>(1)),
+          loop(shared ? *shared : *own_loop) {}
 
     HttpServerSettings settings;
     HttpHandler& handler;
@@ -153,31 +158,41 @@ struct HttpServer::State {
     std::map<Connection*, std::weak_ptr<Connection>> connections;  // the network thread's
     std::map<asio::ip::address, std::size_t> per_client;           // open connections by address
     // Declared before what uses it, destroyed after: pending handlers (and the connections they
-    // hold) go with it.
-    asio::io_context loop{1};
+    // hold) go with it. None on a loop another runs.
+    std::unique_ptr<asio::io_context> own_loop;
+    asio::io_context& loop;
     tcp::acceptor acceptor{loop};
     asio::steady_timer accept_pause{loop};
     std::uint16_t port = 0;
     bool stopping = false;  // the network thread's
     std::once_flag stopped;
-    std::thread thread;
+    std::thread thread;  // none on a loop another runs
+    // For a stop on a loop another runs: connections still there (their deferred work not yet
+    // answered, or their closing not yet run), and whether the shut-down has run.
+    std::mutex live_mutex;
+    std::condition_variable live_changed;
+    std::size_t live = 0;
+    bool shut = false;
 
     void accept();
     void on_accept(const error_code& error, tcp::socket socket);
     static void refuse(tcp::socket& socket, unsigned status, std::string_view reason, std::string_view message);
     void shut_down();
+    void count_live(int change);
 };
 
 // One client's connection, on the network thread only (but for its event queue).
 class Connection : public std::enable_shared_from_this<Connection> {
 public:
-    Connection(HttpServer::State& server, tcp::socket socket, asio::ip::address client)
-        : server_(server), client_(client), stream_(std::move(socket)), heartbeat_(server.loop) {
+    Connection(std::shared_ptr<HttpServer::State> server, tcp::socket socket, asio::ip::address client)
+        : kept_(std::move(server)), server_(*kept_), client_(client), stream_(std::move(socket)), heartbeat_(server_.loop) {
         ++server_.per_client[client_];
+        server_.count_live(+1);
     }
     ~Connection() {
         subscription_.reset();
         let_go();
+        server_.count_live(-1);
     }
 
     void start() { read_request(); }
@@ -438,6 +453,7 @@ private:
         }
     }
 
+    std::shared_ptr<HttpServer::State> kept_;  // first: goes last
     HttpServer::State& server_;
     asio::ip::address client_;
     bool counted_ = true;
@@ -460,7 +476,15 @@ private:
 };
 
 void HttpServer::State::accept() {
-    acceptor.async_accept(loop, [this](const error_code& error, tcp::socket socket) { on_accept(error, std::move(socket)); });
+    acceptor.async_accept(loop, [self = shared_from_this()](const error_code& error, tcp::socket socket) {
+        self->on_accept(error, std::move(socket));
+    });
+}
+
+void HttpServer::State::count_live(int change) {
+    std::lock_guard lock(live_mutex);
+    live = change > 0 ? live + 1 : live - 1;
+    live_changed.notify_all();
 }
 
 void HttpServer::State::on_accept(const error_code& error, tcp::socket socket) {
@@ -468,8 +492,8 @@ void HttpServer::State::on_accept(const error_code& error, tcp::socket socket) {
     if (error) {
         // Out of descriptors or memory: accepting again at once would fail just as fast.
         accept_pause.expires_after(std::chrono::milliseconds(100));
-        accept_pause.async_wait([this](const error_code& e) {
-            if (!e) accept();
+        accept_pause.async_wait([self = shared_from_this()](const error_code& e) {
+            if (!e && !self->stopping) self->accept();
         });
         return;
     }
@@ -485,7 +509,7 @@ void HttpServer::State::on_accept(const error_code& error, tcp::socket socket) {
                fmt::format("too many connections from {} (at most {} at once from one address); close some first, or raise "
                            "[http] max_connections_per_client", client.to_string(), settings.max_connections_per_client));
     } else {
-        auto connection = std::make_shared<Connection>(*this, std::move(socket), client);
+        auto connection = std::make_shared<Connection>(shared_from_this(), std::move(socket), client);
         connections[connection.get()] = connection;
         connection->start();
     }
@@ -515,14 +539,18 @@ void HttpServer::State::shut_down() {
     for (auto& [raw, weak] : open) {
         if (auto connection = weak.lock()) connection->stop();
     }
+    std::lock_guard lock(live_mutex);
+    shut = true;
+    live_changed.notify_all();
 }
 
-HttpServer::HttpServer(std::unique_ptr<State> state) : state_(std::move(state)) {}
+HttpServer::HttpServer(std::shared_ptr<State> state) : state_(std::move(state)) {}
 
 HttpServer::~HttpServer() { stop(); }
 
-Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& settings, HttpHandler& handler) {
-    auto state = std::make_unique<State>(settings, handler);
+Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& settings, HttpHandler& handler,
+                                                     boost::asio::io_context* loop) {
+    auto state = std::make_shared<State>(settings, handler, loop);
     const bool ipv6 = settings.host.find(':') != std::string::npos;
     const std::string where = fmt::format("http.listen {}{}{}:{}", ipv6 ? "[" : "", settings.host, ipv6 ? "]" : "", settings.port);
     error_code error;
@@ -544,9 +572,12 @@ Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& s
                                                            : ""));
     }
     state->port = state->acceptor.local_endpoint().port();
-    state->accept();
-    state->thread = std::thread([s = state.get()] { s->loop.run(); });
-    name_thread(state->thread.native_handle(), "lw-http");
+    // Started on the loop's thread, which owns the acceptor from here on.
+    asio::post(state->loop, [s = state] { s->accept(); });
+    if (state->own_loop) {
+        state->thread = std::thread([s = state.get()] { s->loop.run(); });
+        name_thread(state->thread.native_handle(), "lw-http");
+    }
     return std::unique_ptr<HttpServer>(new HttpServer(std::move(state)));
 }
 
@@ -554,9 +585,11 @@ std::uint16_t HttpServer::port() const { return state_->port; }
 
 void HttpServer::stop() {
     std::call_once(state_->stopped, [this] {
-        asio::post(state_->loop, [s = state_.get()] { s->shut_down(); });
+        asio::post(state_->loop, [s = state_] { s->shut_down(); });
         // Returns once every connection is closed: the deferred work under way has answered.
-        state_->thread.join();
+        if (state_->own_loop) return state_->thread.join();
+        std::unique_lock lock(state_->live_mutex);
+        state_->live_changed.wait(lock, [s = state_.get()] { return s->shut && s->live == 0; });
     });
 }
 

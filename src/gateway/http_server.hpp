@@ -1,10 +1,12 @@
 #pragma once
 // The gateway's HTTP server: connections, limits and timeouts, with Boost.Beast kept inside
 // http_server.cpp. What a request means is the handler's business (gateway/http_api.hpp); the
-// server reads requests, hands them over, and sends what comes back, on one network thread.
+// server reads requests, hands them over, and sends what comes back, on one network thread: in
+// the gateway the engine's (gateway/engine.hpp), with the polls and the Modbus TCP front.
 //
-// Threads: handle() runs on the network thread and must not block; work that waits (a write
-// waits for its line) comes back as HttpOutcome::deferred, which starts it and is answered
+// Threads: handle() runs on the network thread and must not block (it would hold up the polls);
+// work that waits (a write waits for its line, a history query for the database) comes back as
+// HttpOutcome::deferred, which starts it and is answered
 // through the responder from whatever thread finishes it, so a slow line never holds up other
 // clients or another line's writes. An event stream's `send` is called from any thread (the poll
 // groups'); it only queues, bounded per client: a client that cannot keep up, or takes nothing
@@ -27,6 +29,10 @@
 
 #include "common/result.hpp"
 #include "gateway/value_cache.hpp"
+
+namespace boost::asio {
+class io_context;
+}
 
 namespace loopwire::gateway {
 
@@ -95,8 +101,11 @@ ParsedHttpRequest parse_http_request(std::string_view bytes, const HttpServerSet
 
 class HttpServer {
 public:
-    // Listens at once (the error names the address); serves on its own thread until stop().
-    static Result<std::unique_ptr<HttpServer>> open(const HttpServerSettings& settings, HttpHandler& handler);
+    // Listens at once (the error names the address); serves until stop() on `loop`, run by its
+    // owner for as long as the server exists (the gateway's engine), or on a thread of its own
+    // when none is given.
+    static Result<std::unique_ptr<HttpServer>> open(const HttpServerSettings& settings, HttpHandler& handler,
+                                                    boost::asio::io_context* loop = nullptr);
     ~HttpServer();
     HttpServer(const HttpServer&) = delete;
     HttpServer& operator=(const HttpServer&) = delete;
@@ -104,14 +113,15 @@ public:
     std::uint16_t port() const;  // the one the kernel chose for port 0
 
     // Stops accepting, ends event streams and idle connections, lets the blocking work under way
-    // finish and answer, then closes everything. Idempotent.
+    // finish and answer, then closes everything. Idempotent. Never on the loop's own thread: it
+    // waits for the loop to close the connections.
     void stop();
 
     struct State;
 
 private:
-    explicit HttpServer(std::unique_ptr<State> state);
-    std::unique_ptr<State> state_;
+    explicit HttpServer(std::shared_ptr<State> state);
+    std::shared_ptr<State> state_;
 };
 
 }  // namespace loopwire::gateway

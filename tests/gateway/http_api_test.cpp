@@ -18,8 +18,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <condition_variable>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -709,9 +711,23 @@ TEST(HttpApiWithoutHttp, AGatewayWithoutAnHttpTableListensOnNoPort) {
 
 class RecordingHistory final : public HistorySource {
 public:
-    Result<std::vector<HistorySeries>> query(const HistoryQuery& query) const override {
+    ~RecordingHistory() override {
+        release();
+        for (auto& worker : workers_) worker.join();
+    }
+
+    // As the store does: the query on a thread of the history's, not the caller's.
+    void run_blocking(std::function<void()> work) const override {
         std::lock_guard lock(mutex_);
+        workers_.emplace_back(std::move(work));
+    }
+
+    Result<std::vector<HistorySeries>> query(const HistoryQuery& query) const override {
+        std::unique_lock lock(mutex_);
         asked_.push_back(query);
+        changed_.notify_all();
+        // A query the database takes its time over (a month of rows, a slow historian).
+        changed_.wait(lock, [this] { return !holding_; });
         if (!query.parameters.empty() && query.parameters.front() == "nonsense") {
             return make_error(ErrorKind::usage, "device \"oven\" has no parameter \"nonsense\"");
         }
@@ -745,8 +761,26 @@ public:
         return asked_;
     }
 
+    void hold() {
+        std::lock_guard lock(mutex_);
+        holding_ = true;
+    }
+    void release() {
+        std::lock_guard lock(mutex_);
+        holding_ = false;
+        changed_.notify_all();
+    }
+    // Fails loudly when no query was asked within 30 s.
+    bool wait_until_asked(std::size_t count) const {
+        std::unique_lock lock(mutex_);
+        return changed_.wait_for(lock, 30s, [&] { return asked_.size() >= count; });
+    }
+
 private:
     mutable std::mutex mutex_;
+    mutable std::condition_variable changed_;
+    mutable std::vector<std::thread> workers_;
+    bool holding_ = false;
     mutable std::vector<HistoryQuery> asked_;
     std::optional<std::vector<std::string>> gateways_;
 };
@@ -773,15 +807,16 @@ device = "tc10@3"
         sources.lines = [] { return std::vector<LineReport>{}; };
         sources.history = &history_;
         api_ = std::make_unique<HttpApi>(*config, std::move(sources));
-        auto server = HttpServer::open(HttpServerSettings{}, *api_);
+        // As in the gateway: on the engine's loop, the polls' (gateway.cpp).
+        auto server = HttpServer::open(HttpServerSettings{}, *api_, &engine_.loop());
         if (!server) throw std::runtime_error(server.error().message);
         server_ = std::move(*server);
     }
 
     ValueCache cache_;
+    RecordingHistory history_;  // before the engine: its queries' answers are posted to the loop
     Engine engine_;
     DeviceWriter writer_{engine_, {}, 1s};
-    RecordingHistory history_;
     std::unique_ptr<HttpApi> api_;
     std::unique_ptr<HttpServer> server_;
 };
@@ -811,6 +846,24 @@ TEST_F(HttpHistoryTest, TheQueryIsPassedOnAndTheSeriesComeBackAsJson) {
                                                  {"from": "2026-12-02T08:02:50.000Z", "to": null}])"));
     // The value in force at `from`, where a chart's line starts: no bucket, so no statistics.
     EXPECT_EQ(series.at("before"), Json::parse(R"({"time": "2026-12-02T07:59:20.000Z", "value": 19.5})"));
+}
+
+// The server runs on the engine's loop, with the polls: a query is answered from the history's
+// thread (HistorySource::run_blocking), so one the database takes its time over holds up neither
+// the loop nor the other clients. Asked on the loop, the query held both until it was done.
+TEST_F(HttpHistoryTest, AQueryTakingItsTimeHoldsUpNeitherTheLoopNorOtherClients) {
+    history_.hold();
+    auto slow = std::async(std::launch::async, [this] { return get(server_->port(), "/api/history?device=oven"); });
+    ASSERT_TRUE(history_.wait_until_asked(1)) << "the history was never asked";
+    std::promise<void> ran;
+    engine_.post([&ran] { ran.set_value(); });
+    EXPECT_EQ(ran.get_future().wait_for(30s), std::future_status::ready) << "the engine's loop is held by the query";
+    EXPECT_EQ(get(server_->port(), "/api/devices").status, 200u);
+    EXPECT_EQ(slow.wait_for(0s), std::future_status::timeout) << "answered before the query was done";
+    history_.release();
+    const Reply reply = slow.get();
+    EXPECT_EQ(reply.status, 200u) << reply.body;
+    EXPECT_EQ(reply.json().at("series").size(), 1u);
 }
 
 // No value known to hold at `from` (none recorded shortly before it, or a row of nothing read):
