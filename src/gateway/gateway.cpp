@@ -315,7 +315,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
     }
     if (config.sparkplug) open_sparkplug(*config.sparkplug, config, *parts, options.log);
     if (config.http) {
-        if (auto opened = open_http(*config.http, config, *parts); !opened) return opened.error();
+        if (auto opened = open_http(*config.http, config, options.http_listener, *parts); !opened) return opened.error();
     }
     if (parts->front) parts->front->route_to(parts->units);
     return std::unique_ptr<Gateway>(new Gateway(std::move(parts)));
@@ -340,7 +340,8 @@ void Gateway::open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConf
                                                       std::move(log));
 }
 
-Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& config, Parts& parts) {
+Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& config, const HttpListener* listener,
+                               Parts& parts) {
     HttpApiSources sources;
     sources.cache = &parts.cache;
     sources.writer = parts.writer.get();
@@ -361,7 +362,8 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     settings.send_timeout = http.send_timeout;
     // On the engine's loop: no thread of its own (issue 20: the thread count does not grow with
     // the fronts); what would block there is deferred (http_server.hpp).
-    auto server = HttpServer::open(settings, *parts.http_api, &parts.engine->loop());
+    const bool kept = listener && listener->listens_as(http.host, http.port);
+    auto server = HttpServer::open(settings, *parts.http_api, &parts.engine->loop(), kept ? listener : nullptr);
     if (!server) return server.error();
     parts.http = std::move(*server);
     return {};

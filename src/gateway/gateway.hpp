@@ -23,6 +23,7 @@
 namespace loopwire::gateway {
 
 class LineKeeper;
+class HttpListener;
 
 struct GatewayOptions {
     session::TraceSink trace;  // every frame on the lines and the front (-v)
@@ -47,6 +48,10 @@ struct GatewayOptions {
     // reload, hand_over_to() leaves it the lines the next configuration runs alike. None: the
     // gateway opens and closes its own. Must outlive the gateway.
     LineKeeper* lines = nullptr;
+    // With [http]: the listening socket the HTTP API accepts on, kept by the caller across
+    // reloads (it must listen as [http] listen asks, HttpListener::listens_as, and outlive the
+    // gateway). None: the gateway listens itself, and closes the socket when serve() returns.
+    const HttpListener* http_listener = nullptr;
     // How serve() waits for its stop: on a condition variable when empty. The gateway command
     // passes its signal handling here (app/stop_signal.hpp, StopSignal::Waits::caller), so the
     // serving thread takes SIGTERM and SIGHUP while it waits and no thread is kept for them.
@@ -117,7 +122,8 @@ public:
 private:
     struct Parts;
     explicit Gateway(std::unique_ptr<Parts> parts);
-    static Result<void> open_http(const HttpConfig& http, const GatewayConfig& config, Parts& parts);
+    static Result<void> open_http(const HttpConfig& http, const GatewayConfig& config, const HttpListener* listener,
+                                  Parts& parts);
     void keep_lines_for(const GatewayConfig& next);
     static void open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConfig& config, Parts& parts, GatewayLog log);
     std::unique_ptr<Parts> parts_;

@@ -9,6 +9,12 @@
 #include <thread>
 #include <utility>
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
@@ -548,30 +554,74 @@ HttpServer::HttpServer(std::shared_ptr<State> state) : state_(std::move(state)) 
 
 HttpServer::~HttpServer() { stop(); }
 
-Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& settings, HttpHandler& handler,
-                                                     boost::asio::io_context* loop) {
-    auto state = std::make_shared<State>(settings, handler, loop);
-    const bool ipv6 = settings.host.find(':') != std::string::npos;
-    const std::string where = fmt::format("http.listen {}{}{}:{}", ipv6 ? "[" : "", settings.host, ipv6 ? "]" : "", settings.port);
+Result<HttpListener> HttpListener::open(const std::string& host, std::uint16_t port) {
+    const bool ipv6 = host.find(':') != std::string::npos;
+    const std::string where = fmt::format("http.listen {}{}{}:{}", ipv6 ? "[" : "", host, ipv6 ? "]" : "", port);
+    asio::io_context resolving{1};
     error_code error;
-    tcp::resolver resolver(state->loop);
-    auto endpoints = resolver.resolve(settings.host, std::to_string(settings.port),
-                                      tcp::resolver::passive | tcp::resolver::numeric_service, error);
+    tcp::resolver resolver(resolving);
+    auto endpoints = resolver.resolve(host, std::to_string(port), tcp::resolver::passive | tcp::resolver::numeric_service, error);
     if (error || endpoints.empty()) {
         return make_error(ErrorKind::link, fmt::format("{}: cannot resolve the address: {}", where, error.message()));
     }
     const tcp::endpoint endpoint = *endpoints.begin();
-    state->acceptor.open(endpoint.protocol(), error);
-    if (!error) state->acceptor.set_option(tcp::acceptor::reuse_address(true), error);
-    if (!error) state->acceptor.bind(endpoint, error);
-    if (!error) state->acceptor.listen(asio::socket_base::max_listen_connections, error);
+    tcp::acceptor acceptor(resolving);
+    acceptor.open(endpoint.protocol(), error);
+    if (!error) acceptor.set_option(tcp::acceptor::reuse_address(true), error);
+    if (!error) acceptor.bind(endpoint, error);
+    if (!error) acceptor.listen(asio::socket_base::max_listen_connections, error);
     if (error) {
         return make_error(ErrorKind::link, fmt::format("{}: {}{}", where, error.message(),
                                                        error == asio::error::address_in_use
                                                            ? " (another program listens there: choose another port in [http] listen)"
                                                            : ""));
     }
-    state->port = state->acceptor.local_endpoint().port();
+    const auto bound = acceptor.local_endpoint().port();
+    const bool v6 = endpoint.protocol() == tcp::v6();
+    return HttpListener(host, port, bound, acceptor.release(), v6);
+}
+
+HttpListener::HttpListener(HttpListener&& other) noexcept
+    : host_(std::move(other.host_)), asked_port_(other.asked_port_), port_(other.port_),
+      fd_(std::exchange(other.fd_, -1)), ipv6_(other.ipv6_) {}
+
+HttpListener& HttpListener::operator=(HttpListener&& other) noexcept {
+    if (this != &other) {
+        if (fd_ >= 0) ::close(fd_);
+        host_ = std::move(other.host_);
+        asked_port_ = other.asked_port_;
+        port_ = other.port_;
+        fd_ = std::exchange(other.fd_, -1);
+        ipv6_ = other.ipv6_;
+    }
+    return *this;
+}
+
+HttpListener::~HttpListener() {
+    if (fd_ >= 0) ::close(fd_);
+}
+
+Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& settings, HttpHandler& handler,
+                                                     boost::asio::io_context* loop, const HttpListener* listener) {
+    std::optional<HttpListener> own;
+    if (!listener) {
+        auto opened = HttpListener::open(settings.host, settings.port);
+        if (!opened) return opened.error();
+        own.emplace(std::move(*opened));
+        listener = &*own;
+    }
+    auto state = std::make_shared<State>(settings, handler, loop);
+    // The server accepts on a descriptor of its own: closing it when the server stops leaves the
+    // listener (a kept one) listening.
+    const int fd = ::fcntl(listener->fd(), F_DUPFD_CLOEXEC, 0);
+    error_code error;
+    if (fd >= 0) state->acceptor.assign(listener->ipv6() ? tcp::v6() : tcp::v4(), fd, error);
+    if (fd < 0 || error) {
+        if (fd >= 0) ::close(fd);
+        return make_error(ErrorKind::link, fmt::format("http.listen port {}: cannot accept on the listening socket: {}",
+                                                       listener->port(), fd < 0 ? std::strerror(errno) : error.message()));
+    }
+    state->port = listener->port();
     // Started on the loop's thread, which owns the acceptor from here on.
     asio::post(state->loop, [s = state] { s->accept(); });
     if (state->own_loop) {

@@ -99,13 +99,47 @@ struct ParsedHttpRequest {
 };
 ParsedHttpRequest parse_http_request(std::string_view bytes, const HttpServerSettings& settings);
 
+// The listening socket of the HTTP API, which may outlive the servers that accept on it: a reload
+// that leaves [http] listen alone keeps it (issue 20, item 8), so the port stays the same (also
+// one the kernel chose) and a client connecting while the next gateway opens waits in its
+// backlog instead of being refused.
+class HttpListener {
+public:
+    // Binds and listens; the error names the address and, when it is taken, what to do.
+    static Result<HttpListener> open(const std::string& host, std::uint16_t port);
+    HttpListener(HttpListener&& other) noexcept;
+    HttpListener& operator=(HttpListener&& other) noexcept;
+    HttpListener(const HttpListener&) = delete;
+    HttpListener& operator=(const HttpListener&) = delete;
+    ~HttpListener();
+
+    // Whether it is the one [http] listen asks for: the same address, and the same port asked
+    // for (0 for one the kernel chose).
+    bool listens_as(const std::string& host, std::uint16_t port) const { return host == host_ && port == asked_port_; }
+    std::uint16_t port() const { return port_; }
+    int fd() const { return fd_; }
+    bool ipv6() const { return ipv6_; }
+
+private:
+    HttpListener(std::string host, std::uint16_t asked_port, std::uint16_t port, int fd, bool ipv6)
+        : host_(std::move(host)), asked_port_(asked_port), port_(port), fd_(fd), ipv6_(ipv6) {}
+    std::string host_;
+    std::uint16_t asked_port_ = 0;
+    std::uint16_t port_ = 0;
+    int fd_ = -1;
+    bool ipv6_ = false;
+};
+
 class HttpServer {
 public:
     // Listens at once (the error names the address); serves until stop() on `loop`, run by its
     // owner for as long as the server exists (the gateway's engine), or on a thread of its own
     // when none is given.
+    // With `listener`, it accepts on that (kept by the caller; settings.host and port are then
+    // its), and leaves it listening when it stops.
     static Result<std::unique_ptr<HttpServer>> open(const HttpServerSettings& settings, HttpHandler& handler,
-                                                    boost::asio::io_context* loop = nullptr);
+                                                    boost::asio::io_context* loop = nullptr,
+                                                    const HttpListener* listener = nullptr);
     ~HttpServer();
     HttpServer(const HttpServer&) = delete;
     HttpServer& operator=(const HttpServer&) = delete;

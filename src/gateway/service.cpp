@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include "gateway/http_server.hpp"
 #include "gateway/line_keeper.hpp"
 #include "gateway/modbus_tcp_front.hpp"
 
@@ -32,6 +33,23 @@ Result<void> keep_or_open_front(const GatewayConfig& config, const GatewayOption
     return {};
 }
 
+// The HTTP API's listening socket `config` asks for: `listener` itself when it listens as asked
+// (a reload that left [http] listen alone keeps its port, and the clients that connect meanwhile
+// wait in its backlog), else a new one (or none).
+Result<void> keep_or_open_http_listener(const GatewayConfig& config, const ServiceLog& log,
+                                        std::optional<HttpListener>& listener) {
+    if (config.http && listener && listener->listens_as(config.http->host, config.http->port)) {
+        say(log.info, fmt::format("HTTP API kept listening on port {}", listener->port()));
+        return {};
+    }
+    listener.reset();  // before the new one: it may listen on the same port
+    if (!config.http) return {};
+    auto opened = HttpListener::open(config.http->host, config.http->port);
+    if (!opened) return opened.error();
+    listener.emplace(std::move(*opened));
+    return {};
+}
+
 // What one call of serve_with_reloads keeps between its rounds.
 struct Service {
     GatewayOptions options;
@@ -42,15 +60,18 @@ struct Service {
     // The lines kept across reloads that leave them alone; after the front, which routes to them.
     LineKeeper lines;
     std::unique_ptr<ModbusTcpFront> front;  // kept across reloads that leave [modbus_tcp] alone
+    std::optional<HttpListener> http_listener;  // kept across reloads that leave [http] listen alone
 
     // Serves `config` until `stop` or a reload is requested; the error when it cannot be opened.
     Result<void> round(const GatewayConfig& config) {
         if (log.set_level) log.set_level(config.log.level);
         const std::stop_token reload = reloads.start_round(config);
         if (auto kept = keep_or_open_front(config, options, log, front); !kept) return kept.error();
+        if (auto kept = keep_or_open_http_listener(config, log, http_listener); !kept) return kept.error();
         GatewayOptions round_options = options;
         round_options.front = front.get();
         round_options.lines = &lines;
+        round_options.http_listener = http_listener ? &*http_listener : nullptr;
         auto running = Gateway::open(config, round_options);
         if (!running) return running.error();
         if (hooks.serving) hooks.serving(config, **running);
@@ -106,7 +127,7 @@ std::optional<GatewayConfig> ConfigReloads::take() {
 
 Result<void> serve_with_reloads(GatewayConfig config, const GatewayOptions& options, ConfigReloads& reloads,
                                 const std::stop_token& stop, const ServiceLog& log, const ServiceHooks& hooks) {
-    Service service{options, reloads, stop, log, hooks, {}, nullptr};
+    Service service{options, reloads, stop, log, hooks, {}, nullptr, std::nullopt};
     GatewayConfig current = std::move(config);
     std::optional<GatewayConfig> previous;
     for (;;) {

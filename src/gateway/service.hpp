@@ -1,7 +1,8 @@
 #pragma once
 // The life of `loopwire gateway` around one Gateway: serving a configuration until stopped, and
 // SIGHUP's reload: a configuration that loads and changes what runs replaces the running one
-// (the Modbus TCP front kept when [modbus_tcp] is unchanged), one that changes nothing the
+// (the Modbus TCP front kept when [modbus_tcp] is unchanged, the HTTP API's listening socket when
+// [http] listen is, the lines it leaves alone), one that changes nothing the
 // gateway runs is applied in place, and one that does not load or cannot be served is reported
 // while the previous one goes on. The command only sets up the log, signals and service manager.
 #include <functional>

@@ -5,6 +5,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <condition_variable>
 #include <fstream>
@@ -239,6 +244,66 @@ TEST_F(GatewayService, AReloadKeepsTheLinesItLeavesAloneOpen) {
                             [](const std::string& line) { return line.find("stays open across the reload") != std::string::npos; }),
               1)
         << "the log said which line stayed open, once";
+}
+
+// A blocking TCP connection to a loopback port, with reads bounded so a test fails instead of hanging.
+struct LoopbackClient {
+    explicit LoopbackClient(std::uint16_t port) : fd(::socket(AF_INET, SOCK_STREAM, 0)) {
+        sockaddr_in address{};
+        address.sin_family = AF_INET;
+        address.sin_port = htons(port);
+        address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        timeval bound{30, 0};
+        ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &bound, sizeof bound);
+        connected = ::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0;
+    }
+    ~LoopbackClient() { ::close(fd); }
+    std::string ask(const std::string& request) const {
+        (void)!::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+        std::string reply;
+        char buffer[4096];
+        for (ssize_t n; (n = ::recv(fd, buffer, sizeof buffer, 0)) > 0;) reply.append(buffer, static_cast<std::size_t>(n));
+        return reply;
+    }
+    int fd;
+    bool connected = false;
+};
+
+// Issue 20, item 8: a reload that leaves [http] listen alone keeps the HTTP API's listening
+// socket: the port stays (here one the kernel chose), and a client that connects while the next
+// gateway opens is answered by it. Before, the port was closed between the two and then another.
+TEST_F(GatewayService, AReloadKeepsTheHttpApiListening) {
+    const std::string http = "enabled = false\n\n[http]\nlisten = \"127.0.0.1:0\"\n";
+    write(plant("100ms", "info", http));
+    ConfigReloads reloads(file, profiles(), recorded.log());
+    std::stop_source stop;
+    std::vector<std::uint16_t> ports;
+    std::unique_ptr<LoopbackClient> between;  // connected while no gateway serves
+    std::string answer;
+    ServiceHooks hooks;
+    hooks.serving = [&](const GatewayConfig&, const Gateway& gateway) {
+        ports.push_back(gateway.http_port());
+        if (ports.size() == 1) {
+            write(plant("200ms", "info", http));  // the poll changes: the gateway is reopened
+            reloads.hangup();
+            return;
+        }
+        if (between) answer = between->ask("GET /api/devices HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+        stop.request_stop();
+    };
+    hooks.reloading = [&] { between = std::make_unique<LoopbackClient>(ports.at(0)); };
+    Watchdog watchdog(stop);
+    auto result = serve_with_reloads(load(), {}, reloads, stop.get_token(), recorded.log(), hooks);
+    ASSERT_TRUE(result) << result.error().message;
+    ASSERT_EQ(ports.size(), 2u);
+    EXPECT_EQ(ports[1], ports[0]) << "the port moved across the reload";
+    ASSERT_TRUE(between && between->connected) << "the port was closed while the configuration was reloaded";
+    EXPECT_THAT(answer, HasSubstr("HTTP/1.1 200")) << answer;
+    EXPECT_THAT(answer, HasSubstr("oven1"));
+    std::lock_guard lock(recorded.mutex);
+    EXPECT_EQ(std::count_if(recorded.info.begin(), recorded.info.end(),
+                            [](const std::string& line) { return line.find("HTTP API kept listening on port") != std::string::npos; }),
+              1);
 }
 
 TEST_F(GatewayService, AFirstConfigurationThatCannotBeServedIsAnError) {
