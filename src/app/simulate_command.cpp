@@ -151,7 +151,11 @@ void add_simulate_command(CLI::App& app, int& exit_code, const ProfileOptions& p
     command->add_option("--unit", options->units, "Unit id to serve as a plain register bank (repeat for several; default 1 when no --device)")->check(CLI::Range(1, 247));
     command->add_option("--pty", options->pty, "Create a pseudo-terminal with a link at PATH and serve there (open PATH like a serial port)");
     command->add_option("--state", options->state, "Keep what the devices hold in non-volatile memory in FILE across restarts (RAM-only values are lost, as on the real device)");
-    command->add_option("--seed", options->seed, "Seed of the simulated measurement noise, for runs that repeat exactly (default 1)");
+    command->add_option("--seed", options->seed, "Seed of the simulated measurement noise, for runs that repeat exactly (default 1)")
+        ->check([](const std::string& text) {
+            // CLI11 would take "-1" for an unsigned number, wrapped round.
+            return text.find('-') == std::string::npos ? std::string() : "a seed is a whole number from 0 up, e.g. --seed 7";
+        });
     command->add_option("--speed", options->speed, "Run the process (plant, program timers) X times faster than real time; protocol timing stays real (default 1)")
         ->check(CLI::Range(0.001, 100000.0));
     command->add_option("--fault", options->faults, "Inject a fault at start, DEVICE@UNIT:FAULT (e.g. tc10@3:open-input; repeat for several)");

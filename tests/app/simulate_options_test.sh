@@ -64,5 +64,7 @@ check fault-unserved-unit 2 "unit 4 is not simulated as tc10" \
 check fault-no-colon 2 "write DEVICE@UNIT:FAULT" \
   "$loopwire" simulate --pty "$WORK_DIR/ttyH" --device tc10@3 --fault tc10@3 --duration 1s
 check speed-out-of-range 2 "--speed" "$loopwire" simulate --pty "$WORK_DIR/ttyI" --device tc10@3 --speed 0 --duration 1s
+# A negative seed is refused, not wrapped round to 18446744073709551615.
+check seed-negative 2 "--seed" "$loopwire" simulate --pty "$WORK_DIR/ttyL" --device tc10@3 --seed -1 --duration 1s
 
 finish
