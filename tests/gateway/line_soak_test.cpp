@@ -2,7 +2,8 @@
 // of 3 simulated devices, each device polled every 5 s, 20 clients reading and writing at random
 // through the Modbus TCP front's units, a front writing by name, while the wires spoil 5 % of the
 // devices' replies (late, repeated, bit-flipped, cut short, garbage), adapters are pulled for
-// minutes and devices fall silent for minutes. Everything that carries the lines and the polls
+// minutes, devices fall silent for minutes, and every 2 h a reload hands the lines over at once
+// (whatever is queued or on the wire) to a new set of the gateway's parts. Everything that carries the lines and the polls
 // runs as in the gateway: the lines' loop (here on a VirtualClock, so it jumps from deadline to
 // deadline), a serial master on it per line, the line's ReopeningMaster and LineScheduler, the
 // devices served by simulation::SimulatedLines on the same loop, and on that loop too
@@ -30,6 +31,8 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <deque>
 #include <future>
@@ -91,6 +94,10 @@ constexpr const char* http_token = "soak-token";
 constexpr const char* mqtt_prefix = "soak";
 // How old a reply the units of lines 2 and 3 may answer a client's read with (modbus_tcp max_age).
 constexpr Duration read_cache_age = 2s;
+// A reload (SIGHUP with the lines unchanged, issue 20, item 8) this often: the lines are handed
+// over at once, whatever is queued or on the wire, and the gateway's parts above them (polls,
+// cache, writer, the HTTP and MQTT handlers) opened again over the same lines.
+constexpr Duration reload_every = 2h;
 // The longest wait between two reopenings of a line, and between two polls of a unit that backs
 // off (ReopenSchedule, LineSchedulerOptions: 1 s doubling to 30 s).
 constexpr Duration longest_backoff = 30s;
@@ -257,6 +264,8 @@ struct Tally {
     std::uint64_t bad_replies = 0;
     std::uint64_t timeouts = 0;
     std::uint64_t abandoned = 0;  // clients' requests dropped unsent: their connection had closed
+    std::uint64_t reloads = 0;    // the gateway's parts reopened over the kept lines (SIGHUP)
+    std::uint64_t handed_over_asked = 0;  // requests queued or on the wire when their line was handed over
     // The process's resident memory once the lines have settled (a sixth of the way in), and at
     // the end of the day.
     std::size_t resident_settled = 0;
@@ -325,11 +334,7 @@ public:
         for (int index = 0; index < line_count; ++index) lines_.push_back(std::make_unique<Line>(*this, index));
     }
     ~LineSoak() {
-        api_.reset();
-        mqtt_.reset();    // waits for its writes under way: they end on the loop
-        writer_.reset();  // its writes and the polls' reads on the lines end first
-        polls_.reset();
-        told_.reset();
+        close_parts();
         lines_.clear();  // schedulers, then masters (each closes its serial master on the loop)
     }
 
@@ -342,23 +347,22 @@ public:
         }
         std::promise<Tally> day;
         auto ended = day.get_future();
-        told_ = cache_.subscribe([this](const ValueChange& change) { told(change); });
-        std::map<std::string, std::shared_ptr<LineScheduler>> schedulers;
-        for (const auto& line : lines_) schedulers[fmt::format("line{}", line->index)] = line->scheduler;
-        polls_ = std::make_unique<PollGroups>(events_, config_, schedulers, cache_, GatewayLog{}, &samples_);
-        std::vector<WritableDevice> writable;
-        for (const auto& line : config_.lines) {
-            for (const auto& device : line.devices) writable.push_back({device.name, device.address, schedulers.at(line.name)});
-        }
-        writer_ = std::make_unique<DeviceWriter>(events_, std::move(writable), std::chrono::milliseconds(10000));
-        api_ = std::make_unique<HttpApi>(config_, HttpApiSources{&cache_, writer_.get(), {}, {}, nullptr});
-        mqtt_ = std::make_unique<MqttCommands>(
-            *config_.mqtt, *writer_, [this](std::string topic, std::string payload) { mqtt_published(topic, payload); }, GatewayLog{},
-            [this](const std::string& device) { return not_answering(device); });
+        open_parts();
         loop_->post([this, start, length, &day] { begin(start, length, day); });
-        if (ended.wait_for(15min) != std::future_status::ready) {
-            ADD_FAILURE() << "the soak did not end in 15 minutes of wall time";
-            std::abort();  // the loop still refers to `day`
+        // The day, and the reloads it asks for on the way (a reload takes the parts down, which
+        // waits for the loop: not on the loop's own thread, as in the gateway).
+        const auto give_up = std::chrono::steady_clock::now() + 15min;
+        for (;;) {
+            std::unique_lock lock(reload_mutex_);
+            reload_asked_.wait_until(lock, give_up, [this] { return reload_hold_ || day_over_; });
+            if (day_over_) break;
+            if (!reload_hold_) {
+                ADD_FAILURE() << "the soak did not end in 15 minutes of wall time";
+                std::abort();  // the loop still refers to `day`
+            }
+            auto hold = std::exchange(reload_hold_, nullptr);
+            lock.unlock();
+            reload(std::move(hold));
         }
         return ended.get();
     }
@@ -366,6 +370,64 @@ public:
     const std::vector<Outage>& outages() const { return outages_; }
 
 private:
+    // The gateway's parts above the lines, as Gateway::open makes them.
+    void open_parts() {
+        cache_ = std::make_unique<ValueCache>(clock_, [this] { return events_.wall_now(); });
+        told_ = cache_->subscribe([this](const ValueChange& change) { told(change); });
+        std::map<std::string, std::shared_ptr<LineScheduler>> schedulers;
+        for (const auto& line : lines_) schedulers[fmt::format("line{}", line->index)] = line->scheduler;
+        polls_ = std::make_unique<PollGroups>(events_, config_, schedulers, *cache_, GatewayLog{}, &samples_);
+        std::vector<WritableDevice> writable;
+        for (const auto& line : config_.lines) {
+            for (const auto& device : line.devices) writable.push_back({device.name, device.address, schedulers.at(line.name)});
+        }
+        writer_ = std::make_unique<DeviceWriter>(events_, std::move(writable), std::chrono::milliseconds(10000));
+        api_ = std::make_unique<HttpApi>(config_, HttpApiSources{cache_.get(), writer_.get(), {}, {}, nullptr});
+        mqtt_ = std::make_unique<MqttCommands>(
+            *config_.mqtt, *writer_, [this](std::string topic, std::string payload) { mqtt_published(topic, payload); }, GatewayLog{},
+            [this](const std::string& device) { return not_answering(device); });
+    }
+
+    // As ~Gateway takes them down: the handlers, then the writer, the polls and the cache.
+    void close_parts() {
+        api_.reset();
+        mqtt_.reset();    // waits for its writes under way: they end on the loop
+        writer_.reset();  // its writes and the polls' reads on the lines end first
+        polls_.reset();
+        told_.reset();
+        cache_.reset();
+    }
+
+    // On the loop, at each reload: the clock held still while the test's thread reopens the parts
+    // (in the gateway a reload takes no plant time either), and the loop's own work leaves the
+    // parts alone meanwhile.
+    void ask_reload() {
+        reloading_ = true;
+        std::lock_guard lock(reload_mutex_);
+        reload_hold_ = loop_->hold_time();
+        reload_asked_.notify_all();
+    }
+
+    // On the test's thread, as Gateway::hand_over_to and the next Gateway::open do it: every line
+    // handed over at once (what is queued or on the wire is answered "reloading", and a reply
+    // still to come reaches no one), the parts above reopened, the lines resumed.
+    void reload(std::shared_ptr<void> hold) {
+        std::uint64_t asked = 0;
+        for (const auto& line : lines_) {
+            asked += line->scheduler->statistics().asked;
+            line->scheduler->hand_over();
+        }
+        close_parts();
+        open_parts();
+        for (const auto& line : lines_) line->scheduler->resume();
+        loop_->post([this, asked, hold = std::move(hold)]() mutable {
+            reloading_ = false;
+            ++tally_.reloads;
+            tally_.handed_over_asked += asked;
+            hold.reset();
+        });
+    }
+
     struct Line {
         Line(LineSoak& soak_, int line_index) : soak(soak_), index(line_index), faults(static_cast<unsigned>(line_index) + 1) {
             for (int unit = 1; unit <= units_per_line; ++unit) devices.push_back(std::make_shared<Device>(index, unit));
@@ -500,6 +562,13 @@ private:
         at(start, [this] { watch_queues(); });
         at(start, [this] { watch_staleness(); });
         at(start + write_every, [this] { write_by_name(); });
+        for (Instant reload = start + reload_every; reload < start + length; reload += reload_every) {
+            // Every client asks just before: the reload finds requests queued and on the wire.
+            at(reload - 30ms, [this] {
+                for (int client = 1; client <= client_count; ++client) read_anywhere(client);
+            });
+            at(reload, [this] { ask_reload(); });
+        }
         at(start + length / 6, [this] { tally_.resident_settled = resident_bytes(); });
         at(start + length, [this, &day] { end_day(day); });
     }
@@ -516,7 +585,7 @@ private:
     // another line.
     void write_to_silent(const Outage& outage) {
         const std::string name = device_name(outage.line, outage.unit);
-        for (int write = 0; write < 10; ++write) {
+        for (int write = 0; write < 10 && !reloading_; ++write) {
             const bool queued = writer_->write_async(name, {{"setting", "1"}}, [this, name, outage](Result<WrittenValues> written) {
                 if (over_) return;
                 if (!written) return void(++tally_.writes_to_silent_failed);
@@ -597,7 +666,9 @@ private:
         const Instant now = clock_->now();
         const Duration overdue = poll_interval * (1 + overdue_intervals_allowed);
         const Duration watch_room = staleness_tick(std::chrono::duration_cast<std::chrono::milliseconds>(poll_interval)) + 100ms;
-        for (const auto& cached : cache_.snapshot()) {
+        at(now + 1s, [this] { watch_staleness(); });
+        if (reloading_) return;
+        for (const auto& cached : cache_->snapshot()) {
             const std::size_t device = device_index(cached.name);
             const auto& answered = tally_.answered_polls[device];
             if (answered.empty() || now - answered.back() <= overdue) continue;
@@ -615,7 +686,6 @@ private:
                                                                        device::status_text(cached.state.status), told_status_[device], api_status));
             }
         }
-        at(now + 1s, [this] { watch_staleness(); });
     }
 
     // GET /api/devices/NAME's status, as the dashboard and any HTTP client read it.
@@ -647,6 +717,7 @@ private:
     void write_by_name() {
         const Instant asked = clock_->now();
         at(asked + write_every, [this] { write_by_name(); });
+        if (reloading_) return;
         FrontWrite write;
         write.asked = asked;
         write.line = std::uniform_int_distribution<int>(0, line_count - 1)(clients_random_);
@@ -770,6 +841,16 @@ private:
             modifying = true;
             return read_modify_write(client, line, unit);
         }
+        read(client, line, unit);
+    }
+
+    void read_anywhere(int client) {
+        const int line = std::uniform_int_distribution<int>(0, line_count - 1)(clients_random_);
+        read(client, line, std::uniform_int_distribution<int>(1, units_per_line)(clients_random_));
+    }
+
+    // A read of 1 to 16 registers anywhere in the unit, its reply checked.
+    void read(int client, int line, int unit) {
         const auto count = static_cast<std::uint16_t>(std::uniform_int_distribution<int>(1, 16)(clients_random_));
         const auto address = static_cast<std::uint16_t>(std::uniform_int_distribution<int>(0, 1023 - count)(clients_random_));
         send(client, line, unit, read_pdu(address, count), [this, line, expected = expected_read(line, unit, address, count)](std::optional<Bytes> reply) {
@@ -882,6 +963,9 @@ private:
         }
         tally_.resident_at_end = resident_bytes();
         day.set_value(tally_);
+        std::lock_guard lock(reload_mutex_);
+        day_over_ = true;
+        reload_asked_.notify_all();
     }
 
     // The polls' `also` sink: each sample, on the loop.
@@ -902,13 +986,14 @@ private:
     std::array<bool, client_count> modifying_{};  // a client's read-modify-write is under way
     std::array<std::string, line_count * units_per_line> told_status_;
     bool over_ = false;
+    bool reloading_ = false;  // the parts are being reopened on the test's thread: leave them alone
     Samples samples_{*this};
     std::shared_ptr<session::LineLoop> loop_;
     simulation::SimulatedLines simulated_;
     std::vector<std::unique_ptr<Line>> lines_;  // after the devices' lines: goes first
     // The gateway's polls and their cache, on the lines' loop and its clock.
     LineLoopEvents events_{loop_};
-    ValueCache cache_{clock_, [this] { return events_.wall_now(); }};
+    std::unique_ptr<ValueCache> cache_;
     ValueSubscription told_;
     std::unique_ptr<PollGroups> polls_;
     std::unique_ptr<DeviceWriter> writer_;
@@ -918,6 +1003,11 @@ private:
     std::uint64_t writes_by_name_ = 0;
     std::optional<FrontWrite> mqtt_taking_;                         // the command take() is answering
     std::map<std::string, std::deque<FrontWrite>> mqtt_pending_;  // by result topic, oldest first
+    // Between the loop and the test's thread: a reload asked for (the clock held meanwhile), the day's end.
+    std::mutex reload_mutex_;
+    std::condition_variable reload_asked_;
+    std::shared_ptr<void> reload_hold_;
+    bool day_over_ = false;
 };
 
 // The first poll a device answered at or after `from`, if any.
@@ -959,11 +1049,14 @@ TEST(LineSoak, ADayOfFaultsOnFourLinesServesNoWrongValueAndEveryDeviceComesBack)
                 static_cast<unsigned long long>(tally.writes_by_front[by_mqtt]), static_cast<unsigned long long>(tally.hostile_writes),
                 static_cast<unsigned long long>(tally.api_overdue_checks));
     std::printf("; lines: %llu bad replies, %llu timeouts, %llu dropped for a closed connection, %llu reopenings; most queued %zu; resident memory %.1f MiB "
-                "settled, %.1f MiB at the end; wrong values %llu\n",
+                "settled, %.1f MiB at the end; %llu reloads (%llu clients' requests and writes waiting or on the wire "
+                "answered at once); wrong values %llu\n",
                 static_cast<unsigned long long>(tally.bad_replies), static_cast<unsigned long long>(tally.timeouts),
                 static_cast<unsigned long long>(tally.abandoned),
                 static_cast<unsigned long long>(tally.reopened), tally.most_queued, static_cast<double>(tally.resident_settled) / 1048576.0,
-                static_cast<double>(tally.resident_at_end) / 1048576.0, static_cast<unsigned long long>(tally.wrong));
+                static_cast<double>(tally.resident_at_end) / 1048576.0, static_cast<unsigned long long>(tally.reloads),
+                static_cast<unsigned long long>(tally.handed_over_asked),
+                static_cast<unsigned long long>(tally.wrong));
 
     EXPECT_EQ(tally.wrong, 0U) << fmt::format("{}", fmt::join(tally.wrong_examples, "\n"));
     // The faults happened, and were seen for what they are.
@@ -972,6 +1065,7 @@ TEST(LineSoak, ADayOfFaultsOnFourLinesServesNoWrongValueAndEveryDeviceComesBack)
     EXPECT_GT(tally.timeouts, 0U);
     EXPECT_GT(tally.abandoned, 0U);
     EXPECT_GE(tally.reopened, 1U);
+    EXPECT_EQ(static_cast<double>(tally.reloads), std::ceil(hours / 2) - 1) << "a reload every 2 h of plant time";
     EXPECT_LE(tally.most_queued, LineSchedulerOptions{}.max_queued);
     // A sample ends well inside its interval (three reads of 300 ms at most): one that ran past
     // it waited on something outside plant time (a request handed to a reopening worker without
