@@ -311,7 +311,9 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
     if (config.mqtt) {
         // Started here, not in serve(): it needs nothing from the TCP front, and a broker that
         // cannot be reached is retried in the background, never an error.
-        parts->mqtt = std::make_unique<MqttBridge>(*config.mqtt, *parts->writer, parts->cache, options.log);
+        // On the engine's loop: no thread of its own.
+        parts->mqtt = std::make_unique<MqttBridge>(*config.mqtt, *parts->writer, parts->cache, options.log, MqttTiming{},
+                                                   &parts->engine->loop());
     }
     if (config.sparkplug) open_sparkplug(*config.sparkplug, config, *parts, options.log);
     if (config.http) {

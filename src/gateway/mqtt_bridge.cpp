@@ -13,6 +13,8 @@
 #include <stop_token>
 #include <thread>
 
+#include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/io_context.hpp>
 #include <fmt/format.h>
 #include <mosquitto.h>
 #include <nlohmann/json.hpp>
@@ -22,6 +24,7 @@
 #include "common/thread_name.hpp"
 #include "gateway/mqtt_client.hpp"
 #include "gateway/mqtt_commands.hpp"
+#include "gateway/mqtt_loop_driver.hpp"
 #include "gateway/mqtt_documents.hpp"
 
 
@@ -30,9 +33,6 @@ namespace {
 
 constexpr int keepalive_seconds = 30;
 constexpr int qos_at_least_once = 1;
-// How long one turn of the network loop waits when nothing happens: the socket, a queued
-// publication and a stop each end the wait at once, so this only paces the keep-alive work.
-constexpr int idle_turn_ms = 500;
 // The shutdown's turns, while the last "offline" messages go out.
 constexpr int goodbye_turn_ms = 50;
 
@@ -122,7 +122,6 @@ struct MqttBridge::State {
 
     std::mutex mutex;  // guards the queue and what the polls said about the devices
     std::deque<Publication> outgoing;  // from the value stream and the writes' results
-    mqtt::Wakeup wakeup;  // notified when `outgoing` gets its first publication, and on stop
     std::map<std::string, DeviceSeen> devices;  // by configured name
     // Every device of the configuration, whether or not its polls have said anything yet: a stop
     // says each of them "offline", or a stop just after a reload, before the first poll, would
@@ -143,13 +142,14 @@ struct MqttBridge::State {
     };
     std::map<std::string, LoopSeen> loops;
 
-    // The network thread's own: every retained topic's payload, republished on each connection.
+    // The network's own (the loop's; after the driver stopped, the destructor's): every retained
+    // topic's payload, republished on each connection.
     std::unordered_map<std::string, RetainedTopic> retained;
     std::deque<TakenCommand> taken;  // the last commands of this session, oldest first
     bool told_unreachable = false;
     bool told_no_handshake = false;  // until a connection is accepted
     bool told_refused = false;
-    bool just_connected = false;  // set by on_connect, acted on by the network loop
+    bool just_connected = false;  // set by on_connect, acted on after the turn
     // The QoS 1 publications of this connection the broker has not acknowledged yet.
     std::set<int> unacknowledged;
     std::chrono::steady_clock::time_point next_republish{};
@@ -159,8 +159,12 @@ struct MqttBridge::State {
     bool gateway_continues = false;
     std::set<std::string> continuing_devices;
 
-    std::unique_ptr<MqttCommands> commands;  // the writes from the broker; before the network thread
-    std::jthread network;
+    std::unique_ptr<MqttCommands> commands;  // the writes from the broker; before the driver
+    // A loop of its own, on a thread named lw-mqtt, when none is given (a benchmark's bridge).
+    std::unique_ptr<boost::asio::io_context> own_loop;
+    std::optional<boost::asio::executor_work_guard<boost::asio::io_context::executor_type>> own_loop_busy;
+    std::thread own_thread;
+    std::unique_ptr<mqtt::LoopDriver> driver;  // the network, on the loop
     ValueSubscription subscription;
 
     void say(const std::string& message) const {
@@ -177,10 +181,10 @@ struct MqttBridge::State {
         queue_locked(std::move(publication));
     }
 
-    // With `mutex` held. The network thread sends the whole queue when woken, so only the first
+    // With `mutex` held. The network sends the whole queue when woken, so only the first
     // publication of a batch needs to wake it.
     void queue_locked(Publication publication) {
-        if (outgoing.empty()) wakeup.notify();
+        if (outgoing.empty() && driver) driver->wake();
         outgoing.push_back(std::move(publication));
     }
 
@@ -265,7 +269,7 @@ struct MqttBridge::State {
         return documents;
     }
 
-    // --- the network thread ---------------------------------------------------------------------
+    // --- the network (on the loop, mqtt_loop_driver.hpp) -----------------------------------------
 
     void publish(const Publication& publication) {
         // A failure (the connection just broke) loses nothing retained: all of it is sent again
@@ -354,7 +358,7 @@ struct MqttBridge::State {
         return false;
     }
 
-    // On the network thread: never blocks (MqttCommands hands each write to its line).
+    // On the loop: never blocks (MqttCommands hands each write to its line).
     void on_message(const mosquitto_message& message) {
         // A retained command is one the broker replays at every (re)subscription: applying it
         // would write the same value again after each reconnect. Only live commands count.
@@ -371,46 +375,32 @@ struct MqttBridge::State {
         commands->take(topic, payload);
     }
 
-    void run_network(const std::stop_token& stop) {
-        const std::stop_callback wake_on_stop(stop, [this] { wakeup.notify(); });
-        bool have_socket = false;
-        auto delay = timing.reconnect_first;
-        while (!stop.stop_requested()) {
-            if (!have_socket) {
-                const int rc = mosquitto_connect(client, config.host.c_str(), config.port, keepalive_seconds);
-                if (rc != MOSQ_ERR_SUCCESS) {
-                    if (!std::exchange(told_unreachable, true)) {
-                        say(fmt::format("cannot reach the broker ({}); retrying in the background", mqtt::connect_failure(rc)));
-                    }
-                    send_queued();  // keeps the retained picture current, and the queue short
-                    mqtt::pause(stop, delay);
-                    delay = std::min(delay * 2, timing.reconnect_last);
-                    continue;
-                }
-                have_socket = true;
-            }
+    // The driver's hooks: what the bridge does around each turn of the network work.
+
+    mqtt::LoopDriver::Hooks network_hooks() {
+        mqtt::LoopDriver::Hooks hooks;
+        hooks.connect = [this] { return mosquitto_connect_async(client, config.host.c_str(), config.port, keepalive_seconds); };
+        hooks.unreachable = [this](int, const std::string& why) {
+            if (!std::exchange(told_unreachable, true)) say(fmt::format("cannot reach the broker ({}); retrying in the background", why));
+            send_queued();  // keeps the retained picture current, and the queue short
+        };
+        hooks.turned = [this] {
             send_queued();
             republish_when_due();
-            const int rc = mqtt::turn(client, wakeup, std::chrono::milliseconds(idle_turn_ms));
-            if (std::exchange(just_connected, false)) {
-                announce();
-                delay = timing.reconnect_first;
+            if (!std::exchange(just_connected, false)) return false;
+            announce();
+            return true;
+        };
+        hooks.lost = [this](int rc, const std::string& why) {
+            if (is_connected.exchange(false)) {
+                say(fmt::format("connection lost ({})", why));
+            } else if (!std::exchange(told_no_handshake, true)) {
+                say(mqtt::handshake_failure(rc));
             }
-            if (rc != MOSQ_ERR_SUCCESS) {
-                if (is_connected.exchange(false)) {
-                    say(fmt::format("connection lost ({})", mosquitto_strerror(rc)));
-                } else if (!std::exchange(told_no_handshake, true)) {
-                    say(mqtt::handshake_failure(rc));
-                }
-                unacknowledged.clear();  // libmosquitto sends them again on the next connection
-                have_socket = false;
-                told_unreachable = false;
-                mqtt::pause(stop, delay);
-                delay = std::min(delay * 2, timing.reconnect_last);
-            }
-        }
-        if (!have_socket || !is_connected.load()) return;
-        say_goodbye();
+            unacknowledged.clear();  // libmosquitto sends them again on the next connection
+            told_unreachable = false;
+        };
+        return hooks;
     }
 
     // A clean disconnect does not fire the will: the gateway and each of its devices say
@@ -460,7 +450,8 @@ struct MqttBridge::State {
     }
 };
 
-MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache& cache, GatewayLog log, MqttTiming timing)
+MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache& cache, GatewayLog log, MqttTiming timing,
+                       boost::asio::io_context* loop)
     : state_(std::make_unique<State>()) {
     mqtt::init_library_once();
     State& s = *state_;
@@ -478,12 +469,12 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
     mqtt::send_without_delay(s.client);
     mqtt::configure_security(s.client, s.config.tls, s.config.username, s.config.password,
                              [&s](const std::string& line) { s.say(line); });
-    // Called on the network thread, inside mosquitto_loop.
+    // Called on the loop, inside mosquitto_loop_read.
     mosquitto_connect_with_flags_callback_set(s.client, [](mosquitto*, void* state, int code, int flags) {
         static_cast<State*>(state)->on_connect(code, flags);
     });
     mosquitto_publish_callback_set(s.client, [](mosquitto*, void* state, int mid) {
-        static_cast<State*>(state)->unacknowledged.erase(mid);  // on the network thread, in its loop
+        static_cast<State*>(state)->unacknowledged.erase(mid);  // on the loop, in its turn
     });
     mosquitto_message_callback_set(s.client, [](mosquitto*, void* state, const mosquitto_message* message) {
         if (message) static_cast<State*>(state)->on_message(*message);
@@ -499,19 +490,31 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
         },
         [&s](const std::string& line) { s.say(line); },
         [&s](const std::string& device) { return s.not_answering(device); });
-    s.network = std::jthread([&s](std::stop_token stop) { s.run_network(stop); });
-    name_thread(s.network.native_handle(), "lw-mqtt");
+    if (!loop) {
+        s.own_loop = std::make_unique<boost::asio::io_context>(1);
+        s.own_loop_busy.emplace(s.own_loop->get_executor());
+        s.own_thread = std::thread([&s] { s.own_loop->run(); });
+        name_thread(s.own_thread.native_handle(), "lw-mqtt");
+        loop = s.own_loop.get();
+    }
+    s.driver = std::make_unique<mqtt::LoopDriver>(*loop, s.client, s.config.host, s.timing.reconnect_first, s.timing.reconnect_last,
+                                                  s.network_hooks());
+    s.driver->start();
     s.subscription = cache.subscribe([&s](const ValueChange& change) { s.on_change(change); });
 }
 
 MqttBridge::~MqttBridge() {
     State& s = *state_;
     s.subscription.reset();
-    // The writes under way finish first, and the network thread still publishes their results.
+    // The writes under way finish first, and the network still publishes their results.
     s.commands->close();
-    s.network.request_stop();
-    s.network.join();
+    s.driver->stop();  // from here on the client is this thread's alone
+    if (s.is_connected.load()) s.say_goodbye();
     s.commands.reset();
+    if (s.own_loop) {
+        s.own_loop_busy.reset();
+        s.own_thread.join();
+    }
     mosquitto_destroy(s.client);
 }
 

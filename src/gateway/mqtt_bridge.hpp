@@ -21,12 +21,13 @@
 // what the next configuration no longer publishes: hand_over); a write to a device whose polls
 // find it silent is refused at once (it would only wait out the line).
 //
-// Threads: the value stream's callback (on the poll threads) only queues. One network thread
-// owns the libmosquitto client: it connects, reconnects with back-off, publishes what was queued,
-// and republishes every retained topic whenever a connection is made (the broker may have lost
-// them). Writes are handed to their device's line (gateway/mqtt_commands.hpp) and their results
-// published when the line has answered, so a slow line holds up neither the network thread nor
-// a write to another line. A payload over [mqtt] max_payload is refused unread, and at most a
+// Threads: none of its own in the gateway. The libmosquitto client is driven on the engine's loop
+// (gateway/mqtt_loop_driver.hpp), with the polls: it connects and reconnects with back-off
+// without blocking the loop, publishes what was queued, and republishes every retained topic
+// whenever a connection is made (the broker may have lost them). The value stream's callback
+// only queues. Writes are handed to their device's line (gateway/mqtt_commands.hpp) and their
+// results published when the line has answered, so a slow line holds up neither the loop nor a
+// write to another line. A payload over [mqtt] max_payload is refused unread, and at most a
 // bounded number of writes wait at once: whatever is published, memory stays bounded.
 #include <chrono>
 #include <memory>
@@ -39,6 +40,10 @@
 #include "gateway/forwarding_unit.hpp"
 #include "gateway/gateway_config.hpp"
 #include "gateway/value_cache.hpp"
+
+namespace boost::asio {
+class io_context;
+}
 
 namespace loopwire::gateway {
 
@@ -53,9 +58,13 @@ public:
     // Starts at once and never fails for want of a broker: it keeps trying in the background
     // (logging each failure once until it connects), while the gateway's lines work on.
     // Subscribes to `cache` for the values and writes through `writer` (its devices are the
-    // ones the bridge knows); both must outlive the bridge.
-    MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache& cache, GatewayLog log, MqttTiming timing = {});
-    // Publishes PREFIX/status "offline", disconnects cleanly, joins its threads.
+    // ones the bridge knows); both must outlive the bridge. The network runs on `loop` (run by
+    // its owner for as long as the bridge exists: the gateway's engine), or on a thread of its own
+    // when none is given.
+    MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache& cache, GatewayLog log, MqttTiming timing = {},
+               boost::asio::io_context* loop = nullptr);
+    // Publishes PREFIX/status "offline" and disconnects cleanly, on the caller's thread (never the
+    // loop's) once the loop has let the client go.
     ~MqttBridge();
     MqttBridge(const MqttBridge&) = delete;
     MqttBridge& operator=(const MqttBridge&) = delete;
