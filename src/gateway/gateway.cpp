@@ -338,8 +338,9 @@ void Gateway::open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConf
         return figures;
     };
     // Like MQTT: started here, retried in the background, never an error.
+    // On the engine's loop, as the MQTT front: no thread of its own.
     parts.sparkplug = std::make_unique<SparkplugNode>(sparkplug, std::move(devices), *parts.writer, parts.cache, std::move(lines),
-                                                      std::move(log));
+                                                      std::move(log), SparkplugTiming{}, &parts.engine->loop());
 }
 
 Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& config, const HttpListener* listener,

@@ -11,17 +11,13 @@
 #include <set>
 #include <string_view>
 #include <stop_token>
-#include <thread>
 
-#include <boost/asio/executor_work_guard.hpp>
-#include <boost/asio/io_context.hpp>
 #include <fmt/format.h>
 #include <mosquitto.h>
 #include <nlohmann/json.hpp>
 
 #include "client/device_status.hpp"
 #include "common/peer_text.hpp"
-#include "common/thread_name.hpp"
 #include "gateway/mqtt_client.hpp"
 #include "gateway/mqtt_commands.hpp"
 #include "gateway/mqtt_loop_driver.hpp"
@@ -160,10 +156,6 @@ struct MqttBridge::State {
     std::set<std::string> continuing_devices;
 
     std::unique_ptr<MqttCommands> commands;  // the writes from the broker; before the driver
-    // A loop of its own, on a thread named lw-mqtt, when none is given (a benchmark's bridge).
-    std::unique_ptr<boost::asio::io_context> own_loop;
-    std::optional<boost::asio::executor_work_guard<boost::asio::io_context::executor_type>> own_loop_busy;
-    std::thread own_thread;
     std::unique_ptr<mqtt::LoopDriver> driver;  // the network, on the loop
     ValueSubscription subscription;
 
@@ -490,14 +482,7 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
         },
         [&s](const std::string& line) { s.say(line); },
         [&s](const std::string& device) { return s.not_answering(device); });
-    if (!loop) {
-        s.own_loop = std::make_unique<boost::asio::io_context>(1);
-        s.own_loop_busy.emplace(s.own_loop->get_executor());
-        s.own_thread = std::thread([&s] { s.own_loop->run(); });
-        name_thread(s.own_thread.native_handle(), "lw-mqtt");
-        loop = s.own_loop.get();
-    }
-    s.driver = std::make_unique<mqtt::LoopDriver>(*loop, s.client, s.config.host, s.timing.reconnect_first, s.timing.reconnect_last,
+    s.driver = std::make_unique<mqtt::LoopDriver>(loop, "lw-mqtt", s.client, s.config.host, s.timing.reconnect_first, s.timing.reconnect_last,
                                                   s.network_hooks());
     s.driver->start();
     s.subscription = cache.subscribe([&s](const ValueChange& change) { s.on_change(change); });
@@ -511,10 +496,6 @@ MqttBridge::~MqttBridge() {
     s.driver->stop();  // from here on the client is this thread's alone
     if (s.is_connected.load()) s.say_goodbye();
     s.commands.reset();
-    if (s.own_loop) {
-        s.own_loop_busy.reset();
-        s.own_thread.join();
-    }
     mosquitto_destroy(s.client);
 }
 

@@ -9,8 +9,10 @@
 #include <cstdint>
 #include <future>
 #include <optional>
+#include <thread>
 #include <utility>
 
+#include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/address.hpp>
 #include <boost/asio/ip/tcp.hpp>
@@ -18,6 +20,8 @@
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <mosquitto.h>
+
+#include "common/thread_name.hpp"
 
 namespace loopwire::gateway::mqtt {
 namespace {
@@ -191,9 +195,22 @@ struct LoopDriver::Core : std::enable_shared_from_this<LoopDriver::Core> {
     }
 };
 
-LoopDriver::LoopDriver(asio::io_context& loop, mosquitto* client, std::string host, std::chrono::milliseconds first,
-                       std::chrono::milliseconds last, Hooks hooks)
-    : core_(std::make_shared<Core>(loop, client, std::move(host), first, last, std::move(hooks))) {}
+struct LoopDriver::OwnLoop {
+    asio::io_context loop{1};
+    asio::executor_work_guard<asio::io_context::executor_type> busy{loop.get_executor()};
+    std::thread thread;
+};
+
+LoopDriver::LoopDriver(asio::io_context* loop, const char* thread_name, mosquitto* client, std::string host,
+                       std::chrono::milliseconds first, std::chrono::milliseconds last, Hooks hooks) {
+    if (!loop) {
+        own_ = std::make_unique<OwnLoop>();
+        own_->thread = std::thread([own = own_.get()] { own->loop.run(); });
+        name_thread(own_->thread.native_handle(), thread_name);
+        loop = &own_->loop;
+    }
+    core_ = std::make_shared<Core>(*loop, client, std::move(host), first, last, std::move(hooks));
+}
 
 LoopDriver::~LoopDriver() { stop(); }
 
@@ -217,6 +234,9 @@ void LoopDriver::stop() {
         done.set_value();
     });
     done.get_future().wait();
+    if (!own_) return;
+    own_->busy.reset();
+    own_->thread.join();  // the cancelled waits complete, and the loop runs out of work
 }
 
 }  // namespace loopwire::gateway::mqtt

@@ -42,8 +42,11 @@ public:
         std::function<void(int rc, const std::string& why)> lost;
     };
 
-    LoopDriver(boost::asio::io_context& loop, mosquitto* client, std::string host, std::chrono::milliseconds first,
-               std::chrono::milliseconds last, Hooks hooks);
+    // On `loop`, run by its owner for as long as the driver exists (the gateway's engine), or,
+    // when none is given, on a loop and a thread of its own named `thread_name` (a benchmark's
+    // or a test's client).
+    LoopDriver(boost::asio::io_context* loop, const char* thread_name, mosquitto* client, std::string host,
+               std::chrono::milliseconds first, std::chrono::milliseconds last, Hooks hooks);
     ~LoopDriver();  // stop()
     LoopDriver(const LoopDriver&) = delete;
     LoopDriver& operator=(const LoopDriver&) = delete;
@@ -58,6 +61,8 @@ public:
 
 private:
     struct Core;
+    struct OwnLoop;
+    std::unique_ptr<OwnLoop> own_;  // first: goes after the core's last use
     std::shared_ptr<Core> core_;
     std::atomic<bool> stop_asked_{false};
 };

@@ -5,7 +5,7 @@
 # more, the history's writer, with [history]. Counted once every device has answered, so every
 # line's loop, the engine and the front are up; and again after a SIGHUP that changed a poll
 # interval, so a reload starts no thread it keeps. Every configuration serves Modbus TCP, the
-# HTTP API and MQTT: the fronts are on the engine's loop, no thread of their own.
+# HTTP API, MQTT and Sparkplug B: the fronts are on the engine's loop, no thread of their own.
 # ThreadSanitizer's runtime runs a background thread of its own in every process
 # (LOOPWIRE_RUNTIME_THREADS=1 in a TSan build); it is not the gateway's and is not counted.
 set -u
@@ -14,13 +14,18 @@ runtime_threads=${LOOPWIRE_RUNTIME_THREADS:-0}
 [[ $runtime_threads -gt 0 ]] && echo "not counted: $runtime_threads thread(s) of the sanitizer's runtime (named as the process)"
 source "$(dirname "$0")/../support/test_lib.sh"
 
-# No broker listens on port 1: the MQTT front keeps trying in the background, on the engine's loop.
+# No broker listens on port 1: the MQTT front and the Sparkplug node keep trying in the background,
+# on the engine's loop.
 front='[modbus_tcp]
 listen = "127.0.0.1:0"
 [http]
 listen = "127.0.0.1:0"
 [mqtt]
-broker = "mqtt://127.0.0.1:1"'
+broker = "mqtt://127.0.0.1:1"
+[sparkplug]
+broker = "mqtt://127.0.0.1:1"
+group_id = "plant1"
+edge_node_id = "threads"'
 {
   echo '[[lines]]'
   echo 'name = "line0"'
@@ -92,7 +97,8 @@ threads_of history.log "$WORK_DIR/history.toml" 12
 echo "4 lines x 3 devices with history: $THREADS threads: $NAMES"
 expect "at most 4 threads with history" test "$THREADS" -le 4
 expect "the history's writer is the one more" test "$THREADS" -eq $((one + 1))
-expect "the HTTP API and the MQTT front have no thread of their own" test "$(grep -c 'lw-http\|lw-mqtt' <<<"$NAMES")" -eq 0
+expect "the HTTP API, the MQTT front and the Sparkplug node have no thread of their own" \
+  test "$(grep -c 'lw-http\|lw-mqtt\|lw-sparkplug' <<<"$NAMES")" -eq 0
 expect "one thread carries the clients, the polls and the writes" test "$(grep -o 'lw-engine' <<<"$NAMES" | wc -l)" -eq 1
 expect "the lines and their simulated devices share one" test "$(grep -o 'lw-lines' <<<"$NAMES" | wc -l)" -eq 1
 stop_gateway

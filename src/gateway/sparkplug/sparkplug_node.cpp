@@ -17,6 +17,7 @@
 #include "common/peer_text.hpp"
 #include "common/thread_name.hpp"
 #include "gateway/mqtt_client.hpp"
+#include "gateway/mqtt_loop_driver.hpp"
 #include "gateway/sparkplug/sparkplug_payloads.hpp"
 
 namespace loopwire::gateway {
@@ -26,8 +27,9 @@ using namespace sparkplug;
 
 constexpr int keepalive_seconds = 30;
 constexpr int qos_at_least_once = 1;
-constexpr auto idle_turn = std::chrono::milliseconds(500);
 constexpr int goodbye_turn_ms = 50;
+// How long a node leaving for a primary host gone offline waits for its NDEATH's acknowledgement.
+constexpr auto leave_limit = std::chrono::seconds(2);
 // Writes from DCMDs waiting for their lines at once; more are refused as busy.
 constexpr std::size_t max_pending_writes = 64;
 constexpr std::string_view namespace_level = "spBv1.0";
@@ -55,7 +57,7 @@ struct DevicePicture {
     std::map<std::string, ValueChange> latest;  // by parameter name
 };
 
-// A device as the network thread knows it.
+// A device as the network knows it.
 struct NodeDevice {
     std::string name;
     std::vector<MetricDefinition> metrics;  // [0]: Device Control/Last Error
@@ -67,7 +69,7 @@ struct NodeDevice {
     bool last_error_due = false;  // a write's refusal waits to be told
 };
 
-// A write's outcome, from the line's thread to the network thread.
+// A write's outcome, from its completion to the network.
 struct WriteOutcome {
     std::size_t device = 0;
     std::string error;  // empty: written
@@ -89,17 +91,16 @@ struct SparkplugNode::State {
 
     mosquitto* client = nullptr;
     std::atomic<bool> is_connected{false};
-    mqtt::Wakeup wakeup;
 
     const ValueCache* cache = nullptr;
     std::mutex mutex;  // guards the dirty flags, the outcomes and the pending count
-    std::vector<char> dirty;  // by device: the polls told of a change since the network thread looked
+    std::vector<char> dirty;  // by device: the polls told of a change since the network looked
     std::map<std::string, std::size_t> index;  // device name to its position
     std::vector<WriteOutcome> outcomes;
     std::size_t pending_writes = 0;
     std::condition_variable writes_done;  // notified when pending_writes drops to 0
 
-    // The network thread's own.
+    // The network's own (the loop's; after the driver stopped, the destructor's).
     std::vector<MetricDefinition> node_metrics;  // bdSeq, Node Control/Rebirth, Lines/...
     std::vector<std::optional<MetricSample>> node_sent;
     std::vector<NodeDevice> devices;
@@ -110,6 +111,9 @@ struct SparkplugNode::State {
     bool host_online = false;
     bool just_connected = false;
     bool reconnect_now = false;  // the primary host went offline
+    // Leaving for it: the NDEATH published, its acknowledgement awaited until then, before the
+    // DISCONNECT (leave_async).
+    std::optional<std::chrono::steady_clock::time_point> leaving_until;
     std::vector<Command> inbox;  // taken in libmosquitto's callback, acted on after it
     std::chrono::steady_clock::time_point next_node_data{};
     bool told_unreachable = false;
@@ -117,7 +121,7 @@ struct SparkplugNode::State {
     bool told_refused = false;
     int unacknowledged_goodbye = -1;
 
-    std::jthread network;
+    std::unique_ptr<mqtt::LoopDriver> driver;  // the network, on the loop
     ValueSubscription subscription;
 
     void say(const std::string& message) const {
@@ -149,7 +153,7 @@ struct SparkplugNode::State {
         std::lock_guard lock(mutex);
         const auto found = index.find(change.device);
         if (found == index.end()) return;
-        if (!std::exchange(dirty[found->second], 1)) wakeup.notify();
+        if (!std::exchange(dirty[found->second], 1)) driver->wake();
     }
 
     DevicePicture picture_of(const std::string& device) const {
@@ -164,7 +168,7 @@ struct SparkplugNode::State {
         return picture;
     }
 
-    // --- births, data and deaths (the network thread) -------------------------------------------
+    // --- births, data and deaths (the network) --------------------------------------------------
 
     std::string node_death() const {
         PayloadWriter death(now_ms(), std::nullopt);
@@ -379,7 +383,7 @@ struct SparkplugNode::State {
         const bool queued = writer->write_async(device.name, std::move(*assignments), [this, index_of_device](Result<WrittenValues> written) {
             std::lock_guard lock(mutex);
             outcomes.push_back({index_of_device, written ? std::string() : written.error().message});
-            wakeup.notify();
+            driver->wake();
             if (--pending_writes == 0) writes_done.notify_all();
         });
         if (!queued) {
@@ -504,7 +508,7 @@ struct SparkplugNode::State {
         const std::string death = node_death();
         (void)mosquitto_will_set(client, node_topic("NDEATH").c_str(), static_cast<int>(death.size()), death.data(),
                                  qos_at_least_once, false);
-        const int rc = mosquitto_connect(client, config.host.c_str(), config.port, keepalive_seconds);
+        const int rc = mosquitto_connect_async(client, config.host.c_str(), config.port, keepalive_seconds);
         if (rc == MOSQ_ERR_SUCCESS) next_bd_seq = (next_bd_seq + 1) % 256;
         return rc;
     }
@@ -515,47 +519,49 @@ struct SparkplugNode::State {
         told_unreachable = false;
     }
 
-    void run_network(const std::stop_token& stop) {
-        const std::stop_callback wake_on_stop(stop, [this] { wakeup.notify(); });
-        bool have_socket = false;
-        auto delay = timing.reconnect_first;
-        while (!stop.stop_requested()) {
-            if (!have_socket) {
-                const int rc = connect();
-                if (rc != MOSQ_ERR_SUCCESS) {
-                    if (!std::exchange(told_unreachable, true)) {
-                        say(fmt::format("cannot reach the broker ({}); retrying in the background", mqtt::connect_failure(rc)));
-                    }
-                    mqtt::pause(stop, delay);
-                    delay = std::min(delay * 2, timing.reconnect_last);
-                    continue;
-                }
-                have_socket = true;
-            }
-            const int rc = mqtt::turn(client, wakeup, idle_turn);
-            if (std::exchange(just_connected, false)) {
-                announce();
-                delay = timing.reconnect_first;
-            }
-            take_commands();
-            take_outcomes();
-            publish_devices(false);
-            node_data_when_due();
-            if (std::exchange(reconnect_now, false)) {
-                leave();
-                lost("the primary host is offline");
-                have_socket = false;
-                continue;
-            }
-            if (rc != MOSQ_ERR_SUCCESS) {
-                if (!is_connected.load() && !std::exchange(told_no_handshake, true)) say(mqtt::handshake_failure(rc));
-                lost(mosquitto_strerror(rc));
-                have_socket = false;
-                mqtt::pause(stop, delay);
-                delay = std::min(delay * 2, timing.reconnect_last);
-            }
+    // --- the network, on the loop (gateway/mqtt_loop_driver.hpp) ----------------------------------
+
+    mqtt::LoopDriver::Hooks network_hooks() {
+        mqtt::LoopDriver::Hooks hooks;
+        hooks.connect = [this] { return connect(); };
+        hooks.unreachable = [this](int, const std::string& why) {
+            if (!std::exchange(told_unreachable, true)) say(fmt::format("cannot reach the broker ({}); retrying in the background", why));
+        };
+        hooks.turned = [this] { return turned(); };
+        hooks.lost = [this](int rc, const std::string& why) {
+            if (std::exchange(leaving_until, std::nullopt)) return lost("the primary host is offline");
+            if (!is_connected.load() && !std::exchange(told_no_handshake, true)) say(mqtt::handshake_failure(rc));
+            lost(why);
+        };
+        return hooks;
+    }
+
+    // After each turn of the network work: whether a connection was accepted in it.
+    bool turned() {
+        const bool accepted = std::exchange(just_connected, false);
+        if (accepted) announce();
+        take_commands();
+        take_outcomes();
+        publish_devices(false);
+        node_data_when_due();
+        if (std::exchange(reconnect_now, false)) leave_async();
+        if (leaving_until && (unacknowledged_goodbye < 0 || std::chrono::steady_clock::now() >= *leaving_until)) {
+            // Acknowledged (or given up on): the DISCONNECT; the connection's end comes next,
+            // and the driver's reconnection after it.
+            unacknowledged_goodbye = -1;
+            (void)mosquitto_disconnect(client);
         }
-        if (have_socket && is_connected.load()) say_goodbye();
+        return accepted;
+    }
+
+    // On the loop, for a primary host gone offline: the NDEATH now, the DISCONNECT once it is
+    // acknowledged (turned), without holding the loop meanwhile.
+    void leave_async() {
+        int mid = -1;
+        publish(node_topic("NDEATH"), node_death(), qos_at_least_once, &mid);
+        unacknowledged_goodbye = mid;
+        leaving_until = std::chrono::steady_clock::now() + leave_limit;
+        node_born = false;
     }
 
     // The node's own death (Sparkplug 3.0: NDEATH before a clean disconnect, which does not
@@ -586,7 +592,8 @@ struct SparkplugNode::State {
 };
 
 SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice> devices, const DeviceWriter& writer,
-                             ValueCache& cache, SparkplugLines lines, GatewayLog log, SparkplugTiming timing)
+                             ValueCache& cache, SparkplugLines lines, GatewayLog log, SparkplugTiming timing,
+                             boost::asio::io_context* loop)
     : state_(std::make_unique<State>()) {
     mqtt::init_library_once();
     State& s = *state_;
@@ -635,16 +642,17 @@ SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice
     mosquitto_message_callback_set(s.client, [](mosquitto*, void* state, const mosquitto_message* message) {
         if (message) static_cast<State*>(state)->on_message(*message);
     });
-    s.network = std::jthread([&s](std::stop_token stop) { s.run_network(stop); });
-    name_thread(s.network.native_handle(), "lw-sparkplug");
+    s.driver = std::make_unique<mqtt::LoopDriver>(loop, "lw-sparkplug", s.client, s.config.host, s.timing.reconnect_first,
+                                                  s.timing.reconnect_last, s.network_hooks());
+    s.driver->start();
     s.subscription = cache.subscribe([&s](const ValueChange& change) { s.on_change(change); });
 }
 
 SparkplugNode::~SparkplugNode() {
     State& s = *state_;
     s.subscription.reset();
-    s.network.request_stop();
-    s.network.join();
+    s.driver->stop();  // from here on the client is this thread's alone
+    if (s.is_connected.load()) s.say_goodbye();
     // The writes still under way end on their lines (within the writer's time limit), and their
     // completions hold this state: it goes once the last has run.
     std::unique_lock lock(s.mutex);

@@ -20,11 +20,13 @@
 // Aliases are numbered once, from the configuration (node metrics, then each device's metrics
 // in order), so they are the same across rebirths and restarts of the same configuration.
 //
-// Threads: the value stream's callback (on the poll threads) only notes the latest value of
-// each parameter and wakes the network thread. That one thread owns the libmosquitto client and
-// every Sparkplug state (born or not, seq, bdSeq, what was last sent), so the messages' order is
-// the order they are made in. Writes are handed to the device's line (DeviceWriter) and their
-// outcome comes back through the same wake-up: a slow line never holds up the network thread.
+// Threads: none of its own in the gateway. The value stream's callback only notes which device
+// changed and wakes the network, which runs on the engine's loop (gateway/mqtt_loop_driver.hpp)
+// and owns the libmosquitto client and every Sparkplug state (born or not, seq, bdSeq, what was
+// last sent), so the messages' order is the order they are made in. Writes are handed to the
+// device's line (DeviceWriter) and their outcome comes back through the same wake-up: a slow line
+// never holds up the loop. Leaving for a primary host gone offline waits for the NDEATH's
+// acknowledgement (2 s at most) in the loop's turns, not by holding it.
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -36,6 +38,10 @@
 #include "gateway/forwarding_unit.hpp"
 #include "gateway/gateway_config.hpp"
 #include "gateway/value_cache.hpp"
+
+namespace boost::asio {
+class io_context;
+}
 
 namespace loopwire::gateway {
 
@@ -65,9 +71,13 @@ class SparkplugNode {
 public:
     // Starts at once and never fails for want of a broker: it keeps trying in the background.
     // `cache`, `writer` and whatever `lines` reads must outlive the node.
+    // The network runs on `loop` (run by its owner for as long as the node exists: the gateway's
+    // engine, gateway/mqtt_loop_driver.hpp), or on a thread of its own when none is given.
     SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice> devices, const DeviceWriter& writer,
-                  ValueCache& cache, SparkplugLines lines, GatewayLog log, SparkplugTiming timing = {});
-    // Publishes NDEATH, disconnects cleanly, joins its thread.
+                  ValueCache& cache, SparkplugLines lines, GatewayLog log, SparkplugTiming timing = {},
+                  boost::asio::io_context* loop = nullptr);
+    // Publishes NDEATH and disconnects cleanly, on the caller's thread (never the loop's) once
+    // the loop has let the client go.
     ~SparkplugNode();
     SparkplugNode(const SparkplugNode&) = delete;
     SparkplugNode& operator=(const SparkplugNode&) = delete;
