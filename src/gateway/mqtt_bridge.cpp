@@ -372,7 +372,7 @@ struct MqttBridge::State {
     mqtt::LoopDriver::Hooks network_hooks() {
         mqtt::LoopDriver::Hooks hooks;
         hooks.connect = [this] { return mosquitto_connect_async(client, config.host.c_str(), config.port, keepalive_seconds); };
-        hooks.unreachable = [this](int, const std::string& why) {
+        hooks.unreachable = [this](const std::string& why) {
             if (!std::exchange(told_unreachable, true)) say(fmt::format("cannot reach the broker ({}); retrying in the background", why));
             send_queued();  // keeps the retained picture current, and the queue short
         };
@@ -383,11 +383,11 @@ struct MqttBridge::State {
             announce();
             return true;
         };
-        hooks.lost = [this](int rc, const std::string& why) {
+        hooks.lost = [this](const std::string& why) {
             if (is_connected.exchange(false)) {
                 say(fmt::format("connection lost ({})", why));
             } else if (!std::exchange(told_no_handshake, true)) {
-                say(mqtt::handshake_failure(rc));
+                say(mqtt::handshake_failure(why));
             }
             unacknowledged.clear();  // libmosquitto sends them again on the next connection
             told_unreachable = false;

@@ -74,7 +74,7 @@ struct LoopDriver::Core : std::enable_shared_from_this<LoopDriver::Core> {
         resolver.async_resolve(host, "", [self = shared_from_this()](const error_code& error, const auto&) {
             if (self->stopped || error == asio::error::operation_aborted) return;
             if (error) {
-                self->hooks.unreachable(MOSQ_ERR_EAI, "cannot resolve " + self->host + ": " + error.message());
+                self->hooks.unreachable("cannot resolve " + self->host + ": " + error.message());
                 return self->back_off();
             }
             self->connect_now();
@@ -84,7 +84,7 @@ struct LoopDriver::Core : std::enable_shared_from_this<LoopDriver::Core> {
     void connect_now() {
         const int rc = hooks.connect();
         if (rc != MOSQ_ERR_SUCCESS) {
-            hooks.unreachable(rc, rc == MOSQ_ERR_ERRNO ? std::string(std::strerror(errno)) : std::string(mosquitto_strerror(rc)));
+            hooks.unreachable(rc == MOSQ_ERR_ERRNO ? std::string(std::strerror(errno)) : std::string(mosquitto_strerror(rc)));
             return back_off();
         }
         connecting = true;
@@ -100,7 +100,7 @@ struct LoopDriver::Core : std::enable_shared_from_this<LoopDriver::Core> {
         if (::getsockopt(mosquitto_socket(client), SOL_SOCKET, SO_ERROR, &failure, &size) != 0) failure = errno;
         if (failure == 0) return false;
         forget();
-        hooks.unreachable(MOSQ_ERR_ERRNO, std::strerror(failure));
+        hooks.unreachable(std::strerror(failure));
         back_off();
         return true;
     }
@@ -109,7 +109,7 @@ struct LoopDriver::Core : std::enable_shared_from_this<LoopDriver::Core> {
     // has something to write, and the keep-alive work.
     void watch() {
         const int fd = mosquitto_socket(client);
-        if (fd < 0) return end(MOSQ_ERR_NO_CONN, mosquitto_strerror(MOSQ_ERR_NO_CONN));
+        if (fd < 0) return end(mosquitto_strerror(MOSQ_ERR_NO_CONN));
         if (!socket || socket->native_handle() != fd) {
             forget();
             socket.emplace(loop, fd);
@@ -157,7 +157,7 @@ struct LoopDriver::Core : std::enable_shared_from_this<LoopDriver::Core> {
         if (rc == MOSQ_ERR_SUCCESS) rc = mosquitto_loop_misc(client);
         const std::string why = rc == MOSQ_ERR_ERRNO ? std::string(std::strerror(errno)) : std::string(mosquitto_strerror(rc));
         if (hooks.turned()) delay = first;
-        if (rc != MOSQ_ERR_SUCCESS) return end(rc, why);
+        if (rc != MOSQ_ERR_SUCCESS) return end(why);
         watch();
     }
 
@@ -168,9 +168,9 @@ struct LoopDriver::Core : std::enable_shared_from_this<LoopDriver::Core> {
         (void)hooks.turned();  // no connection: the client keeps its picture current
     }
 
-    void end(int rc, const std::string& why) {
+    void end(const std::string& why) {
         forget();
-        hooks.lost(rc, why);
+        hooks.lost(why);
         back_off();
     }
 

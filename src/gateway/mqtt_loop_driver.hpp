@@ -30,16 +30,16 @@ public:
     struct Hooks {
         // Starts a connection now: mosquitto_connect_async's code.
         std::function<int()> connect;
-        // The broker was not reached (libmosquitto's code: MOSQ_ERR_ERRNO when the TCP connection
-        // failed, MOSQ_ERR_EAI when the name did not resolve), `why` in words; the back-off follows.
-        std::function<void(int rc, const std::string& why)> unreachable;
+        // The broker was not reached (the TCP connection failed, the name did not resolve), why
+        // in words; the back-off follows.
+        std::function<void(const std::string& why)> unreachable;
         // After each turn of the network work, and when woken without a connection: the client's
         // own work (a new connection announced, what was queued sent, values republished).
         // Returns whether a connection was accepted in this turn, which resets the back-off.
         std::function<bool()> turned;
-        // The connection, once made, ended (libmosquitto's code, `why` in words: before the
-        // broker accepted it, or after); the back-off follows.
-        std::function<void(int rc, const std::string& why)> lost;
+        // The connection, once made, ended (before the broker accepted it, or after), why in
+        // words; the back-off follows.
+        std::function<void(const std::string& why)> lost;
     };
 
     // On `loop`, run by its owner for as long as the driver exists (the gateway's engine), or,

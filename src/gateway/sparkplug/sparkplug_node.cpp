@@ -6,8 +6,6 @@
 #include <map>
 #include <mutex>
 #include <optional>
-#include <stop_token>
-#include <thread>
 
 #include <fmt/format.h>
 #include <mosquitto.h>
@@ -15,7 +13,6 @@
 
 #include "client/device_status.hpp"
 #include "common/peer_text.hpp"
-#include "common/thread_name.hpp"
 #include "gateway/mqtt_client.hpp"
 #include "gateway/mqtt_loop_driver.hpp"
 #include "gateway/sparkplug/sparkplug_payloads.hpp"
@@ -524,13 +521,13 @@ struct SparkplugNode::State {
     mqtt::LoopDriver::Hooks network_hooks() {
         mqtt::LoopDriver::Hooks hooks;
         hooks.connect = [this] { return connect(); };
-        hooks.unreachable = [this](int, const std::string& why) {
+        hooks.unreachable = [this](const std::string& why) {
             if (!std::exchange(told_unreachable, true)) say(fmt::format("cannot reach the broker ({}); retrying in the background", why));
         };
         hooks.turned = [this] { return turned(); };
-        hooks.lost = [this](int rc, const std::string& why) {
+        hooks.lost = [this](const std::string& why) {
             if (std::exchange(leaving_until, std::nullopt)) return lost("the primary host is offline");
-            if (!is_connected.load() && !std::exchange(told_no_handshake, true)) say(mqtt::handshake_failure(rc));
+            if (!is_connected.load() && !std::exchange(told_no_handshake, true)) say(mqtt::handshake_failure(why));
             lost(why);
         };
         return hooks;
