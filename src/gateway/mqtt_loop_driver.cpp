@@ -155,7 +155,9 @@ struct LoopDriver::Core : std::enable_shared_from_this<LoopDriver::Core> {
             rc = mosquitto_loop_write(client, 1);
         }
         if (rc == MOSQ_ERR_SUCCESS) rc = mosquitto_loop_misc(client);
-        const std::string why = rc == MOSQ_ERR_ERRNO ? std::string(std::strerror(errno)) : std::string(mosquitto_strerror(rc));
+        // In words now: the client's own work below makes system calls of its own.
+        std::string why;
+        if (rc != MOSQ_ERR_SUCCESS) why = rc == MOSQ_ERR_ERRNO ? std::string(std::strerror(errno)) : std::string(mosquitto_strerror(rc));
         if (hooks.turned()) delay = first;
         if (rc != MOSQ_ERR_SUCCESS) return end(why);
         watch();
