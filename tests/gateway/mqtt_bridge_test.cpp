@@ -275,6 +275,31 @@ TEST(MqttBridge, AGatewayStartsWithoutItsBroker) {
     EXPECT_TRUE(watcher.wait_for(prefix + "/oven/measured_value", is_number));
 }
 
+// A broker's port whose queue of connections is full (a broker hung, or others' connections
+// never taken): the gateway's connection to it can only wait for its handshake. It waits without
+// holding the engine's loop, which the front shares with the polls (issue 20: one executor): the
+// polls go on meanwhile. A connect that blocked would hold them for the minutes TCP gives a
+// handshake.
+TEST(MqttBridge, AConnectionThatCannotCompleteHoldsUpNoPoll) {
+    const testing::LoopbackListener full(0);
+    // Takes the one place in its queue; the gateway's handshake is dropped from then on.
+    const int queued = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(full.port());
+    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ASSERT_EQ(::connect(queued, reinterpret_cast<sockaddr*>(&to), sizeof to), 0);
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", full.port()), false, "");
+    const auto answered = [&gateway] { return gateway->report().at(0).statistics.answered; };
+    // Polls 100 ms apart: twenty more answered, within a bound that fails loudly, not a timing.
+    const auto until = std::chrono::steady_clock::now() + 30s;
+    const auto first = answered();
+    while (answered() < first + 20 && std::chrono::steady_clock::now() < until) std::this_thread::sleep_for(10ms);
+    EXPECT_GE(answered(), first + 20) << "the polls stood still while the MQTT front waited for its broker";
+    gateway.reset();  // while the handshake is still pending: the stop does not wait for it either
+    ::close(queued);
+}
+
 // A port that takes TCP connections and answers each CONNECT with bytes that are not MQTT, then
 // closes: another service where the broker was expected.
 class NotABroker {

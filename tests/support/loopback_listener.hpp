@@ -13,12 +13,14 @@ namespace loopwire::testing {
 
 class LoopbackListener {
 public:
-    LoopbackListener() : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
+    // `backlog` 0: the kernel queues one connection, and drops the handshakes of any more while
+    // it is not accepted, so they stay pending (a peer whose port no longer takes connections).
+    explicit LoopbackListener(int backlog = 8) : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
         sockaddr_in address{};
         address.sin_family = AF_INET;
         address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
         socklen_t size = sizeof address;
-        if (fd_ < 0 || ::bind(fd_, reinterpret_cast<sockaddr*>(&address), size) != 0 || ::listen(fd_, 8) != 0 ||
+        if (fd_ < 0 || ::bind(fd_, reinterpret_cast<sockaddr*>(&address), size) != 0 || ::listen(fd_, backlog) != 0 ||
             ::getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &size) != 0) {
             throw std::runtime_error("cannot listen on a loopback port");
         }
