@@ -173,8 +173,9 @@ struct HttpServer::State : std::enable_shared_from_this<HttpServer::State> {
     bool stopping = false;  // the network thread's
     std::once_flag stopped;
     std::thread thread;  // none on a loop another runs
-    // For a stop on a loop another runs: connections still there (their deferred work not yet
-    // answered, or their closing not yet run), and whether the shut-down has run.
+    // What a stop waits for: connections still there (their deferred work not yet answered, or
+    // their closing not yet run) and responders not yet let go (Connection::Pending), and the
+    // shut-down.
     std::mutex live_mutex;
     std::condition_variable live_changed;
     std::size_t live = 0;
@@ -291,17 +292,26 @@ private:
     }
 
     // What a responder holds while the work it waits for runs on another thread (a line's
-    // worker, the engine): the connection, and the loop kept running for its answer. Whatever
+    // worker, the history's): the connection, and the loop kept running for its answer. Whatever
     // thread lets the responder go, the connection is let go on the loop, before the loop may
-    // end: its timers belong to the loop, which must still be there when they go.
+    // end: its timers belong to the loop, which must still be there when they go. It counts as
+    // live until it has let go of the loop too, so a stop waits for that: on a loop another runs
+    // (the engine's), the loop may be gone as soon as the stop returns.
     struct Pending {
         explicit Pending(std::shared_ptr<Connection> held)
-            : guard(asio::make_work_guard(held->server_.loop)), connection(std::move(held)) {}
-        ~Pending() { asio::post(guard.get_executor(), [released = std::move(connection)] {}); }
+            : server(&held->server_), guard(asio::make_work_guard(held->server_.loop)), connection(std::move(held)) {
+            server->count_live(+1);
+        }
+        ~Pending() {
+            asio::post(guard.get_executor(), [released = std::move(connection)] {});
+            guard.reset();
+            server->count_live(-1);  // the last use of the server here
+        }
         Pending(const Pending&) = delete;
         Pending& operator=(const Pending&) = delete;
 
-        asio::executor_work_guard<asio::io_context::executor_type> guard;  // let go last
+        HttpServer::State* server;  // there until the stop returns, which waits for this
+        asio::executor_work_guard<asio::io_context::executor_type> guard;
         std::shared_ptr<Connection> connection;
     };
 
@@ -636,10 +646,13 @@ std::uint16_t HttpServer::port() const { return state_->port; }
 void HttpServer::stop() {
     std::call_once(state_->stopped, [this] {
         asio::post(state_->loop, [s = state_] { s->shut_down(); });
-        // Returns once every connection is closed: the deferred work under way has answered.
-        if (state_->own_loop) return state_->thread.join();
-        std::unique_lock lock(state_->live_mutex);
-        state_->live_changed.wait(lock, [s = state_.get()] { return s->shut && s->live == 0; });
+        // Returns once every connection is closed and every responder has let go: the deferred
+        // work under way has answered.
+        {
+            std::unique_lock lock(state_->live_mutex);
+            state_->live_changed.wait(lock, [s = state_.get()] { return s->shut && s->live == 0; });
+        }
+        if (state_->own_loop) state_->thread.join();
     });
 }
 
