@@ -78,7 +78,7 @@ public:
                                    WriteCompletion done) const;
 
     // The same, waiting for the outcome (a busy line is an error here). For callers that may
-    // block: never a front's network thread.
+    // block: never the engine's loop, which the fronts run on.
     Result<WrittenValues> write(const std::string& device, const std::vector<WriteAssignment>& assignments) const;
 
     // Writes queued or under way on every line now.

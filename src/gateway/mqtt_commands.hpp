@@ -9,7 +9,7 @@
 // (more are refused "busy"), and the payload reaches the log quoted and cut and the result
 // document as valid JSON (common/peer_text.hpp).
 //
-// Threads: take() runs on the bridge's network thread and never blocks: the write is handed to
+// Threads: take() runs where the bridge's network runs (the engine's loop) and never blocks: the write is handed to
 // the device's line (DeviceWriter::write_async) and its result is published from the
 // completion, on the thread of the line's reply. A slow or dead line delays only its own writes.
 #include <condition_variable>
