@@ -204,6 +204,7 @@ struct Gateway::Parts {
     std::chrono::milliseconds statistics_interval{0};
     GatewayLog log;
     std::function<void(const std::stop_token&)> wait_for_stop;  // GatewayOptions::wait_for_stop
+    std::function<bool()> http_listener_kept;                    // GatewayOptions::http_listener_kept
     // First, so it goes last: the polls, the writer and the statistics run on its loop and take
     // themselves down from it before they go.
     std::unique_ptr<Engine> engine;
@@ -252,6 +253,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
     parts->statistics_interval = config.log.statistics;
     parts->log = options.log;
     parts->wait_for_stop = options.wait_for_stop;
+    parts->http_listener_kept = options.http_listener_kept;
     session::UnitMap& units = parts->units;
     auto clock = steady_clock();
     for (const auto& line : config.lines) {
@@ -343,7 +345,7 @@ void Gateway::open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConf
                                                       std::move(log), SparkplugTiming{}, &parts.engine->loop());
 }
 
-Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& config, const HttpListener* listener,
+Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& config, HttpListener* listener,
                                Parts& parts) {
     HttpApiSources sources;
     sources.cache = &parts.cache;
@@ -481,7 +483,7 @@ Result<void> Gateway::serve(std::stop_token stop) {
         parts_->front->hold(parts_->units);
     }
     // The HTTP front closes with the Modbus TCP one, after the drain: writes under way answer.
-    if (parts_->http) parts_->http->stop();
+    if (parts_->http) parts_->http->stop(parts_->http_listener_kept && parts_->http_listener_kept());
     return served;
 }
 

@@ -51,7 +51,11 @@ struct GatewayOptions {
     // With [http]: the listening socket the HTTP API accepts on, kept by the caller across
     // reloads (it must listen as [http] listen asks, HttpListener::listens_as, and outlive the
     // gateway). None: the gateway listens itself, and closes the socket when serve() returns.
-    const HttpListener* http_listener = nullptr;
+    HttpListener* http_listener = nullptr;
+    // With http_listener: asked when serve() ends whether the next gateway accepts on the same
+    // listener (a reload that leaves [http] listen alone). Then the clients' keep-alive
+    // connections are parked in it for that gateway instead of closed (HttpServer::stop).
+    std::function<bool()> http_listener_kept;
     // How serve() waits for its stop: on a condition variable when empty. The gateway command
     // passes its signal handling here (app/stop_signal.hpp, StopSignal::Waits::caller), so the
     // serving thread takes SIGTERM and SIGHUP while it waits and no thread is kept for them.
@@ -122,7 +126,7 @@ public:
 private:
     struct Parts;
     explicit Gateway(std::unique_ptr<Parts> parts);
-    static Result<void> open_http(const HttpConfig& http, const GatewayConfig& config, const HttpListener* listener,
+    static Result<void> open_http(const HttpConfig& http, const GatewayConfig& config, HttpListener* listener,
                                   Parts& parts);
     void keep_lines_for(const GatewayConfig& next);
     static void open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConfig& config, Parts& parts, GatewayLog log);

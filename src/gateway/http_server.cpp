@@ -153,12 +153,13 @@ class Connection;
 // Shared by the server and every handler and connection on the loop: on a loop another runs,
 // the last of them may go after the server has (an accept's cancelled completion).
 struct HttpServer::State : std::enable_shared_from_this<HttpServer::State> {
-    State(const HttpServerSettings& s, HttpHandler& h, asio::io_context* shared)
-        : settings(s), handler(h), own_loop(shared ? nullptr : std::make_unique<asio::io_context>(1)),
+    State(const HttpServerSettings& s, HttpHandler& h, asio::io_context* shared, HttpListener* kept)
+        : settings(s), handler(h), listener(kept), own_loop(shared ? nullptr : std::make_unique<asio::io_context>(1)),
           loop(shared ? *shared : *own_loop) {}
 
     HttpServerSettings settings;
     HttpHandler& handler;
+    HttpListener* listener;  // the caller's, kept across reloads; none when the server listens itself
     // Before the loop, so still there when the loop's pending handlers release the last
     // connections.
     std::map<Connection*, std::weak_ptr<Connection>> connections;  // the network thread's
@@ -170,7 +171,8 @@ struct HttpServer::State : std::enable_shared_from_this<HttpServer::State> {
     tcp::acceptor acceptor{loop};
     asio::steady_timer accept_pause{loop};
     std::uint16_t port = 0;
-    bool stopping = false;  // the network thread's
+    bool stopping = false;     // the network thread's
+    bool handing_over = false;  // the network thread's: stopping, keep-alive connections go to `listener`
     std::once_flag stopped;
     std::thread thread;  // none on a loop another runs
     // What a stop waits for: connections still there (their deferred work not yet answered, or
@@ -183,8 +185,11 @@ struct HttpServer::State : std::enable_shared_from_this<HttpServer::State> {
 
     void accept();
     void on_accept(const error_code& error, tcp::socket socket);
+    std::optional<HttpResponse> over_limits(const asio::ip::address& client) const;
+    void serve(tcp::socket socket, const asio::ip::address& client, std::string_view buffered);
+    void adopt(std::vector<HttpListener::Parked> parked);
     static void refuse(tcp::socket& socket, unsigned status, std::string_view reason, std::string_view message);
-    void shut_down();
+    void shut_down(bool hand_over);
     void count_live(int change);
 };
 
@@ -202,10 +207,24 @@ public:
         server_.count_live(-1);
     }
 
-    void start() { read_request(); }
+    // `buffered`: what a server before this one had read of the next request (a connection
+    // handed over across a reload).
+    void start(std::string_view buffered) {
+        if (buffered.size() > buffer_.max_size()) return close();  // more than this server's limits take
+        buffer_.commit(asio::buffer_copy(buffer_.prepare(buffered.size()), asio::buffer(buffered.data(), buffered.size())));
+        read_request();
+    }
 
-    // Ends the connection now, or after the response of the blocking work under way.
-    void stop() {
+    // Ends the connection now, or after the response of the blocking work under way. Handing
+    // over, a keep-alive connection goes to the listener instead once its response has gone.
+    void stop(bool hand_over) {
+        if (hand_over && phase_ == Phase::header) {
+            parking_ = true;
+            return stop_reading();
+        }
+        // A request being read, answered or its response sent goes on: parked by send() after
+        // (a body still coming holds the stop up to read_timeout, as blocking work does).
+        if (hand_over && (phase_ == Phase::body || phase_ == Phase::answering || phase_ == Phase::writing)) return;
         if (waiting_for_worker_) {
             close_after_response_ = true;
             return;
@@ -214,7 +233,33 @@ public:
     }
 
 private:
+    // Where a connection is, for a stop that hands it over.
+    enum class Phase { header, body, answering, writing, finishing, events };
+
+    // The read of a header ends now (parking it, on_header); every byte it took is then in
+    // buffer_. A read whose bytes had already come but did not complete a header reads on: it is
+    // cancelled again until the header is complete (and answered) or the read has ended.
+    void stop_reading() {
+        error_code ignored;
+        stream_.socket().cancel(ignored);
+        asio::post(server_.loop, [self = shared_from_this()] {
+            if (!self->closed_ && self->phase_ == Phase::header) self->stop_reading();
+        });
+    }
+
+    // Into the listener for the next server, with the bytes of the next request already read.
+    void park() {
+        error_code error;
+        const int fd = stream_.socket().release(error);
+        if (!error) {
+            const auto bytes = buffer_.cdata();
+            server_.listener->park(fd, std::string(static_cast<const char*>(bytes.data()), bytes.size()));
+        }
+        close();
+    }
+
     void read_request() {
+        phase_ = Phase::header;
         parser_.emplace();
         limit(*parser_, server_.settings);
         // The whole request within the timeout: a client that sends half of one and stalls is
@@ -225,7 +270,9 @@ private:
     }
 
     void on_header(const error_code& error) {
+        if (parking_ && error == asio::error::operation_aborted) return park();
         if (error) return refuse_unreadable(error);
+        phase_ = Phase::body;
         if (auto refused = framing_refusal(*parser_)) return send(*refused, true);
         const auto& header = parser_->get();
         if (header.payload_size() && *header.payload_size() > server_.settings.body_limit) {
@@ -258,6 +305,7 @@ private:
     // RFC 9110, 9.3.2: HEAD is GET without the body (its length still said), which a general
     // purpose server must support; a stream of events has no length, and ends at once.
     void dispatch() {
+        phase_ = Phase::answering;
         const auto& message = parser_->get();
         keep_alive_ = message.keep_alive();
         head_ = message.method() == http::verb::head;
@@ -317,12 +365,13 @@ private:
 
     void send(const HttpResponse& response, bool close_after) {
         if (closed_) return;
+        phase_ = Phase::writing;
         auto message = std::make_shared<http::response<http::string_body>>(static_cast<http::status>(response.status), 11);
         message->set(http::field::server, "loopwire");
         message->set(http::field::content_type, response.content_type);
         for (const auto& [name, value] : response.headers) message->set(name, value);
         message->body() = response.body;
-        const bool again = keep_alive_ && !close_after && !close_after_response_ && !server_.stopping;
+        const bool again = keep_alive_ && !close_after && !close_after_response_ && (!server_.stopping || server_.handing_over);
         message->keep_alive(again);
         message->prepare_payload();
         if (std::exchange(head_, false)) {
@@ -333,8 +382,10 @@ private:
         stream_.expires_after(server_.settings.read_timeout);
         http::async_write(stream_, *message, [self = shared_from_this(), message, again](const error_code& error, std::size_t) {
             if (error) return self->close();
-            if (again) return self->read_request();
-            self->finish();
+            if (!again) return self->finish();
+            if (!self->server_.stopping) return self->read_request();
+            if (self->server_.handing_over) return self->park();
+            self->close();
         });
     }
 
@@ -342,6 +393,7 @@ private:
     // refused body) is read and dropped for a moment, so that closing does not reset the
     // connection before the client has read the response.
     void finish() {
+        phase_ = Phase::finishing;
         error_code ignored;
         stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
         stream_.expires_after(std::chrono::seconds(1));
@@ -360,6 +412,7 @@ private:
     // --- server-sent events -------------------------------------------------------------------
 
     void start_events(const std::function<ValueSubscription(EventSender)>& subscribe) {
+        phase_ = Phase::events;
         queue_ = std::make_shared<EventQueue>();
         queue_->pending =
             "HTTP/1.1 200 OK\r\nServer: loopwire\r\nContent-Type: text/event-stream\r\nCache-Control: no-cache\r\n"
@@ -483,6 +536,8 @@ private:
     bool closed_ = false;
     bool waiting_for_worker_ = false;
     bool close_after_response_ = false;
+    Phase phase_ = Phase::header;
+    bool parking_ = false;  // its read of a header is being stopped to hand it over
     // Event streams:
     std::shared_ptr<EventQueue> queue_;
     ValueSubscription subscription_;
@@ -514,28 +569,58 @@ void HttpServer::State::on_accept(const error_code& error, tcp::socket socket) {
         return;
     }
     const auto client = client_of(socket);
-    const auto from_client = per_client.find(client);
-    if (connections.size() >= settings.max_connections) {
-        refuse(socket, 503, "Service Unavailable",
-               fmt::format("too many connections (at most {}); try again later", settings.max_connections));
-    } else if (from_client != per_client.end() && from_client->second >= settings.max_connections_per_client) {
-        // One address holding this many (a client that opens and stalls, or streams it never
-        // reads) must not take the slots everyone else needs.
-        refuse(socket, 429, "Too Many Requests",
-               fmt::format("too many connections from {} (at most {} at once from one address); close some first, or raise "
-                           "[http] max_connections_per_client", client.to_string(), settings.max_connections_per_client));
+    if (auto refusal = over_limits(client)) {
+        refuse(socket, refusal->status, refusal->status == 503 ? "Service Unavailable" : "Too Many Requests", refusal->body);
     } else {
-        auto connection = std::make_shared<Connection>(shared_from_this(), std::move(socket), client);
-        connections[connection.get()] = connection;
-        connection->start();
+        serve(std::move(socket), client, {});
     }
     accept();
 }
 
+// The refusal of one more connection from `client`, if it is one too many.
+std::optional<HttpResponse> HttpServer::State::over_limits(const asio::ip::address& client) const {
+    if (connections.size() >= settings.max_connections) {
+        return error_response(503, fmt::format("too many connections (at most {}); try again later", settings.max_connections));
+    }
+    const auto from_client = per_client.find(client);
+    if (from_client != per_client.end() && from_client->second >= settings.max_connections_per_client) {
+        // One address holding this many (a client that opens and stalls, or streams it never
+        // reads) must not take the slots everyone else needs.
+        return error_response(429, fmt::format("too many connections from {} (at most {} at once from one address); close "
+                                               "some first, or raise [http] max_connections_per_client",
+                                               client.to_string(), settings.max_connections_per_client));
+    }
+    return std::nullopt;
+}
+
+void HttpServer::State::serve(tcp::socket socket, const asio::ip::address& client, std::string_view buffered) {
+    auto connection = std::make_shared<Connection>(shared_from_this(), std::move(socket), client);
+    connections[connection.get()] = connection;
+    connection->start(buffered);
+}
+
+// The keep-alive connections the server before this one parked in the listener (a reload): served
+// on as if accepted here. Beyond this server's limits they are closed, unanswered: their clients
+// sent nothing yet that an answer would belong to, and reconnect.
+void HttpServer::State::adopt(std::vector<HttpListener::Parked> parked) {
+    for (auto& connection : parked) {
+        tcp::socket socket(loop);
+        error_code error;
+        const int fd = connection.release();
+        socket.assign(listener->ipv6() ? tcp::v6() : tcp::v4(), fd, error);
+        if (error) {
+            ::close(fd);
+            continue;
+        }
+        const auto client = client_of(socket);
+        if (stopping || over_limits(client)) continue;  // closed with `socket`
+        serve(std::move(socket), client, connection.buffered());
+    }
+}
+
 // Told so in one small write the socket buffer takes at once, then closed. The messages are
 // the server's own, with nothing to escape.
-void HttpServer::State::refuse(tcp::socket& socket, unsigned status, std::string_view reason, std::string_view message) {
-    const std::string body = error_json(message);
+void HttpServer::State::refuse(tcp::socket& socket, unsigned status, std::string_view reason, std::string_view body) {
     const std::string refusal = fmt::format(
         "HTTP/1.1 {} {}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nRetry-After: 1\r\n"
         "Connection: close\r\n\r\n{}", status, reason, body.size(), body);
@@ -546,14 +631,15 @@ void HttpServer::State::refuse(tcp::socket& socket, unsigned status, std::string
     socket.close(ignored);
 }
 
-void HttpServer::State::shut_down() {
+void HttpServer::State::shut_down(bool hand_over) {
     stopping = true;
+    handing_over = hand_over && listener != nullptr;
     error_code ignored;
     acceptor.close(ignored);
     accept_pause.cancel();
     auto open = connections;  // stop() may erase
     for (auto& [raw, weak] : open) {
-        if (auto connection = weak.lock()) connection->stop();
+        if (auto connection = weak.lock()) connection->stop(handing_over);
     }
     std::lock_guard lock(live_mutex);
     shut = true;
@@ -593,7 +679,8 @@ Result<HttpListener> HttpListener::open(const std::string& host, std::uint16_t p
 
 HttpListener::HttpListener(HttpListener&& other) noexcept
     : host_(std::move(other.host_)), asked_port_(other.asked_port_), port_(other.port_),
-      fd_(std::exchange(other.fd_, -1)), ipv6_(other.ipv6_) {}
+      fd_(std::exchange(other.fd_, -1)), ipv6_(other.ipv6_), parked_mutex_(std::move(other.parked_mutex_)),
+      parked_(std::move(other.parked_)) {}
 
 HttpListener& HttpListener::operator=(HttpListener&& other) noexcept {
     if (this != &other) {
@@ -603,6 +690,8 @@ HttpListener& HttpListener::operator=(HttpListener&& other) noexcept {
         port_ = other.port_;
         fd_ = std::exchange(other.fd_, -1);
         ipv6_ = other.ipv6_;
+        parked_mutex_ = std::move(other.parked_mutex_);
+        parked_ = std::move(other.parked_);
     }
     return *this;
 }
@@ -611,8 +700,23 @@ HttpListener::~HttpListener() {
     if (fd_ >= 0) ::close(fd_);
 }
 
+HttpListener::Parked::~Parked() {
+    if (fd_ >= 0) ::close(fd_);
+}
+
+void HttpListener::park(int fd, std::string buffered) {
+    std::lock_guard lock(*parked_mutex_);
+    parked_.emplace_back(fd, std::move(buffered));
+}
+
+std::vector<HttpListener::Parked> HttpListener::take_parked() {
+    std::lock_guard lock(*parked_mutex_);
+    return std::exchange(parked_, {});
+}
+
 Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& settings, HttpHandler& handler,
-                                                     boost::asio::io_context* loop, const HttpListener* listener) {
+                                                     boost::asio::io_context* loop, HttpListener* listener) {
+    HttpListener* kept = listener;
     std::optional<HttpListener> own;
     if (!listener) {
         auto opened = HttpListener::open(settings.host, settings.port);
@@ -620,7 +724,7 @@ Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& s
         own.emplace(std::move(*opened));
         listener = &*own;
     }
-    auto state = std::make_shared<State>(settings, handler, loop);
+    auto state = std::make_shared<State>(settings, handler, loop, kept);
     // The server accepts on a descriptor of its own: closing it when the server stops leaves the
     // listener (a kept one) listening.
     const int fd = ::fcntl(listener->fd(), F_DUPFD_CLOEXEC, 0);
@@ -633,7 +737,10 @@ Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& s
     }
     state->port = listener->port();
     // Started on the loop's thread, which owns the acceptor from here on.
-    asio::post(state->loop, [s = state] { s->accept(); });
+    asio::post(state->loop, [s = state, parked = kept ? kept->take_parked() : std::vector<HttpListener::Parked>{}]() mutable {
+        s->adopt(std::move(parked));
+        s->accept();
+    });
     if (state->own_loop) {
         state->thread = std::thread([s = state.get()] { s->loop.run(); });
         name_thread(state->thread.native_handle(), "lw-http");
@@ -643,9 +750,9 @@ Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& s
 
 std::uint16_t HttpServer::port() const { return state_->port; }
 
-void HttpServer::stop() {
-    std::call_once(state_->stopped, [this] {
-        asio::post(state_->loop, [s = state_] { s->shut_down(); });
+void HttpServer::stop(bool hand_over) {
+    std::call_once(state_->stopped, [this, hand_over] {
+        asio::post(state_->loop, [s = state_, hand_over] { s->shut_down(hand_over); });
         // Returns once every connection is closed and every responder has let go: the deferred
         // work under way has answered.
         {

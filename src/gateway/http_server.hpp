@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -120,6 +121,31 @@ public:
     int fd() const { return fd_; }
     bool ipv6() const { return ipv6_; }
 
+    // A keep-alive connection a stopping server handed over for the next server on this
+    // listener (HttpServer::stop with hand_over, issue 20 item 8: a reload keeps the clients'
+    // connections): its socket, and the bytes of its next request already read.
+    // Owns the socket until release().
+    class Parked {
+    public:
+        Parked(int fd, std::string buffered) : fd_(fd), buffered_(std::move(buffered)) {}
+        Parked(Parked&& other) noexcept : fd_(std::exchange(other.fd_, -1)), buffered_(std::move(other.buffered_)) {}
+        Parked& operator=(Parked&&) = delete;
+        Parked(const Parked&) = delete;
+        Parked& operator=(const Parked&) = delete;
+        ~Parked();
+        int release() { return std::exchange(fd_, -1); }
+        const std::string& buffered() const { return buffered_; }
+
+    private:
+        int fd_;
+        std::string buffered_;
+    };
+    // From the stopping server's loop; the listener owns the socket from here on (closed with it
+    // unless taken).
+    void park(int fd, std::string buffered);
+    // For the next server.
+    std::vector<Parked> take_parked();
+
 private:
     HttpListener(std::string host, std::uint16_t asked_port, std::uint16_t port, int fd, bool ipv6)
         : host_(std::move(host)), asked_port_(asked_port), port_(port), fd_(fd), ipv6_(ipv6) {}
@@ -128,6 +154,8 @@ private:
     std::uint16_t port_ = 0;
     int fd_ = -1;
     bool ipv6_ = false;
+    std::unique_ptr<std::mutex> parked_mutex_ = std::make_unique<std::mutex>();
+    std::vector<Parked> parked_;  // guarded by *parked_mutex_
 };
 
 class HttpServer {
@@ -136,10 +164,11 @@ public:
     // owner for as long as the server exists (the gateway's engine), or on a thread of its own
     // when none is given.
     // With `listener`, it accepts on that (kept by the caller; settings.host and port are then
-    // its), and leaves it listening when it stops.
+    // its), and leaves it listening when it stops; the connections parked there by the server
+    // before it are served on from where they were (within this server's limits).
     static Result<std::unique_ptr<HttpServer>> open(const HttpServerSettings& settings, HttpHandler& handler,
                                                     boost::asio::io_context* loop = nullptr,
-                                                    const HttpListener* listener = nullptr);
+                                                    HttpListener* listener = nullptr);
     ~HttpServer();
     HttpServer(const HttpServer&) = delete;
     HttpServer& operator=(const HttpServer&) = delete;
@@ -149,7 +178,11 @@ public:
     // Stops accepting, ends event streams and idle connections, lets the blocking work under way
     // finish and answer, then closes everything. Idempotent. Never on the loop's own thread: it
     // waits for the loop to close the connections.
-    void stop();
+    // With `hand_over` (a reload whose next server accepts on the same listener), keep-alive
+    // connections are not closed but parked in the listener once the response under way has
+    // gone out, keep-alive: their clients see no reload. Event streams end either way (a stream
+    // follows this server's values; the client reconnects to the next one's).
+    void stop(bool hand_over = false);
 
     struct State;
 

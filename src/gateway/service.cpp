@@ -72,6 +72,11 @@ struct Service {
         round_options.front = front.get();
         round_options.lines = &lines;
         round_options.http_listener = http_listener ? &*http_listener : nullptr;
+        round_options.http_listener_kept = [this] {
+            const auto next = reloads.next();
+            return next && !stop.stop_requested() && next->http && http_listener &&
+                   http_listener->listens_as(next->http->host, next->http->port);
+        };
         auto running = Gateway::open(config, round_options);
         if (!running) return running.error();
         if (hooks.serving) hooks.serving(config, **running);
