@@ -1,6 +1,7 @@
 #include "session/tcp_slave_connection.hpp"
 
 #include <atomic>
+#include <utility>
 
 #include <boost/asio/post.hpp>
 #include <boost/asio/write.hpp>
@@ -25,10 +26,15 @@ std::atomic<UnitHandler::Origin> connections_made{0};
 
 }  // namespace
 
-bool ReplyMailbox::on_loop_thread() const {
-    std::lock_guard lock(mutex_);
-    return loop_ != nullptr && loop_->get_executor().running_in_this_thread();
-}
+namespace {
+thread_local const ReplyMailbox* mailbox_running_here = nullptr;
+}  // namespace
+
+bool ReplyMailbox::on_loop_thread() const { return mailbox_running_here == this; }
+
+ReplyMailbox::RunningHere::RunningHere(const ReplyMailbox& mailbox) : before_(std::exchange(mailbox_running_here, &mailbox)) {}
+
+ReplyMailbox::RunningHere::~RunningHere() { mailbox_running_here = before_; }
 
 void ReplyMailbox::post(std::function<void()> work) {
     std::lock_guard lock(mutex_);
@@ -107,7 +113,7 @@ void TcpSlaveConnection::take(const error_code& error, std::size_t size) {
         return;
     }
     last_active_ = Clock::now();
-    auto events = codec_->feed(ByteView(input_.data(), size), Clock::now());
+    auto events = codec_->feed(ByteView(input_.data(), size), last_active_);
     if (!events) {
         if (slave_.tracing()) slave_.trace(TraceDirection::discarded, ByteView(input_.data(), size), events.error().message + "; connection closed");
         close();
@@ -178,7 +184,7 @@ void TcpSlaveConnection::stop_wanting() { wanted_->store(false); }
 void TcpSlaveConnection::deliver(std::uint8_t unit, std::uint16_t transaction, std::optional<Bytes> pdu) {
     --outstanding_;
     if (closed_) return;
-    last_active_ = Clock::now();
+    if (!batching_) last_active_ = Clock::now();  // else the read that brought the request just set it
     if (pdu) queue(unit, transaction, *pdu);
     if (!batching_) after_turn();
 }

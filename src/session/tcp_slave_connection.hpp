@@ -40,8 +40,21 @@ public:
 class ReplyMailbox {
 public:
     explicit ReplyMailbox(boost::asio::io_context& loop) : loop_(&loop) {}
-    // True on the thread running the loop: the reply can be handled at once.
+    // True on the thread running the loop (inside a RunningHere): the reply can be handled at
+    // once. Asked for every request: a thread-local mark, no lock.
     bool on_loop_thread() const;
+    // Marks the calling thread as the loop's for as long as it exists: the server's serve(),
+    // around the loop's run().
+    class RunningHere {
+    public:
+        explicit RunningHere(const ReplyMailbox& mailbox);
+        ~RunningHere();
+        RunningHere(const RunningHere&) = delete;
+        RunningHere& operator=(const RunningHere&) = delete;
+
+    private:
+        const ReplyMailbox* before_;
+    };
     // Runs `work` on the loop later, or never if the server has stopped.
     void post(std::function<void()> work);
     // The loop is going away (called on the loop's thread).

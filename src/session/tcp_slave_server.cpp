@@ -110,6 +110,7 @@ Result<void> TcpSlaveServer::serve(transport::TcpListener& listener, std::stop_t
         // Requests forwarded to a pipelined TCP line while handling this round's clients go out
         // in one write at its end (session/write_batching.hpp).
         WriteBatching::Scope batching([this](std::function<void()> work) { asio::post(loop_, std::move(work)); });
+        detail::ReplyMailbox::RunningHere here(*mailbox_);
         loop_.run();
     }
     shut_down();
