@@ -138,9 +138,13 @@ int run_device_write(const device::ProfileRegistry& profiles, const MasterComman
         fmt::print("{}\n", nlohmann::ordered_json{{"unit", connected->device.unit}, {"device", connected->device.profile->id}, {"written", values}, {"requests", written->requests}}.dump());
     } else {
         for (const auto& [p, raw] : written->written) {
+            // The value as the device now holds it (what a read would show: "100 °C" for a typed
+            // "0100.000"), not the text as typed.
             auto given = std::find_if(resolved.begin(), resolved.end(), [p = p](const auto& r) { return r.first == p; });
+            const auto decoded = device::decode_value(*p, raw, written->known);
+            const auto text = decoded ? device::format_value(*p, *decoded, written->known) : Result<std::string>(decoded.error());
             const std::string shown = unit(*p);
-            fmt::print("wrote {} = {} {}(raw {})\n", p->name, given->second, shown.empty() ? "" : shown + " ", raw);
+            fmt::print("wrote {} = {} {}(raw {})\n", p->name, text ? *text : given->second, shown.empty() ? "" : shown + " ", raw);
         }
         fmt::print("{} parameter(s) in {} request(s)\n", written->written.size(), written->requests);
     }

@@ -30,13 +30,19 @@ struct ScanOptions {
     bool verbose = false;
 };
 
-std::vector<std::string> split(const std::string& text) {
+// A comma-separated list of `option` ("" when the option is not given); an empty element ("1,,3",
+// a trailing comma) is a value left out by mistake, refused rather than skipped in silence.
+Result<std::vector<std::string>> split(const std::string& text, std::string_view option, std::string_view example) {
     std::vector<std::string> parts;
+    if (text.empty()) return parts;
     std::size_t start = 0;
     while (start <= text.size()) {
         const auto comma = text.find(',', start);
-        const std::string part = text.substr(start, comma - start);
-        if (!part.empty()) parts.push_back(part);
+        std::string part = text.substr(start, comma - start);
+        if (part.empty()) {
+            return make_error(ErrorKind::usage, fmt::format("{} '{}' has an empty element between commas (write e.g. {})", option, text, example));
+        }
+        parts.push_back(std::move(part));
         if (comma == std::string::npos) break;
         start = comma + 1;
     }
@@ -46,7 +52,9 @@ std::vector<std::string> split(const std::string& text) {
 // "1-247", "1,3,5-7"; up to 255, where the AC20 and the ramp/soak controller may be set.
 Result<std::vector<int>> parse_units(const std::string& text) {
     std::vector<int> units;
-    for (const auto& part : split(text)) {
+    auto parts = split(text, "--units", "1,3,7-9");
+    if (!parts) return parts.error();
+    for (const auto& part : *parts) {
         const auto dash = part.find('-');
         auto first = parse_integer(part.substr(0, dash), 1, 255, "unit");
         if (!first) return first.error();
@@ -135,7 +143,11 @@ void print_warnings(const device::ScanResult& result, const device::UnitScan& sc
 int run_scan(const ScanOptions& options) {
     auto units = parse_units(options.units);
     if (!units) return report_error(units.error());
-    auto scan = device::UnitScan::plan(options.link, split(options.bauds), split(options.parities));
+    auto bauds = split(options.bauds, "--bauds", "9600,19200");
+    if (!bauds) return report_error(bauds.error());
+    auto parities = split(options.parities, "--parities", "none,even");
+    if (!parities) return report_error(parities.error());
+    auto scan = device::UnitScan::plan(options.link, *bauds, *parities);
     if (!scan) return report_error(scan.error());
     auto wait = parse_duration(options.timeout, "--timeout", std::chrono::milliseconds(1));
     if (!wait) return report_error(wait.error());

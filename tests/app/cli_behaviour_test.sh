@@ -18,6 +18,11 @@ check timeout-two-points 2 "--timeout '1.2.3s' is not a duration: write it like 
 check timeout-zero 2 "--timeout '0' is too short: give at least 1ms" "$loopwire" read --link "rtu:$WORK_DIR/none" --timeout 0 --unit 1 holding 0 1
 check timeout-zero-seconds 2 "--timeout '0s' is too short" "$loopwire" dump --link "rtu:$WORK_DIR/none" --device tc10@3 --timeout 0s
 check scan-timeout-zero 2 "--timeout '0ms' is too short" "$loopwire" scan --link "rtu:$WORK_DIR/none" --units 1 --timeout 0ms
+# A list with an empty element is a unit (or setting) left out by mistake: refused, not skipped.
+check scan-units-empty-element 2 "--units '1,,3' has an empty element between commas" \
+  "$loopwire" scan --link "rtu:$WORK_DIR/none" --units 1,,3
+check scan-bauds-trailing-comma 2 "--bauds '9600,' has an empty element between commas" \
+  "$loopwire" scan --link "rtu:$WORK_DIR/none" --units 1 --bauds 9600,
 check interval-zero 2 "--interval '0s' is too short: give at least 10ms" \
   "$loopwire" monitor --link "rtu:$WORK_DIR/none" --device tc10@3 --interval 0s
 check monitor-count-zero 2 "--count: Value 0 not in range 1" "$loopwire" monitor --link "rtu:$WORK_DIR/none" --device tc10@3 --count 0
@@ -134,6 +139,10 @@ check write-dp-1 0 "wrote decimal_point = 1" "$loopwire" write --link "rtu:$tc10
 check write-pb-above-counts-refused 2 "proportional_band 1000.0 is above its upper limit 999.9 °C (9999 counts at 1 decimal)" \
   "$loopwire" write --link "rtu:$tc10_pty" --device tc10@3 Pb=1000.0
 check write-pb-at-counts-limit 0 "wrote proportional_band = 999.9" "$loopwire" write --link "rtu:$tc10_pty" --device tc10@3 Pb=999.9
+# What a write reports is the value as the device now holds it, as a read shows it, not the
+# text as typed.
+check write-shows-the-value-held 0 "wrote proportional_band = 12.5 °C (raw 125)" \
+  "$loopwire" write --link "rtu:$tc10_pty" --device tc10@3 Pb=0012.50
 check write-dp-2-thermocouple-refused 5 "exception 3" "$loopwire" write --link "rtu:$tc10_pty" --device tc10@3 dp=2
 check simulate-parity-warning 0 "cannot be set to parity none" \
   "$loopwire" simulate --pty "$WORK_DIR/ttyV2" --link "rtu:$WORK_DIR/ttyV2?parity=none" --device rampsoak@1 --duration 300ms

@@ -139,7 +139,7 @@ requests_before=$(sed -nE 's/^loopwire_line_requests_total\{line="furnace-line"\
 # SIGHUP with only later-line retimed (issue 20, item 8): furnace-line and virtual-line stay open,
 # as the log says, and their figures go on (furnace-line's one down period is still counted, its
 # requests keep adding up); later-line is opened afresh, its figures from nothing. The reloaded
-# gateway's HTTP API listens on a new port (port 0 in the file).
+# gateway keeps its HTTP API on the same port (port 0 in the file, [http] listen unchanged).
 sed -i '/name = "later-line"/,/timeout/ s/timeout = "300ms"/timeout = "400ms"/' "$WORK_DIR/plant.toml"
 kill -HUP "$gateway_pid"
 wait_for_log gateway.log "configuration .*plant.toml (reloaded)" 30 >/dev/null
