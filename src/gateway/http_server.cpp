@@ -78,6 +78,17 @@ std::optional<HttpResponse> refusal_for(const error_code& error, const HttpServe
 
 using RequestParser = http::request_parser<http::string_body>;
 
+// What the parser has taken of a header still incomplete, as text again: its request line and
+// the field lines it has parsed (the parser keeps them, not their bytes), so that the next server
+// reads the same request from the start. Empty before the request line is complete.
+std::string header_so_far(const http::request<http::string_body>& message) {
+    if (message.target().empty()) return {};
+    std::string text = fmt::format("{} {} HTTP/{}.{}\r\n", to_string(message.method_string()), to_string(message.target()),
+                                   message.version() / 10, message.version() % 10);
+    for (const auto& field : message) text += fmt::format("{}: {}\r\n", to_string(field.name_string()), to_string(field.value()));
+    return text;
+}
+
 void limit(RequestParser& parser, const HttpServerSettings& settings) {
     parser.header_limit(static_cast<std::uint32_t>(settings.header_limit));
     parser.body_limit(settings.body_limit);
@@ -247,13 +258,16 @@ private:
         });
     }
 
-    // Into the listener for the next server, with the bytes of the next request already read.
+    // Into the listener for the next server, with what it has read of the next request.
     void park() {
         error_code error;
         const int fd = stream_.socket().release(error);
         if (!error) {
             const auto bytes = buffer_.cdata();
-            server_.listener->park(fd, std::string(static_cast<const char*>(bytes.data()), bytes.size()));
+            // Between requests (after a response) the parser holds the last one, already answered.
+            std::string next = phase_ == Phase::header ? header_so_far(parser_->get()) : std::string();
+            next.append(static_cast<const char*>(bytes.data()), bytes.size());
+            server_.listener->park(fd, std::move(next));
         }
         close();
     }
