@@ -233,9 +233,11 @@ public:
             parking_ = true;
             return stop_reading();
         }
-        // A request being read, answered or its response sent goes on: parked by send() after
-        // (a body still coming holds the stop up to read_timeout, as blocking work does).
-        if (hand_over && (phase_ == Phase::body || phase_ == Phase::answering || phase_ == Phase::writing)) return;
+        // A request being answered or its response sent goes on: parked by send() after.
+        if (hand_over && (phase_ == Phase::answering || phase_ == Phase::writing)) return;
+        // So does one whose body is coming, for a moment (a client sends a body right after its
+        // header), not for read_timeout: one that trickles it must not hold up the reload.
+        if (hand_over && phase_ == Phase::body) return wait_briefly_for_body();
         if (waiting_for_worker_) {
             close_after_response_ = true;
             return;
@@ -255,6 +257,13 @@ private:
         stream_.socket().cancel(ignored);
         asio::post(server_.loop, [self = shared_from_this()] {
             if (!self->closed_ && self->phase_ == Phase::header) self->stop_reading();
+        });
+    }
+
+    void wait_briefly_for_body() {
+        body_grace_.expires_after(hand_over_body_grace);
+        body_grace_.async_wait([self = shared_from_this()](const error_code& error) {
+            if (!error && self->phase_ == Phase::body) self->close();
         });
     }
 
@@ -287,6 +296,7 @@ private:
         if (parking_ && error == asio::error::operation_aborted) return park();
         if (error) return refuse_unreadable(error);
         phase_ = Phase::body;
+        if (server_.handing_over) wait_briefly_for_body();  // a header completed as the stop came
         if (auto refused = framing_refusal(*parser_)) return send(*refused, true);
         const auto& header = parser_->get();
         if (header.payload_size() && *header.payload_size() > server_.settings.body_limit) {
@@ -519,6 +529,7 @@ public:
         if (std::exchange(closed_, true)) return;
         subscription_.reset();  // waits for a callback under way on a poll thread; it only queues
         heartbeat_.cancel();
+        body_grace_.cancel();
         error_code ignored;
         stream_.socket().shutdown(tcp::socket::shutdown_both, ignored);
         stream_.close();
@@ -527,6 +538,7 @@ public:
 
 private:
     static constexpr int event_send_buffer = 16 * 1024;
+    static constexpr std::chrono::seconds hand_over_body_grace{1};
 
     // The connection no longer counts against the limits; once.
     void let_go() {
@@ -556,6 +568,7 @@ private:
     std::shared_ptr<EventQueue> queue_;
     ValueSubscription subscription_;
     asio::steady_timer heartbeat_;
+    asio::steady_timer body_grace_{server_.loop};  // a stop handing over: how long a body may take
     std::string out_;
     bool writing_ = false;
 };

@@ -154,6 +154,22 @@ TEST_F(HttpHandOver, HalfAHeaderAlreadyReadGoesOverAndIsAnsweredWhole) {
     EXPECT_THAT(client.read_response(), HasSubstr("second from=here"));
 }
 
+// A body that does not come holds the hand-over up for a moment, not for read_timeout (here a
+// minute): the request is given up and its connection closed.
+TEST_F(HttpHandOver, ABodyThatDoesNotComeHoldsTheStopUpOnlyAMoment) {
+    HttpServerSettings patient;
+    patient.read_timeout = 60s;
+    auto opened = HttpServer::open(patient, first, nullptr, &listener);
+    ASSERT_TRUE(opened) << opened.error().message;
+    auto server = std::move(*opened);
+    testing::LoopbackClient trickling(listener.port());
+    trickling.send("POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 10\r\n\r\nhalf ");
+    ASSERT_TRUE(read_by_server(trickling)) << "the server never read the header";
+    auto stopped = std::async(std::launch::async, [&] { server->stop(true); });
+    ASSERT_EQ(stopped.wait_for(deadline), std::future_status::ready) << "the stop waited for the body";
+    EXPECT_EQ(trickling.read_until_closed(), 0) << "the connection whose body never came is still open";
+}
+
 TEST_F(HttpHandOver, APlainStopClosesThemAndSoDoesAListenerNobodyTakesThemFrom) {
     auto server = open(first);
     testing::LoopbackClient closed_by_stop(listener.port());
