@@ -77,6 +77,25 @@ struct RecordedLog {
     }
 };
 
+// Stops `stop` after a minute unless destroyed first, so a service that never stops fails its
+// test instead of hanging it.
+class Watchdog {
+public:
+    explicit Watchdog(std::stop_source& stop)
+        : thread_([&stop](std::stop_token own) {
+              std::mutex mutex;
+              std::condition_variable_any woken;
+              std::unique_lock lock(mutex);
+              if (!woken.wait_for(lock, own, 60s, [] { return false; }) && !own.stop_requested()) {
+                  ADD_FAILURE() << "the service was still serving after a minute";
+                  stop.request_stop();
+              }
+          }) {}
+
+private:
+    std::jthread thread_;
+};
+
 class GatewayService : public ::testing::Test {
 protected:
     void write(const std::string& text) { std::ofstream(file, std::ios::binary | std::ios::trunc) << text; }
@@ -84,6 +103,12 @@ protected:
         auto config = load_gateway_config(file, profiles());
         EXPECT_TRUE(config) << config.error().message;
         return *config;
+    }
+
+    // Serves the file, reloads and all, until `stop` (a minute at most); the outcome.
+    Result<void> serve(ConfigReloads& reloads, std::stop_source& stop, const ServiceHooks& hooks, const GatewayOptions& options = {}) {
+        Watchdog watchdog(stop);
+        return serve_with_reloads(load(), options, reloads, stop.get_token(), recorded.log(), hooks);
     }
 
     testing::TempFolder folder{"loopwire-service"};
@@ -131,24 +156,6 @@ TEST_F(GatewayService, AnyOtherChangeStopsTheRoundAndHandsTheConfigurationOver) 
     EXPECT_FALSE(reloads.take());
 }
 
-// Stops `stop` after a minute unless destroyed first, so a service that never stops fails its
-// test instead of hanging it.
-class Watchdog {
-public:
-    explicit Watchdog(std::stop_source& stop)
-        : thread_([&stop](std::stop_token own) {
-              std::mutex mutex;
-              std::condition_variable_any woken;
-              std::unique_lock lock(mutex);
-              if (!woken.wait_for(lock, own, 60s, [] { return false; }) && !own.stop_requested()) {
-                  ADD_FAILURE() << "the service was still serving after a minute";
-                  stop.request_stop();
-              }
-          }) {}
-
-private:
-    std::jthread thread_;
-};
 
 // A port something else listens on: a Modbus TCP front cannot open there.
 using TakenPort = testing::LoopbackListener;
@@ -171,8 +178,7 @@ TEST_F(GatewayService, AReloadThatCannotBeServedGivesWayToThePreviousConfigurati
         else stop.request_stop();
     };
     hooks.reloading = [&reloading] { ++reloading; };
-    Watchdog watchdog(stop);
-    auto result = serve_with_reloads(load(), {}, reloads, stop.get_token(), recorded.log(), hooks);
+    auto result = serve(reloads, stop, hooks);
     ASSERT_TRUE(result) << result.error().message;
     EXPECT_EQ(served, (std::vector<std::chrono::milliseconds>{100ms, 100ms, 200ms}));
     EXPECT_EQ(reloading, 2u);
@@ -226,8 +232,7 @@ TEST_F(GatewayService, AReloadKeepsTheLinesItLeavesAloneOpen) {
         std::lock_guard lock(gateway_log_mutex);
         gateway_log.push_back(line);
     };
-    Watchdog watchdog(stop);
-    auto result = serve_with_reloads(load(), options, reloads, stop.get_token(), recorded.log(), hooks);
+    auto result = serve(reloads, stop, hooks, options);
     ASSERT_TRUE(result) << result.error().message;
     ASSERT_EQ(at_start.size(), 3u);
     // Kept: the second round's line begins with the first one's figures, never down between.
@@ -267,8 +272,7 @@ TEST_F(GatewayService, AReloadKeepsTheHttpApiListening) {
         stop.request_stop();
     };
     hooks.reloading = [&] { between = std::make_unique<testing::LoopbackClient>(ports.at(0)); };
-    Watchdog watchdog(stop);
-    auto result = serve_with_reloads(load(), {}, reloads, stop.get_token(), recorded.log(), hooks);
+    auto result = serve(reloads, stop, hooks);
     ASSERT_TRUE(result) << result.error().message;
     ASSERT_EQ(ports.size(), 2u);
     EXPECT_EQ(ports[1], ports[0]) << "the port moved across the reload";
@@ -313,8 +317,7 @@ TEST_F(GatewayService, AReloadKeepsTheHttpClientsConnections) {
         stream_end = stream->read_until_closed();
         stop.request_stop();
     };
-    Watchdog watchdog(stop);
-    auto result = serve_with_reloads(load(), {}, reloads, stop.get_token(), recorded.log(), hooks);
+    auto result = serve(reloads, stop, hooks);
     ASSERT_TRUE(result) << result.error().message;
     ASSERT_EQ(rounds, 2);
     EXPECT_THAT(before, HasSubstr("HTTP/1.1 200")) << before;
@@ -346,8 +349,7 @@ TEST_F(GatewayService, AReloadThatMovesTheHttpApiClosesItsConnections) {
         after = client->ask_once("GET /api/devices HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
         stop.request_stop();
     };
-    Watchdog watchdog(stop);
-    auto result = serve_with_reloads(load(), {}, reloads, stop.get_token(), recorded.log(), hooks);
+    auto result = serve(reloads, stop, hooks);
     ASSERT_TRUE(result) << result.error().message;
     ASSERT_EQ(rounds, 2);
     EXPECT_THAT(before, HasSubstr("HTTP/1.1 200")) << before;
@@ -359,8 +361,7 @@ TEST_F(GatewayService, AFirstConfigurationThatCannotBeServedIsAnError) {
     write(plant("100ms", "info", fmt::format("enabled = true\nlisten = \"127.0.0.1:{}\"\n", taken.port())));
     ConfigReloads reloads(file, profiles(), recorded.log());
     std::stop_source stop;
-    Watchdog watchdog(stop);
-    auto result = serve_with_reloads(load(), {}, reloads, stop.get_token(), recorded.log(), {});
+    auto result = serve(reloads, stop, {});
     EXPECT_FALSE(result);
 }
 
