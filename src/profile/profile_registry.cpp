@@ -98,16 +98,34 @@ Result<ProfileRegistry> ProfileRegistry::builtins() {
     return registry;
 }
 
+namespace {
+
+// Whether `path` is a file already loaded (the same file named twice, or given with --profile and
+// found again in the profile folder): loaded once, not "defined twice".
+bool loaded_already(std::vector<fs::path>& loaded, const fs::path& path) {
+    std::error_code error;
+    for (const fs::path& before : loaded) {
+        if (fs::equivalent(before, path, error)) return true;
+    }
+    loaded.push_back(path);
+    return false;
+}
+
+}  // namespace
+
 Result<ProfileRegistry> ProfileRegistry::build(const ProfileSources& sources, std::vector<std::string>& warnings) {
     auto registry = builtins();
     if (!registry) return registry.error();
+    std::vector<fs::path> loaded;
     for (const std::string& path : sources.files) {
+        if (loaded_already(loaded, path)) continue;
         auto entry = load_registered(path);
         if (!entry) return entry.error();
         if (auto added = registry->add(std::move(entry).value()); !added) return added.error();
     }
     if (sources.folder) {
         for (const fs::path& path : folder_profile_files(*sources.folder, warnings)) {
+            if (loaded_already(loaded, path)) continue;
             auto entry = load_registered(path.string());
             if (!entry) {
                 warnings.push_back(fmt::format("{}; this profile is not loaded", entry.error().message));

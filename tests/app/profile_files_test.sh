@@ -92,6 +92,11 @@ check folder-invalid-id-explained 2 "the file $WORK_DIR/mixed/loopwire/profiles/
 check duplicate-files 2 "\"oven-x\" is defined twice, by $WORK_DIR/oven-x.json and by $folder_config/loopwire/profiles/oven-x.json" \
   env XDG_CONFIG_HOME="$folder_config" "$loopwire" --profile "$WORK_DIR/oven-x.json" devices
 make_profile tc10 "$WORK_DIR/tc10-copy.json"
+# The same file named twice, or given with --profile and found in the folder too, is loaded once.
+check same-file-twice 0 "oven-x — " env XDG_CONFIG_HOME="$empty_config" "$loopwire" --profile "$WORK_DIR/oven-x.json" \
+  --profile "$WORK_DIR/oven-x.json" describe oven-x
+check folder-file-given-too 0 "oven-x — " env XDG_CONFIG_HOME="$folder_config" "$loopwire" \
+  --profile "$folder_config/loopwire/profiles/oven-x.json" describe oven-x
 check duplicate-builtin 2 "\"tc10\" is defined twice, by the built-in profile and by $WORK_DIR/tc10-copy.json" \
   env XDG_CONFIG_HOME="$empty_config" "$loopwire" describe tc10 --profile "$WORK_DIR/tc10-copy.json"
 
