@@ -229,10 +229,7 @@ public:
     // Ends the connection now, or after the response of the blocking work under way. Handing
     // over, a keep-alive connection goes to the listener instead once its response has gone.
     void stop(bool hand_over) {
-        if (hand_over && phase_ == Phase::header) {
-            parking_ = true;
-            return stop_reading();
-        }
+        if (hand_over && phase_ == Phase::header) return stop_reading();
         // A request being answered or its response sent goes on: parked by send() after.
         if (hand_over && (phase_ == Phase::answering || phase_ == Phase::writing)) return;
         // So does one whose body is coming, for a moment (a client sends a body right after its
@@ -269,6 +266,7 @@ private:
 
     // Into the listener for the next server, with what it has read of the next request.
     void park() {
+        if (closed_) return;
         error_code error;
         const int fd = stream_.socket().release(error);
         if (!error) {
@@ -293,7 +291,8 @@ private:
     }
 
     void on_header(const error_code& error) {
-        if (parking_ && error == asio::error::operation_aborted) return park();
+        // Cancelled by stop_reading(): every header read is, when the server hands over.
+        if (server_.handing_over && error == asio::error::operation_aborted) return park();
         if (error) return refuse_unreadable(error);
         phase_ = Phase::body;
         if (server_.handing_over) wait_briefly_for_body();  // a header completed as the stop came
@@ -563,7 +562,6 @@ private:
     bool waiting_for_worker_ = false;
     bool close_after_response_ = false;
     Phase phase_ = Phase::header;
-    bool parking_ = false;  // its read of a header is being stopped to hand it over
     // Event streams:
     std::shared_ptr<EventQueue> queue_;
     ValueSubscription subscription_;

@@ -184,7 +184,7 @@ void TcpSlaveConnection::stop_wanting() { wanted_->store(false); }
 void TcpSlaveConnection::deliver(std::uint8_t unit, std::uint16_t transaction, std::optional<Bytes> pdu) {
     --outstanding_;
     if (closed_) return;
-    if (!batching_) last_active_ = Clock::now();  // else the read that brought the request just set it
+    last_active_ = Clock::now();
     if (pdu) queue(unit, transaction, *pdu);
     if (!batching_) after_turn();
 }
