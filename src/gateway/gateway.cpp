@@ -122,16 +122,14 @@ Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options
     master_options.retries = line.retries;
     master_options.late_reply_window = line.late_reply_window;
     master_options.trace = counting_trace(opened.garbled, options.trace);
-    // Every line that speaks a serial framing (a port, a virtual line, RTU through a device
-    // server) is carried on the lines' shared loop; a Modbus TCP device keeps its master's reader.
-    const bool on_loop = line.link.framing != transport::Framing::tcp;
-    if (on_loop) master_options.loop = line_loop;
+    // Every line is carried on the lines' shared loop: a serial framing's exchanges (a port, a
+    // virtual line, RTU through a device server), and a Modbus TCP device's connection, read
+    // there while requests are written from the engine. So no line costs a thread of its own.
+    master_options.loop = line_loop;
     auto open = line_opener(line, options, simulations, std::move(master_options));
     if (!open) return open.error();
-    opened.master = std::make_shared<ReopeningMaster>(
-        line.name, opened.link, std::move(*open), ReopenSchedule{}, steady_clock(), options.log,
-        line.max_in_flight > 1 ? LinkConcurrency::several : on_loop ? LinkConcurrency::on_loop : LinkConcurrency::one,
-        on_loop ? line_loop : nullptr);
+    opened.master = std::make_shared<ReopeningMaster>(line.name, opened.link, std::move(*open), ReopenSchedule{},
+                                                      steady_clock(), options.log, LinkConcurrency::on_loop, line_loop);
     if (auto started = opened.master->start(); !started) return started.error();
     LineSchedulerOptions scheduling;
     scheduling.max_in_flight = line.max_in_flight;

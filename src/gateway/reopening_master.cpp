@@ -96,7 +96,7 @@ struct ReopeningMaster::State {
     }
 
     // The request that found the link failed: the line closes and is down from now on. The
-    // master goes outside `mutex` (a TCP master joins its reader), with `use` still held.
+    // master goes outside `mutex` (it may wait for its loop or thread), with `use` still held.
     Error went_down(const Error& failure) {
         std::unique_ptr<session::Master> closed;
         Error refused = failure;

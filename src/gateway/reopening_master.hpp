@@ -19,18 +19,20 @@
 // run there too, or on the caller's thread for a request refused at once while the line is down.
 // Like the serial master, it joins its worker when destroyed: never destroy it from a completion.
 //
-// On a loop (LinkConcurrency::on_loop, a serial master carried by the lines' shared loop,
-// session/line_loop.hpp): requests go to the opened master as in the concurrent case below (it
-// queues them on the loop and never blocks the caller), and the worker thread exists only while
+// On a loop (LinkConcurrency::on_loop, a master carried by the lines' shared loop,
+// session/line_loop.hpp: a serial one, or a Modbus TCP one whose connection is read there; the
+// gateway's lines are all so): requests go to the opened master as in the concurrent case below
+// (it queues them on the loop, or writes them, and never waits for the reply), several at once
+// if the master takes them, and the worker thread exists only while
 // there is work for it: reopening the line, or closing a master that failed. So a line that is
 // up costs no thread of its own. The request that reopens the line is handed to the opened
 // master as a direct one, and the loop's time (when virtual, in a soak) is held from the moment
 // the request is handed to the worker until then, so the lines' time does not run on while the
 // worker opens (LineLoop::hold_time).
 //
-// Concurrent (LinkConcurrency::several, a Modbus TCP master that pairs replies by transaction id):
-// while the line is up, *_async calls go straight to the opened master, several at once, and
-// their completions run on its reader thread. A link failure one of them meets is handed to the
+// Concurrent (LinkConcurrency::several, a master that pairs replies by transaction id and runs
+// off any loop of the caller's): while the line is up, *_async calls go straight to the opened
+// master, several at once, and their completions run on its thread. A link failure one of them meets is handed to the
 // worker, which closes the master once no caller is inside it any more; requests sent meanwhile
 // go by the worker and are refused while the line is down. Opening, and every request while the
 // line is down or failing, still take the worker's one-at-a-time path.

@@ -1,17 +1,20 @@
-// The Modbus TCP master: transaction ids let several requests be in flight on one connection;
-// one reader thread matches replies to requests and expires the ones that time out.
-#include <condition_variable>
+// The Modbus TCP master: transaction ids let several requests be in flight on one connection.
+// Requests are written from the caller's thread; the connection is read, and replies matched
+// and requests expired, on a LineLoop (session/line_loop.hpp): the gateway's lines' loop
+// (MasterOptions::loop), so a Modbus TCP device costs the gateway no thread of its own, or,
+// for a command-line tool, a loop of the master's own.
+#include <array>
 #include <future>
 #include <map>
 #include <mutex>
-#include <thread>
+#include <optional>
 #include <utility>
 
 #include <fmt/format.h>
 
 #include "codec/tcp.hpp"
 #include "common/never_sent.hpp"
-#include "common/thread_name.hpp"
+#include "session/line_loop.hpp"
 #include "session/master.hpp"
 #include "session/reply_check.hpp"
 #include "session/transaction_text.hpp"
@@ -21,14 +24,12 @@
 namespace loopwire::session {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
 struct PendingRequest {
     std::uint8_t unit = 0;
     Bytes pdu;
     std::string transaction;  // in words, for traces and errors
     ReplyCheck answers;
-    Clock::time_point deadline;
+    Instant deadline;
     unsigned tries = 1;
     bool broadcast = false;
     Master::ForwardCompletion done;  // the reply PDU (empty after a broadcast), or what failed
@@ -39,24 +40,33 @@ class TcpMaster final : public Master {
 public:
     TcpMaster(std::unique_ptr<transport::ByteStream> stream, const transport::LinkUrl& link,
               MasterOptions options)
-        : link_(link), options_(std::move(options)), stream_(std::move(stream)),
-          reader_([this] { read_loop(); }) {
-        name_thread(reader_.native_handle(), "lw-tcp-reader");
+        : link_(link),
+          options_(std::move(options)),
+          own_loop_(options_.loop ? nullptr : std::make_shared<LineLoop>()),
+          loop_(options_.loop ? options_.loop : own_loop_),
+          clock_(loop_->clock()),
+          reconnects_(own_loop_ != nullptr),
+          stream_(std::move(stream)) {
+        std::lock_guard lock(mutex_);
+        if (stream_) watch_from_anywhere();
     }
 
+    // Posted work, the loop's wake-ups and a batch's flush find no master from here on (one
+    // running now is waited for); the wait left on the loop is cancelled there.
     ~TcpMaster() override {
+        std::optional<LineLoop::WaitId> watching;
         {
-            // A flush still to come at the end of a loop's round finds no master (and one running
-            // now is waited for).
-            std::lock_guard lock(batch_->mutex);
-            batch_->master = nullptr;
+            std::lock_guard lock(anchor_->mutex);
+            anchor_->master = nullptr;
+            watching = watch_;
         }
-        {
-            std::lock_guard lock(mutex_);
-            running_ = false;
+        if (watching) {
+            if (loop_->on_loop_thread()) {
+                loop_->cancel(*watching);
+            } else {
+                loop_->post([loop = loop_.get(), id = *watching] { loop->cancel(id); });
+            }
         }
-        connected_.notify_all();
-        reader_.join();
         fail_all(make_error(ErrorKind::link, "master closed"));
     }
 
@@ -102,14 +112,20 @@ public:
     }
 
 private:
+    using Finished = std::pair<ForwardCompletion, Result<Bytes>>;
+
     Error closing_error() const {
         return make_error(ErrorKind::link, link_.to_string() + ": the line is being closed (the gateway stops or reopens it); not waited for",
                           abandoned_code);
     }
 
-    // Blocks until the completion `start` is given has run, and returns what it was given.
+    // Blocks until the completion `start` is given has run, and returns what it was given. Not
+    // on the loop's thread: the reply it waits for would be read there.
     template <typename T, typename Start>
-    static Result<T> wait_for(Start start) {
+    Result<T> wait_for(Start start) {
+        if (loop_->on_loop_thread()) {
+            return make_error(ErrorKind::usage, link_.to_string() + ": a blocking request on the lines' loop itself would never end");
+        }
         std::promise<Result<T>> promise;
         auto future = promise.get_future();
         start([&promise](Result<T> outcome) { promise.set_value(std::move(outcome)); });
@@ -132,27 +148,31 @@ private:
         }
     }
 
-    // Called with mutex_ held.
+    // Called with mutex_ held. A master on a loop of its own (a command-line tool's) connects
+    // again after the connection was lost; on a gateway's loop the line's keeper reopens it
+    // (gateway/reopening_master.hpp), and a blocking connect here would hold the caller's loop.
     Result<void> ensure_connected() {
         if (stream_) return {};
+        if (!reconnects_) {
+            return make_error(ErrorKind::link, fmt::format("connection to {} lost: {}", link_.to_string(), lost_because_));
+        }
         auto stream = transport::connect_tcp(link_.host, link_.port, options_.timeout);
         if (!stream) return stream.error();
         stream_ = std::move(*stream);
         decoder_.reset();
-        connected_.notify_all();
+        watch_from_anywhere();
         return {};
     }
 
-    using Finished = std::pair<ForwardCompletion, Result<Bytes>>;
-
     // Called with mutex_ held: gives the request a new transaction id and puts it on the wire.
     // When the write fails the request is taken back, and its completion is returned with the
-    // error for the caller to run once the mutex is released (the reader drops the connection).
+    // error for the caller to run once the mutex is released (the loop drops the connection).
     std::optional<Finished> send(PendingRequest pending) {
         const std::uint16_t transaction = next_transaction_++;
         Bytes frame = codec::mbap_encode(transaction, pending.unit, pending.pdu);
         trace(TraceDirection::sent, frame, pending.transaction);
-        pending.deadline = Clock::now() + (pending.broadcast ? options_.turnaround : options_.timeout);
+        pending.deadline = clock_->now() + (pending.broadcast ? options_.turnaround : options_.timeout);
+        if (!watched_until_ || pending.deadline < *watched_until_) watch_from_anywhere();
         auto [entry, added] = pending_.insert_or_assign(transaction, std::move(pending));
         if (batched(transaction, frame)) return std::nullopt;
         auto written = stream_->write(frame);
@@ -166,8 +186,7 @@ private:
     // frame joins the ones to be written at the end of the loop's round, and true is returned.
     bool batched(std::uint16_t transaction, const Bytes& frame) {
         if (!batch_flush_due_) {
-            std::weak_ptr<BatchTarget> target = batch_;
-            if (!WriteBatching::defer([target] { flush_batch(target); })) return false;
+            if (!WriteBatching::defer(on_master([](TcpMaster& master) { master.write_batch(); }))) return false;
             batch_flush_due_ = true;
         }
         outgoing_.insert(outgoing_.end(), frame.begin(), frame.end());
@@ -175,21 +194,8 @@ private:
         return true;
     }
 
-    struct BatchTarget {
-        explicit BatchTarget(TcpMaster* owner) : master(owner) {}
-        std::mutex mutex;  // held while a flush runs, and by the destructor to end them
-        TcpMaster* master;
-    };
-
-    static void flush_batch(const std::weak_ptr<BatchTarget>& weak) {
-        auto target = weak.lock();
-        if (!target) return;
-        std::lock_guard lock(target->mutex);
-        if (target->master) target->master->write_batch();
-    }
-
     // One write of every frame noted since the last. When it fails, its requests fail with the
-    // error, as a single request's failed write does in send() (and the reader drops the
+    // error, as a single request's failed write does in send() (and the loop drops the
     // connection).
     void write_batch() {
         std::vector<Finished> failed;
@@ -212,29 +218,89 @@ private:
     }
 
     void trace(TraceDirection direction, ByteView bytes, std::string note) const {
-        if (options_.trace) options_.trace({Clock::now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
+        if (options_.trace) options_.trace({std::chrono::steady_clock::now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
     }
 
-    void read_loop() {
-        std::array<std::uint8_t, 1024> buffer{};
-        for (;;) {
-            transport::ByteStream* stream = nullptr;
-            {
-                std::unique_lock lock(mutex_);
-                connected_.wait_for(lock, milliseconds(50), [this] { return !running_ || stream_; });
-                if (!running_) return;
-                stream = stream_.get();
+    // --- on the loop ---------------------------------------------------------------------------
+
+    // Work for the loop, a batch's flush, a wake-up: each reaches the master through the anchor,
+    // which the destructor cuts (waiting for the one running).
+    struct Anchor {
+        explicit Anchor(TcpMaster* owner) : master(owner) {}
+        std::mutex mutex;
+        TcpMaster* master;
+    };
+
+    template <typename Work>
+    std::function<void()> on_master(Work work) {
+        return [anchor = std::weak_ptr<Anchor>(anchor_), work = std::move(work)] {
+            auto held = anchor.lock();
+            if (!held) return;
+            std::lock_guard lock(held->mutex);
+            if (held->master) work(*held->master);
+        };
+    }
+
+    // Called with mutex_ held: the loop's watch on the connection is set again, on the loop,
+    // for a new connection or a deadline earlier than the one it waits for. Once: a watch asked
+    // for and not yet set covers whatever comes meanwhile.
+    void watch_from_anywhere() {
+        if (watch_asked_) return;
+        watch_asked_ = true;
+        loop_->post(on_master([](TcpMaster& master) { master.watch_again(); }));
+    }
+
+    void watch_again() {
+        if (watch_) loop_->cancel(*watch_);
+        watch_.reset();
+        watch();
+    }
+
+    // The loop wakes this master when the connection has bytes (or fails) or the earliest
+    // deadline of what it awaits has come. Idle, it wakes once per reply timeout anyway: a
+    // request sent then expires no earlier than that, so sending it never needs the watch set
+    // again (only a broadcast's shorter turnaround does).
+    void watch() {
+        int fd = -1;
+        Instant until = Instant::max();
+        {
+            std::lock_guard lock(mutex_);
+            watch_asked_ = false;
+            if (stream_) fd = stream_->poll_handle();
+            if (fd < 0 && pending_.empty()) {
+                watched_until_.reset();
+                return;
             }
-            if (stream) {
-                auto got = stream->read_some(buffer, milliseconds(20));
-                if (!got) {
-                    drop_connection(got.error());
-                    continue;
-                }
-                if (*got > 0) dispatch(ByteView(buffer.data(), *got));
-            }
-            expire_overdue();
+            until = pending_.empty() ? clock_->now() + options_.timeout : earliest_deadline();
+            watched_until_ = until;
         }
+        watch_ = loop_->wait(fd, until, on_master([](TcpMaster& master) { master.woken(); }));
+    }
+
+    // Called with mutex_ held.
+    Instant earliest_deadline() const {
+        Instant earliest = Instant::max();
+        for (const auto& [id, pending] : pending_) earliest = std::min(earliest, pending.deadline);
+        return earliest;
+    }
+
+    void woken() {
+        watch_.reset();
+        transport::ByteStream* stream = nullptr;
+        {
+            std::lock_guard lock(mutex_);
+            stream = stream_.get();
+        }
+        if (stream) {
+            auto got = stream->read_some(buffer_, std::chrono::milliseconds(0));
+            if (!got) {
+                drop_connection(got.error());
+            } else if (*got > 0) {
+                dispatch(ByteView(buffer_.data(), *got));
+            }
+        }
+        expire_overdue();
+        if (!watch_) watch();
     }
 
     void drop_connection(const Error& error) {
@@ -242,6 +308,7 @@ private:
         {
             std::lock_guard lock(mutex_);
             old = std::move(stream_);
+            lost_because_ = error.message;
             outgoing_.clear();  // frames of the requests failed below: not for the next connection
             outgoing_transactions_.clear();
         }
@@ -306,7 +373,7 @@ private:
             // Closing: close() fails everything pending right after it lets the mutex go; a
             // request overdue in that window is neither sent again nor told it timed out.
             if (closed_) return;
-            const auto now = Clock::now();
+            const auto now = clock_->now();
             for (auto it = pending_.begin(); it != pending_.end();) {
                 if (it->second.deadline > now) { ++it; continue; }
                 PendingRequest pending = std::move(it->second);
@@ -339,19 +406,26 @@ private:
 
     transport::LinkUrl link_;
     MasterOptions options_;
-    std::mutex mutex_;
-    std::condition_variable connected_;
+    std::shared_ptr<LineLoop> own_loop_;  // a command-line tool's master: its own; destroyed last
+    std::shared_ptr<LineLoop> loop_;      // the one that reads the connection
+    std::shared_ptr<Clock> clock_;        // the loop's: deadlines
+    const bool reconnects_;               // on a loop of its own only (ensure_connected)
+    std::mutex mutex_;  // guards what follows, up to the loop's own
     std::unique_ptr<transport::ByteStream> stream_;
+    std::string lost_because_;  // why the connection went, once it has
     codec::MbapDecoder decoder_;
     std::map<std::uint16_t, PendingRequest> pending_;
     std::uint16_t next_transaction_ = 1;
-    bool running_ = true;
     bool closed_ = false;  // close(): nothing more is sent
     Bytes outgoing_;                // frames waiting for the end of the loop's round
     std::vector<std::uint16_t> outgoing_transactions_;  // theirs
     bool batch_flush_due_ = false;  // a flush of outgoing_ is deferred
-    std::shared_ptr<BatchTarget> batch_ = std::make_shared<BatchTarget>(this);
-    std::thread reader_;  // last: starts once everything above exists
+    std::optional<Instant> watched_until_;  // the deadline the loop's watch wakes at; none: no watch
+    bool watch_asked_ = false;              // the watch is to be set again (posted)
+    // The loop's thread only (and the destructor, once the anchor is cut):
+    std::optional<LineLoop::WaitId> watch_;
+    std::array<std::uint8_t, 16384> buffer_{};
+    std::shared_ptr<Anchor> anchor_ = std::make_shared<Anchor>(this);
 };
 
 }  // namespace

@@ -6,6 +6,7 @@
 # line's loop, the engine and the front are up; and again after a SIGHUP that changed a poll
 # interval, so a reload starts no thread it keeps. Every configuration serves Modbus TCP, the
 # HTTP API, MQTT and Sparkplug B: the fronts are on the engine's loop, no thread of their own.
+# Lines to Modbus TCP devices (tcp://) are read on the lines' loop: the same count with them.
 # ThreadSanitizer's runtime runs a background thread of its own in every process
 # (LOOPWIRE_RUNTIME_THREADS=1 in a TSan build); it is not the gateway's and is not counted.
 set -u
@@ -91,6 +92,40 @@ wait_for 60 "every device answering again after the reload" reanswered
 read_threads
 echo "after the reload: $THREADS threads: $NAMES"
 expect "a reload keeps no thread of the previous configuration" test "$THREADS" -eq "$one"
+stop_gateway
+
+# Modbus TCP devices (tcp://, one of them pipelined): their connections are read on the lines'
+# loop too, so they add no thread either.
+start_tcp_server sim1.log "$loopwire" simulate --link tcp://127.0.0.1:0 --device tc10@1
+port1=$PORT
+start_tcp_server sim2.log "$loopwire" simulate --link tcp://127.0.0.1:0 --device tc10@1 --device tc10@2
+port2=$PORT
+{
+  for n in 1 2; do
+    port=port$n
+    echo '[[lines]]'
+    echo "name = \"plc$n\""
+    echo "link = \"tcp://127.0.0.1:${!port}\""
+    [[ $n == 2 ]] && echo 'max_in_flight = 4'
+    for unit in $(seq 1 "$n"); do
+      echo '[[lines.devices]]'
+      echo "name = \"oven$n$unit\""
+      echo "device = \"tc10@$unit\""
+      echo 'poll = "1s"'
+      echo "tcp_unit = $((n * 10 + unit))"
+    done
+  done
+  echo '[[lines]]'
+  echo 'name = "line0"'
+  echo 'link = "rtu:virtual?baud=115200&parity=none"'
+  echo '[[lines.devices]]'
+  echo 'name = "oven01"'
+  echo 'device = "tc10@1"'
+  echo "$front"
+} >"$WORK_DIR/tcp.toml"
+threads_of tcp.log "$WORK_DIR/tcp.toml" 4
+echo "2 Modbus TCP device lines and a virtual one: $THREADS threads: $NAMES"
+expect "no thread per Modbus TCP device line" test "$THREADS" -eq "$one"
 stop_gateway
 
 threads_of history.log "$WORK_DIR/history.toml" 12

@@ -24,6 +24,8 @@
 #include "codec/tcp.hpp"
 #include "gateway/gateway.hpp"
 #include "session/master.hpp"
+#include "session/slave.hpp"
+#include "simulation/register_bank.hpp"
 #include "transport/link_url.hpp"
 #include "transport/tcp.hpp"
 #include "support/profile_test_support.hpp"
@@ -543,6 +545,105 @@ listen = "127.0.0.1:0"
     EXPECT_TRUE(wrong.empty()) << ::testing::PrintToString(wrong);
     EXPECT_EQ(right.load(), clients * reads_each);
     EXPECT_EQ(device.batches(), static_cast<std::size_t>(reads_each));
+}
+
+// A Modbus TCP device (a register bank behind session::Slave) on a port of its own.
+class RestartableTcpDevice {
+public:
+    explicit RestartableTcpDevice(std::uint16_t value, std::uint16_t port = 0) { start(value, port); }
+
+    std::uint16_t port() const { return port_; }
+    void stop() {
+        server_ = {};  // joined: its connections are closed
+        listener_.reset();
+    }
+    void start(std::uint16_t value, std::uint16_t port) {
+        auto listening = transport::TcpListener::listen("127.0.0.1", port);
+        if (!listening) throw std::runtime_error(listening.error().message);
+        listener_ = std::move(*listening);
+        port_ = listener_->port();
+        auto bank = std::make_shared<session::RegisterBank>();
+        bank->set(session::Table::holding_registers, 0, value);
+        const auto link = transport::parse_link_url(fmt::format("tcp://127.0.0.1:{}", port_));
+        slave_ = std::make_unique<session::Slave>(*link, session::UnitMap{{3, bank}});
+        server_ = std::jthread([this](std::stop_token stop) { (void)slave_->serve_listener(*listener_, std::move(stop)); });
+    }
+
+private:
+    std::unique_ptr<transport::TcpListener> listener_;
+    std::unique_ptr<session::Slave> slave_;
+    std::uint16_t port_ = 0;
+    std::jthread server_;
+};
+
+// Register 0 of unit 3 read through the gateway's front until `wanted` says yes (a loaded
+// machine may take a while; 30 s at most, then the test fails saying what it saw last).
+bool read_through_until(session::Master& client, const std::function<bool(const Result<codec::Reply>&)>& wanted,
+                        std::string& last) {
+    const auto deadline = std::chrono::steady_clock::now() + 30s;
+    while (std::chrono::steady_clock::now() < deadline) {
+        auto reply = client.execute(3, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1));
+        last = reply ? fmt::format("value {}", reply->values.at(0)) : reply.error().message;
+        if (wanted(reply)) return true;
+        std::this_thread::sleep_for(50ms);
+    }
+    return false;
+}
+
+// A Modbus TCP device that goes away and comes back on the same port: the line's connection
+// is read on the lines' loop, which does not connect again itself; the line goes down and its
+// keeper reopens it with back-off, and clients are answered by the device again. Up, the line
+// costs no thread (before, a TCP line kept a reader and its keeper's worker for good).
+TEST(Gateway, AModbusTcpDeviceThatRestartsIsReopenedAndAnsweredAgain) {
+    RestartableTcpDevice device(7);
+    const std::string plant = fmt::format(R"toml(
+[[lines]]
+name = "plc"
+link = "tcp://127.0.0.1:{}"
+timeout = "500ms"
+max_in_flight = 4
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@3"
+poll = "200ms"
+parameters = ["measured_value"]
+
+[modbus_tcp]
+listen = "127.0.0.1:0"
+)toml", device.port());
+    auto config = parse_gateway_config(plant, "plant.toml", profiles());
+    ASSERT_TRUE(config) << config.error().message;
+    auto opened = Gateway::open(*config);
+    ASSERT_TRUE(opened) << opened.error().message;
+    Gateway& gateway = **opened;
+    std::jthread serving([&gateway](std::stop_token stop) { (void)gateway.serve(std::move(stop)); });
+    auto front = transport::parse_link_url(fmt::format("tcp://127.0.0.1:{}", gateway.modbus_tcp_port()));
+    ASSERT_TRUE(front) << front.error().message;
+    session::MasterOptions options;
+    options.timeout = 5s;
+    auto client = session::open_master(*front, options);
+    ASSERT_TRUE(client) << client.error().message;
+
+    const auto value_is = [](std::uint16_t value) {
+        return [value](const Result<codec::Reply>& reply) { return reply && reply->values.at(0) == value; };
+    };
+    std::string last;
+    ASSERT_TRUE(read_through_until(**client, value_is(7), last)) << "the device was never read: " << last;
+
+    const std::uint16_t port = device.port();
+    device.stop();
+    ASSERT_TRUE(read_through_until(**client, [](const Result<codec::Reply>& reply) { return !reply; }, last))
+        << "the device's going was never noticed: " << last;
+
+    device.start(8, port);
+    ASSERT_TRUE(read_through_until(**client, value_is(8), last)) << "the line was never reopened: " << last;
+    // Up again, the line has no thread of its own: its reopening worker ended once idle.
+    const auto deadline = std::chrono::steady_clock::now() + 30s;
+    while (loopwire::testing::threads_named_like("lw-line ") > 0 && std::chrono::steady_clock::now() < deadline) {
+        std::this_thread::sleep_for(20ms);
+    }
+    EXPECT_EQ(loopwire::testing::threads_named_like("lw-line "), 0U) << "a thread of the line's own stayed";
 }
 
 }  // namespace

@@ -6,10 +6,12 @@
 
 #include "codec/tcp.hpp"
 #include "common/never_sent.hpp"
+#include "session/line_loop.hpp"
 #include "session/master.hpp"
 #include "simulation/register_bank.hpp"
 #include "session/slave.hpp"
 #include "transport/tcp.hpp"
+#include "support/thread_names.hpp"
 
 namespace loopwire::session {
 namespace {
@@ -121,6 +123,106 @@ TEST(TcpMaster, CloseEndsWhatAwaitsItsReplyAndSendsNothingMore) {
     EXPECT_TRUE(abandoned(after.error())) << after.error().message;
     const auto sent = (*accepted)->read_some(buffer, 100ms);
     EXPECT_TRUE(sent.ok() && *sent == 0U) << "a request was sent after close()";
+}
+
+// On a loop shared with other lines (MasterOptions::loop, the gateway's lines' loop) the
+// connection is read there: the master has no thread of its own, and its deadlines run on the
+// loop's clock. In virtual time a silent server's 60 s timeout passes at once.
+TEST(TcpMasterOnALoop, IsReadOnTheLoopAndTimesOutOnItsClock) {
+    auto [listener, link] = listen_on_loopback();
+    const auto threads_before = loopwire::testing::thread_names().size();
+    auto clock = std::make_shared<VirtualClock>();
+    auto loop = std::make_shared<LineLoop>(clock);
+    MasterOptions options;
+    options.timeout = 60s;
+    options.loop = loop;
+    auto master = open_master(link, options);
+    ASSERT_TRUE(master.ok()) << master.error().message;
+    EXPECT_EQ(loopwire::testing::thread_names().size(), threads_before + 1) << "the loop's thread and no other";
+    auto accepted = listener->accept(10s);  // held open, never answered
+    ASSERT_TRUE(accepted.ok() && *accepted);
+
+    const Instant sent_at = clock->now();
+    std::promise<Result<codec::Reply>> awaited;
+    (*master)->execute_async(1, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1),
+                             [&awaited](Result<codec::Reply> reply) { awaited.set_value(std::move(reply)); });
+    auto ended = awaited.get_future();
+    ASSERT_EQ(ended.wait_for(30s), std::future_status::ready) << "the 60 s of virtual time never passed";
+    const auto reply = ended.get();
+    ASSERT_FALSE(reply.ok());
+    EXPECT_EQ(reply.error().kind, ErrorKind::timeout) << reply.error().message;
+    EXPECT_GE(clock->now() - sent_at, 60s);
+}
+
+// Pipelined on the shared loop: replies in reverse order go to their requests. A blocking call
+// from the loop's own thread would wait for a reply read by that very thread: refused.
+TEST(TcpMasterOnALoop, MatchesRepliesAndRefusesABlockingCallFromTheLoop) {
+    auto [listener, link] = listen_on_loopback();
+    std::thread server([&, l = listener.get()] { answer_in_reverse(*l, 3); });
+    auto loop = std::make_shared<LineLoop>();
+    MasterOptions options;
+    options.loop = loop;
+    auto master = open_master(link, options);
+    ASSERT_TRUE(master.ok()) << master.error().message;
+    std::vector<std::future<Result<codec::Reply>>> replies;
+    std::vector<std::promise<Result<codec::Reply>>> promises(3);
+    for (std::uint16_t i = 0; i < 3; ++i) {
+        replies.push_back(promises[i].get_future());
+        (*master)->execute_async(1, codec::read_request(codec::FunctionCode::read_holding_registers, static_cast<std::uint16_t>(10 * (i + 1)), 1),
+                                 [&promises, i](Result<codec::Reply> reply) { promises[i].set_value(std::move(reply)); });
+    }
+    for (std::uint16_t i = 0; i < 3; ++i) {
+        ASSERT_EQ(replies[i].wait_for(30s), std::future_status::ready);
+        auto reply = replies[i].get();
+        ASSERT_TRUE(reply.ok()) << reply.error().message;
+        EXPECT_EQ(reply->values.at(0), 10 * (i + 1));
+    }
+    server.join();
+
+    std::promise<Result<codec::Reply>> from_loop;
+    loop->post([&] { from_loop.set_value((*master)->execute(1, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1))); });
+    auto refused = from_loop.get_future();
+    ASSERT_EQ(refused.wait_for(30s), std::future_status::ready) << "a blocking call on the loop's thread hung";
+    const auto outcome = refused.get();
+    ASSERT_FALSE(outcome.ok());
+    EXPECT_EQ(outcome.error().kind, ErrorKind::usage) << outcome.error().message;
+}
+
+// On the gateway's loop a lost connection is not made again by the master (a blocking connect
+// would hold every line on the loop): requests fail as a link error naming why it was lost, for
+// the line's keeper (gateway/reopening_master.hpp) to reopen it. The server sees no second
+// connection.
+TEST(TcpMasterOnALoop, ALostConnectionIsReportedNotMadeAgain) {
+    auto [listener, link] = listen_on_loopback();
+    auto loop = std::make_shared<LineLoop>();
+    MasterOptions options;
+    options.loop = loop;
+    options.timeout = 10s;
+    auto master = open_master(link, options);
+    ASSERT_TRUE(master.ok()) << master.error().message;
+    auto accepted = listener->accept(10s);
+    ASSERT_TRUE(accepted.ok() && *accepted);
+    std::promise<Result<codec::Reply>> awaited;
+    (*master)->execute_async(1, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1),
+                             [&awaited](Result<codec::Reply> reply) { awaited.set_value(std::move(reply)); });
+    std::array<std::uint8_t, 64> buffer{};
+    ASSERT_TRUE((*accepted)->read_some(buffer, 10s).ok());
+    accepted->reset();  // the server drops the connection with the request unanswered
+
+    auto ended = awaited.get_future();
+    ASSERT_EQ(ended.wait_for(30s), std::future_status::ready) << "the lost connection was not noticed";
+    const auto lost = ended.get();
+    ASSERT_FALSE(lost.ok());
+    EXPECT_EQ(lost.error().kind, ErrorKind::link);
+    EXPECT_NE(lost.error().message.find("lost"), std::string::npos) << lost.error().message;
+
+    const auto after = (*master)->execute(1, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1));
+    ASSERT_FALSE(after.ok());
+    EXPECT_EQ(after.error().kind, ErrorKind::link);
+    EXPECT_NE(after.error().message.find("lost"), std::string::npos) << after.error().message;
+    auto again = listener->accept(100ms);
+    ASSERT_TRUE(again.ok());
+    EXPECT_EQ(*again, nullptr) << "the master connected again by itself";
 }
 
 TEST(TcpMaster, RefusedConnectionIsALinkError) {
