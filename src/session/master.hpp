@@ -39,12 +39,16 @@ struct MasterOptions {
     TraceSink trace;                // -v: every frame sent, received or discarded
     // What the serial master's silences, timeouts and turnarounds run on (common/clock.hpp). A
     // virtual clock only makes sense with a stream that reads the same clock. The TCP master
-    // runs on the steady clock.
+    // keeps its deadlines on its loop's clock.
     std::shared_ptr<Clock> clock = steady_clock();
     // Serial masters: carry the exchanges on this loop (session/line_loop.hpp), shared with
     // other lines, instead of a thread of the master's own; *_async calls then only queue, and
     // completions run on the loop's thread. The loop's clock is then the master's, and `clock`
     // is not used. Null: the blocking calls run on the caller's thread.
+    // The TCP master: its connection is read, replies matched and requests expired on this loop
+    // (requests are written from the caller's thread), and a lost connection is not made again
+    // by the master (the gateway's ReopeningMaster reopens the line). Null: a loop of its own,
+    // and it connects again on the next request after the connection was lost.
     std::shared_ptr<LineLoop> loop;
 };
 

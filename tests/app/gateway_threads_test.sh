@@ -27,7 +27,7 @@ broker = "mqtt://127.0.0.1:1"
 broker = "mqtt://127.0.0.1:1"
 group_id = "plant1"
 edge_node_id = "threads"'
-{
+one_virtual_line() {
   echo '[[lines]]'
   echo 'name = "line0"'
   echo 'link = "rtu:virtual?baud=115200&parity=none"'
@@ -35,8 +35,8 @@ edge_node_id = "threads"'
   echo 'name = "oven01"'
   echo 'device = "tc10@1"'
   echo 'poll = "1s"'
-  echo "$front"
-} >"$WORK_DIR/one.toml"
+}
+{ one_virtual_line; echo "$front"; } >"$WORK_DIR/one.toml"
 four() {  # the first device's poll interval
   for line in 0 1 2 3; do
     echo '[[lines]]'
@@ -115,12 +115,7 @@ port2=$PORT
       echo "tcp_unit = $((n * 10 + unit))"
     done
   done
-  echo '[[lines]]'
-  echo 'name = "line0"'
-  echo 'link = "rtu:virtual?baud=115200&parity=none"'
-  echo '[[lines.devices]]'
-  echo 'name = "oven01"'
-  echo 'device = "tc10@1"'
+  one_virtual_line
   echo "$front"
 } >"$WORK_DIR/tcp.toml"
 threads_of tcp.log "$WORK_DIR/tcp.toml" 4

@@ -414,6 +414,27 @@ TEST(Gateway, FourLinesOfThreeDevicesTakeNoMoreThreadsThanOneLineOfOne) {
     EXPECT_EQ(for_four, for_one);
 }
 
+// A gateway with a Modbus TCP front and one line to a Modbus TCP device at `port`, unit 3
+// as "oven1" (a TC10) polled every `poll`.
+std::string tcp_device_plant(std::uint16_t port, const std::string& timeout, int max_in_flight, const std::string& poll) {
+    return fmt::format(R"toml(
+[[lines]]
+name = "plc"
+link = "tcp://127.0.0.1:{}"
+timeout = "{}"
+max_in_flight = {}
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@3"
+poll = "{}"
+parameters = ["measured_value"]
+
+[modbus_tcp]
+listen = "127.0.0.1:0"
+)toml", port, timeout, max_in_flight, poll);
+}
+
 // A Modbus TCP device that answers reads of address 1000 onwards only once it holds `batch` of
 // them, and then the last first: a server may answer in any order, the transaction id pairs the
 // replies. Other requests (the gateway's poll) are answered at once. Register r reads r * 7.
@@ -486,22 +507,7 @@ TEST(Gateway, AModbusTcpLineCarriesSeveralRequestsAtOncePairedByTransactionId) {
     constexpr int clients = 4;
     constexpr int reads_each = 25;
     BatchReversingDevice device(clients);
-    const std::string plant = fmt::format(R"toml(
-[[lines]]
-name = "plc"
-link = "tcp://127.0.0.1:{}"
-timeout = "20s"
-max_in_flight = 8
-
-[[lines.devices]]
-name = "oven1"
-device = "tc10@3"
-poll = "60m"
-parameters = ["measured_value"]
-
-[modbus_tcp]
-listen = "127.0.0.1:0"
-)toml", device.port());
+    const std::string plant = tcp_device_plant(device.port(), "20s", 8, "60m");
     auto config = parse_gateway_config(plant, "plant.toml", profiles());
     ASSERT_TRUE(config) << config.error().message;
     auto opened = Gateway::open(*config);
@@ -596,22 +602,7 @@ bool read_through_until(session::Master& client, const std::function<bool(const 
 // costs no thread (before, a TCP line kept a reader and its keeper's worker for good).
 TEST(Gateway, AModbusTcpDeviceThatRestartsIsReopenedAndAnsweredAgain) {
     RestartableTcpDevice device(7);
-    const std::string plant = fmt::format(R"toml(
-[[lines]]
-name = "plc"
-link = "tcp://127.0.0.1:{}"
-timeout = "500ms"
-max_in_flight = 4
-
-[[lines.devices]]
-name = "oven1"
-device = "tc10@3"
-poll = "200ms"
-parameters = ["measured_value"]
-
-[modbus_tcp]
-listen = "127.0.0.1:0"
-)toml", device.port());
+    const std::string plant = tcp_device_plant(device.port(), "500ms", 4, "200ms");
     auto config = parse_gateway_config(plant, "plant.toml", profiles());
     ASSERT_TRUE(config) << config.error().message;
     auto opened = Gateway::open(*config);

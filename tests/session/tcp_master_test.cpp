@@ -56,6 +56,15 @@ void answer_in_reverse(transport::TcpListener& listener, std::size_t count) {
     std::this_thread::sleep_for(200ms);  // keep the connection until the master has read
 }
 
+// A read of holding register 0 of unit 1, sent without waiting: its outcome comes in the future.
+std::future<Result<codec::Reply>> read_later(Master& master) {
+    auto promise = std::make_shared<std::promise<Result<codec::Reply>>>();
+    auto outcome = promise->get_future();
+    master.execute_async(1, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1),
+                         [promise](Result<codec::Reply> reply) { promise->set_value(std::move(reply)); });
+    return outcome;
+}
+
 TEST(TcpMaster, MatchesOutOfOrderRepliesByTransactionId) {
     auto [listener, link] = listen_on_loopback();
     std::thread server([&, l = listener.get()] { answer_in_reverse(*l, 3); });
@@ -104,15 +113,12 @@ TEST(TcpMaster, CloseEndsWhatAwaitsItsReplyAndSendsNothingMore) {
     ASSERT_TRUE(master.ok());
     auto accepted = listener->accept(10s);
     ASSERT_TRUE(accepted.ok() && *accepted);
-    std::promise<Result<codec::Reply>> awaited;
-    (*master)->execute_async(1, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1),
-                             [&awaited](Result<codec::Reply> reply) { awaited.set_value(std::move(reply)); });
+    auto ended = read_later(**master);
     std::array<std::uint8_t, 64> buffer{};
     const auto request = (*accepted)->read_some(buffer, 10s);
     ASSERT_TRUE(request.ok() && *request == 12U) << "the request never reached the server";
 
     (*master)->close();
-    auto ended = awaited.get_future();
     ASSERT_EQ(ended.wait_for(30s), std::future_status::ready) << "close() did not end the request awaiting its reply";
     const auto reply = ended.get();
     ASSERT_FALSE(reply.ok());
@@ -143,10 +149,7 @@ TEST(TcpMasterOnALoop, IsReadOnTheLoopAndTimesOutOnItsClock) {
     ASSERT_TRUE(accepted.ok() && *accepted);
 
     const Instant sent_at = clock->now();
-    std::promise<Result<codec::Reply>> awaited;
-    (*master)->execute_async(1, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1),
-                             [&awaited](Result<codec::Reply> reply) { awaited.set_value(std::move(reply)); });
-    auto ended = awaited.get_future();
+    auto ended = read_later(**master);
     ASSERT_EQ(ended.wait_for(30s), std::future_status::ready) << "the 60 s of virtual time never passed";
     const auto reply = ended.get();
     ASSERT_FALSE(reply.ok());
@@ -202,14 +205,11 @@ TEST(TcpMasterOnALoop, ALostConnectionIsReportedNotMadeAgain) {
     ASSERT_TRUE(master.ok()) << master.error().message;
     auto accepted = listener->accept(10s);
     ASSERT_TRUE(accepted.ok() && *accepted);
-    std::promise<Result<codec::Reply>> awaited;
-    (*master)->execute_async(1, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1),
-                             [&awaited](Result<codec::Reply> reply) { awaited.set_value(std::move(reply)); });
+    auto ended = read_later(**master);
     std::array<std::uint8_t, 64> buffer{};
     ASSERT_TRUE((*accepted)->read_some(buffer, 10s).ok());
     accepted->reset();  // the server drops the connection with the request unanswered
 
-    auto ended = awaited.get_future();
     ASSERT_EQ(ended.wait_for(30s), std::future_status::ready) << "the lost connection was not noticed";
     const auto lost = ended.get();
     ASSERT_FALSE(lost.ok());
