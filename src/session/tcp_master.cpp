@@ -152,6 +152,7 @@ private:
     // again after the connection was lost; on a gateway's loop the line's keeper reopens it
     // (gateway/reopening_master.hpp), and a blocking connect here would hold the caller's loop.
     Result<void> ensure_connected() {
+        if (broken_) return make_error(ErrorKind::link, fmt::format("connection to {} lost: {}", link_.to_string(), lost_because_));
         if (stream_) return {};
         if (!reconnects_) {
             return make_error(ErrorKind::link, fmt::format("connection to {} lost: {}", link_.to_string(), lost_because_));
@@ -166,7 +167,7 @@ private:
 
     // Called with mutex_ held: gives the request a new transaction id and puts it on the wire.
     // When the write fails the request is taken back, and its completion is returned with the
-    // error for the caller to run once the mutex is released (the loop drops the connection).
+    // error for the caller to run once the mutex is released (the connection is dropped).
     std::optional<Finished> send(PendingRequest pending) {
         const std::uint16_t transaction = next_transaction_++;
         Bytes frame = codec::mbap_encode(transaction, pending.unit, pending.pdu);
@@ -175,11 +176,26 @@ private:
         if (!watched_until_ || pending.deadline < *watched_until_) watch_from_anywhere();
         auto [entry, added] = pending_.insert_or_assign(transaction, std::move(pending));
         if (batched(transaction, frame)) return std::nullopt;
-        auto written = stream_->write(frame);
+        auto written = stream_->write_now(frame);
         if (written) return std::nullopt;
         Finished failed{std::move(entry->second.done), written.error()};
         pending_.erase(entry);
+        break_connection(written.error());
         return failed;
+    }
+
+    // Called with mutex_ held, after a write failed. The kernel did not take the frames at once:
+    // the device has stopped reading (a send buffer holds thousands of requests, and no more than
+    // the replies awaited are ever in it), or the connection failed. Waiting for room would hold
+    // the caller (the gateway's engine, and every front with it); part of a frame may have gone.
+    // So nothing more is written on it, and the loop drops it and fails what it awaits.
+    void break_connection(const Error& error) {
+        if (broken_) return;
+        broken_ = true;
+        lost_because_ = error.message;
+        outgoing_.clear();
+        outgoing_transactions_.clear();
+        loop_->post(on_master([error, connection = connection_](TcpMaster& master) { master.drop_connection(error, connection); }));
     }
 
     // Called with mutex_ held. On a loop that batches writes (session/write_batching.hpp), the
@@ -195,8 +211,7 @@ private:
     }
 
     // One write of every frame noted since the last. When it fails, its requests fail with the
-    // error, as a single request's failed write does in send() (and the loop drops the
-    // connection).
+    // error, as a single request's failed write does in send().
     void write_batch() {
         std::vector<Finished> failed;
         {
@@ -204,8 +219,8 @@ private:
             batch_flush_due_ = false;
             const Bytes frames = std::exchange(outgoing_, {});
             const auto transactions = std::exchange(outgoing_transactions_, {});
-            if (frames.empty() || !stream_) return;
-            auto written = stream_->write(frames);
+            if (frames.empty() || !stream_ || broken_) return;
+            auto written = stream_->write_now(frames);
             if (written) return;
             for (const std::uint16_t transaction : transactions) {
                 auto entry = pending_.find(transaction);
@@ -213,6 +228,7 @@ private:
                 failed.emplace_back(std::move(entry->second.done), written.error());
                 pending_.erase(entry);
             }
+            break_connection(written.error());
         }
         for (auto& [done, result] : failed) done(std::move(result));
     }
@@ -303,11 +319,15 @@ private:
         if (!watch_) watch();
     }
 
-    void drop_connection(const Error& error) {
+    // `only`: the connection meant, if it may have gone (and another come) since.
+    void drop_connection(const Error& error, std::optional<std::uint64_t> only = std::nullopt) {
         std::unique_ptr<transport::ByteStream> old;
         {
             std::lock_guard lock(mutex_);
+            if (only && *only != connection_) return;
+            ++connection_;
             old = std::move(stream_);
+            broken_ = false;
             lost_because_ = error.message;
             outgoing_.clear();  // frames of the requests failed below: not for the next connection
             outgoing_transactions_.clear();
@@ -413,6 +433,8 @@ private:
     std::mutex mutex_;  // guards what follows, up to the loop's own
     std::unique_ptr<transport::ByteStream> stream_;
     std::string lost_because_;  // why the connection went, once it has
+    bool broken_ = false;       // a write failed: nothing more goes on stream_, the loop drops it
+    std::uint64_t connection_ = 0;  // which connection stream_ is (one more after each drop)
     codec::MbapDecoder decoder_;
     std::map<std::uint16_t, PendingRequest> pending_;
     std::uint16_t next_transaction_ = 1;

@@ -46,6 +46,12 @@ public:
         if (auto written = write(bytes); !written) return written.error();
         return std::chrono::steady_clock::now();
     }
+    // Writes every byte if the kernel takes them all now, without waiting for room in its
+    // buffer: for a sender on a loop that one peer must not hold (a Modbus TCP device that
+    // stopped reading its connection would hold the gateway's engine). A full buffer fails it
+    // with ErrorKind::link, and part of the bytes may have gone: the caller drops the stream.
+    // A stream without a buffer of its own writes as write() does.
+    virtual Result<void> write_now(ByteView bytes) { return write(bytes); }
     // Waits up to `timeout` for bytes; returns how many were stored in `buffer` (0 = timeout).
     // A closed peer is ErrorKind::link ("connection closed by peer").
     virtual Result<std::size_t> read_some(std::span<std::uint8_t> buffer, milliseconds timeout) = 0;

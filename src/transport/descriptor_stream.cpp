@@ -35,7 +35,12 @@ Result<void> DescriptorStream::write(ByteView bytes) {
     return after_write();
 }
 
-Result<void> DescriptorStream::hand_over(ByteView bytes) {
+Result<void> DescriptorStream::write_now(ByteView bytes) {
+    if (auto handed = hand_over(bytes, WhenFull::fail); !handed) return handed;
+    return after_write();
+}
+
+Result<void> DescriptorStream::hand_over(ByteView bytes, WhenFull when_full) {
     std::size_t sent = 0;
     while (sent < bytes.size()) {
         const ssize_t n = transmit(bytes.subspan(sent));
@@ -45,6 +50,11 @@ Result<void> DescriptorStream::hand_over(ByteView bytes) {
         }
         if (n < 0 && errno == EINTR) continue;
         if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
+            if (when_full == WhenFull::fail) {
+                return make_error(ErrorKind::link, describe() + ": the other side is not reading (the kernel's send buffer is full, " +
+                                                       std::to_string(sent) + " of " + std::to_string(bytes.size()) +
+                                                       " bytes taken); not waited for");
+            }
             // The kernel buffer is full: wait for room, but not forever.
             auto room = wait_writable(std::chrono::steady_clock::now() + write_stall_limit);
             if (!room) return room;

@@ -14,6 +14,7 @@ namespace loopwire::transport::detail {
 class DescriptorStream : public ByteStream {
 public:
     Result<void> write(ByteView bytes) override;
+    Result<void> write_now(ByteView bytes) override;
     Result<std::size_t> read_some(std::span<std::uint8_t> buffer, milliseconds timeout) override;
     // Reads and drops whatever is waiting (sockets); terminals override this with tcflush.
     void discard_input() override;
@@ -35,8 +36,9 @@ protected:
     // Hands bytes to the kernel once, with ::write() semantics (-1 and errno on failure).
     virtual ssize_t transmit(ByteView bytes);
     // Hands every byte to the kernel, waiting for room when its buffer is full (not for the
-    // bytes to leave: after_write is what waits for that).
-    Result<void> hand_over(ByteView bytes);
+    // bytes to leave: after_write is what waits for that); or, not to wait, failing then.
+    enum class WhenFull { wait, fail };
+    Result<void> hand_over(ByteView bytes, WhenFull when_full = WhenFull::wait);
     // Runs once the kernel accepted every byte; serial ports wait there until the UART sent
     // them, so the caller's clock starts when the frame is really on the wire.
     virtual Result<void> after_write() { return {}; }

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <future>
+#include <iostream>
 #include <thread>
 
 #include "codec/tcp.hpp"
@@ -223,6 +224,47 @@ TEST(TcpMasterOnALoop, ALostConnectionIsReportedNotMadeAgain) {
     auto again = listener->accept(100ms);
     ASSERT_TRUE(again.ok());
     EXPECT_EQ(*again, nullptr) << "the master connected again by itself";
+}
+
+// A device whose TCP stack takes the connection but which stopped reading it: once the kernel's
+// buffers are full a request is not waited for (the sender may be the gateway's engine, which
+// every front shares): it fails as a link error saying the device is not reading, and so does
+// the next, as the loop drops the connection, which may hold part of a frame.
+TEST(TcpMasterOnALoop, ADeviceThatStopsReadingFailsTheWriteInsteadOfHoldingTheSender) {
+    auto [listener, link] = listen_on_loopback();
+    auto loop = std::make_shared<LineLoop>();
+    MasterOptions options;
+    options.loop = loop;
+    options.timeout = 1h;
+    auto master = open_master(link, options);
+    ASSERT_TRUE(master.ok()) << master.error().message;
+    auto accepted = listener->accept(10s);  // never read
+    ASSERT_TRUE(accepted.ok() && *accepted);
+
+    // Write multiple registers, 123 of them: 259 bytes a frame. Loopback buffers take some
+    // megabytes; far fewer than this many frames fill them.
+    const Bytes pdu = [] {
+        Bytes bytes{0x10, 0x00, 0x00, 0x00, 123, 246};
+        bytes.resize(bytes.size() + 246, 0x55);
+        return bytes;
+    }();
+    std::optional<Error> refused;
+    int sent = 0;
+    for (; sent < 200000 && !refused; ++sent) {
+        (*master)->forward_async(1, pdu, [&refused](Result<Bytes> outcome) {
+            if (!outcome && !refused) refused = outcome.error();
+        });
+    }
+    ASSERT_TRUE(refused) << "200000 frames of 259 bytes all taken by a connection nobody reads";
+    EXPECT_EQ(refused->kind, ErrorKind::link);
+    EXPECT_NE(refused->message.find("not reading"), std::string::npos) << refused->message;
+    EXPECT_NE(refused->message.find("not waited for"), std::string::npos) << "the sender waited for room: " << refused->message;
+    std::cout << "the connection took " << sent - 1 << " frames before its buffers were full\n";
+
+    const auto after = (*master)->forward(1, pdu);
+    ASSERT_FALSE(after.ok());
+    EXPECT_EQ(after.error().kind, ErrorKind::link);
+    EXPECT_NE(after.error().message.find("lost"), std::string::npos) << after.error().message;
 }
 
 TEST(TcpMaster, RefusedConnectionIsALinkError) {
