@@ -3,6 +3,7 @@
 
 #include <future>
 #include <iostream>
+#include <mutex>
 #include <thread>
 
 #include "codec/tcp.hpp"
@@ -231,6 +232,10 @@ TEST(TcpMasterOnALoop, ALostConnectionIsReportedNotMadeAgain) {
 // every front shares): it fails as a link error saying the device is not reading, and so does
 // the next, as the loop drops the connection, which may hold part of a frame.
 TEST(TcpMasterOnALoop, ADeviceThatStopsReadingFailsTheWriteInsteadOfHoldingTheSender) {
+    // The first failure (on this thread, at the write); those awaiting replies fail on the loop,
+    // up to the master's end: declared before it, so that they outlive it.
+    std::mutex mutex;
+    std::optional<Error> refused;
     auto [listener, link] = listen_on_loopback();
     auto loop = std::make_shared<LineLoop>();
     MasterOptions options;
@@ -248,14 +253,18 @@ TEST(TcpMasterOnALoop, ADeviceThatStopsReadingFailsTheWriteInsteadOfHoldingTheSe
         bytes.resize(bytes.size() + 246, 0x55);
         return bytes;
     }();
-    std::optional<Error> refused;
+    const auto first_refusal = [&] {
+        std::lock_guard lock(mutex);
+        return refused;
+    };
     int sent = 0;
-    for (; sent < 200000 && !refused; ++sent) {
-        (*master)->forward_async(1, pdu, [&refused](Result<Bytes> outcome) {
+    for (; sent < 200000 && !first_refusal(); ++sent) {
+        (*master)->forward_async(1, pdu, [&](Result<Bytes> outcome) {
+            std::lock_guard lock(mutex);
             if (!outcome && !refused) refused = outcome.error();
         });
     }
-    ASSERT_TRUE(refused) << "200000 frames of 259 bytes all taken by a connection nobody reads";
+    ASSERT_TRUE(first_refusal()) << "200000 frames of 259 bytes all taken by a connection nobody reads";
     EXPECT_EQ(refused->kind, ErrorKind::link);
     EXPECT_NE(refused->message.find("not reading"), std::string::npos) << refused->message;
     EXPECT_NE(refused->message.find("not waited for"), std::string::npos) << "the sender waited for room: " << refused->message;

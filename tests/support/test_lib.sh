@@ -66,6 +66,9 @@ fail() {
 start_background() {
     local log=$1
     shift
+    # Emptied here, not only by the background redirection: a LOG used before (a benchmark's
+    # rounds) would otherwise still show the previous run's lines to a wait that starts now.
+    : >"$WORK_DIR/$log"
     "$@" >"$WORK_DIR/$log" 2>&1 &
     LAST_PID=$!
     BACKGROUND_PIDS+=("$LAST_PID")
