@@ -1,5 +1,9 @@
 #include "gateway/mqtt_bridge.hpp"
 
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <sys/socket.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cassert>
@@ -26,6 +30,24 @@
 
 namespace loopwire::gateway {
 namespace {
+
+// A batch of publications leaves in as few TCP segments as it fills (tcp(7), TCP_CORK): on an
+// external loop libmosquitto writes each message the moment it is published, and the broker
+// and the subscribers then read, and wake, once per small segment. Uncorked at the end of the
+// batch, so nothing waits for more. -1: nothing to do (not connected, or one message).
+class CorkedSocket {
+public:
+    explicit CorkedSocket(int fd) : fd_(fd) { set(1); }
+    ~CorkedSocket() { set(0); }
+    CorkedSocket(const CorkedSocket&) = delete;
+    CorkedSocket& operator=(const CorkedSocket&) = delete;
+
+private:
+    void set(int on) const {
+        if (fd_ >= 0) (void)::setsockopt(fd_, IPPROTO_TCP, TCP_CORK, &on, sizeof on);
+    }
+    int fd_;
+};
 
 constexpr int keepalive_seconds = 30;
 constexpr int qos_at_least_once = 1;
@@ -280,6 +302,7 @@ struct MqttBridge::State {
             std::lock_guard lock(mutex);
             batch.swap(outgoing);
         }
+        const CorkedSocket corked(batch.size() > 1 && is_connected.load() ? mosquitto_socket(client) : -1);
         for (auto& publication : batch) {
             if (publication.retained) {
                 auto& last = retained[publication.topic];
