@@ -1,7 +1,8 @@
 // A gateway front that publishes to a real broker, from the value cache to a subscriber: the
 // MQTT front (issue 12) or the Sparkplug B edge node (issue 22):
 //   rate     value changes/s the front carries from the poller's cache to a subscriber, with
-//            every parameter changing in every sample, as fast as they go through;
+//            every parameter changing in every sample, as fast as they go through (the poller
+//            keeps at most 16 samples ahead of the subscriber);
 //   latency  poll -> subscriber at 10 samples/s of every parameter (p50, p99, max), and the
 //            peer in the same run (MQTT front only): a plain libmosquitto publisher that sends
 //            each sample as the same retained messages in a tight loop, the broker's floor for a
@@ -88,6 +89,14 @@ public:
         awaited_.reset();
         return arrived;
     }
+    // Waits until a value of `sample` or a later one has arrived: how far the front has got.
+    bool wait_reached(long sample, std::chrono::milliseconds limit) {
+        std::unique_lock lock(mutex_);
+        awaited_highest_ = sample;
+        const bool reached = changed_.wait_for(lock, limit, [&] { return highest_ >= sample; });
+        awaited_highest_.reset();
+        return reached;
+    }
     void expect(long sample, SteadyClock::time_point sent) {
         std::lock_guard lock(mutex_);
         sent_[sample] = sent;
@@ -138,6 +147,7 @@ private:
             const long sample = std::lround(value * 10);
             ++arrivals_[sample];
             ++total_;
+            highest_ = std::max(highest_, sample);
             last_ = now;
             if (auto found = sent_.find(sample); found != sent_.end()) {
                 latencies_.push_back(std::chrono::duration<double, std::milli>(now - found->second).count());
@@ -145,7 +155,10 @@ private:
         }
         // The instrument must cost less than what it measures (mosquitto_sub, the peer's
         // subscriber, is a plain C loop): the waiter is woken only when what it waits for came.
-        if (awaited_ && arrivals_[awaited_->first] >= awaited_->second) changed_.notify_all();
+        if ((awaited_ && arrivals_[awaited_->first] >= awaited_->second) ||
+            (awaited_highest_ && highest_ >= *awaited_highest_)) {
+            changed_.notify_all();
+        }
     }
 
     bool sparkplug_ = false;
@@ -153,6 +166,8 @@ private:
     std::mutex mutex_;
     std::condition_variable changed_;
     std::optional<std::pair<long, std::size_t>> awaited_;  // (sample, count) the waiter wants
+    std::optional<long> awaited_highest_;                  // or the sample it waits to see reached
+    long highest_ = 0;
     std::map<long, std::size_t> arrivals_;
     std::size_t total_ = 0;
     std::map<long, SteadyClock::time_point> sent_;
@@ -365,9 +380,19 @@ int main(int argc, char** argv) {
     // Rate: samples back to back for SECONDS, then until the last has arrived. What counts is
     // what arrived: a front may send only the latest of values that changed faster than it
     // could publish them (the Sparkplug node does), and a host application is owed no more.
+    // The poller keeps at most `ahead` samples beyond what has arrived, as mosquitto_pub's input
+    // is held back by its pipe: a poller never outruns its lines by millions of values, and one
+    // that did would take a core from the broker and the subscriber that the peer's run has.
+    constexpr long ahead = 16;
     const auto before_rate = subscriber.total();
     const auto start = SteadyClock::now();
-    while (SteadyClock::now() < start + seconds) plant.sample(cache, ++sample);
+    while (SteadyClock::now() < start + seconds) {
+        if (sample > ahead && !subscriber.wait_reached(sample - ahead, 30s)) {
+            std::fprintf(stderr, "the front stopped carrying samples (none after %ld)\n", sample - ahead);
+            return 1;
+        }
+        plant.sample(cache, ++sample);
+    }
     if (!subscriber.wait(sample, parameters, 120s)) {
         std::fprintf(stderr, "the rate samples did not all arrive\n");
         return 1;
