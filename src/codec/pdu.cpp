@@ -154,6 +154,7 @@ std::vector<std::uint16_t> read_registers(ByteView data) {
 }
 
 void append_registers(Bytes& out, const std::vector<std::uint16_t>& registers) {
+    out.reserve(out.size() + 2 * registers.size());  // one allocation, not one per doubling
     for (std::uint16_t value : registers) append_be16(out, value);
 }
 
@@ -291,7 +292,11 @@ Result<Bytes> encode_read_reply(const Reply& reply) {
     if (is_bit_function(fc)) {
         if (auto problem = check_bit_states(reply.values)) return usage_error(fc, Direction::reply, *problem);
     }
-    Bytes out{fc, static_cast<std::uint8_t>(data_bytes_for_quantity(fc, reply.values.size()))};
+    const std::size_t data_bytes = data_bytes_for_quantity(fc, reply.values.size());
+    Bytes out;
+    out.reserve(2 + data_bytes);  // the reply's one allocation
+    out.push_back(fc);
+    out.push_back(static_cast<std::uint8_t>(data_bytes));
     if (is_bit_function(fc)) {
         const Bytes packed = pack_bits(reply.values);
         out.insert(out.end(), packed.begin(), packed.end());

@@ -87,14 +87,6 @@ Result<std::shared_ptr<transport::VirtualBus>> open_virtual_line(const LineConfi
     return bus;
 }
 
-// The master's trace, counting the runs of bytes it discards, and passed on to -v's.
-session::TraceSink counting_trace(std::shared_ptr<std::atomic<std::uint64_t>> garbled, session::TraceSink trace) {
-    return [garbled = std::move(garbled), trace = std::move(trace)](const session::TraceEvent& event) {
-        if (event.direction == session::TraceDirection::discarded) garbled->fetch_add(1, std::memory_order_relaxed);
-        if (trace) trace(event);
-    };
-}
-
 // How the line's master is opened, the first time and after each failure: the port or
 // connection the link names, or a fresh attachment to the virtual line's bus.
 Result<MasterOpener> line_opener(const LineConfig& line, const GatewayOptions& options,
@@ -121,7 +113,8 @@ Result<OpenLine> open_line(const LineConfig& line, const GatewayOptions& options
     master_options.timeout = line.timeout;
     master_options.retries = line.retries;
     master_options.late_reply_window = line.late_reply_window;
-    master_options.trace = counting_trace(opened.garbled, options.trace);
+    master_options.trace = options.trace;
+    master_options.discarded = opened.garbled;
     // Every line is carried on the lines' shared loop: a serial framing's exchanges (a port, a
     // virtual line, RTU through a device server), and a Modbus TCP device's connection, read
     // there while requests are written from the engine. So no line costs a thread of its own.

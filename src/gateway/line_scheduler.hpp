@@ -24,6 +24,7 @@
 // no back-off of its own: it asks hold_poll() before each poll (client/monitor_loop.hpp,
 // MonitorTarget::held_until). A link failure clears every unit's back-off: the line was at
 // fault, and when it is back every unit is polled at once.
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -34,6 +35,7 @@
 #include "common/clock.hpp"
 #include "common/result.hpp"
 #include "session/master.hpp"
+#include "session/unit_handler.hpp"
 
 namespace loopwire::gateway {
 
@@ -45,10 +47,12 @@ struct LineRequest {
     Priority priority = Priority::client;
     std::uint64_t client = 0;  // who asked; fairness is round robin between clients
     Instant deadline = Instant::max();  // not sent once this has passed
-    // Optional: false once the asker has gone. Called with the scheduler's lock held (when the
-    // queue is full, to make room): it must only read a flag, never call the scheduler.
-    std::function<bool()> still_wanted;
+    // Optional: false once the asker has gone (read with the scheduler's lock held when the
+    // queue is full, to make room).
+    session::UnitHandler::WantedFlag still_wanted;
     session::Master::ForwardCompletion done;  // the reply PDU, or why there is none
+
+    bool wanted() const { return !still_wanted || still_wanted->load(std::memory_order_relaxed); }
 };
 
 struct LineSchedulerOptions {

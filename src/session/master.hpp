@@ -1,6 +1,7 @@
 #pragma once
 // The master side: sends requests, waits for the matching reply, retries, and keeps the line
 // discipline of its framing (docs/DESIGN.md, session layer).
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -37,6 +38,10 @@ struct MasterOptions {
     std::optional<milliseconds> late_reply_window;
     bool linking_ram_only = false;  // Linking: single writes as M (RAM only) instead of W
     TraceSink trace;                // -v: every frame sent, received or discarded
+    // Counts every run of bytes the master discards (bad CRC or LRC, broken frames, noise,
+    // replies that answer nothing), traced or not: the gateway's garbled-frames counter, kept
+    // without a trace, which would copy every frame sent and received.
+    std::shared_ptr<std::atomic<std::uint64_t>> discarded;
     // What the serial master's silences, timeouts and turnarounds run on (common/clock.hpp). A
     // virtual clock only makes sense with a stream that reads the same clock. The TCP master
     // keeps its deadlines on its loop's clock.

@@ -312,6 +312,7 @@ private:
     }
 
     void trace(TraceDirection direction, ByteView bytes, std::string note) const {
+        if (direction == TraceDirection::discarded && options_.discarded) options_.discarded->fetch_add(1, std::memory_order_relaxed);
         if (options_.trace) options_.trace({clock_->now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
     }
 

@@ -150,7 +150,7 @@ std::optional<Bytes> Slave::answer(const codec::Frame& frame, FrameCodec& codec)
     return std::move(*encoded);
 }
 
-void Slave::answer_async(const codec::Frame& frame, const UnitHandler::Asker& asker, UnitHandler::ReplyCallback reply) {
+void Slave::answer_async(codec::Frame frame, const UnitHandler::Asker& asker, UnitHandler::ReplyCallback reply) {
     Route where = route(frame);
     switch (where.kind) {
         case Route::Kind::silent: reply(std::nullopt); return;
@@ -162,7 +162,7 @@ void Slave::answer_async(const codec::Frame& frame, const UnitHandler::Asker& as
             reply(std::nullopt);
             return;
         case Route::Kind::own_reply: reply(std::move(where.reply_pdu)); return;
-        case Route::Kind::unit: where.handler->handle_async(frame.pdu, false, asker, std::move(reply)); return;
+        case Route::Kind::unit: where.handler->handle_async(std::move(frame.pdu), false, asker, std::move(reply)); return;
     }
 }
 

@@ -130,7 +130,7 @@ public:
 
     // The reply PDU for one received frame through `reply` (nullopt: silence), at once or later
     // from any thread when the unit's handler defers it (UnitHandler::handle_async).
-    void answer_async(const codec::Frame& frame, const UnitHandler::Asker& asker, UnitHandler::ReplyCallback reply);
+    void answer_async(codec::Frame frame, const UnitHandler::Asker& asker, UnitHandler::ReplyCallback reply);
 
     // Serves `units` from the next request on, from any thread: a gateway reopened with a new
     // configuration keeps its Modbus TCP front and the clients' connections. A request already

@@ -27,13 +27,17 @@ namespace {
 struct PendingRequest {
     std::uint8_t unit = 0;
     Bytes pdu;
-    std::string transaction;  // in words, for traces and errors
+    std::string transaction;  // in words, for traces and errors; empty for a forwarded PDU (text())
     ReplyCheck answers;
     Instant deadline;
     unsigned tries = 1;
     bool broadcast = false;
     Master::ForwardCompletion done;  // the reply PDU (empty after a broadcast), or what failed
     std::optional<Error> wrong_reply;  // a frame with this transaction id that did not answer
+
+    // A forwarded PDU is worded only when a trace or an error needs it: most are answered, and
+    // wording each would cost the gateway's busiest path a format and two allocations.
+    std::string text() const { return transaction.empty() ? describe_forwarded(unit, pdu) : transaction; }
 };
 
 class TcpMaster final : public Master {
@@ -45,7 +49,6 @@ public:
           own_loop_(options_.loop ? nullptr : std::make_shared<LineLoop>()),
           loop_(options_.loop ? options_.loop : own_loop_),
           clock_(loop_->clock()),
-          reconnects_(own_loop_ != nullptr),
           stream_(std::move(stream)) {
         std::lock_guard lock(mutex_);
         if (stream_) watch_from_anywhere();
@@ -92,9 +95,8 @@ public:
 
     void forward_async(std::uint8_t unit, Bytes pdu, ForwardCompletion done) override {
         if (auto forwardable = check_forwardable(pdu); !forwardable) return done(forwardable.error());
-        auto transaction = describe_forwarded(unit, pdu);
         auto answers = answers_forwarded(pdu);
-        submit({unit, std::move(pdu), std::move(transaction), std::move(answers), {}, 1, unit == 0, std::move(done), {}});
+        submit({unit, std::move(pdu), {}, std::move(answers), {}, 1, unit == 0, std::move(done), {}});
     }
 
     std::string describe() const override { return link_.to_string(); }
@@ -151,10 +153,11 @@ private:
     // Called with mutex_ held. A master on a loop of its own (a command-line tool's) connects
     // again after the connection was lost; on a gateway's loop the line's keeper reopens it
     // (gateway/reopening_master.hpp), and a blocking connect here would hold the caller's loop.
+    bool reconnects() const { return own_loop_ != nullptr; }
+
     Result<void> ensure_connected() {
-        if (broken_) return make_error(ErrorKind::link, fmt::format("connection to {} lost: {}", link_.to_string(), lost_because_));
-        if (stream_) return {};
-        if (!reconnects_) {
+        if (stream_ && !broken_) return {};
+        if (broken_ || !reconnects()) {
             return make_error(ErrorKind::link, fmt::format("connection to {} lost: {}", link_.to_string(), lost_because_));
         }
         auto stream = transport::connect_tcp(link_.host, link_.port, options_.timeout);
@@ -171,7 +174,7 @@ private:
     std::optional<Finished> send(PendingRequest pending) {
         const std::uint16_t transaction = next_transaction_++;
         Bytes frame = codec::mbap_encode(transaction, pending.unit, pending.pdu);
-        trace(TraceDirection::sent, frame, pending.transaction);
+        if (options_.trace) trace(TraceDirection::sent, frame, pending.text());
         pending.deadline = clock_->now() + (pending.broadcast ? options_.turnaround : options_.timeout);
         if (!watched_until_ || pending.deadline < *watched_until_) watch_from_anywhere();
         auto [entry, added] = pending_.insert_or_assign(transaction, std::move(pending));
@@ -234,6 +237,7 @@ private:
     }
 
     void trace(TraceDirection direction, ByteView bytes, std::string note) const {
+        if (direction == TraceDirection::discarded && options_.discarded) options_.discarded->fetch_add(1, std::memory_order_relaxed);
         if (options_.trace) options_.trace({std::chrono::steady_clock::now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
     }
 
@@ -377,7 +381,7 @@ private:
         }
         if (!answers) {
             trace(TraceDirection::discarded, frame.raw, answers.error().message);
-            pending.wrong_reply = wrong_reply_error(pending.unit, pending.transaction, answers.error(), frame.raw);
+            pending.wrong_reply = wrong_reply_error(pending.unit, pending.text(), answers.error(), frame.raw);
             return std::nullopt;
         }
         trace(TraceDirection::received, frame.raw, "reply");
@@ -408,7 +412,7 @@ private:
                     if (auto failed = send(std::move(pending))) finished.push_back(std::move(*failed));
                 } else {
                     TimeoutContext context{link_.to_string(), options_.timeout.count(), pending.tries, 0};
-                    finished.emplace_back(std::move(pending.done), timeout_error(pending.unit, pending.transaction, context));
+                    finished.emplace_back(std::move(pending.done), timeout_error(pending.unit, pending.text(), context));
                 }
             }
         }
@@ -429,7 +433,6 @@ private:
     std::shared_ptr<LineLoop> own_loop_;  // a command-line tool's master: its own; destroyed last
     std::shared_ptr<LineLoop> loop_;      // the one that reads the connection
     std::shared_ptr<Clock> clock_;        // the loop's: deadlines
-    const bool reconnects_;               // on a loop of its own only (ensure_connected)
     std::mutex mutex_;  // guards what follows, up to the loop's own
     std::unique_ptr<transport::ByteStream> stream_;
     std::string lost_because_;  // why the connection went, once it has

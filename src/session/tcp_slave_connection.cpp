@@ -38,12 +38,24 @@ ReplyMailbox::RunningHere::~RunningHere() { mailbox_running_here = before_; }
 
 void ReplyMailbox::post(std::function<void()> work) {
     std::lock_guard lock(mutex_);
-    if (loop_ != nullptr) asio::post(*loop_, std::move(work));
+    if (loop_ == nullptr) return;
+    delivered_.push_back(std::move(work));
+    if (delivered_.size() == 1) asio::post(*loop_, [self = shared_from_this()] { self->run_delivered(); });
+}
+
+void ReplyMailbox::run_delivered() {
+    std::vector<std::function<void()>> batch;
+    {
+        std::lock_guard lock(mutex_);
+        batch.swap(delivered_);
+    }
+    for (auto& work : batch) work();
 }
 
 void ReplyMailbox::close() {
     std::lock_guard lock(mutex_);
     loop_ = nullptr;
+    delivered_.clear();
 }
 
 TcpSlaveConnection::TcpSlaveConnection(Slave& slave, ConnectionOwner& owner, std::shared_ptr<ReplyMailbox> mailbox,
@@ -55,7 +67,7 @@ TcpSlaveConnection::TcpSlaveConnection(Slave& slave, ConnectionOwner& owner, std
       timer_(socket_.get_executor()),
       codec_(make_frame_codec(slave.link(), codec::Direction::request)),
       mbap_(slave.link().framing == transport::Framing::tcp),
-      asker_(++connections_made, [wanted = std::shared_ptr<const std::atomic<bool>>(wanted_)] { return wanted->load(); }) {
+      asker_(++connections_made, wanted_) {
     error_code error;
     const auto endpoint = socket_.remote_endpoint(error);
     peer_ = error ? std::string("a client that has gone")
@@ -141,7 +153,7 @@ void TcpSlaveConnection::handle(codec::FrameEvents& events) {
             served_any_ = true;
             // In order: once one waits, every later one waits behind it.
             if (waiting_.empty() && outstanding_ < limit) {
-                dispatch(*frame);
+                dispatch(std::move(*frame));
             } else {
                 waiting_.push_back(std::move(*frame));
             }
@@ -154,10 +166,12 @@ void TcpSlaveConnection::handle(codec::FrameEvents& events) {
 
 // The reply may come at once (on this thread, inside answer_async) or later from any thread:
 // then it is posted into the loop, and dropped if the connection has gone in the meantime.
-void TcpSlaveConnection::dispatch(const codec::Frame& frame) {
+void TcpSlaveConnection::dispatch(codec::Frame frame) {
     ++outstanding_;
-    slave_.answer_async(frame, asker_, [weak = weak_from_this(), mailbox = mailbox_, unit = frame.unit,
-                                transaction = frame.transaction](std::optional<Bytes> pdu) mutable {
+    const std::uint8_t unit = frame.unit;
+    const std::uint16_t transaction = frame.transaction;
+    slave_.answer_async(std::move(frame), asker_, [weak = weak_from_this(), mailbox = mailbox_, unit,
+                                transaction](std::optional<Bytes> pdu) mutable {
         if (mailbox->on_loop_thread()) {
             if (auto self = weak.lock()) self->deliver(unit, transaction, std::move(pdu));
             return;
@@ -173,9 +187,9 @@ void TcpSlaveConnection::dispatch(const codec::Frame& frame) {
 void TcpSlaveConnection::dispatch_waiting() {
     const std::size_t limit = slave_.options().tcp.max_outstanding_requests;
     while (!closed_ && !waiting_.empty() && outstanding_ < limit) {
-        const codec::Frame frame = std::move(waiting_.front());
+        codec::Frame frame = std::move(waiting_.front());
         waiting_.pop_front();
-        dispatch(frame);
+        dispatch(std::move(frame));
     }
 }
 

@@ -16,6 +16,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
@@ -36,8 +37,9 @@ public:
 
 // Where deferred replies enter the loop. A unit handler may answer from any thread, and even
 // after the server has stopped: the mailbox outlives the loop (shared by every pending reply)
-// and drops what arrives once close() has run.
-class ReplyMailbox {
+// and drops what arrives once close() has run. Replies that come while the loop has not yet
+// taken the earlier ones ride along with them: one post, and one wake of the loop, per batch.
+class ReplyMailbox : public std::enable_shared_from_this<ReplyMailbox> {
 public:
     explicit ReplyMailbox(boost::asio::io_context& loop) : loop_(&loop) {}
     // True on the thread running the loop (inside a RunningHere): the reply can be handled at
@@ -61,8 +63,11 @@ public:
     void close();
 
 private:
+    void run_delivered();
+
     mutable std::mutex mutex_;
     boost::asio::io_context* loop_;  // guarded by mutex_; null once closed
+    std::vector<std::function<void()>> delivered_;  // guarded by mutex_; a run is posted while not empty
 };
 
 class TcpSlaveConnection : public std::enable_shared_from_this<TcpSlaveConnection> {
@@ -95,7 +100,7 @@ private:
     void take(const boost::system::error_code& error, std::size_t size);
     void flush_output();
     void handle(codec::FrameEvents& events);
-    void dispatch(const codec::Frame& frame);
+    void dispatch(codec::Frame frame);
     void dispatch_waiting();
     void stop_wanting();
     void deliver(std::uint8_t unit, std::uint16_t transaction, std::optional<Bytes> pdu);

@@ -1,8 +1,10 @@
 #pragma once
 // What a slave session dispatches to: one handler per unit id. The handler decides what the
 // device answers, and when it stays silent.
+#include <atomic>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <utility>
 
@@ -29,14 +31,16 @@ public:
     // The asker of one request: its origin and, for a handler that queues requests (a gateway's
     // line), whether the answer is still wanted. A TCP connection that has closed, or whose
     // client has ended its side of it, no longer wants what has not been sent yet: a queued
-    // request of it is dropped instead of taking the line. Empty still_wanted: always wanted.
-    // still_wanted may be called from any thread, with the caller's locks held: it only reads
-    // a flag.
+    // request of it is dropped instead of taking the line. The flag is the connection's, read
+    // from any thread with the reader's locks held; copying it costs no allocation, which matters
+    // as every request carries it. Null: always wanted.
+    using WantedFlag = std::shared_ptr<const std::atomic<bool>>;
     struct Asker {
-        Asker(Origin from = 0, std::function<bool()> wanted = {})  // NOLINT: an Origin is an Asker
+        Asker(Origin from = 0, WantedFlag wanted = {})  // NOLINT: an Origin is an Asker
             : origin(from), still_wanted(std::move(wanted)) {}
         Origin origin;
-        std::function<bool()> still_wanted;
+        WantedFlag still_wanted;
+        bool wanted() const { return !still_wanted || still_wanted->load(std::memory_order_relaxed); }
     };
 
     // The same decision, for handlers that answer later: a gateway forwards the request to a

@@ -386,7 +386,7 @@ TEST(ForwardingUnit, ARequestItsAskerNoLongerWantsNeverReachesTheLine) {
     Replies replies;
     unit->handle_async(hex("03 00 00 00 01"), false, 1, replies.collect());  // on the wire
     auto open = std::make_shared<std::atomic<bool>>(true);
-    const session::UnitHandler::Asker closing(2, [open] { return open->load(); });
+    const session::UnitHandler::Asker closing(2, open);
     unit->handle_async(hex("03 00 01 00 01"), false, closing, replies.collect());
     open->store(false);
     front.line->answer(hex("03 02 00 01"));

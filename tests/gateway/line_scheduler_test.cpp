@@ -303,12 +303,12 @@ TEST_F(LineSchedulerTest, RequestPastItsDeadlineIsNeverSent) {
 
 TEST_F(LineSchedulerTest, RequestWhoseAskerHasGoneIsNeverSent) {
     submit(1);  // on the wire
-    auto asker_here = std::make_shared<bool>(true);
+    auto asker_here = std::make_shared<std::atomic<bool>>(true);
     auto gone = ask(2);
-    gone.still_wanted = [asker_here] { return *asker_here; };
+    gone.still_wanted = asker_here;
     scheduler->submit(std::move(gone));
     auto wanted = ask(3);
-    wanted.still_wanted = [] { return true; };
+    wanted.still_wanted = std::make_shared<std::atomic<bool>>(true);
     scheduler->submit(std::move(wanted));
 
     *asker_here = false;  // the client disconnected while its request queued
@@ -622,10 +622,10 @@ TEST_F(BoundedLineSchedulerTest, PastTheBoundARequestIsRefusedBusyAtOnce) {
 // ones past their deadline), counted as when their turn would have come, and then has room.
 TEST_F(BoundedLineSchedulerTest, AFullQueueDropsRequestsNobodyWantsBeforeRefusingOne) {
     submit(1);  // on the wire
-    auto connection_open = std::make_shared<bool>(true);
+    auto connection_open = std::make_shared<std::atomic<bool>>(true);
     for (int tag = 2; tag <= 3; ++tag) {
         auto request = ask(tag, Priority::client, 1, 7);
-        request.still_wanted = [connection_open] { return *connection_open; };
+        request.still_wanted = connection_open;
         scheduler->submit(std::move(request));
     }
     auto late = ask(4, Priority::client, 1, 8);

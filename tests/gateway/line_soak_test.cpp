@@ -899,7 +899,7 @@ private:
         if (std::uniform_int_distribution<int>(0, 19)(clients_random_) == 0) {
             auto open = std::make_shared<std::atomic<bool>>(true);
             at(clock_->now() + 10ms, [open] { *open = false; });
-            asker.still_wanted = [open] { return open->load(); };
+            asker.still_wanted = open;
         }
         auto& forwarding = *lines_[static_cast<std::size_t>(line)]->front_units[static_cast<std::size_t>(unit - 1)];
         // A reply runs where the scheduler's master ends the request (the loop, or a line's

@@ -240,14 +240,14 @@ TEST(TcpSlaveLimits, TheAskerStopsWantingTheReplyWhenTheClientGoes) {
     ASSERT_TRUE(unit->wait_for_arrivals(3));
     const auto askers = unit->askers();
     ASSERT_EQ(askers.size(), 3u);
-    for (const auto& asker : askers) ASSERT_TRUE(asker.still_wanted && asker.still_wanted());
+    for (const auto& asker : askers) ASSERT_TRUE(asker.still_wanted && asker.wanted());
     const linger abort_on_close{1, 0};  // close() sends RST: the connection is simply gone
     ASSERT_EQ(::setsockopt(resets->fd(), SOL_SOCKET, SO_LINGER, &abort_on_close, sizeof abort_on_close), 0);
     resets.reset();
     ::shutdown(ends.fd(), SHUT_WR);  // FIN: the client's side has ended
-    EXPECT_TRUE(eventually([&] { return !askers[1].still_wanted(); })) << "a reset connection still wants its reply";
-    EXPECT_TRUE(eventually([&] { return !askers[2].still_wanted(); })) << "an ended connection still wants its reply";
-    EXPECT_TRUE(askers[0].still_wanted());
+    EXPECT_TRUE(eventually([&] { return !askers[1].wanted(); })) << "a reset connection still wants its reply";
+    EXPECT_TRUE(eventually([&] { return !askers[2].wanted(); })) << "an ended connection still wants its reply";
+    EXPECT_TRUE(askers[0].wanted());
     unit->answer_all();
     EXPECT_EQ(stays.receive(11, 10000ms).size(), 11u);
 }
