@@ -112,6 +112,19 @@ public:
         return std::string(buffer, static_cast<std::size_t>(n));
     }
 
+    // What arrives until `marker` has come, within the deadline (a failure if it does not).
+    std::string receive_until(const std::string& marker) {
+        std::string all;
+        const auto give_up = std::chrono::steady_clock::now() + deadline;
+        while (all.find(marker) == std::string::npos && std::chrono::steady_clock::now() < give_up) {
+            auto some = receive(100ms);
+            if (!some) break;
+            all += *some;
+        }
+        if (all.find(marker) == std::string::npos) ADD_FAILURE() << "\"" << marker << "\" did not come; got:\n" << all;
+        return all;
+    }
+
     // Everything until the server closes (the requests below ask it to), within the deadline.
     std::string receive_all() {
         std::string all;
@@ -1087,7 +1100,9 @@ TEST_F(HttpLimitsTest, AnEventClientThatDoesNotReadIsDroppedWithoutSlowingThePol
     slow.send("GET /api/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");  // and never reads
     Socket fine(server_->port());
     fine.send("GET /api/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
-    std::this_thread::sleep_for(200ms);  // both subscribed
+    // Both subscribed once their streams have begun (the slow one reads its headers, no more).
+    EXPECT_THAT(slow.receive_until("\r\n\r\n"), HasSubstr("text/event-stream"));
+    EXPECT_THAT(fine.receive_until("\r\n\r\n"), HasSubstr("text/event-stream"));
     // Far more than the socket buffers and the queue hold: each sample only queues.
     const auto before = std::chrono::steady_clock::now();
     for (int i = 0; i < 100000; ++i) {
@@ -1113,9 +1128,13 @@ TEST_F(HttpLimitsTest, ConnectionsBeyondTheLimitAreAnswered503) {
     HttpServerSettings settings;
     settings.max_connections = 2;
     start(settings);
+    // Both taken once each has been answered; keep-alive, they stay open.
     Socket first(server_->port());
     Socket second(server_->port());
-    std::this_thread::sleep_for(200ms);  // both accepted
+    for (Socket* open : {&first, &second}) {
+        ASSERT_TRUE(open->send("GET /api/devices HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
+        EXPECT_THAT(open->receive_until("\r\n\r\n"), HasSubstr("200 OK"));
+    }
     const Reply refused = get(server_->port(), "/api/devices");
     EXPECT_EQ(refused.status, 503u);
     EXPECT_THAT(refused.json().at("error").get<std::string>(), HasSubstr("too many connections"));

@@ -19,7 +19,9 @@ for client in mosquitto_pub mosquitto_sub; do
 done
 $python -c 'import paho.mqtt' 2>/dev/null || skip "paho.mqtt is not importable by $python (Debian package python3-paho-mqtt)"
 
-start_mosquitto 200
+# The broker logs subscriptions, so a test waits for a subscriber to be in place, not for time.
+start_mosquitto 200 "log_dest stderr" "log_type error" "log_type warning" "log_type notice" "log_type information" \
+  "log_type subscribe"
 port=$MQTT_PORT
 
 # plant_config [POLL] [EXTRA_DEVICE_TABLE]: the gateway's configuration.
@@ -70,7 +72,7 @@ check meta-has-the-unit 0 '"unit"' "${first_message[@]}" "$topic/set_point/meta"
 # A set from mosquitto_pub: answered on set/result, and the polls read it back.
 timeout 15 mosquitto_sub -h 127.0.0.1 -p "$port" -t "$topic/set_point/set/result" -C 1 -W 10 >"$WORK_DIR/result.out" 2>&1 &
 result_pid=$!
-sleep 0.5  # the result's subscriber is in place
+wait_for_text "$WORK_DIR/broker.log" " $topic/set_point/set/result"  # the result's subscriber is in place
 check set-is-sent 0 "" mosquitto_pub -h 127.0.0.1 -p "$port" -q 1 -t "$topic/set_point/set" -m 210
 wait "$result_pid"
 if grep -q '"ok":true' "$WORK_DIR/result.out"; then count_pass; else count_failure set-result-ok "$WORK_DIR/result.out"; fi
