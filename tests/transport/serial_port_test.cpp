@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <sys/ioctl.h>
 #include <termios.h>
 #include <unistd.h>
@@ -192,7 +193,9 @@ TEST_F(SerialPort, DiscardInputDropsStaleBytes) {
     auto port = open_serial_port(link, SerialSettings{});
     ASSERT_TRUE(port) << port.error().message;
     ASSERT_TRUE(pty->write(bytes_of("late reply")));
-    std::this_thread::sleep_for(20ms);
+    // Discarded once they have reached the port (on a loaded machine that can take a while).
+    pollfd readable{(*port)->poll_handle(), POLLIN, 0};
+    ASSERT_EQ(::poll(&readable, 1, 10000), 1) << "the bytes written never reached the port";
     (*port)->discard_input();
     std::uint8_t buffer[32];
     auto got = (*port)->read_some(buffer, 30ms);
