@@ -1,6 +1,7 @@
 #include "session/reply_check.hpp"
 
 #include <algorithm>
+#include <array>
 #include <optional>
 #include <string>
 
@@ -116,8 +117,22 @@ Result<void> check_forwardable(ByteView pdu) {
     return {};
 }
 
-ReplyCheck answers_forwarded(Bytes request) {
-    return [request = std::move(request)](ByteView reply) -> Result<void> {
+ReplyCheck answers_forwarded(ByteView whole_request) {
+    // Every test reads at most the request's first read_write_header_size bytes and compares its
+    // length with no more than that: those bytes, held by value, are all the check needs, and
+    // small enough for the std::function to hold without an allocation (one check is made per
+    // forwarded request).
+    struct Head {
+        std::array<std::uint8_t, read_write_header_size> bytes{};
+        std::uint8_t size = 0;
+        ByteView view() const { return ByteView(bytes.data(), size); }
+    };
+    Head head;
+    head.size = static_cast<std::uint8_t>(std::min(whole_request.size(), head.bytes.size()));
+    std::copy_n(whole_request.begin(), head.size, head.bytes.begin());
+    return [head](ByteView reply) -> Result<void> {
+        const ByteView request = head.view();
+        if (request.empty()) return make_error(ErrorKind::usage, "an empty request is answered by nothing");
         if (reply.empty()) return make_error(ErrorKind::malformed, "the reply has no function code");
         if (reply[0] == (request[0] | exception_flag)) {
             if (reply.size() == exception_reply_size) return {};

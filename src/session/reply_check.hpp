@@ -30,6 +30,6 @@ Result<void> check_forwardable(ByteView pdu);
 // for FC15/16 the echo of address and quantity. Other function codes are checked on the code
 // only: their replies' shape cannot be known. A stale reply to another request of the same
 // function is refused whenever it differs in shape (docs/DESIGN.md, "what answers what").
-ReplyCheck answers_forwarded(Bytes request);
+ReplyCheck answers_forwarded(ByteView request);
 
 }  // namespace loopwire::session
