@@ -52,7 +52,7 @@ struct LineRequest {
     session::UnitHandler::WantedFlag still_wanted;
     session::Master::ForwardCompletion done;  // the reply PDU, or why there is none
 
-    bool wanted() const { return !still_wanted || still_wanted->load(std::memory_order_relaxed); }
+    bool wanted() const { return session::UnitHandler::wanted(still_wanted); }
 };
 
 struct LineSchedulerOptions {

@@ -150,11 +150,12 @@ private:
         }
     }
 
-    // Called with mutex_ held. A master on a loop of its own (a command-line tool's) connects
-    // again after the connection was lost; on a gateway's loop the line's keeper reopens it
-    // (gateway/reopening_master.hpp), and a blocking connect here would hold the caller's loop.
+    // A master on a loop of its own (a command-line tool's) connects again after the connection
+    // was lost; on a gateway's loop the line's keeper reopens it (gateway/reopening_master.hpp),
+    // and a blocking connect here would hold the caller's loop.
     bool reconnects() const { return own_loop_ != nullptr; }
 
+    // Called with mutex_ held.
     Result<void> ensure_connected() {
         if (stream_ && !broken_) return {};
         if (broken_ || !reconnects()) {

@@ -35,12 +35,13 @@ public:
     // from any thread with the reader's locks held; copying it costs no allocation, which matters
     // as every request carries it. Null: always wanted.
     using WantedFlag = std::shared_ptr<const std::atomic<bool>>;
+    static bool wanted(const WantedFlag& flag) { return !flag || flag->load(std::memory_order_relaxed); }
     struct Asker {
         Asker(Origin from = 0, WantedFlag wanted = {})  // NOLINT: an Origin is an Asker
             : origin(from), still_wanted(std::move(wanted)) {}
         Origin origin;
         WantedFlag still_wanted;
-        bool wanted() const { return !still_wanted || still_wanted->load(std::memory_order_relaxed); }
+        bool wanted() const { return UnitHandler::wanted(still_wanted); }
     };
 
     // The same decision, for handlers that answer later: a gateway forwards the request to a

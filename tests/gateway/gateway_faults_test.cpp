@@ -904,6 +904,8 @@ TEST(GatewayOnFaultyBus, ClientsReadingDifferentRegistersNeverGetAnotherRegister
     EXPECT_GT(target_failed, 0u);  // the faults reached the clients, as 0Bh
     // The line saw the faults as what they are: no reply it could take, or a bad (ambiguous) one.
     EXPECT_GT(after.timeouts - before.timeouts + after.bad_replies - before.bad_replies, 0u);
+    // The corrupted and truncated replies' bytes were thrown away and counted, with no -v trace.
+    EXPECT_GT(garbled, 0u) << "no discarded run of bytes was counted (line_garbled_total)";
 }
 
 }  // namespace
