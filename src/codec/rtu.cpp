@@ -42,6 +42,15 @@ constexpr std::chrono::microseconds fixed_t1_5{750};   // V1.02 2.5.1.1, above 1
 constexpr std::chrono::microseconds fixed_t3_5{1750};
 constexpr std::uint32_t fixed_timing_above_baud = 19200;
 
+// How long a silence the reader waits through must last to cut short a frame under way (its
+// function code gives its length and fewer bytes have come). On a real line bytes reach the
+// reader in batches: a USB adapter holds them up to its latency timer (16 ms by default on FTDI
+// chips) and a busy host wakes its reader late, so a pause of a few characters inside a frame is
+// the host's, not the wire's, and cutting there turns a good frame into two garbled runs. A frame
+// really cut short costs this much longer to be judged; one followed by another frame is judged
+// as soon as that frame's bytes come (the CRC tells them apart).
+constexpr std::chrono::milliseconds frame_under_way_patience{20};
+
 // ceil(numerator / denominator) microseconds, in integers so no rounding drift creeps in.
 std::chrono::microseconds microseconds_rounded_up(std::uint64_t numerator, std::uint64_t denominator) {
     return std::chrono::microseconds{static_cast<std::int64_t>((numerator + denominator - 1) / denominator)};
@@ -324,7 +333,8 @@ bool RtuDecoder::frame_runs_on(ByteView bytes) const {
 FrameEvents RtuDecoder::feed(ByteView bytes, Instant arrival) {
     if (bytes.empty()) return flush(arrival);
     // A gap before these bytes ends whatever was pending: judge it before appending.
-    FrameEvents events = frame_runs_on(bytes) ? FrameEvents{} : flush(arrival);
+    const bool gap_before = !buffer_.empty() && arrival - last_arrival_ > timing_.t3_5();
+    FrameEvents events = !gap_before || frame_runs_on(bytes) ? FrameEvents{} : drain(true);
     buffer_.insert(buffer_.end(), bytes.begin(), bytes.end());
     last_arrival_ = arrival;
     FrameEvents more = drain(false);
@@ -333,8 +343,22 @@ FrameEvents RtuDecoder::feed(ByteView bytes, Instant arrival) {
 }
 
 FrameEvents RtuDecoder::flush(Instant now) {
-    if (buffer_.empty() || now - last_arrival_ <= timing_.t3_5()) return {};
+    // From the deadline on (silence_deadline): a reader that waits until then and flushes must
+    // get its verdict, not wait again at the same instant.
+    if (buffer_.empty() || now - last_arrival_ < silence_needed()) return {};
     return drain(true);
+}
+
+// 3.5 characters end a frame (V1.02 2.5.1.1), but a frame under way is given the patience above.
+std::chrono::microseconds RtuDecoder::silence_needed() const {
+    const auto t3_5 = timing_.t3_5();
+    if (!discard_run_.bytes.empty()) return t3_5;  // resynchronising: no frame known to be under way
+    const auto length = implied_frame_length(direction_, buffer_);
+    // Bytes whose CRC checks as they are form a frame of their own (another direction's, heard
+    // on a shared bus: a reply read as a request is a byte short): the silence ends it as usual.
+    const bool under_way = length && *length != 0 && *length <= max_frame_size && *length > buffer_.size() &&
+                           !crc_matches(buffer_);
+    return under_way ? std::max<std::chrono::microseconds>(t3_5, frame_under_way_patience) : t3_5;
 }
 
 void RtuDecoder::reset() {
@@ -344,7 +368,7 @@ void RtuDecoder::reset() {
 
 std::optional<Instant> RtuDecoder::silence_deadline() const {
     if (buffer_.empty()) return std::nullopt;
-    return last_arrival_ + timing_.t3_5();
+    return last_arrival_ + silence_needed();
 }
 
 FrameEvents RtuDecoder::drain(bool line_quiet) {

@@ -38,16 +38,20 @@ public:
 
     // Bytes that arrived together at `arrival`.
     FrameEvents feed(ByteView bytes, Instant arrival);
-    // Tell the decoder that the line has been quiet until `now`: a pending partial frame older
-    // than 3.5 characters is completed (if its CRC checks) or discarded.
+    // Tell the decoder that the line has been quiet until `now`: pending bytes older than 3.5
+    // characters are completed into a frame (if the CRC checks) or discarded; a frame under way
+    // (its function code gives a length not yet reached) is given up to 20 ms, as readers get
+    // bytes in batches.
     FrameEvents flush(Instant now);
     void reset();
     std::size_t buffered() const { return buffer_.size(); }
-    // When the pending bytes become stale (last arrival + t3.5), if any are pending.
+    // When the pending bytes become stale (last arrival + the silence that flush() needs), if
+    // any: flush() at or after it judges them.
     std::optional<Instant> silence_deadline() const;
 
 private:
     FrameEvents drain(bool line_quiet);
+    std::chrono::microseconds silence_needed() const;
     bool frame_runs_on(ByteView bytes) const;
     void extend_discard_run(std::uint8_t byte, FrameEvents& events);
     void report_discard_run(FrameEvents& events);

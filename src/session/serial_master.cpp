@@ -13,6 +13,7 @@
 #include <optional>
 #include <thread>
 #include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -20,6 +21,7 @@
 #include "codec/table.hpp"
 #include "common/never_sent.hpp"
 #include "common/task.hpp"
+#include "session/copy_guard.hpp"
 #include "session/frame_codec.hpp"
 #include "session/job_queue.hpp"
 #include "session/line_loop.hpp"
@@ -50,12 +52,10 @@ private:
 
 using LatencyKey = std::pair<std::uint8_t, std::uint8_t>;  // unit, function code
 
-// How much later than usual a reply may come and still count as on time for the duplicate rule:
-// a USB adapter holds received bytes up to its latency timer (16 ms by default on FTDI chips)
-// and a busy host wakes its reader late, so a reply's arrival varies by tens of milliseconds
-// although the device answers on time. A real reply taken for a copy costs its request a
-// failure; a copy that comes within this slack is still caught by the ambiguity rule when the
-// real reply follows.
+// How much later than usual a reply may still come although the device answers on time: a USB
+// adapter holds received bytes up to its latency timer (16 ms by default on FTDI chips) and a
+// busy host wakes its reader late. After a frame refused as a possible copy, the real reply is
+// awaited this long past when it is usually due, not the whole timeout.
 constexpr Duration reply_jitter = std::chrono::milliseconds(40);
 
 class SerialMaster final : public Master {
@@ -68,7 +68,8 @@ public:
           loop_(options_.loop),
           clock_(loop_ ? loop_->clock() : options_.clock ? options_.clock : steady_clock()),
           inter_frame_gap_(gap_for(link)),
-          name_(link.to_string()) {}
+          name_(link.to_string()),
+          copies_(copy_window()) {}
 
     // On a loop: waits until what was queued has ended, so that nothing on the loop refers to it
     // any more. What is under way is not waited out: its wait for a reply (or a silence) ends at
@@ -328,21 +329,34 @@ private:
             unsettled_.erase(unit);
         }
         TimeoutContext context{name_, options_.timeout.count(), 0, 0};
-        // A reply refused as the value a write replaced gets one try more than `retries`: a
-        // device that answers the same bytes again was written the value it held (not_a_duplicate).
+        exchange_started_ = clock_->now();
+        refused_this_exchange_.clear();
+        confirmed_this_exchange_ = false;
+        bool lost_a_reply = false;  // a try timed out or got a wrong reply that was no possible copy
+        // A reply refused as a possible copy gets one try more than `retries`: a device that
+        // answers the same bytes again, in a clean wait, said them itself (not_a_copy).
         unsigned confirmation = 0;
         for (unsigned attempt = 0; attempt <= options_.retries + confirmation; ++attempt) {
             ++context.tries;
             auto reply = co_await attempt_once(unit, pdu, transaction, answers, context, attempt > 0);
             // A try that took no reply may still get one, late: the next request must not take it.
             // (A retry of this request may: it asks the same.)
-            if (!reply.ok() && is_unanswered(reply.error().kind)) unsettled_[unit] = clock_->now();
-            if (reply.ok()) co_return reply;
-            // A try whose reply was refused as a probable copy (not_a_duplicate) may have lost
-            // its real reply, as a try that timed out has: it is tried again while tries remain.
+            if (!reply.ok() && is_unanswered(reply.error().kind)) {
+                unsettled_[unit] = clock_->now();
+                note_fault();
+            }
+            if (reply.ok()) {
+                // The device said again the bytes a try refused: that try had its answer, and
+                // nothing of it can come late.
+                if (confirmed_this_exchange_ && !lost_a_reply) unsettled_.erase(unit);
+                co_return reply;
+            }
+            // A try whose reply was refused as a possible copy (not_a_copy) may have lost its real
+            // reply, as a try that timed out has: it is tried again while tries remain.
             const bool timed_out = reply.error().kind == ErrorKind::timeout;
             const bool refused_copy = reply.error().kind == ErrorKind::mismatch && last_try_refused_a_copy_;
-            if (refused_copy && last_try_refused_a_replaced_value_) confirmation = 1;
+            if (!refused_copy) lost_a_reply = true;
+            if (refused_copy) confirmation = 1;
             if (!timed_out && (!refused_copy || attempt == options_.retries + confirmation)) co_return reply;
         }
         co_return timeout_error(unit, transaction, context);
@@ -404,13 +418,15 @@ private:
         discard_late(codec_->flush(clock_->now() + inter_frame_gap_));
     }
 
+    // Whatever is heard between exchanges is a fault: the line stays careful while it may echo.
     void discard_late(const codec::FrameEvents& events) {
+        if (!events.empty()) note_fault();
         for (const auto& event : events) {
             if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
                 trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
             } else {
                 const auto& frame = std::get<codec::Frame>(event);
-                note_if_copy(frame);
+                copies_.heard(frame.raw, ByteView{}, clock_->now());
                 trace(TraceDirection::discarded, frame.raw,
                       fmt::format("late reply from unit {}, after a try that got none: not taken for the next request",
                                   frame.unit));
@@ -421,7 +437,6 @@ private:
     Task<Result<Bytes>> attempt_once(std::uint8_t unit, ByteView pdu, const std::string& transaction,
                                      const ReplyCheck& answers, TimeoutContext& context, bool retry) {
         last_try_refused_a_copy_ = false;  // a try that fails before it waits refused nothing
-        last_try_refused_a_replaced_value_ = false;
         auto frame = codec_->encode(unit, pdu, 0);
         if (!frame) co_return frame.error();
         co_await sleep_until(line_quiet_since_ + inter_frame_gap_);
@@ -431,7 +446,7 @@ private:
         trace(TraceDirection::sent, *frame, transaction);
         auto written = co_await send(*frame);
         const Instant sent_at = clock_->now();
-        if (!reads_only(pdu[0])) note_write(unit, pdu, sent_at);
+        copies_.sent(unit, pdu, sent_at);
         line_quiet_since_ = sent_at;
         if (!written) co_return written.error();
         if (unit == 0) {
@@ -443,14 +458,13 @@ private:
         const Instant deadline = sent_at + options_.timeout;
         const LatencyKey key{unit, pdu[0]};
         const Duration usual = latencies_[key].expected();
-        Awaited awaited{unit, pdu, transaction, answers, context, sent_at, usual, {}, {}, true, false};
+        Awaited awaited{unit, pdu, transaction, answers, context, sent_at, usual, retry, {}, {}, true, false};
         auto accepted = co_await await_reply(awaited, deadline);
         last_try_refused_a_copy_ = awaited.refused_a_copy;
-        last_try_refused_a_replaced_value_ = awaited.refused_a_replaced_value;
         line_quiet_since_ = clock_->now();
         if (!accepted) co_return accepted.error();
         const Duration took = clock_->now() - sent_at;
-        auto settled = co_await settle(awaited, std::move(*accepted), sent_at + usual, deadline, retry);
+        auto settled = co_await settle(awaited, std::move(*accepted), sent_at + usual, deadline);
         if (settled && awaited.clean) latencies_[key].record(took);
         co_return settled;
     }
@@ -464,11 +478,11 @@ private:
         TimeoutContext& context;
         Instant sent_at;
         Duration usual;  // how long after the request this unit's reply usually has come; 0: unknown
+        bool retry;      // an earlier try of this request went before
         std::optional<Error> wrong_reply;  // the last frame from `unit` that did not answer the request
         codec::FrameEvents after_accepted;  // what arrived with the accepted frame, after it
         bool clean;  // nothing but the accepted frame arrived
-        bool refused_a_copy;  // a frame that answered in shape was refused as a probable copy
-        bool refused_a_replaced_value = false;  // ... of this read's reply from before a write over it
+        bool refused_a_copy;  // a frame that answered in shape was refused as a possible copy
     };
 
     // Reads until a frame answers the request or the deadline passes.
@@ -479,10 +493,11 @@ private:
             // A reply that came but was wrong is what went wrong, not silence: it is reported as
             // such (exit 6, as on TCP), and not retried. The wait still runs to the deadline, as
             // the right reply may follow a stale one.
-            if (now >= deadline) {
+            const Instant until = awaited.refused_a_copy ? std::min(deadline, after_refused_copy(awaited)) : deadline;
+            if (now >= until) {
                 co_return awaited.wrong_reply ? *awaited.wrong_reply : make_error(ErrorKind::timeout, "no reply");
             }
-            auto events = co_await read_events(buffer, deadline - now);
+            auto events = co_await read_events(buffer, until - now);
             if (!events) co_return events.error();
             for (std::size_t i = 0; i < events->size(); ++i) {
                 if (auto frame = consider(awaited, (*events)[i])) {
@@ -529,31 +544,30 @@ private:
 
     // A frame that answers the request ends the wait; anything else is traced and skipped, and
     // a whole frame (check bytes right) from the asked unit that is not a valid answer is kept
-    // in `wrong_reply`, with its bytes.
+    // in `wrong_reply`, with its bytes. Anything but the answer is a fault of the line.
     std::optional<codec::Frame> consider(Awaited& awaited, codec::FrameEvent& event) {
         if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
             ++awaited.context.discarded_runs;
             awaited.clean = false;
+            note_fault();
             trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
             return std::nullopt;
         }
         auto& frame = std::get<codec::Frame>(event);
         if (frame.unit != awaited.unit) {
             awaited.clean = false;
-            note_if_copy(frame);
+            note_fault();
+            copies_.heard(frame.raw, ByteView{}, clock_->now());
             heard_from(frame.unit);
             trace(TraceDirection::received, frame.raw, fmt_unit_skip(frame.unit, awaited.unit));
             return std::nullopt;
         }
         auto answered = awaited.answers(frame.pdu);
-        if (answered) {
-            answered = not_a_duplicate(awaited, frame.raw);
-        } else {
-            note_if_copy(frame);
-        }
-        remember(frame.raw, awaited.request);
+        if (answered) answered = not_a_copy(awaited, frame.raw);
+        copies_.heard(frame.raw, answered ? awaited.request : ByteView{}, clock_->now());
         if (!answered) {
             awaited.clean = false;
+            note_fault();
             trace(TraceDirection::discarded, frame.raw, answered.error().message);
             awaited.wrong_reply = wrong_reply_error(awaited.unit, awaited.transaction, answered.error(), frame.raw);
             return std::nullopt;  // a stale reply, perhaps; the right one may still come
@@ -561,175 +575,78 @@ private:
         return std::move(frame);
     }
 
-    // Duplicates. A frame with the same bytes as one that came for another request a moment ago
-    // may be a copy of it (a repeater sending a frame twice), or the real reply of a register
-    // that holds the same value. It is taken as the reply when it comes when this unit's replies
-    // usually come; not when it comes later than that (the real reply, usually on time, has not
-    // come: a copy is the likelier), nor when a damaged frame or another unit's came first in the
-    // wait (that may have been the real reply, spoiled), nor at all on a line seen sending copies
-    // within the last ten minutes, where a request may fail (0Bh) rather than risk another
-    // request's value. The same read asked again after a write to what it reads counts as
-    // another request, and a copy of its reply from before the write is never taken, even on
-    // time: it would be the value the write replaced (a client's read-modify-write read back
-    // the old value when the read-back's real reply came late and a repeater's copy of the first
-    // read's reply on time; the soak, tests/gateway/line_soak_test.cpp, found both). A device
-    // that really answers the same (a write of the value there already) is heard again on the
-    // next try, whose reply is then taken.
-    // Lateness alone is suspicion, not proof: a loaded host delivers a real reply late now and
-    // then, so it does not mark the line as one that sends copies (a copy heard between
-    // exchanges, or a second frame for one request, does), and the request is tried again
-    // (exchange) while tries remain, so that a late reply equal to another register's costs
-    // its request one more try, not every such request for ten minutes.
-    Result<void> not_a_duplicate(Awaited& awaited, ByteView raw) {
-        const auto copied = earlier_copy(raw, awaited.request, awaited.unit);
+    // Copies. RTU has no transaction id: a frame with the same bytes as one heard within the copy
+    // window for another request (a repeater or relay sending a reply again, up to hundreds of
+    // milliseconds later; the late-reply window bounds how late) could be that copy, whatever
+    // its delay, and a value handed out from it would be another request's. So it is refused and
+    // counted, and the wait goes on a moment for the real reply (after_refused_copy). The same
+    // read asked again after a write over what it reads counts as another request: a copy of its
+    // reply from before the write carries the value the write replaced. Two registers that
+    // really hold the same value look alike too: the request then gets one more try
+    // (exchange), and bytes that the device answers again, in a wait where nothing else
+    // arrived, are its own answer and taken (a copy does not come twice on cue).
+    Result<void> not_a_copy(Awaited& awaited, ByteView raw) {
+        const auto copied = copies_.copy_of(raw, awaited.request, awaited.unit, clock_->now());
         if (!copied) return {};
-        const auto now = clock_->now();
-        const bool late =
-            awaited.usual > Duration::zero() && now - awaited.sent_at > awaited.usual + inter_frame_gap_ + reply_jitter;
-        const bool marked = line_sends_copies();
-        // The same read's reply from before a write over what it reads: the value the write
-        // replaced. Taken only on time, in a clean wait, from a try after one that heard these
-        // bytes since the write (exchange gives it that try).
-        const bool replaced = std::ranges::equal(copied->request, awaited.request);
-        const bool confirmed = replaced && heard_since_write(raw, awaited.request, awaited.unit);
-        if (!late && awaited.clean && !marked && (!replaced || confirmed)) return {};
+        if (awaited.retry && awaited.clean && std::ranges::find(refused_this_exchange_, Bytes(raw.begin(), raw.end())) != refused_this_exchange_.end()) {
+            copies_.confirm(raw, awaited.request, exchange_started_);
+            confirmed_this_exchange_ = true;
+            return {};
+        }
         awaited.refused_a_copy = true;
-        awaited.refused_a_replaced_value = replaced;
-        if (marked) copy_seen_at_ = now;
-        const auto ago = std::chrono::duration_cast<milliseconds>(now - copied->at).count();
-        if (replaced) {
+        refused_this_exchange_.emplace_back(raw.begin(), raw.end());
+        const auto ago = std::chrono::duration_cast<milliseconds>(clock_->now() - copied->at).count();
+        if (copied->replaced) {
             return make_error(ErrorKind::mismatch,
                               fmt::format("the same bytes as this read's reply {} ms ago, before a write to what it reads: "
                                           "the value the write replaced, probably a copy; not taken",
                                           ago));
         }
-        const char* why = late ? "and later than this unit answers"
-                               : (marked ? "on a line that has sent copies" : "after a damaged or another unit's frame");
         return make_error(ErrorKind::mismatch,
-                          fmt::format("the same bytes as the reply to another request {} ms ago, {}: a duplicate, "
-                                      "probably; not taken",
-                                      ago, why));
+                          fmt::format("the same bytes as a frame heard {} ms ago for another request: a copy, "
+                                      "possibly; not taken",
+                                      ago));
     }
 
-    // The last frames from the units asked, with the request each came for.
-    struct SeenFrame {
-        Bytes raw;
-        Bytes request;
-        Instant at;
-    };
-
-    void remember(ByteView raw, ByteView request) {
-        if (recent_frames_.size() == recent_frames_kept) recent_frames_.pop_front();
-        recent_frames_.push_back({Bytes(raw.begin(), raw.end()), Bytes(request.begin(), request.end()), clock_->now()});
-    }
-
-    // A frame seen with the same bytes for another request, recently enough for a copy of it to
-    // be still on its way; or, failing that, for `request` itself, a read (functions 1-4),
-    // before a write over what it reads (then it is another request's too: the one before the
-    // write). For `request` with nothing written since it would be its answer all the same, and
-    // so for a write asked again: its echo is the same whatever the device held.
-    std::optional<SeenFrame> earlier_copy(ByteView raw, ByteView request, std::uint8_t unit) const {
-        const auto recent = clock_->now() - copy_window();
-        const auto read = codec::read_span(request);
-        std::optional<SeenFrame> before_write;
-        for (const auto& seen : recent_frames_) {
-            if (seen.at < recent || !std::ranges::equal(seen.raw, raw)) continue;
-            if (!std::ranges::equal(seen.request, request)) return seen;
-            if (read && !before_write && written_over(unit, *read, seen.at)) before_write = seen;
-        }
-        return before_write;
-    }
-
-    // Whether a try of `request` heard these bytes after the last write over what it reads.
-    bool heard_since_write(ByteView raw, ByteView request, std::uint8_t unit) const {
-        const auto recent = clock_->now() - copy_window();
-        const auto read = codec::read_span(request);
-        return std::ranges::any_of(recent_frames_, [&](const SeenFrame& seen) {
-            return seen.at >= recent && std::ranges::equal(seen.raw, raw) && std::ranges::equal(seen.request, request) &&
-                   read && !written_over(unit, *read, seen.at);
-        });
+    // After a frame refused as a possible copy the real reply may still come, usually when this
+    // unit's replies come: it is awaited until then (with the jitter a host adds), not for the
+    // whole timeout, which a register that really holds another's value would cost every time.
+    Instant after_refused_copy(const Awaited& awaited) const {
+        if (awaited.usual == Duration::zero()) return Instant::max();
+        return std::max(last_heard_, awaited.sent_at + awaited.usual) + inter_frame_gap_ + reply_jitter;
     }
 
     Duration copy_window() const { return options_.timeout + late_reply_window(); }
 
-    // Functions 1-4 read; anything else may change what a read of the unit answers.
-    static bool reads_only(std::uint8_t function) { return function >= 1 && function <= 4; }
+    // A fault (a timeout, a frame refused, damaged, from another unit or between exchanges) may
+    // echo for as long as a late reply or a copy can come: until then the line is careful.
+    void note_fault() { careful_until_ = clock_->now() + late_reply_window(); }
+    bool line_behaves() const { return clock_->now() >= careful_until_; }
 
-    void note_write(std::uint8_t unit, ByteView pdu, Instant sent_at) {
-        auto& writes = writes_[unit];
-        while (!writes.empty() && (writes.front().at < sent_at - copy_window() || writes.size() >= 64)) writes.pop_front();
-        writes.push_back({sent_at, codec::written_span(pdu)});
-    }
-
-    // Whether a request that may change what `read` reads of the unit (sent to it, or
-    // broadcast) went out at or after `at`: a write sent at the instant a frame was heard
-    // follows it (the master sends once the line is quiet). A write elsewhere in the unit is
-    // not counted (a read of other registers answers the same after it); one whose reach is not
-    // known is.
-    bool written_over(std::uint8_t unit, const codec::DataSpan& read, Instant at) const {
-        return std::ranges::any_of(std::array<std::uint8_t, 2>{unit, std::uint8_t{0}}, [&](std::uint8_t to) {
-            const auto found = writes_.find(to);
-            if (found == writes_.end()) return false;
-            return std::ranges::any_of(found->second, [&](const SentWrite& write) {
-                return write.at >= at && (!write.span || write.span->overlaps(read));
-            });
-        });
-    }
-
-    bool is_copy_of_recent(ByteView raw) const {
-        const auto recent = clock_->now() - (options_.timeout + late_reply_window());
-        return std::ranges::any_of(recent_frames_, [&](const SeenFrame& seen) {
-            return seen.at >= recent && std::ranges::equal(seen.raw, raw);
-        });
-    }
-
-    // A frame that cannot be the reply awaited (another unit's, or not this request's shape) and
-    // has the bytes of a recent one is a copy: the line sends copies, and from now on a reply
-    // equal to another request's is not taken (not_a_duplicate). Every such sighting counts, so
-    // that a copy racing a lost reply finds the line marked already: the first copy a line
-    // sends, taken on time for a request of the same shape whose real reply is lost, is the
-    // one case RTU leaves open (the soak, tests/gateway/line_soak_test.cpp, found it). From a unit
-    // whose last request went unanswered the frame may be that request's late reply, which may
-    // equal an earlier reply to it: no sign of copies.
-    void note_if_copy(const codec::Frame& frame) {
-        if (!unsettled_.contains(frame.unit) && is_copy_of_recent(frame.raw)) copy_seen_at_ = clock_->now();
-    }
-
-    bool line_sends_copies() const {
-        return copy_seen_at_ && clock_->now() - *copy_seen_at_ < std::chrono::minutes(10);
-    }
-
-    // Ambiguity rule. RTU has no transaction id: a frame that answers the request in shape may
-    // still be a duplicate of an earlier reply, or an earlier request's late reply, that came
-    // before the real one. The master keeps 3.5 characters of silence after a frame before it
-    // sends again anyway (Modbus over serial line V1.02, 2.5.1.1); the accepted frame is handed
-    // out only once that silence has passed, and no sooner than 3.5 characters after the time
-    // this unit's reply to this function usually has come (the longest of its last clean
-    // exchanges, measured from the end of the request). A stray frame that arrived before the
-    // real reply is thereby followed, inside that wait, by the real one; any frame (or damaged
-    // frame) from the same unit starting inside it makes the reply ambiguous: it is discarded
-    // as a bad reply rather than handed out as a value that may be another request's.
+    // A reply that is complete and checked (unit, function, byte count or echo, CRC, not a
+    // possible copy) is handed out at once on a line that behaves: the next request then goes
+    // out after the 3.5 characters of silence the spec asks (Modbus over serial line V1.02,
+    // 2.5.1.1) and nothing more, as the copy rule and the late-reply window (exchange) already
+    // keep another request's frame from being taken.
     //
-    // What this guarantees: one stray frame that arrives after the request was sent and before
-    // the real reply is never taken, as long as the real reply comes no later than this unit
-    // usually answers. What it cannot: a stray frame whose real reply never comes (lost, or far
-    // slower than usual) is indistinguishable from the reply unless it differs in shape (the
-    // ReplyCheck) or is a copy of a recent frame (not_a_duplicate); a stray frame arriving after
-    // the real reply and its silence belongs to the next exchange, where the same rules apply.
-    // On a healthy line it costs nothing: the real reply comes at the usual time, so only the
-    // 3.5 characters kept anyway are waited. On a retry the replies of the earlier tries answer
-    // the same request, so a second frame is no ambiguity there.
-    Task<Result<Bytes>> settle(Awaited& awaited, codec::Frame accepted, Instant usual_start, Instant deadline, bool retry) {
+    // On a line that has just shown a fault, the reply is held a little (the ambiguity rule): it
+    // is handed out only once the 3.5 characters after it have passed, and no sooner than 3.5
+    // characters after the time this unit's reply to this function usually comes (the longest of
+    // its last clean exchanges); any frame (or damaged frame) from the same unit starting inside
+    // that wait makes the reply ambiguous, and it is discarded as a bad reply rather than handed
+    // out as a value that may be another request's. That catches a stray frame the copy rule
+    // cannot know (a copy of a frame heard damaged) when the real reply follows it on time. On a
+    // retry the replies of the earlier tries answer the same request, so a second frame is no
+    // ambiguity there.
+    Task<Result<Bytes>> settle(Awaited& awaited, codec::Frame accepted, Instant usual_start, Instant deadline) {
+        if (line_behaves()) {
+            line_quiet_since_ = std::max(clock_->now(), last_heard_);
+            trace(TraceDirection::received, accepted.raw, reply_note(awaited.unit, accepted.pdu));
+            co_return std::move(accepted.pdu);
+        }
         std::optional<std::string> ambiguity;
         const Instant accepted_at = clock_->now();
         Instant quiet_until = std::max(accepted_at, usual_start) + inter_frame_gap_;
-        // A reply with the same bytes as another request's recent one may be its copy, come
-        // just when this reply was due, with the real reply a little behind it: the silence is
-        // kept for the reply jitter too, so that the real one, if it comes, makes it ambiguous.
-        // Only replies equal to a recent one pay this wait.
-        if (!retry && earlier_copy(accepted.raw, awaited.request, awaited.unit)) {
-            quiet_until = std::max(quiet_until, usual_start + reply_jitter + inter_frame_gap_);
-        }
         // A line that keeps talking after the reply cannot settle the question: give up at the
         // deadline (or a little after the silence, if the reply came that late).
         const Instant give_up = std::max(deadline, quiet_until + inter_frame_gap_);
@@ -755,10 +672,8 @@ private:
             examine(*events);
         }
         line_quiet_since_ = std::max(accepted_at, last_heard_);
-        if (ambiguity && !retry) {
-            // The frame taken first was a copy of another request's reply, and the real one came:
-            // this line sends copies.
-            if (earlier_copy(accepted.raw, awaited.request, awaited.unit)) copy_seen_at_ = clock_->now();
+        if (ambiguity && !awaited.retry) {
+            note_fault();
             awaited.clean = false;
             const auto why = make_error(
                 ErrorKind::mismatch,
@@ -781,13 +696,12 @@ private:
             return fmt::format("a damaged frame from unit {} followed it within the silence", unit);
         }
         const auto& frame = std::get<codec::Frame>(event);
+        copies_.heard(frame.raw, ByteView{}, clock_->now());
         if (frame.unit != unit) {
             heard_from(frame.unit);
             trace(TraceDirection::received, frame.raw, fmt_unit_skip(frame.unit, unit));
             return std::nullopt;
         }
-        if (is_copy_of_recent(frame.raw)) copy_seen_at_ = clock_->now();
-        remember(frame.raw, ByteView{});
         trace(TraceDirection::discarded, frame.raw, "a second frame from the unit for one request");
         return fmt::format("another frame from unit {} followed it within the silence", unit);
     }
@@ -821,17 +735,12 @@ private:
     // try ended or the unit was last heard since.
     std::map<std::uint8_t, Instant> unsettled_;
     std::map<LatencyKey, ReplyLatency> latencies_;
-    static constexpr std::size_t recent_frames_kept = 16;
-    std::deque<SeenFrame> recent_frames_;
-    std::optional<Instant> copy_seen_at_;  // when a copy of a frame was last seen
-    // Requests that may write, by unit (0: broadcast), sent within the copy window: oldest first.
-    struct SentWrite {
-        Instant at;
-        std::optional<codec::DataSpan> span;  // none: it may change anything
-    };
-    std::map<std::uint8_t, std::deque<SentWrite>> writes_;
-    bool last_try_refused_a_copy_ = false;  // the last try's wait refused a frame as a probable copy
-    bool last_try_refused_a_replaced_value_ = false;  // ... as a read's reply from before a write over it
+    CopyGuard copies_;  // frames heard and writes sent within the copy window
+    Instant careful_until_{};  // until when a fault may still echo (note_fault)
+    Instant exchange_started_{};
+    std::vector<Bytes> refused_this_exchange_;  // frames the tries of this exchange refused as possible copies
+    bool last_try_refused_a_copy_ = false;  // the last try's wait refused a frame as a possible copy
+    bool confirmed_this_exchange_ = false;  // a try took bytes an earlier try refused, heard again
     // On the loop (MasterOptions::loop): the jobs waiting, the one carried, and the destructor
     // waiting for both to end.
     std::deque<std::function<DetachedTask()>> queued_;

@@ -279,14 +279,17 @@ TEST(RtuDecoder, ReplyReadInThreeLatePiecesIsKept) {
     EXPECT_EQ(std::get<Frame>(events[0]).raw, reply);
 }
 
-// A silence the reader waited through itself is real: a frame cut short by it is discarded,
-// and the late pieces rule above does not keep it alive.
+// A silence the reader waited through itself ends a frame under way once it has lasted the
+// patience a reader's batches need (20 ms): then the frame is discarded, and the late pieces
+// rule above does not keep it alive.
 TEST(RtuDecoder, FrameCutShortBySilenceTheReaderSawIsDiscarded) {
     const Bytes reply = hex("03 03 02 00 00 C1 84");
     RtuDecoder decoder(Direction::reply, timing_9600());
     EXPECT_TRUE(decoder.feed(ByteView(reply).first(2), t0).empty());
     EXPECT_TRUE(decoder.feed(ByteView(reply).subspan(2, 2), t0 + 5ms).empty());
-    const auto at_silence = decoder.flush(t0 + 10ms);
+    EXPECT_TRUE(decoder.flush(t0 + 10ms).empty());  // more than 3.5 characters, less than the patience
+    EXPECT_EQ(decoder.silence_deadline(), t0 + 25ms);
+    const auto at_silence = decoder.flush(t0 + 26ms);
     ASSERT_EQ(at_silence.size(), 1u);
     EXPECT_EQ(std::get<DiscardedBytes>(at_silence[0]).bytes, hex("03 03 02 00"));
     EXPECT_EQ(std::get<DiscardedBytes>(at_silence[0]).reason, "gap inside frame: silence after 4 of 7 bytes");
@@ -319,9 +322,11 @@ TEST(RtuDecoder, FrameSplitByALongGapIsDiscarded) {
     const auto& first_half = std::get<DiscardedBytes>(at_second_half[0]);
     EXPECT_EQ(first_half.bytes, hex("01 03 00 8A"));
     EXPECT_EQ(first_half.reason, "gap inside frame: silence after 4 of 8 bytes");
-    // The second half waits for more, then is judged at the next silence.
+    // The second half waits for more (it starts like a request of unit 0: a frame under way),
+    // then is judged once the reader's silence has outlasted the patience.
     EXPECT_EQ(decoder.buffered(), 4u);
-    const auto at_flush = decoder.flush(t0 + 20ms);
+    EXPECT_TRUE(decoder.flush(t0 + 20ms).empty());
+    const auto at_flush = decoder.flush(t0 + 30ms);
     ASSERT_EQ(at_flush.size(), 1u);
     EXPECT_EQ(std::get<DiscardedBytes>(at_flush[0]).bytes, second_half);
     EXPECT_EQ(decoder.buffered(), 0u);
@@ -399,8 +404,8 @@ TEST(RtuDecoder, UnknownFunctionCompletedBySilence) {
     RtuDecoder decoder(Direction::request, timing_9600());
     EXPECT_TRUE(decoder.feed(report_id, t0).empty());
     EXPECT_EQ(decoder.silence_deadline(), t0 + 4011us);
-    EXPECT_TRUE(decoder.flush(t0 + 4011us).empty());
-    const auto events = decoder.flush(t0 + 4012us);
+    EXPECT_TRUE(decoder.flush(t0 + 4010us).empty());
+    const auto events = decoder.flush(t0 + 4011us);
     ASSERT_EQ(events.size(), 1u);
     const auto& frame = std::get<Frame>(events[0]);
     EXPECT_EQ(frame.unit, 5);
@@ -505,12 +510,36 @@ TEST(RtuDecoder, EndlessNoiseIsReportedInBoundedRuns) {
 TEST(RtuDecoder, SilenceDeadlineTracksTheLastArrival) {
     RtuDecoder decoder(Direction::request, CharacterTiming{38400, 11});
     EXPECT_EQ(decoder.silence_deadline(), std::nullopt);
-    EXPECT_TRUE(decoder.feed(ByteView(read_pv_request).first(2), t0).empty());
+    // Bytes that start no frame of known length: 3.5 characters end them.
+    EXPECT_TRUE(decoder.feed(hex("05 11"), t0).empty());
     EXPECT_EQ(decoder.silence_deadline(), t0 + 1750us);
+    EXPECT_TRUE(decoder.flush(t0 + 1ms).empty());  // 1 ms of silence is not enough
+    EXPECT_EQ(decoder.buffered(), 2u);
+    decoder.reset();
+    // A frame under way (a read request is 8 bytes): the patience for a reader's batches.
+    EXPECT_TRUE(decoder.feed(ByteView(read_pv_request).first(2), t0).empty());
+    EXPECT_EQ(decoder.silence_deadline(), t0 + 20ms);
     EXPECT_TRUE(decoder.feed(ByteView(read_pv_request).subspan(2, 2), t0 + 1ms).empty());
-    EXPECT_EQ(decoder.silence_deadline(), t0 + 1ms + 1750us);
-    EXPECT_TRUE(decoder.flush(t0 + 2ms).empty());  // 1 ms of silence is not enough
+    EXPECT_EQ(decoder.silence_deadline(), t0 + 1ms + 20ms);
+    EXPECT_TRUE(decoder.flush(t0 + 2ms).empty());
     EXPECT_EQ(decoder.buffered(), 4u);
+}
+
+// A relay or USB adapter that hands a frame over in pieces with a few milliseconds between them
+// (more than 3.5 characters at 19200 baud: 1.8 ms) makes no garbled frame: the reader's silence
+// inside a frame under way is not the wire's.
+TEST(RtuDecoder, AFrameHandedOverInPiecesWithJitterComesOutWhole) {
+    const Bytes reply = hex("03 03 02 00 00 C1 84");
+    RtuDecoder decoder(Direction::reply, CharacterTiming{19200, 10});
+    FrameEvents events = decoder.feed(ByteView(reply).first(3), t0);
+    append(events, decoder.flush(t0 + 3ms));  // the reader woke with nothing more
+    append(events, decoder.feed(ByteView(reply).subspan(3, 2), t0 + 3ms));
+    append(events, decoder.flush(t0 + 8ms));
+    append(events, decoder.feed(ByteView(reply).subspan(5), t0 + 8ms));
+    EXPECT_TRUE(discards_in(events).empty());
+    const auto frames = frames_in(events);
+    ASSERT_EQ(frames.size(), 1u);
+    EXPECT_EQ(frames[0].raw, reply);
 }
 
 TEST(RtuDecoder, EmptyFeedActsAsFlush) {

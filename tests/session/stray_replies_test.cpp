@@ -1,4 +1,4 @@
-// The serial master never hands out a reply that may be another request's (issue 20): replies
+// The serial master never hands out a reply that may be another request's: replies
 // that come after the timeout, duplicated replies, cut-short and corrupted ones. First in virtual
 // time against a line whose arrivals the test schedules to the microsecond, then in wall time on
 // the virtual bus with a real slave and random faults.
@@ -198,42 +198,70 @@ TEST(StrayReplies, ARequestToAnotherUnitDoesNotWaitForTheWindow) {
 }
 
 // Modbus has no transaction id on a serial line: a duplicate of the previous reply that lands
-// after the next request was sent and before its real reply looks like that reply. The real
-// one follows within this unit's usual latency, so the master sees two frames for one request
-// and takes neither.
-TEST(StrayReplies, ADuplicateThatRacesTheRealReplyMakesItAmbiguousAndNeitherIsTaken) {
+// after the next request was sent and before its real reply has that reply's shape. It has the
+// bytes of a frame heard for another request, so it is refused, and the real reply after it
+// taken.
+TEST(StrayReplies, ADuplicateThatRacesTheRealReplyIsRefusedAndTheRealOneTaken) {
     Bytes previous_reply;
     TracedMaster m([&previous_reply](TimedLine& line, ByteView request, Instant at, unsigned n) {
         if (n == 3) line.arrive(at + 1ms, previous_reply);  // a repeater sends the last reply again
         previous_reply = reply_frame_to(request);
         line.arrive(at + latency, previous_reply);
     });
-    for (const std::uint16_t address : {std::uint16_t{10}, std::uint16_t{11}, std::uint16_t{12}}) {  // the master learns how soon this unit answers
+    for (const std::uint16_t address : {std::uint16_t{10}, std::uint16_t{11}, std::uint16_t{12}}) {
         auto reply = m.master->forward(unit, read_pdu(address));
         ASSERT_TRUE(reply.ok()) << reply.error().message;
         EXPECT_EQ(to_hex(*reply), to_hex(reply_pdu(address)));
     }
     auto raced = m.master->forward(unit, read_pdu(777));
-    ASSERT_FALSE(raced.ok()) << "took " << to_hex(*raced) << " for register 777";
-    EXPECT_EQ(raced.error().kind, ErrorKind::mismatch);
-    EXPECT_NE(raced.error().message.find("ambiguous reply"), std::string::npos) << raced.error().message;
-    EXPECT_EQ(m.discarded_with("ambiguous reply"), 1u);
-
-    auto next = m.master->forward(unit, read_pdu(778));
-    ASSERT_TRUE(next.ok()) << next.error().message;
-    EXPECT_EQ(to_hex(*next), to_hex(reply_pdu(778)));
+    ASSERT_TRUE(raced.ok()) << raced.error().message;
+    EXPECT_EQ(to_hex(*raced), to_hex(reply_pdu(777)));
+    EXPECT_EQ(m.discarded_with("a copy, possibly"), 1u);
+    EXPECT_EQ(m.line->writes().size(), 4u) << "the real reply came in the same try";
 }
 
-// The same duplicate just after the real reply, inside the silence the master keeps after it:
-// the reply is ambiguous too (the first frame might have been the stray one).
-TEST(StrayReplies, ASecondFrameInsideTheSilenceAfterAReplyMakesItAmbiguous) {
-    TracedMaster m([](TimedLine& line, ByteView request, Instant at, unsigned n) {
-        line.arrive(at + latency, reply_frame_to(request));
-        if (n == 1) line.arrive(at + latency + 1ms, reply_frame_to(request));
+// A copy long after its original (a relay 350 ms late, with dozens of other requests answered
+// in between) is known by its bytes all the same: the master keeps what it heard for the whole
+// copy window, not a count of frames.
+TEST(StrayReplies, ACopyHundredsOfFramesLateIsStillKnownForOne) {
+    Bytes first_reply;
+    TracedMaster m([&first_reply](TimedLine& line, ByteView request, Instant at, unsigned n) {
+        const Bytes real = reply_frame_to(request);
+        if (n == 0) first_reply = real;
+        if (n == 200) {
+            line.arrive(at + latency, first_reply);  // the real reply is lost; the copy comes on time
+            return;
+        }
+        line.arrive(at + latency, real);
     });
+    for (std::uint16_t address = 100; address < 300; ++address) ASSERT_TRUE(m.master->forward(unit, read_pdu(address)).ok());
+    auto copied = m.master->forward(unit, read_pdu(300));
+    ASSERT_TRUE(copied.ok()) << copied.error().message;
+    EXPECT_EQ(to_hex(*copied), to_hex(reply_pdu(300))) << "the copy of register 100's reply was taken";
+    EXPECT_EQ(m.discarded_with("a copy, possibly"), 1u);
+}
+
+// On a line that behaves a reply is handed out as soon as it is complete and checked: a frame
+// after it belongs to the time between exchanges, heard out before the next request. Once the
+// line has shown a fault, a second frame inside the silence after a reply makes it ambiguous
+// (the first frame might have been the stray one), for as long as the fault may echo.
+TEST(StrayReplies, ASecondFrameInsideTheSilenceMakesAReplyAmbiguousOnlyAfterAFault) {
+    TracedMaster m(
+        [](TimedLine& line, ByteView request, Instant at, unsigned n) {
+            line.arrive(at + latency, reply_frame_to(request));
+            if (n >= 1) line.arrive(at + latency + 1ms, codec::rtu_encode(unit, reply_pdu(static_cast<std::uint16_t>(900 + n))));
+        },
+        200ms);
     ASSERT_TRUE(m.master->forward(unit, read_pdu(5)).ok());
-    auto doubled = m.master->forward(unit, read_pdu(6));
-    ASSERT_FALSE(doubled.ok());
+    auto at_once = m.master->forward(unit, read_pdu(6));
+    ASSERT_TRUE(at_once.ok()) << at_once.error().message;
+    EXPECT_EQ(to_hex(*at_once), to_hex(reply_pdu(6)));
+    EXPECT_LT(m.clock->now() - m.line->writes().back(), latency + 1ms) << "handed out before the second frame came";
+    // The second frame is heard out before the next request: a fault, and for the late-reply
+    // window the line is careful.
+    auto doubled = m.master->forward(unit, read_pdu(7));
+    EXPECT_EQ(m.discarded_with("late reply from unit 1"), 1u);
+    ASSERT_FALSE(doubled.ok()) << "took " << to_hex(*doubled);
     EXPECT_NE(doubled.error().message.find("another frame from unit 1"), std::string::npos) << doubled.error().message;
 }
 
@@ -288,9 +316,9 @@ TEST(StrayReplies, ALateReplyToAnEarlierTryOfTheSameRequestIsTaken) {
 }
 
 // A copy of the last reply that comes just when this reply is due, with the real reply 20 ms
-// behind it (a loaded host, a USB adapter's latency timer): a reply equal to another request's
-// recent one waits out the reply jitter, so the real one makes it ambiguous.
-TEST(StrayReplies, ACopyOnTimeWithTheRealReplyALittleLateIsAmbiguous) {
+// behind it (a loaded host, a USB adapter's latency timer): the copy is refused and the real
+// reply awaited past its usual time by the host's jitter, and taken.
+TEST(StrayReplies, ACopyOnTimeWithTheRealReplyALittleLateIsRefusedAndTheRealOneTaken) {
     Bytes previous_reply;
     TracedMaster m([&previous_reply](TimedLine& line, ByteView request, Instant at, unsigned n) {
         const Bytes real = reply_frame_to(request);
@@ -306,10 +334,10 @@ TEST(StrayReplies, ACopyOnTimeWithTheRealReplyALittleLateIsAmbiguous) {
         ASSERT_TRUE(m.master->forward(unit, read_pdu(address)).ok());
     }
     auto raced = m.master->forward(unit, read_pdu(777));
-    ASSERT_FALSE(raced.ok()) << "took " << to_hex(*raced) << " for register 777";
-    EXPECT_NE(raced.error().message.find("ambiguous reply"), std::string::npos) << raced.error().message;
-    ASSERT_TRUE(m.master->forward(unit, read_pdu(778)).ok());  // after the late-reply window
-    // A reply unlike any recent one pays no such wait: the silence kept anyway, and no more.
+    ASSERT_TRUE(raced.ok()) << raced.error().message;
+    EXPECT_EQ(to_hex(*raced), to_hex(reply_pdu(777)));
+    EXPECT_EQ(m.discarded_with("a copy, possibly"), 1u);
+    // While the fault may echo a reply is held for the silence after its usual time, and no more.
     const auto before = m.clock->now();
     ASSERT_TRUE(m.master->forward(unit, read_pdu(779)).ok());
     EXPECT_LT(m.clock->now() - before, latency + 5ms);
@@ -348,8 +376,10 @@ TEST(StrayReplies, ACopyOfTheReplyBeforeAWriteIsNotTakenForTheSameReadAfterIt) {
         if (written) {
             ASSERT_FALSE(read_back.ok()) << "took " << to_hex(*read_back) << ", the value from before the write";
             EXPECT_EQ(read_back.error().kind, ErrorKind::mismatch);
-            // Refused on the try the master adds for it too: that try's wait was not clean either.
-            EXPECT_EQ(m.discarded_with("the value the write replaced"), 2u);
+            // Refused on the try the master adds for it too: that try's wait was not clean either
+            // (the second time as a copy of the first try's frame, heard for no request).
+            EXPECT_EQ(m.discarded_with("the value the write replaced"), 1u);
+            EXPECT_EQ(m.discarded_with("a copy, possibly"), 1u);
         } else {
             ASSERT_TRUE(read_back.ok()) << read_back.error().message;
             EXPECT_EQ(to_hex(*read_back), to_hex(reply_pdu(777)));
@@ -413,43 +443,31 @@ TEST(StrayReplies, AWriteAskedAgainTakesItsEchoThoughItEqualsTheFirst) {
     EXPECT_EQ(m.line->writes().size(), 2u);
 }
 
-// A real reply that comes late (a loaded host) with the same bytes as the reply to another
-// request (two registers holding the same value) looks like a copy and is refused, as the
-// request's own reply may have been lost. With a retry allowed the request is tried again and
-// its reply, on time, taken; lateness alone does not mark the line as one that sends copies, so
-// the next equal reply on time is taken too.
-TEST(StrayReplies, ALateReplyEqualToAnotherRequestsIsRefusedAndTheRequestTriedAgain) {
+// Registers that really hold the same value answer with the same bytes: the second looks like a
+// copy of the first and is refused, and the request is asked once more, beyond `retries` (none
+// here). The device says the same again in a clean wait: its own answer, taken. A failed read
+// would cost more than the try.
+TEST(StrayReplies, RegistersHoldingTheSameValueCostOneMoreTryNotAFailure) {
     const Bytes zero_pdu{0x03, 0x02, 0x00, 0x00};  // every register holds 0: every reply is alike
-    const auto device = [&zero_pdu](TimedLine& line, ByteView, Instant at, unsigned n) {
-        line.arrive(at + (n == 3 ? latency + 300ms : latency), codec::rtu_encode(unit, zero_pdu));
-    };
-    TracedMaster once(device);
-    TracedMaster twice(device, std::nullopt, 1);
-    for (TracedMaster* m : {&once, &twice}) {
-        for (const std::uint16_t address : {std::uint16_t{10}, std::uint16_t{11}, std::uint16_t{12}}) {
-            ASSERT_TRUE(m->master->forward(unit, read_pdu(address)).ok());
-        }
+    TracedMaster m([&zero_pdu](TimedLine& line, ByteView, Instant at, unsigned) {
+        line.arrive(at + latency, codec::rtu_encode(unit, zero_pdu));
+    });
+    for (const std::uint16_t address : {std::uint16_t{10}, std::uint16_t{11}, std::uint16_t{12}, std::uint16_t{13}}) {
+        auto reply = m.master->forward(unit, read_pdu(address));
+        ASSERT_TRUE(reply.ok()) << reply.error().message;
+        EXPECT_EQ(*reply, zero_pdu);
     }
-    auto refused = once.master->forward(unit, read_pdu(13));
-    ASSERT_FALSE(refused.ok()) << "took " << to_hex(*refused) << " with no retry allowed";
-    EXPECT_NE(refused.error().message.find("a duplicate, probably"), std::string::npos) << refused.error().message;
-
-    auto retried = twice.master->forward(unit, read_pdu(13));
-    ASSERT_TRUE(retried.ok()) << retried.error().message;
-    EXPECT_EQ(*retried, zero_pdu);
-    EXPECT_EQ(twice.discarded_with("a duplicate, probably"), 1u);
-    EXPECT_EQ(twice.line->writes().size(), 5u) << "the fourth request is sent twice";
-    for (TracedMaster* m : {&once, &twice}) {
-        auto next = m->master->forward(unit, read_pdu(14));
-        ASSERT_TRUE(next.ok()) << next.error().message;
-    }
-    EXPECT_EQ(twice.discarded_with("a duplicate, probably"), 1u);
+    EXPECT_EQ(m.discarded_with("a copy, possibly"), 3u);
+    EXPECT_EQ(m.line->writes().size(), 7u) << "each read after the first is asked twice";
+    // The same read again answers as it did: no copy to refuse, one try.
+    ASSERT_TRUE(m.master->forward(unit, read_pdu(13)).ok());
+    EXPECT_EQ(m.line->writes().size(), 8u);
 }
 
-// A copy that arrives between exchanges is read and examined before it is dropped: the line is
-// then known to send copies, and a later copy that comes on time, in place of a reply that
-// never comes, is refused rather than handed out as register 30's value.
-TEST(StrayReplies, ACopyHeardBetweenExchangesMarksTheLineSoALaterOnTimeCopyIsRefused) {
+// A copy that comes on time in place of a reply that is lost (a repeater's copy of the reply
+// before) is refused, however long the line has behaved, and the request asked again: the
+// device's real answer is taken, not register 12's value.
+TEST(StrayReplies, ACopyOnTimeInPlaceOfALostReplyIsRefusedAndTheRequestAskedAgain) {
     Bytes previous_reply;
     TracedMaster m([&previous_reply](TimedLine& line, ByteView request, Instant at, unsigned n) {
         const Bytes real = reply_frame_to(request);
@@ -457,26 +475,21 @@ TEST(StrayReplies, ACopyHeardBetweenExchangesMarksTheLineSoALaterOnTimeCopyIsRef
             line.arrive(at + latency, previous_reply);  // the real reply is lost
         } else {
             line.arrive(at + latency, real);
-            if (n == 1) line.arrive(at + latency + 20ms, real);  // repeated while the line is idle
             previous_reply = real;
         }
     });
-    ASSERT_TRUE(m.master->forward(unit, read_pdu(10)).ok());
-    ASSERT_TRUE(m.master->forward(unit, read_pdu(11)).ok());
-    m.clock->sleep_for(100ms);  // the gateway has nothing to ask for a while
-    ASSERT_TRUE(m.master->forward(unit, read_pdu(12)).ok());
-    EXPECT_EQ(m.discarded_with("late reply from unit 1"), 1u);
+    for (const std::uint16_t address : {std::uint16_t{10}, std::uint16_t{11}, std::uint16_t{12}}) {
+        ASSERT_TRUE(m.master->forward(unit, read_pdu(address)).ok());
+    }
     auto copied = m.master->forward(unit, read_pdu(30));
-    ASSERT_FALSE(copied.ok()) << "took " << to_hex(*copied) << " for register 30";
-    EXPECT_NE(copied.error().message.find("on a line that has sent copies"), std::string::npos)
-        << copied.error().message;
+    ASSERT_TRUE(copied.ok()) << copied.error().message;
+    EXPECT_EQ(to_hex(*copied), to_hex(reply_pdu(30))) << "took register 12's value for register 30";
+    EXPECT_EQ(m.discarded_with("a copy, possibly"), 1u);
 }
 
-// A copy heard while a request to another unit is under way (a repeater's copy of unit 1's
-// reply landing in unit 2's exchange) marks the line as well, so that a later copy, on time in
-// place of a reply to unit 1 that is lost, is refused. The line soak found this: before, only a
-// copy heard between exchanges marked the line, and a client's read took another read's copy.
-TEST(StrayReplies, ACopyHeardDuringAnotherUnitsExchangeMarksTheLine) {
+// A copy of unit 1's reply heard in unit 2's exchange, and another on time in place of a reply
+// to unit 1 that is lost: both refused, and unit 1's real value taken on the next try.
+TEST(StrayReplies, ACopyInAnotherUnitsExchangeAndOneInPlaceOfALostReplyAreRefused) {
     Bytes previous_reply;
     TracedMaster m([&previous_reply](TimedLine& line, ByteView request, Instant at, unsigned n) {
         const std::uint8_t asked = request[0];
@@ -494,23 +507,20 @@ TEST(StrayReplies, ACopyHeardDuringAnotherUnitsExchangeMarksTheLine) {
     ASSERT_TRUE(other.ok()) << other.error().message;
     EXPECT_EQ(to_hex(*other), to_hex(reply_pdu(50)));
     auto copied = m.master->forward(unit, read_pdu(30));
-    ASSERT_FALSE(copied.ok()) << "took " << to_hex(*copied) << " for register 30";
-    EXPECT_NE(copied.error().message.find("on a line that has sent copies"), std::string::npos)
-        << copied.error().message;
+    ASSERT_TRUE(copied.ok()) << copied.error().message;
+    EXPECT_EQ(to_hex(*copied), to_hex(reply_pdu(30))) << "took register 10's value for register 30";
+    EXPECT_EQ(m.discarded_with("a copy, possibly"), 1u);
 }
 
-// A late reply to a request that timed out may equal an earlier reply to the same request (the
-// value has not changed): that is no copy, and the line is not taken for one that sends copies,
-// so a later reply that equals another register's (two registers holding the same value) is
-// still taken.
-TEST(StrayReplies, ALateReplyEqualToAnEarlierOneOfTheSameRequestIsNoSignOfCopies) {
+// A late reply to a request that timed out is heard out before the next request and kept in
+// mind: a later frame with its bytes is refused as a possible copy, and taken when the device
+// says it again (register 21 holds what register 11 holds).
+TEST(StrayReplies, ALateReplyIsRememberedAndAnEqualValueTakenWhenSaidAgain) {
     TracedMaster m(
         [](TimedLine& line, ByteView request, Instant at, unsigned n) {
-            if (n == 3) {  // register 21 holds what register 11 holds
-                line.arrive(at + latency, codec::rtu_encode(unit, reply_pdu(11)));
-                return;
-            }
-            line.arrive(at + (n == 1 ? 1050ms : latency), reply_frame_to(request));
+            const std::uint16_t address = read_be16(request, 2);
+            const Bytes real = codec::rtu_encode(unit, reply_pdu(address == 21 ? 11 : address));
+            line.arrive(at + (n == 1 ? 1050ms : latency), real);
         },
         100ms);
     ASSERT_TRUE(m.master->forward(unit, read_pdu(10)).ok());
@@ -520,6 +530,7 @@ TEST(StrayReplies, ALateReplyEqualToAnEarlierOneOfTheSameRequestIsNoSignOfCopies
     auto same_value = m.master->forward(unit, read_pdu(21));
     ASSERT_TRUE(same_value.ok()) << same_value.error().message;
     EXPECT_EQ(to_hex(*same_value), to_hex(reply_pdu(11)));
+    EXPECT_EQ(m.discarded_with("a copy, possibly"), 1u);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -527,29 +538,23 @@ TEST(StrayReplies, ALateReplyEqualToAnEarlierOneOfTheSameRequestIsNoSignOfCopies
 // replies.
 
 struct ReplyFaults {
-    std::mt19937 random{20};  // the issue's number
+    std::mt19937 random{20};
     std::map<std::string, unsigned> counts;
     std::mutex mutex;
-    std::chrono::steady_clock::time_point copy_due_until{};
 
     transport::BusFault decide(const std::string& from, ByteView bytes, std::chrono::milliseconds timeout) {
         transport::BusFault fault;
         if (from != "slave" || bytes.size() < 2) return fault;
         std::lock_guard lock(mutex);
-        unsigned roll = std::uniform_int_distribution<unsigned>(0, 99)(random);
-        // A copy that comes when a reply is due while that reply is lost or late looks like
-        // the reply in every respect (shape, unit, timing) until the line has shown a copy:
-        // the master's stated limit (serial_master.cpp, the ambiguity rule). The faults are
-        // therefore not compounded so: no reply is made late while a copy is on its way.
-        const auto now = std::chrono::steady_clock::now();
-        if (roll < 7 && now < copy_due_until) roll = 99;
+        const unsigned roll = std::uniform_int_distribution<unsigned>(0, 99)(random);
+        // Faults compound freely: a copy may come when a reply is due while that reply is late
+        // (the copy rule knows it by its bytes).
         const auto anywhere = std::uniform_int_distribution<std::size_t>(0, bytes.size() - 1)(random);
         if (roll < 7) {
             fault.extra_delay = timeout + std::chrono::milliseconds(std::uniform_int_distribution<int>(5, 40)(random));
             ++counts["late"];
         } else if (roll < 14) {
             fault.duplicate_after = std::chrono::milliseconds(std::uniform_int_distribution<int>(1, 40)(random));
-            copy_due_until = now + *fault.duplicate_after + 10ms;  // and its wire time
             ++counts["duplicated"];
         } else if (roll < 18) {
             fault.truncate_to = std::uniform_int_distribution<std::size_t>(1, bytes.size() - 1)(random);

@@ -1,0 +1,64 @@
+#include "session/copy_guard.hpp"
+
+#include <algorithm>
+#include <array>
+
+namespace loopwire::session {
+
+void CopyGuard::forget_before(Instant at) {
+    while (!frames_.empty() && frames_.front().at < at) frames_.pop_front();
+}
+
+void CopyGuard::heard(ByteView raw, ByteView request, Instant at) {
+    forget_before(at - window_);
+    if (frames_.size() == most_frames) frames_.pop_front();
+    frames_.push_back({Bytes(raw.begin(), raw.end()), Bytes(request.begin(), request.end()), at});
+}
+
+void CopyGuard::sent(std::uint8_t unit, ByteView pdu, Instant at) {
+    if (pdu.empty() || reads_only(pdu[0])) return;
+    auto& writes = writes_[unit];
+    while (!writes.empty() && (writes.front().at < at - window_ || writes.size() >= most_writes_per_unit)) writes.pop_front();
+    writes.push_back({at, codec::written_span(pdu)});
+}
+
+// Whether a request that may change what `read` reads of the unit (sent to it, or broadcast)
+// went out at or after `at`: a write sent at the instant a frame was heard follows it (the master
+// sends once the line is quiet). A write elsewhere in the unit is not counted (a read of other
+// registers answers the same after it); one whose reach is not known is.
+bool CopyGuard::written_over(std::uint8_t unit, const codec::DataSpan& read, Instant at) const {
+    return std::ranges::any_of(std::array<std::uint8_t, 2>{unit, std::uint8_t{0}}, [&](std::uint8_t to) {
+        const auto found = writes_.find(to);
+        if (found == writes_.end()) return false;
+        return std::ranges::any_of(found->second, [&](const SentWrite& write) {
+            return write.at >= at && (!write.span || write.span->overlaps(read));
+        });
+    });
+}
+
+std::optional<CopyGuard::Earlier> CopyGuard::copy_of(ByteView raw, ByteView request, std::uint8_t unit, Instant now) const {
+    const Instant recent = now - window_;
+    const auto read = codec::read_span(request);
+    std::optional<Earlier> another;      // the same bytes for another request, or for none
+    std::optional<Earlier> before_write;  // for this read, before a write over what it reads
+    for (auto seen = frames_.rbegin(); seen != frames_.rend() && seen->at >= recent; ++seen) {
+        if (!std::ranges::equal(seen->raw, raw)) continue;
+        if (!std::ranges::equal(seen->request, request)) {
+            if (!another) another = Earlier{seen->at, false};
+            continue;
+        }
+        // The device answered this same request so, with nothing written over it since (or it is
+        // a write's echo): whatever frame these bytes are, the value is the device's answer.
+        if (!read || !written_over(unit, *read, seen->at)) return std::nullopt;
+        if (!before_write) before_write = Earlier{seen->at, true};
+    }
+    return another ? another : before_write;
+}
+
+void CopyGuard::confirm(ByteView raw, ByteView request, Instant since) {
+    for (auto seen = frames_.rbegin(); seen != frames_.rend() && seen->at >= since; ++seen) {
+        if (seen->request.empty() && std::ranges::equal(seen->raw, raw)) seen->request.assign(request.begin(), request.end());
+    }
+}
+
+}  // namespace loopwire::session
