@@ -530,7 +530,9 @@ private:
                 // the same unit and length.)
                 return {{sent + std::chrono::milliseconds(std::uniform_int_distribution<int>(350, 550)(random)), std::move(frame)}};
             case repeated:
-                return {{sent, frame}, {sent + 40ms, frame}};
+                // A repeater or relay that sends a reply again hundreds of milliseconds later,
+                // dozens of exchanges on: the copy is known by its bytes, not by being recent.
+                return {{sent, frame}, {sent + std::chrono::milliseconds(std::uniform_int_distribution<int>(150, 350)(random)), frame}};
             case flipped:
                 frame[any_byte(random)] ^= static_cast<std::uint8_t>(1U << std::uniform_int_distribution<unsigned>(0, 7)(random));
                 return {{sent, std::move(frame)}};
