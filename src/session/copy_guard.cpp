@@ -20,6 +20,26 @@ void CopyGuard::sent(std::uint8_t unit, ByteView pdu, Instant at) {
     auto& writes = writes_[unit];
     while (!writes.empty() && (writes.front().at < at - window_ || writes.size() >= most_writes_per_unit)) writes.pop_front();
     writes.push_back({at, codec::written_span(pdu)});
+    forget_answers(unit, writes.back().span);
+}
+
+void CopyGuard::forget_answers(std::uint8_t unit, const std::optional<codec::DataSpan>& written) {
+    std::erase_if(answers_, [&](const auto& answer) {
+        if (unit != 0 && answer.first.first != unit) return false;
+        const auto read = codec::read_span(answer.first.second);
+        return !written || !read || written->overlaps(*read);
+    });
+}
+
+void CopyGuard::answered(std::uint8_t unit, ByteView request, ByteView raw) {
+    if (request.empty() || !reads_only(request[0])) return;
+    auto key = std::make_pair(unit, Bytes(request.begin(), request.end()));
+    if (auto found = answers_.find(key); found != answers_.end()) {
+        found->second.assign(raw.begin(), raw.end());
+        return;
+    }
+    if (answers_.size() >= most_answers) answers_.erase(answers_.begin());
+    answers_.emplace(std::move(key), Bytes(raw.begin(), raw.end()));
 }
 
 // Whether a request that may change what `read` reads of the unit (sent to it, or broadcast)
@@ -37,6 +57,10 @@ bool CopyGuard::written_over(std::uint8_t unit, const codec::DataSpan& read, Ins
 }
 
 std::optional<CopyGuard::Earlier> CopyGuard::copy_of(ByteView raw, ByteView request, std::uint8_t unit, Instant now) const {
+    if (const auto last = answers_.find(std::make_pair(unit, Bytes(request.begin(), request.end())));
+        last != answers_.end() && std::ranges::equal(last->second, raw)) {
+        return std::nullopt;
+    }
     const Instant recent = now - window_;
     const auto read = codec::read_span(request);
     std::optional<Earlier> another;      // the same bytes for another request, or for none

@@ -8,6 +8,7 @@
 #include <deque>
 #include <map>
 #include <optional>
+#include <utility>
 
 #include "codec/table.hpp"
 #include "common/bytes.hpp"
@@ -29,8 +30,13 @@ public:
     void heard(ByteView raw, ByteView request, Instant at);
 
     // A request sent to `unit` (0: broadcast) at `at` that may change what a read answers:
-    // anything but functions 1-4.
+    // anything but functions 1-4. The answers it may change are forgotten.
     void sent(std::uint8_t unit, ByteView pdu, Instant at);
+
+    // The reply `raw` to a read `request` was handed out: the device's answer until a write
+    // over what it reads. Kept beyond the window (a poll every few seconds finds its answer
+    // again), for a bounded number of requests.
+    void answered(std::uint8_t unit, ByteView request, ByteView raw);
 
     struct Earlier {
         Instant at;     // when the frame with the same bytes was heard
@@ -40,9 +46,10 @@ public:
     // The earlier frame `raw` may be a copy of, for `request` to `unit` at `now`: a frame with the
     // same bytes heard within the window for another request (or for none), or for this same read
     // before a write over what it reads (its value is the one the write replaced). None when the
-    // device answered this same request with these bytes within the window and nothing was
-    // written over it since (a write's echo is the same whatever the device held): then the
-    // bytes are its answer, whichever frame brought them.
+    // device's last answer to this same read was these bytes and nothing was written over it
+    // since, or when they are a write's echo heard for this same write (the echo is the same
+    // whatever the device held): then the bytes are the device's answer, whichever frame
+    // brought them.
     std::optional<Earlier> copy_of(ByteView raw, ByteView request, std::uint8_t unit, Instant now) const;
 
     // The device answered `request` with `raw` (a later try heard the same bytes again): frames
@@ -63,15 +70,18 @@ private:
     };
 
     bool written_over(std::uint8_t unit, const codec::DataSpan& read, Instant at) const;
+    void forget_answers(std::uint8_t unit, const std::optional<codec::DataSpan>& written);
     void forget_before(Instant at);
 
     // A bound on memory only: far more frames than a line carries within any sane window.
     static constexpr std::size_t most_frames = 4096;
     static constexpr std::size_t most_writes_per_unit = 256;
+    static constexpr std::size_t most_answers = 4096;
 
     Duration window_;
     std::deque<HeardFrame> frames_;                        // oldest first
     std::map<std::uint8_t, std::deque<SentWrite>> writes_;  // by unit, oldest first
+    std::map<std::pair<std::uint8_t, Bytes>, Bytes> answers_;  // (unit, read request) -> the reply frame
 };
 
 }  // namespace loopwire::session

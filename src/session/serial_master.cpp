@@ -613,7 +613,7 @@ private:
     // whole timeout, which a register that really holds another's value would cost every time.
     Instant after_refused_copy(const Awaited& awaited) const {
         if (awaited.usual == Duration::zero()) return Instant::max();
-        return std::max(last_heard_, awaited.sent_at + awaited.usual) + inter_frame_gap_ + reply_jitter;
+        return std::max(last_heard_ + inter_frame_gap_, awaited.sent_at + awaited.usual + inter_frame_gap_ + reply_jitter);
     }
 
     Duration copy_window() const { return options_.timeout + late_reply_window(); }
@@ -641,8 +641,7 @@ private:
     Task<Result<Bytes>> settle(Awaited& awaited, codec::Frame accepted, Instant usual_start, Instant deadline) {
         if (line_behaves()) {
             line_quiet_since_ = std::max(clock_->now(), last_heard_);
-            trace(TraceDirection::received, accepted.raw, reply_note(awaited.unit, accepted.pdu));
-            co_return std::move(accepted.pdu);
+            co_return hand_out(awaited, std::move(accepted));
         }
         std::optional<std::string> ambiguity;
         const Instant accepted_at = clock_->now();
@@ -683,8 +682,13 @@ private:
             trace(TraceDirection::discarded, accepted.raw, why.message);
             co_return wrong_reply_error(awaited.unit, awaited.transaction, why, accepted.raw);
         }
+        co_return hand_out(awaited, std::move(accepted));
+    }
+
+    Bytes hand_out(const Awaited& awaited, codec::Frame accepted) {
+        copies_.answered(awaited.unit, awaited.request, accepted.raw);
         trace(TraceDirection::received, accepted.raw, reply_note(awaited.unit, accepted.pdu));
-        co_return std::move(accepted.pdu);
+        return std::move(accepted.pdu);
     }
 
     // Whether `event`, arriving while the accepted reply settles, is another frame from `unit`
