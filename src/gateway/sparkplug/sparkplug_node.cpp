@@ -237,7 +237,8 @@ struct SparkplugNode::State {
             // A value that is missing says nothing of its unit and decimals: they stay what the
             // birth said (else every stale spell would be a rebirth).
             const bool known = !std::holds_alternative<std::monostate>(picture.samples.back().value);
-            picture.properties.push_back(known || !device.born ? properties_of(metric, &found->second) : device.born_with[i]);
+            picture.properties.push_back(known || !device.born ? properties_of(metric, &found->second, config.writes)
+                                                               : device.born_with[i]);
         }
         return picture;
     }
