@@ -33,10 +33,11 @@ void configure_security(mosquitto* client, const std::optional<MqttTls>& tls, co
 void send_without_delay(mosquitto* client) { (void)mosquitto_int_option(client, MOSQ_OPT_TCP_NODELAY, 1); }
 
 std::string retained_command_refusal(std::string_view topic) {
-    return fmt::format("published with the retain flag; nothing was written: a retained command would be written again at "
-                       "every reconnection, so commands are taken live only. Publish it without retain, and clear the "
-                       "retained copy (an empty retained message on {})",
-                       quoted_excerpt(topic));
+    return fmt::format(
+        "published with the retain flag; nothing was written: a retained command would be written again at "
+        "every reconnection, so commands are taken live only. Publish it without retain, and clear the "
+        "retained copy (an empty retained message on {})",
+        quoted_excerpt(topic));
 }
 
 std::string handshake_failure(const std::string& why) {

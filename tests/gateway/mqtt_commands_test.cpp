@@ -196,7 +196,8 @@ TEST_F(MqttCommandsTest, ARetainedCommandIsRefusedWithTheReasonAndNeverWritten) 
     EXPECT_THAT(answers_.published[0].second.at("error").get<std::string>(),
                 HasSubstr("an empty retained message on \"p/oven/set_point/set\""));
     ASSERT_EQ(answers_.logged.size(), 1u);
-    EXPECT_THAT(answers_.logged[0], HasSubstr("\"oven\".\"set_point\" = \"444\" refused: published with the retain flag"));
+    EXPECT_THAT(answers_.logged[0],
+                HasSubstr("\"oven\".\"set_point\" = \"444\" refused: published with the retain flag"));
 }
 
 }  // namespace

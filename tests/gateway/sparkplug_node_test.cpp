@@ -128,8 +128,8 @@ private:
 };
 
 struct NodeFixture {
-    explicit NodeFixture(Broker& broker, const std::string& primary_host = {}, std::shared_ptr<Clock> clock = steady_clock(),
-                         bool writes = false)
+    explicit NodeFixture(Broker& broker, const std::string& primary_host = {},
+                         std::shared_ptr<Clock> clock = steady_clock(), bool writes = false)
         : cache(std::move(clock)) {
         config.broker = fmt::format("mqtt://127.0.0.1:{}", broker.port());
         config.host = "127.0.0.1";
@@ -354,7 +354,8 @@ TEST(SparkplugNode, ARetainedCommandIsRefusedLiveAndAfterEveryReconnection) {
     ASSERT_TRUE(watcher.nth(ndeath, 1));
     watcher.publish(host_state, state(true, 3), true);
     ASSERT_TRUE(watcher.nth(nbirth, 2));
-    EXPECT_TRUE(wait_for_lines(node.log, refused_retained, 2)) << "the retained DCMD was not refused after the reconnection";
+    EXPECT_TRUE(wait_for_lines(node.log, refused_retained, 2))
+        << "the retained DCMD was not refused after the reconnection";
     EXPECT_EQ(node.log.count("DCMD to d1 refused"), 3) << "every DCMD but the live one was refused as retained";
 }
 
@@ -393,8 +394,10 @@ TEST(SparkplugNode, UnderStateFlapsEachBirthCarriesItsOwnSessionsBdSeq) {
     // The last word is online: once the broker has it, the node ends born after it.
     ASSERT_TRUE(watcher.nth(host_state, flaps + 1));
     const auto born_after_the_last_state = [&] {
-        const auto order = watcher.arrived([](const std::string& topic) { return topic == host_state || topic == nbirth; });
-        const auto last_state = std::find_if(order.rbegin(), order.rend(), [](const auto& m) { return m.first == host_state; });
+        const auto order =
+            watcher.arrived([](const std::string& topic) { return topic == host_state || topic == nbirth; });
+        const auto last_state =
+            std::find_if(order.rbegin(), order.rend(), [](const auto& m) { return m.first == host_state; });
         return last_state != order.rbegin();
     };
     const auto give_up = std::chrono::steady_clock::now() + loopwire::testing::deadline;
@@ -416,9 +419,10 @@ TEST(SparkplugNode, UnderStateFlapsEachBirthCarriesItsOwnSessionsBdSeq) {
         ASSERT_NE(bd_seq, nullptr) << topic;
         const std::uint64_t number = bd_seq->long_value();
         const bool birth = topic == nbirth;
-        const std::string story = fmt::format("{} bdSeq {} after {}", birth ? "NBIRTH" : "NDEATH", number,
-                                              last ? fmt::format("{} bdSeq {}", last->first ? "NBIRTH" : "NDEATH", last->second)
-                                                   : std::string("nothing"));
+        const std::string story =
+            fmt::format("{} bdSeq {} after {}", birth ? "NBIRTH" : "NDEATH", number,
+                        last ? fmt::format("{} bdSeq {}", last->first ? "NBIRTH" : "NDEATH", last->second)
+                             : std::string("nothing"));
         if (birth) {
             ++births;
             if (!last) {

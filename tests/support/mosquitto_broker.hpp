@@ -153,7 +153,8 @@ public:
         mosquitto_message_callback_set(client_, [](mosquitto*, void* self, const mosquitto_message* message) {
             auto& watcher = *static_cast<Watcher*>(self);
             std::lock_guard lock(watcher.mutex_);
-            std::string payload(static_cast<const char*>(message->payload), static_cast<std::size_t>(message->payloadlen));
+            std::string payload(static_cast<const char*>(message->payload),
+                                static_cast<std::size_t>(message->payloadlen));
             watcher.arrival_.emplace_back(message->topic, payload);
             watcher.messages_[message->topic].push_back({std::move(payload), message->retain});
             watcher.arrived_.notify_all();

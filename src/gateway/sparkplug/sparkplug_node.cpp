@@ -372,7 +372,7 @@ struct SparkplugNode::State {
     void on_device_command(std::size_t index_of_device, const std::vector<CommandMetric>& metrics) {
         NodeDevice& device = devices[index_of_device];
         if (!config.writes) return refuse_write(index_of_device, "writes are off (set writes = true in [sparkplug] to take DCMDs)");
-        if (!node_born) return refuse_write(index_of_device, "the node is not born now (its NDEATH is out); nothing was sent");
+        if (!node_born) return refuse_write(index_of_device, "the node is dead (its NDEATH is out); nothing was sent");
         if (!device.born) return refuse_write(index_of_device, "the device does not answer now (DDEATH); nothing was sent");
         auto assignments = assignments_of(device, metrics);
         if (!assignments) return refuse_write(index_of_device, assignments.error().message);
@@ -422,8 +422,8 @@ struct SparkplugNode::State {
         if (!json.is_object() || !json.contains("timestamp") || !json["timestamp"].is_number_unsigned()) return false;
         const auto timestamp = json["timestamp"].get<std::uint64_t>();
         if (host_state_timestamp && timestamp < *host_state_timestamp) {
-            say(fmt::format("primary host {} STATE of {} ignored: older than the one of {} already taken", config.primary_host,
-                            timestamp, *host_state_timestamp));
+            say(fmt::format("primary host {} STATE of {} ignored: older than the one of {} already taken",
+                            config.primary_host, timestamp, *host_state_timestamp));
             return true;
         }
         host_state_timestamp = timestamp;
@@ -460,7 +460,8 @@ struct SparkplugNode::State {
         const std::string why = mqtt::retained_command_refusal(command.topic);
         if (command.topic == ncmd) return say(fmt::format("NCMD refused: {}", why));
         const std::string prefix = device_topic("DCMD", "");
-        const auto found = command.topic.starts_with(prefix) ? index.find(command.topic.substr(prefix.size())) : index.end();
+        const auto found =
+            command.topic.starts_with(prefix) ? index.find(command.topic.substr(prefix.size())) : index.end();
         if (found == index.end()) return say(fmt::format("{} refused: {}", quoted_excerpt(command.topic), why));
         refuse_write(found->second, why);
     }
@@ -507,7 +508,8 @@ struct SparkplugNode::State {
     void on_connect(int code) {
         if (code != 0) {
             if (!std::exchange(told_refused, true)) {
-                say(fmt::format("the broker refused the connection: {}; retrying in the background", mosquitto_reason_string(code)));
+                say(fmt::format("the broker refused the connection: {}; retrying in the background",
+                                mosquitto_reason_string(code)));
             }
             return;
         }
@@ -517,7 +519,8 @@ struct SparkplugNode::State {
     void on_message(const mosquitto_message& message) {
         if (!message.topic) return;
         inbox.push_back({message.topic,
-                         std::string(static_cast<const char*>(message.payload), static_cast<std::size_t>(std::max(message.payloadlen, 0))),
+                         std::string(static_cast<const char*>(message.payload),
+                                     static_cast<std::size_t>(std::max(message.payloadlen, 0))),
                          message.retain});
     }
 
