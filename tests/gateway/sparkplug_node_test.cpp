@@ -341,6 +341,12 @@ TEST(SparkplugNode, ARetainedCommandIsRefusedLiveAndAfterEveryReconnection) {
     EXPECT_EQ(refusal.metrics(0).alias(), last_error->alias());
     EXPECT_THAT(refusal.metrics(0).string_value(), HasSubstr("published with the retain flag"));
     EXPECT_TRUE(node.log.has(refused_retained));
+    // A retained NCMD is refused as well: a rebirth asked for once is not asked again at every
+    // reconnection.
+    watcher.publish(ncmd, rebirth_command(), true);
+    EXPECT_TRUE(node.log.wait_for("NCMD refused: published with the retain flag"));
+    EXPECT_FALSE(node.log.has("rebirth asked for"));
+    EXPECT_EQ(watcher.count(nbirth), 1u);
 
     // A live one goes to the writer (which knows no device here, and says so in its own words).
     watcher.publish(dcmd, power_command(60));
