@@ -375,13 +375,15 @@ struct MqttBridge::State {
 
     // On the loop: never blocks (MqttCommands hands each write to its line).
     void on_message(const mosquitto_message& message) {
-        // A retained command is one the broker replays at every (re)subscription: applying it
-        // would write the same value again after each reconnect. Only live commands count.
-        if (message.retain || !message.topic) return;
+        if (!message.topic) return;
         const std::string_view topic = message.topic;
         if (!command_topic(config.prefix, topic)) return;
         const std::string_view payload(static_cast<const char*>(message.payload),
                                        static_cast<std::size_t>(std::max(message.payloadlen, 0)));
+        // A retained command is one the broker replays at every (re)subscription: applying it
+        // would write the same value again after each reconnect. It is refused, and said so on
+        // its result topic, as the Sparkplug node refuses a retained DCMD.
+        if (message.retain) return commands->refuse_retained(topic, payload);
         if (redelivered(message, topic, payload)) {
             say(fmt::format("{} = {} delivered again (message {}): already taken, not written twice", quoted_excerpt(topic),
                             quoted_excerpt(payload), message.mid));

@@ -11,9 +11,10 @@
 //   PREFIX/DEVICE/PARAMETER/meta       JSON: unit, decimals, writable, min, max, enum labels,
 //                                      mnemonic, status, error, last_error (mqtt_documents.hpp)
 //   PREFIX/DEVICE/PARAMETER/set        subscribed (QoS 1): a value to write; the retained copy a
-//                                      subscription brings (one published retained while the
-//                                      gateway listens comes as an ordinary message, MQTT 3.1.1,
-//                                      3.3.1.3) and redeliveries of one already taken are ignored
+//                                      subscription brings is refused on set/result, never
+//                                      written (one published retained while the gateway
+//                                      listens comes as an ordinary message, MQTT 3.1.1,
+//                                      3.3.1.3), and redeliveries of one already taken are ignored
 //   PREFIX/DEVICE/PARAMETER/set/result {"ok":true,"value":"..."} or {"ok":false,"error":"..."}
 //   DISCOVERY/COMPONENT/ID/config      with discovery = "homeassistant": Home Assistant's documents
 // All but set/result are retained. Values go out when they change and again every `republish`.

@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 #include <mosquitto.h>
 
+#include "common/peer_text.hpp"
+
 namespace loopwire::gateway::mqtt {
 
 void init_library_once() {
@@ -29,6 +31,14 @@ void configure_security(mosquitto* client, const std::optional<MqttTls>& tls, co
 }
 
 void send_without_delay(mosquitto* client) { (void)mosquitto_int_option(client, MOSQ_OPT_TCP_NODELAY, 1); }
+
+std::string retained_command_refusal(std::string_view topic) {
+    return fmt::format(
+        "published with the retain flag; nothing was written: a retained command would be written again at "
+        "every reconnection, so commands are taken live only. Publish it without retain, and clear the "
+        "retained copy (an empty retained message on {})",
+        quoted_excerpt(topic));
+}
 
 std::string handshake_failure(const std::string& why) {
     return fmt::format("the connection was made but ended before the broker accepted it ({}): is this port an MQTT broker "

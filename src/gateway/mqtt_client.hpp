@@ -6,6 +6,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "gateway/gateway_config.hpp"
 
@@ -28,6 +29,12 @@ void configure_security(mosquitto* client, const std::optional<MqttTls>& tls, co
 // without). TCP_CORK around a batch, tried as well, did not help: mosquitto reads each packet
 // with reads of its own whatever the segments.
 void send_without_delay(mosquitto* client);
+
+// Why a command (the MQTT front's .../set, a Sparkplug NCMD or DCMD) that arrives with the retain
+// flag is refused, for its answer and the log: the broker keeps a retained message and hands it to
+// every new subscription, so it would be written again at each reconnection, over whatever was
+// written since. Both fronts take commands live only.
+std::string retained_command_refusal(std::string_view topic);
 
 // A connection that ended before the broker acknowledged it (`why`, in words, from the driver):
 // the port answered TCP but not MQTT, or the broker dropped the handshake. Without this a peer

@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/peer_text.hpp"
+#include "gateway/mqtt_client.hpp"
 
 namespace loopwire::gateway {
 
@@ -70,6 +71,12 @@ void MqttCommands::take(std::string_view topic, std::string_view payload) {
                            command->device));
         finished();
     }
+}
+
+void MqttCommands::refuse_retained(std::string_view topic, std::string_view payload) {
+    const auto command = command_topic(prefix_, topic);
+    if (!command) return;
+    answer(*command, payload, mqtt::retained_command_refusal(topic));
 }
 
 std::optional<std::string> MqttCommands::admit() {

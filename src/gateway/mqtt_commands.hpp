@@ -54,6 +54,10 @@ public:
     // are not PREFIX/DEVICE/PARAMETER/set are ignored.
     void take(std::string_view topic, std::string_view payload);
 
+    // A command that came with the retain flag (the copy the broker keeps, handed over at each
+    // subscription): never written, its refusal answered on .../set/result and logged.
+    void refuse_retained(std::string_view topic, std::string_view payload);
+
     // Writes handed to the lines and not yet answered.
     std::size_t under_way() const;
 

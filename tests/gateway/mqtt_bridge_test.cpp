@@ -203,17 +203,25 @@ TEST(MqttBridge, WritesGoToTheDeviceAndBadOnesAreRefused) {
     Broker broker(free_port());
     Watcher watcher(broker.port());
     // A command left retained on the broker before the gateway starts: replayed to it on
-    // subscription, and ignored.
+    // subscription, and refused with the reason, never written.
     watcher.publish(prefix + "/oven/set_point/set", "300", true);
     // Back to the watcher: the broker holds it before the gateway subscribes.
     ASSERT_TRUE(watcher.nth(prefix + "/oven/set_point/set", 1)) << "the retained command did not reach the broker";
-    auto gateway = open_gateway(broker.port(), true);
+    loopwire::testing::LogLines log;
+    GatewayOptions options;
+    options.log = log.sink();
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), true, "", std::move(options));
     const std::string value = prefix + "/oven/set_point";
     const std::string result = prefix + "/oven/set_point/set/result";
+    const auto retained = watcher.nth(result, 1);
+    ASSERT_TRUE(retained) << "no answer to the retained command";
+    EXPECT_EQ(nlohmann::json::parse(*retained).at("ok"), false) << *retained;
+    EXPECT_NE(retained->find("retain flag"), std::string::npos) << *retained;
+    EXPECT_TRUE(log.wait_for("\"300\" refused: published with the retain flag")) << "the refusal is not in the log";
     ASSERT_TRUE(watcher.wait_for(value, is_number)) << "no set_point value";
 
     watcher.publish(value + "/set", "200");
-    const auto written = watcher.nth(result, 1);
+    const auto written = watcher.nth(result, 2);
     ASSERT_TRUE(written) << "no answer to a set";
     const auto answer = nlohmann::json::parse(*written);
     EXPECT_EQ(answer.at("ok"), true) << *written;
@@ -222,7 +230,7 @@ TEST(MqttBridge, WritesGoToTheDeviceAndBadOnesAreRefused) {
         << "the polls did not read the value written";
 
     watcher.publish(value + "/set", "99999");
-    const auto out_of_range = watcher.nth(result, 2);
+    const auto out_of_range = watcher.nth(result, 3);
     ASSERT_TRUE(out_of_range) << "no answer to an out-of-range set";
     EXPECT_EQ(nlohmann::json::parse(*out_of_range).at("ok"), false) << *out_of_range;
 
@@ -242,7 +250,7 @@ TEST(MqttBridge, WritesGoToTheDeviceAndBadOnesAreRefused) {
     const auto last = watcher.wait_for(value, is_number);
     ASSERT_TRUE(last);
     EXPECT_TRUE(equals_number(*last, 200)) << *last;
-    EXPECT_EQ(watcher.count(result), 2u) << "the retained command was answered";
+    EXPECT_EQ(watcher.count(result), 3u) << "the retained command was answered more than once";
     watcher.publish(prefix + "/oven/set_point/set", "", true);  // clears the retained command
 }
 

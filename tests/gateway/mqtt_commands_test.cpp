@@ -179,5 +179,26 @@ TEST_F(MqttCommandsTest, WritesOffAndUnknownNamesAreAnsweredWithoutTheLine) {
     EXPECT_EQ(answers_.published[2].second.at("ok"), false);
 }
 
+// A retained command (the broker's copy, handed over at every subscription) never reaches the
+// line, whatever its value: its refusal says why on the result topic and in the log.
+TEST_F(MqttCommandsTest, ARetainedCommandIsRefusedWithTheReasonAndNeverWritten) {
+    open(3);
+    commands_->refuse_retained("p/oven/set_point/set", "444");
+    commands_->refuse_retained("p/oven/set_point/set/result", "{}");  // not a command: no answer
+    EXPECT_EQ(commands_->under_way(), 0u);
+    EXPECT_EQ(master_->sent(), 0);
+    std::lock_guard lock(answers_.mutex);
+    ASSERT_EQ(answers_.published.size(), 1u);
+    EXPECT_EQ(answers_.published[0].first, "p/oven/set_point/set/result");
+    EXPECT_EQ(answers_.published[0].second.at("ok"), false);
+    EXPECT_THAT(answers_.published[0].second.at("error").get<std::string>(),
+                HasSubstr("published with the retain flag; nothing was written"));
+    EXPECT_THAT(answers_.published[0].second.at("error").get<std::string>(),
+                HasSubstr("an empty retained message on \"p/oven/set_point/set\""));
+    ASSERT_EQ(answers_.logged.size(), 1u);
+    EXPECT_THAT(answers_.logged[0],
+                HasSubstr("\"oven\".\"set_point\" = \"444\" refused: published with the retain flag"));
+}
+
 }  // namespace
 }  // namespace loopwire::gateway

@@ -14,6 +14,7 @@ Subcommands (all take the recording, a file of JSON lines, as written by `record
   show          print messages in a readable form, data metrics named from their births
   check         replay the whole recording against the Sparkplug rules; print every failure
   publish-ncmd, publish-dcmd, publish-state   encode and publish what a host would send
+  flap-state    publish the host's STATE online and offline in turn, quickly, ending online
   selftest      round-trip payloads through the proto and prove `check` catches each rule
 
 The generated module is imported from --pb DIR or $SPARKPLUG_PB_DIR; without either, protoc
@@ -1198,18 +1199,43 @@ def cmd_publish_dcmd(args):
         metric["alias"] = hit["alias"]
     payload = build_payload(timestamp=now_ms(), metrics=[metric])
     topic = f"{NAMESPACE}/{birth['group']}/DCMD/{args.edge}/{args.device}"
-    publish(args, topic, payload.SerializeToString())
-    print(f"published {topic}: {hit['name']!r} (alias {hit['alias']}) by {args.by} = {args.value!r} "
-          f"as {dt_name(datatype)}")
+    publish(args, topic, payload.SerializeToString(), retain=args.retain)
+    print(f"published {topic}{' (retained)' if args.retain else ''}: {hit['name']!r} (alias {hit['alias']}) by "
+          f"{args.by} = {args.value!r} as {dt_name(datatype)}")
     return 0
 
 
 def cmd_publish_state(args):
     online = args.online.lower() == "true"
-    body = json.dumps({"online": online, "timestamp": now_ms()})
+    timestamp = now_ms() - args.age_ms
+    body = json.dumps({"online": online, "timestamp": timestamp})
     topic = f"{NAMESPACE}/STATE/{args.host_id}"
     publish(args, topic, body.encode(), retain=True)
     print(f"published {topic} (retained): {body}")
+    return 0
+
+
+def cmd_flap_state(args):
+    """COUNT STATEs, offline and online in turn (online last), retained as a host publishes
+    them, EVERY seconds apart, on one connection; each acknowledged before the next."""
+    import paho.mqtt.client as mqtt
+    client = mqtt.Client(client_id=f"sparkplug-check-flapper-{os.getpid()}", protocol=mqtt.MQTTv311)
+    client.connect(args.host, args.port, keepalive=30)
+    client.loop_start()
+    topic = f"{NAMESPACE}/STATE/{args.host_id}"
+    try:
+        for i in range(args.count):
+            online = (args.count - 1 - i) % 2 == 0
+            body = json.dumps({"online": online, "timestamp": now_ms()})
+            info = client.publish(topic, body.encode(), qos=1, retain=True)
+            info.wait_for_publish(timeout=15)
+            if not info.is_published():
+                raise SystemExit(f"STATE {i + 1} of {args.count} was not acknowledged within 15 s")
+            time.sleep(args.every)
+    finally:
+        client.disconnect()
+        client.loop_stop()
+    print(f"published {args.count} STATEs on {topic}, {args.every * 1000:g} ms apart, the last online")
     return 0
 
 
@@ -1377,6 +1403,14 @@ def broken_stories():
     def _(n):
         n.ndeath(0)
         n.nbirth(2)
+
+    @story("bdseq", "an NBIRTH with the bdSeq of the NDEATH just sent (a dead session born again)")
+    def _(n):
+        n.ndeath(0)
+        n.nbirth(1)
+        n.dbirth("d1", 10)
+        n.ndeath(1)
+        n.nbirth(1)  # 1 again, not 2 (0 would read as a new process of the node)
 
     @story("bdseq", "one connection's NDEATH delivered twice (its own, then the broker's will)")
     def _(n):
@@ -1595,13 +1629,22 @@ def main():
     p.add_argument("--by", choices=("name", "alias"), default="name")
     p.add_argument("--datatype", type=int, help="send as this datatype instead of the birth's")
     p.add_argument("--no-datatype", action="store_true", help="leave the datatype out")
+    p.add_argument("--retain", action="store_true", help="publish it with the retain flag")
     p.set_defaults(func=cmd_publish_dcmd)
 
     p = sub.add_parser("publish-state", help="publish the primary host's STATE (retained)")
     broker(p)
     p.add_argument("--host-id", required=True)
     p.add_argument("--online", required=True, choices=("true", "false"))
+    p.add_argument("--age-ms", type=int, default=0, help="a timestamp this many ms before now (a late STATE)")
     p.set_defaults(func=cmd_publish_state)
+
+    p = sub.add_parser("flap-state", help="publish the host's STATE offline and online in turn, the last online")
+    broker(p)
+    p.add_argument("--host-id", required=True)
+    p.add_argument("--count", type=int, default=100)
+    p.add_argument("--every", type=float, default=0.02, help="seconds between two STATEs")
+    p.set_defaults(func=cmd_flap_state)
 
     p = sub.add_parser("selftest", help="prove the decoder and the rules on synthetic messages")
     p.add_argument("-v", "--verbose", action="store_true")

@@ -4,12 +4,16 @@
 # protoc from the repository's .proto, its own reading of the rules). Three gateway runs:
 #   1. a virtual line (TC10 "oven", 100 ms poll) and a pseudo-terminal line served by
 #      `loopwire simulate` (AC20 "furnace"): births, an NCMD rebirth, DCMD writes that land and
-#      ones that are refused, the furnace's simulator killed (DDEATH) and started again (DBIRTH),
+#      ones that are refused, a Float 12.3 that lands as 12.3 (and one finer than the parameter's
+#      decimals refused), the furnace's simulator killed (DDEATH) and started again (DBIRTH),
 #      seq wrapping 255 -> 0, the simulator killed again and started with an open thermocouple
 #      (values the device cannot measure are born null), SIGTERM (the node's own NDEATH);
-#   2. writes left at their default (refused), then kill -9: the broker delivers the will NDEATH;
+#   2. writes left at their default (refused, and the births say writable=false), then kill -9:
+#      the broker delivers the will NDEATH;
 #   3. primary_host: births withheld until the host's STATE says online, NDEATH when it goes
-#      offline, births on a new connection (bdSeq + 1) when it is back.
+#      offline, births on a new connection (bdSeq + 1) when it is back; a DCMD published retained
+#      refused (Last Error) and never written, before and after reconnections; 100 STATE flaps
+#      20 ms apart; a STATE older than the last ignored.
 # Then the whole recording is replayed against the rules (seq, bdSeq, aliases, births before
 # data, only changes in DDATA, no number for a null...).
 #
@@ -94,7 +98,19 @@ same() {
     failures=$((failures + 1))
   fi
 }
+# says NAME TEXT PART : a counted check that TEXT holds PART.
+says() {
+  if [[ $2 == *"$3"* ]]; then
+    echo "ok: $1"
+    count_pass
+  else
+    echo "FAIL $1: '$2' does not say '$3'"
+    failures=$((failures + 1))
+  fi
+}
 value_at() { sp value "$recording" --line "$1" --metric "$2" "${@:3}"; }
+# flaps_recorded LINE COUNT : COUNT STATEs of scada recorded after LINE.
+flaps_recorded() { (($(sp count "$recording" --type STATE --host scada --after-line "$1") >= $2)); }
 # stopped PID : the process has exited (a zombie not yet waited for counts as exited).
 stopped() { local state; state=$(ps -o stat= -p "$1"); [[ -z $state || $state == Z* ]]; }
 gateway_pid() { pgrep -P "$1" | head -n 1; }  # the gateway itself, not the `timeout` that runs it
@@ -263,6 +279,20 @@ check dcmd-enum-label-sent 0 "published" "${checker[@]}" publish-dcmd --port "$p
   --edge cabinet1 --device oven --metric control_state --value manual --by name
 await dcmd-enum-label-lands 20 --type DDATA --edge cabinet1 --device oven --after-line "$before" --metric control_state=manual
 
+# In manual the output power (two decimals) is the one written. 12.3 sent as a 32-bit Float is
+# 12.300000190734863 on the wire: it lands as 12.3, the decimal the host meant ...
+before=$(lines_now)
+check dcmd-float-sent 0 "as Float" "${checker[@]}" publish-dcmd --port "$port" --log "$recording" \
+  --edge cabinet1 --device oven --metric output_power --value 12.3 --datatype 9 --by name
+await dcmd-float-lands-as-meant 20 --type DDATA --edge cabinet1 --device oven --after-line "$before" --metric output_power=12.3
+# ... while 12.345, finer than two decimals whatever its type, is refused and said so.
+before=$(lines_now)
+check dcmd-finer-float-sent 0 "as Float" "${checker[@]}" publish-dcmd --port "$port" --log "$recording" \
+  --edge cabinet1 --device oven --metric output_power --value 12.345 --datatype 9 --by name
+await dcmd-finer-float-refused 20 --type DDATA --edge cabinet1 --device oven --after-line "$before" \
+  --metric "Device Control/Last Error!="
+[[ -n $found ]] && says finer-float-refusal-says-why "$(value_at "$found" "Device Control/Last Error")" "12.345 has 3 decimals"
+
 # The furnace comes back with its thermocouple open: it answers, but probe_temperature and
 # carbon_potential cannot be measured. Its DBIRTH gives them as null with a bad or stale Quality,
 # never a number. (After the wrap: the fault also stills main_output_value, the busiest metric.)
@@ -329,6 +359,11 @@ run2_birth=$found
 same run2-new-process-starts-at-bdseq-0 "$(value_at "$run2_birth" bdSeq)" 0
 await run2-dbirth-oven 60 --type DBIRTH --edge cabinet1 --device oven --after-line "$run2_birth"
 if [[ -n $found ]]; then
+  # With writes off nothing is writable, whatever the profile allows: a host application must
+  # not offer a write the node refuses.
+  check dbirth-without-writes-nothing-writable 0 "as expected" "${checker[@]}" expect-metrics "$recording" --line "$found" \
+    "set_point;readOnly=true;writable=false" "control_state;readOnly=true;writable=false" \
+    "output_power;readOnly=true;writable=false" "measured_value;readOnly=true;writable=false"
   before=$(lines_now)
   check dcmd-without-writes-sent 0 "published" "${checker[@]}" publish-dcmd --port "$port" --log "$recording" \
     --edge cabinet1 --device oven --metric set_point --value 230 --by name
@@ -355,7 +390,7 @@ births_since() { sp count "$recording" --type NBIRTH,DBIRTH --edge plant1 --afte
 
 run3() {
   local subscriptions before start birth
-  plant_config no 'primary_host = "scada"' >"$WORK_DIR/run3.toml"
+  plant_config no $'primary_host = "scada"\nwrites = true' >"$WORK_DIR/run3.toml"
   subscriptions=$(state_subscriptions)
   start=$(lines_now)
   start_background gateway3.log timeout 200 "$loopwire" gateway --config "$WORK_DIR/run3.toml"
@@ -389,12 +424,55 @@ run3() {
   birth=$found
   [[ -n $birth ]] && same new-connection-bdseq-plus-1 "$(value_at "$birth" bdSeq)" 1
   await dbirth-when-host-back 30 --type DBIRTH --edge plant1 --device oven --after-line "$before"
+  [[ -n $found ]] || return
+
+  # A DCMD published retained (set point 444), then a live one (100): the retained one is refused
+  # and said in Last Error, the live one lands.
+  before=$(lines_now)
+  check dcmd-retained-sent 0 "(retained)" "${checker[@]}" publish-dcmd --port "$port" --log "$recording" \
+    --edge plant1 --device oven --metric set_point --value 444 --by name --retain
+  await dcmd-retained-refused 20 --type DDATA --edge plant1 --device oven --after-line "$before" \
+    --metric "Device Control/Last Error!="
+  [[ -n $found ]] && says dcmd-retained-refusal-says-why "$(value_at "$found" "Device Control/Last Error")" \
+    "published with the retain flag"
+  before=$(lines_now)
+  check dcmd-live-after-retained-sent 0 "published" "${checker[@]}" publish-dcmd --port "$port" --log "$recording" \
+    --edge plant1 --device oven --metric set_point --value 100 --by name
+  await dcmd-live-after-retained-lands 20 --type DDATA --edge plant1 --device oven --after-line "$before" --metric set_point=100
+
+  # 100 STATE flaps 20 ms apart, the last online: the node leaves and comes back many times (the
+  # rules `check` replays below hold each NBIRTH to its own session's bdSeq), and at each new
+  # subscription the broker hands it the retained DCMD again, refused every time.
+  local refusals
+  refusals=$(grep -c "DCMD to oven refused: published with the retain flag" "$WORK_DIR/gateway3.log")
+  before=$(lines_now)
+  check state-flaps-sent 0 "the last online" "${checker[@]}" flap-state --port "$port" --host-id scada --count 100 --every 0.02
+  wait_for 30 "the 100 STATEs in the recording" flaps_recorded "$before" 100
+  local last_state
+  last_state=$(sp show "$recording" --type STATE --host scada --limit 1 | sed -nE '1s/^line ([0-9]+) .*/\1/p')
+  await nbirth-after-flaps 60 --type NBIRTH --edge plant1 --after-line "$last_state"
+  await dbirth-after-flaps 60 --type DBIRTH --edge plant1 --device oven --after-line "${found:-$last_state}"
+  echo "    $(sp count "$recording" --type NBIRTH --edge plant1 --after-line "$before") NBIRTHs and" \
+    "$(sp count "$recording" --type NDEATH --edge plant1 --after-line "$before") NDEATHs during and after the flaps"
+  (($(grep -c "DCMD to oven refused: published with the retain flag" "$WORK_DIR/gateway3.log") > refusals)) && count_pass ||
+    count_failure "retained-dcmd-refused-again-after-reconnections" "$WORK_DIR/gateway3.log"
+  same retained-dcmd-never-lands "$(sp count "$recording" --edge plant1 --device oven --metric set_point=444)" 0
+  same set-point-is-the-live-write-s "$(sp value "$recording" --latest --edge plant1 --device oven --metric set_point)" 100.0
+
+  # A STATE older than the last taken (an offline of ten minutes ago, delivered late) is ignored:
+  # no NDEATH, no disconnection.
+  before=$(lines_now)
+  check late-state-sent 0 "published" "${checker[@]}" publish-state --port "$port" --host-id scada --online false --age-ms 600000
+  wait_for_text "$WORK_DIR/gateway3.log" "ignored: older than the one of" 20
+  same late-state-changes-nothing "$(sp count "$recording" --type NDEATH,NBIRTH --edge plant1 --after-line "$before")" 0
 
   before=$(lines_now)
+  local last_birth
+  last_birth=$(sp show "$recording" --type NBIRTH --edge plant1 --limit 1 | sed -nE '1s/^line ([0-9]+) .*/\1/p')
   kill -TERM "$gateway"
   wait_for 30 "gateway run 3 to stop on SIGTERM" stopped "$gateway"
   await run3-ndeath-on-sigterm 20 --type NDEATH --edge plant1 --after-line "$before"
-  [[ -n $found ]] && same run3-ndeath-bdseq "$(value_at "$found" bdSeq)" 1
+  [[ -n $found ]] && same run3-ndeath-bdseq "$(value_at "$found" bdSeq)" "$(value_at "$last_birth" bdSeq)"
 }
 # wait_for_subscription SECONDS COUNT : a counted check that the node subscribed to the STATE
 # topic once more than COUNT times so far.

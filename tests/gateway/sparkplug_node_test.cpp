@@ -3,12 +3,18 @@
 // groups feed it, and a watcher that decodes what the node publishes with protobuf. Births
 // before data, seq from 0 in each NBIRTH and +1 per message, DDATA by alias with only what
 // changed, DDEATH and DBIRTH again as the device goes silent and comes back, a rebirth on NCMD
-// with the same aliases, stale values null with their quality, DCMDs refused in words, births
-// held back until the primary host is online. Skipped without /usr/sbin/mosquitto.
+// with the same aliases, stale values null with their quality, DCMDs refused in words (a retained
+// one always), births held back until the primary host is online, a STATE older than the last
+// ignored, and under STATE flaps no NBIRTH with the bdSeq of an NDEATH already sent. Skipped
+// without /usr/sbin/mosquitto.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <mutex>
+#include <optional>
+#include <thread>
+#include <utility>
 
 #include "gateway/engine.hpp"
 #include "gateway/sparkplug/sparkplug_node.hpp"
@@ -33,6 +39,11 @@ const std::string dbirth = "spBv1.0/plant/DBIRTH/edge1/d1";
 const std::string ddata = "spBv1.0/plant/DDATA/edge1/d1";
 const std::string ddeath = "spBv1.0/plant/DDEATH/edge1/d1";
 const std::string dcmd = "spBv1.0/plant/DCMD/edge1/d1";
+const std::string host_state = "spBv1.0/STATE/scada";
+
+std::string state(bool online, std::uint64_t timestamp) {
+    return fmt::format(R"({{"online": {}, "timestamp": {}}})", online, timestamp);
+}
 
 #define SKIP_WITHOUT_BROKER()                                                                             \
     if (!std::filesystem::exists(loopwire::testing::broker_program))                                     \
@@ -117,7 +128,8 @@ private:
 };
 
 struct NodeFixture {
-    explicit NodeFixture(Broker& broker, const std::string& primary_host = {}, std::shared_ptr<Clock> clock = steady_clock())
+    explicit NodeFixture(Broker& broker, const std::string& primary_host = {},
+                         std::shared_ptr<Clock> clock = steady_clock(), bool writes = false)
         : cache(std::move(clock)) {
         config.broker = fmt::format("mqtt://127.0.0.1:{}", broker.port());
         config.host = "127.0.0.1";
@@ -126,6 +138,7 @@ struct NodeFixture {
         config.edge_node_id = "edge1";
         config.client_id = "test-edge1";
         config.primary_host = primary_host;
+        config.writes = writes;
         SparkplugTiming timing;
         timing.reconnect_first = 50ms;
         timing.reconnect_last = 200ms;
@@ -142,6 +155,25 @@ struct NodeFixture {
     DeviceWriter writer{engine, {}, 1s};
     std::unique_ptr<SparkplugNode> node;
 };
+
+std::string power_command(std::uint32_t power) {
+    Payload command;
+    auto* metric = command.add_metrics();
+    metric->set_name("power");
+    metric->set_datatype(6);
+    metric->set_int_value(power);
+    return command.SerializeAsString();
+}
+
+// Waits until `count` lines of `log` hold `part`.
+bool wait_for_lines(loopwire::testing::LogLines& log, const std::string& part, int count) {
+    const auto give_up = std::chrono::steady_clock::now() + loopwire::testing::deadline;
+    while (log.count(part) < count) {
+        if (std::chrono::steady_clock::now() > give_up) return false;
+        std::this_thread::sleep_for(10ms);
+    }
+    return true;
+}
 
 std::string rebirth_command() {
     Payload command;
@@ -284,6 +316,137 @@ TEST(SparkplugNode, BirthsWaitForThePrimaryHostAndADeathFollowsItsGoingOffline) 
     EXPECT_EQ(watcher.count(nbirth), 1u);
     watcher.publish("spBv1.0/STATE/scada", R"({"online": true, "timestamp": 3})", true);
     EXPECT_EQ(named(decoded(watcher.nth(nbirth, 2)), "bdSeq")->long_value(), 1u);
+}
+
+// A DCMD published with the retain flag is refused whether it comes live (the node subscribes
+// with MQTT 5's "retain as published") or as the copy the broker hands over at every
+// subscription: it never reaches the writer, and Device Control/Last Error says why, at once and
+// again after a reconnection. A live DCMD still goes to the writer.
+TEST(SparkplugNode, ARetainedCommandIsRefusedLiveAndAfterEveryReconnection) {
+    SKIP_WITHOUT_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    NodeFixture node(broker, "scada", steady_clock(), true);
+    watcher.publish(host_state, state(true, 1), true);
+    node.device.answer(node.cache, 21.5, 40, "auto");
+    const Payload birth = decoded(watcher.nth(dbirth, 1));
+    const auto* last_error = named(birth, "Device Control/Last Error");
+    ASSERT_NE(last_error, nullptr);
+    EXPECT_EQ(last_error->string_value(), "");
+    const std::string refused_retained = "DCMD to d1 refused: published with the retain flag";
+
+    watcher.publish(dcmd, power_command(55), true);
+    const Payload refusal = decoded(watcher.nth(ddata, 1));
+    ASSERT_EQ(refusal.metrics_size(), 1);
+    EXPECT_EQ(refusal.metrics(0).alias(), last_error->alias());
+    EXPECT_THAT(refusal.metrics(0).string_value(), HasSubstr("published with the retain flag"));
+    EXPECT_TRUE(node.log.has(refused_retained));
+    // A retained NCMD is refused as well: a rebirth asked for once is not asked again at every
+    // reconnection.
+    watcher.publish(ncmd, rebirth_command(), true);
+    EXPECT_TRUE(node.log.wait_for("NCMD refused: published with the retain flag"));
+    EXPECT_FALSE(node.log.has("rebirth asked for"));
+    EXPECT_EQ(watcher.count(nbirth), 1u);
+
+    // A live one goes to the writer (which knows no device here, and says so in its own words).
+    watcher.publish(dcmd, power_command(60));
+    const Payload live = decoded(watcher.nth(ddata, 2));
+    ASSERT_EQ(live.metrics_size(), 1);
+    EXPECT_THAT(live.metrics(0).string_value(), ::testing::Not(HasSubstr("retain")));
+
+    // A new session (the host went away and came back): the broker hands the retained DCMD over
+    // at the subscription, and it is refused again, never written.
+    watcher.publish(host_state, state(false, 2), true);
+    ASSERT_TRUE(watcher.nth(ndeath, 1));
+    watcher.publish(host_state, state(true, 3), true);
+    ASSERT_TRUE(watcher.nth(nbirth, 2));
+    EXPECT_TRUE(wait_for_lines(node.log, refused_retained, 2))
+        << "the retained DCMD was not refused after the reconnection";
+    EXPECT_EQ(node.log.count("DCMD to d1 refused"), 3) << "every DCMD but the live one was refused as retained";
+}
+
+TEST(SparkplugNode, AStateOlderThanTheLastTakenChangesNothing) {
+    SKIP_WITHOUT_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    NodeFixture node(broker, "scada");
+    watcher.publish(host_state, state(true, 1000), true);
+    ASSERT_TRUE(watcher.nth(nbirth, 1));
+
+    // Late: an offline of before the online already taken says nothing of the host now.
+    watcher.publish(host_state, state(false, 500), true);
+    ASSERT_TRUE(node.log.wait_for("STATE of 500 ignored"));
+    EXPECT_EQ(watcher.count(ndeath), 0u);
+    EXPECT_TRUE(node.node->connected());
+
+    // A newer one is taken.
+    watcher.publish(host_state, state(false, 2000), true);
+    EXPECT_EQ(named(decoded(watcher.nth(ndeath, 1)), "bdSeq")->long_value(), 0u);
+}
+
+// The host's STATE flapping 100 times, 20 ms apart: every NBIRTH carries the bdSeq of its own
+// session's will, one more than the NDEATH before it (never the bdSeq of a death already sent),
+// every NDEATH the bdSeq of the NBIRTH before it, and no death is sent twice.
+TEST(SparkplugNode, UnderStateFlapsEachBirthCarriesItsOwnSessionsBdSeq) {
+    SKIP_WITHOUT_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    auto node = std::make_unique<NodeFixture>(broker, "scada");
+    constexpr int flaps = 100;
+    for (int i = 0; i <= flaps; ++i) {
+        watcher.publish(host_state, state(i % 2 == 0, static_cast<std::uint64_t>(i + 1)), true);
+        std::this_thread::sleep_for(20ms);  // the flaps' pace, not a wait for anything
+    }
+    // The last word is online: once the broker has it, the node ends born after it.
+    ASSERT_TRUE(watcher.nth(host_state, flaps + 1));
+    const auto born_after_the_last_state = [&] {
+        const auto order =
+            watcher.arrived([](const std::string& topic) { return topic == host_state || topic == nbirth; });
+        const auto last_state =
+            std::find_if(order.rbegin(), order.rend(), [](const auto& m) { return m.first == host_state; });
+        return last_state != order.rbegin();
+    };
+    const auto give_up = std::chrono::steady_clock::now() + loopwire::testing::deadline;
+    while (!born_after_the_last_state()) {
+        ASSERT_LT(std::chrono::steady_clock::now(), give_up) << "no NBIRTH after the host's last STATE (online)";
+        std::this_thread::sleep_for(10ms);
+    }
+    node.reset();  // a clean stop: its NDEATH, acknowledged
+    const std::string marker = "spBv1.0/plant/TEST/edge1";
+    watcher.publish(marker, "after the node's last message");
+    ASSERT_TRUE(watcher.nth(marker, 1));
+
+    const auto order = watcher.arrived([](const std::string& topic) { return topic == nbirth || topic == ndeath; });
+    std::optional<std::pair<bool, std::uint64_t>> last;  // (a birth?, its bdSeq)
+    int births = 0;
+    for (const auto& [topic, bytes] : order) {
+        const Payload payload = decoded(bytes);
+        const auto* bd_seq = named(payload, "bdSeq");
+        ASSERT_NE(bd_seq, nullptr) << topic;
+        const std::uint64_t number = bd_seq->long_value();
+        const bool birth = topic == nbirth;
+        const std::string story =
+            fmt::format("{} bdSeq {} after {}", birth ? "NBIRTH" : "NDEATH", number,
+                        last ? fmt::format("{} bdSeq {}", last->first ? "NBIRTH" : "NDEATH", last->second)
+                             : std::string("nothing"));
+        if (birth) {
+            ++births;
+            if (!last) {
+                EXPECT_EQ(number, 0u) << story;
+            } else if (last->first) {
+                EXPECT_EQ(number, last->second) << story << ": a rebirth keeps its session's bdSeq";
+            } else {
+                EXPECT_EQ(number, (last->second + 1) % 256) << story << ": a new session's will carries the next bdSeq";
+            }
+        } else if (last && last->first) {
+            EXPECT_EQ(number, last->second) << story << ": a death carries its session's bdSeq";
+        } else if (last) {
+            EXPECT_NE(number, last->second) << story << ": one death sent twice";
+        }
+        last = {birth, number};
+    }
+    EXPECT_GE(births, 2) << "the flaps made no new session";
+    EXPECT_TRUE(last && !last->first) << "the clean stop's NDEATH is the last";
 }
 
 }  // namespace

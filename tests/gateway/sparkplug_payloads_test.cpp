@@ -139,10 +139,14 @@ TEST(SparkplugPayloads, ABirthCarriesNameDatatypeAndProperties) {
     value.value = 0.85;
     value.unit = "%C";
     const auto change = change_of(sp, value, "0.85");
-    const auto properties = properties_of(metric, &change);
+    const auto properties = properties_of(metric, &change, true);
     EXPECT_EQ(properties.unit, "%C");
     EXPECT_TRUE(properties.writable);
     EXPECT_EQ(properties.mnemonic, sp.mnemonic);
+    // With the node's writes off a host application is told it cannot write, not a DCMD refused.
+    const auto writes_off = properties_of(metric, &change, false);
+    EXPECT_FALSE(writes_off.writable);
+    EXPECT_NE(writes_off, properties) << "turning writes on or off is a new birth";
 
     PayloadWriter writer(5, 1);
     writer.birth_metric(metric, sample_of(metric, change), &properties);
@@ -172,7 +176,7 @@ TEST(SparkplugPayloads, ABirthCarriesTheDevicesOwnLimits) {
     value.unit = "°C";
     auto change = change_of(sp, value, "200");
     change.limits = {-50.0, 650.0};
-    const auto properties = properties_of(metric, &change);
+    const auto properties = properties_of(metric, &change, true);
     ASSERT_TRUE(properties.low && properties.high);
     EXPECT_DOUBLE_EQ(*properties.low, -50.0);
     EXPECT_DOUBLE_EQ(*properties.high, 650.0);
@@ -186,7 +190,7 @@ TEST(SparkplugPayloads, ABirthCarriesTheDevicesOwnLimits) {
     EXPECT_DOUBLE_EQ(property(out, "engLow")->double_value(), -50.0);
 
     change.limits = {-50.0, 500.0};
-    EXPECT_NE(properties_of(metric, &change), properties) << "a new limit is a new birth";
+    EXPECT_NE(properties_of(metric, &change, true), properties) << "a new limit is a new birth";
 }
 
 TEST(SparkplugPayloads, CommandsAreDecodedAndTurnedIntoWriteTexts) {
@@ -222,10 +226,59 @@ TEST(SparkplugPayloads, CommandsAreDecodedAndTurnedIntoWriteTexts) {
     const MetricDefinition node_metric{"Node Control/Rebirth", 1, DataType::boolean, nullptr, {}};
     EXPECT_THAT(write_text(node_metric, true).error().message, HasSubstr("not a device parameter"));
 
+    // A birth with writes off says so in both properties a host application reads.
+    PayloadWriter writer(5, 1);
+    const auto read_only = properties_of(metric, nullptr, false);
+    writer.birth_metric(metric, MetricSample{0.85, quality_good, 5}, &read_only);
+    const auto born = decoded(writer).metrics(0);
+    ASSERT_TRUE(property(born, "writable") && property(born, "readOnly"));
+    EXPECT_FALSE(property(born, "writable")->boolean_value());
+    EXPECT_TRUE(property(born, "readOnly")->boolean_value());
+
     // Not protobuf at all: refused in words, never misread.
     auto garbage = decode_command(std::string("\xff\xff\xff\xff\xff", 5));
     ASSERT_FALSE(garbage);
     EXPECT_THAT(garbage.error().message, HasSubstr("not a Sparkplug B payload"));
+}
+
+// A Float is the decimal its sender meant: 12.3 in 32 bits widens to 12.300000190734863, which a
+// parameter of one or two decimals would refuse; the value within half a Float's step of it that
+// has the fewest digits is 12.3. A value truly finer keeps its digits (the write then refuses it
+// for them); a Double is taken as it is, at its own precision.
+TEST(SparkplugPayloads, AFloatCommandIsTheDecimalItsSenderMeant) {
+    const auto tc10 = profile("tc10");
+    ASSERT_TRUE(tc10);
+    const auto& power = device::testing::parameter(*tc10, "output_power");  // two decimals
+    std::uint64_t alias = 7;
+    const auto metric = parameter_metrics(power, alias).front();
+
+    Payload command;
+    for (const float value : {12.3f, 12.34f, 12.345f, -99.99f, 0.1f, 250.0f}) {
+        auto* out = command.add_metrics();
+        out->set_alias(7);
+        out->set_datatype(static_cast<std::uint32_t>(DataType::float32));
+        out->set_float_value(value);
+    }
+    auto* as_double = command.add_metrics();
+    as_double->set_alias(7);
+    as_double->set_datatype(static_cast<std::uint32_t>(DataType::float64));
+    as_double->set_double_value(12.3);
+    auto* finer_double = command.add_metrics();
+    finer_double->set_alias(7);
+    finer_double->set_datatype(static_cast<std::uint32_t>(DataType::float64));
+    finer_double->set_double_value(static_cast<double>(12.3f));  // a Double that truly is 12.300000190734863
+    const auto metrics = decode_command(command.SerializeAsString());
+    ASSERT_TRUE(metrics) << metrics.error().message;
+    ASSERT_EQ(metrics->size(), 8u);
+    std::vector<std::string> texts;
+    for (const auto& decoded_metric : *metrics) {
+        const auto text = write_text(metric, decoded_metric.value);
+        ASSERT_TRUE(text) << text.error().message;
+        texts.push_back(*text);
+    }
+    EXPECT_EQ(texts, (std::vector<std::string>{"12.3", "12.34", "12.345", "-99.99", "0.1", "250", "12.3",
+                                               "12.300000190734863"}));
+    EXPECT_EQ((*metrics)[0].value, MetricValue{12.3});
 }
 
 }  // namespace

@@ -24,6 +24,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -152,9 +153,10 @@ public:
         mosquitto_message_callback_set(client_, [](mosquitto*, void* self, const mosquitto_message* message) {
             auto& watcher = *static_cast<Watcher*>(self);
             std::lock_guard lock(watcher.mutex_);
-            watcher.messages_[message->topic].push_back(
-                {std::string(static_cast<const char*>(message->payload), static_cast<std::size_t>(message->payloadlen)),
-                 message->retain});
+            std::string payload(static_cast<const char*>(message->payload),
+                                static_cast<std::size_t>(message->payloadlen));
+            watcher.arrival_.emplace_back(message->topic, payload);
+            watcher.messages_[message->topic].push_back({std::move(payload), message->retain});
             watcher.arrived_.notify_all();
         });
         // The broker may still be starting: try until the deadline.
@@ -220,12 +222,24 @@ public:
         return found;
     }
 
+    // Every message of the topics `wanted` takes, as (topic, payload), in the order they arrived
+    // (messages_ keeps each topic's alone).
+    std::vector<std::pair<std::string, std::string>> arrived(const std::function<bool(const std::string&)>& wanted) {
+        std::lock_guard lock(mutex_);
+        std::vector<std::pair<std::string, std::string>> found;
+        for (const auto& message : arrival_) {
+            if (wanted(message.first)) found.push_back(message);
+        }
+        return found;
+    }
+
 private:
     mosquitto* client_ = nullptr;
     std::mutex mutex_;
     std::condition_variable arrived_;
     bool subscribed_ = false;
     std::map<std::string, std::vector<Message>> messages_;
+    std::vector<std::pair<std::string, std::string>> arrival_;
 };
 
 }  // namespace loopwire::testing

@@ -9,6 +9,7 @@
 
 #include <fmt/format.h>
 #include <mosquitto.h>
+#include <mqtt_protocol.h>
 #include <nlohmann/json.hpp>
 
 #include "client/device_status.hpp"
@@ -75,6 +76,7 @@ struct WriteOutcome {
 struct Command {
     std::string topic;
     std::string payload;
+    bool retained = false;  // as its publisher sent it (MQTT 5 "retain as published")
 };
 
 }  // namespace
@@ -106,8 +108,10 @@ struct SparkplugNode::State {
     std::uint64_t seq = 0;     // of the next message
     bool node_born = false;
     bool host_online = false;
+    // The timestamp of the newest host STATE taken: an older one, delivered late or out of
+    // order, says nothing of the host now (Sparkplug 3.0, host application STATE).
+    std::optional<std::uint64_t> host_state_timestamp;
     bool just_connected = false;
-    bool reconnect_now = false;  // the primary host went offline
     // Leaving for it: the NDEATH published, its acknowledgement awaited until then, before the
     // DISCONNECT (leave_async).
     std::optional<std::chrono::steady_clock::time_point> leaving_until;
@@ -237,7 +241,8 @@ struct SparkplugNode::State {
             // A value that is missing says nothing of its unit and decimals: they stay what the
             // birth said (else every stale spell would be a rebirth).
             const bool known = !std::holds_alternative<std::monostate>(picture.samples.back().value);
-            picture.properties.push_back(known || !device.born ? properties_of(metric, &found->second) : device.born_with[i]);
+            picture.properties.push_back(known || !device.born ? properties_of(metric, &found->second, config.writes)
+                                                               : device.born_with[i]);
         }
         return picture;
     }
@@ -367,6 +372,7 @@ struct SparkplugNode::State {
     void on_device_command(std::size_t index_of_device, const std::vector<CommandMetric>& metrics) {
         NodeDevice& device = devices[index_of_device];
         if (!config.writes) return refuse_write(index_of_device, "writes are off (set writes = true in [sparkplug] to take DCMDs)");
+        if (!node_born) return refuse_write(index_of_device, "the node is dead (its NDEATH is out); nothing was sent");
         if (!device.born) return refuse_write(index_of_device, "the device does not answer now (DDEATH); nothing was sent");
         auto assignments = assignments_of(device, metrics);
         if (!assignments) return refuse_write(index_of_device, assignments.error().message);
@@ -410,21 +416,54 @@ struct SparkplugNode::State {
         }
     }
 
+    // Whether the host's STATE is older than one already taken (then it is ignored), and if not
+    // its timestamp noted.
+    bool outdated_state(const nlohmann::json& json) {
+        if (!json.is_object() || !json.contains("timestamp") || !json["timestamp"].is_number_unsigned()) return false;
+        const auto timestamp = json["timestamp"].get<std::uint64_t>();
+        if (host_state_timestamp && timestamp < *host_state_timestamp) {
+            say(fmt::format("primary host {} STATE of {} ignored: older than the one of {} already taken",
+                            config.primary_host, timestamp, *host_state_timestamp));
+            return true;
+        }
+        host_state_timestamp = timestamp;
+        return false;
+    }
+
     void on_host_state(std::string_view payload) {
         // Sparkplug 3.0 (host application STATE): {"online": true|false, "timestamp": ms}; the
         // plain "ONLINE"/"OFFLINE" of Sparkplug 2.2 hosts is taken too.
         bool online = payload == "ONLINE";
         const auto json = nlohmann::json::parse(payload, nullptr, false);
+        if (outdated_state(json)) return;
         if (json.is_object() && json.contains("online") && json["online"].is_boolean()) online = json["online"].get<bool>();
         if (online == host_online) return;
         host_online = online;
+        if (leaving_until) {
+            // This session's NDEATH is out: its bdSeq may not be born again. The next session
+            // (the next bdSeq) births once the host's retained STATE says it is online.
+            return;
+        }
         if (online) {
             say(fmt::format("primary host {} is online: births", config.primary_host));
             birth_node();
         } else if (node_born) {
             say(fmt::format("primary host {} went offline: NDEATH, disconnecting until it is back", config.primary_host));
-            reconnect_now = true;
+            leave_async();
         }
+    }
+
+    // A command published with the retain flag is refused unread: the broker keeps it and hands
+    // it to the node at every subscription, so that an old write would be made again at each
+    // reconnection, after any written since. Commands are taken live only.
+    void refuse_retained(const Command& command, const std::string& ncmd) {
+        const std::string why = mqtt::retained_command_refusal(command.topic);
+        if (command.topic == ncmd) return say(fmt::format("NCMD refused: {}", why));
+        const std::string prefix = device_topic("DCMD", "");
+        const auto found =
+            command.topic.starts_with(prefix) ? index.find(command.topic.substr(prefix.size())) : index.end();
+        if (found == index.end()) return say(fmt::format("{} refused: {}", quoted_excerpt(command.topic), why));
+        refuse_write(found->second, why);
     }
 
     void take_commands() {
@@ -434,6 +473,10 @@ struct SparkplugNode::State {
         for (auto& command : taken) {
             if (!config.primary_host.empty() && command.topic == host_topic()) {
                 on_host_state(command.payload);
+                continue;
+            }
+            if (command.retained) {
+                refuse_retained(command, ncmd);
                 continue;
             }
             if (command.payload.size() > config.max_payload) {
@@ -465,7 +508,8 @@ struct SparkplugNode::State {
     void on_connect(int code) {
         if (code != 0) {
             if (!std::exchange(told_refused, true)) {
-                say(fmt::format("the broker refused the connection: {}; retrying in the background", mosquitto_connack_string(code)));
+                say(fmt::format("the broker refused the connection: {}; retrying in the background",
+                                mosquitto_reason_string(code)));
             }
             return;
         }
@@ -474,8 +518,10 @@ struct SparkplugNode::State {
 
     void on_message(const mosquitto_message& message) {
         if (!message.topic) return;
-        inbox.push_back({message.topic, std::string(static_cast<const char*>(message.payload),
-                                                     static_cast<std::size_t>(std::max(message.payloadlen, 0)))});
+        inbox.push_back({message.topic,
+                         std::string(static_cast<const char*>(message.payload),
+                                     static_cast<std::size_t>(std::max(message.payloadlen, 0))),
+                         message.retain});
     }
 
     // After a connection was made: the commands' subscriptions, then the births (at once, or
@@ -486,8 +532,12 @@ struct SparkplugNode::State {
         told_refused = false;
         told_no_handshake = false;
         say(fmt::format("connected as edge node {}/{} (bdSeq {})", config.group_id, config.edge_node_id, bd_seq));
-        (void)mosquitto_subscribe(client, nullptr, node_topic("NCMD").c_str(), qos_at_least_once);
-        (void)mosquitto_subscribe(client, nullptr, device_topic("DCMD", "+").c_str(), qos_at_least_once);
+        // The retain flag as the publisher set it (MQTT 5): a command published retained is
+        // refused whether it comes live or as the copy the broker keeps (refuse_retained).
+        (void)mosquitto_subscribe_v5(client, nullptr, node_topic("NCMD").c_str(), qos_at_least_once,
+                                     MQTT_SUB_OPT_RETAIN_AS_PUBLISHED, nullptr);
+        (void)mosquitto_subscribe_v5(client, nullptr, device_topic("DCMD", "+").c_str(), qos_at_least_once,
+                                     MQTT_SUB_OPT_RETAIN_AS_PUBLISHED, nullptr);
         host_online = false;
         node_born = false;
         if (config.primary_host.empty()) {
@@ -499,21 +549,23 @@ struct SparkplugNode::State {
     }
 
     // The will of the next connection: NDEATH with its bdSeq (Sparkplug 3.0: bdSeq counts the
-    // node's MQTT sessions; NBIRTH carries the same).
+    // node's MQTT CONNECTs; the session's NBIRTH and NDEATH carry the same). An attempt that never
+    // reached the broker (unreachable: no TCP connection, so no CONNECT sent) leaves the count as
+    // it was; one that did moves it on (lost), so that the next session's will never carries the
+    // bdSeq of a death already published.
     int connect() {
         bd_seq = next_bd_seq;
         const std::string death = node_death();
         (void)mosquitto_will_set(client, node_topic("NDEATH").c_str(), static_cast<int>(death.size()), death.data(),
                                  qos_at_least_once, false);
-        const int rc = mosquitto_connect_async(client, config.host.c_str(), config.port, keepalive_seconds);
-        if (rc == MOSQ_ERR_SUCCESS) next_bd_seq = (next_bd_seq + 1) % 256;
-        return rc;
+        return mosquitto_connect_async(client, config.host.c_str(), config.port, keepalive_seconds);
     }
 
     void lost(std::string_view why) {
         if (is_connected.exchange(false)) say(fmt::format("connection lost ({})", why));
         node_born = false;
         told_unreachable = false;
+        next_bd_seq = (bd_seq + 1) % 256;
     }
 
     // --- the network, on the loop (gateway/mqtt_loop_driver.hpp) ----------------------------------
@@ -541,7 +593,6 @@ struct SparkplugNode::State {
         take_outcomes();
         publish_devices(false);
         node_data_when_due();
-        if (std::exchange(reconnect_now, false)) leave_async();
         if (leaving_until && (unacknowledged_goodbye < 0 || std::chrono::steady_clock::now() >= *leaving_until)) {
             // Acknowledged (or given up on): the DISCONNECT; the connection's end comes next,
             // and the driver's reconnection after it.
@@ -566,9 +617,11 @@ struct SparkplugNode::State {
     // a connection made next (a primary host's return) is not a takeover of this one, on which
     // the broker would also publish the will and libmosquitto send the NDEATH again.
     void leave() {
-        int mid = -1;
-        publish(node_topic("NDEATH"), node_death(), qos_at_least_once, &mid);
-        unacknowledged_goodbye = mid;
+        if (!leaving_until) {  // else it is out already (leave_async): a second would say the same death twice
+            int mid = -1;
+            publish(node_topic("NDEATH"), node_death(), qos_at_least_once, &mid);
+            unacknowledged_goodbye = mid;
+        }
         const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(2);
         while (unacknowledged_goodbye >= 0 && std::chrono::steady_clock::now() < give_up &&
                mosquitto_loop(client, goodbye_turn_ms, 1) == MOSQ_ERR_SUCCESS) {
@@ -628,6 +681,11 @@ SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice
     // while the node was away are not for it, its births make the host application's picture.
     s.client = mosquitto_new(s.config.client_id.c_str(), true, &s);
     if (!s.client) throw std::bad_alloc();
+    // MQTT 5 (Sparkplug 3.0 takes 3.1.1 or 5), for the retain flag of a command as it was
+    // published: under 3.1.1 a command published retained while the node is subscribed comes
+    // without it (3.3.1.3) and could not be told from a live one. Clean Start with no session
+    // expiry is 3.1.1's clean session.
+    (void)mosquitto_int_option(s.client, MOSQ_OPT_PROTOCOL_VERSION, MQTT_PROTOCOL_V5);
     mqtt::send_without_delay(s.client);
     mqtt::configure_security(s.client, s.config.tls, s.config.username, s.config.password,
                              [&s](const std::string& line) { s.say(line); });

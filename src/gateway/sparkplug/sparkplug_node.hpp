@@ -7,8 +7,9 @@
 //   spBv1.0/GROUP/NBIRTH/EDGE          on each connection and rebirth: bdSeq, Node Control/Rebirth,
 //                                      each line's figures (Lines/LINE/...), seq 0
 //   spBv1.0/GROUP/NDATA/EDGE           the lines' figures that changed, every `node_data_every`
-//   spBv1.0/GROUP/NDEATH/EDGE          the MQTT will, with that connection's bdSeq; also sent on a
-//                                      clean stop
+//   spBv1.0/GROUP/NDEATH/EDGE          the MQTT will, with that connection's bdSeq (each session
+//                                      that reached the broker has the next); also sent on a clean
+//                                      stop and when the primary host goes offline
 //   spBv1.0/GROUP/NCMD/EDGE            subscribed: Node Control/Rebirth = true births everything again
 //   spBv1.0/GROUP/DBIRTH/EDGE/DEVICE   once the device answers: every polled parameter as a metric
 //                                      (sparkplug_payloads.hpp), Device Control/Last Error
@@ -16,7 +17,11 @@
 //   spBv1.0/GROUP/DDEATH/EDGE/DEVICE   when its polls get no answer (or its line is down)
 //   spBv1.0/GROUP/DCMD/EDGE/DEVICE     subscribed: writes, checked as `loopwire write` checks them;
 //                                      a refusal is told in Device Control/Last Error
-//   spBv1.0/STATE/HOST                 with primary_host: births wait for {"online": true}
+//   spBv1.0/STATE/HOST                 with primary_host: births wait for {"online": true}; a
+//                                      STATE older than the last taken is ignored
+// An NCMD or DCMD published with the retain flag is refused unread (MQTT 5, "retain as
+// published": live or as the broker's retained copy at each subscription), so that an old
+// command is never written again at a reconnection.
 // Aliases are numbered once, from the configuration (node metrics, then each device's metrics
 // in order), so they are the same across rebirths and restarts of the same configuration.
 //

@@ -1,5 +1,6 @@
 #include "gateway/sparkplug/sparkplug_payloads.hpp"
 
+#include <charconv>
 #include <cmath>
 #include <limits>
 
@@ -136,6 +137,19 @@ int decimals_in(const std::string& text) {
     return point == std::string::npos ? 0 : static_cast<int>(text.size() - point - 1);
 }
 
+// A Float as the decimal its sender meant: the shortest text that reads back as the same 32-bit
+// value, taken as a double. Widened as it is, 12.3 sent as a Float is 12.300000190734863, a value
+// finer than any parameter's decimals; the sender's 12.3 is the one decimal within half a Float's
+// step of it. A value truly finer (12.34 for a parameter of one decimal) keeps its digits, and
+// the write refuses it for them.
+double float_as_meant(float value) {
+    if (!std::isfinite(value)) return static_cast<double>(value);
+    const std::string text = fmt::format("{}", value);
+    double meant = 0;
+    const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), meant);
+    return error == std::errc() && end == text.data() + text.size() ? meant : static_cast<double>(value);
+}
+
 MetricValue command_value(const Payload::Metric& metric) {
     const std::uint32_t type = metric.datatype();
     switch (metric.value_case()) {
@@ -145,7 +159,7 @@ MetricValue command_value(const Payload::Metric& metric) {
         case Payload::Metric::kLongValue:
             if (type == int64_code) return static_cast<std::int64_t>(metric.long_value());
             return metric.long_value();
-        case Payload::Metric::kFloatValue: return static_cast<double>(metric.float_value());
+        case Payload::Metric::kFloatValue: return float_as_meant(metric.float_value());
         case Payload::Metric::kDoubleValue: return metric.double_value();
         case Payload::Metric::kBooleanValue: return metric.boolean_value();
         case Payload::Metric::kStringValue: return metric.string_value();
@@ -195,14 +209,14 @@ MetricSample sample_of(const MetricDefinition& metric, const ValueChange& change
     return sample;
 }
 
-MetricProperties properties_of(const MetricDefinition& metric, const ValueChange* latest) {
+MetricProperties properties_of(const MetricDefinition& metric, const ValueChange* latest, bool writes_on) {
     MetricProperties properties;
     if (!metric.parameter) return properties;
     const device::Parameter& parameter = *metric.parameter;
     properties.mnemonic = parameter.mnemonic;
     properties.documentation = parameter.description;
     if (!metric.bit.empty()) return properties;  // a bit: read-only, no unit
-    properties.writable = parameter.writable;
+    properties.writable = writes_on && parameter.writable;
     if (metric.type == DataType::boolean || metric.type == DataType::string || parameter.type == device::ValueType::bitfield) {
         return properties;
     }

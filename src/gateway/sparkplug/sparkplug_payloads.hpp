@@ -86,8 +86,10 @@ std::vector<MetricDefinition> parameter_metrics(const device::Parameter& paramet
 MetricSample sample_of(const MetricDefinition& metric, const ValueChange& change);
 
 // The birth properties of a parameter's metric; `latest` (may be null) gives the unit and the
-// decimals the device's configuration resolved. Limits are the profile's fixed ones.
-MetricProperties properties_of(const MetricDefinition& metric, const ValueChange* latest);
+// decimals the device's configuration resolved. Limits are the profile's fixed ones. Writable
+// only when the profile lets the parameter be written and `writes_on` (the node takes DCMDs):
+// a host application must not offer a write the node will refuse.
+MetricProperties properties_of(const MetricDefinition& metric, const ValueChange* latest, bool writes_on);
 
 // One payload being built. The node's messages all carry `seq` but NDEATH (6.4.18).
 class PayloadWriter {
@@ -118,7 +120,8 @@ struct CommandMetric {
     MetricValue value;
 };
 
-// The metrics of a command payload; an error when it is not a Sparkplug B payload.
+// The metrics of a command payload; an error when it is not a Sparkplug B payload. A Float value
+// is the decimal its sender meant (12.3, not the 12.300000190734863 its 32 bits widen to).
 Result<std::vector<CommandMetric>> decode_command(std::string_view payload);
 
 // The text `loopwire write` takes for writing `value` to the metric ("150.5", "on"), or why it
