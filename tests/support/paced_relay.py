@@ -234,7 +234,7 @@ class Relay:
                        self.from_master.closes_at(), self.from_device.closes_at()):
                 if at is not None:
                     wake.append(at)
-            if self.copies:
+            if self.copies and self.from_device.open_frame is None:  # else it waits for the frame's end
                 wake.append(self.copies[0][0])
             try:
                 readable, _, _ = select.select([self.master.fd, self.device.fd], [], [], max(0.0, min(wake) - now))
