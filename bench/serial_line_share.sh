@@ -8,20 +8,24 @@
 # longer than that), no duplicates. Every request reads the same 16 holding registers (FC3,
 # addresses 1-16), the TC10's most at once, and is sent as soon as the one before it ended.
 #
-# a. loopwire's own serial master alone on the line (bench/serial_master_loop: the gateway's
+# a. a plain RTU master alone on the line (bench/libmodbus_rtu_loop: libmodbus, which takes a
+#    reply as whole once the bytes its function code calls for have come, then the 3.5
+#    characters of silence before the next request): what the line gives a master that keeps
+#    the rules and loses no time of its own, the reference;
+# b. loopwire's own serial master alone on the line (bench/serial_master_loop: the gateway's
 #    master, carried on the same kind of loop, without the gateway around it);
-# b. ten libmodbus clients (gateway_throughput_client) through `loopwire gateway`, whose line is
+# c. ten libmodbus clients (gateway_throughput_client) through `loopwire gateway`, whose line is
 #    the same relay.
-# Printed: requests/s of each, the ratio b/a, the garbled frames each master counted (runs of
-# bytes it discarded: MasterOptions::discarded, the gateway's "garbled frame(s)"), the requests
-# that failed, and the longest silence the relay really left inside a frame (on a loaded machine
-# its own wake-ups come late too: a longer one than the jitter is the machine's, not the master's).
-# On a line with nothing but timing jitter a master should reach b/a of 0.95 or more with no
-# garbled frames.
+# Printed: requests/s of each, the ratios c/a (the line shared through the gateway against a
+# plain master alone: 0.95 or more is the goal) and c/b (the gateway against its own master),
+# the garbled frames loopwire's masters counted (runs of bytes discarded: MasterOptions::discarded,
+# the gateway's "garbled frame(s)"; from timing alone there should be none), the requests that
+# failed, and the longest silence the relay really left inside a frame (on a loaded machine its
+# own wake-ups come late too: a longer one than the jitter is the machine's, not the master's).
 #
 # Usage: bench/serial_line_share.sh BUILD_DIR [SECONDS] [JITTER_MS]   (SECONDS per figure, default 20)
-# Builds nothing: BUILD_DIR must hold loopwire, bench/serial_master_loop and
-# bench/gateway_throughput_client.
+# Builds nothing: BUILD_DIR must hold loopwire, bench/libmodbus_rtu_loop, bench/serial_master_loop
+# and bench/gateway_throughput_client.
 set -euo pipefail
 
 if [[ $# -lt 1 || $# -gt 3 ]]; then
@@ -30,10 +34,11 @@ if [[ $# -lt 1 || $# -gt 3 ]]; then
 fi
 readonly BUILD_DIR=$1 DURATION=${2:-20} JITTER_MS=${3:-2}
 readonly LOOPWIRE=$BUILD_DIR/loopwire
+readonly PLAIN=$BUILD_DIR/bench/libmodbus_rtu_loop
 readonly MASTER=$BUILD_DIR/bench/serial_master_loop
 readonly CLIENT=$BUILD_DIR/bench/gateway_throughput_client
 readonly RELAY=$(dirname "$0")/../tests/support/paced_relay.py
-for program in "$LOOPWIRE" "$MASTER" "$CLIENT"; do
+for program in "$LOOPWIRE" "$PLAIN" "$MASTER" "$CLIENT"; do
     [[ -x $program ]] || { echo "$0: $program is missing: build it first (cmake --build $BUILD_DIR)" >&2; exit 2; }
 done
 [[ $DURATION =~ ^[1-9][0-9]*$ ]] || { echo "$0: SECONDS must be a positive whole number, not '$DURATION'" >&2; exit 2; }
@@ -45,7 +50,7 @@ source "$(dirname "$0")/../tests/support/test_lib.sh"
 readonly CLIENTS=10 UNIT=3 ADDRESS=1 REGISTERS=16 BAUD=19200
 # Background processes outlive the measurements only by this much (test_lib.sh: CTest's timeout
 # kills with SIGKILL, which runs no trap).
-readonly LIFETIME=$((2 * DURATION + 90))
+readonly LIFETIME=$((3 * DURATION + 120))
 readonly DEVICE_LINK=$WORK_DIR/ttyDevice MASTER_LINK=$WORK_DIR/ttyMaster
 readonly LINK="rtu:$MASTER_LINK?baud=$BAUD&parity=none"
 
@@ -60,7 +65,14 @@ wait_for_text "$WORK_DIR/relay.log" "paced_relay: ready"
 start_background simulate.log "$LOOPWIRE" simulate --link "rtu:$DEVICE_LINK?baud=$BAUD&parity=none" \
     --device "tc10@$UNIT" --duration "${LIFETIME}s"
 
-# --- a. The master alone ---
+# --- a. A plain master alone ---
+timeout $((DURATION + 60)) "$PLAIN" "$MASTER_LINK" "$BAUD" "$DURATION" "$UNIT" "$ADDRESS" "$REGISTERS" >"$WORK_DIR/plain.out" 2>&1 ||
+    fail "the plain master failed: $(cat "$WORK_DIR/plain.out")"
+plain_rate=$(sed -nE 's/^requests\/s: ([0-9.]+)$/\1/p' "$WORK_DIR/plain.out")
+plain_failed=$(sed -nE 's/^requests: [0-9]+, failed: ([0-9]+),.*/\1/p' "$WORK_DIR/plain.out")
+[[ -n $plain_rate && -n $plain_failed ]] || fail "the plain master printed no figures: $(cat "$WORK_DIR/plain.out")"
+
+# --- b. loopwire's master alone ---
 timeout $((DURATION + 60)) "$MASTER" "$LINK" "$DURATION" "$UNIT" "$ADDRESS" "$REGISTERS" >"$WORK_DIR/alone.out" 2>&1 ||
     fail "the master alone failed: $(cat "$WORK_DIR/alone.out")"
 alone_rate=$(sed -nE 's/^requests\/s: ([0-9.]+)$/\1/p' "$WORK_DIR/alone.out")
@@ -68,7 +80,7 @@ alone_failed=$(sed -nE 's/^requests: [0-9]+, failed: ([0-9]+),.*/\1/p' "$WORK_DI
 alone_garbled=$(sed -nE 's/^garbled frames: ([0-9]+)$/\1/p' "$WORK_DIR/alone.out")
 [[ -n $alone_rate && -n $alone_failed && -n $alone_garbled ]] || fail "the master alone printed no figures: $(cat "$WORK_DIR/alone.out")"
 
-# --- b. Ten clients through the gateway ---
+# --- c. Ten clients through the gateway ---
 cat >"$WORK_DIR/gateway.toml" <<EOF
 [[lines]]
 name = "bench"
@@ -114,7 +126,10 @@ transaction_s=$(calc "%.9f" "(8 + 5 + 2 * $REGISTERS) * $character_s + 2 * 3.5 *
 echo "line $BAUD baud, 10 bits a character, writes up to $JITTER_MS ms late; FC3 of $REGISTERS registers at unit $UNIT:" \
      "$(calc "%.2f" "1e3 * $transaction_s") ms of wire time a request, capacity $(calc "%.1f" "1 / $transaction_s") req/s"
 echo "relay ($relay_priority): longest silence inside a frame $relay_gap than the limit"
-echo "a. loopwire's serial master alone: $alone_rate req/s, $alone_failed failed, $alone_garbled garbled frames (${DURATION} s)"
-echo "b. $CLIENTS clients through the gateway: $shared_rate req/s, $shared_failed failed; $shared_details"
+echo "a. a plain master (libmodbus) alone: $plain_rate req/s, $plain_failed failed (${DURATION} s each)"
+echo "b. loopwire's serial master alone: $alone_rate req/s, $alone_failed failed, $alone_garbled garbled frames"
+echo "c. $CLIENTS clients through the gateway: $shared_rate req/s, $shared_failed failed; $shared_details"
 echo "   the gateway's line over its run: $line_counts, $shared_garbled garbled frames"
-echo "serial line shared: alone $alone_rate req/s, through the gateway $shared_rate req/s, gateway/alone: $(calc "%.3f" "$shared_rate / $alone_rate"), garbled frames: alone $alone_garbled, gateway $shared_garbled"
+echo "serial line shared: plain master alone $plain_rate req/s, loopwire's master alone $alone_rate req/s," \
+     "through the gateway $shared_rate req/s; gateway/plain: $(calc "%.3f" "$shared_rate / $plain_rate")," \
+     "gateway/loopwire alone: $(calc "%.3f" "$shared_rate / $alone_rate"); garbled frames: loopwire alone $alone_garbled, gateway $shared_garbled"
