@@ -37,7 +37,8 @@ readonly LOOPWIRE=$BUILD_DIR/loopwire
 readonly PLAIN=$BUILD_DIR/bench/libmodbus_rtu_loop
 readonly MASTER=$BUILD_DIR/bench/serial_master_loop
 readonly CLIENT=$BUILD_DIR/bench/gateway_throughput_client
-readonly RELAY=$(dirname "$0")/../tests/support/paced_relay.py
+RELAY=$(dirname "$0")/../tests/support/paced_relay.py
+readonly RELAY
 for program in "$LOOPWIRE" "$PLAIN" "$MASTER" "$CLIENT"; do
     [[ -x $program ]] || { echo "$0: $program is missing: build it first (cmake --build $BUILD_DIR)" >&2; exit 2; }
 done
