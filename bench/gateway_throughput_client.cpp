@@ -99,7 +99,9 @@ void run_client(const Arguments& args, int index, StartLine& start_line, std::at
                      modbus_strerror(errno));
         return false;
     };
-    if (ready) ready = read_once();
+    // With count-failures a first request that fails is one of the faults measured, not a path
+    // that does not work: only a connection that cannot be made stops the run.
+    if (ready) ready = read_once() || args.count_failures;
     if (!ready) {
         tally.failed = true;
         abort = true;
