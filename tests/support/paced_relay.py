@@ -30,8 +30,10 @@ as on a wire with no listener.
 
 It runs until SIGTERM or SIGINT (or --lifetime seconds), then prints its counts on stdout:
   paced_relay: master->device N frames (B bytes), device->master N frames (B bytes),
-    D duplicated (delays in ms: count ...), longest silence inside a frame X ms (limit L ms),
-    G gaps longer than the limit (late wake-ups of this process)
+    D duplicated (delays MS ms: COUNT, ...), longest silence inside a frame X ms (limit L ms),
+    G gaps longer than the limit (late wake-ups of this process), K bytes lost (nobody reading)
+A run on a loaded machine shows G above 0: its silences were longer than the jitter asked for,
+and frames a receiver split there are the machine's doing, not the receiver's.
 
 Usage: paced_relay.py --device-link PATH --master-link PATH [--baud 19200] [--bits 10]
                       [--jitter-ms 2] [--duplicate 0.15] [--duplicate-delays-ms 150,250,350]
