@@ -3,7 +3,7 @@
 // time. Each waits for its reply before it sends again (what a SCADA client does), so the load
 // on a gateway is CONNECTIONS requests outstanding, queued on the line behind it.
 //
-// Usage: gateway_throughput_client HOST PORT SECONDS CONNECTIONS UNIT ADDRESS COUNT
+// Usage: gateway_throughput_client HOST PORT SECONDS CONNECTIONS UNIT ADDRESS COUNT [count-failures]
 // Every connection first gets one untimed request answered (it proves the path and pays for the
 // first-time costs); then all start together and count the replies that arrive within SECONDS.
 // Prints on stdout:
@@ -12,7 +12,9 @@
 //   requests sent in all: T         warm-up and the ones that ended after the window included
 //                                   (what a gateway's line counters saw from these clients)
 // Exit 1 if any request fails (an exception reply or no reply): a throughput built on errors
-// means nothing.
+// means nothing. With count-failures (a line whose faults are what is measured) a failed request
+// is counted and the client goes on; it then also prints
+//   requests failed: F              within the window, not in the requests/s
 #include <modbus/modbus.h>
 
 #include <algorithm>
@@ -38,11 +40,13 @@ struct Arguments {
     int unit = 0;
     int address = 0;
     int count = 0;
+    bool count_failures = false;
 };
 
 struct Tally {
     long answered_in_window = 0;
     long sent = 0;
+    long failed_in_window = 0;
     double latency_sum = 0;  // seconds, over the replies within the window
     double latency_max = 0;
     bool failed = false;
@@ -65,7 +69,11 @@ bool parse_int(const char* text, int low, int high, int& out) {
 }
 
 bool parse(int argc, char** argv, Arguments& args) {
-    if (argc != 8) return false;
+    if (argc != 8 && argc != 9) return false;
+    if (argc == 9) {
+        if (std::string(argv[8]) != "count-failures") return false;
+        args.count_failures = true;
+    }
     args.host = argv[1];
     char* end = nullptr;
     args.seconds = std::strtod(argv[3], &end);
@@ -91,7 +99,9 @@ void run_client(const Arguments& args, int index, StartLine& start_line, std::at
                      modbus_strerror(errno));
         return false;
     };
-    if (ready) ready = read_once();
+    // With count-failures a first request that fails is one of the faults measured, not a path
+    // that does not work: only a connection that cannot be made stops the run.
+    if (ready) ready = read_once() || args.count_failures;
     if (!ready) {
         tally.failed = true;
         abort = true;
@@ -101,13 +111,19 @@ void run_client(const Arguments& args, int index, StartLine& start_line, std::at
     while (ready && !abort) {
         const auto sent_at = Clock::now();
         if (sent_at >= deadline) break;
-        if (!read_once()) {
+        const bool answered = read_once();
+        if (!answered && !args.count_failures) {
             tally.failed = true;
             abort = true;
             break;
         }
         const auto answered_at = Clock::now();
         if (answered_at > deadline) break;  // ended after the window: not counted
+        if (!answered) {
+            ++tally.failed_in_window;
+            modbus_flush(ctx);  // a late answer to it must not be read as the next one's
+            continue;
+        }
         const double latency = std::chrono::duration<double>(answered_at - sent_at).count();
         ++tally.answered_in_window;
         tally.latency_sum += latency;
@@ -124,7 +140,7 @@ void run_client(const Arguments& args, int index, StartLine& start_line, std::at
 int main(int argc, char** argv) {
     Arguments args;
     if (!parse(argc, argv, args)) {
-        std::fprintf(stderr, "usage: gateway_throughput_client HOST PORT SECONDS CONNECTIONS UNIT ADDRESS COUNT\n"
+        std::fprintf(stderr, "usage: gateway_throughput_client HOST PORT SECONDS CONNECTIONS UNIT ADDRESS COUNT [count-failures]\n"
                              "  (SECONDS > 0, CONNECTIONS 1..1000, UNIT 0..255, ADDRESS 0..65535, COUNT 1..125)\n");
         return 2;
     }
@@ -143,6 +159,7 @@ int main(int argc, char** argv) {
     for (const auto& tally : tallies) {
         total.answered_in_window += tally.answered_in_window;
         total.sent += tally.sent;
+        total.failed_in_window += tally.failed_in_window;
         total.latency_sum += tally.latency_sum;
         total.latency_max = std::max(total.latency_max, tally.latency_max);
         total.failed = total.failed || tally.failed;
@@ -156,6 +173,7 @@ int main(int argc, char** argv) {
     std::printf("requests: %ld, seconds: %.3f, mean latency: %.2f ms, max latency: %.2f ms\n", total.answered_in_window,
                 args.seconds, 1e3 * total.latency_sum / replies, 1e3 * total.latency_max);
     std::printf("requests sent in all: %ld\n", total.sent);
+    if (args.count_failures) std::printf("requests failed: %ld\n", total.failed_in_window);
     std::printf("requests/s: %.1f\n", replies / args.seconds);
     return 0;
 }
