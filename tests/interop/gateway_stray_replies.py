@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Replies that come late or twice never reach a Modbus TCP client as another request's (issue 20).
+"""Replies that come late or twice never reach a Modbus TCP client as another request's.
 
 `loopwire simulate` serves a TC10 (unit 3) on one end of a socat pseudo-terminal pair; a relay
 written here joins its other end to a second pair, whose other end is the gateway's RTU line.
