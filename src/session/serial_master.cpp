@@ -616,11 +616,18 @@ private:
         return std::max(last_heard_ + inter_frame_gap_, awaited.sent_at + awaited.usual + inter_frame_gap_ + reply_jitter);
     }
 
-    Duration copy_window() const { return options_.timeout + late_reply_window(); }
+    // How long after a frame a copy of it may come: the timeout and the late-reply window, and at
+    // least a second, as a repeater's or relay's copy comes hundreds of milliseconds late whatever
+    // the device's reply timeout (a line with a 100 ms timeout behind a relay copying 350 ms late
+    // took another client's value for its own).
+    Duration copy_window() const {
+        return std::max<Duration>(options_.timeout + late_reply_window(), std::chrono::seconds(1));
+    }
 
     // A fault (a timeout, a frame refused, damaged, from another unit or between exchanges) may
-    // echo for as long as a late reply or a copy can come: until then the line is careful.
-    void note_fault() { careful_until_ = clock_->now() + late_reply_window(); }
+    // echo for as long as a copy can come: until then the line is careful. A frame heard damaged
+    // is not remembered, so only the hold (settle) catches its copy.
+    void note_fault() { careful_until_ = clock_->now() + copy_window(); }
     bool line_behaves() const { return clock_->now() >= careful_until_; }
 
     // A reply that is complete and checked (unit, function, byte count or echo, CRC, not a
