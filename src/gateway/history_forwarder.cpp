@@ -25,7 +25,7 @@ using std::chrono::milliseconds;
 constexpr const char* copy_samples = "COPY loopwire_samples(series_id, t, value, text, status) FROM STDIN (FORMAT binary)";
 constexpr const char* unique_violation = "23505";
 constexpr const char* create_staging =
-    "CREATE TEMPORARY TABLE loopwire_staging(series_id bigint, t bigint, value double precision, text text, status text) "
+    "CREATE TEMPORARY TABLE IF NOT EXISTS loopwire_staging(series_id bigint, t bigint, value double precision, text text, status text) "
     "ON COMMIT DELETE ROWS";
 constexpr const char* copy_staging = "COPY loopwire_staging FROM STDIN (FORMAT binary)";
 // Both ways end by adding minutes to those of earlier batches.
@@ -56,6 +56,19 @@ added AS (
 SELECT id, device, parameter, unit FROM added
 UNION ALL SELECT s.id, s.device, s.parameter, s.unit FROM loopwire_series s JOIN wanted w USING (device, parameter, unit)
 WHERE s.gateway = $1
+)sql";
+
+// The historian's series rows of a batch, as this forwarder knows them (id, device, parameter,
+// unit), that are still there under its own gateway: locked (KEY SHARE) until the batch's
+// transaction ends, so none can be deleted, nor its table dropped, before the batch is in. A
+// batch goes in only when every one of its series is found: ids learnt earlier may have come to
+// name another gateway's series (the tables dropped and made again, by hand or by another
+// gateway's first connect), and a row filed under one of those would be that gateway's.
+constexpr const char* verify_series = R"sql(
+SELECT s.id FROM loopwire_series s
+JOIN unnest($2::bigint[], $3::text[], $4::text[], $5::text[]) AS w(id, device, parameter, unit)
+  ON s.id = w.id AND s.device = w.device AND s.parameter = w.parameter AND s.unit = w.unit
+WHERE s.gateway = $1 FOR KEY SHARE OF s
 )sql";
 
 // How often the historian's expired partitions are looked for.
@@ -142,12 +155,79 @@ Result<void> HistoryForwarder::connect() {
     return {};
 }
 
-// The batch's rows as the historian takes them: its series ids, COPY's data, the minutes.
-Result<ForwardBatch> HistoryForwarder::for_historian(const OutboxBatch& batch) {
+// The batch's rows as the historian takes them: its series ids, COPY's data, the minutes, and
+// the series rows to verify in the batch's transaction.
+Result<HistoryForwarder::HistorianBatch> HistoryForwarder::for_historian(const OutboxBatch& batch) {
     if (auto learned = learn_series(batch); !learned) return learned.error();
-    ForwardBatch rows;
-    for (const OutboxRow& row : batch.rows) rows.add(remote_ids_.at(row.series), row.t, row.value, row.text, row.status);
-    return rows;
+    HistorianBatch out;
+    std::set<std::int64_t> seen;
+    std::vector<std::optional<std::string>> ids, devices, parameters, units;
+    for (const OutboxRow& row : batch.rows) {
+        const std::int64_t remote = remote_ids_.at(row.series);
+        out.rows.add(remote, row.t, row.value, row.text, row.status);
+        if (!seen.insert(row.series).second) continue;
+        const SeriesNames& names = local_names_.at(row.series);
+        ids.emplace_back(std::to_string(remote));
+        devices.emplace_back(names.device);
+        parameters.emplace_back(names.parameter);
+        units.emplace_back(names.unit);
+    }
+    out.series = seen.size();
+    out.series_check = {options_.gateway, postgres::array_literal(ids), postgres::array_literal(devices),
+                        postgres::array_literal(parameters), postgres::array_literal(units)};
+    return out;
+}
+
+// The local file's names of a series: they never change for an id the outbox holds, so they
+// are read once per forwarder.
+Result<const SeriesNames*> HistoryForwarder::local_names(std::int64_t series) {
+    if (auto known = local_names_.find(series); known != local_names_.end()) return &known->second;
+    auto names = outbox_.names(series);
+    if (!names) return names.error();
+    return &local_names_.emplace(series, std::move(*names)).first->second;
+}
+
+// In the batch's transaction, before its rows: every series the rows are filed under is still
+// this gateway's, as this forwarder knows it (verify_series).
+Result<void> HistoryForwarder::verified(const HistorianBatch& batch) {
+    auto found = remote_->execute(verify_series, batch.series_check);
+    if (!found) return found.error();
+    if (static_cast<std::size_t>(found->rows()) == batch.series) return {};
+    return make_error(ErrorKind::mismatch,
+                      fmt::format("{}: {} of the batch's {} series ids no longer name this gateway's series in the historian "
+                                  "(its tables were dropped or made again)",
+                                  remote_->server(), batch.series - static_cast<std::size_t>(found->rows()), batch.series));
+}
+
+// After a batch failed on a connection that still works: what this forwarder knew of the
+// historian may be what failed it (tables dropped, made again, a partition gone), so the series
+// ids and partitions are learnt again, and missing tables made again.
+Result<void> HistoryForwarder::start_over_with_schema() {
+    remote_ids_.clear();
+    partitions_.clear();
+    if (auto migrated = postgres_history::migrate(*remote_); !migrated) return migrated.error();
+    return remote_->run(create_staging);
+}
+
+// One batch, shipped; a failure on a working connection is tried once more after
+// start_over_with_schema(), so a historian whose tables were dropped and made again under this
+// gateway takes the batch at once, under the right series, rather than after a reconnect.
+Result<void> HistoryForwarder::ship_batch(const OutboxBatch& batch, const std::function<void()>& meanwhile) {
+    Result<void> shipped;
+    for (int attempt = 0; attempt < 2; ++attempt) {
+        if (attempt == 1) {
+            if (!remote_ || remote_->broken()) return shipped;
+            const Error first = shipped.error();
+            if (auto again = start_over_with_schema(); !again) return first;
+            log(fmt::format("the historian's tables or series changed under this gateway ({}); made again where missing, "
+                            "series ids learnt again",
+                            first.message));
+        }
+        auto rows = for_historian(batch);
+        shipped = rows ? ship(*rows, meanwhile) : Result<void>(rows.error());
+        if (shipped) return shipped;
+    }
+    return shipped;
 }
 
 // The historian's ids of the batch's series not met yet on this connection (all of them on its
@@ -159,12 +239,13 @@ Result<void> HistoryForwarder::learn_series(const OutboxBatch& batch) {
     std::vector<std::optional<std::string>> devices, parameters, units;
     for (const OutboxRow& row : batch.rows) {
         if (remote_ids_.count(row.series) != 0 || !seen.insert(row.series).second) continue;
-        auto names = outbox_.names(row.series);
+        auto names = local_names(row.series);
         if (!names) return names.error();
-        unknown.emplace(Names{names->device, names->parameter, names->unit}, row.series);
-        devices.emplace_back(names->device);
-        parameters.emplace_back(names->parameter);
-        units.emplace_back(names->unit);
+        const SeriesNames& known = **names;
+        unknown.emplace(Names{known.device, known.parameter, known.unit}, row.series);
+        devices.emplace_back(known.device);
+        parameters.emplace_back(known.parameter);
+        units.emplace_back(known.unit);
     }
     if (unknown.empty()) return {};
     auto found = remote_->execute(find_or_add_series, {options_.gateway, postgres::array_literal(devices),
@@ -208,12 +289,14 @@ Result<void> HistoryForwarder::in_transaction(Steps steps) {
 }
 
 // `meanwhile` runs once the rows are sent, while the server takes them (unless sending failed).
-Result<void> HistoryForwarder::ship(const ForwardBatch& rows, const std::function<void()>& meanwhile) {
+Result<void> HistoryForwarder::ship(const HistorianBatch& batch, const std::function<void()>& meanwhile) {
+    const ForwardBatch& rows = batch.rows;
     if (rows.rows() == 0) return {};
     if (auto made = make_partitions(rows); !made) return made.error();
     last_failed_state_.clear();
     const std::string data = rows.copy_data();
     auto copied = in_transaction([&]() -> Result<void> {
+        if (auto checked = verified(batch); !checked) return checked.error();
         if (auto sent = remote_->copy_send(copy_samples, data); !sent) return sent.error();
         meanwhile();
         if (auto taken = remote_->copy_finish(); !taken) return taken.error();
@@ -222,6 +305,7 @@ Result<void> HistoryForwarder::ship(const ForwardBatch& rows, const std::functio
     });
     if (copied || last_failed_state_ != unique_violation) return copied;
     return in_transaction([&]() -> Result<void> {
+        if (auto checked = verified(batch); !checked) return checked.error();
         if (auto sent = remote_->copy_in(copy_staging, data); !sent) return sent.error();
         return remote_->run(std::string(merge_staged) + merge_minutes);
     });
@@ -245,19 +329,15 @@ Result<void> HistoryForwarder::forward_all() {
     std::optional<OutboxBatch> committed;  // in the historian, not yet cleared from the outbox
     Result<void> done;
     while (done && batch && !batch->empty()) {
-        auto rows = for_historian(*batch);
-        if (!rows) {
-            done = rows.error();
-            break;
-        }
         const std::int64_t last = batch->last_seq;
         std::optional<Result<OutboxBatch>> next;
+        // May run twice (a batch tried again): the second time it only reads the next again.
         const auto meanwhile = [&] {
             if (committed) done = cleared(*committed);
             committed.reset();
             next = outbox_.read(last, options_.batch_rows);
         };
-        if (auto shipped = ship(*rows, meanwhile); !shipped) {
+        if (auto shipped = ship_batch(*batch, meanwhile); !shipped) {
             done = shipped.error();
             break;
         }

@@ -10,6 +10,15 @@
 // then deletes what it shipped from the outbox. A kill between the two sends the batch again;
 // nothing is doubled.
 //
+// Every row is filed under its own gateway's series. The historian's series ids are learnt per
+// connection, and each batch's transaction first finds (and locks) the series rows it files
+// under, by id and by gateway, device, parameter and unit: a batch whose ids no longer name
+// those (the tables dropped and made again under a running gateway, so that an id learnt before
+// now names another gateway's series) is not sent; the ids are learnt again, missing tables are
+// made again, and the batch is tried once more at once, as after any failed batch on a working
+// connection (a table dropped: "relation does not exist"). A row counts as forwarded only once
+// PostgreSQL has committed it under its own series.
+//
 // PostgreSQL down, slow or refusing never reaches polling or the store's writer: the forwarder
 // alone waits, retrying with back-off (retry_first doubling to retry_max), logging one line when
 // an outage starts and one when it ends, not one per retry.
@@ -81,15 +90,25 @@ public:
 private:
     HistoryForwarder(ForwardOptions options, std::chrono::seconds keep, Clock wall_clock,
                      std::function<void(const std::string&)> log);
+    // A batch as the historian takes it, and its series as verify_series checks them.
+    struct HistorianBatch {
+        ForwardBatch rows;
+        postgres::Parameters series_check;  // gateway, then the arrays of ids, devices, parameters, units
+        std::size_t series = 0;             // how many series the rows are filed under
+    };
     void run(std::stop_token stop);
     Result<void> connect();
     Result<void> forward_all();
-    Result<ForwardBatch> for_historian(const OutboxBatch& batch);
+    Result<HistorianBatch> for_historian(const OutboxBatch& batch);
+    Result<const SeriesNames*> local_names(std::int64_t series);
     Result<void> learn_series(const OutboxBatch& batch);
+    Result<void> verified(const HistorianBatch& batch);
+    Result<void> start_over_with_schema();
+    Result<void> ship_batch(const OutboxBatch& batch, const std::function<void()>& meanwhile);
     Result<void> make_partitions(const ForwardBatch& rows);
     template <typename Steps>
     Result<void> in_transaction(Steps steps);
-    Result<void> ship(const ForwardBatch& rows, const std::function<void()>& meanwhile);
+    Result<void> ship(const HistorianBatch& batch, const std::function<void()>& meanwhile);
     Result<void> cleared(const OutboxBatch& batch);
     void refresh_waiting();
     std::int64_t now_ms() const;
@@ -102,7 +121,10 @@ private:
     std::mutex mutex_;  // one forward at a time: the connections and caches below
     Outbox outbox_;
     std::optional<postgres::Connection> remote_;
-    std::map<std::int64_t, std::int64_t> remote_ids_;  // local series id -> historian's id
+    // Local series id -> the historian's: learnt per connection, and again whenever a batch
+    // fails (start_over_with_schema); each batch verifies the ones it uses (verify_series).
+    std::map<std::int64_t, std::int64_t> remote_ids_;
+    std::map<std::int64_t, SeriesNames> local_names_;  // local series id -> its names in the file
     std::set<std::int64_t> partitions_;                // days known to have a partition
     std::string last_failed_state_;                    // the SQLSTATE of in_transaction's last failure
     bool connected_once_ = false;

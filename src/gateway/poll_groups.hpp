@@ -8,7 +8,8 @@
 // share the line with the clients' requests by turns (line_scheduler.hpp). A sample ends when all
 // its devices have answered or failed, and the next waits for that: groups are per line so that
 // a silent device or a slow line delays no other line's polls. What each poll finds goes into the
-// value cache (gateway/value_cache.hpp), and a device that stops or starts answering is logged.
+// value cache (gateway/value_cache.hpp) as its reply comes, stamped with the loop's wall time
+// then, and a device that stops or starts answering is logged.
 //
 // Polls that cannot keep their rate are reported two ways. A group whose sample ran past its
 // interval (its line cannot carry its polls beside everything else) is logged once when it

@@ -11,22 +11,25 @@ namespace {
 // two of them creating the same table at once do not fail on each other ("LWHi").
 constexpr const char* schema_lock = "SELECT pg_advisory_xact_lock(1280788585)";
 
+// Every table and index, each made only where missing: a first gateway makes them all, and a
+// gateway that finds one gone (dropped under it by hand) makes it again on its next connect or
+// failed batch (history_forwarder.cpp), rather than failing until its connection breaks.
 constexpr const char* create_tables = R"sql(
-CREATE TABLE loopwire_series(
+CREATE TABLE IF NOT EXISTS loopwire_series(
   id bigserial PRIMARY KEY,
   gateway text NOT NULL,
   device text NOT NULL,
   parameter text NOT NULL,
   unit text NOT NULL,
   UNIQUE(gateway, device, parameter, unit));
-CREATE TABLE loopwire_samples(
+CREATE TABLE IF NOT EXISTS loopwire_samples(
   series_id bigint NOT NULL,
   t bigint NOT NULL,
   value double precision,
   text text,
   status text,
   PRIMARY KEY(series_id, t)) PARTITION BY RANGE (t);
-CREATE TABLE loopwire_minutes(
+CREATE TABLE IF NOT EXISTS loopwire_minutes(
   series_id bigint NOT NULL,
   minute bigint NOT NULL,
   lo double precision NOT NULL,
@@ -34,15 +37,12 @@ CREATE TABLE loopwire_minutes(
   total double precision NOT NULL,
   n bigint NOT NULL,
   PRIMARY KEY(series_id, minute));
-INSERT INTO loopwire_schema_version(version) VALUES (1);
 )sql";
 
 // Version 2: the samples without a value (special states, missed replies) indexed apart, so a
 // query finds the gaps of a month without reading the month: the local file has the same index.
-constexpr const char* upgrade_to_2 = R"sql(
-CREATE INDEX IF NOT EXISTS loopwire_samples_gaps ON loopwire_samples(series_id, t) WHERE value IS NULL;
-UPDATE loopwire_schema_version SET version = 2;
-)sql";
+constexpr const char* create_gaps_index =
+    "CREATE INDEX IF NOT EXISTS loopwire_samples_gaps ON loopwire_samples(series_id, t) WHERE value IS NULL";
 
 // Runs `steps` in one transaction under the schema lock; rolls back on failure.
 template <typename Steps>
@@ -72,18 +72,17 @@ Result<void> migrate(postgres::Connection& db) {
         }
         auto version = db.execute("SELECT max(version) FROM loopwire_schema_version");
         if (!version) return version.error();
-        long long found = version->is_null(0, 0) ? 0 : version->integer(0, 0);
-        if (found == 0) {
-            if (auto made = db.run(create_tables); !made) return made.error();
-            found = 1;
-        }
+        const long long found = version->is_null(0, 0) ? 0 : version->integer(0, 0);
         if (found > schema_version) {
             return make_error(ErrorKind::usage,
                               fmt::format("{}: the history tables are of schema version {}, written by a newer loopwire; "
                                           "this one knows version {}: upgrade this gateway, or forward to another database",
                                           db.server(), found, schema_version));
         }
-        if (found < 2) return db.run(upgrade_to_2);
+        if (auto made = db.run(create_tables); !made) return made.error();
+        if (auto made = db.run(create_gaps_index); !made) return made.error();
+        if (found == 0) return db.run(fmt::format("INSERT INTO loopwire_schema_version(version) VALUES ({})", schema_version));
+        if (found < schema_version) return db.run(fmt::format("UPDATE loopwire_schema_version SET version = {}", schema_version));
         return {};
     });
 }

@@ -27,8 +27,9 @@ namespace loopwire::gateway::postgres_history {
 constexpr int schema_version = 2;
 constexpr std::int64_t day_ms = 24LL * 60 * 60 * 1000;
 
-// Creates the tables, or checks they are of this version; refuses a newer schema with a message
-// saying which version wrote it. Safe with many gateways migrating at once (an advisory lock).
+// Creates the tables, or checks they are of this version and makes any that are missing (dropped
+// by hand); refuses a newer schema with a message saying which version wrote it. Safe with many
+// gateways migrating at once (an advisory lock).
 Result<void> migrate(postgres::Connection& db);
 
 // The UTC day a time in ms since the epoch falls in (days since the epoch).

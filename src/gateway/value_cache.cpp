@@ -21,6 +21,8 @@ namespace loopwire::gateway {
 // poll's `ok`. It is taken before the others and never by a callback's calls.
 namespace detail {
 
+using SystemTime = std::chrono::system_clock::time_point;
+
 struct ValueSubscriber {
     explicit ValueSubscriber(ValueCallback f) : callback(std::move(f)) {}
 
@@ -34,6 +36,7 @@ struct DeviceEntry {
     CachedDevice latest;  // as polled; since_answered is filled in by snapshot()
     std::vector<ValueChange> published;  // the device's status, then each parameter, as last told
     std::optional<Instant> answered_at;  // the cache's clock when its last answered poll arrived
+    std::optional<SystemTime> told_at;    // the stamp of the last changes told of it
     bool told_stale = false;
 };
 
@@ -60,7 +63,7 @@ namespace {
 using detail::DeviceEntry;
 using detail::ValueHub;
 using detail::ValueSubscriber;
-using SystemTime = std::chrono::system_clock::time_point;
+using detail::SystemTime;
 
 // Not `waiting`: the poller did not skip the device in back-off, so it learned something new.
 bool polled(const device::WatchedDevice& state) { return device::polled(state.status); }
@@ -182,8 +185,17 @@ DeviceEntry& entry_of(ValueHub& hub, const std::string& name) {
     if (it != hub.devices.end()) return *it;
     const auto interval = hub.intervals.find(name);
     CachedDevice device{name, {}, {}, interval != hub.intervals.end() ? interval->second : std::chrono::milliseconds(0), {}};
-    hub.devices.push_back({std::move(device), {}, {}, false});
+    hub.devices.push_back({std::move(device), {}, {}, {}, false});
     return hub.devices.back();
+}
+
+// The stamp a device's next changes are told with: `time`, unless that is not later than the
+// last changes told of it (the same millisecond as a `stale`, a wall clock set back); then 1 ms
+// after those, so that the device's changes keep the order they happened in by their stamps.
+SystemTime next_stamp(DeviceEntry& entry, SystemTime time) {
+    if (entry.told_at && time <= *entry.told_at) time = *entry.told_at + std::chrono::milliseconds(1);
+    entry.told_at = time;
+    return time;
 }
 
 // With the subscriber's mutex held. Checked before each call: the callback may end its own
@@ -268,7 +280,7 @@ void ValueCache::update(const std::string& name, const device::WatchedDevice& st
             entry.answered_at.reset();
         }
         entry.told_stale = false;
-        changes = publish(entry.published, state_of(name, state, sampled));
+        changes = publish(entry.published, state_of(name, state, next_stamp(entry, sampled)));
         if (changes.empty()) return;
         subscribers = hub_->subscribers;
     }
@@ -293,7 +305,7 @@ std::vector<std::string> ValueCache::mark_overdue() {
             // earlier): a history heartbeat of the value written meanwhile then never lies after
             // the row that says it is stale.
             auto told = publish(entry.published, state_of(name, stale_state(entry.latest.state, overdue_reason(entry, now)),
-                                                          hub_->wall()));
+                                                          next_stamp(entry, hub_->wall())));
             changes.insert(changes.end(), told.begin(), told.end());
         }
         if (changes.empty()) return stale;

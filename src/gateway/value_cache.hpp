@@ -64,7 +64,9 @@ struct ValueChange {
     device::DeviceStatus device_status = device::DeviceStatus::waiting;
     // Why there is no value, or why the device is not "ok".
     std::string error;
-    // When the sample that found it started; for a change to `stale`, when it was found stale.
+    // When the poll's reply (or its failure) reached the gateway; for a change to `stale`, when
+    // it was found stale. The changes of one device are told in the order of these stamps, each
+    // later than the one before (ValueCache::update), so a history of them is ordered by them.
     std::chrono::system_clock::time_point sampled;
 
     bool about_device() const { return parameter.empty(); }
@@ -113,9 +115,13 @@ public:
     // is overdue (above). A device never declared never goes stale.
     void expect_polls(const std::string& name, std::chrono::milliseconds interval);
 
-    // One sample of the device named `name`. Changes against its last polled state go to the
-    // subscribers, on this thread: on its first sample every parameter and the device's status.
-    // A device in back-off ("waiting": not polled this sample) changes nothing but the snapshot.
+    // One sample of the device named `name`, `sampled` when its reply came. Changes against its
+    // last polled state go to the subscribers, on this thread: on its first sample every
+    // parameter and the device's status. A device in back-off ("waiting": not polled this
+    // sample) changes nothing but the snapshot. A device's changes are stamped later than the
+    // ones told of it before, a `stale` among them: a stamp that is not (the same millisecond, a
+    // clock set back) is moved to 1 ms after the last, so that whoever files the changes by
+    // their stamp (the history) never files a reply's `ok` before the `stale` it ended.
     void update(const std::string& name, const device::WatchedDevice& state,
                 std::chrono::system_clock::time_point sampled);
 

@@ -5,8 +5,14 @@
 #   do, and a right password passes and creates the tables;
 # - at run time a wrong password is a logged retry (once), never a stop: polling goes on, and once
 #   the password file is right (SIGHUP) every row recorded meanwhile arrives;
+# - the historian's tables dropped under a forwarding gateway are made again by its next batch,
+#   with no reconnect; emptied with their ids started again and another gateway's series made
+#   under the ids the first one had learnt, the first one's rows still go under its own series;
 # - two gateways of different names forward into one database, and both appear in it;
-# - `loopwire history` reads a gateway's history from the historian and from its own file.
+# - `loopwire history` reads a gateway's history from the historian and from its own file;
+# - row by row, each gateway's file against the historian: every row forwarded (not waiting in
+#   the outbox) since the ids were started again is there once, under its own gateway's series,
+#   and the historian holds no row its gateway's file does not.
 set -u
 loopwire=${1:?usage: history_forward_test.sh path/to/loopwire}
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -72,9 +78,29 @@ forwarded() { pg_sql "SELECT count(*) FROM loopwire_samples s JOIN loopwire_seri
 arrived() { (($(forwarded "$1") > 3)); }
 wait_for 60 "north's rows in PostgreSQL" arrived north
 
+# The tables dropped while north forwards: its next batch makes them again, on the same connection.
+pg_sql "DROP TABLE loopwire_samples, loopwire_minutes, loopwire_series, loopwire_schema_version" plant
+wait_for 60 "north's rows in PostgreSQL after its tables were dropped" arrived north
+# Emptied with the ids started again, and south's series made in the same transaction under the
+# ids north learnt for its own (the same device and parameters, in the same order): north's next
+# batches must learn its ids again, not file its rows under south's series.
+pg_sql "BEGIN;
+CREATE TEMPORARY TABLE north_names AS SELECT id, device, parameter, unit FROM loopwire_series WHERE gateway = 'north';
+TRUNCATE loopwire_samples, loopwire_minutes, loopwire_series RESTART IDENTITY;
+INSERT INTO loopwire_series(gateway, device, parameter, unit) SELECT 'south', device, parameter, unit FROM north_names ORDER BY id;
+COMMIT" plant
+cut=$(date +%s%3N)
+expect_equal "$(pg_sql "SELECT count(*) > 0 FROM loopwire_series WHERE gateway = 'south'" plant)" t "south's series under north's ids"
+arrived_after_cut() {  # GATEWAY ROWS
+  (($(pg_sql "SELECT count(*) FROM loopwire_samples s JOIN loopwire_series n ON n.id = s.series_id WHERE n.gateway = '$1' AND s.t > $cut" plant) > $2))
+}
+wait_for 60 "north's rows in PostgreSQL after the ids were started again" arrived_after_cut north 3
+expect "north's log says its tables or series changed" grep -q "the historian's tables or series changed" "$WORK_DIR/north.log"
+
 # A second gateway of another name, into the same database.
 write_config "$WORK_DIR/south.toml" south plant "$WORK_DIR/right.password"
 start_background south.log timeout 200 "$loopwire" gateway --config "$WORK_DIR/south.toml"
+south=$LAST_PID
 wait_for 120 "south's rows in PostgreSQL" arrived south
 expect_equal "$(pg_sql "SELECT string_agg(DISTINCT gateway, ',' ORDER BY gateway) FROM loopwire_series" plant)" "north,south" \
   "gateways in the historian"
@@ -89,10 +115,39 @@ check history-cli-needs-gateway 2 "--gateway NAME is required with a PostgreSQL 
 check history-cli-unknown-gateway 2 'the historian has no device "oven" of gateway "west"' \
   "$loopwire" history --database "$historian" --gateway west --device oven
 check history-cli-file 0 "measured_value" "$loopwire" history --database "$WORK_DIR/north.db" --device oven --format csv
-# Every row the local file holds reached the historian once, or still waits in its outbox.
-kill -TERM "$north"
-wait "$north" 2>/dev/null
-local_rows=$(sqlite3 "$WORK_DIR/north.db" "SELECT count(*) FROM samples")
-waiting=$(sqlite3 "$WORK_DIR/north.db" "SELECT count(*) FROM outbox")
-expect_equal "$(( $(forwarded north) + waiting ))" "$local_rows" "north's rows: forwarded + waiting = recorded"
+# Enough rows of both to compare (heartbeats every second, of each polled value).
+wait_for 120 "50 of north's rows after the cut in PostgreSQL" arrived_after_cut north 50
+wait_for 120 "50 of south's rows in PostgreSQL" arrived_after_cut south 50
+# Row by row, once both have stopped: each gateway's rows in its file (those stamped after the cut
+# for north: the ones before went with the dropped and emptied tables), less those still waiting
+# in its outbox, are in the historian once, under its own gateway's series; and every row the
+# historian holds under a gateway's series is one of that gateway's file.
+kill -TERM "$north" "$south"
+wait "$north" "$south" 2>/dev/null
+row_key="r.device || '|' || r.parameter || '|' || r.unit || '|' || s.t || '|' || coalesce(CAST(round(s.value * 1000) AS INTEGER), '-') || '|' || coalesce(s.text, '-') || '|' || coalesce(s.status, 'ok')"
+local_rows() {  # GATEWAY FROM_MS
+  sqlite3 "$WORK_DIR/$1.db" "SELECT $row_key FROM samples s JOIN series r ON r.id = s.series_id WHERE s.t > $2" | LC_ALL=C sort
+}
+waiting_rows() {  # GATEWAY
+  sqlite3 "$WORK_DIR/$1.db" "SELECT $row_key FROM outbox o JOIN samples s ON s.series_id = o.series_id AND s.t = o.t JOIN series r ON r.id = s.series_id" | LC_ALL=C sort
+}
+historian_rows() {  # GATEWAY
+  pg_sql "SELECT n.device || '|' || n.parameter || '|' || n.unit || '|' || s.t || '|' || coalesce((round(s.value * 1000)::bigint)::text, '-') || '|' || coalesce(s.text, '-') || '|' || coalesce(s.status, 'ok') FROM loopwire_samples s JOIN loopwire_series n ON n.id = s.series_id WHERE n.gateway = '$1'" plant | LC_ALL=C sort
+}
+for gateway in north south; do
+  from=0
+  [[ $gateway == north ]] && from=$cut
+  local_rows "$gateway" "$from" >"$WORK_DIR/$gateway.local"
+  local_rows "$gateway" 0 >"$WORK_DIR/$gateway.all"
+  waiting_rows "$gateway" >"$WORK_DIR/$gateway.waiting"
+  historian_rows "$gateway" >"$WORK_DIR/$gateway.held"
+  LC_ALL=C comm -23 "$WORK_DIR/$gateway.local" "$WORK_DIR/$gateway.waiting" >"$WORK_DIR/$gateway.expected"
+  missing=$(LC_ALL=C comm -23 "$WORK_DIR/$gateway.expected" "$WORK_DIR/$gateway.held" | wc -l)
+  duplicated=$(uniq -d "$WORK_DIR/$gateway.held" | wc -l)
+  misfiled=$(LC_ALL=C comm -23 <(uniq "$WORK_DIR/$gateway.held") "$WORK_DIR/$gateway.all" | wc -l)
+  echo "$gateway: $(wc -l <"$WORK_DIR/$gateway.expected") rows expected, $(wc -l <"$WORK_DIR/$gateway.held") held;" \
+    "$missing missing, $duplicated duplicated, $misfiled misfiled; $(wc -l <"$WORK_DIR/$gateway.waiting") waiting"
+  expect_equal "$missing/$duplicated/$misfiled" 0/0/0 "$gateway's rows missing/duplicated/misfiled"
+  (($(wc -l <"$WORK_DIR/$gateway.expected") >= 50)) || fail "$gateway: too few rows to compare"
+done
 finish

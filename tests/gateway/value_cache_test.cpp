@@ -327,6 +327,32 @@ TEST_F(ValueCacheStaleness, TheNextPollMakesItOkAgain) {
     EXPECT_TRUE(cache.mark_overdue().empty());
 }
 
+// A reply stamped no later than the `stale` it ends (the same millisecond, a reply time from
+// before it, a wall clock set back) is told 1 ms after it: whoever files a device's changes by
+// their stamps (the history) has them in the order they happened.
+TEST_F(ValueCacheStaleness, ADevicesChangesAreStampedInTheOrderTheyAreTold) {
+    cache.update("oven1", oven.answered(tenths(3550), tenths(1375)), sample_time);
+    clock->advance(5s);
+    wall.advance(5s);
+    (void)cache.mark_overdue();
+    ASSERT_FALSE(told.changes.empty());
+    const auto stale_at = told.changes.back().sampled;
+    EXPECT_EQ(stale_at, sample_time + 5s);
+    told.changes.clear();
+
+    cache.update("oven1", oven.answered(tenths(3971), tenths(1375)), sample_time + 5s);  // the same millisecond
+    ASSERT_EQ(told.names(), (std::vector<std::string>{"(ok)", "measured_value", "set_point"}));
+    for (const auto& change : told.changes) EXPECT_EQ(change.sampled, stale_at + 1ms);
+    told.changes.clear();
+    cache.update("oven1", oven.answered(tenths(3972), tenths(1375)), sample_time + 1s);  // earlier still
+    ASSERT_EQ(told.names(), (std::vector<std::string>{"measured_value"}));
+    EXPECT_EQ(told.changes[0].sampled, stale_at + 2ms);
+    told.changes.clear();
+    cache.update("oven1", oven.answered(tenths(3973), tenths(1375)), sample_time + 6s);  // later: as it is
+    ASSERT_EQ(told.names(), (std::vector<std::string>{"measured_value"}));
+    EXPECT_EQ(told.changes[0].sampled, sample_time + 6s);
+}
+
 // A device whose polls get no answer shows no value that could be stale: it stays no-reply,
 // however long its back-off; and a device never declared never goes stale.
 TEST_F(ValueCacheStaleness, NoReplyAndUndeclaredDevicesDoNotGoStale) {
