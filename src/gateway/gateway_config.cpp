@@ -1089,6 +1089,22 @@ Result<std::vector<std::string>> http_hosts(const Context& ctx, const toml::tabl
     return hosts;
 }
 
+// The share of `connections` event streams may hold (key `key`): half when not given, and
+// always fewer, so that requests find a connection however many dashboards are open.
+Result<unsigned> stream_share(const Context& ctx, const toml::table& table, std::string_view key, std::string_view of,
+                              unsigned connections) {
+    auto given = optional_integer(ctx, table, "http", "http", key);
+    if (!given) return given.error();
+    if (!*given) return connections / 2;
+    if (**given >= connections) {
+        return ctx.fail(source_of(table, key), fmt::format("http.{}", key),
+                        fmt::format("{} event streams leave no connection of [http] {} ({}) for requests: make it "
+                                    "at most {}",
+                                    **given, of, connections, connections - 1));
+    }
+    return static_cast<unsigned>(**given);  // 1..10000, checked
+}
+
 // The limits that keep a few clients from taking every connection.
 Result<void> parse_http_limits(const Context& ctx, const toml::table& table, HttpConfig& config) {
     auto read_timeout = bounded_duration(ctx, table, "http", "http", "read_timeout", "e.g. \"10s\"");
@@ -1103,6 +1119,16 @@ Result<void> parse_http_limits(const Context& ctx, const toml::table& table, Htt
     auto per_client = optional_integer(ctx, table, "http", "http", "max_connections_per_client");
     if (!per_client) return per_client.error();
     if (*per_client) config.max_connections_per_client = static_cast<unsigned>(**per_client);  // 1..10000, checked
+    auto header_timeout = bounded_duration(ctx, table, "http", "http", "header_timeout", "e.g. \"5s\"");
+    if (!header_timeout) return header_timeout.error();
+    if (*header_timeout) config.header_timeout = **header_timeout;
+    auto streams = stream_share(ctx, table, "max_event_streams", "max_connections", config.max_connections);
+    if (!streams) return streams.error();
+    config.max_event_streams = *streams;
+    auto client_streams = stream_share(ctx, table, "max_event_streams_per_client", "max_connections_per_client",
+                                       config.max_connections_per_client);
+    if (!client_streams) return client_streams.error();
+    config.max_event_streams_per_client = *client_streams;
     return {};
 }
 

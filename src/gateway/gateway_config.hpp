@@ -179,9 +179,16 @@ struct HttpConfig {
     std::string token;               // the file's first line, read when the configuration is
     // A client that has not sent a whole request this long after it began is closed.
     std::chrono::milliseconds read_timeout{10000};
+    // A client that has not sent a request's header this long after it connected, or after the
+    // response before, is closed (the shorter of this and read_timeout counts).
+    std::chrono::milliseconds header_timeout{5000};
     unsigned max_connections = 64;
     // Connections one client address may hold at once: a few clients cannot take every slot.
     unsigned max_connections_per_client = 8;
+    // Event streams (which stay open) may take only a share of those, so that requests always
+    // find room: by default half of each, and always fewer than them.
+    unsigned max_event_streams = 32;
+    unsigned max_event_streams_per_client = 4;
     // An event stream whose client has taken nothing of what waits for it this long is closed.
     std::chrono::milliseconds send_timeout{10000};
     // Host header names answered besides the listen address, localhost, 127.0.0.1 and [::1]
