@@ -937,6 +937,29 @@ TEST(GatewayConfig, BadHttpSettingsSayWhatIsExpected) {
     EXPECT_THAT(error_of("http = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected an [http] table"));
 }
 
+// Event streams may hold only a share of the connections: half of each limit unless given, and
+// always fewer, so that requests find one however many dashboards are open.
+TEST(GatewayConfig, TheEventStreamsShareAndTheHeaderTimeoutAreRead) {
+    const std::string device = one_device("device = \"tc10@3\"\n") + "[http]\n";
+    auto halves = parse(device + "max_connections = 10\nmax_connections_per_client = 5\n");
+    ASSERT_TRUE(halves) << halves.error().message;
+    EXPECT_EQ(halves->http->max_event_streams, 5u);
+    EXPECT_EQ(halves->http->max_event_streams_per_client, 2u);
+    EXPECT_EQ(halves->http->header_timeout, std::chrono::seconds(5));
+    auto given = parse(device + "max_event_streams = 60\nmax_event_streams_per_client = 7\nheader_timeout = \"2s\"\n");
+    ASSERT_TRUE(given) << given.error().message;
+    EXPECT_EQ(given->http->max_event_streams, 60u);
+    EXPECT_EQ(given->http->max_event_streams_per_client, 7u);
+    EXPECT_EQ(given->http->header_timeout, std::chrono::seconds(2));
+    EXPECT_THAT(error_of(device + "max_event_streams = 64\n"),
+                StartsWith("plant.toml:9: http.max_event_streams: 64 event streams leave no connection of [http] "
+                           "max_connections (64) for requests: make it at most 63"));
+    EXPECT_THAT(error_of(device + "max_connections_per_client = 4\nmax_event_streams_per_client = 4\n"),
+                StartsWith("plant.toml:10: http.max_event_streams_per_client: 4 event streams leave no connection of [http] "
+                           "max_connections_per_client (4) for requests: make it at most 3"));
+    EXPECT_THAT(error_of(device + "header_timeout = \"50ms\"\n"), StartsWith("plant.toml:9: http.header_timeout: expected 100ms..10min"));
+}
+
 TEST(GatewayConfig, TheGatewayNameGivesTheMqttPrefixAndDiscoveryName) {
     const std::string device = one_device("device = \"tc10@3\"\n");
     auto named = parse("[gateway]\nname = \"plant-2\"\n" + device + "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\n");
