@@ -61,8 +61,15 @@ struct LineConfig {
     // Modbus TCP line ("tcp://"), whose replies carry the request's transaction id.
     std::size_t max_in_flight = 1;
     std::vector<DeviceConfig> devices;
+    std::string link_written_at;  // "plant.toml:7", for what check_environment finds of the port
 
-    bool operator==(const LineConfig&) const = default;
+    // Where the link was written is not part of what the line does: a reload that only moves it
+    // keeps the line open.
+    bool operator==(const LineConfig& other) const {
+        return name == other.name && link == other.link && simulation == other.simulation && timeout == other.timeout &&
+               retries == other.retries && late_reply_window == other.late_reply_window &&
+               max_in_flight == other.max_in_flight && devices == other.devices;
+    }
 };
 
 struct ModbusTcpConfig {
