@@ -171,5 +171,22 @@ TEST_F(HistorianReaderTest, TheGatewaysAreThoseThatForwardedHistory) {
     EXPECT_EQ(*names, (std::vector<std::string>{"north", "south"}));
 }
 
+// The historian knows no profile: an alias (PV, as the dashboard and the CLI name it) stands
+// for what it means in the profile whose meaning the device has a series of (the TC10's
+// measured_value, not the AC20's carbon_potential); one the device has nothing for is refused.
+TEST_F(HistorianReaderTest, AnAliasIsTheParameterOfTheDeviceItNames) {
+    HistorianReader reader(server->url(), std::nullopt);
+    query.parameters = {"PV"};
+    auto answer = reader.query("south", query);
+    ASSERT_TRUE(answer) << answer.error().message;
+    ASSERT_EQ(answer->size(), 1u);
+    EXPECT_EQ(answer->front().parameter, "measured_value");
+    EXPECT_EQ(answer->front().buckets.at(0).count, 60u);
+    query.parameters = {"SP"};
+    auto refused = reader.query("south", query);
+    ASSERT_FALSE(refused);
+    EXPECT_THAT(refused.error().message, HasSubstr("device \"oven1\" of gateway \"south\" has no parameter \"SP\""));
+}
+
 }  // namespace
 }  // namespace loopwire::gateway

@@ -933,15 +933,33 @@ TEST_F(HttpHistoryTest, TimesMayBeRelativeToNowAndParametersNamedByAlias) {
     EXPECT_LE(asked[1].to, after);
 }
 
-// Another gateway's history: its device is not configured here, so the names go to the store
-// (the historian) as written.
-TEST_F(HttpHistoryTest, AnotherGatewaysDeviceIsAskedOfTheStoreAsNamed) {
+// Another gateway's history: its device is not configured here, so its names go to the store
+// (the historian, which knows the device's parameters and so what its aliases mean) as
+// written. This gateway named with gateway=: its own device, its aliases resolved here.
+TEST_F(HttpHistoryTest, AnotherGatewaysDeviceIsAskedOfTheStoreAsNamedAndThisOnesWithItsAliases) {
     ASSERT_EQ(get(server_->port(), "/api/history?device=kiln&gateway=south&parameters=PV").status, 200u);
+    ASSERT_EQ(get(server_->port(), "/api/history?device=oven&gateway=north&parameters=PV,SP").status, 200u);
     const auto asked = history_.asked();
-    ASSERT_EQ(asked.size(), 1u);
+    ASSERT_EQ(asked.size(), 2u);
     EXPECT_EQ(asked[0].gateway, "south");
     EXPECT_EQ(asked[0].device, "kiln");
     EXPECT_EQ(asked[0].parameters, (std::vector<std::string>{"PV"}));
+    EXPECT_EQ(asked[1].gateway, "north");
+    EXPECT_EQ(asked[1].parameters, (std::vector<std::string>{"measured_value", "set_point"}));
+}
+
+// A gateway or device name no gateway can have (bytes that are no UTF-8, spaces, quotes) is
+// the asker's mistake, said in the API's words, never passed to the historian.
+TEST_F(HttpHistoryTest, AGatewayOrDeviceThatIsNoNameIs400) {
+    for (const char* gateway : {"%FF%FE", "a%20b", "x%27y", "%00"}) {
+        const Reply reply = get(server_->port(), std::string("/api/history?device=kiln&gateway=") + gateway);
+        EXPECT_EQ(reply.status, 400u) << gateway << ": " << reply.body;
+        EXPECT_THAT(reply.json().at("error").get<std::string>(), HasSubstr("is not a gateway's name")) << gateway;
+    }
+    const Reply device = get(server_->port(), "/api/history?device=%C3%28&gateway=south");
+    EXPECT_EQ(device.status, 400u) << device.body;
+    EXPECT_THAT(device.json().at("error").get<std::string>(), HasSubstr("device=\"\\xc3(\" is not a device's name"));
+    EXPECT_TRUE(history_.asked().empty());
 }
 
 // A historian that cannot be reached or does not answer in time is the server's trouble, not
