@@ -64,9 +64,9 @@ constexpr std::array keys{
 
     ConfigKey{"lines.devices", "name", "string", "", "letters, digits, '-' and '_'; unique in the file",
               "The device's name in MQTT topics, URLs, metrics and logs.", "\"oven\""},
-    ConfigKey{"lines.devices", "device", "string", "", "PROFILE@UNIT; unit unique on the line",
+    ConfigKey{"lines.devices", "device", "string", "", "PROFILE@UNIT, the unit given; unit unique on the line",
               "The device's profile and unit address, as `loopwire read --device` takes it (loopwire profiles lists "
-              "the profiles).",
+              "the profiles and the protocols each speaks, one of which must be the line's).",
               "\"tc10@3\""},
     ConfigKey{"lines.devices", "poll", "duration", "\"1s\"", "at least 1ms", "How often its parameters are polled.",
               "\"1s\""},
@@ -181,9 +181,20 @@ constexpr std::array keys{
               "A client that has not sent its whole request this long after it began is closed.", "\"10s\""},
     ConfigKey{"http", "send_timeout", "duration", "\"10s\"", "100ms..10min",
               "An event stream whose client has taken nothing of what waits for it this long is closed.", "\"10s\""},
-    ConfigKey{"http", "max_connections", "integer", "64", "1..10000", "Connections open at once.", "64"},
+    ConfigKey{"http", "header_timeout", "duration", "\"5s\"", "100ms..10min",
+              "A client that has not sent a request's header this long after it connected (or after the response "
+              "before) is closed; read_timeout, if shorter, counts instead.", "\"5s\""},
+    ConfigKey{"http", "max_connections", "integer", "64", "1..10000",
+              "Connections open at once; at the limit a newcomer takes the place of the one that has waited longest "
+              "for a request, else it is answered 503.", "64"},
     ConfigKey{"http", "max_connections_per_client", "integer", "8", "1..10000",
               "Connections one client address may hold at once; more are answered 429.", "8"},
+    ConfigKey{"http", "max_event_streams", "integer", "half of max_connections", "1..10000, fewer than max_connections",
+              "Event streams (/api/events, one per open dashboard) open at once; more are answered 503, so that "
+              "requests always find a connection.", "32"},
+    ConfigKey{"http", "max_event_streams_per_client", "integer", "half of max_connections_per_client",
+              "1..10000, fewer than max_connections_per_client",
+              "Event streams one client address may hold at once; more are answered 429.", "4"},
     ConfigKey{"http", "hosts", "list of strings", "[]", "host names or addresses",
               "Host header names answered besides the listen address, localhost, 127.0.0.1 and [::1]; others get 421.",
               "[]"},
@@ -205,6 +216,8 @@ constexpr std::array ranges{
     ConfigRange{"mqtt", "max_payload", 16, 65536},
     ConfigRange{"http", "max_connections", 1, 10000},
     ConfigRange{"http", "max_connections_per_client", 1, 10000},
+    ConfigRange{"http", "max_event_streams", 1, 10000},
+    ConfigRange{"http", "max_event_streams_per_client", 1, 10000},
     // Durations, in milliseconds.
     ConfigRange{"lines", "timeout", 1, unbounded},
     // A late reply comes at most a few timeouts late; a longer window would only stall the line.
@@ -217,6 +230,7 @@ constexpr std::array ranges{
     ConfigRange{"mqtt", "republish", 100, unbounded},
     ConfigRange{"history", "heartbeat", 1'000, unbounded},
     ConfigRange{"http", "read_timeout", 100, 600'000},
+    ConfigRange{"http", "header_timeout", 100, 600'000},
     ConfigRange{"http", "send_timeout", 100, 600'000},
 };
 

@@ -355,6 +355,9 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     settings.read_timeout = http.read_timeout;
     settings.max_connections = http.max_connections;
     settings.max_connections_per_client = http.max_connections_per_client;
+    settings.header_timeout = http.header_timeout;
+    settings.max_event_streams = http.max_event_streams;
+    settings.max_event_streams_per_client = http.max_event_streams_per_client;
     settings.send_timeout = http.send_timeout;
     // On the engine's loop: no thread of its own (issue 20: the thread count does not grow with
     // the fronts); what would block there is deferred (http_server.hpp).

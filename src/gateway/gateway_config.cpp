@@ -10,6 +10,8 @@
 #include <set>
 #include <system_error>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -304,6 +306,22 @@ Result<void> check_unit_free_on_line(const Context& ctx, const LineConfig& line,
     return {};
 }
 
+// A device answers only in the protocols its profile lists (its manual's): on a line of another,
+// every poll would time out. RTU through a device server (rtu+tcp) is RTU; behind a Modbus TCP
+// link is whatever the far gateway speaks to the device, which this side cannot see.
+Result<void> check_protocol(const Context& ctx, const LineConfig& line, const DeviceConfig& device,
+                            const toml::source_region& where, const std::string& path) {
+    if (line.link.framing == transport::Framing::tcp) return {};
+    const std::string spoken =
+        transport::framing_name(line.link.framing == transport::Framing::rtu_over_tcp ? transport::Framing::rtu : line.link.framing);
+    const auto& protocols = device.address.profile->protocols;
+    if (std::find(protocols.begin(), protocols.end(), spoken) != protocols.end()) return {};
+    return ctx.fail(where, key_path(path, "device"),
+                    fmt::format("device {} ({}) does not speak {}, the protocol of line {} (it speaks {}): put it on a "
+                                "line of its own protocol, or set the device and the link to one both speak",
+                                device.name, device.address.profile->id, spoken, line.name, fmt::join(protocols, ", ")));
+}
+
 Result<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry,
                                   DeviceSeen& seen) {
     if (auto keys = check_keys(ctx, table, path, "lines.devices"); !keys) return keys.error();
@@ -317,6 +335,13 @@ Result<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, 
     }
     auto text = required_string(ctx, table, path, "device", "\"tc10@3\"");
     if (!text) return text.error();
+    // The command line's "tc10" means unit 1; in a configuration, where each device of a line
+    // needs its own unit, a unit left out is more likely forgotten than meant.
+    if (text->find('@') == std::string::npos) {
+        return ctx.fail(source_of(table, "device"), key_path(path, "device"),
+                        fmt::format("\"{}\" names no unit: add the device's Modbus address after '@' (e.g. \"{}@1\")",
+                                    *text, *text));
+    }
     auto address = device::parse_device_address(ctx.profiles, *text);
     if (!address) return ctx.fail(source_of(table, "device"), key_path(path, "device"), address.error().message);
     device.address = std::move(*address);
@@ -353,6 +378,7 @@ Result<void> parse_devices(const Context& ctx, const toml::table& table, const s
         auto device = parse_device(ctx, *(*tables)[i], device_path, registry, seen);
         if (!device) return device.error();
         const auto& where = source_of(*(*tables)[i], "device");
+        if (auto speaks = check_protocol(ctx, line, *device, where, device_path); !speaks) return speaks.error();
         if (auto free = check_unit_free_on_line(ctx, line, *device, line_devices, where, device_path); !free) return free.error();
         line_devices.push_back(seen.seen);
         registry.devices.push_back(std::move(seen));
@@ -408,6 +434,7 @@ Result<void> parse_line_settings(const Context& ctx, const toml::table& table, c
     auto link = transport::parse_link_url(*link_text);
     if (!link) return ctx.fail(source_of(table, "link"), key_path(path, "link"), link.error().message);
     line.link = std::move(*link);
+    line.link_written_at = fmt::format("{}:{}", ctx.source, source_of(table, "link").begin.line);
     auto timeout = bounded_duration(ctx, table, path, "lines", "timeout", "e.g. \"1s\"");
     if (!timeout) return timeout.error();
     if (*timeout) line.timeout = **timeout;
@@ -547,6 +574,26 @@ struct HostPort {
 
 // "HOST:PORT", or "[IPV6]:PORT": the brackets keep the address's own colons apart from the
 // port's. The host is kept without them, as the socket layer takes it.
+// A host the gateway can listen on or connect to: an IPv6 address in brackets, an IPv4 address
+// (anything of digits and dots must be one: "999.1.1.1" is no name either), or a host name.
+// Otherwise --check would pass what the start cannot resolve.
+bool valid_host(std::string_view host, bool bracketed) {
+    if (host.empty()) return false;
+    const std::string text(host);
+    if (bracketed) {
+        in6_addr address{};
+        return ::inet_pton(AF_INET6, text.c_str(), &address) == 1;
+    }
+    if (host.find_first_not_of("0123456789.") == std::string_view::npos) {
+        in_addr address{};
+        return ::inet_pton(AF_INET, text.c_str(), &address) == 1;
+    }
+    const bool name_characters = std::all_of(host.begin(), host.end(), [](char c) {
+        return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '-' || c == '.';
+    });
+    return name_characters && host.front() != '-' && host.front() != '.' && host.find("..") == std::string_view::npos;
+}
+
 std::optional<HostPort> split_listen(std::string_view text) {
     std::string_view host;
     std::string_view port;
@@ -564,7 +611,7 @@ std::optional<HostPort> split_listen(std::string_view text) {
     const auto number = parse_decimal_digits(port);
     // Port 0: the kernel picks a free one, which the gateway prints when it starts (tests, and
     // several gateways on one machine).
-    if (host.empty() || !number || *number > 65535) return std::nullopt;
+    if (!valid_host(host, text.front() == '[') || !number || *number > 65535) return std::nullopt;
     return HostPort{std::string(host), static_cast<std::uint16_t>(*number)};  // 0..65535, checked
 }
 
@@ -1089,6 +1136,22 @@ Result<std::vector<std::string>> http_hosts(const Context& ctx, const toml::tabl
     return hosts;
 }
 
+// The share of `connections` event streams may hold (key `key`): half when not given, and
+// always fewer, so that requests find a connection however many dashboards are open.
+Result<unsigned> stream_share(const Context& ctx, const toml::table& table, std::string_view key, std::string_view of,
+                              unsigned connections) {
+    auto given = optional_integer(ctx, table, "http", "http", key);
+    if (!given) return given.error();
+    if (!*given) return connections / 2;
+    if (**given >= connections) {
+        return ctx.fail(source_of(table, key), fmt::format("http.{}", key),
+                        fmt::format("{} event streams leave no connection of [http] {} ({}) for requests: make it "
+                                    "at most {}",
+                                    **given, of, connections, connections - 1));
+    }
+    return static_cast<unsigned>(**given);  // 1..10000, checked
+}
+
 // The limits that keep a few clients from taking every connection.
 Result<void> parse_http_limits(const Context& ctx, const toml::table& table, HttpConfig& config) {
     auto read_timeout = bounded_duration(ctx, table, "http", "http", "read_timeout", "e.g. \"10s\"");
@@ -1103,6 +1166,16 @@ Result<void> parse_http_limits(const Context& ctx, const toml::table& table, Htt
     auto per_client = optional_integer(ctx, table, "http", "http", "max_connections_per_client");
     if (!per_client) return per_client.error();
     if (*per_client) config.max_connections_per_client = static_cast<unsigned>(**per_client);  // 1..10000, checked
+    auto header_timeout = bounded_duration(ctx, table, "http", "http", "header_timeout", "e.g. \"5s\"");
+    if (!header_timeout) return header_timeout.error();
+    if (*header_timeout) config.header_timeout = **header_timeout;
+    auto streams = stream_share(ctx, table, "max_event_streams", "max_connections", config.max_connections);
+    if (!streams) return streams.error();
+    config.max_event_streams = *streams;
+    auto client_streams = stream_share(ctx, table, "max_event_streams_per_client", "max_connections_per_client",
+                                       config.max_connections_per_client);
+    if (!client_streams) return client_streams.error();
+    config.max_event_streams_per_client = *client_streams;
     return {};
 }
 

@@ -61,8 +61,15 @@ struct LineConfig {
     // Modbus TCP line ("tcp://"), whose replies carry the request's transaction id.
     std::size_t max_in_flight = 1;
     std::vector<DeviceConfig> devices;
+    std::string link_written_at;  // "plant.toml:7", for what check_environment finds of the port
 
-    bool operator==(const LineConfig&) const = default;
+    // Where the link was written is not part of what the line does: a reload that only moves it
+    // keeps the line open.
+    bool operator==(const LineConfig& other) const {
+        return name == other.name && link == other.link && simulation == other.simulation && timeout == other.timeout &&
+               retries == other.retries && late_reply_window == other.late_reply_window &&
+               max_in_flight == other.max_in_flight && devices == other.devices;
+    }
 };
 
 struct ModbusTcpConfig {
@@ -179,9 +186,16 @@ struct HttpConfig {
     std::string token;               // the file's first line, read when the configuration is
     // A client that has not sent a whole request this long after it began is closed.
     std::chrono::milliseconds read_timeout{10000};
+    // A client that has not sent a request's header this long after it connected, or after the
+    // response before, is closed (the shorter of this and read_timeout counts).
+    std::chrono::milliseconds header_timeout{5000};
     unsigned max_connections = 64;
     // Connections one client address may hold at once: a few clients cannot take every slot.
     unsigned max_connections_per_client = 8;
+    // Event streams (which stay open) may take only a share of those, so that requests always
+    // find room: by default half of each, and always fewer than them.
+    unsigned max_event_streams = 32;
+    unsigned max_event_streams_per_client = 4;
     // An event stream whose client has taken nothing of what waits for it this long is closed.
     std::chrono::milliseconds send_timeout{10000};
     // Host header names answered besides the listen address, localhost, 127.0.0.1 and [::1]

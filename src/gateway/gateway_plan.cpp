@@ -2,6 +2,9 @@
 // line's wire time the polls will take.
 #include "gateway/gateway_config.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -217,9 +220,40 @@ std::vector<const device::Parameter*> polled_parameters(const DeviceConfig& devi
 
 namespace {
 
+// UNIX 98 pseudo-terminals (/dev/pts/N: majors 136..143, the kernel's devices.txt), which have
+// no entry in sysfs.
+bool pseudo_terminal(unsigned major_number) { return major_number >= 136 && major_number <= 143; }
+
+// The kernel class of a character device as sysfs names it ("tty", "mem" for /dev/null and
+// /dev/zero, "misc", ...); nothing when sysfs does not say (not mounted, or a pseudo-terminal).
+std::optional<std::string> device_class(dev_t device) {
+    std::error_code error;
+    const auto link = std::filesystem::read_symlink(
+        fmt::format("/sys/dev/char/{}:{}/subsystem", major(device), minor(device)), error);
+    if (error) return std::nullopt;
+    return link.filename().string();
+}
+
+// What a character device is when it is not a terminal: sysfs's class, or else whether it takes
+// a terminal's ioctl (opened without waiting for a carrier, and not made the controlling tty).
+// Nothing for a terminal, or when it cannot be told (the line's own open says then).
+std::optional<std::string> not_a_terminal(const std::string& path, dev_t device) {
+    if (pseudo_terminal(major(device))) return std::nullopt;
+    if (const auto kind = device_class(device)) {
+        if (*kind == "tty") return std::nullopt;
+        return fmt::format("is a character device of the kernel's \"{}\" class (as /dev/null and /dev/zero are)", *kind);
+    }
+    const int fd = ::open(path.c_str(), O_RDONLY | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) return std::nullopt;
+    const bool terminal = ::isatty(fd) == 1;
+    ::close(fd);
+    if (terminal) return std::nullopt;
+    return "is a character device that is no terminal";
+}
+
 // What a serial line's port is when it is there but is no serial port, in words; nothing when it
-// is a character device (a tty, a pseudo-terminal), or not there now (a warning, describe_plan:
-// the line starts down until it appears).
+// is a terminal (a serial adapter's tty, a pseudo-terminal), or not there now (a warning,
+// describe_plan: the line starts down until it appears).
 std::optional<std::string> not_a_port(const std::string& path) {
     std::error_code error;
     const auto type = std::filesystem::status(path, error).type();
@@ -229,6 +263,11 @@ std::optional<std::string> not_a_port(const std::string& path) {
         case std::filesystem::file_type::regular: return "is a regular file";
         case std::filesystem::file_type::socket: return "is a socket";
         case std::filesystem::file_type::block: return "is a block device";
+        case std::filesystem::file_type::character: {
+            struct stat status {};
+            if (::stat(path.c_str(), &status) != 0) return std::nullopt;
+            return not_a_terminal(path, status.st_rdev);
+        }
         default: return std::nullopt;
     }
 }
@@ -241,7 +280,8 @@ Result<void> check_ports(const GatewayConfig& config) {
         if (auto what = not_a_port(line.link.path)) {
             return make_error(ErrorKind::usage, fmt::format("{}: line {}: {} {}, not a serial port: name the adapter's device "
                                                             "(e.g. /dev/ttyUSB0, or /dev/serial/by-id/...)",
-                                                            config.source, line.name, line.link.path, *what));
+                                                            line.link_written_at.empty() ? config.source : line.link_written_at,
+                                                            line.name, line.link.path, *what));
         }
     }
     return {};

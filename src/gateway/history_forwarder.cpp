@@ -140,7 +140,16 @@ Result<void> HistoryForwarder::connect() {
     remote_.reset();
     remote_ids_.clear();
     partitions_.clear();
-    auto db = postgres::Connection::connect(options_.conninfo, options_.password, options_.connect_timeout_seconds);
+    // A historian that stops answering (statement_timeout is the server's, which a frozen server
+    // does not keep) is said so in the log, as is its return: the forwarder waits on meanwhile.
+    postgres::StallWatch watch{[this](const std::string& line) {
+        constexpr std::string_view warning = "warning: ";
+        if (!log_) return;
+        if (!line.starts_with(warning)) return log(line);
+        log_(fmt::format("{}history: {}", warning, line.substr(warning.size())));  // a warning still
+    }};
+    auto db = postgres::Connection::connect(options_.conninfo, options_.password, options_.connect_timeout_seconds,
+                                            "loopwire", std::move(watch));
     if (!db) return db.error();
     // A statement stuck behind a lock (another session's DDL on the samples) fails and is
     // retried rather than holding the forwarder for ever; a batch takes well under a second.

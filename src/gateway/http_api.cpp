@@ -551,9 +551,11 @@ HttpOutcome HttpApi::State::history(const HttpRequest& request) const {
     auto query = history_query(request.query, std::chrono::system_clock::now());
     if (!query) return {error(400, query.error().message), {}, {}};
     const ConfiguredDevice* device = find(query->query.device);
-    // Another gateway's device (gateway=NAME) is not configured here: its names go to the
-    // historian as written, and an unknown one is refused there.
-    if (!query->query.gateway.empty()) return deferred_history(*sources.history, std::move(*query));
+    // Another gateway's device (gateway=NAME) is not configured here: the historian, which
+    // knows its parameters, takes the aliases among them, and refuses a name unknown there.
+    if (!query->query.gateway.empty() && query->query.gateway != gateway_name) {
+        return deferred_history(*sources.history, std::move(*query));
+    }
     if (!device) {
         return {error(404, fmt::format("no device \"{}\" on this gateway (GET /api/devices lists them)", query->query.device)),
                 {}, {}};

@@ -1,5 +1,6 @@
 #include "gateway/http_server.hpp"
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <condition_variable>
@@ -175,6 +176,8 @@ struct HttpServer::State : std::enable_shared_from_this<HttpServer::State> {
     // connections.
     std::map<Connection*, std::weak_ptr<Connection>> connections;  // the network thread's
     std::map<asio::ip::address, std::size_t> per_client;           // open connections by address
+    std::size_t event_streams = 0;                                  // of `connections`
+    std::map<asio::ip::address, std::size_t> streams_per_client;   // event streams by address
     // Declared before what uses it, destroyed after: pending handlers (and the connections they
     // hold) go with it. None on a loop another runs.
     std::unique_ptr<asio::io_context> own_loop;
@@ -197,6 +200,8 @@ struct HttpServer::State : std::enable_shared_from_this<HttpServer::State> {
     void accept();
     void on_accept(const error_code& error, tcp::socket socket);
     std::optional<HttpResponse> over_limits(const asio::ip::address& client) const;
+    std::optional<HttpResponse> over_stream_limits(const asio::ip::address& client) const;
+    bool make_room(const asio::ip::address& client, bool from_client);
     void serve(tcp::socket socket, const asio::ip::address& client, std::string_view buffered);
     void adopt(std::vector<HttpListener::Parked> parked);
     static void refuse(tcp::socket& socket, unsigned status, std::string_view reason, std::string_view message);
@@ -281,11 +286,13 @@ private:
 
     void read_request() {
         phase_ = Phase::header;
+        header_since_ = std::chrono::steady_clock::now();
         parser_.emplace();
         limit(*parser_, server_.settings);
-        // The whole request within the timeout: a client that sends half of one and stalls is
-        // closed, as is one that trickles it a byte at a time.
-        stream_.expires_after(server_.settings.read_timeout);
+        // The header within header_timeout and the whole request within read_timeout, both from
+        // here: a client that sends half of one and stalls is closed, as is one that trickles it
+        // a byte at a time (which read_timeout alone would let hold its slot for longer).
+        stream_.expires_after(std::min(server_.settings.header_timeout, server_.settings.read_timeout));
         http::async_read_header(stream_, buffer_, *parser_,
                                 [self = shared_from_this()](const error_code& error, std::size_t) { self->on_header(error); });
     }
@@ -295,6 +302,7 @@ private:
         if (server_.handing_over && error == asio::error::operation_aborted) return park();
         if (error) return refuse_unreadable(error);
         phase_ = Phase::body;
+        stream_.expires_at(header_since_ + server_.settings.read_timeout);
         if (server_.handing_over) wait_briefly_for_body();  // a header completed as the stop came
         if (auto refused = framing_refusal(*parser_)) return send(*refused, true);
         const auto& header = parser_->get();
@@ -340,7 +348,10 @@ private:
             stream.content_type = "text/event-stream";
             return send(stream, true);
         }
-        if (outcome.events) return start_events(outcome.events);
+        if (outcome.events) {
+            if (auto refusal = server_.over_stream_limits(client_)) return send(*refusal, true);
+            return start_events(outcome.events);
+        }
         if (outcome.deferred) return run_deferred(outcome.deferred);
         send(outcome.response, false);
     }
@@ -436,6 +447,9 @@ private:
 
     void start_events(const std::function<ValueSubscription(EventSender)>& subscribe) {
         phase_ = Phase::events;
+        streaming_ = true;
+        ++server_.event_streams;
+        ++server_.streams_per_client[client_];
         queue_ = std::make_shared<EventQueue>();
         queue_->pending =
             "HTTP/1.1 200 OK\r\nServer: loopwire\r\nContent-Type: text/event-stream\r\nCache-Control: no-cache\r\n"
@@ -524,6 +538,14 @@ private:
     }
 
 public:
+    // Since when it has waited for a request's header, while it does (nullopt otherwise): what
+    // makes it one to close for a newcomer at a limit (HttpServer::State::make_room).
+    std::optional<std::chrono::steady_clock::time_point> waiting_for_header_since() const {
+        if (closed_ || phase_ != Phase::header) return std::nullopt;
+        return header_since_;
+    }
+    const asio::ip::address& client() const { return client_; }
+
     void close() {
         if (std::exchange(closed_, true)) return;
         subscription_.reset();  // waits for a callback under way on a poll thread; it only queues
@@ -545,12 +567,18 @@ private:
             server_.connections.erase(this);
             if (--server_.per_client[client_] == 0) server_.per_client.erase(client_);
         }
+        if (std::exchange(streaming_, false)) {
+            --server_.event_streams;
+            if (--server_.streams_per_client[client_] == 0) server_.streams_per_client.erase(client_);
+        }
     }
 
     std::shared_ptr<HttpServer::State> kept_;  // first: goes last
     HttpServer::State& server_;
     asio::ip::address client_;
     bool counted_ = true;
+    bool streaming_ = false;  // counted as an event stream
+    std::chrono::steady_clock::time_point header_since_;  // when the read of the latest header began
     beast::tcp_stream stream_;
     beast::flat_buffer buffer_{read_buffer_limit(server_.settings)};
     std::optional<http::request_parser<http::string_body>> parser_;
@@ -594,7 +622,9 @@ void HttpServer::State::on_accept(const error_code& error, tcp::socket socket) {
         return;
     }
     const auto client = client_of(socket);
-    if (auto refusal = over_limits(client)) {
+    auto refusal = over_limits(client);
+    while (refusal && make_room(client, refusal->status == 429)) refusal = over_limits(client);
+    if (refusal) {
         refuse(socket, refusal->status, refusal->status == 503 ? "Service Unavailable" : "Too Many Requests", refusal->body);
     } else {
         serve(std::move(socket), client, {});
@@ -616,6 +646,48 @@ std::optional<HttpResponse> HttpServer::State::over_limits(const asio::ip::addre
                                                client.to_string(), settings.max_connections_per_client));
     }
     return std::nullopt;
+}
+
+// An event stream more from `client` than its share of the connections, if it is one.
+std::optional<HttpResponse> HttpServer::State::over_stream_limits(const asio::ip::address& client) const {
+    HttpResponse refusal;
+    if (event_streams >= settings.max_event_streams) {
+        refusal = error_response(503, fmt::format("too many event streams (at most {}, so that the other connections are left "
+                                                  "for requests); try again later, or raise [http] max_event_streams",
+                                                  settings.max_event_streams));
+    } else if (const auto from_client = streams_per_client.find(client);
+               from_client != streams_per_client.end() && from_client->second >= settings.max_event_streams_per_client) {
+        refusal = error_response(429, fmt::format("too many event streams from {} (at most {} at once from one address); "
+                                                  "close some dashboards first, or raise [http] max_event_streams_per_client",
+                                                  client.to_string(), settings.max_event_streams_per_client));
+    } else {
+        return std::nullopt;
+    }
+    refusal.headers.emplace_back("Retry-After", "5");
+    return refusal;
+}
+
+// Room for a newcomer at a limit: the connection that has waited longest for a request's header
+// (of `client`'s own when `from_client`, at its per-address limit) is closed. It is idle between
+// requests (HTTP lets a server close those), or sends its header too slowly to be worth its slot;
+// the oldest, so that one just connected, whose header may be on its way, goes last. Refusing
+// instead would let clients that reconnect as soon as header_timeout closes them hold every slot.
+// None being answered or streaming is closed: false when there is no other.
+bool HttpServer::State::make_room(const asio::ip::address& client, bool from_client) {
+    std::shared_ptr<Connection> idlest;
+    std::optional<std::chrono::steady_clock::time_point> idlest_since;
+    for (const auto& [raw, weak] : connections) {
+        auto connection = weak.lock();
+        if (!connection || (from_client && connection->client() != client)) continue;
+        const auto since = connection->waiting_for_header_since();
+        if (since && (!idlest_since || *since < *idlest_since)) {
+            idlest = std::move(connection);
+            idlest_since = *since;
+        }
+    }
+    if (!idlest) return false;
+    idlest->close();
+    return true;
 }
 
 void HttpServer::State::serve(tcp::socket socket, const asio::ip::address& client, std::string_view buffered) {

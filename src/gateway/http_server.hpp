@@ -12,10 +12,16 @@
 // groups'); it only queues, bounded per client: a client that cannot keep up, or takes nothing
 // for `send_timeout`, is dropped rather than let its queue grow or slow anyone down.
 //
-// Limits, so that slow or hostile clients cannot take the server: the whole of a request within
-// `read_timeout` (a client trickling a byte at a time is closed as one that stalls),
-// `max_connections` in all and `max_connections_per_client` from one address (beyond, 503 and
-// 429, and closed), header and body sizes (431, 413).
+// Limits, so that slow or hostile clients cannot take the server: a request's header within
+// `header_timeout` and the whole of it within `read_timeout` (a client trickling a byte at a time
+// is closed as one that stalls), `max_connections` in all and `max_connections_per_client` from
+// one address (beyond, 503 and 429, and closed), header and body sizes (431, 413). Event streams
+// stay open for as long as their clients like, so they may hold only a share of the connections
+// (`max_event_streams`, `max_event_streams_per_client`; beyond, 503 and 429): the rest are for
+// requests, which end. A newcomer at a connection limit takes the place of the connection that
+// has waited longest for a request's header (an idle keep-alive one, or a client too slow to send
+// one), so clients that open connections and send nothing, however fast they reconnect, cannot
+// lock out a request either.
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -81,8 +87,13 @@ struct HttpServerSettings {
     std::string host = "127.0.0.1";
     std::uint16_t port = 0;
     std::chrono::milliseconds read_timeout{10000};  // for the whole of a request, and each write
+    // For a request's header, from the connection or the response before: no longer than
+    // read_timeout (the shorter of the two counts).
+    std::chrono::milliseconds header_timeout{5000};
     std::size_t max_connections = 64;               // more are answered 503 and closed
     std::size_t max_connections_per_client = 8;     // from one address; more are answered 429 and closed
+    std::size_t max_event_streams = 32;             // of max_connections; more are answered 503
+    std::size_t max_event_streams_per_client = 4;   // from one address; more are answered 429
     std::size_t header_limit = 8 * 1024;            // 431 beyond
     std::size_t body_limit = 64 * 1024;             // 413 beyond
     std::size_t event_queue_limit = 1024 * 1024;    // bytes an event stream may have waiting

@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include "common/peer_text.hpp"
 #include "common/text_parsing.hpp"
 
 namespace loopwire::gateway {
@@ -143,6 +144,17 @@ std::optional<system_clock::time_point> query_time(std::string_view text, system
 
 }  // namespace
 
+namespace {
+
+// What a gateway's and a device's name take (gateway_config.cpp): the names the historian can hold.
+bool is_name(std::string_view name) {
+    return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
+        return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' || c == '_';
+    });
+}
+
+}  // namespace
+
 Result<ParsedHistoryQuery> history_query(std::string_view text, system_clock::time_point now) {
     const auto values = parse_query(text);
     for (const auto& [name, value] : values) {
@@ -158,7 +170,21 @@ Result<ParsedHistoryQuery> history_query(std::string_view text, system_clock::ti
         return make_error(ErrorKind::usage, "missing device=NAME (e.g. /api/history?device=furnace&parameters=measured_value)");
     }
     parsed.query.device = device->second;
-    if (auto gateway = values.find("gateway"); gateway != values.end()) parsed.query.gateway = gateway->second;
+    if (auto gateway = values.find("gateway"); gateway != values.end()) {
+        // Checked here, not by the historian: what it would say of bytes that are no text in
+        // its encoding is its own words, and a name no gateway can have is the asker's mistake.
+        if (!is_name(gateway->second)) {
+            return make_error(ErrorKind::usage, fmt::format("gateway={} is not a gateway's name (letters, digits, '-' and '_' "
+                                                            "only, as [gateway] name; GET /api/history/gateways lists them)",
+                                                            quoted_excerpt(gateway->second)));
+        }
+        if (!is_name(parsed.query.device)) {
+            return make_error(ErrorKind::usage, fmt::format("device={} is not a device's name (letters, digits, '-' and '_' "
+                                                            "only, as a device's name in the configuration)",
+                                                            quoted_excerpt(parsed.query.device)));
+        }
+        parsed.query.gateway = gateway->second;
+    }
     if (auto list = values.find("parameters"); list != values.end()) {
         std::string_view rest = list->second;
         while (!rest.empty()) {

@@ -4,6 +4,13 @@
 
 #include <algorithm>
 #include <charconv>
+#include <condition_variable>
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -48,6 +55,109 @@ std::string described(pg_conn* connection) {
     return fmt::format("postgresql {}@{}/{}", PQuser(connection), where, PQdb(connection));
 }
 
+std::string seconds_text(std::chrono::steady_clock::duration waited) {
+    const double seconds = std::chrono::duration<double>(waited).count();
+    return seconds < 10 ? fmt::format("{:.1f} s", seconds) : fmt::format("{:.0f} s", seconds);
+}
+
+// The calls under way that are watched (StallWatch), and one thread that tells of those that
+// have waited too long. Process-wide and never destroyed: a call may end on any thread at any
+// time, also while the process exits.
+class StallWatcher {
+public:
+    static StallWatcher& instance() {
+        static auto* watcher = new StallWatcher;
+        return *watcher;
+    }
+
+    std::uint64_t begin(const StallWatch& watch, const std::string& server, const char* what) {
+        const auto now = std::chrono::steady_clock::now();
+        std::lock_guard lock(mutex_);
+        if (!thread_started_) {
+            std::thread([this] { run(); }).detach();
+            thread_started_ = true;
+        }
+        const std::uint64_t id = ++last_id_;
+        calls_[id] = Call{watch, server.empty() ? "the historian" : server, what, now, now + watch.after, false};
+        changed_.notify_one();
+        return id;
+    }
+
+    void end(std::uint64_t id) {
+        Call call;
+        {
+            std::lock_guard lock(mutex_);
+            auto it = calls_.find(id);
+            if (it == calls_.end()) return;
+            call = std::move(it->second);
+            calls_.erase(it);
+        }
+        if (!call.reported) return;
+        call.watch.log(fmt::format("{} answers again: {} came back after {}", call.server, call.what,
+                                   seconds_text(std::chrono::steady_clock::now() - call.started)));
+    }
+
+private:
+    struct Call {
+        StallWatch watch;
+        std::string server;
+        const char* what = "";
+        std::chrono::steady_clock::time_point started;
+        std::chrono::steady_clock::time_point next_report;
+        bool reported = false;
+    };
+    static constexpr std::chrono::minutes report_again{1};
+
+    void run() {
+        std::unique_lock lock(mutex_);
+        for (;;) {
+            if (calls_.empty()) {
+                changed_.wait(lock);
+                continue;
+            }
+            auto earliest = calls_.begin()->second.next_report;
+            for (const auto& [id, call] : calls_) earliest = std::min(earliest, call.next_report);
+            if (changed_.wait_until(lock, earliest) == std::cv_status::no_timeout) continue;
+            const auto now = std::chrono::steady_clock::now();
+            std::vector<std::pair<std::function<void(const std::string&)>, std::string>> lines;
+            for (auto& [id, call] : calls_) {
+                if (call.next_report > now) continue;
+                lines.emplace_back(call.watch.log,
+                                   fmt::format("warning: {} has not answered for {}: {} waits (the server stopped, or "
+                                               "the network to it gone?); {}",
+                                               call.server, seconds_text(now - call.started), call.what,
+                                               call.reported ? "still waiting" : "waiting on, and saying so when it answers"));
+                call.reported = true;
+                call.next_report = now + report_again;
+            }
+            lock.unlock();
+            for (const auto& [log, line] : lines) log(line);
+            lock.lock();
+        }
+    }
+
+    std::mutex mutex_;
+    std::condition_variable changed_;
+    std::map<std::uint64_t, Call> calls_;
+    std::uint64_t last_id_ = 0;
+    bool thread_started_ = false;
+};
+
+// One call to the server, watched while it lasts.
+class Watched {
+public:
+    Watched(const StallWatch& watch, const std::string& server, const char* what)
+        : id_(watch.log ? StallWatcher::instance().begin(watch, server, what) : 0) {}
+    ~Watched() {
+        if (id_ != 0) StallWatcher::instance().end(id_);
+    }
+    Watched(const Watched&) = delete;
+    Watched& operator=(const Watched&) = delete;
+
+private:
+    std::uint64_t id_;
+};
+
 }  // namespace
 
 void QueryResult::Clear::operator()(pg_result* result) const { PQclear(result); }
@@ -65,7 +175,7 @@ long long QueryResult::integer(int row, int column) const {
 }
 
 Result<Connection> Connection::connect(const std::string& conninfo, const std::optional<std::string>& password,
-                                       int connect_timeout_seconds, const char* application_name) {
+                                       int connect_timeout_seconds, const char* application_name, StallWatch watch) {
     // expand_dbname: the "dbname" value is the whole connection string; the keywords after it
     // override what it says (the password from password_file, a bound on the connect).
     const std::string timeout = std::to_string(connect_timeout_seconds);
@@ -78,7 +188,11 @@ Result<Connection> Connection::connect(const std::string& conninfo, const std::o
     keys.push_back(nullptr);
     values.push_back(nullptr);
     Connection result;
-    result.connection_.reset(PQconnectdbParams(keys.data(), values.data(), 1));
+    {
+        const Watched watched(watch, {}, "the connect");
+        result.connection_.reset(PQconnectdbParams(keys.data(), values.data(), 1));
+    }
+    result.watch_ = std::move(watch);
     if (!result.connection_) return make_error(ErrorKind::link, "postgresql: out of memory");
     result.server_ = described(result.connection_.get());
     // The server's notices ("relation ... already exists, skipping") are not the gateway's to
@@ -100,6 +214,7 @@ Result<QueryResult> Connection::execute(std::string_view sql, const Parameters& 
     std::vector<const char*> values;
     values.reserve(parameters.size());
     for (const auto& parameter : parameters) values.push_back(parameter ? parameter->c_str() : nullptr);
+    const Watched watched(watch_, server_, "a statement");
     // Without parameters, PQexec: it takes several statements in one text (the schema's).
     QueryResult result(values.empty() ? PQexec(connection_.get(), text.c_str())
                                       : PQexecParams(connection_.get(), text.c_str(), static_cast<int>(values.size()),
@@ -124,6 +239,7 @@ Result<void> Connection::copy_in(std::string_view copy, std::string_view data) {
 
 Result<void> Connection::copy_send(std::string_view copy, std::string_view data) {
     const std::string text(copy);
+    const Watched watched(watch_, server_, "sending rows");
     QueryResult started(PQexec(connection_.get(), text.c_str()));
     if (!started.result_ || PQresultStatus(started.result_.get()) != PGRES_COPY_IN) return failure(started.result_.get());
     // In pieces: PQputCopyData takes an int length, and a batch may one day be larger.
@@ -140,6 +256,7 @@ Result<void> Connection::copy_send(std::string_view copy, std::string_view data)
 }
 
 Result<void> Connection::copy_finish() {
+    const Watched watched(watch_, server_, "the end of sending rows");
     QueryResult ended(PQgetResult(connection_.get()));
     const bool done = ended.result_ && PQresultStatus(ended.result_.get()) == PGRES_COMMAND_OK;
     Result<void> outcome;

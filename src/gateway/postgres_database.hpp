@@ -2,6 +2,8 @@
 // A thin owner of PostgreSQL connections and results (libpq, the C API): what the history's
 // forwarder needs of it, with every failure turned into a Result that says what went wrong and,
 // for the failures a user can fix (a wrong password, a missing database), what to do.
+#include <chrono>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -35,14 +37,26 @@ private:
 // Text parameters ($1, $2, ...), NULL where empty: the values the server parses by their type.
 using Parameters = std::vector<std::optional<std::string>>;
 
+// Who is told of a call to the server (the connect, a statement) that does not come back: a
+// server frozen (stopped, or its host gone without a word) holds a call for as long as TCP keeps
+// the connection, minutes or for ever, and nothing would say so. `log` is given a warning line
+// (beginning "warning: ") once a call has waited `after`, again every minute it goes on waiting,
+// and a line when it comes back, with how long it took. No log: not watched.
+struct StallWatch {
+    std::function<void(const std::string&)> log;
+    std::chrono::milliseconds after{10000};
+};
+
 class Connection {
 public:
     // Connects with `conninfo` (a postgresql:// URL or key=value pairs, libpq's own forms) and
     // an optional password that overrides any in it (PGPASSFILE works as libpq defines it).
     // The error names the server without the password and says what to do.
     // `application_name` is what the server's pg_stat_activity calls the session.
+    // `watch`: who is told of a connect or statement that does not come back.
     static Result<Connection> connect(const std::string& conninfo, const std::optional<std::string>& password,
-                                      int connect_timeout_seconds, const char* application_name = "loopwire");
+                                      int connect_timeout_seconds, const char* application_name = "loopwire",
+                                      StallWatch watch = {});
 
     Connection() = default;
     Connection(Connection&&) noexcept = default;
@@ -71,6 +85,7 @@ private:
     std::unique_ptr<pg_conn, Finish> connection_;
     std::string server_;  // for messages: user@host:port/database
     std::string failed_state_;
+    StallWatch watch_;
 };
 
 // A PostgreSQL text array literal of the values ("{1,2,NULL}"), quoted so that any text fits:

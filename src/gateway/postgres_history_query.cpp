@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 
 #include "gateway/history_store.hpp"
+#include "profile/profile.hpp"
+#include "profile/request_planner.hpp"
 
 namespace loopwire::gateway::postgres_history {
 namespace {
@@ -25,6 +27,28 @@ struct Series {
     std::string unit;
 };
 
+// The parameter `name` stands for among the device's series: itself when one is so named, else
+// what it is an alias (PV) or mnemonic of in the profile that gives it a meaning the device has
+// a series of. The historian knows no device's profile, and the profiles give an alias different
+// meanings (PV is the TC10's measured_value, the AC20's carbon_potential): the device's own
+// parameters tell which one it is. As written when none does (refused then, by that name).
+std::string parameter_named(const std::string& name, const std::vector<Series>& all) {
+    const auto has = [&all](const std::string& parameter) {
+        return std::any_of(all.begin(), all.end(), [&](const Series& s) { return s.parameter == parameter; });
+    };
+    if (has(name)) return name;
+    std::optional<std::string> meant;
+    for (const auto& id : device::builtin_profile_ids()) {
+        auto profile = device::builtin_profile(id);
+        if (!profile) continue;
+        auto resolved = device::resolve_parameters(**profile, {name});
+        if (!resolved || resolved->size() != 1 || !has(resolved->front()->name)) continue;
+        if (meant && *meant != resolved->front()->name) return name;  // two meanings the device has: not guessed
+        meant = resolved->front()->name;
+    }
+    return meant.value_or(name);
+}
+
 // The gateway's series of the device, narrowed to the parameters asked for (all when none).
 Result<std::vector<Series>> chosen_series(postgres::Connection& db, const std::string& gateway, const HistoryQuery& query) {
     auto rows = db.execute("SELECT id, parameter, unit FROM loopwire_series WHERE gateway = $1 AND device = $2 ORDER BY parameter",
@@ -38,7 +62,8 @@ Result<std::vector<Series>> chosen_series(postgres::Connection& db, const std::s
     if (query.parameters.empty()) return all;
     std::vector<Series> chosen;
     for (const auto& name : query.parameters) {
-        const auto found = std::find_if(all.begin(), all.end(), [&](const Series& s) { return s.parameter == name; });
+        const std::string parameter = parameter_named(name, all);
+        const auto found = std::find_if(all.begin(), all.end(), [&](const Series& s) { return s.parameter == parameter; });
         if (found == all.end()) {
             return make_error(ErrorKind::usage, fmt::format("device \"{}\" of gateway \"{}\" has no parameter \"{}\" in the historian",
                                                             query.device, gateway, name));

@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <stdlib.h>
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
@@ -360,6 +362,51 @@ TEST(GatewayConfig, ABadListenAddressIsRefused) {
     }
 }
 
+// An address that reads as numbers must be one: the start could not resolve it.
+TEST(GatewayConfig, AListenAddressThatIsNoAddressIsRefused) {
+    for (const char* listen : {"999.1.1.1:80", "1.2.3:80", "[::g]:80", "bad_host:80", "-x:80"}) {
+        const std::string http = error_of(one_device("device = \"tc10@3\"\n") + "[http]\nlisten = \"" + listen + "\"\n");
+        EXPECT_THAT(http, StartsWith(fmt::format("plant.toml:9: http.listen: \"{}\" is not an address to listen on", listen)))
+            << http;
+        EXPECT_THAT(http, HasSubstr("e.g. \"127.0.0.1:8080\"")) << http;
+        const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nlisten = \"" + listen + "\"\n");
+        EXPECT_THAT(tcp, StartsWith(fmt::format("plant.toml:9: modbus_tcp.listen: \"{}\" is not an address to listen on", listen)))
+            << tcp;
+    }
+    for (const char* listen : {"0.0.0.0:80", "192.168.1.10:8080", "[::]:8080", "[fe80::1]:80", "gateway.plant-1.local:80"}) {
+        auto config = parse(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nlisten = \"" + listen + "\"\n");
+        EXPECT_TRUE(config) << listen << ": " << config.error().message;
+    }
+}
+
+// A device's unit is its address on the line: left out, it would silently be 1.
+TEST(GatewayConfig, ADeviceWithoutItsUnitIsRefused) {
+    EXPECT_THAT(error_of(one_device("device = \"tc10\"\n")),
+                StartsWith("plant.toml:7: lines[0].devices[0].device: \"tc10\" names no unit: add the device's Modbus address "
+                           "after '@' (e.g. \"tc10@1\")"));
+}
+
+// A device on a line of a protocol its manual does not list would never answer a poll.
+TEST(GatewayConfig, ADeviceOnALineOfAProtocolItDoesNotSpeakIsRefused) {
+    const auto device_on = [](const std::string& link, const std::string& device) {
+        return "[[lines]]\nname = \"l1\"\nlink = \"" + link + "\"\n[[lines.devices]]\nname = \"oven1\"\ndevice = \"" + device +
+               "\"\n";
+    };
+    EXPECT_THAT(error_of(device_on("linking:/dev/ttyS1?baud=9600", "tc10@3")),
+                StartsWith("plant.toml:6: lines[0].devices[0].device: device oven1 (tc10) does not speak linking, the protocol "
+                           "of line l1 (it speaks rtu): put it on a line of its own protocol"));
+    EXPECT_THAT(error_of(device_on("ascii:/dev/ttyS1?baud=9600", "ac20@3")),
+                HasSubstr("device oven1 (ac20) does not speak ascii, the protocol of line l1 (it speaks rtu)"));
+    EXPECT_THAT(error_of(device_on("ascii:virtual?baud=9600", "tc10@3")), HasSubstr("does not speak ascii"));
+    // What it speaks; RTU through a device server is RTU; behind a Modbus TCP link, the far side's business.
+    for (const auto& [link, device] : std::vector<std::pair<std::string, std::string>>{
+             {"linking:/dev/ttyS1?baud=9600", "rampsoak@3"}, {"ascii:/dev/ttyS1?baud=9600", "rampsoak@3"},
+             {"rtu+tcp://192.0.2.1:4001", "tc10@3"}, {"tcp://192.0.2.1:502", "tc10@3"}}) {
+        auto config = parse(device_on(link, device));
+        EXPECT_TRUE(config) << link << " " << device << ": " << config.error().message;
+    }
+}
+
 // Port 0 asks the kernel for a free port (printed when the gateway starts): what tests use.
 TEST(GatewayConfig, PortZeroListensOnAnyFreePort) {
     auto config = parse(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nlisten = \"127.0.0.1:0\"\n");
@@ -512,6 +559,30 @@ TEST(GatewayConfigPlan, APortMissingNowIsAWarning) {
     EXPECT_THAT(plan, Not(HasSubstr("warning: port /dev/null"))) << plan;
 }
 
+// A port that is there must be a terminal: /dev/null and /dev/zero are character devices too,
+// and a line on one would stay down for ever. A pseudo-terminal (a test's, socat's) is one.
+TEST(GatewayConfigPlan, ACharacterDeviceThatIsNoTerminalIsRefused) {
+    for (const std::string port : {"/dev/null", "/dev/zero"}) {
+        auto config = parse("[[lines]]\nname = \"l1\"\nlink = \"rtu:" + port + "?baud=9600\"\n");
+        ASSERT_TRUE(config) << config.error().message;
+        auto checked = check_environment(*config);
+        ASSERT_FALSE(checked) << port << " was taken for a serial port";
+        EXPECT_THAT(checked.error().message,
+                    StartsWith("plant.toml:3: line l1: " + port + " is a character device of the kernel's \"mem\" class (as "
+                               "/dev/null and /dev/zero are), not a serial port: name the adapter's device"));
+    }
+    const int master = ::posix_openpt(O_RDWR | O_NOCTTY);
+    ASSERT_GE(master, 0);
+    ASSERT_EQ(::grantpt(master), 0);
+    ASSERT_EQ(::unlockpt(master), 0);
+    const std::string terminal = ::ptsname(master);
+    auto config = parse("[[lines]]\nname = \"l1\"\nlink = \"rtu:" + terminal + "?baud=9600\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    auto checked = check_environment(*config);
+    EXPECT_TRUE(checked) << checked.error().message;
+    ::close(master);
+}
+
 TEST(GatewayConfigPlan, LoadIsTheWireTimeOfEachPollOverItsInterval) {
     const long long per_poll_us = 2 * rtu_read_wire_us(1, 19200, 11) + rtu_read_wire_us(4, 19200, 11);
     ASSERT_EQ(per_poll_us, 2 * ((8 + 7) * 573 + 2 * 2006) + (8 + 13) * 573 + 2 * 2006);  // 573 us a character, t3.5 = 2006 us
@@ -568,13 +639,13 @@ TEST(GatewayConfigPlan, TcpAndAsciiLinksSayWhatTheEstimateIs) {
     EXPECT_THAT(tcp, Not(HasSubstr("estimated line load"))) << tcp;
 
     // ASCII: each RTU byte but the CRC as two characters, plus LRC (2), ':' and CR LF; 7E1 is
-    // 10 bits a character. Request 8 RTU bytes -> 17 characters, reply 7 -> 15 characters; the
-    // read of 641-644 answers 3 words more: 6 RTU bytes, 12 characters.
+    // 10 bits a character. The ramp/soak controller's words 1 and 2 (no decimals or unit read from
+    // other words) in one read: request 8 RTU bytes -> 17 characters, reply 9 -> 19 characters.
     const std::string ascii = plan_of("[[lines]]\nname = \"l1\"\nlink = \"ascii:/dev/ttyS1?baud=9600&parity=even&data=7\"\n"
-                                      "[[lines.devices]]\nname = \"oven1\"\ndevice = \"tc10@3\"\npoll = \"1s\"\n"
-                                      "parameters = [\"measured_value\", \"set_point\"]\n");
+                                      "[[lines.devices]]\nname = \"ramp1\"\ndevice = \"rampsoak@3\"\npoll = \"1s\"\n"
+                                      "parameters = [\"output_limit\", \"auto_tuning\"]\n");
     const long long character_us = (10 * 1'000'000 + 9600 - 1) / 9600;  // 1042 us
-    const double load = 100.0 * static_cast<double>((3 * (17 + 15) + 12) * character_us) / 1e6;
+    const double load = 100.0 * static_cast<double>((17 + 19) * character_us) / 1e6;
     EXPECT_THAT(ascii, HasSubstr(fmt::format("estimated line load: {:.1f} % of wire time (approximate", load))) << ascii;
 }
 
@@ -935,6 +1006,29 @@ TEST(GatewayConfig, BadHttpSettingsSayWhatIsExpected) {
     EXPECT_THAT(error_of(device + "hosts = [3]\n"), StartsWith("plant.toml:9: http.hosts[0]: expected a host name (a string)"));
     EXPECT_THAT(error_of(device + "token = \"abc\"\n"), HasSubstr("http.token: unknown key (allowed here: listen, token_file"));
     EXPECT_THAT(error_of("http = 1\n" + one_device("device = \"tc10@3\"\n")), HasSubstr("expected an [http] table"));
+}
+
+// Event streams may hold only a share of the connections: half of each limit unless given, and
+// always fewer, so that requests find one however many dashboards are open.
+TEST(GatewayConfig, TheEventStreamsShareAndTheHeaderTimeoutAreRead) {
+    const std::string device = one_device("device = \"tc10@3\"\n") + "[http]\n";
+    auto halves = parse(device + "max_connections = 10\nmax_connections_per_client = 5\n");
+    ASSERT_TRUE(halves) << halves.error().message;
+    EXPECT_EQ(halves->http->max_event_streams, 5u);
+    EXPECT_EQ(halves->http->max_event_streams_per_client, 2u);
+    EXPECT_EQ(halves->http->header_timeout, std::chrono::seconds(5));
+    auto given = parse(device + "max_event_streams = 60\nmax_event_streams_per_client = 7\nheader_timeout = \"2s\"\n");
+    ASSERT_TRUE(given) << given.error().message;
+    EXPECT_EQ(given->http->max_event_streams, 60u);
+    EXPECT_EQ(given->http->max_event_streams_per_client, 7u);
+    EXPECT_EQ(given->http->header_timeout, std::chrono::seconds(2));
+    EXPECT_THAT(error_of(device + "max_event_streams = 64\n"),
+                StartsWith("plant.toml:9: http.max_event_streams: 64 event streams leave no connection of [http] "
+                           "max_connections (64) for requests: make it at most 63"));
+    EXPECT_THAT(error_of(device + "max_connections_per_client = 4\nmax_event_streams_per_client = 4\n"),
+                StartsWith("plant.toml:10: http.max_event_streams_per_client: 4 event streams leave no connection of [http] "
+                           "max_connections_per_client (4) for requests: make it at most 3"));
+    EXPECT_THAT(error_of(device + "header_timeout = \"50ms\"\n"), StartsWith("plant.toml:9: http.header_timeout: expected 100ms..10min"));
 }
 
 TEST(GatewayConfig, TheGatewayNameGivesTheMqttPrefixAndDiscoveryName) {

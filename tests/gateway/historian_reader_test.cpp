@@ -7,7 +7,13 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <signal.h>
+#include <sys/types.h>
+
+#include <condition_variable>
+#include <mutex>
 #include <thread>
+#include <vector>
 
 #include "gateway/history_store.hpp"
 #include "support/history_test_support.hpp"
@@ -169,6 +175,57 @@ TEST_F(HistorianReaderTest, TheGatewaysAreThoseThatForwardedHistory) {
     auto names = reader.gateways();
     ASSERT_TRUE(names) << names.error().message;
     EXPECT_EQ(*names, (std::vector<std::string>{"north", "south"}));
+}
+
+// The historian knows no profile: an alias (PV, as the dashboard and the CLI name it) stands
+// for what it means in the profile whose meaning the device has a series of (the TC10's
+// measured_value, not the AC20's carbon_potential); one the device has nothing for is refused.
+TEST_F(HistorianReaderTest, AnAliasIsTheParameterOfTheDeviceItNames) {
+    HistorianReader reader(server->url(), std::nullopt);
+    query.parameters = {"PV"};
+    auto answer = reader.query("south", query);
+    ASSERT_TRUE(answer) << answer.error().message;
+    ASSERT_EQ(answer->size(), 1u);
+    EXPECT_EQ(answer->front().parameter, "measured_value");
+    EXPECT_EQ(answer->front().buckets.at(0).count, 60u);
+    query.parameters = {"SP"};
+    auto refused = reader.query("south", query);
+    ASSERT_FALSE(refused);
+    EXPECT_THAT(refused.error().message, HasSubstr("device \"oven1\" of gateway \"south\" has no parameter \"SP\""));
+}
+
+// A server that stops answering (its backend stopped: the connection stays open, nothing comes
+// back) is told of while the statement waits, and its return once it answers, with how long.
+TEST_F(HistorianReaderTest, AHistorianThatStopsAnsweringIsLoggedAndSoIsItsReturn) {
+    std::mutex mutex;
+    std::condition_variable logged;
+    std::vector<std::string> lines;
+    postgres::StallWatch watch{[&](const std::string& line) {
+                                   std::lock_guard lock(mutex);
+                                   lines.push_back(line);
+                                   logged.notify_all();
+                               },
+                               300ms};
+    auto db = postgres::Connection::connect(server->conninfo(), std::nullopt, 30, "loopwire", watch);
+    ASSERT_TRUE(db) << db.error().message;
+    auto backend = db->execute("SELECT pg_backend_pid()");
+    ASSERT_TRUE(backend) << backend.error().message;
+    const auto pid = static_cast<pid_t>(backend->integer(0, 0));
+    const auto wait_for_line = [&](std::size_t count) {
+        std::unique_lock lock(mutex);
+        return logged.wait_for(lock, 60s, [&] { return lines.size() >= count; });
+    };
+    ASSERT_EQ(::kill(pid, SIGSTOP), 0);
+    std::thread asking([&] { EXPECT_TRUE(db->run("SELECT 1")); });
+    const bool warned = wait_for_line(1);
+    ::kill(pid, SIGCONT);
+    asking.join();
+    ASSERT_TRUE(warned) << "no warning while the server did not answer";
+    ASSERT_TRUE(wait_for_line(2));
+    std::lock_guard lock(mutex);
+    ASSERT_EQ(lines.size(), 2u);
+    EXPECT_THAT(lines[0], ::testing::MatchesRegex("warning: postgresql .* has not answered for [0-9.]+ s: a statement waits .*"));
+    EXPECT_THAT(lines[1], ::testing::MatchesRegex("postgresql .* answers again: a statement came back after [0-9.]+ s"));
 }
 
 }  // namespace

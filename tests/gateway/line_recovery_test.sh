@@ -76,6 +76,10 @@ check check-refuses-a-directory-as-port 2 "line later-line: $WORK_DIR/not-a-port
   "$loopwire" gateway --config "$WORK_DIR/dir-port.toml" --check
 check start-refuses-a-fifo-as-port 2 "line later-line: $WORK_DIR/fifo-port is a FIFO (named pipe), not a serial port" \
   "$loopwire" gateway --config "$WORK_DIR/fifo-port.toml"
+# A character device that is no terminal would never be one either.
+sed "s|rtu:$later_pty?|rtu:/dev/zero?|" "$WORK_DIR/plant.toml" >"$WORK_DIR/zero-port.toml"
+check check-refuses-dev-zero-as-port 2 "line later-line: /dev/zero is a character device of the kernel's \"mem\" class" \
+  "$loopwire" gateway --config "$WORK_DIR/zero-port.toml" --check
 
 start_tcp_server gateway.log timeout 100 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
 gateway_pid=$(pgrep -P "$LAST_PID")  # the gateway itself, not `timeout` around it
