@@ -2,11 +2,47 @@
 
 #include <algorithm>
 #include <array>
+#include <vector>
 
 namespace loopwire::session {
 
 void CopyGuard::forget_before(Instant at) {
     while (!frames_.empty() && frames_.front().at < at) frames_.pop_front();
+    while (!damaged_.empty() && damaged_.front().at < at) damaged_.pop_front();
+}
+
+void CopyGuard::heard_damaged(ByteView bytes, ByteView request, Instant at) {
+    if (bytes.empty()) return;
+    forget_before(at - window_);
+    if (damaged_.size() == most_damaged_runs) damaged_.pop_front();
+    damaged_.push_back({Bytes(bytes.begin(), bytes.end()), Bytes(request.begin(), request.end()), at});
+}
+
+// The damaged runs within the window, joined in the order they came: a frame cut in two by a
+// pause arrives as two runs. A match that lies only in runs heard while this same request was
+// awaited is the request's own answer, damaged on an earlier try.
+std::optional<CopyGuard::Earlier> CopyGuard::among_damaged(ByteView raw, ByteView request, Instant recent) const {
+    Bytes joined;
+    std::vector<std::size_t> starts;  // where each run kept begins in `joined`
+    std::vector<const HeardFrame*> runs;
+    for (const auto& run : damaged_) {
+        if (run.at < recent) continue;
+        starts.push_back(joined.size());
+        runs.push_back(&run);
+        joined.insert(joined.end(), run.raw.begin(), run.raw.end());
+    }
+    if (raw.empty()) return std::nullopt;
+    for (auto at = std::search(joined.begin(), joined.end(), raw.begin(), raw.end()); at != joined.end();
+         at = std::search(at + 1, joined.end(), raw.begin(), raw.end())) {
+        const auto first = static_cast<std::size_t>(at - joined.begin());
+        const auto last = first + raw.size() - 1;
+        for (std::size_t i = 0; i < runs.size(); ++i) {
+            const std::size_t end = i + 1 < runs.size() ? starts[i + 1] : joined.size();
+            if (starts[i] > last || end <= first) continue;
+            if (!std::ranges::equal(runs[i]->request, request)) return Earlier{runs[i]->at, false};
+        }
+    }
+    return std::nullopt;
 }
 
 void CopyGuard::heard(ByteView raw, ByteView request, Instant at) {
@@ -76,6 +112,7 @@ std::optional<CopyGuard::Earlier> CopyGuard::copy_of(ByteView raw, ByteView requ
         if (!read || !written_over(unit, *read, seen->at)) return std::nullopt;
         if (!before_write) before_write = Earlier{seen->at, true};
     }
+    if (!another) another = among_damaged(raw, request, recent);
     return another ? another : before_write;
 }
 

@@ -29,6 +29,11 @@ public:
     // frame between exchanges or a second frame for one request).
     void heard(ByteView raw, ByteView request, Instant at);
 
+    // Bytes heard at `at` that made no frame (damaged: a frame cut by a pause, noise), while
+    // `request` was awaited (empty: between exchanges). A frame heard damaged may come again
+    // whole, as a repeater's copy: its bytes are found in these, in the order they came.
+    void heard_damaged(ByteView bytes, ByteView request, Instant at);
+
     // A request sent to `unit` (0: broadcast) at `at` that may change what a read answers:
     // anything but functions 1-4. The answers it may change are forgotten.
     void sent(std::uint8_t unit, ByteView pdu, Instant at);
@@ -44,7 +49,8 @@ public:
     };
 
     // The earlier frame `raw` may be a copy of, for `request` to `unit` at `now`: a frame with the
-    // same bytes heard within the window for another request (or for none), or for this same read
+    // same bytes heard within the window for another request (or for none), whole or among
+    // damaged bytes heard while another request was awaited (or none), or for this same read
     // before a write over what it reads (its value is the one the write replaced). None when the
     // device's last answer to this same read was these bytes and nothing was written over it
     // since, or when they are a write's echo heard for this same write (the echo is the same
@@ -70,6 +76,7 @@ private:
     };
 
     bool written_over(std::uint8_t unit, const codec::DataSpan& read, Instant at) const;
+    std::optional<Earlier> among_damaged(ByteView raw, ByteView request, Instant recent) const;
     void forget_answers(std::uint8_t unit, const std::optional<codec::DataSpan>& written);
     void forget_before(Instant at);
 
@@ -77,9 +84,11 @@ private:
     static constexpr std::size_t most_frames = 4096;
     static constexpr std::size_t most_writes_per_unit = 256;
     static constexpr std::size_t most_answers = 4096;
+    static constexpr std::size_t most_damaged_runs = 4096;
 
     Duration window_;
     std::deque<HeardFrame> frames_;                        // oldest first
+    std::deque<HeardFrame> damaged_;                       // runs of damaged bytes, oldest first
     std::map<std::uint8_t, std::deque<SentWrite>> writes_;  // by unit, oldest first
     std::map<std::pair<std::uint8_t, Bytes>, Bytes> answers_;  // (unit, read request) -> the reply frame
 };

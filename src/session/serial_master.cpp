@@ -423,6 +423,7 @@ private:
         if (!events.empty()) note_fault();
         for (const auto& event : events) {
             if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
+                copies_.heard_damaged(discarded->bytes, ByteView{}, clock_->now());
                 trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
             } else {
                 const auto& frame = std::get<codec::Frame>(event);
@@ -550,6 +551,7 @@ private:
             ++awaited.context.discarded_runs;
             awaited.clean = false;
             note_fault();
+            copies_.heard_damaged(discarded->bytes, awaited.request, clock_->now());
             trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
             return std::nullopt;
         }
@@ -702,6 +704,7 @@ private:
     // (whole, or damaged but starting with its address): the reason, traced, or nullopt.
     std::optional<std::string> ambiguous_with(std::uint8_t unit, const codec::FrameEvent& event) {
         if (const auto* discarded = std::get_if<codec::DiscardedBytes>(&event)) {
+            copies_.heard_damaged(discarded->bytes, ByteView{}, clock_->now());
             trace(TraceDirection::discarded, discarded->bytes, discarded->reason);
             if (discarded->bytes.empty() || discarded->bytes[0] != unit) return std::nullopt;
             return fmt::format("a damaged frame from unit {} followed it within the silence", unit);

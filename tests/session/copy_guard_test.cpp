@@ -94,5 +94,22 @@ TEST(CopyGuard, ConfirmedBytesHeardForNoRequestBecomeTheRequestsAnswer) {
     EXPECT_TRUE(guard.copy_of(reply_zero, read_10, 1, t0 + 20ms).has_value()) << "still read 11's for read 10";
 }
 
+// A reply cut in two by a pause (a relay or host stalling mid-frame) is heard as two damaged
+// runs; a repeater's copy of it comes whole later: its bytes are found among the runs, in order.
+TEST(CopyGuard, AFrameHeardDamagedInPiecesIsKnownWhenItsCopyComesWhole) {
+    CopyGuard guard(2s);
+    guard.heard_damaged(hex("01 03 02"), read_10, t0);
+    guard.heard_damaged(hex("00 00 B8 44"), {}, t0 + 30ms);
+    const auto copy = guard.copy_of(reply_zero, read_11, 1, t0 + 300ms);
+    ASSERT_TRUE(copy.has_value());
+    EXPECT_EQ(copy->at, t0);
+    // Damaged bytes heard only while this same request was awaited are its own answer's.
+    CopyGuard own(2s);
+    own.heard_damaged(hex("01 03 02 00"), read_11, t0);
+    own.heard_damaged(hex("00 B8 44"), read_11, t0 + 30ms);
+    EXPECT_FALSE(own.copy_of(reply_zero, read_11, 1, t0 + 300ms).has_value());
+    EXPECT_FALSE(guard.copy_of(reply_zero, read_11, 1, t0 + 3s).has_value()) << "past the window";
+}
+
 }  // namespace
 }  // namespace loopwire::session
