@@ -46,16 +46,14 @@ std::vector<const device::Parameter*> bound_words(const device::Profile& profile
     return words;
 }
 
-// Hands each device's poll of one group to the cache as its outcome comes, and logs a device
-// whose answering changes: the first answer, a silence ("no-reply"), an answer again, and the
-// group falling behind its interval or keeping it again. Nothing per sample: the log is read by
-// people.
+// Hands each sample of one group to the cache, and logs a device whose answering changes: the
+// first answer, a silence ("no-reply"), an answer again, and the group falling behind its
+// interval or keeping it again. Nothing per sample: the log is read by people.
 //
-// Each device goes to the cache when its reply comes, stamped with that time, not when the
-// slowest device of its sample is done: a device whose reply waited in the sample for another
-// one could otherwise be found stale meanwhile, and its `ok` be told after that `stale` with an
-// older stamp (the history then filed the reply before the stale row, and the value stayed
-// stale there, without heartbeats, while every front said `ok`).
+// Each device's changes are stamped with when its reply came (polled), not when its sample
+// started: a sample's start could lie before a `stale` found while the reply was awaited, and
+// the history then filed the reply before the stale row (the cache keeps a device's stamps in
+// order too, value_cache.hpp).
 class CachingSink final : public device::SampleSink {
 public:
     CachingSink(std::chrono::milliseconds interval, std::vector<std::string> names, std::vector<std::string> lines,
@@ -63,15 +61,20 @@ public:
         : interval_(interval), names_(std::move(names)), lines_(std::move(lines)), answering_(names_.size()),
           cache_(cache), log_(std::move(log)), also_(also) {}
 
-    // Device `i`'s poll ended (or it was skipped in back-off) at `replied`, the loop's wall time.
-    void polled(std::size_t i, const device::WatchedDevice& device, std::chrono::system_clock::time_point replied) {
-        if (i >= names_.size()) return;
-        cache_.update(names_[i], device, replied);
-        note_answering(i, device);
+    // Device `i`'s poll ended at `replied`, the loop's wall time.
+    void polled(std::size_t i, std::chrono::system_clock::time_point replied) {
+        if (replied_.size() < names_.size()) replied_.resize(names_.size());
+        if (i < replied_.size()) replied_[i] = replied;
     }
 
-    // The whole sample, once every device's poll ended: its pace, and the `also` sink.
     void write(const device::SampleView& sample) override {
+        const auto& devices = *sample.devices;
+        for (std::size_t i = 0; i < devices.size() && i < names_.size(); ++i) {
+            const bool stamped = i < replied_.size() && replied_[i];
+            cache_.update(names_[i], devices[i], stamped ? *replied_[i] : sample.time);
+            note_answering(i, devices[i]);
+        }
+        replied_.clear();
         note_pace(sample.missed);
         if (also_) also_->write(sample);
     }
@@ -118,6 +121,7 @@ private:
     std::vector<std::string> names_;
     std::vector<std::string> lines_;  // the lines the group's devices are on, each once
     std::vector<std::optional<bool>> answering_;
+    std::vector<std::optional<std::chrono::system_clock::time_point>> replied_;  // this sample's, by device
     ValueCache& cache_;
     GatewayLog log_;
     device::SampleSink* also_;
@@ -216,7 +220,6 @@ struct PollGroups::State {
             if (const auto held = group.targets[i].held_until()) {
                 device::record_skipped(watched);
                 watched.next_try = held;
-                group.sink->polled(i, watched, group.wall);
                 continue;
             }
             ++group.polling;
@@ -246,13 +249,13 @@ struct PollGroups::State {
         if (group.reading_limits[i] && !stopped_by) group.limits_read_at[i] = now();
         device::record_outcome(group.watched[i], report, stopped_by, now());
         // Stamped here, on the loop that also marks devices stale: a `stale` found before this
-        // reply was handled is stamped before it (value_cache.hpp keeps them in that order).
-        group.sink->polled(i, group.watched[i], loop.wall_now());
+        // reply was handled is stamped before it.
+        group.sink->polled(i, loop.wall_now());
         if (--group.polling == 0) end_sample(group);
     }
 
-    // Every device of the sample has been read (or skipped), each already in the cache: the
-    // sample goes to the sink, and the next one waits for its slot.
+    // Every device of the sample has been read (or skipped): the sample goes to the cache, and
+    // the next one waits for its slot.
     void end_sample(Group& group) {
         const auto ended = now();
         group.sink->write(device::SampleView{group.index, group.wall, ended, &group.watched, group.missed});

@@ -55,8 +55,11 @@ public:
     // device's last answer to this same read was these bytes and nothing was written over it
     // since, or when they are a write's echo heard for this same write (the echo is the same
     // whatever the device held): then the bytes are the device's answer, whichever frame
-    // brought them.
-    std::optional<Earlier> copy_of(ByteView raw, ByteView request, std::uint8_t unit, Instant now) const;
+    // brought them. With `doubt_own_answers` (the unit has just left a try unanswered) that is
+    // no proof: a copy of its own answer from a moment ago would make a silent device look alive,
+    // so the same bytes heard for this same request within the window count as a possible copy.
+    std::optional<Earlier> copy_of(ByteView raw, ByteView request, std::uint8_t unit, Instant now,
+                                   bool doubt_own_answers = false) const;
 
     // The device answered `request` with `raw` (a later try heard the same bytes again): frames
     // with those bytes heard since `since` for no request were its answers, not copies.

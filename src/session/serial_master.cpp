@@ -343,6 +343,7 @@ private:
             // (A retry of this request may: it asks the same.)
             if (!reply.ok() && is_unanswered(reply.error().kind)) {
                 unsettled_[unit] = clock_->now();
+                if (reply.error().kind == ErrorKind::timeout) unanswered_at_[unit] = clock_->now();
                 note_fault();
             }
             if (reply.ok()) {
@@ -588,7 +589,7 @@ private:
     // (exchange), and bytes that the device answers again, in a wait where nothing else
     // arrived, are its own answer and taken (a copy does not come twice on cue).
     Result<void> not_a_copy(Awaited& awaited, ByteView raw) {
-        const auto copied = copies_.copy_of(raw, awaited.request, awaited.unit, clock_->now());
+        const auto copied = copies_.copy_of(raw, awaited.request, awaited.unit, clock_->now(), recently_unanswered(awaited.unit));
         if (!copied) return {};
         if (awaited.retry && awaited.clean && std::ranges::find(refused_this_exchange_, Bytes(raw.begin(), raw.end())) != refused_this_exchange_.end()) {
             copies_.confirm(raw, awaited.request, exchange_started_);
@@ -622,6 +623,14 @@ private:
     // least a second, as a repeater's or relay's copy comes hundreds of milliseconds late whatever
     // the device's reply timeout (a line with a 100 ms timeout behind a relay copying 350 ms late
     // took another client's value for its own).
+    // Whether a try to `unit` went unanswered within the copy window: then even a copy of its own
+    // answer to the same request could be what arrives (a device gone silent kept "ok" by a
+    // repeater's copies), and is not taken without the device saying it again.
+    bool recently_unanswered(std::uint8_t unit) const {
+        const auto found = unanswered_at_.find(unit);
+        return found != unanswered_at_.end() && clock_->now() - found->second < copy_window();
+    }
+
     Duration copy_window() const {
         return std::max<Duration>(options_.timeout + late_reply_window(), std::chrono::seconds(1));
     }
@@ -749,6 +758,7 @@ private:
     // try ended or the unit was last heard since.
     std::map<std::uint8_t, Instant> unsettled_;
     std::map<LatencyKey, ReplyLatency> latencies_;
+    std::map<std::uint8_t, Instant> unanswered_at_;  // when a try to each unit last went unanswered
     CopyGuard copies_;  // frames heard and writes sent within the copy window
     Instant careful_until_{};  // until when a fault may still echo (note_fault)
     Instant exchange_started_{};

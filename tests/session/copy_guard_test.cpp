@@ -94,6 +94,17 @@ TEST(CopyGuard, ConfirmedBytesHeardForNoRequestBecomeTheRequestsAnswer) {
     EXPECT_TRUE(guard.copy_of(reply_zero, read_10, 1, t0 + 20ms).has_value()) << "still read 11's for read 10";
 }
 
+// A device that has just left a try unanswered proves nothing by its own last answer coming
+// again: a repeater's copy of it would keep a silent device looking alive.
+TEST(CopyGuard, AUnitJustSilentIsNotBelievedOnItsOwnAnswerRepeated) {
+    CopyGuard guard(2s);
+    guard.heard(reply_zero, read_10, t0);
+    guard.answered(1, read_10, reply_zero);
+    EXPECT_FALSE(guard.copy_of(reply_zero, read_10, 1, t0 + 300ms).has_value());
+    EXPECT_TRUE(guard.copy_of(reply_zero, read_10, 1, t0 + 300ms, true).has_value());
+    EXPECT_FALSE(guard.copy_of(reply_zero, read_10, 1, t0 + 3s, true).has_value()) << "past the window no copy comes";
+}
+
 // A reply cut in two by a pause (a relay or host stalling mid-frame) is heard as two damaged
 // runs; a repeater's copy of it comes whole later: its bytes are found among the runs, in order.
 TEST(CopyGuard, AFrameHeardDamagedInPiecesIsKnownWhenItsCopyComesWhole) {
