@@ -485,6 +485,7 @@ private:
         codec::FrameEvents after_accepted;  // what arrived with the accepted frame, after it
         bool clean;  // nothing but the accepted frame arrived
         bool refused_a_copy;  // a frame that answered in shape was refused as a possible copy
+        bool confirmed = false;  // the accepted frame has bytes an earlier try refused (not_a_copy)
     };
 
     // Reads until a frame answers the request or the deadline passes.
@@ -594,6 +595,7 @@ private:
         if (awaited.retry && awaited.clean && std::ranges::find(refused_this_exchange_, Bytes(raw.begin(), raw.end())) != refused_this_exchange_.end()) {
             copies_.confirm(raw, awaited.request, exchange_started_);
             confirmed_this_exchange_ = true;
+            awaited.confirmed = true;
             return {};
         }
         awaited.refused_a_copy = true;
@@ -657,13 +659,17 @@ private:
     // retry the replies of the earlier tries answer the same request, so a second frame is no
     // ambiguity there.
     Task<Result<Bytes>> settle(Awaited& awaited, codec::Frame accepted, Instant usual_start, Instant deadline) {
-        if (line_behaves()) {
+        if (line_behaves() && !awaited.confirmed) {
             line_quiet_since_ = std::max(clock_->now(), last_heard_);
             co_return hand_out(awaited, std::move(accepted));
         }
         std::optional<std::string> ambiguity;
         const Instant accepted_at = clock_->now();
-        Instant quiet_until = std::max(accepted_at, usual_start) + inter_frame_gap_;
+        // Bytes taken as confirmed may yet be a second copy (frequent bytes, a reply many
+        // clients read, are copied often): the real reply, if one comes, is awaited past its
+        // usual time by the host's jitter, and makes them ambiguous.
+        const Instant hold_until = awaited.confirmed ? usual_start + reply_jitter : usual_start;
+        Instant quiet_until = std::max(accepted_at, hold_until) + inter_frame_gap_;
         // A line that keeps talking after the reply cannot settle the question: give up at the
         // deadline (or a little after the silence, if the reply came that late).
         const Instant give_up = std::max(deadline, quiet_until + inter_frame_gap_);
@@ -689,7 +695,7 @@ private:
             examine(*events);
         }
         line_quiet_since_ = std::max(accepted_at, last_heard_);
-        if (ambiguity && !awaited.retry) {
+        if (ambiguity && (!awaited.retry || awaited.confirmed)) {
             note_fault();
             awaited.clean = false;
             const auto why = make_error(
