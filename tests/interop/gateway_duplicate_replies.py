@@ -120,8 +120,8 @@ class Client:
     def failed(self, what, response):
         """True (counted) if the response is an exception. 0Bh is the gateway's refusal; another
         code is an answer that carries no value, so it is no wrong value either: listed and
-        counted apart (the relay's stalls can cut a request so that the device refuses what it
-        heard), not failed on."""
+        counted apart, not failed on (a TC10 exception 3 to a read comes about once in 40,000
+        answers here, not yet explained)."""
         if not response.isError():
             return False
         if response.exception_code == 0x0B:
