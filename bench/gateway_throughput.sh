@@ -1,5 +1,5 @@
 #!/bin/bash
-# The gateway under 20 Modbus/TCP clients at once (issue 11), two figures:
+# The gateway under 20 Modbus/TCP clients at once, two figures:
 #
 # 1. A simulated 19200-baud RTU line (8N1, the TC10's only byte format) with one TC10 (unit 3):
 #    requests/s through the gateway, as a fraction of what the line's wire time allows for that

@@ -1,5 +1,5 @@
 #!/bin/bash
-# The history's forwarding to PostgreSQL (issue 23), two figures, on a server this script starts
+# The history's forwarding to PostgreSQL, two figures, on a server this script starts
 # (start_postgres: a new cluster on a Unix socket, fsync off for both sides alike):
 #
 # 1. Ingest rows/s: the forwarder shipping 200,000 waiting rows (50 parameters) from the local

@@ -1,4 +1,4 @@
-// The history store's query goal (issue: "one parameter over 30 days at 1 s resolution answers
+// The history store's query goal ("one parameter over 30 days at 1 s resolution answers
 // in under 200 ms"): fills a database with DAYS days of one parameter sampled every second
 // (and a few others every minute) through the store's own writer, then times the 500-point
 // query against the same question put to the sqlite3 shell as a plain GROUP BY over the

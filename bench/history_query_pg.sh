@@ -1,5 +1,5 @@
 #!/bin/bash
-# The historian's answer to a month's trend (issue 23): 30 days of one sample a second of one
+# The historian's answer to a month's trend: 30 days of one sample a second of one
 # series (2,592,000 rows) in the PostgreSQL historian, queried into 500 buckets as
 # /api/history?gateway= asks it; the whole minutes come from the per-minute rollup. The goal is
 # under 200 ms. On a server this script starts (start_postgres: a new cluster on a Unix socket).

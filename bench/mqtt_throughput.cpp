@@ -1,5 +1,5 @@
 // A gateway front that publishes to a real broker, from the value cache to a subscriber: the
-// MQTT front (issue 12) or the Sparkplug B edge node (issue 22):
+// MQTT front or the Sparkplug B edge node:
 //   rate     value changes/s the front carries from the poller's cache to a subscriber, with
 //            every parameter changing in every sample, as fast as they go through (the poller
 //            keeps at most 16 samples ahead of the subscriber);

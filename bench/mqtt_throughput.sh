@@ -1,5 +1,5 @@
 #!/bin/bash
-# The gateway's MQTT front on a real mosquitto broker (issue 12): value changes/s from the poller
+# The gateway's MQTT front on a real mosquitto broker: value changes/s from the poller
 # to a subscriber, poll -> subscriber latency (and a plain publisher's, the broker's floor), and
 # memory per 1,000 parameters (mqtt_throughput),
 # then the peer in the same run: mosquitto_pub sending as many messages over the same broker

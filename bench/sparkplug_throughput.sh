@@ -1,6 +1,6 @@
 #!/bin/bash
 # The Sparkplug B edge node against the plain MQTT front, in the same run on the same mosquitto
-# broker (issue 22): 20 devices x 50 metrics (1,000 parameters), every one changing in every
+# broker: 20 devices x 50 metrics (1,000 parameters), every one changing in every
 # sample. For each front: value changes/s from the poller's cache to a subscriber (Sparkplug:
 # metrics in the DDATA it decodes), poll -> subscriber latency, memory; then the ratios
 # sparkplug/mqtt.

@@ -1,5 +1,5 @@
 #pragma once
-// One parameter's value as every front shows it (issue 21, "one truth"): the command line, the
+// One parameter's value as every front shows it: the command line, the
 // public library and the gateway's HTTP API resolve a reading through this one function, so they
 // cannot disagree on its text, its unit or its limits.
 #include <cstdint>

@@ -359,7 +359,7 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     settings.max_event_streams = http.max_event_streams;
     settings.max_event_streams_per_client = http.max_event_streams_per_client;
     settings.send_timeout = http.send_timeout;
-    // On the engine's loop: no thread of its own (issue 20: the thread count does not grow with
+    // On the engine's loop: no thread of its own (the thread count does not grow with
     // the fronts); what would block there is deferred (http_server.hpp).
     const bool kept = listener && listener->listens_as(http.host, http.port);
     auto server = HttpServer::open(settings, *parts.http_api, &parts.engine->loop(), kept ? listener : nullptr);

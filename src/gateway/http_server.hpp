@@ -112,7 +112,7 @@ struct ParsedHttpRequest {
 ParsedHttpRequest parse_http_request(std::string_view bytes, const HttpServerSettings& settings);
 
 // The listening socket of the HTTP API, which may outlive the servers that accept on it: a reload
-// that leaves [http] listen alone keeps it (issue 20, item 8), so the port stays the same (also
+// that leaves [http] listen alone keeps it, so the port stays the same (also
 // one the kernel chose) and a client connecting while the next gateway opens waits in its
 // backlog instead of being refused.
 class HttpListener {
@@ -133,7 +133,7 @@ public:
     bool ipv6() const { return ipv6_; }
 
     // A keep-alive connection a stopping server handed over for the next server on this
-    // listener (HttpServer::stop with hand_over, issue 20 item 8: a reload keeps the clients'
+    // listener (HttpServer::stop with hand_over: a reload keeps the clients'
     // connections): its socket, and the bytes of its next request already read.
     // Owns the socket until release().
     class Parked {

@@ -1,5 +1,5 @@
 #pragma once
-// The lines a gateway hands to the next one across a reload (issue 20, item 8: SIGHUP keeps what
+// The lines a gateway hands to the next one across a reload (SIGHUP keeps what
 // did not change). A line whose configuration the reload leaves alone stays open: its port is
 // not closed and reopened, its scheduler keeps its back-offs and statistics, the request on its
 // wire is not cut short, and the next gateway's polls go on where the last ones stopped. Kept by

@@ -2,7 +2,7 @@
 // The gateway's Modbus TCP front (docs/DESIGN.md, gateway): the listener and the slave that
 // serves the lines' units to TCP clients, on an event loop and a thread of its own. It outlives
 // the gateway that routes to it: a reload that reopens the gateway with [modbus_tcp] unchanged
-// keeps the front, and with it every client's connection (issue 20, item 8); the gateway opened
+// keeps the front, and with it every client's connection; the gateway opened
 // next routes the units to its own lines (route_to).
 //
 // A gateway given a front to keep runs its engine on the front's loop (loop(), gateway/engine.hpp):

@@ -76,7 +76,7 @@ public:
     // Before the bridge is closed for a reload to `next` (the next configuration's [mqtt], and
     // the names of its devices): what the next bridge publishes again under the same broker and
     // prefix keeps its retained status, so that a reload does not flap the gateway and its
-    // devices offline and online (issue 20, item 8); the rest is said "offline" as on a stop.
+    // devices offline and online; the rest is said "offline" as on a stop.
     void hand_over(const std::optional<MqttConfig>& next, const std::set<std::string>& next_devices);
 
 private:

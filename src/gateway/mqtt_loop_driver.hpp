@@ -2,7 +2,7 @@
 // One libmosquitto client driven on an Asio loop through the library's external-loop interface
 // (mosquitto_socket, mosquitto_loop_read / _write / _misc), with no thread of its own: the
 // gateway's MQTT front runs so on the engine's loop, with the polls whose values it publishes
-// (issue 20: one executor; the thread count does not grow with the fronts).
+// (one executor; the thread count does not grow with the fronts).
 //
 // It connects without blocking the loop (mosquitto_connect_async: the TCP connection and the TLS
 // handshake go on in the loop's turns) and, for a broker named by host name, only once an

@@ -75,7 +75,7 @@ Result<std::uint16_t> encode_value(const Parameter& parameter, std::string_view 
 // Access is not checked. Simulators use it for range-checked writes, restore for write order.
 bool raw_in_range(const Parameter& parameter, std::uint16_t raw, const RawValues& known);
 
-// A number's limits in engineering units as the device holds them now (issue 21: every front
+// A number's limits in engineering units as the device holds them now (every front
 // shows the same numbers): a fixed bound (display counts scaled by the present decimals), or
 // the value of the parameter that bounds it, decoded as encode_value checks a write against it.
 // None where there is no bound, or its word (or the decimals it needs) is not in `known`.

@@ -19,7 +19,7 @@ struct SimulationEnvironment {
     // real time for clients; tests inject a clock they move by hand.
     std::function<SimulationClock::time_point()> now = [] { return SimulationClock::now(); };
     // Process seconds per protocol second (--speed): plants and program timers run this much
-    // faster; protocol timing never does (issue 4, "--speed scales the process").
+    // faster; protocol timing never does.
     double speed = 1.0;
     // Seeds measurement noise and anything else random (--seed), so runs repeat exactly.
     std::uint64_t seed = 1;

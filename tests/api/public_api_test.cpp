@@ -65,7 +65,7 @@ TEST_F(SimulatedTc10, ReadsByNameOrMnemonicInEngineeringUnits) {
     EXPECT_EQ(oven.unit(), 3);
 }
 
-// The reading is the resolved view every front shows (issue 21): the unit from the device's
+// The reading is the resolved view every front shows: the unit from the device's
 // unit word, not the profile's default (which a TC10's temperatures do not have), and the
 // limits as numbers from the words that bound the value.
 TEST_F(SimulatedTc10, ReadingCarriesTheDevicesUnitLimitsAndStatus) {

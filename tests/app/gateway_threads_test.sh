@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The threads of a running `loopwire gateway`, read from /proc as an operator would (issue 20:
+# The threads of a running `loopwire gateway`, read from /proc as an operator would (the rule:
 # the count does not grow with lines, devices or poll intervals, and is at most 4 with history).
 # The same for 1 line of 1 device as for 4 virtual lines of 3 devices polled at 3 intervals; one
 # more, the history's writer, with [history]. Counted once every device has answered, so every

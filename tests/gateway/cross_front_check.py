@@ -3,7 +3,7 @@
 documents, `/metrics`, the command line (`loopwire read --json` through the gateway's Modbus TCP
 front), `loopwire monitor --format csv` (its header's unit and its cell) and the public library
 (tests/api/read_by_name.cpp), and all must say the same: the same text, the same unit, the same
-numeric min and max, the same status (issue 21, "one truth on every front").
+numeric min and max, the same status.
 
 A value can move between two fronts' reads (a simulated process runs): its text is compared only
 when the API gave the same text before and after the round; its unit, limits and status always.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One truth on every front (issue 21): a gateway polls a simulated TC10 and AC20 with their
+# One truth on every front: a gateway polls a simulated TC10 and AC20 with their
 # default watch lists and serves them over Modbus TCP, HTTP and MQTT with Home Assistant
 # discovery; cross_front_check.py reads every polled value through the HTTP API, MQTT and its
 # /meta, the discovery documents, /metrics, `loopwire read --json`, `loopwire monitor --format csv`

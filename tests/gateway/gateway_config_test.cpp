@@ -43,7 +43,7 @@ std::string error_of(const std::string& text) {
     return config.error().message;
 }
 
-// The issue's example; line numbers matter to the tests below.
+// A plant's example; line numbers matter to the tests below.
 const std::string example = R"toml([[lines]]
 name = "furnace-line"
 link = "rtu:/dev/ttyUSB0?baud=19200&parity=none"

@@ -1,4 +1,4 @@
-// The gateway on a faulty virtual bus (issue 11): frames dropped, corrupted or preceded by noise,
+// The gateway on a faulty virtual bus: frames dropped, corrupted or preceded by noise,
 // and a unit that dies and comes back. Whatever the line does, no value the gateway serves (its
 // value cache, the samples of its polls, what Modbus TCP clients read through it) differs from
 // what the device holds: a value that could not be read is reported as failed or stale. A silent
@@ -343,7 +343,7 @@ public:
 
 private:
     mutable std::mutex mutex_;
-    std::mt19937 random_{11};  // the issue's number: the same draws every run
+    std::mt19937 random_{11};  // a fixed seed: the same draws every run
     unsigned writes_ = 0;
     unsigned dropped_requests_ = 0;
     unsigned corrupted_requests_ = 0;
@@ -748,7 +748,7 @@ TEST(GatewayOnFaultyBus, ARequestTheDeviceIgnoresCostsItsClientA0BhNotTheDeviceI
 }
 
 // ---------------------------------------------------------------------------------------------
-// Replies that come late, twice or damaged (issue 20): clients reading different registers of
+// Replies that come late, twice or damaged: clients reading different registers of
 // one unit, each read the same shape (function 3, one register), so only the rules of
 // session/serial_master.cpp (late-reply window, ambiguity) and the ReplyCheck stand between a
 // stray reply and a wrong value.
@@ -797,7 +797,7 @@ public:
 private:
     const milliseconds timeout_;
     mutable std::mutex mutex_;
-    std::mt19937 random_{20};  // the issue's number
+    std::mt19937 random_{20};  // a fixed seed: the same draws every run
     unsigned late_ = 0;
     unsigned duplicated_ = 0;
     unsigned corrupted_ = 0;

@@ -153,7 +153,7 @@ TEST(Gateway, WithAMaxAgeARepeatedReadIsAnsweredWithoutTheLine) {
     }
 }
 
-// The field's case (issue 20): ten Modbus TCP clients reading back to back through the gateway
+// The field's case: ten Modbus TCP clients reading back to back through the gateway
 // keep its line busy all the time; its own poll every second still comes round, so the PV it
 // hands out stays a few intervals old at most and the device stays ok (never stale).
 const char* const busy_plant = R"toml(
@@ -398,7 +398,7 @@ TEST(Gateway, FourVirtualLinesAndTheirSimulatedDevicesShareOneThread) {
     EXPECT_EQ(names.count("lw-serial"), 0U);
 }
 
-// The issue's measure: a gateway of one line with one device takes as many threads as one of
+// The measure: a gateway of one line with one device takes as many threads as one of
 // four lines with three devices each, polled at three intervals.
 TEST(Gateway, FourLinesOfThreeDevicesTakeNoMoreThreadsThanOneLineOfOne) {
     const std::string one = "[[lines]]\nname = \"sim\"\nlink = \"rtu:virtual?baud=115200&parity=none\"\n"

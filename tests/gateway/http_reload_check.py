@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """One HTTP client on one keep-alive connection asks a running gateway back to back while the
 gateway is reloaded again and again (SIGHUP after a change that reopens it, [http] listen left
-alone): every request must be answered 200 on that same connection (issue 20, item 8).
+alone): every request must be answered 200 on that same connection.
 
 usage: http_reload_check.py PORT GATEWAY_PID CONFIG LOG RELOADS
 Each reload renames the device (oven-a <-> oven-b), so an answer naming the new name shows the

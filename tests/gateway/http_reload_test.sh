@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# SIGHUP keeps the HTTP API's clients (issue 20, item 8), against the built gateway: a client
+# SIGHUP keeps the HTTP API's clients, against the built gateway: a client
 # asking back to back on one keep-alive connection through 10 reloads that reopen the gateway
 # ([http] listen unchanged) is answered every time on that connection, by the reloaded gateway
 # once it runs (http_reload_check.py).

@@ -1,4 +1,4 @@
-// The HTTP server across a reload (gateway/http_server.hpp, issue 20 item 8): a stop that hands
+// The HTTP server across a reload (gateway/http_server.hpp): a stop that hands
 // over parks the keep-alive connections in the listener, each once its response under way has
 // gone out, and the next server on that listener serves them on. A plain stop closes them.
 #include <gmock/gmock.h>

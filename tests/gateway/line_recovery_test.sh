@@ -140,7 +140,7 @@ expect later-line-reopen-attempts-counted metric '^loopwire_line_reopen_attempts
 expect later-line-up metric '^loopwire_line_up\{line="later-line"\} 1$'
 requests_before=$(sed -nE 's/^loopwire_line_requests_total\{line="furnace-line"\} ([0-9]+)$/\1/p' "$WORK_DIR/metrics.txt")
 
-# SIGHUP with only later-line retimed (issue 20, item 8): furnace-line and virtual-line stay open,
+# SIGHUP with only later-line retimed: furnace-line and virtual-line stay open,
 # as the log says, and their figures go on (furnace-line's one down period is still counted, its
 # requests keep adding up); later-line is opened afresh, its figures from nothing. The reloaded
 # gateway keeps its HTTP API on the same port (port 0 in the file, [http] listen unchanged).

@@ -1,4 +1,4 @@
-// A day of plant time on a gateway's lines and polls, in virtual time (issue 20's soak): 4 lines
+// A day of plant time on a gateway's lines and polls, in virtual time: 4 lines
 // of 3 simulated devices, each device polled every 5 s, 20 clients reading and writing at random
 // through the Modbus TCP front's units, a front writing by name, while the wires spoil 5 % of the
 // devices' replies (late, repeated, bit-flipped, cut short, garbage), adapters are pulled for
@@ -20,7 +20,7 @@
 // in the HTTP API's answer) while its poll is overdue by more than two intervals, every device
 // answers its polls again within one back-off after each outage ends, the polls keep their rate
 // outside the outages, a write by name to a device that can answer ends within a bound however
-// the other lines fare (issue 20, item 10), whichever front it came through, a hostile body or
+// the other lines fare, whichever front it came through, a hostile body or
 // payload is refused with an answer in JSON, every MQTT command is answered, requests of a
 // closed connection are dropped unsent, and the queues stay bounded.
 #include <gtest/gtest.h>
@@ -93,7 +93,7 @@ constexpr const char* http_token = "soak-token";
 constexpr const char* mqtt_prefix = "soak";
 // How old a reply the units of lines 2 and 3 may answer a client's read with (modbus_tcp max_age).
 constexpr Duration read_cache_age = 2s;
-// A reload (SIGHUP with the lines unchanged, issue 20, item 8) eleven times in the soak (every 2 h
+// A reload (SIGHUP with the lines unchanged) eleven times in the soak (every 2 h
 // of a day, every 20 min of the sanitizers' 4 h): the lines are handed over at once, whatever is
 // queued or on the wire, and the gateway's parts above them (polls, cache, writer, the HTTP and
 // MQTT handlers) opened again over the same lines.
@@ -895,7 +895,7 @@ private:
     }
 
     // One request of a client, judged on the loop. One in 20 comes from a connection that closes
-    // 10 ms after sending it: dropped unsent if the line has not taken it by then (issue 20, item 5).
+    // 10 ms after sending it: dropped unsent if the line has not taken it by then.
     void send(int client, int line, int unit, Bytes pdu, std::function<void(std::optional<Bytes>)> judged) {
         session::UnitHandler::Asker asker(static_cast<std::uint64_t>(client));
         if (std::uniform_int_distribution<int>(0, 19)(clients_random_) == 0) {
@@ -1078,7 +1078,7 @@ TEST(LineSoak, ADayOfFaultsOnFourLinesServesNoWrongValueAndEveryDeviceComesBack)
     // No device read `ok` while its poll was overdue, and the outages made them overdue.
     EXPECT_EQ(tally.ok_while_overdue, 0U) << fmt::format("{}", fmt::join(tally.ok_while_overdue_examples, "\n"));
     EXPECT_GT(tally.overdue_checks, 0U);
-    // Writes by name: each line's own, never waiting for another line's (issue 20, item 10).
+    // Writes by name: each line's own, never waiting for another line's.
     EXPECT_LE(tally.longest_write_by_name, write_bound) << fmt::format("{}", fmt::join(tally.slow_writes, "\n"));
     EXPECT_EQ(tally.writes_by_name_refused, 0U);
     // Each front wrote (HTTP's and MQTT's handlers on the same loop), and the hostile bodies and

@@ -285,7 +285,7 @@ TEST(MqttBridge, AGatewayStartsWithoutItsBroker) {
 
 // A broker's port whose queue of connections is full (a broker hung, or others' connections
 // never taken): the gateway's connection to it can only wait for its handshake. It waits without
-// holding the engine's loop, which the front shares with the polls (issue 20: one executor): the
+// holding the engine's loop, which the front shares with the polls (one executor): the
 // polls go on meanwhile. A connect that blocked would hold them for the minutes TCP gives a
 // handshake.
 TEST(MqttBridge, AConnectionThatCannotCompleteHoldsUpNoPoll) {
@@ -1062,7 +1062,7 @@ TEST(MqttBridge, ASetRedeliveredAfterAReconnectIsWrittenOnce) {
     EXPECT_EQ(nlohmann::json::parse(fourth->second).at("ok"), true) << fourth->second;
 }
 
-// Both fronts on one broker (issue 22): the Sparkplug node's DCMD writes the set point through
+// Both fronts on one broker: the Sparkplug node's DCMD writes the set point through
 // the device's line, and the MQTT front publishes what the next poll read.
 TEST(MqttBridge, TheSparkplugNodeAndTheMqttFrontShareTheBrokerAndTheDevice) {
     REQUIRE_BROKER();

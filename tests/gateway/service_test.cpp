@@ -198,7 +198,7 @@ bool within(std::chrono::milliseconds limit, Condition done) {
     return true;
 }
 
-// Issue 20, item 8: a reload that leaves a line alone keeps it open - the line's figures go on
+// A reload that leaves a line alone keeps it open - the line's figures go on
 // from where they were, its polls carry on, it never goes down - and one that changes the line
 // (here its timeout) opens it afresh.
 TEST_F(GatewayService, AReloadKeepsTheLinesItLeavesAloneOpen) {
@@ -249,7 +249,7 @@ TEST_F(GatewayService, AReloadKeepsTheLinesItLeavesAloneOpen) {
         << "the log said which line stayed open, once";
 }
 
-// Issue 20, item 8: a reload that leaves [http] listen alone keeps the HTTP API's listening
+// A reload that leaves [http] listen alone keeps the HTTP API's listening
 // socket: the port stays (here one the kernel chose), and a client that connects while the next
 // gateway opens is answered by it. Before, the port was closed between the two and then another.
 TEST_F(GatewayService, AReloadKeepsTheHttpApiListening) {
@@ -285,7 +285,7 @@ TEST_F(GatewayService, AReloadKeepsTheHttpApiListening) {
               1);
 }
 
-// Issue 20, item 8: a reload that leaves [http] listen alone keeps the clients' keep-alive
+// A reload that leaves [http] listen alone keeps the clients' keep-alive
 // connections: a client that asked before the reload asks again on the same connection after it,
 // even with half of its next request sent while the gateway reloaded. An event stream ends (it
 // followed the old gateway's values; EventSource reconnects). Before, every connection was closed.

@@ -59,7 +59,7 @@ def relay(device_path, gateway_path, stop, faulty, counts):
         attributes = termios.tcgetattr(fd)
         attributes[3] &= ~termios.ECHO
         termios.tcsetattr(fd, termios.TCSANOW, attributes)
-    draw = random.Random(20)  # the number: the same faults every run
+    draw = random.Random(20)  # a fixed seed: the same faults every run
     reply = b""
     reply_last_byte = 0.0
     scheduled = []  # (due, sequence, bytes) for the gateway

@@ -68,7 +68,7 @@ TEST(Ac20Values, SetPointTakesItsDecimalsFromWord300) {
                                                   "set_point_low_limit", "set_point_high_limit"}));
 }
 
-// The text keeps the decimals the device gave the value (issue 21: "0.85 %C", not "1 %C"):
+// The text keeps the decimals the device gave the value ("0.85 %C", not "1 %C"):
 // 100 counts at word 300's two decimals read "1.00", at none "100"; a value made by hand shows
 // what it holds.
 TEST(Ac20Values, TextKeepsTheDecimalsTheDeviceGave) {

@@ -147,7 +147,7 @@ std::vector<Words> trajectory(const std::string& id, std::uint64_t seed, double 
     return samples;
 }
 
-// --seed makes runs reproducible (issue 4): the same seed gives the same readings at the same
+// --seed makes runs reproducible: the same seed gives the same readings at the same
 // process times, whether a client polled every 50 ms, every 1.3 s or never in between; noise
 // follows the seed.
 TEST(SimulationFramework, SameSeedSameTrajectoryHoweverOftenClientsPoll) {

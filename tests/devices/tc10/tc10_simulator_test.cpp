@@ -141,8 +141,8 @@ TEST(Tc10Model, OprEOffersOnlyItsModes_Section5_3_10_129And4_4B2) {
 // --- §5.1 16A, 18A, §5.2 28B: RAM-only values ---------------------------------------------------
 
 // §5 lists words 1-29 and 512-592 as computed, dynamically updated values; the remote set point
-// (16A), error output (18A) and manual output (28B, also word 4) are lost at power-off, as
-// issue 4 says; the control state (15A) is kept for dSPu = AS.Pr (#128).
+// (16A), error output (18A) and manual output (28B, also word 4) are lost at power-off;
+// the control state (15A) is kept for dSPu = AS.Pr (#128).
 TEST(Tc10Model, RemoteSetPointErrorAndManualOutputAreLostAtRestart_Section5_1_16A_18A_And5_2_28B) {
     Simulated before("tc10");
     set(before, remote_sp, 150);
