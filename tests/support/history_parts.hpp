@@ -3,6 +3,7 @@
 // forwarding, the reader), for the tests: no thread unless a test starts one (the writer's,
 // store->start()) or asks for one (the forwarder's and the reader's options), so that a test on
 // virtual time writes, forwards and asks itself. Its calls are the parts' own, gathered.
+#include <algorithm>
 #include <memory>
 #include <optional>
 #include <utility>
@@ -18,6 +19,8 @@ namespace loopwire::testing {
 struct HistoryPartsOptions : gateway::HistoryOptions {
     std::optional<gateway::ForwardOptions> forward;  // [history] forward_to
     bool reader_thread = false;
+    // The historian reader's bounds; none: the gateway's (a connect within 3 s at most).
+    std::optional<gateway::HistorianLimits> historian_limits;
 };
 
 class HistoryParts {
@@ -48,6 +51,7 @@ public:
             access.password = options.forward->password;
             access.limits.connect_timeout_seconds =
                 std::min(options.forward->connect_timeout_seconds, access.limits.connect_timeout_seconds);
+            if (options.historian_limits) access.limits = *options.historian_limits;
             reading.historian = access;
         }
         auto reader = gateway::HistoryReader::open(std::move(reading), *parts->store, parts->forwarder_.get());
