@@ -83,12 +83,12 @@ private:
     const HistoryForwarder* forwarder_;
     // Used on the reader's thread only (the caller's, without one): no lock of their own.
     mutable sqlite::Connection db_;
-    mutable std::unique_ptr<HistorianReader> historian_;
+    std::unique_ptr<HistorianReader> historian_;
     // The queue of asks to the reader's thread, which blocks in SQLite and libpq.
     mutable std::mutex asks_mutex_;
     mutable std::condition_variable_any asks_woken_;
     mutable std::deque<std::function<void()>> asks_;
-    mutable bool threaded_ = false;  // asks go to the thread (asks lock)
+    bool threaded_ = false;  // asks go to the thread (asks lock)
     std::jthread thread_;            // last: stops and joins before the rest goes
 };
 
