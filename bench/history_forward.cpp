@@ -10,6 +10,7 @@
 
 #include <fmt/format.h>
 
+#include "gateway/history_forwarder.hpp"
 #include "gateway/history_store.hpp"
 
 namespace {
@@ -39,7 +40,6 @@ int main(int argc, char** argv) {
     const long long rows = std::atoll(argv[3]);
     HistoryOptions options;
     options.database = argv[1];
-    options.writer_thread = false;
     options.heartbeat = std::chrono::hours(24);
     options.keep = std::chrono::hours(24 * 365 * 100);
     options.max_queued = 2'000'000;
@@ -49,7 +49,7 @@ int main(int argc, char** argv) {
     forward.gateway = "bench";
     forward.thread = false;
     if (const char* batch = std::getenv("LOOPWIRE_FORWARD_BATCH")) forward.batch_rows = static_cast<std::size_t>(std::atoll(batch));
-    options.forward = forward;
+    options.outbox = true;
     auto store = HistoryStore::open(options);
     if (!store) {
         std::fprintf(stderr, "%s\n", store.error().message.c_str());
@@ -68,6 +68,12 @@ int main(int argc, char** argv) {
     }
     if (!(*store)->write_pending()) return 1;
     csv.close();
+    // The forwarder beside the store, as the gateway makes it, once the rows are committed.
+    auto forwarder = HistoryForwarder::start(options.database, forward, options.keep, options.wall_clock, {});
+    if (!forwarder) {
+        std::fprintf(stderr, "%s\n", forwarder.error().message.c_str());
+        return 1;
+    }
     // The historian's tables made beforehand, as the \copy peer's table is: the time is the
     // rows' (and a connect's, as psql's includes one).
     if (auto made = check_forward_target(forward); !made) {
@@ -75,7 +81,7 @@ int main(int argc, char** argv) {
         return 1;
     }
     const auto began = std::chrono::steady_clock::now();
-    auto shipped = (*store)->forwarder()->forward_pending();
+    auto shipped = (*forwarder)->forward_pending();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
     if (!shipped) {
         std::fprintf(stderr, "%s\n", shipped.error().message.c_str());

@@ -15,6 +15,8 @@
 
 #include "devices/registry.hpp"
 #include "gateway/engine.hpp"
+#include "gateway/history_forwarder.hpp"
+#include "gateway/history_reader.hpp"
 #include "gateway/history_store.hpp"
 #include "gateway/http_api.hpp"
 #include "gateway/http_server.hpp"
@@ -140,24 +142,77 @@ std::optional<ForwardOptions> forward_options(const HistoryConfig& history, cons
     return forward;
 }
 
-// The history database, with every parameter the polls read declared as a series.
-Result<std::unique_ptr<HistoryStore>> open_history(const HistoryConfig& history, const GatewayConfig& config,
-                                                   const GatewayLog& log) {
+// The history's three parts, each on its own thread and connection: the store writes the file,
+// the forwarder ships the file's outbox to the historian, the reader answers the queries (of the
+// file, and of other gateways' history in the historian). They start and stop here alone:
+//   start: the store opens the file (sets it up), the forwarder and the reader open it after it;
+//          the store is told of the forwarder, then its writer starts (open_history);
+//   stop:  the reader first (it answers what is asked still, and reads the others' figures),
+//          then the store (its writer's last commit tells the forwarder), the forwarder last.
+struct History {
+    History() = default;
+    History(const History&) = delete;
+    History& operator=(const History&) = delete;
+    ~History() {
+        reader.reset();
+        store.reset();
+        forwarder.reset();
+    }
+    std::unique_ptr<HistoryForwarder> forwarder;  // none unless [history] forward_to
+    std::unique_ptr<HistoryStore> store;
+    std::unique_ptr<HistoryReader> reader;
+};
+
+// Another gateway's history for the HTTP API: from the historian this one forwards to, with a
+// connect bounded for an asker that waits (an HTTP request), unlike the forwarder's.
+HistorianAccess historian_access(const ForwardOptions& forward) {
+    HistorianAccess access;
+    access.conninfo = forward.conninfo;
+    access.password = forward.password;
+    access.limits.connect_timeout_seconds = std::min(forward.connect_timeout_seconds, access.limits.connect_timeout_seconds);
+    return access;
+}
+
+// The history database, with every parameter the polls read declared as a series, and what
+// forwards and reads it, started in order (History).
+Result<std::unique_ptr<History>> open_history(const HistoryConfig& config, const GatewayConfig& gateway, const GatewayLog& log) {
+    const std::optional<ForwardOptions> forward = forward_options(config, gateway);
     HistoryOptions options;
-    options.database = history.database;
-    options.keep = history.keep;
-    options.heartbeat = history.heartbeat;
+    options.database = config.database;
+    options.keep = config.keep;
+    options.heartbeat = config.heartbeat;
     options.log = log;
-    options.forward = forward_options(history, config);
+    options.outbox = forward.has_value();
     std::vector<HistorySeriesName> declared;
-    for (const auto& line : config.lines) {
+    for (const auto& line : gateway.lines) {
         for (const auto& device : line.devices) {
             for (const device::Parameter* parameter : polled_parameters(device)) {
                 declared.push_back({device.name, parameter->name, parameter->unit});
             }
         }
     }
-    return HistoryStore::open(std::move(options), declared);
+    auto history = std::make_unique<History>();
+    auto store = HistoryStore::open(std::move(options), declared);
+    if (!store) return store.error();
+    history->store = std::move(*store);
+    if (forward) {
+        auto forwarder = HistoryForwarder::start(config.database, *forward, config.keep, {}, log);
+        if (!forwarder) return forwarder.error();
+        history->forwarder = std::move(*forwarder);
+        history->store->on_outbox([forwarder = history->forwarder.get()](std::uint64_t rows, std::int64_t first_t) {
+            forwarder->queued(rows, first_t);
+        });
+    }
+    HistoryReaderOptions reading;
+    reading.database = config.database;
+    reading.heartbeat = config.heartbeat;
+    reading.gateway = gateway.name;
+    if (forward) reading.historian = historian_access(*forward);
+    auto reader = HistoryReader::open(std::move(reading), *history->store, history->forwarder.get());
+    if (!reader) return reader.error();
+    history->reader = std::move(*reader);
+    history->store->start();
+    return history;
 }
 
 LineReport report_of(const OpenLine& line);  // below
@@ -212,7 +267,7 @@ struct Gateway::Parts {
     std::vector<OpenLine> lines;
     ValueCache cache;
     // Before the polls, so destroyed after them: the last changes they find are written.
-    std::unique_ptr<HistoryStore> history;
+    std::unique_ptr<History> history;
     ValueSubscription history_subscription;
     std::unique_ptr<PollGroups> polls;
     // Closed before the polls go (~Parts), which it posts to.
@@ -276,7 +331,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         if (!history) return history.error();
         parts->history = std::move(*history);
         parts->history_subscription =
-            parts->cache.subscribe([store = parts->history.get()](const ValueChange& change) { store->record(change); });
+            parts->cache.subscribe([store = parts->history->store.get()](const ValueChange& change) { store->record(change); });
     }
     parts->polls = std::make_unique<PollGroups>(*parts->engine, config, schedulers, parts->cache, options.log, options.samples);
     parts->front_writes->open(*parts->engine, *parts->polls);
@@ -341,7 +396,7 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     HttpApiSources sources;
     sources.cache = &parts.cache;
     sources.writer = parts.writer.get();
-    sources.history = parts.history.get();
+    sources.history = parts.history ? parts.history->reader.get() : nullptr;
     sources.lines = [&parts] {
         std::vector<LineReport> reports;
         for (const auto& line : parts.lines) reports.push_back(report_of(line));
@@ -533,7 +588,7 @@ Result<void> check_history_forwarding(const GatewayConfig& config) {
     return {};
 }
 
-const HistorySource* Gateway::history() const { return parts_->history.get(); }
+const HistorySource* Gateway::history() const { return parts_->history ? parts_->history->reader.get() : nullptr; }
 
 std::string describe(const LineReport& report, const LineReport* since) {
     const auto& s = report.statistics;

@@ -1,6 +1,7 @@
 #pragma once
 // Other gateways' history, read from the shared PostgreSQL historian for
-// /api/history?gateway=NAME (and the dashboard's list of gateways) on the HTTP server's threads.
+// /api/history?gateway=NAME (and the dashboard's list of gateways), on the history reader's
+// thread (gateway/history_reader.hpp), never the writer's that commits this gateway's history.
 //
 // One connection, kept between requests (a connect costs more than most queries) and opened
 // again when a request finds it broken (that request is then asked once more on the new one). The requests take turns on it, and each is bounded so

@@ -134,8 +134,8 @@ Result<sqlite::Connection> open_for_writing(const std::filesystem::path& file) {
     return db;
 }
 
-Result<sqlite::Connection> open_for_reading(const std::filesystem::path& file) {
-    auto db = sqlite::Connection::open(file.string(), sqlite::Connection::Mode::read_write_create);
+Result<sqlite::Connection> open_for_reading(const std::filesystem::path& file, sqlite::Connection::Mode mode) {
+    auto db = sqlite::Connection::open(file.string(), mode);
     if (!db) return db.error();
     // A file that is not a history said so, not a failed query ("no such table: series").
     auto known = recognise(*db, file);

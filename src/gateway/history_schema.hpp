@@ -17,8 +17,10 @@ constexpr std::int64_t schema_version = 1;
 // checked. The error names the file and says what to do.
 Result<sqlite::Connection> open_for_writing(const std::filesystem::path& file);
 // A reader's connection to a database open_for_writing() prepared; a file that is not a loopwire
-// history is refused, saying so.
-Result<sqlite::Connection> open_for_reading(const std::filesystem::path& file);
+// history is refused, saying so. Read-only beside a running writer (its connection keeps the
+// WAL's files); read-write by default, for a file no writer has open (its WAL is made again).
+Result<sqlite::Connection> open_for_reading(const std::filesystem::path& file,
+                                            sqlite::Connection::Mode mode = sqlite::Connection::Mode::read_write_create);
 // For `--check`, without changing anything: an existing file must be a loopwire history (or an
 // empty database), as open_for_writing() will want it; a missing one will be created.
 Result<void> examine(const std::filesystem::path& file);

@@ -1,5 +1,5 @@
 #pragma once
-// What the HTTP API asks of the history store (gateway/history_store.hpp): downsampled series
+// What the HTTP API asks of the history (gateway/history_reader.hpp answers it): downsampled series
 // of the values the polls recorded, so the API depends on the question, not on SQLite.
 #include <chrono>
 #include <cstddef>
@@ -77,8 +77,9 @@ class HistorySource {
 public:
     virtual ~HistorySource() = default;
     // Runs `work`, which may block on the database (a query, the historian's answer), where
-    // blocking holds up nothing else: the history's own thread, never the loop the HTTP API
-    // serves on (the engine's, with the polls). Here, at once, for a source without a thread.
+    // blocking holds up nothing else: the history reader's thread (gateway/history_reader.hpp),
+    // never the loop the HTTP API serves on (the engine's, with the polls), nor the writer that
+    // commits the history. Here, at once, for a source without a thread.
     // From any thread; `work` runs once, in the order given.
     virtual void run_blocking(std::function<void()> work) const { work(); }
     // The error says what was wrong with the query (unknown device or parameter, from after to).

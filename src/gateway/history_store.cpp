@@ -7,9 +7,7 @@
 #include "client/device_status.hpp"
 #include "client/monitor_state.hpp"
 #include "common/thread_name.hpp"
-#include "gateway/history_query.hpp"
 #include "gateway/history_schema.hpp"
-#include "gateway/postgres_history_query.hpp"
 
 namespace loopwire::gateway {
 namespace {
@@ -44,7 +42,7 @@ struct HistoryStore::Writer {
     sqlite::Statement add_minute;
     sqlite::Statement expire_samples;
     sqlite::Statement expire_minutes;
-    sqlite::Statement add_outbox;  // prepared only when forwarding
+    sqlite::Statement add_outbox;  // prepared only with an outbox
     std::uint64_t outbox_added = 0;  // in the transaction being written, and the first's stamp
     std::int64_t outbox_first_t = 0;
     // Looked up with std::tie of the row's strings (std::less<>): no copies per row.
@@ -54,11 +52,6 @@ struct HistoryStore::Writer {
     std::optional<SystemTime> next_sweep;
     std::uint64_t dropped_logged = 0;
     bool failing = false;  // the last commit failed (logged once until one succeeds)
-};
-
-struct HistoryStore::Reader {
-    std::mutex mutex;
-    std::optional<sqlite::Connection> db;
 };
 
 HistoryStore::HistoryStore(HistoryOptions options) : options_(std::move(options)) {}
@@ -103,24 +96,13 @@ Result<std::unique_ptr<HistoryStore>> HistoryStore::open(HistoryOptions options,
         if (!prepared) return prepared.error();
         *statement = std::move(*prepared);
     }
-    if (store->options_.forward) {
+    if (store->options_.outbox) {
         auto prepared = writer->db.prepare(sql.add_outbox);
         if (!prepared) return prepared.error();
         writer->add_outbox = std::move(*prepared);
     }
     store->writer_ = std::move(writer);
-    store->reader_ = std::make_unique<Reader>();
-    if (store->options_.forward) {
-        // Bounded for an asker that waits (an HTTP request), unlike the forwarder.
-        HistorianLimits limits;
-        limits.connect_timeout_seconds = std::min(store->options_.forward->connect_timeout_seconds, limits.connect_timeout_seconds);
-        store->historian_ = std::make_unique<HistorianReader>(store->options_.forward->conninfo, store->options_.forward->password, limits);
-    }
-    auto reader = history::open_for_reading(store->options_.database);
-    if (!reader) return reader.error();
-    store->reader_->db = std::move(*reader);
     if (!declared.empty()) {
-        std::vector<QueuedRow> none;
         if (auto begun = store->writer_->db.execute("BEGIN IMMEDIATE"); !begun) return begun.error();
         for (const auto& name : declared) {
             auto id = store->series_id(name.device, name.parameter, name.unit);
@@ -131,18 +113,13 @@ Result<std::unique_ptr<HistoryStore>> HistoryStore::open(HistoryOptions options,
         }
         if (auto committed = store->writer_->db.execute("COMMIT"); !committed) return committed.error();
     }
-    if (store->options_.forward) {
-        auto forwarder = HistoryForwarder::start(store->options_.database, *store->options_.forward, store->options_.keep,
-                                                 store->options_.wall_clock, store->options_.log);
-        if (!forwarder) return forwarder.error();
-        store->forwarder_ = std::move(*forwarder);
-    }
-    if (store->options_.writer_thread) {
-        store->errands_thread_ = true;
-        store->thread_ = std::jthread([s = store.get()](std::stop_token stop) { s->run(std::move(stop)); });
-        name_thread(store->thread_.native_handle(), "lw-history");
-    }
     return store;
+}
+
+void HistoryStore::start() {
+    if (thread_.joinable()) return;
+    thread_ = std::jthread([this](std::stop_token stop) { run(std::move(stop)); });
+    name_thread(thread_.native_handle(), "lw-history");
 }
 
 HistoryStore::~HistoryStore() {
@@ -183,52 +160,25 @@ std::uint64_t HistoryStore::rows_written() const {
     return rows_written_;
 }
 
-std::optional<ForwardStats> HistoryStore::forward_stats() const {
-    if (!forwarder_) return std::nullopt;
-    return forwarder_->stats();
-}
-
 std::uint64_t HistoryStore::dropped() const {
     std::lock_guard lock(queue_mutex_);
     return dropped_;
 }
 
+// Commits every commit_interval, whatever else the gateway does: nothing but the stop wakes it
+// early (the destructor then writes what is left).
 void HistoryStore::run(std::stop_token stop) {
     using steady = std::chrono::steady_clock;
     auto next_commit = steady::now() + options_.commit_interval;
     while (!stop.stop_requested()) {
-        std::vector<std::function<void()>> errands;
         {
-            std::unique_lock lock(errands_mutex_);
-            errands_woken_.wait_until(lock, stop, next_commit, [this] { return !errands_.empty(); });
-            errands.swap(errands_);
+            std::unique_lock lock(queue_mutex_);
+            stop_woken_.wait_until(lock, stop, next_commit, [] { return false; });
         }
-        for (auto& errand : errands) errand();
-        if (stop.stop_requested() || steady::now() < next_commit) continue;
+        if (stop.stop_requested()) break;
         (void)write_pending();  // failures are logged there and retried on the next round
         next_commit = steady::now() + options_.commit_interval;
     }
-    // Errands given from now on run where they are given; the ones left still run (an HTTP
-    // request waits for each).
-    std::vector<std::function<void()>> left;
-    {
-        std::lock_guard lock(errands_mutex_);
-        errands_thread_ = false;
-        left.swap(errands_);
-    }
-    for (auto& errand : left) errand();
-}
-
-void HistoryStore::run_blocking(std::function<void()> work) const {
-    {
-        std::lock_guard lock(errands_mutex_);
-        if (errands_thread_) {
-            errands_.push_back(std::move(work));
-            errands_woken_.notify_one();
-            return;
-        }
-    }
-    work();
 }
 
 Result<std::int64_t> HistoryStore::series_id(const std::string& device, const std::string& parameter, const std::string& unit) {
@@ -282,7 +232,7 @@ Result<void> HistoryStore::insert_rows(const std::vector<QueuedRow>& rows, std::
         if (!added) return added.error();
         if (w.db.changes() != 1) continue;  // already there: counted once
         ++inserted;
-        if (options_.forward) {
+        if (options_.outbox) {
             w.add_outbox.bind(1, *id);
             w.add_outbox.bind(2, row.t);
             auto noted = w.add_outbox.step();
@@ -325,7 +275,7 @@ Result<std::uint64_t> HistoryStore::commit(const std::vector<QueuedRow>& rows) {
         w.series_ids.clear();  // ids of series added in the rolled-back transaction are gone
         return written.error();
     }
-    if (forwarder_) forwarder_->queued(w.outbox_added, w.outbox_first_t);
+    if (outbox_noted_ && w.outbox_added > 0) outbox_noted_(w.outbox_added, w.outbox_first_t);
     return inserted;
 }
 
@@ -399,7 +349,6 @@ Result<bool> HistoryStore::retention_step(bool force) {
 }
 
 Result<void> HistoryStore::write_pending() {
-    std::lock_guard writing(writer_mutex_);
     Writer& w = *writer_;
     std::vector<QueuedRow> batch;
     std::uint64_t dropped = 0;
@@ -442,44 +391,11 @@ Result<void> HistoryStore::write_pending() {
 }
 
 Result<void> HistoryStore::enforce_retention() {
-    std::lock_guard writing(writer_mutex_);
     writer_->to_sweep.clear();
     auto more = retention_step(true);
     while (more && *more && !writer_->to_sweep.empty()) more = retention_step(true);
     if (!more) return more.error();
     return {};
-}
-
-// Twice the heartbeat: a value still read is written again at least every heartbeat (and the
-// writer's commit interval), so a value in force at `from` has a row within one heartbeat
-// before it; the second one allows for a late commit (a retried write). An older last row
-// means the gateway recorded nothing since (it was stopped): no value is known at `from`.
-// Another gateway's history is asked with the same bound: gateways sharing a historian are
-// expected to share a heartbeat; one with a longer one only loses its starting value.
-HistoryQuery HistoryStore::with_look_back(HistoryQuery query) const {
-    query.look_back = 2 * options_.heartbeat;
-    return query;
-}
-
-Result<std::vector<HistorySeries>> HistoryStore::query(const HistoryQuery& query) const {
-    if (!query.gateway.empty() && (!options_.forward || query.gateway != options_.forward->gateway)) return historian_query(query);
-    std::lock_guard lock(reader_->mutex);
-    return history::run_query(*reader_->db, with_look_back(query));
-}
-
-Result<std::vector<std::string>> HistoryStore::historian_gateways() const {
-    if (!historian_) return HistorySource::historian_gateways();
-    return historian_->gateways();
-}
-
-// Another gateway's history: in the shared historian, read by its own reader (its own
-// connection and lock: a slow historian does not hold this gateway's own history queries).
-Result<std::vector<HistorySeries>> HistoryStore::historian_query(const HistoryQuery& query) const {
-    if (!historian_) {
-        return make_error(ErrorKind::usage, fmt::format("gateway=\"{}\": only this gateway's history is kept here; another's "
-                                                        "needs [history] forward_to, the historian they share", query.gateway));
-    }
-    return historian_->query(query.gateway, with_look_back(query));
 }
 
 }  // namespace loopwire::gateway

@@ -1,15 +1,16 @@
 #pragma once
 // The gateway's history: every change its polls find, and a heartbeat sample of every value each
-// `heartbeat`, kept in an SQLite file (WAL mode) for `keep`, and asked for as downsampled series
-// (gateway/history_source.hpp) by the HTTP API (docs/DESIGN.md, gateway).
+// `heartbeat`, kept in an SQLite file (WAL mode) for `keep`, and read back as downsampled series
+// by the history reader (gateway/history_reader.hpp) on a connection of its own (docs/DESIGN.md,
+// gateway).
 //
 // Threads: record() is what the value cache's callback calls on the poll threads; it only
-// queues. One writer thread commits the queue in a transaction every `commit_interval` (0.5 s:
-// a kill -9 loses at most the last second; WAL keeps every committed transaction whole, so the
-// file is never corrupted by a crash), writes the heartbeats when due and deletes expired rows
-// in small batches between commits. query() runs on the caller's thread on its own connection:
-// WAL lets it read while the writer writes. The HTTP API asks on this thread (run_blocking), so
-// that a long query or a slow historian never holds up the engine's loop it serves on.
+// queues. One writer thread (start()) commits the queue in a transaction every `commit_interval`
+// (0.5 s: a kill -9 loses at most the last second; WAL keeps every committed transaction whole,
+// so the file is never corrupted by a crash), writes the heartbeats when due and deletes expired
+// rows in small batches between commits. The writer only writes: queries are the reader's, on
+// its own thread and connection, so a month of history asked for or a historian slow to answer
+// never delays a commit (WAL lets the reader read while the writer writes).
 //
 // Schema (history_schema.cpp): `series` (device, parameter, unit) with integer ids; `samples`
 // (series_id, t in ms since the epoch, value, text, status), WITHOUT ROWID with the key
@@ -17,9 +18,10 @@
 // min/max/sum/count of each series, kept as samples are written, which answers the buckets a
 // minute wide or wider (30 days at 1 s: 43 200 rows read instead of 2.6 million).
 //
-// Forwarding (`forward`, [history] forward_to): every inserted sample is also noted in `outbox`
-// in the same transaction, and a HistoryForwarder ships the outbox to PostgreSQL
-// (gateway/history_forwarder.hpp); the file is then both the gateway's history and the buffer.
+// Forwarding ([history] forward_to, `outbox`): every inserted sample is also noted in `outbox` in
+// the same transaction; a HistoryForwarder beside the store (gateway/history_forwarder.hpp, made
+// by the gateway) ships the outbox to PostgreSQL, so the file is both the gateway's history and
+// the buffer. The store only tells it, through on_outbox(), how many rows each commit noted.
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -35,9 +37,6 @@
 #include <vector>
 
 #include "common/result.hpp"
-#include "gateway/history_forwarder.hpp"
-#include "gateway/historian_reader.hpp"
-#include "gateway/history_source.hpp"
 #include "gateway/sqlite_database.hpp"
 #include "gateway/value_cache.hpp"
 
@@ -54,16 +53,17 @@ struct HistoryOptions {
     // the one retention counts back from. It is wall time (the samples' own stamps are), not
     // the steady common/clock.hpp; a test injects virtual time here. Empty: the system clock.
     std::function<SystemTime()> wall_clock;
-    // false: no writer thread; the owner calls write_pending() (tests on virtual time, benches).
-    bool writer_thread = true;
     // Failed commits (a full disk) and queue overflows; they are retried, not fatal.
     std::function<void(const std::string&)> log;
     // Changes held for the writer at most; beyond, new ones are counted as dropped and logged.
     std::size_t max_queued = 1'000'000;
     // [history] forward_to: each inserted sample is also noted in the file's outbox, in the same
-    // transaction, and a forwarder ships the outbox to PostgreSQL (gateway/history_forwarder.hpp).
-    std::optional<ForwardOptions> forward;
+    // transaction, for the forwarder that ships it to PostgreSQL (gateway/history_forwarder.hpp).
+    bool outbox = false;
 };
+
+// A commit noted `rows` more in the outbox, the first stamped `first_t` (ms since the epoch).
+using OutboxNoted = std::function<void(std::uint64_t rows, std::int64_t first_t)>;
 
 // A parameter the gateway polls: declared when the store opens, so that asking for its history
 // before its first sample gives an empty series rather than "unknown".
@@ -73,37 +73,39 @@ struct HistorySeriesName {
     std::string unit;
 };
 
-class HistoryStore final : public HistorySource {
+class HistoryStore final {
 public:
     // Opens (or creates) the database; the error names the file and says what to do about it
-    // (a missing or read-only folder, a file that is not a loopwire history database).
+    // (a missing or read-only folder, a file that is not a loopwire history database). No writer
+    // thread yet: the owner calls write_pending() (tests on virtual time, benches), or start().
     static Result<std::unique_ptr<HistoryStore>> open(HistoryOptions options,
                                                       const std::vector<HistorySeriesName>& declared = {});
-    ~HistoryStore() override;  // writes what is queued, then closes
+    ~HistoryStore();  // stops the writer thread, writes what is queued, then closes
     HistoryStore(const HistoryStore&) = delete;
     HistoryStore& operator=(const HistoryStore&) = delete;
+
+    // Who hears of the rows each commit notes in the outbox (the forwarder): given before start(),
+    // or, without a writer thread, between the owner's writes.
+    void on_outbox(OutboxNoted noted) { outbox_noted_ = std::move(noted); }
+    // Starts the writer thread (named lw-history); once at most.
+    void start();
 
     // Queues a change for the writer (the value cache's callback: quick, never blocks on the
     // database). Changes of a device's own status are not history and are ignored.
     void record(const ValueChange& change);
 
     // Commits what is queued, writes the heartbeats that are due and one retention batch: the
-    // writer thread's step, called by the owner when there is no thread.
+    // writer thread's step, called by the owner when there is no thread (never beside it).
     Result<void> write_pending();
-    // Deletes rows older than `keep` until none are left, in the same small batches.
+    // Deletes rows older than `keep` until none are left, in the same small batches (as
+    // write_pending(): without a writer thread).
     Result<void> enforce_retention();
 
-    // This gateway's history from the file; another's (query.gateway) from the historian.
-    Result<std::vector<HistorySeries>> query(const HistoryQuery& query) const override;
-    std::uint64_t rows_written() const override;
+    std::uint64_t rows_written() const;  // committed since the store opened (GET /metrics)
     std::uint64_t dropped() const;  // changes refused because the queue was full
-    std::optional<ForwardStats> forward_stats() const override;
-    Result<std::vector<std::string>> historian_gateways() const override;
-    // On the writer thread, before its next commit (at once when there is no thread).
-    void run_blocking(std::function<void()> work) const override;
-    HistoryForwarder* forwarder() { return forwarder_.get(); }  // null unless forwarding
 
     const std::filesystem::path& database() const { return options_.database; }
+    std::chrono::milliseconds heartbeat() const { return options_.heartbeat; }
 
 private:
     struct QueuedRow {
@@ -117,12 +119,11 @@ private:
         bool heartbeat = false;  // a repeat of the last reading, stamped when it was written
     };
     struct Writer;
-    struct Reader;
 
     explicit HistoryStore(HistoryOptions options);
     SystemTime wall_now() const;
     void run(std::stop_token stop);
-    // The writer's steps; writer_mutex_ held.
+    // The writer's steps: on the writer thread, or the owner's without one.
     Result<std::int64_t> series_id(const std::string& device, const std::string& parameter, const std::string& unit);
     Result<void> insert_rows(const std::vector<QueuedRow>& rows, std::uint64_t& inserted);
     Result<std::uint64_t> commit(const std::vector<QueuedRow>& rows);  // the rows inserted
@@ -130,26 +131,19 @@ private:
     Result<std::int64_t> expire(sqlite::Statement& statement, std::int64_t series, std::int64_t before);
     Result<bool> retention_step(bool force);  // false: nothing was due
     void log(const std::string& message) const;
-    Result<std::vector<HistorySeries>> historian_query(const HistoryQuery& query) const;
-    HistoryQuery with_look_back(HistoryQuery query) const;  // look_back: twice the heartbeat
 
     HistoryOptions options_;
-    std::unique_ptr<Writer> writer_;        // the writer's connection and state; its lock held
-    mutable std::unique_ptr<Reader> reader_;  // query()'s connection; its own lock
-    std::unique_ptr<HistorianReader> historian_;  // other gateways' history, when forwarding
-    mutable std::mutex writer_mutex_;
+    std::unique_ptr<Writer> writer_;  // the writer's connection and state
+    OutboxNoted outbox_noted_;
+    // The queue of changes to the writer thread (and its wake-up to stop); the one lock the poll
+    // threads share with the writer, held only to swap the queue, never across SQLite.
     mutable std::mutex queue_mutex_;
-    // The writer thread's wake-up: for errands (run_blocking), and to stop.
-    mutable std::mutex errands_mutex_;
-    mutable std::condition_variable_any errands_woken_;
-    mutable std::vector<std::function<void()>> errands_;
-    bool errands_thread_ = false;  // errands go to the writer thread (errands lock)
+    std::condition_variable_any stop_woken_;
     std::vector<QueuedRow> queue_;
-    // The last row of each series, for the heartbeats (writer's lock).
+    // The last row of each series, for the heartbeats (the writer's).
     std::map<std::pair<std::string, std::string>, QueuedRow> last_;
     std::uint64_t dropped_ = 0;               // queue lock
     std::uint64_t rows_written_ = 0;          // queue lock
-    std::unique_ptr<HistoryForwarder> forwarder_;
     std::jthread thread_;  // last: stops and joins before the rest goes
 };
 

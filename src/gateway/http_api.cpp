@@ -530,7 +530,7 @@ HttpResponse history_reply(const ParsedHistoryQuery& query, const Result<std::ve
                                    {"to", iso_time(query.query.to)}, {"series", std::move(list)}});
 }
 
-// The query runs where it may block (HistorySource::run_blocking, the history's thread), not on
+// The query runs where it may block (HistorySource::run_blocking, the history reader's thread), not on
 // the loop the API serves on: a month of history, or a historian slow to answer, holds up no
 // poll and no other client. What it captures outlives the server, which waits for the answer.
 HttpOutcome deferred_history(const HistorySource& history, ParsedHistoryQuery query) {
@@ -571,7 +571,7 @@ HttpOutcome HttpApi::State::history(const HttpRequest& request) const {
 
 // The gateways whose history the historian holds, for the dashboard's choice of whose trend
 // to show; 404 when there is no historian ([history] forward_to absent). Asked on the
-// history's thread, as a query is.
+// history reader's thread, as a query is.
 HttpOutcome HttpApi::State::history_gateways() const {
     if (!sources.history) {
         return {error(404, "no [history] configured: add a [history] table to the gateway's configuration to record values"),

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The threads of a running `loopwire gateway`, read from /proc as an operator would (the rule:
-# the count does not grow with lines, devices or poll intervals, and is at most 4 with history).
-# The same for 1 line of 1 device as for 4 virtual lines of 3 devices polled at 3 intervals; one
-# more, the history's writer, with [history]. Counted once every device has answered, so every
+# the count does not grow with lines, devices or poll intervals, and is at most 5 with history).
+# The same for 1 line of 1 device as for 4 virtual lines of 3 devices polled at 3 intervals; two
+# more, the history's writer and its reader (queries never wait on a commit, nor commits on a
+# query), with [history]. Counted once every device has answered, so every
 # line's loop, the engine and the front are up; and again after a SIGHUP that changed a poll
 # interval, so a reload starts no thread it keeps. Every configuration serves Modbus TCP, the
 # HTTP API, MQTT and Sparkplug B: the fronts are on the engine's loop, no thread of their own.
@@ -125,8 +126,9 @@ stop_gateway
 
 threads_of history.log "$WORK_DIR/history.toml" 12
 echo "4 lines x 3 devices with history: $THREADS threads: $NAMES"
-expect "at most 4 threads with history" test "$THREADS" -le 4
-expect "the history's writer is the one more" test "$THREADS" -eq $((one + 1))
+expect "at most 5 threads with history" test "$THREADS" -le 5
+expect "the history's writer and reader are the two more" test "$THREADS" -eq $((one + 2))
+expect "the history's writer and reader are named" test "$(grep -o 'lw-history' <<<"$NAMES" | wc -l)" -eq 2
 expect "the HTTP API, the MQTT front and the Sparkplug node have no thread of their own" \
   test "$(grep -c 'lw-http\|lw-mqtt\|lw-sparkplug' <<<"$NAMES")" -eq 0
 expect "one thread carries the clients, the polls and the writes" test "$(grep -o 'lw-engine' <<<"$NAMES" | wc -l)" -eq 1

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "gateway/history_store.hpp"
+#include "support/history_parts.hpp"
 #include "support/history_test_support.hpp"
 #include "support/postgres_server.hpp"
 
@@ -50,9 +51,8 @@ protected:
         if (auto reason = PostgresServer::unavailable()) GTEST_SKIP() << *reason;
         server = std::make_unique<PostgresServer>();
         // A minute of one value a second, forwarded by a gateway called "south".
-        HistoryOptions options;
+        loopwire::testing::HistoryPartsOptions options;
         options.database = folder.path / "south.db";
-        options.writer_thread = false;
         options.wall_clock = wall.clock();
         options.heartbeat = std::chrono::hours(24);
         ForwardOptions forward;
@@ -60,7 +60,7 @@ protected:
         forward.gateway = "south";
         forward.thread = false;
         options.forward = forward;
-        auto store = HistoryStore::open(options);
+        auto store = loopwire::testing::HistoryParts::open(options);
         ASSERT_TRUE(store) << store.error().message;
         for (int i = 0; i < 60; ++i) {
             ValueChange change;

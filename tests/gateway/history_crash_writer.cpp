@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "%s\n", store.error().message.c_str());
         return 1;
     }
+    (*store)->start();
     const auto start = std::chrono::system_clock::now();
     for (long long n = 0;; ++n) {
         ValueChange change;

@@ -26,6 +26,7 @@
 #include "gateway/postgres_database.hpp"
 #include "gateway/postgres_history_query.hpp"
 #include "gateway/postgres_history_schema.hpp"
+#include "support/history_parts.hpp"
 #include "support/history_test_support.hpp"
 #include "support/log_lines.hpp"
 #include "support/postgres_server.hpp"
@@ -39,6 +40,8 @@ using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 using std::chrono::milliseconds;
 using test::PostgresServer;
+using loopwire::testing::HistoryParts;
+using loopwire::testing::HistoryPartsOptions;
 using loopwire::testing::TempFolder;
 using loopwire::testing::VirtualWall;
 
@@ -61,11 +64,10 @@ ValueChange number(const std::string& device, const std::string& parameter, doub
 }
 
 // The store on virtual time, with neither thread: the test writes and forwards.
-HistoryOptions forwarding(const std::filesystem::path& file, const VirtualWall& wall, const std::string& conninfo,
+HistoryPartsOptions forwarding(const std::filesystem::path& file, const VirtualWall& wall, const std::string& conninfo,
                           const std::string& gateway = "plant1") {
-    HistoryOptions options;
+    HistoryPartsOptions options;
     options.database = file;
-    options.writer_thread = false;
     options.wall_clock = wall.clock();
     options.heartbeat = std::chrono::hours(24);  // only the rows the tests record
     ForwardOptions forward;
@@ -108,7 +110,7 @@ std::vector<long long> counting(long long n) {
 }
 
 // Records values 0..n-1 of one parameter, a second apart from `from`, and commits them locally.
-void record_counting(HistoryStore& store, long long n, const std::string& device = "oven1",
+void record_counting(HistoryParts& store, long long n, const std::string& device = "oven1",
                      const std::string& parameter = "measured_value", SystemTime from = t0) {
     for (long long i = 0; i < n; ++i) store.record(number(device, parameter, static_cast<double>(i), from + std::chrono::seconds(i)));
     ASSERT_TRUE(store.write_pending());
@@ -127,7 +129,7 @@ protected:
 };
 
 TEST_F(HistoryForward, ShipsEveryRowOnceWithItsMinutesAndEmptiesTheOutbox) {
-    auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->url()));
+    auto store = HistoryParts::open(forwarding(folder.path / "h.db", wall, server->url()));
     ASSERT_TRUE(store) << store.error().message;
     record_counting(**store, 150);  // two and a half minutes
     EXPECT_EQ((*store)->forward_stats()->forwarded_total, 0u);
@@ -161,7 +163,7 @@ TEST_F(HistoryForward, ShipsEveryRowOnceWithItsMinutesAndEmptiesTheOutbox) {
 // hand, as the crash would have left it, so the resend is certain rather than a race.
 TEST_F(HistoryForward, ABatchSentAgainAddsNoSamplesNorMinutes) {
     const auto file = folder.path / "h.db";
-    auto store = HistoryStore::open(forwarding(file, wall, server->url()));
+    auto store = HistoryParts::open(forwarding(file, wall, server->url()));
     ASSERT_TRUE(store) << store.error().message;
     record_counting(**store, 150);
     ASSERT_TRUE((*store)->forwarder()->forward_pending());
@@ -185,9 +187,9 @@ TEST_F(HistoryForward, ABatchSentAgainAddsNoSamplesNorMinutes) {
 // The historian's series ids are learnt a batch at a time: series new in a later batch, one the
 // historian already has (added by an earlier connection), several in one batch.
 TEST_F(HistoryForward, SeriesNewInAnyBatchGetTheirOwnIdsAndRows) {
-    HistoryOptions options = forwarding(folder.path / "h.db", wall, server->url());
+    HistoryPartsOptions options = forwarding(folder.path / "h.db", wall, server->url());
     options.forward->batch_rows = 4;
-    auto store = HistoryStore::open(options);
+    auto store = HistoryParts::open(options);
     ASSERT_TRUE(store) << store.error().message;
     for (int i = 0; i < 6; ++i) (*store)->record(number("oven1", "measured_value", i, t0 + std::chrono::seconds(i)));
     for (int i = 0; i < 6; ++i) {
@@ -214,7 +216,7 @@ TEST_F(HistoryForward, SeriesNewInAnyBatchGetTheirOwnIdsAndRows) {
 }
 
 TEST_F(HistoryForward, TextsStatusesAndGapsTravelAsTheyAre) {
-    auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->conninfo()));
+    auto store = HistoryParts::open(forwarding(folder.path / "h.db", wall, server->conninfo()));
     ASSERT_TRUE(store) << store.error().message;
     ValueChange label = number("oven1", "mode", 2, t0);
     // Every character COPY's text format escapes, and a quote for good measure.
@@ -237,8 +239,8 @@ TEST_F(HistoryForward, TextsStatusesAndGapsTravelAsTheyAre) {
 }
 
 TEST_F(HistoryForward, TwoGatewaysShareOneDatabaseAndStayApart) {
-    auto north = HistoryStore::open(forwarding(folder.path / "north.db", wall, server->url(), "north"));
-    auto south = HistoryStore::open(forwarding(folder.path / "south.db", wall, server->url(), "south"));
+    auto north = HistoryParts::open(forwarding(folder.path / "north.db", wall, server->url(), "north"));
+    auto south = HistoryParts::open(forwarding(folder.path / "south.db", wall, server->url(), "south"));
     ASSERT_TRUE(north && south);
     // The same device and parameter names on both: the gateway's name keeps them apart.
     record_counting(**north, 30);
@@ -319,7 +321,7 @@ RowCount compare_rows(const std::multiset<RowKey>& held, const std::multiset<Row
 // Records `n` rows of three series a second apart from `from`, values from `first` up (each
 // gateway its own values, so a row filed under the other gateway's series cannot pass for one
 // of that gateway's own), and commits them locally.
-void record_three_series(HistoryStore& store, int n, double first, SystemTime from) {
+void record_three_series(HistoryParts& store, int n, double first, SystemTime from) {
     const char* const series[][2] = {{"oven1", "measured_value"}, {"oven1", "set_point"}, {"oven2", "measured_value"}};
     for (int i = 0; i < n; ++i) {
         for (const auto& [device, parameter] : series) {
@@ -335,7 +337,7 @@ void record_three_series(HistoryStore& store, int n, double first, SystemTime fr
 // counted as forwarded only once there. Each gateway's file and the historian agree row by row.
 TEST_F(HistoryForward, TablesDroppedAndMadeAgainUnderAForwardingGatewayKeepEveryRowUnderItsOwnSeries) {
     const auto north_file = folder.path / "north.db", south_file = folder.path / "south.db";
-    auto north = HistoryStore::open(forwarding(north_file, wall, server->url(), "north"));
+    auto north = HistoryParts::open(forwarding(north_file, wall, server->url(), "north"));
     ASSERT_TRUE(north) << north.error().message;
     auto admin = connect(*server);
     const std::string drop_all =
@@ -354,7 +356,7 @@ TEST_F(HistoryForward, TablesDroppedAndMadeAgainUnderAForwardingGatewayKeepEvery
     // Dropped and made again by another gateway's first connect: south's series are 1, 2, 3,
     // the ids north learnt for its own.
     ASSERT_TRUE(admin.run(drop_all));
-    auto south = HistoryStore::open(forwarding(south_file, wall, server->url(), "south"));
+    auto south = HistoryParts::open(forwarding(south_file, wall, server->url(), "south"));
     ASSERT_TRUE(south) << south.error().message;
     record_three_series(**south, 40, 100000, t0 + 100s);
     ASSERT_TRUE((*south)->forwarder()->forward_pending());
@@ -388,7 +390,7 @@ TEST_F(HistoryForward, TablesDroppedAndMadeAgainUnderAForwardingGatewayKeepEvery
 }
 
 TEST_F(HistoryForward, AStoppedServerKeepsRowsWaitingLocallyThenGetsEachOnceInOrder) {
-    auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->url()));
+    auto store = HistoryParts::open(forwarding(folder.path / "h.db", wall, server->url()));
     ASSERT_TRUE(store);
     record_counting(**store, 40);
     ASSERT_TRUE((*store)->forwarder()->forward_pending());
@@ -422,14 +424,14 @@ TEST_F(HistoryForward, AStoppedServerKeepsRowsWaitingLocallyThenGetsEachOnceInOr
 // once; rows recorded meanwhile all arrive.
 TEST_F(HistoryForward, TheThreadRetriesWithBackOffAndLogsAnOutageOnce) {
     Logs logs;
-    HistoryOptions options = forwarding(folder.path / "h.db", wall, server->url());
+    HistoryPartsOptions options = forwarding(folder.path / "h.db", wall, server->url());
     options.forward->thread = true;
     options.forward->idle_poll = 20ms;
     options.forward->retry_first = 20ms;
     options.forward->retry_max = 100ms;
     options.log = logs.sink();
     server->stop();
-    auto store = HistoryStore::open(options);
+    auto store = HistoryParts::open(options);
     ASSERT_TRUE(store);
     record_counting(**store, 50);
     const auto deadline = std::chrono::steady_clock::now() + 120s;
@@ -466,17 +468,17 @@ TEST_F(HistoryForward, AWrongPasswordIsRefusedClearlyAtCheckAndRetriedAtRunTime)
     EXPECT_TRUE(check_forward_target(target));
 
     // At run time: the store opens and records; forwarding fails until the password is right.
-    HistoryOptions options = forwarding(folder.path / "h.db", wall, server->conninfo("postgres", "pwuser"));
+    HistoryPartsOptions options = forwarding(folder.path / "h.db", wall, server->conninfo("postgres", "pwuser"));
     options.forward->password = "wrong";
     {
-        auto store = HistoryStore::open(options);
+        auto store = HistoryParts::open(options);
         ASSERT_TRUE(store);
         record_counting(**store, 10);
         EXPECT_FALSE((*store)->forwarder()->forward_pending());
         EXPECT_EQ((*store)->forward_stats()->waiting_rows, 10u);
     }
     options.forward->password = "right";
-    auto store = HistoryStore::open(options);
+    auto store = HistoryParts::open(options);
     ASSERT_TRUE(store);
     auto shipped = (*store)->forwarder()->forward_pending();
     ASSERT_TRUE(shipped) << shipped.error().message;
@@ -490,7 +492,7 @@ TEST_F(HistoryForward, AMissingDatabaseIsRefusedClearlyAndRowsWaitUntilItExists)
     ASSERT_FALSE(refused);
     EXPECT_THAT(refused.error().message, HasSubstr("database \"plant\" does not exist"));
     EXPECT_THAT(refused.error().message, HasSubstr("createdb"));
-    auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->url("plant")));
+    auto store = HistoryParts::open(forwarding(folder.path / "h.db", wall, server->url("plant")));
     ASSERT_TRUE(store);
     record_counting(**store, 5);
     EXPECT_FALSE((*store)->forwarder()->forward_pending());
@@ -543,9 +545,9 @@ TEST_F(HistoryForward, CheckNamesTheKeyAndTheRemedy) {
 }
 
 TEST_F(HistoryForward, DayPartitionsAreMadeAheadAndDroppedAfterKeep) {
-    HistoryOptions options = forwarding(folder.path / "h.db", wall, server->url());
+    HistoryPartsOptions options = forwarding(folder.path / "h.db", wall, server->url());
     options.keep = std::chrono::hours(72);
-    auto store = HistoryStore::open(options);
+    auto store = HistoryParts::open(options);
     ASSERT_TRUE(store);
     for (int day = 0; day < 2; ++day) {
         (*store)->record(number("oven1", "measured_value", day, t0 + std::chrono::hours(24 * day)));
@@ -568,8 +570,8 @@ TEST_F(HistoryForward, DayPartitionsAreMadeAheadAndDroppedAfterKeep) {
 // /api/history?gateway=NAME: another gateway's history from the historian, cut into the same
 // buckets and gaps as the local file's; the own gateway's from the file.
 TEST_F(HistoryForward, AnotherGatewaysHistoryIsAskedFromTheHistorian) {
-    auto north = HistoryStore::open(forwarding(folder.path / "north.db", wall, server->url(), "north"));
-    auto south = HistoryStore::open(forwarding(folder.path / "south.db", wall, server->url(), "south"));
+    auto north = HistoryParts::open(forwarding(folder.path / "north.db", wall, server->url(), "north"));
+    auto south = HistoryParts::open(forwarding(folder.path / "south.db", wall, server->url(), "south"));
     ASSERT_TRUE(north && south);
     for (int i = 0; i < 120; ++i) (*south)->record(number("oven1", "measured_value", i, t0 + std::chrono::seconds(i)));
     ValueChange silent = number("oven1", "measured_value", 0, t0 + 120s);
@@ -617,10 +619,10 @@ TEST_F(HistoryForward, AnotherGatewaysHistoryIsAskedFromTheHistorian) {
 // the last row before `from` when it holds a value read, and no older than twice the asking
 // gateway's heartbeat.
 TEST_F(HistoryForward, TheValueInForceAtFromComesFromTheHistorianToo) {
-    HistoryOptions north_options = forwarding(folder.path / "north.db", wall, server->url(), "north");
+    HistoryPartsOptions north_options = forwarding(folder.path / "north.db", wall, server->url(), "north");
     north_options.heartbeat = 60s;
-    auto north = HistoryStore::open(north_options);
-    auto south = HistoryStore::open(forwarding(folder.path / "south.db", wall, server->url(), "south"));
+    auto north = HistoryParts::open(north_options);
+    auto south = HistoryParts::open(forwarding(folder.path / "south.db", wall, server->url(), "south"));
     ASSERT_TRUE(north && south);
     (*south)->record(number("oven1", "measured_value", 137, t0));
     (*south)->record(number("oven1", "measured_value", 140.5, t0 + 50s));
@@ -674,7 +676,7 @@ std::vector<HistoryBucket> raw_buckets(postgres::Connection& db, const BucketPla
 // and `to` from its samples: the same min, max, mean and count as the samples alone give, no
 // bucket where nothing was sampled, and the gaps as they are.
 TEST_F(HistoryForward, TheHistoriansRollupAnswersAsItsSamplesDo) {
-    auto store = HistoryStore::open(forwarding(folder.path / "h.db", wall, server->url(), "south"));
+    auto store = HistoryParts::open(forwarding(folder.path / "h.db", wall, server->url(), "south"));
     ASSERT_TRUE(store);
     for (int i = 0; i < 600; ++i) {
         if (i >= 240 && i < 360) continue;  // minutes 4 and 5: nothing sampled
@@ -735,9 +737,9 @@ TEST_F(HistoryForward, ASigkillDuringAForwardLosesAndDoublesNothing) {
     const long long total = 60000;
     const auto file = folder.path / "h.db";
     {
-        HistoryOptions options = forwarding(file, wall, server->url());
+        HistoryPartsOptions options = forwarding(file, wall, server->url());
         options.max_queued = 2'000'000;
-        auto store = HistoryStore::open(options);
+        auto store = HistoryParts::open(options);
         ASSERT_TRUE(store);
         record_counting(**store, total);
         ASSERT_EQ((*store)->forward_stats()->waiting_rows, static_cast<std::uint64_t>(total));
@@ -765,7 +767,7 @@ TEST_F(HistoryForward, ASigkillDuringAForwardLosesAndDoublesNothing) {
     ::waitpid(pid, &status, 0);
     ASSERT_TRUE(WIFSIGNALED(status));
     ASSERT_LT(seen, total) << "the worker finished before it was killed: the test proves nothing";
-    auto store = HistoryStore::open(forwarding(file, wall, server->url()));
+    auto store = HistoryParts::open(forwarding(file, wall, server->url()));
     ASSERT_TRUE(store);
     ASSERT_TRUE((*store)->forwarder()->forward_pending());
     EXPECT_EQ(values_of(db, "plant1", "measured_value"), counting(total));

@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <thread>
 
-#include "gateway/history_store.hpp"
+#include "support/history_parts.hpp"
 
 int main(int argc, char** argv) {
     using namespace loopwire::gateway;
@@ -12,7 +12,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "usage: history_forward_worker DATABASE CONNINFO\n");
         return 2;
     }
-    HistoryOptions options;
+    loopwire::testing::HistoryPartsOptions options;
     options.database = argv[1];
     options.heartbeat = std::chrono::hours(24);
     // The test's rows are stamped in 2026-01 whatever today is: none may expire here.
@@ -23,10 +23,11 @@ int main(int argc, char** argv) {
     forward.batch_rows = 2000;  // many batches: the kill lands between two or inside one
     options.forward = forward;
     options.log = [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
-    auto store = HistoryStore::open(options);
-    if (!store) {
-        std::fprintf(stderr, "%s\n", store.error().message.c_str());
+    auto history = loopwire::testing::HistoryParts::open(options);
+    if (!history) {
+        std::fprintf(stderr, "%s\n", history.error().message.c_str());
         return 1;
     }
+    (*history)->store->start();
     for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
 }

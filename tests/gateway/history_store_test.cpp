@@ -21,6 +21,7 @@
 
 #include "gateway/history_schema.hpp"
 #include "gateway/history_store.hpp"
+#include "support/history_parts.hpp"
 #include "support/history_test_support.hpp"
 
 extern char** environ;
@@ -31,16 +32,17 @@ namespace {
 using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 using std::chrono::milliseconds;
+using loopwire::testing::HistoryParts;
+using loopwire::testing::HistoryPartsOptions;
 using loopwire::testing::TempFolder;
 using loopwire::testing::VirtualWall;
 
 // 2026-01-01T00:00:00Z: a round minute, so bucket starts are easy to read.
 const SystemTime t0 = SystemTime(std::chrono::seconds(1767225600));
 
-HistoryOptions options_at(const std::filesystem::path& file, const VirtualWall& wall) {
-    HistoryOptions options;
+HistoryPartsOptions options_at(const std::filesystem::path& file, const VirtualWall& wall) {
+    HistoryPartsOptions options;
     options.database = file;
-    options.writer_thread = false;
     options.wall_clock = wall.clock();
     return options;
 }
@@ -79,8 +81,8 @@ HistoryQuery ask(const std::string& parameter, SystemTime from, SystemTime to, s
     return query;
 }
 
-std::unique_ptr<HistoryStore> open_store(HistoryOptions options, const std::vector<HistorySeriesName>& declared = {}) {
-    auto store = HistoryStore::open(std::move(options), declared);
+std::unique_ptr<HistoryParts> open_store(HistoryPartsOptions options, const std::vector<HistorySeriesName>& declared = {}) {
+    auto store = HistoryParts::open(std::move(options), declared);
     EXPECT_TRUE(store) << store.error().message;
     return store ? std::move(*store) : nullptr;
 }
@@ -550,10 +552,9 @@ TEST(HistoryStore, BadQueriesSayWhatWasWrong) {
 }
 
 std::string open_error(const std::filesystem::path& file) {
-    HistoryOptions options;
+    HistoryPartsOptions options;
     options.database = file;
-    options.writer_thread = false;
-    auto store = HistoryStore::open(options);
+    auto store = HistoryParts::open(options);
     return store ? std::string("opened") : store.error().message;
 }
 
@@ -651,19 +652,20 @@ TEST(HistoryStore, KillNineWhileWritingLosesAtMostTheLastSecond) {
     ASSERT_TRUE(kept) << kept.error().message;
     EXPECT_EQ(*kept, safe + 1) << "values 0.." << safe << " were recorded at least a second before the kill";
     // And the store opens it again and goes on.
-    HistoryOptions options;
+    HistoryPartsOptions options;
     options.database = file;
-    options.writer_thread = false;
-    auto reopened = HistoryStore::open(options);
+    auto reopened = HistoryParts::open(options);
     ASSERT_TRUE(reopened) << reopened.error().message;
 }
 
 TEST(HistoryStore, TheWriterThreadCommitsWithinASecond) {
     TempFolder folder;
-    HistoryOptions options;
+    HistoryPartsOptions options;
     options.database = folder.path / "plant.db";
+    options.reader_thread = true;
     auto store = open_store(options);
     ASSERT_TRUE(store);
+    store->store->start();
     const auto now = std::chrono::system_clock::now();
     store->record(number("measured_value", 42, now));
     const auto give_up = std::chrono::steady_clock::now() + 10s;

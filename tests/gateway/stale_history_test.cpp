@@ -33,6 +33,7 @@
 #include "session/slave.hpp"
 #include "simulation/register_bank.hpp"
 #include "simulation/simulated_lines.hpp"
+#include "support/history_parts.hpp"
 #include "support/history_test_support.hpp"
 #include "support/virtual_time_wire.hpp"
 #include "transport/link_url.hpp"
@@ -173,12 +174,11 @@ public:
         if (!master_->start()) throw std::runtime_error("the line did not start");
         scheduler_ = std::make_shared<LineScheduler>(master_, LineSchedulerOptions{}, clock_);
         cache_ = std::make_unique<ValueCache>(clock_, [this] { return events_.wall_now(); });
-        HistoryOptions options;
+        loopwire::testing::HistoryPartsOptions options;
         options.database = file_;
-        options.writer_thread = false;
         options.heartbeat = heartbeat;
         options.wall_clock = [this] { return events_.wall_now(); };
-        auto opened = HistoryStore::open(std::move(options));
+        auto opened = loopwire::testing::HistoryParts::open(std::move(options));
         if (!opened) throw std::runtime_error(opened.error().message);
         history_ = std::move(*opened);
         // As the gateway records: every change the cache tells goes to the history.
@@ -273,7 +273,7 @@ private:
     std::shared_ptr<LineScheduler> scheduler_;
     LineLoopEvents events_{loop_};
     std::unique_ptr<ValueCache> cache_;
-    std::unique_ptr<HistoryStore> history_;
+    std::unique_ptr<loopwire::testing::HistoryParts> history_;
     ValueSubscription recording_;
     std::unique_ptr<PollGroups> polls_;
     std::shared_ptr<void> hold_;

@@ -66,7 +66,6 @@ protected:
 
         HistoryOptions options;
         options.database = folder.path / "plant.db";
-        options.writer_thread = false;
         options.heartbeat = 2s;
         options.wall_clock = wall_clock();
         auto opened = HistoryStore::open(std::move(options));
