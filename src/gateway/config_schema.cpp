@@ -74,6 +74,10 @@ constexpr std::array keys{
               "readable parameters of the profile, each named once",
               "The parameters polled, by name, alias or mnemonic as `loopwire read` takes them.",
               "[\"measured_value\", \"set_point\"]", true},
+    ConfigKey{"lines.devices", "identify", "boolean", "true", "",
+              "Whether its first poll, and the first after every outage, reads the profile's identification words "
+              "and shows the device wrong-device, with none of its values, when the unit answers as another device.",
+              "true", true},
     ConfigKey{"lines.devices", "tcp_unit", "integer", "the device's unit", "1..247; unique in the file",
               "The unit id Modbus TCP clients reach the device by (needed for units above 247).", "3", true},
 

@@ -351,6 +351,9 @@ Result<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, 
     auto parameters = parameter_names(ctx, table, path, *device.address.profile, device.name);
     if (!parameters) return parameters.error();
     device.parameters = std::move(*parameters);
+    auto identify = optional_value<bool>(ctx, table, path, "identify", "true or false");
+    if (!identify) return identify.error();
+    if (*identify) device.identify = **identify;
     auto tcp_unit = optional_integer(ctx, table, path, "lines.devices", "tcp_unit");
     if (!tcp_unit) return tcp_unit.error();
     // The manuals allow units past 247 (AC20: 1-255, TC10: up to 254), Modbus TCP clients reach

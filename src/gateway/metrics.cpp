@@ -55,7 +55,8 @@ double seconds(std::chrono::microseconds time) { return static_cast<double>(time
 // the order the samples have always come in.
 constexpr device::DeviceStatus device_statuses[] = {device::DeviceStatus::ok,       device::DeviceStatus::partial,
                                                     device::DeviceStatus::no_reply, device::DeviceStatus::line_down,
-                                                    device::DeviceStatus::stale,    device::DeviceStatus::waiting};
+                                                    device::DeviceStatus::stale,    device::DeviceStatus::waiting,
+                                                    device::DeviceStatus::wrong_device};
 constexpr bool each_status_once() {
     for (const device::DeviceStatus status : device::all_device_statuses) {
         if (std::count(std::begin(device_statuses), std::end(device_statuses), status) != 1) return false;

@@ -90,6 +90,17 @@ TEST(GatewayConfig, AnEmptyOrRepeatingParameterListIsRefused) {
     EXPECT_TRUE(parse(one_device("device = \"tc10@3\"\nparameters = [\"PV\", \"SP\"]\n")));
 }
 
+TEST(GatewayConfig, DevicesAreIdentifiedUnlessToldNot) {
+    auto checked = parse(one_device("device = \"tc10@3\"\n"));
+    ASSERT_TRUE(checked) << checked.error().message;
+    EXPECT_TRUE(checked->lines[0].devices[0].identify);
+    auto trusted = parse(one_device("device = \"tc10@3\"\nidentify = false\n"));
+    ASSERT_TRUE(trusted) << trusted.error().message;
+    EXPECT_FALSE(trusted->lines[0].devices[0].identify);
+    EXPECT_EQ(error_of(one_device("device = \"tc10@3\"\nidentify = \"no\"\n")),
+              "plant.toml:8: lines[0].devices[0].identify: expected true or false");
+}
+
 TEST(GatewayConfig, AUnitPastModbusTcpsRangeNeedsATcpUnit) {
     EXPECT_EQ(error_of(one_device("device = \"tc10@248\"\n")),
               "plant.toml:7: lines[0].devices[0].device: device oven1: unit 248 cannot be a Modbus TCP unit (1..247); give "
