@@ -65,7 +65,7 @@ constexpr std::array keys{
     ConfigKey{"lines.devices", "name", "string", "", "letters, digits, '-' and '_'; unique in the file",
               "The device's name in MQTT topics, URLs, metrics and logs.", "\"oven\""},
     ConfigKey{"lines.devices", "device", "string", "", "PROFILE@UNIT, the unit given; unit unique on the line",
-              "The device's profile and unit address, as `loopwire read --device` takes it (loopwire profiles lists "
+              "The device's profile and unit address, as `loopwire read --device` takes it (`loopwire devices` lists "
               "the profiles and the protocols each speaks, one of which must be the line's).",
               "\"tc10@3\""},
     ConfigKey{"lines.devices", "poll", "duration", "\"1s\"", "at least 1ms", "How often its parameters are polled.",

@@ -215,7 +215,7 @@ std::string prometheus_text(const std::vector<LineReport>& lines, const std::vec
     const auto found = cached_devices(devices, values);
     poll_shortfall(out, lines, devices, found);
 
-    family(out, "device_status", "gauge", "1 for the device's status now (ok, partial, no-reply, line-down, stale, waiting), 0 for the others.");
+    family(out, "device_status", "gauge", "1 for the device's status now (ok, partial, no-reply, line-down, stale, waiting, wrong-device), 0 for the others.");
     for (std::size_t i = 0; i < devices.size(); ++i) {
         const device::DeviceStatus status = found[i] ? found[i]->state.status : device::DeviceStatus::waiting;
         for (const device::DeviceStatus candidate : device_statuses) {
