@@ -130,7 +130,7 @@ int run_monitor_command(const MonitorOptions& options, const ProfileOptions& pro
     auto master = options.master.open(trace);
     if (!master) return report_error(master.error());
     std::vector<device::MonitorTarget> targets;
-    for (std::size_t i = 0; i < devices->size(); ++i) targets.push_back(device::MonitorTarget{master->get(), (*devices)[i], (*lists)[i], {}});
+    for (std::size_t i = 0; i < devices->size(); ++i) targets.push_back(device::MonitorTarget{master->get(), (*devices)[i], (*lists)[i], {}, !options.master.no_identify});
     device::run_monitor(targets, *settings, *sink, stop.token());
     return exit_ok;
 }
@@ -168,12 +168,15 @@ void add_monitor_command(CLI::App& app, int& exit_code, const ProfileOptions& pr
     command->add_flag("--utc", options->utc, "Write times in UTC (...Z) instead of local time with its offset (...+01:00)");
     command->add_option("--timeout", options->master.timeout, "Time to wait for each reply")->capture_default_str();
     command->add_option("--retries", options->master.retries, "Extra tries after a timeout or a reply refused as a probable copy")->capture_default_str();
+    options->master.add_identify_to(*command);
     command->add_flag("-v,--verbose", options->master.verbose,
                       "Print every frame sent and received, with timestamps, on stderr (above the table, which is redrawn "
                       "under them, when both are on the terminal)");
     command->footer(std::string("A unit that stops answering shows status no-reply (then waiting) and is retried after one "
                                 "interval, doubling up to 30s; values not read in a sample are shown with their age, "
-                                "never as current.\n") + exit_code_help);
+                                "never as current. A unit whose identification words (read with the first poll and the first after "
+                                "an outage) say it is another device shows wrong-device, and none of its words as values.\n") +
+                    exit_code_help);
     command->callback([options, &exit_code, &profiles] { exit_code = run_monitor_command(*options, profiles); });
 }
 

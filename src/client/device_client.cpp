@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 
+#include "client/device_identity.hpp"
 #include "codec/pdu.hpp"
 #include "common/text_parsing.hpp"
 
@@ -169,24 +170,6 @@ void DeviceClient::decode_readings(const std::vector<const Parameter*>& paramete
     }
 }
 
-namespace {
-
-// The words a profile identifies its device by (scan and the check before a read by name).
-std::vector<const Parameter*> identification_words(const Profile& profile) {
-    std::vector<const Parameter*> words;
-    for (const auto& check : profile.identification) {
-        if (const auto* p = profile.find(check.parameter)) words.push_back(p);
-    }
-    return words;
-}
-
-// Compared as int16: the profiles write identification values as the manuals print them.
-bool identification_holds(const IdentificationCheck& check, std::uint16_t raw) {
-    return static_cast<std::int16_t>(raw) == static_cast<std::int16_t>(check.equals);
-}
-
-}  // namespace
-
 std::optional<DeviceAddress> identify_unit(session::Master& master, int unit) {
     for (const auto& id : builtin_profile_ids()) {
         auto address = parse_device_address(id + "@" + std::to_string(unit));
@@ -194,12 +177,7 @@ std::optional<DeviceAddress> identify_unit(session::Master& master, int unit) {
         const auto checks = identification_words(*address->profile);
         if (checks.empty()) continue;
         const auto report = DeviceClient(master, *address).read(checks);
-        bool all_hold = !report.first_error;
-        for (const auto& check : address->profile->identification) {
-            const auto raw = report.raw.find(check.parameter);
-            all_hold = all_hold && raw != report.raw.end() && identification_holds(check, raw->second);
-        }
-        if (all_hold) return *address;
+        if (judge_identity(*address->profile, report).kind == IdentityVerdict::Kind::holds) return *address;
     }
     return std::nullopt;
 }
@@ -209,37 +187,22 @@ Result<void> DeviceClient::confirm_identity() {
     const std::vector<const Parameter*> words = identification_words(profile);
     if (words.empty()) return {};
     const auto report = read(words);
-    // Named by what answers there when a built-in profile recognises it (an AC20 asked for as a
-    // TC10), else the way to find out.
-    const auto not_it = [&](const std::string& found) {
+    const auto verdict = judge_identity(profile, report);
+    if (verdict.kind == IdentityVerdict::Kind::wrong) {
+        // Named by what answers there when a built-in profile recognises it (an AC20 asked for
+        // as a TC10), else the way to find out.
         const auto there = identify_unit(master_, device_.unit);
         const std::string what = there ? fmt::format("It answers as {}@{}", there->profile->id, device_.unit)
                                        : fmt::format("`loopwire scan --link URL --units {}` tells what it is", device_.unit);
         return make_error(ErrorKind::mismatch, fmt::format("the device at unit {0} is not {1}@{0}: {2}. {3}; --no-identify talks to "
                                                            "it as {1} anyway",
-                                                           device_.unit, profile.id, found, what));
-    };
-    for (const auto& check : profile.identification) {
-        const auto* p = profile.find(check.parameter);
-        if (p == nullptr) continue;
-        const auto raw = report.raw.find(p->name);
-        if (raw != report.raw.end()) {
-            if (identification_holds(check, raw->second)) continue;
-            return not_it(fmt::format("its {} (word {}) reads {} where the {} profile expects {}", p->name, p->address,
-                                      static_cast<std::int16_t>(raw->second), profile.id, check.equals));
-        }
-        // Illegal function or address: the unit has no such word, so it is another device. Any
-        // other exception is a device that answers but cannot now (an AC20 in an error condition
-        // refuses everything but its menus with the condition's number, ERROR REPLY): that does
-        // not say it is another device, and the read that follows reports it.
-        const bool no_such_word = report.first_error && report.first_error->kind == ErrorKind::exception &&
-                                  (report.first_error->code == 1 || report.first_error->code == 2);
-        if (report.first_error && report.first_error->kind == ErrorKind::exception && !no_such_word) return {};
-        if (no_such_word) {
-            return not_it(fmt::format("it refuses {} (word {}), which the {} profile reads to identify it: {}", p->name,
-                                      p->address, profile.id, report.first_error->message));
-        }
-        if (report.first_error) return *report.first_error;
+                                                           device_.unit, profile.id, verdict.reason, what));
+    }
+    // Not judged: an exception other than 01h/02h is a device that answers but cannot now, and
+    // the read that follows reports it; a timeout or link failure is returned as it is.
+    if (verdict.kind == IdentityVerdict::Kind::unknown && report.first_error &&
+        report.first_error->kind != ErrorKind::exception) {
+        return *report.first_error;
     }
     return {};
 }

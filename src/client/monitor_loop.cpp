@@ -67,7 +67,7 @@ void poll(Polled& polled, WatchedDevice& watched, MonitorClock::time_point sampl
         return;
     }
     polled.guard->start_poll();
-    const auto report = polled.client->read(polled.target->parameters);
+    const auto report = polled.client->read(with_identity_words(polled.target->parameters, watched));
     const auto now = MonitorClock::now();
     const auto& failure = polled.guard->failure();
     record_outcome(watched, report, failure, now);
@@ -106,7 +106,7 @@ void run_monitor(const std::vector<MonitorTarget>& targets, const MonitorSetting
         auto guard = std::make_unique<StopAtFirstTimeout>(*target.master);
         auto client = std::make_unique<device::DeviceClient>(*guard, target.device);
         polled.push_back(Polled{std::move(guard), std::move(client), &target, RetryBackoff(settings.interval, settings.backoff_cap)});
-        watched.push_back(watch(label_of(target.device), target.parameters));
+        watched.push_back(watch(label_of(target.device), target.parameters, target.identify ? target.device.profile.get() : nullptr));
     }
     SampleSteps steps;
     steps.poll = [&](unsigned missed) {

@@ -1,14 +1,34 @@
 #include "client/monitor_state.hpp"
 
+#include <algorithm>
+
+#include <fmt/format.h>
+
+#include "client/device_identity.hpp"
 #include "common/never_sent.hpp"
 
 namespace loopwire::device {
 
-WatchedDevice watch(std::string label, const std::vector<const device::Parameter*>& parameters) {
+WatchedDevice watch(std::string label, const std::vector<const device::Parameter*>& parameters,
+                    const device::Profile* identify_as) {
     WatchedDevice device;
     device.label = std::move(label);
     for (const auto* parameter : parameters) device.values.push_back(WatchedValue{parameter, {}, {}, false, false, "not read yet"});
+    if (identify_as && !identification_words(*identify_as).empty()) device.identified_as = identify_as;
     return device;
+}
+
+std::vector<const device::Parameter*> identity_words_due(const WatchedDevice& device) {
+    if (!device.identified_as || device.identity_confirmed) return {};
+    return identification_words(*device.identified_as);
+}
+
+std::vector<const device::Parameter*> with_identity_words(std::vector<const device::Parameter*> parameters,
+                                                          const WatchedDevice& device) {
+    for (const auto* word : identity_words_due(device)) {
+        if (std::find(parameters.begin(), parameters.end(), word) == parameters.end()) parameters.push_back(word);
+    }
+    return parameters;
 }
 
 namespace {
@@ -47,16 +67,37 @@ void record_failed_poll(WatchedDevice& device, DeviceStatus status, const std::s
     }
 }
 
+// Exception 0Ah (gateway path unavailable) or 0Bh (gateway target device failed to respond).
+bool gateway_found_no_device(const std::optional<Error>& error) {
+    return error && error->kind == ErrorKind::exception && (error->code == 0x0A || error->code == 0x0B);
+}
+
+// Whether the poll is of the device named; false when it answered as another (recorded here).
+bool identity_holds(WatchedDevice& device, const device::ReadReport& report) {
+    if (!device.identified_as || device.identity_confirmed) return true;
+    const auto verdict = judge_identity(*device.identified_as, report);
+    if (verdict.kind == IdentityVerdict::Kind::holds) device.identity_confirmed = true;
+    if (verdict.kind != IdentityVerdict::Kind::wrong) return true;
+    record_failed_poll(device, DeviceStatus::wrong_device,
+                       fmt::format("the unit is not {}: {}", device.label, verdict.reason));
+    return false;
+}
+
 }  // namespace
 
 void record_line_down(WatchedDevice& device, const std::string& failure) {
+    device.identity_confirmed = false;  // whatever answers when the line is back is checked again
     record_failed_poll(device, DeviceStatus::line_down, failure);
 }
 
 void record_outcome(WatchedDevice& device, const device::ReadReport& report, const std::optional<Error>& stopped_by,
                     MonitorClock::time_point now) {
     device.next_try.reset();
-    if (!stopped_by) return record_poll(device, report, true, {}, now);
+    if (!stopped_by) {
+        if (gateway_found_no_device(report.first_error)) return record_poll(device, report, false, report.first_error->message, now);
+        if (!identity_holds(device, report)) return;
+        return record_poll(device, report, true, {}, now);
+    }
     // Blocks read before it are dropped too: a device half read this time is not a device that
     // answered part of its parameters (`partial`).
     if (says_nothing_of_the_device(*stopped_by)) return record_unsent(device, stopped_by->message);
@@ -66,7 +107,10 @@ void record_outcome(WatchedDevice& device, const device::ReadReport& report, con
 
 void record_poll(WatchedDevice& device, const device::ReadReport& report, bool answered, const std::string& failure,
                  MonitorClock::time_point now) {
-    if (!answered) return record_failed_poll(device, DeviceStatus::no_reply, failure);
+    if (!answered) {
+        device.identity_confirmed = false;  // whatever answers after the silence is checked again
+        return record_failed_poll(device, DeviceStatus::no_reply, failure);
+    }
     ++device.polls;
     for (const auto& [name, raw] : report.raw) device.known.insert_or_assign(name, raw);
     bool all_read = true;

@@ -37,9 +37,23 @@ struct WatchedDevice {
     // Every word the polls read, dependencies included (decimal points, unit words, the words
     // that bound others), as last read: what the values' limits are resolved from.
     device::RawValues known;
+    // Set when the poller checks the device is the one named: the profile whose identification
+    // words its polls read (identity_words_due) until they hold, at start and after every outage.
+    const device::Profile* identified_as = nullptr;
+    bool identity_confirmed = false;
 };
 
-WatchedDevice watch(std::string label, const std::vector<const device::Parameter*>& parameters);
+WatchedDevice watch(std::string label, const std::vector<const device::Parameter*>& parameters,
+                    const device::Profile* identify_as = nullptr);
+
+// The identification words the device's next poll must read beside its parameters: the
+// profile's, while the device has not shown since its last outage that it is that device; none
+// when it has or is not checked.
+std::vector<const device::Parameter*> identity_words_due(const WatchedDevice& device);
+
+// `parameters` and the identification words due (identity_words_due), each once.
+std::vector<const device::Parameter*> with_identity_words(std::vector<const device::Parameter*> parameters,
+                                                          const WatchedDevice& device);
 
 // Folds one poll into the device's state. `answered` is false when the device did not answer at
 // all (timeout, link failure): its values then keep their last reading but are not fresh.
@@ -51,7 +65,10 @@ void record_poll(WatchedDevice& device, const device::ReadReport& report, bool a
 void record_line_down(WatchedDevice& device, const std::string& failure);
 
 // Folds a whole poll into the device's state: `stopped_by` is the timeout (no reply) or link
-// failure (line down) that ended it, if one did. A poll that was never sent (never_sent(): the
+// failure (line down) that ended it, if one did. Exception 0Ah or 0Bh is a gateway on the way
+// saying the device did not answer it (Modbus Application Protocol 1.1b, section 7): `no-reply`,
+// not a device that answered part. A poll that read identification words is judged by them
+// first: a unit that answers as another device is `wrong-device` and none of its words count. A poll that was never sent (never_sent(): the
 // line was busy with other requests until its deadline) learnt nothing of the device: it counts
 // as not polled (record_unsent), not as a device that does not answer.
 void record_outcome(WatchedDevice& device, const device::ReadReport& report, const std::optional<Error>& stopped_by,

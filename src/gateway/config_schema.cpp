@@ -65,7 +65,7 @@ constexpr std::array keys{
     ConfigKey{"lines.devices", "name", "string", "", "letters, digits, '-' and '_'; unique in the file",
               "The device's name in MQTT topics, URLs, metrics and logs.", "\"oven\""},
     ConfigKey{"lines.devices", "device", "string", "", "PROFILE@UNIT, the unit given; unit unique on the line",
-              "The device's profile and unit address, as `loopwire read --device` takes it (loopwire profiles lists "
+              "The device's profile and unit address, as `loopwire read --device` takes it (`loopwire devices` lists "
               "the profiles and the protocols each speaks, one of which must be the line's).",
               "\"tc10@3\""},
     ConfigKey{"lines.devices", "poll", "duration", "\"1s\"", "at least 1ms", "How often its parameters are polled.",
@@ -74,6 +74,10 @@ constexpr std::array keys{
               "readable parameters of the profile, each named once",
               "The parameters polled, by name, alias or mnemonic as `loopwire read` takes them.",
               "[\"measured_value\", \"set_point\"]", true},
+    ConfigKey{"lines.devices", "identify", "boolean", "true", "",
+              "Whether its first poll, and the first after every outage, reads the profile's identification words "
+              "and shows the device wrong-device, with none of its values, when the unit answers as another device.",
+              "true", true},
     ConfigKey{"lines.devices", "tcp_unit", "integer", "the device's unit", "1..247; unique in the file",
               "The unit id Modbus TCP clients reach the device by (needed for units above 247).", "3", true},
 

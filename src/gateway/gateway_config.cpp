@@ -351,6 +351,9 @@ Result<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, 
     auto parameters = parameter_names(ctx, table, path, *device.address.profile, device.name);
     if (!parameters) return parameters.error();
     device.parameters = std::move(*parameters);
+    auto identify = optional_value<bool>(ctx, table, path, "identify", "true or false");
+    if (!identify) return identify.error();
+    if (*identify) device.identify = **identify;
     auto tcp_unit = optional_integer(ctx, table, path, "lines.devices", "tcp_unit");
     if (!tcp_unit) return tcp_unit.error();
     // The manuals allow units past 247 (AC20: 1-255, TC10: up to 254), Modbus TCP clients reach
@@ -515,7 +518,6 @@ Result<std::vector<LineConfig>> parse_lines(const Context& ctx, const toml::tabl
         if (!line) return line.error();
         lines.push_back(std::move(*line));
     }
-    if (auto units = check_tcp_units(ctx, registry.devices); !units) return units.error();
     return lines;
 }
 
@@ -1282,6 +1284,11 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     auto modbus_tcp = parse_modbus_tcp(ctx, *root);
     if (!modbus_tcp) return modbus_tcp.error();
     config.modbus_tcp = std::move(*modbus_tcp);
+    // Modbus TCP clients name devices by unit id alone: two devices on one id only matter when
+    // the front serves them (a plant of more than 247 devices runs without it).
+    if (config.modbus_tcp.enabled) {
+        if (auto units = check_tcp_units(ctx, registry.devices); !units) return units.error();
+    }
     auto log = parse_log(ctx, *root);
     if (!log) return log.error();
     config.log = *log;

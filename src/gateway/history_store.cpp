@@ -287,7 +287,7 @@ bool holds_reading(const std::optional<std::string>& status) {
     using device::DeviceStatus;
     const auto is = [&](DeviceStatus device_status) { return *status == device::status_text(device_status); };
     return !is(DeviceStatus::stale) && !is(DeviceStatus::no_reply) && !is(DeviceStatus::line_down) &&
-           *status != device::failed_value_status && !is(DeviceStatus::waiting);
+           !is(DeviceStatus::wrong_device) && *status != device::failed_value_status && !is(DeviceStatus::waiting);
 }
 
 // Every value whose last row is `heartbeat` old or older is written again at the current time,

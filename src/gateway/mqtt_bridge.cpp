@@ -65,7 +65,7 @@ constexpr int goodbye_turn_ms = 50;
 // The device's status topic: "online", "offline" (no reply), "error" (some values failed),
 // "line-down" (the cable or adapter, not the device, is what to look at; the value's meta gives
 // the reason) or "stale" (its poll is overdue: its values may no longer be the device's;
-// value_cache.hpp).
+// value_cache.hpp) or "wrong-device" (the unit answers as another device).
 // "waiting" is never published: a device skipped in back-off keeps its last word.
 std::string device_status_word(device::DeviceStatus status) {
     switch (status) {
@@ -74,6 +74,7 @@ std::string device_status_word(device::DeviceStatus status) {
         case device::DeviceStatus::partial: return "error";
         case device::DeviceStatus::line_down:
         case device::DeviceStatus::stale:
+        case device::DeviceStatus::wrong_device:
         case device::DeviceStatus::waiting: return std::string(device::status_text(status));
     }
     return std::string(device::status_text(status));  // not reached: every status is handled above

@@ -84,6 +84,7 @@ private:
         // Not polled this time, or the poll could not reach it (the line logs that itself):
         // nothing new about whether the device answers.
         if (!device::polled(device.status) || device.status == device::DeviceStatus::line_down) return;
+        note_identity(i, device);
         const bool answers = device.status != device::DeviceStatus::no_reply;
         if (answering_[i] == answers) return;
         const bool first = !answering_[i].has_value();
@@ -95,6 +96,22 @@ private:
             // A warning (GatewayLog): what a person reading `journalctl -p warning` must see.
             log_(fmt::format("warning: device {} ({}) does not answer: {}; polled again with back-off", names_[i], device.label,
                              device.last_error));
+        }
+    }
+
+    // A unit found to answer as another device is said once, until it is found to be the device.
+    void note_identity(std::size_t i, const device::WatchedDevice& device) {
+        if (wrong_.size() < names_.size()) wrong_.resize(names_.size());
+        const bool wrong = device.status == device::DeviceStatus::wrong_device;
+        if (wrong_[i] == wrong || (!wrong && !device.identity_confirmed)) return;
+        wrong_[i] = wrong;
+        if (!log_) return;
+        if (wrong) {
+            log_(fmt::format("warning: device {} ({}): {}; its values are not kept until it answers as {} (or set identify = "
+                             "false on the device to take it as it is)",
+                             names_[i], device.label, device.last_error, device.label));
+        } else {
+            log_(fmt::format("device {} ({}) is identified", names_[i], device.label));
         }
     }
 
@@ -121,6 +138,7 @@ private:
     std::vector<std::string> names_;
     std::vector<std::string> lines_;  // the lines the group's devices are on, each once
     std::vector<std::optional<bool>> answering_;
+    std::vector<bool> wrong_;  // by device: whether it was last found answering as another
     std::vector<std::optional<std::chrono::system_clock::time_point>> replied_;  // this sample's, by device
     ValueCache& cache_;
     GatewayLog log_;
@@ -238,7 +256,7 @@ struct PollGroups::State {
 
     // The device's polled parameters, and the words bounding them when those are due again.
     std::vector<const device::Parameter*> parameters_of(Group& group, std::size_t i) const {
-        auto parameters = group.targets[i].parameters;
+        auto parameters = device::with_identity_words(group.targets[i].parameters, group.watched[i]);
         const auto& read_at = group.limits_read_at[i];
         group.reading_limits[i] = !group.bounds[i].empty() && (!read_at || now() - *read_at >= limits_refresh);
         if (group.reading_limits[i]) parameters.insert(parameters.end(), group.bounds[i].begin(), group.bounds[i].end());
@@ -331,7 +349,8 @@ PollGroups::PollGroups(EventLoop& loop, const GatewayConfig& config,
             group->targets.push_back({group->masters.back().get(), device.address, polled_parameters(device),
                                       [scheduler, unit] { return scheduler->hold_poll(unit); }});
             group->watched.push_back(device::watch(fmt::format("{}@{}", device.address.profile->id, unit),
-                                                   group->targets.back().parameters));
+                                                   group->targets.back().parameters,
+                                                   device.identify ? device.address.profile.get() : nullptr));
             group->bounds.push_back(bound_words(*device.address.profile, group->targets.back().parameters));
             group->names.push_back(device.name);
             group->limits_read_at.emplace_back();

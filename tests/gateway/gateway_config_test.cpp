@@ -90,6 +90,17 @@ TEST(GatewayConfig, AnEmptyOrRepeatingParameterListIsRefused) {
     EXPECT_TRUE(parse(one_device("device = \"tc10@3\"\nparameters = [\"PV\", \"SP\"]\n")));
 }
 
+TEST(GatewayConfig, DevicesAreIdentifiedUnlessToldNot) {
+    auto checked = parse(one_device("device = \"tc10@3\"\n"));
+    ASSERT_TRUE(checked) << checked.error().message;
+    EXPECT_TRUE(checked->lines[0].devices[0].identify);
+    auto trusted = parse(one_device("device = \"tc10@3\"\nidentify = false\n"));
+    ASSERT_TRUE(trusted) << trusted.error().message;
+    EXPECT_FALSE(trusted->lines[0].devices[0].identify);
+    EXPECT_EQ(error_of(one_device("device = \"tc10@3\"\nidentify = \"no\"\n")),
+              "plant.toml:8: lines[0].devices[0].identify: expected true or false");
+}
+
 TEST(GatewayConfig, AUnitPastModbusTcpsRangeNeedsATcpUnit) {
     EXPECT_EQ(error_of(one_device("device = \"tc10@248\"\n")),
               "plant.toml:7: lines[0].devices[0].device: device oven1: unit 248 cannot be a Modbus TCP unit (1..247); give "
@@ -244,7 +255,7 @@ TEST(GatewayConfig, ASyntaxErrorGivesLineColumnAndTheParsersWords) {
 
 TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     const std::string device = error_of(one_device("device = \"tc10@3\"\npol = \"1s\"\n"));
-    EXPECT_EQ(device, "plant.toml:8: lines[0].devices[0].pol: unknown key (allowed here: name, device, poll, parameters, tcp_unit)");
+    EXPECT_EQ(device, "plant.toml:8: lines[0].devices[0].pol: unknown key (allowed here: name, device, poll, parameters, identify, tcp_unit)");
 
     const std::string line = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\ntimout = \"1s\"\n");
     EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, late_reply_window, max_in_flight, speed, seed, devices)");
@@ -342,6 +353,9 @@ TEST(GatewayConfig, ATcpUnitClashAcrossLinesNamesBothAndSuggestsAMapping) {
     EXPECT_TRUE(parse(text + "tcp_unit = 4\n"));
     const std::string mapped = error_of(text + "tcp_unit = 3\n");
     EXPECT_THAT(mapped, StartsWith("plant.toml:15: lines[1].devices[0].tcp_unit: Modbus TCP unit 3")) << mapped;
+
+    // Without the Modbus TCP front no client names a unit: a plant of any size is taken.
+    EXPECT_TRUE(parse(text + "\n[modbus_tcp]\nenabled = false\n"));
 }
 
 TEST(GatewayConfig, AnUnknownParameterNamesTheDeviceAndTheName) {

@@ -61,7 +61,7 @@ export function parseTime(time) {
 }
 
 // Statuses that say nothing is wrong with the value itself (or that it was not read at all).
-const QUIET_STATUSES = ["ok", "unknown-label", "no-reply", "line-down", "error", "waiting", "not-polled", "stale", ""];
+const QUIET_STATUSES = ["ok", "unknown-label", "no-reply", "line-down", "error", "waiting", "not-polled", "stale", "wrong-device", ""];
 
 const ALARM_WORDS = /alarm|error|fail|fault|break|overload|trip/i;
 
@@ -100,12 +100,13 @@ export function deviceStatusWord(status) {
   if (status === "line-down") return "line down";
   if (status === "partial") return "partial";
   if (status === "stale") return "stale: not polled";
+  if (status === "wrong-device") return "wrong device";
   return status || "waiting";
 }
 
 // The chip of a value's status: failures red, stale grey, special states amber.
 export function statusChipClass(status) {
-  if (status === "no-reply" || status === "line-down" || status === "error") return "bad";
+  if (status === "no-reply" || status === "line-down" || status === "error" || status === "wrong-device") return "bad";
   if (status === "stale") return "stale";
   return "warn";
 }
