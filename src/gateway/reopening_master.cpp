@@ -79,7 +79,7 @@ struct ReopeningMaster::State {
             backoff.failed(now);
             if (opened.error().message != reason) {
                 reason = opened.error().message;
-                say(fmt::format("line {} ({}) is still down, now because: {}", name, link, reason));
+                say(fmt::format("warning: line {} ({}) is still down, now because: {}", name, link, reason));
             }
             return refuse();
         }
@@ -120,7 +120,8 @@ struct ReopeningMaster::State {
         attempts_at_down = counts.reopen_attempts;
         ++counts.down_periods;
         backoff.failed(now);
-        say(fmt::format("line {} ({}) is down: {}; reopening it in {} s, then with back-off up to every {} s", name, link,
+        // A warning (GatewayLog): `journalctl -p warning` is where a person looks for a line gone.
+        say(fmt::format("warning: line {} ({}) is down: {}; reopening it in {} s, then with back-off up to every {} s", name, link,
                         reason, std::chrono::ceil<std::chrono::seconds>(backoff.current_wait()).count(),
                         std::chrono::ceil<std::chrono::seconds>(schedule.max).count()));
     }
