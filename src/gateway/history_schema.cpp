@@ -45,6 +45,17 @@ constexpr std::string_view create_gap_index =
 constexpr std::string_view create_outbox =
     "CREATE TABLE IF NOT EXISTS outbox(seq INTEGER PRIMARY KEY, series_id INTEGER NOT NULL, t INTEGER NOT NULL)";
 
+// The historian's loopwire_values (postgres_history_schema.cpp) in the local file: one row a
+// sample, its time as ISO 8601 UTC text (SQLite has no timestamp type) and `t` in ms beside it,
+// device, parameter and unit by name, "ok" where the samples say NULL. The file is one gateway's,
+// so it has no gateway column.
+constexpr std::string_view create_values_view = R"sql(
+CREATE VIEW IF NOT EXISTS loopwire_values AS
+SELECT strftime('%Y-%m-%dT%H:%M:%fZ', s.t / 1000.0, 'unixepoch') AS time, s.t, n.device, n.parameter, n.unit, s.value,
+       coalesce(s.status, 'ok') AS status, s.text
+FROM samples s JOIN series n ON n.id = s.series_id
+)sql";
+
 Error refuse(const std::filesystem::path& file, const std::string& what) {
     return make_error(ErrorKind::usage, fmt::format("history database {}: {}", file.string(), what));
 }
@@ -125,11 +136,15 @@ Result<sqlite::Connection> open_for_writing(const std::filesystem::path& file) {
                                         indexed.error().message));
     }
     // The rows waiting to be forwarded to PostgreSQL (gateway/history_forwarder.hpp), in the
-    // order they were committed. Created in every file, as the index above, so a file that
-    // starts being forwarded later needs no other schema; empty unless [history] forward_to.
-    if (auto outbox = db->execute(create_outbox); !outbox) {
-        return refuse(file, fmt::format("cannot be written ({}); check the gateway may write to it and its folder",
-                                        outbox.error().message));
+    // order they were committed, and the view for Grafana's SQLite data source and the sqlite3
+    // shell. Created in every file, as the index above, so a file of an earlier loopwire, or
+    // one that starts being forwarded later, needs no other schema; the outbox stays empty
+    // unless [history] forward_to.
+    for (const std::string_view sql : {create_outbox, create_values_view}) {
+        if (auto made = db->execute(sql); !made) {
+            return refuse(file, fmt::format("cannot be written ({}); check the gateway may write to it and its folder",
+                                            made.error().message));
+        }
     }
     return db;
 }

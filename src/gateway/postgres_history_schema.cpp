@@ -44,6 +44,18 @@ CREATE TABLE IF NOT EXISTS loopwire_minutes(
 constexpr const char* create_gaps_index =
     "CREATE INDEX IF NOT EXISTS loopwire_samples_gaps ON loopwire_samples(series_id, t) WHERE value IS NULL";
 
+// What Grafana, psql and a report read: one row a sample with its time as a timestamp, its
+// gateway, device, parameter and unit by name, and the word "ok" where the samples say NULL.
+// `t` (ms since the epoch) stays beside `time`: a query on `t` is pruned to the day partitions
+// it spans and uses their primary keys, which a filter on the computed `time` cannot
+// (docs/grafana.md). Replaced on every connect, so a historian made by an earlier loopwire gets it.
+constexpr const char* create_values_view = R"sql(
+CREATE OR REPLACE VIEW loopwire_values AS
+SELECT to_timestamp(s.t / 1000.0) AS time, s.t, n.gateway, n.device, n.parameter, n.unit, s.value,
+       coalesce(s.status, 'ok') AS status, s.text
+FROM loopwire_samples s JOIN loopwire_series n ON n.id = s.series_id
+)sql";
+
 // Runs `steps` in one transaction under the schema lock; rolls back on failure.
 template <typename Steps>
 Result<void> locked(postgres::Connection& db, Steps steps) {
@@ -81,6 +93,7 @@ Result<void> migrate(postgres::Connection& db) {
         }
         if (auto made = db.run(create_tables); !made) return made.error();
         if (auto made = db.run(create_gaps_index); !made) return made.error();
+        if (auto made = db.run(create_values_view); !made) return made.error();
         if (found == 0) return db.run(fmt::format("INSERT INTO loopwire_schema_version(version) VALUES ({})", schema_version));
         if (found < schema_version) return db.run(fmt::format("UPDATE loopwire_schema_version SET version = {}", schema_version));
         return {};
