@@ -473,7 +473,8 @@ HttpResponse HttpApi::State::metrics() const {
     HttpResponse response;
     response.content_type = "text/plain; version=0.0.4; charset=utf-8";
     const std::optional<FrontReport> front = sources.front ? std::optional(sources.front()) : std::nullopt;
-    response.body = prometheus_text(sources.lines(), names, sources.cache->snapshot(), sources.history, front ? &*front : nullptr);
+    response.body =
+        prometheus_text(gateway_name, sources.lines(), names, sources.cache->snapshot(), sources.history, front ? &*front : nullptr);
     response.headers.emplace_back("Cache-Control", "no-store");
     return response;
 }

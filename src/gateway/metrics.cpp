@@ -153,10 +153,60 @@ void process_values(std::string& out, const std::vector<MetricsDevice>& devices,
     for (const auto& one : shown) sample(out, "value_age_seconds", one.labels, one.age);
 }
 
+// Each named bit of the polled bit fields (a TC10's alarm status word, an AC20's alarm contacts)
+// as 1 or 0: what an alerting rule selects on (`loopwire_bit{bit="alarm_1"} == 1`).
+void bit_values(std::string& out, const std::vector<MetricsDevice>& devices, const std::vector<const CachedDevice*>& found) {
+    family(out, "bit", "gauge",
+           "Each named bit of a polled bit field (alarms, states), 1 or 0, as the latest poll read it; absent when that "
+           "poll did not read it or it went stale.");
+    for (std::size_t i = 0; i < devices.size(); ++i) {
+        if (!found[i]) continue;
+        for (const auto& value : found[i]->state.values) {
+            if (!value.last || device::value_status(found[i]->state, value) != "ok") continue;
+            const auto* bits = std::get_if<std::map<std::string, bool>>(&value.last->value);
+            if (!bits) continue;
+            for (const auto& [bit, on] : *bits) {
+                sample(out, "bit",
+                       fmt::format("device=\"{}\",parameter=\"{}\",bit=\"{}\"", label(devices[i].name),
+                                   label(value.parameter->name), label(bit)),
+                       on ? 1 : 0);
+            }
+        }
+    }
+}
+
+// Every sample labelled with the gateway's name, first, so that many gateways can be scraped
+// into one Prometheus and told apart without relabelling. A gateway without a [gateway] name
+// has none (an empty label is no label to Prometheus).
+std::string with_gateway_label(const std::string& text, const std::string& gateway) {
+    if (gateway.empty()) return text;
+    const std::string first = fmt::format("gateway=\"{}\"", label(gateway));
+    std::string out;
+    out.reserve(text.size() + text.size() / 8);
+    std::size_t start = 0;
+    while (start < text.size()) {
+        std::size_t end = text.find('\n', start);
+        if (end == std::string::npos) end = text.size();
+        const std::string_view line(text.data() + start, end - start);
+        const std::size_t name_end = line.find_first_of("{ ");
+        if (line.empty() || line.front() == '#' || name_end == std::string_view::npos) {
+            out += line;
+        } else if (line[name_end] == '{') {
+            out += fmt::format("{}{{{},{}", line.substr(0, name_end), first, line.substr(name_end + 1));
+        } else {
+            out += fmt::format("{}{{{}}}{}", line.substr(0, name_end), first, line.substr(name_end));
+        }
+        out += '\n';
+        start = end + 1;
+    }
+    return out;
+}
+
 }  // namespace
 
-std::string prometheus_text(const std::vector<LineReport>& lines, const std::vector<MetricsDevice>& devices,
-                            const std::vector<CachedDevice>& values, const HistorySource* history, const FrontReport* front) {
+std::string prometheus_text(const std::string& gateway, const std::vector<LineReport>& lines,
+                            const std::vector<MetricsDevice>& devices, const std::vector<CachedDevice>& values,
+                            const HistorySource* history, const FrontReport* front) {
     std::string out;
     struct LineCounter {
         const char* name;
@@ -246,13 +296,14 @@ std::string prometheus_text(const std::vector<LineReport>& lines, const std::vec
                static_cast<double>(found[i]->since_answered->count()) / 1e3);
     }
     process_values(out, devices, found);
+    bit_values(out, devices, found);
     if (history) {
         family(out, "history_rows_written_total", "counter", "Rows the history store committed since the gateway started.");
         out += fmt::format("loopwire_history_rows_written_total {}\n", history->rows_written());
         if (const auto forward = history->forward_stats()) history_forwarding(out, *forward);
     }
     if (front) front_connections(out, *front);
-    return out;
+    return with_gateway_label(out, gateway);
 }
 
 }  // namespace loopwire::gateway

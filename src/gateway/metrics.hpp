@@ -22,9 +22,11 @@ struct MetricsDevice {
 // stale now (the line cannot carry its polls). Per device (`devices`, in configured order): its
 // status as a 1 among 0s, its polls, failed and missed polls, and the age of its last answered
 // poll. Per polled numeric value read by the latest poll: the value in its unit and its age.
-// The history store's rows, with one. The Modbus TCP front's connections, with `front`.
-std::string prometheus_text(const std::vector<LineReport>& lines, const std::vector<MetricsDevice>& devices,
-                            const std::vector<CachedDevice>& values, const HistorySource* history,
-                            const FrontReport* front = nullptr);
+// Each named bit of the polled bit fields as 1 or 0. The history store's rows, with one. The
+// Modbus TCP front's connections, with `front`. Every sample carries gateway="GATEWAY" (its
+// [gateway] name, when it has one) as its first label.
+std::string prometheus_text(const std::string& gateway, const std::vector<LineReport>& lines,
+                            const std::vector<MetricsDevice>& devices, const std::vector<CachedDevice>& values,
+                            const HistorySource* history, const FrontReport* front = nullptr);
 
 }  // namespace loopwire::gateway

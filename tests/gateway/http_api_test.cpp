@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <sstream>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -1028,7 +1029,7 @@ TEST(PrometheusText, AValueIsExportedOnlyWhileTheLatestPollReadIt) {
     state.values[1].fresh = false;
     CachedDevice oven{"oven", state, std::chrono::system_clock::now(), 1s, std::chrono::milliseconds(2000)};
 
-    const std::string text = prometheus_text({}, {{"oven", "sim"}}, {oven}, nullptr);
+    const std::string text = prometheus_text("", {}, {{"oven", "sim"}}, {oven}, nullptr);
     EXPECT_THAT(text, HasSubstr("# TYPE loopwire_value gauge\n"));
     EXPECT_THAT(text, HasSubstr("loopwire_value{device=\"oven\",parameter=\"measured_value\",unit=\"°C\"} 181.5\n"));
     EXPECT_THAT(text, HasSubstr("loopwire_value_age_seconds{device=\"oven\",parameter=\"measured_value\",unit=\"°C\"} 2."));
@@ -1036,8 +1037,33 @@ TEST(PrometheusText, AValueIsExportedOnlyWhileTheLatestPollReadIt) {
 
     oven.state.status = device::DeviceStatus::stale;
     for (auto& value : oven.state.values) value.fresh = false;
-    const std::string stale = prometheus_text({}, {{"oven", "sim"}}, {oven}, nullptr);
+    const std::string stale = prometheus_text("", {}, {{"oven", "sim"}}, {oven}, nullptr);
     EXPECT_THAT(stale, Not(HasSubstr("loopwire_value{"))) << stale;
+}
+
+// Many gateways into one Prometheus: every sample says whose it is; and the bits of a bit field
+// (the TC10's alarms) are gauges an alerting rule can select on.
+TEST(PrometheusText, EverySampleNamesItsGatewayAndEachAlarmBitIsAGauge) {
+    const auto profile = device::testing::builtin("tc10");
+    const device::Parameter& alarms = device::testing::parameter(*profile, "alarm_status");
+    device::WatchedDevice state = device::watch("tc10@3", {&alarms});
+    state.status = device::DeviceStatus::ok;
+    state.values[0].last = device::EngineeringValue{std::map<std::string, bool>{{"alarm_1", true}, {"alarm_2", false}}, "ok", 1, ""};
+    state.values[0].fresh = true;
+    CachedDevice oven{"oven", state, std::chrono::system_clock::now(), 1s, std::chrono::milliseconds(2000)};
+    const RecordingHistory history;
+
+    const std::string text = prometheus_text("north", {}, {{"oven", "sim"}}, {oven}, &history);
+    EXPECT_THAT(text, HasSubstr("loopwire_bit{gateway=\"north\",device=\"oven\",parameter=\"alarm_status\",bit=\"alarm_1\"} 1\n"));
+    EXPECT_THAT(text, HasSubstr("loopwire_bit{gateway=\"north\",device=\"oven\",parameter=\"alarm_status\",bit=\"alarm_2\"} 0\n"));
+    EXPECT_THAT(text, HasSubstr("loopwire_history_rows_written_total{gateway=\"north\"} 1234\n"));
+    EXPECT_THAT(text, HasSubstr("loopwire_device_status{gateway=\"north\",device=\"oven\",status=\"ok\"} 1\n"));
+    // Every sample line, labelled or not before, has the gateway first.
+    std::istringstream lines(text);
+    for (std::string line; std::getline(lines, line);) {
+        if (line.empty() || line.front() == '#') continue;
+        EXPECT_THAT(line, ::testing::MatchesRegex("loopwire_[a-z_]+\\{gateway=\"north\"[,}].*")) << line;
+    }
 }
 
 TEST_F(HttpHistoryTest, MetricsCountTheHistoryRows) {
@@ -1055,14 +1081,14 @@ public:
 
 TEST(Metrics, AForwardedHistoryShowsWhatWaitsAndWhatWent) {
     const ForwardingHistory forwarding;
-    const std::string text = prometheus_text({}, {}, {}, &forwarding);
+    const std::string text = prometheus_text("", {}, {}, {}, &forwarding);
     EXPECT_THAT(text, HasSubstr("# TYPE loopwire_history_forward_waiting_rows gauge\nloopwire_history_forward_waiting_rows 42\n"));
     EXPECT_THAT(text, HasSubstr("# TYPE loopwire_history_forwarded_rows_total counter\nloopwire_history_forwarded_rows_total 7000\n"));
     EXPECT_THAT(text, HasSubstr("loopwire_history_forward_oldest_waiting_seconds 12.5\n"));
     EXPECT_THAT(text, HasSubstr("# TYPE loopwire_history_forward_errors_total counter\nloopwire_history_forward_errors_total 3\n"));
     // A history kept only locally has none of them.
     const RecordingHistory local;
-    EXPECT_THAT(prometheus_text({}, {}, {}, &local), Not(HasSubstr("history_forward")));
+    EXPECT_THAT(prometheus_text("", {}, {}, {}, &local), Not(HasSubstr("history_forward")));
 }
 
 // --- limits, on a server whose values the test feeds itself --------------------------------------
