@@ -139,6 +139,10 @@ constexpr std::array keys{
               "A host application id: births wait until spBv1.0/STATE/HOST says it is online, and the node "
               "disconnects and waits again when it goes offline.",
               "\"scada\"", true},
+    ConfigKey{"sparkplug", "state_file", "file", "none: bdSeq counts from 0 at each start", "a regular file or none yet",
+              "Where the node keeps the bdSeq of its next session, written at each connect, so that a host sees it count "
+              "on across restarts (Sparkplug 3.0); relative to this file's folder.",
+              "\"/var/lib/loopwire/sparkplug.state\"", true},
     ConfigKey{"sparkplug", "writes", "boolean", "false", "",
               "Whether DCMD metrics are written to the device (checked as `loopwire write` checks them).", "false"},
     ConfigKey{"sparkplug", "client_id", "string", "loopwire-sparkplug-GROUP-EDGE", "1..256 characters",

@@ -958,6 +958,18 @@ Result<std::optional<SparkplugConfig>> parse_sparkplug(const Context& ctx, const
         return ctx.fail(source_of(*table, "client_id"), "sparkplug.client_id", "expected 1..256 characters");
     }
     config.client_id = client_id->value_or(fmt::format("loopwire-sparkplug-{}-{}", config.group_id, config.edge_node_id));
+    auto state_file = optional_value<std::string>(ctx, *table, "sparkplug", "state_file", "a file name such as \"sparkplug.state\"");
+    if (!state_file) return state_file.error();
+    if (*state_file) {
+        if ((*state_file)->empty()) return ctx.fail(source_of(*table, "state_file"), "sparkplug.state_file", "expected a file name");
+        const std::filesystem::path path(**state_file);
+        config.state_file = path.is_absolute() ? path : std::filesystem::path(ctx.source).parent_path() / path;
+        if (auto what = not_a_regular_file(config.state_file); what && *what != "does not exist") {
+            return not_regular(ctx, source_of(*table, "state_file"), "sparkplug.state_file",
+                               fmt::format("\"{}\" {}", config.state_file.string(), *what),
+                               "the node's small state file, created when absent");
+        }
+    }
     return std::optional<SparkplugConfig>{std::move(config)};
 }
 

@@ -151,6 +151,10 @@ struct SparkplugConfig {
     std::string primary_host;  // empty: births go out at once, with no host application to wait for
     bool writes = false;       // DCMD writes refused unless true
     std::size_t max_payload = 64 * 1024;  // a longer NCMD or DCMD is refused unread
+    // Where the node keeps the bdSeq of its next session, so that it counts on across restarts
+    // (Sparkplug 3.0, bdSeq); resolved against the configuration file's folder. Empty: counted
+    // from 0 at each start.
+    std::filesystem::path state_file;
 
     bool operator==(const SparkplugConfig&) const = default;
 };

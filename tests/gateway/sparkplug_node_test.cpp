@@ -11,6 +11,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -19,6 +21,7 @@
 #include "gateway/engine.hpp"
 #include "gateway/sparkplug/sparkplug_node.hpp"
 #include "sparkplug/sparkplug_b.pb.h"
+#include "support/history_test_support.hpp"
 #include "support/log_lines.hpp"
 #include "support/mosquitto_broker.hpp"
 
@@ -129,8 +132,10 @@ private:
 
 struct NodeFixture {
     explicit NodeFixture(Broker& broker, const std::string& primary_host = {},
-                         std::shared_ptr<Clock> clock = steady_clock(), bool writes = false)
+                         std::shared_ptr<Clock> clock = steady_clock(), bool writes = false,
+                         const std::filesystem::path& state_file = {})
         : cache(std::move(clock)) {
+        config.state_file = state_file;
         config.broker = fmt::format("mqtt://127.0.0.1:{}", broker.port());
         config.host = "127.0.0.1";
         config.port = broker.port();
@@ -242,6 +247,29 @@ TEST(SparkplugNode, BirthsDataDeathsAndARebirthKeepTheirOrderAndAliases) {
         ASSERT_NE(same, nullptr) << metric.name();
         EXPECT_EQ(same->alias(), metric.alias()) << metric.name();
     }
+}
+
+// bdSeq counts on across restarts (Sparkplug 3.0): each run's node keeps the next one in its
+// state file before it connects; a file that holds no bdSeq is said and counting starts at 0.
+TEST(SparkplugNode, BdSeqCountsOnAcrossRestartsThroughItsStateFile) {
+    SKIP_WITHOUT_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    const loopwire::testing::TempFolder folder("loopwire-sparkplug");
+    const auto file = folder.path / "sparkplug.state";
+    for (std::uint64_t run = 0; run < 3; ++run) {
+        NodeFixture node(broker, {}, steady_clock(), false, file);
+        EXPECT_EQ(named(decoded(watcher.nth(nbirth, run + 1)), "bdSeq")->long_value(), run) << "run " << run;
+    }  // each run's node leaves with its NDEATH
+    std::ifstream kept(file);
+    std::string text;
+    std::getline(kept, text);
+    EXPECT_EQ(text, "bdSeq 3");
+
+    std::ofstream(file) << "not a number\n";
+    NodeFixture spoiled(broker, {}, steady_clock(), false, file);
+    EXPECT_EQ(named(decoded(watcher.nth(nbirth, 4)), "bdSeq")->long_value(), 0u);
+    EXPECT_TRUE(spoiled.log.wait_for("does not hold a bdSeq"));
 }
 
 TEST(SparkplugNode, AStaleValueIsNullWithItsQualityNeverItsOldNumber) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <condition_variable>
+#include <fstream>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -13,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/device_status.hpp"
+#include "common/atomic_file.hpp"
 #include "common/peer_text.hpp"
 #include "gateway/mqtt_client.hpp"
 #include "gateway/mqtt_loop_driver.hpp"
@@ -105,6 +107,7 @@ struct SparkplugNode::State {
     std::vector<NodeDevice> devices;
     std::uint64_t next_bd_seq = 0;
     std::uint64_t bd_seq = 0;  // of the connection now
+    std::optional<std::uint64_t> kept_bd_seq;  // what state_file holds
     std::uint64_t seq = 0;     // of the next message
     bool node_born = false;
     bool host_online = false;
@@ -127,6 +130,11 @@ struct SparkplugNode::State {
 
     void say(const std::string& message) const {
         if (log) log("sparkplug " + config.broker + ": " + message);
+    }
+
+    // At the warning level (GatewayLog): what a person must see.
+    void warn(const std::string& message) const {
+        if (log) log(std::string(gateway_warning_prefix) + "sparkplug " + config.broker + ": " + message);
     }
 
     std::string node_topic(std::string_view type) const {
@@ -555,10 +563,40 @@ struct SparkplugNode::State {
     // bdSeq of a death already published.
     int connect() {
         bd_seq = next_bd_seq;
+        keep_next_bd_seq((bd_seq + 1) % 256);
         const std::string death = node_death();
         (void)mosquitto_will_set(client, node_topic("NDEATH").c_str(), static_cast<int>(death.size()), death.data(),
                                  qos_at_least_once, false);
         return mosquitto_connect_async(client, config.host.c_str(), config.port, keepalive_seconds);
+    }
+
+    // The bdSeq a restart starts from (state_file): the one after this connection's, written
+    // before the CONNECT goes, so a node killed after it never births again with the bdSeq of
+    // the death the broker published for it. Written once per new value, not per retry.
+    void keep_next_bd_seq(std::uint64_t next) {
+        if (config.state_file.empty() || kept_bd_seq == next) return;
+        if (auto written = write_file_atomically(config.state_file.string(), fmt::format("bdSeq {}\n", next)); !written) {
+            warn(fmt::format("cannot keep the next bdSeq in {} ({}); a restart counts from 0 again",
+                            config.state_file.string(), written.error().message));
+            return;
+        }
+        kept_bd_seq = next;
+    }
+
+    // The bdSeq the last run kept; 0 when there is none yet or it cannot be read (said).
+    void take_kept_bd_seq() {
+        if (config.state_file.empty()) return;
+        std::ifstream in(config.state_file);
+        if (!in) return;  // the first start: none kept yet
+        std::string word;
+        std::uint64_t kept = 0;
+        if (in >> word >> kept && word == "bdSeq" && kept < 256) {
+            next_bd_seq = kept;
+            kept_bd_seq = kept;
+            return;
+        }
+        warn(fmt::format("{} does not hold a bdSeq (\"bdSeq N\", N 0..255); counting from 0",
+                        config.state_file.string()));
     }
 
     void lost(std::string_view why) {
@@ -652,6 +690,7 @@ SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice
     s.log = std::move(log);
     s.writer = &writer;
     s.lines = std::move(lines);
+    s.take_kept_bd_seq();
     // Aliases from the configuration: the node's metrics, then each device's in order.
     std::uint64_t alias = 0;
     s.node_metrics.push_back({"bdSeq", alias++, DataType::uint64, nullptr, {}});
