@@ -30,8 +30,8 @@
 
 #include "gateway/gateway.hpp"
 #include "gateway/mqtt_documents.hpp"
-#include "support/silenced_unit.hpp"
 #include "support/eventually.hpp"
+#include "support/silenced_unit.hpp"
 #include "support/log_lines.hpp"
 #include "support/loopback_listener.hpp"
 #include "support/mosquitto_broker.hpp"
@@ -357,7 +357,8 @@ TEST(MqttBridge, APortThatIsNotABrokerIsSaidToBeOne) {
     auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", not_a_broker.port()), false, "", std::move(options));
     EXPECT_TRUE(said.wait_for("ended before the broker accepted it")) << "nothing logged about the broker";
     EXPECT_TRUE(said.has("is this port an MQTT broker"));
-    // A few more tries (0.5 s, then 1 s apart): still said once.
+    // More tries (0.5 s, then 1 s apart): a third connection comes once the second has failed
+    // as the first did, which is still said once.
     ASSERT_TRUE(eventually([&] { return not_a_broker.connections() >= 3; })) << "the gateway stopped trying";
     EXPECT_EQ(said.count("ended before the broker accepted it"), 1);
 }
