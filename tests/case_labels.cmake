@@ -18,7 +18,7 @@ set(loopwire_virtual_time_cases
   "^(VirtualClock|LineLoopEventsTimers|HistoryStore|ReopeningMasterTest|ConcurrentReopeningMaster|ReopeningMasterOnALoop|ValueCacheStaleness|ValueCacheStalenessThreads|LineSoak|StaleHistory|Staleness|SlaveInVirtualTime)\\.|VirtualTime|InjectedClock")
 set(loopwire_slow_cases "^(LineSoak\\.|RestoreOnFaultyBus\\.Ac20StopsInControlModeOrCompletes$)")
 set(loopwire_wall_clock_cases
-  "^(GatewayOnFaultyBus|Gateway|MonitorOnFaultyBus|RestoreOnFaultyBus|VirtualBus|TcpSlaveHostileClients|TcpSlaveServer|HttpLimitsTest)\\.")
+  "^(GatewayOnFaultyBus|Gateway|MonitorOnFaultyBus|RestoreOnFaultyBus|VirtualBus|TcpSlaveHostileClients|TcpSlaveServer|HttpLimitsTest)\\.|^HttpApiTest\\.AStalledClientIsClosedWithoutHoldingUpOthers$")
 
 foreach(loopwire_case IN LISTS loopwire_cases)
   set(loopwire_labels "")
