@@ -15,7 +15,7 @@
 # A suite named here is the rule for its cases; a new suite of that kind belongs here too.
 set(loopwire_peer_cases "^(MqttBridge|SparkplugNode|HistoryForward|HistorianReaderTest)\\.")
 set(loopwire_virtual_time_cases
-  "^(VirtualClock|LineLoopEventsTimers|HistoryStore|ReopeningMasterTest|ConcurrentReopeningMaster|ReopeningMasterOnALoop|ValueCacheStaleness|ValueCacheStalenessThreads|LineSoak|StaleHistory|Staleness|SlaveInVirtualTime)\\.|VirtualTime|InjectedClock")
+  "^(VirtualClock|LineLoopEventsTimers|LineSchedulerTest|BoundedLineSchedulerTest|StrayReplies|HistoryStore|ReopeningMasterTest|ConcurrentReopeningMaster|ReopeningMasterOnALoop|ValueCacheStaleness|ValueCacheStalenessThreads|LineSoak|StaleHistory|Staleness|SlaveInVirtualTime)\\.|VirtualTime|InjectedClock")
 set(loopwire_slow_cases "^(LineSoak\\.|RestoreOnFaultyBus\\.Ac20StopsInControlModeOrCompletes$)")
 set(loopwire_wall_clock_cases
   "^(GatewayOnFaultyBus|Gateway|MonitorOnFaultyBus|RestoreOnFaultyBus|VirtualBus|TcpSlaveHostileClients|TcpSlaveServer|HttpLimitsTest)\\.|^HttpApiTest\\.AStalledClientIsClosedWithoutHoldingUpOthers$")
