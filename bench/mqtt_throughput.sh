@@ -21,10 +21,8 @@ command -v mosquitto_pub >/dev/null || { echo "$0: mosquitto_pub is missing (Deb
 # shellcheck source=tests/support/test_lib.sh
 source "$(dirname "$0")/../tests/support/test_lib.sh"
 
-port=$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-printf 'listener %s 127.0.0.1\nallow_anonymous true\npersistence false\nmax_queued_messages 0\n' "$port" >"$WORK_DIR/mosquitto.conf"
-start_background broker.log timeout 300 /usr/sbin/mosquitto -c "$WORK_DIR/mosquitto.conf"
-wait_for_text "$WORK_DIR/broker.log" "running"
+start_mosquitto 300 "max_queued_messages 0"
+port=$MQTT_PORT
 
 "$BENCH" "$port" "$PARAMETERS" "$DURATION" mqtt | tee "$WORK_DIR/figures.out"
 gateway_rate=$(sed -nE 's/^mqtt rate .*: ([0-9]+) value changes\/s.*/\1/p' "$WORK_DIR/figures.out")

@@ -20,10 +20,8 @@ readonly BENCH=$BUILD_DIR/bench/mqtt_throughput
 # shellcheck source=tests/support/test_lib.sh
 source "$(dirname "$0")/../tests/support/test_lib.sh"
 
-port=$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-printf 'listener %s 127.0.0.1\nallow_anonymous true\npersistence false\nmax_queued_messages 0\n' "$port" >"$WORK_DIR/mosquitto.conf"
-start_background broker.log timeout 300 /usr/sbin/mosquitto -c "$WORK_DIR/mosquitto.conf"
-wait_for_text "$WORK_DIR/broker.log" "running"
+start_mosquitto 300 "max_queued_messages 0"
+port=$MQTT_PORT
 
 for front in mqtt sparkplug; do
     "$BENCH" "$port" "$PARAMETERS" "$DURATION" "$front" | tee -a "$WORK_DIR/figures.out"

@@ -25,7 +25,8 @@ TEST(Engine, RequestsSentInOneRoundToATcpLineGoOutInOneWrite) {
     testing::RoundOfReads round(200, requests);
     Engine engine;
     boost::asio::post(engine.loop(), round.sender(**master));
-    const auto reads = served.get();
+    const auto served_requests = served.get();
+    const auto& reads = served_requests.reads;
     ASSERT_FALSE(reads.empty());
     EXPECT_EQ(reads.front(), requests * 12) << "the device's first read brought only part of the round's requests";
     round.expect_answered();

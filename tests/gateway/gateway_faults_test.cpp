@@ -25,28 +25,19 @@
 #include "gateway/gateway.hpp"
 #include "profile/value_format.hpp"
 #include "session/master.hpp"
+#include "support/eventually.hpp"
 #include "support/profile_test_support.hpp"
 #include "transport/link_url.hpp"
 
 namespace loopwire::gateway {
 namespace {
 
+using loopwire::testing::eventually;
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 using std::chrono::milliseconds;
 
 constexpr milliseconds poll_interval{200};
-
-// Waits for `condition`, looking every 20 ms; false when `limit` passed first.
-template <typename Condition>
-bool wait_until(Condition condition, milliseconds limit) {
-    const auto give_up = Clock::now() + limit;
-    while (!condition()) {
-        if (Clock::now() >= give_up) return false;
-        std::this_thread::sleep_for(20ms);
-    }
-    return true;
-}
 
 double seconds(Clock::duration duration) { return std::chrono::duration<double>(duration).count(); }
 
@@ -192,7 +183,7 @@ Truth write_constants(RunningGateway& running, const std::vector<PlantDevice>& d
         for (const auto& [name, text] : device.writes) {
             const device::Parameter* parameter = &device::testing::parameter(*address.profile, name);
             std::string failure;
-            const bool written = wait_until(
+            const bool written = eventually(
                 [&] {
                     auto result = client.write({{parameter, text}});
                     failure = result ? "" : result.error().message;
@@ -203,7 +194,7 @@ Truth write_constants(RunningGateway& running, const std::vector<PlantDevice>& d
         }
         const auto parameters = polled_of(address, device);
         device::ReadReport report;
-        const bool read = wait_until(
+        const bool read = eventually(
             [&] {
                 report = client.read(parameters);
                 return !report.first_error;
@@ -414,7 +405,7 @@ TEST(GatewayOnFaultyBus, DroppedCorruptedOrNoisyFramesNeverServeAWrongValue) {
     const Truth truth = write_constants(running, three_devices);
     ASSERT_EQ(truth.size(), three_devices.size());
     for (const auto& device : three_devices) {
-        ASSERT_TRUE(wait_until([&] { return cached_ok(running, truth, device.name); }, 10s))
+        ASSERT_TRUE(eventually([&] { return cached_ok(running, truth, device.name); }, 10s))
             << device.name << " never showed the values written";
     }
 
@@ -493,7 +484,7 @@ TEST(GatewayOnFaultyBus, DroppedCorruptedOrNoisyFramesNeverServeAWrongValue) {
 
     // Once the line is clean again every device is read again, back-off or not.
     for (const auto& device : three_devices) {
-        EXPECT_TRUE(wait_until([&] { return cached_ok(running, truth, device.name); }, 20s))
+        EXPECT_TRUE(eventually([&] { return cached_ok(running, truth, device.name); }, 20s))
             << device.name << " was not read again after the faults stopped";
     }
 }
@@ -548,7 +539,7 @@ TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItRe
     const Truth truth = write_constants(running, devices);
     ASSERT_EQ(truth.size(), devices.size());
     for (const auto& device : devices) {
-        ASSERT_TRUE(wait_until([&] { return cached_ok(running, truth, device.name); }, 10s)) << device.name;
+        ASSERT_TRUE(eventually([&] { return cached_ok(running, truth, device.name); }, 10s)) << device.name;
     }
 
     // The kiln dies: the cache says so, and the others keep their cadence.
@@ -556,11 +547,11 @@ TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItRe
     const auto died = Clock::now();
     dead->unit = 2;
     constexpr auto window = 2400ms;
-    ASSERT_TRUE(wait_until(
+    ASSERT_TRUE(eventually(
         [&] { return cached_state(running.gateway(), "kiln").status == device::DeviceStatus::no_reply; }, 5s))
         << "the cache never showed the kiln as not answering";
     const auto silent = Clock::now();
-    std::this_thread::sleep_until(died + window);
+    std::this_thread::sleep_until(died + window);  // the window being measured, not a wait for an event
     const auto during = running.statistics();
     Audit polls;
     std::map<std::string, unsigned> fresh;
@@ -606,7 +597,7 @@ TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItRe
     // cannot compound): after 2.4 s dead, within 4 s. The limit is generous for loaded machines.
     const auto returned = Clock::now();
     dead->unit = -1;
-    EXPECT_TRUE(wait_until([&] { return cached_ok(running, truth, "kiln"); }, 30s))
+    EXPECT_TRUE(eventually([&] { return cached_ok(running, truth, "kiln"); }, 30s))
         << "the kiln was not read again after it returned";
     std::cout << fmt::format("back after {:.1f} s dead; read again {:.2f} s after it returned\n",
                              seconds(returned - died), seconds(Clock::now() - returned));
@@ -634,7 +625,7 @@ TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItRe
                                        dead_replies.push_back({std::move(reply), now - asked, now});
                                    });
     }
-    ASSERT_TRUE(wait_until([&] { return running.statistics().queued >= 3; }, 5s)) << "the requests never queued";
+    ASSERT_TRUE(eventually([&] { return running.statistics().queued >= 3; }, 5s)) << "the requests never queued";
     std::vector<Timed> oven_replies;
     for (;;) {
         {
@@ -715,7 +706,7 @@ TEST(GatewayOnFaultyBus, ARequestTheDeviceIgnoresCostsItsClientA0BhNotTheDeviceI
     // Polled each second: a poll waits at most for the client's request on the wire and the
     // next, never long enough to be dropped unsent (its deadline is its interval).
     RunningGateway running(plant_config(devices, timeout, 19200, 1000ms), {}, &samples);
-    ASSERT_TRUE(wait_until([&] { return cached_status(running.gateway(), "furnace") == "ok"; }, 30s))
+    ASSERT_TRUE(eventually([&] { return cached_status(running.gateway(), "furnace") == "ok"; }, 30s))
         << "the furnace was never polled";
     StatusLog seen("furnace");
     auto subscription = running.gateway().subscribe(seen.callback());
@@ -736,7 +727,7 @@ TEST(GatewayOnFaultyBus, ARequestTheDeviceIgnoresCostsItsClientA0BhNotTheDeviceI
 
     // Five more polls after the last 0Bh: every one sent, every one ok.
     const unsigned polls = cached_state(running.gateway(), "furnace").polls;
-    ASSERT_TRUE(wait_until([&] { return cached_state(running.gateway(), "furnace").polls >= polls + 5; }, 30s))
+    ASSERT_TRUE(eventually([&] { return cached_state(running.gateway(), "furnace").polls >= polls + 5; }, 30s))
         << "the polls stopped";
     for (const auto& sample : samples.between(asked, Clock::now())) {
         EXPECT_EQ(sample.devices.at(0).status, device::DeviceStatus::ok) << sample.devices.at(0).last_error;

@@ -28,6 +28,7 @@
 #include "simulation/register_bank.hpp"
 #include "transport/link_url.hpp"
 #include "transport/tcp.hpp"
+#include "support/eventually.hpp"
 #include "support/profile_test_support.hpp"
 #include "support/thread_names.hpp"
 
@@ -35,6 +36,7 @@ namespace loopwire::gateway {
 namespace {
 
 using namespace std::chrono_literals;
+using loopwire::testing::eventually;
 
 const device::ProfileRegistry& profiles() { return device::testing::builtin_registry(); }
 
@@ -210,9 +212,7 @@ TEST(Gateway, TenClientsReadingBackToBackDoNotStopThePolls) {
         return std::pair(s.busy, s.open);
     };
     // The clients have the line busy before the watch starts.
-    const auto give_up = std::chrono::steady_clock::now() + 30s;
-    while (reads.load() < 50 && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(20ms);
-    ASSERT_GE(reads.load(), 50u) << "the clients did not get going in 30 s";
+    ASSERT_TRUE(eventually([&] { return reads.load() >= 50; })) << "the clients did not get going";
 
     // Ten intervals of watching, as a front reads the cache: the device ok, the PV young.
     const auto [busy_before, open_before] = utilisation();
@@ -252,9 +252,7 @@ TEST(Gateway, WithAHistoryThePolledValuesAreRecorded) {
         ASSERT_TRUE(opened) << opened.error().message;
         const HistorySource* history = (*opened)->history();
         ASSERT_NE(history, nullptr);
-        const auto give_up = std::chrono::steady_clock::now() + 10s;
-        while (history->rows_written() < 2 && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(20ms);
-        ASSERT_GE(history->rows_written(), 2u) << "no values were recorded in 10 s";
+        ASSERT_TRUE(eventually([&] { return history->rows_written() >= 2; })) << "no values were recorded";
         HistoryQuery query;
         query.device = "oven1";
         query.from = std::chrono::system_clock::now() - 1min;
@@ -301,8 +299,7 @@ TEST(Gateway, ASlowLineDoesNotHoldAnotherLinesPolls) {
         }
         return device::WatchedDevice{};
     };
-    const auto give_up = std::chrono::steady_clock::now() + 30s;
-    while (device("kiln").missed < 6 && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(20ms);
+    (void)eventually([&] { return device("kiln").missed >= 6; });  // asserted below, with the figures
     const auto kiln = device("kiln");
     const auto oven = device("oven");
     std::cout << "samples skipped: kiln (slow line) " << kiln.missed << " in " << kiln.polls << " polls, oven (fast line) "
@@ -327,9 +324,7 @@ void wait_until_all_polled(const GatewayConfig& config, const Gateway& gateway) 
         return devices.size() == configured &&
                std::all_of(devices.begin(), devices.end(), [](const CachedDevice& device) { return device.state.polls > 0; });
     };
-    const auto give_up = std::chrono::steady_clock::now() + 30s;
-    while (!all_polled() && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(10ms);
-    EXPECT_TRUE(all_polled()) << "not every device was polled in 30 s";
+    EXPECT_TRUE(eventually(all_polled)) << "not every device was polled";
 }
 
 // The threads of a gateway on `plant` once every device has been polled.
@@ -586,14 +581,12 @@ private:
 // machine may take a while; 30 s at most, then the test fails saying what it saw last).
 bool read_through_until(session::Master& client, const std::function<bool(const Result<codec::Reply>&)>& wanted,
                         std::string& last) {
-    const auto deadline = std::chrono::steady_clock::now() + 30s;
-    while (std::chrono::steady_clock::now() < deadline) {
+    const auto read_wanted = [&] {
         auto reply = client.execute(3, codec::read_request(codec::FunctionCode::read_holding_registers, 0, 1));
         last = reply ? fmt::format("value {}", reply->values.at(0)) : reply.error().message;
-        if (wanted(reply)) return true;
-        std::this_thread::sleep_for(50ms);
-    }
-    return false;
+        return wanted(reply);
+    };
+    return eventually(read_wanted, 30s, 50ms);
 }
 
 // A Modbus TCP device that goes away and comes back on the same port: the line's connection
@@ -630,11 +623,8 @@ TEST(Gateway, AModbusTcpDeviceThatRestartsIsReopenedAndAnsweredAgain) {
     device.start(8, port);
     ASSERT_TRUE(read_through_until(**client, value_is(8), last)) << "the line was never reopened: " << last;
     // Up again, the line has no thread of its own: its reopening worker ended once idle.
-    const auto deadline = std::chrono::steady_clock::now() + 30s;
-    while (loopwire::testing::threads_named_like("lw-line ") > 0 && std::chrono::steady_clock::now() < deadline) {
-        std::this_thread::sleep_for(20ms);
-    }
-    EXPECT_EQ(loopwire::testing::threads_named_like("lw-line "), 0U) << "a thread of the line's own stayed";
+    EXPECT_TRUE(eventually([] { return loopwire::testing::threads_named_like("lw-line ") == 0; }))
+        << "a thread of the line's own stayed";
 }
 
 }  // namespace

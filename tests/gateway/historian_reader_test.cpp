@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "gateway/history_store.hpp"
+#include "support/eventually.hpp"
 #include "support/history_parts.hpp"
 #include "support/history_test_support.hpp"
 #include "support/postgres_server.hpp"
@@ -26,6 +27,7 @@ namespace {
 using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 using loopwire::testing::TempFolder;
+using loopwire::testing::eventually;
 using loopwire::testing::VirtualWall;
 using test::PostgresServer;
 
@@ -103,11 +105,7 @@ TEST_F(HistorianReaderTest, OneConnectionServesRequestAfterRequestAndIsOpenedAga
     ASSERT_TRUE(admin.run("SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE application_name = $1",
                           {HistorianReader::application_name}));
     // Ending a session is asynchronous: the next request must meet it ended, not ending.
-    const auto deadline = std::chrono::steady_clock::now() + 60s;
-    while (reader_session(admin) != "") {
-        ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the reader's session was not ended";
-        std::this_thread::sleep_for(10ms);
-    }
+    ASSERT_TRUE(eventually([&] { return reader_session(admin).empty(); }, 60s)) << "the reader's session was not ended";
     // The request that finds the connection broken is asked again on a new one.
     auto again = reader.query("south", query);
     ASSERT_TRUE(again) << again.error().message;

@@ -26,6 +26,7 @@
 #include "gateway/postgres_database.hpp"
 #include "gateway/postgres_history_query.hpp"
 #include "gateway/postgres_history_schema.hpp"
+#include "support/eventually.hpp"
 #include "support/history_parts.hpp"
 #include "support/history_test_support.hpp"
 #include "support/log_lines.hpp"
@@ -43,6 +44,7 @@ using test::PostgresServer;
 using loopwire::testing::HistoryParts;
 using loopwire::testing::HistoryPartsOptions;
 using loopwire::testing::TempFolder;
+using loopwire::testing::eventually;
 using loopwire::testing::VirtualWall;
 
 // 2026-01-01T00:00:00Z.
@@ -434,18 +436,14 @@ TEST_F(HistoryForward, TheThreadRetriesWithBackOffAndLogsAnOutageOnce) {
     auto store = HistoryParts::open(options);
     ASSERT_TRUE(store);
     record_counting(**store, 50);
-    const auto deadline = std::chrono::steady_clock::now() + 120s;
-    while ((*store)->forward_stats()->errors_total < 5) {
-        ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the forwarder did not retry";
-        std::this_thread::sleep_for(10ms);
-    }
+    ASSERT_TRUE(eventually([&] { return (*store)->forward_stats()->errors_total >= 5; }, 120s))
+        << "the forwarder did not retry";
     EXPECT_EQ(logs.count("forwarding paused"), 1);
     server->start();
     // The end of the outage is logged once the batch is in, a moment after the count moved.
-    while ((*store)->forward_stats()->forwarded_total < 50 || logs.count("forwarding again") == 0) {
-        ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the rows did not arrive once the server was back";
-        std::this_thread::sleep_for(10ms);
-    }
+    ASSERT_TRUE(eventually(
+        [&] { return (*store)->forward_stats()->forwarded_total >= 50 && logs.count("forwarding again") > 0; }, 120s))
+        << "the rows did not arrive once the server was back";
     EXPECT_EQ(logs.count("forwarding again"), 1);
     EXPECT_EQ(logs.count("forwarding paused"), 1);
     auto db = connect(*server);
@@ -753,15 +751,13 @@ TEST_F(HistoryForward, ASigkillDuringAForwardLosesAndDoublesNothing) {
     pid_t pid = 0;
     ASSERT_EQ(posix_spawn(&pid, worker.c_str(), nullptr, nullptr, argv, environ), 0);
     // Killed as soon as the historian has some rows and not all: in the middle of forwarding.
-    const auto deadline = std::chrono::steady_clock::now() + 180s;
     long long seen = 0;
-    for (;;) {
-        ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the worker forwarded nothing";
+    const auto some_forwarded = [&] {
         auto count = db.execute("SELECT count(*) FROM loopwire_samples");
         seen = count ? count->integer(0, 0) : 0;  // the tables may not exist yet
-        if (seen > 0) break;
-        std::this_thread::sleep_for(1ms);
-    }
+        return seen > 0;
+    };
+    ASSERT_TRUE(eventually(some_forwarded, 180s, 1ms)) << "the worker forwarded nothing";
     ::kill(pid, SIGKILL);
     int status = 0;
     ::waitpid(pid, &status, 0);

@@ -21,6 +21,7 @@
 
 #include "gateway/history_schema.hpp"
 #include "gateway/history_store.hpp"
+#include "support/eventually.hpp"
 #include "support/history_parts.hpp"
 #include "support/history_test_support.hpp"
 
@@ -35,6 +36,7 @@ using std::chrono::milliseconds;
 using loopwire::testing::HistoryParts;
 using loopwire::testing::HistoryPartsOptions;
 using loopwire::testing::TempFolder;
+using loopwire::testing::eventually;
 using loopwire::testing::VirtualWall;
 
 // 2026-01-01T00:00:00Z: a round minute, so bucket starts are easy to read.
@@ -668,9 +670,8 @@ TEST(HistoryStore, TheWriterThreadCommitsWithinASecond) {
     store->store->start();
     const auto now = std::chrono::system_clock::now();
     store->record(number("measured_value", 42, now));
-    const auto give_up = std::chrono::steady_clock::now() + 10s;
-    while (store->rows_written() == 0 && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(10ms);
-    ASSERT_EQ(store->rows_written(), 1u) << "the writer thread wrote nothing in 10 s";
+    ASSERT_TRUE(eventually([&] { return store->rows_written() > 0; }, 10s)) << "the writer thread wrote nothing in 10 s";
+    ASSERT_EQ(store->rows_written(), 1u);
     auto series = store->query(ask("measured_value", now - 1s, now + 1s, 1));
     ASSERT_TRUE(series) << series.error().message;
     EXPECT_EQ((*series)[0].buckets[0].mean, 42);

@@ -37,12 +37,14 @@
 #include "gateway/http_api.hpp"
 #include "gateway/http_server.hpp"
 #include "gateway/metrics.hpp"
+#include "support/eventually.hpp"
 #include "support/silenced_unit.hpp"
 #include "support/profile_test_support.hpp"
 
 namespace loopwire::gateway {
 namespace {
 
+using loopwire::testing::eventually;
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
@@ -54,16 +56,6 @@ constexpr auto deadline = 30s;
 const std::string token = "test-token-5f1c2a9b";
 
 const device::ProfileRegistry& profiles() { return device::testing::builtin_registry(); }
-
-// Whether `condition` holds, asked every 20 ms until the deadline.
-bool eventually(const std::function<bool()>& condition) {
-    const auto give_up = std::chrono::steady_clock::now() + deadline;
-    while (!condition()) {
-        if (std::chrono::steady_clock::now() > give_up) return false;
-        std::this_thread::sleep_for(20ms);
-    }
-    return true;
-}
 
 // --- a small HTTP client --------------------------------------------------------------------
 
@@ -269,14 +261,14 @@ protected:
 
     // Asks until `done` holds for the reply (the polls take a moment to find values).
     Reply get_until(const std::string& target, const std::function<bool(const Reply&)>& done) {
-        const auto give_up = std::chrono::steady_clock::now() + deadline;
         Reply reply;
-        while (std::chrono::steady_clock::now() < give_up) {
+        const auto answered = [&] {
             reply = get(port_, target);
-            if (done(reply)) return reply;
-            std::this_thread::sleep_for(50ms);
+            return done(reply);
+        };
+        if (!eventually(answered, deadline, 50ms)) {
+            ADD_FAILURE() << "GET " << target << " never gave what was waited for; last: " << reply.status << " " << reply.body;
         }
-        ADD_FAILURE() << "GET " << target << " never gave what was waited for; last: " << reply.status << " " << reply.body;
         return reply;
     }
 

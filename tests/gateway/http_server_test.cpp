@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "gateway/http_server.hpp"
+#include "support/eventually.hpp"
 #include "support/loopback_client.hpp"
 
 namespace loopwire::gateway {
@@ -131,13 +132,12 @@ int accepted_end_of(const testing::LoopbackClient& client) {
 // connection; false after the deadline.
 bool read_by_server(const testing::LoopbackClient& client) {
     int fd = -1;
-    for (const auto give_up = std::chrono::steady_clock::now() + deadline; std::chrono::steady_clock::now() < give_up;) {
+    const auto all_read = [&] {
         if (fd < 0) fd = accepted_end_of(client);
         int waiting = -1;
-        if (fd >= 0 && ::ioctl(fd, FIONREAD, &waiting) == 0 && waiting == 0) return true;
-        std::this_thread::yield();
-    }
-    return false;
+        return fd >= 0 && ::ioctl(fd, FIONREAD, &waiting) == 0 && waiting == 0;
+    };
+    return loopwire::testing::eventually(all_read, deadline, std::chrono::milliseconds(0));
 }
 
 // The parser keeps what it took of a header (the request line and whole field lines), not the

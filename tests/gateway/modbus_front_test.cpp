@@ -14,11 +14,13 @@
 
 #include "gateway/forwarding_unit.hpp"
 #include "session/tcp_test_client.hpp"
+#include "support/eventually.hpp"
 #include "support/test_bytes.hpp"
 
 namespace loopwire::gateway {
 namespace {
 
+using loopwire::testing::eventually;
 using loopwire::testing::hex;
 using session::testing::RawClient;
 using namespace std::chrono_literals;
@@ -86,16 +88,6 @@ private:
     std::mutex mutex_;
     std::vector<std::string> notes_;
 };
-
-template <typename Condition>
-bool eventually(Condition condition) {
-    const auto deadline = std::chrono::steady_clock::now() + patience;
-    while (!condition()) {
-        if (std::chrono::steady_clock::now() >= deadline) return false;
-        std::this_thread::sleep_for(5ms);  // polling a condition, not waiting for time to pass
-    }
-    return true;
-}
 
 Bytes read_register(std::uint16_t transaction, std::uint16_t address) {
     return session::testing::read_one_register(transaction, address);

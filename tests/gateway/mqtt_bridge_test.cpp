@@ -30,6 +30,7 @@
 
 #include "gateway/gateway.hpp"
 #include "gateway/mqtt_documents.hpp"
+#include "support/eventually.hpp"
 #include "support/silenced_unit.hpp"
 #include "support/log_lines.hpp"
 #include "support/loopback_listener.hpp"
@@ -50,8 +51,8 @@ const std::string prefix = "test/plant1";
 const device::ProfileRegistry& profiles() { return device::testing::builtin_registry(); }
 
 using testing::Broker;
-using testing::free_port;
 using testing::Watcher;
+using testing::eventually;
 using testing::WatcherOptions;
 using testing::deadline;
 using testing::broker_program;
@@ -114,7 +115,7 @@ std::unique_ptr<Gateway> open_gateway(std::uint16_t port, bool writes) {
 
 TEST(MqttBridge, PublishesTheGatewayStatusEachDeviceAndItsValues) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port());
     auto gateway = open_gateway(broker.port(), false);
 
@@ -156,7 +157,7 @@ TEST(MqttBridge, PublishesTheGatewayStatusEachDeviceAndItsValues) {
 // reload) still says it "offline": the "online" a previous run left retained must not stand.
 TEST(MqttBridge, AStopBeforeTheFirstPollSaysEveryDeviceOffline) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port());
     watcher.publish(prefix + "/oven/status", "online", true);
     ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "online"));
@@ -200,7 +201,7 @@ prefix = "{}"
 
 TEST(MqttBridge, WritesGoToTheDeviceAndBadOnesAreRefused) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port());
     // A command left retained on the broker before the gateway starts: replayed to it on
     // subscription, and refused with the reason, never written.
@@ -246,7 +247,9 @@ TEST(MqttBridge, WritesGoToTheDeviceAndBadOnesAreRefused) {
     // A few polls later the value is still the one written: neither 99999 nor the retained 300.
     // (The latest value, not a status: on a loaded machine a poll 100 ms apart may be overdue
     // long enough for the value topic to say "stale" for a moment, as it must.)
-    std::this_thread::sleep_for(500ms);
+    const auto answered = [&gateway] { return gateway->report().at(0).statistics.answered; };
+    const auto answered_before = answered();
+    ASSERT_TRUE(eventually([&] { return answered() >= answered_before + 5; })) << "the polls stopped";
     const auto last = watcher.wait_for(value, is_number);
     ASSERT_TRUE(last);
     EXPECT_TRUE(equals_number(*last, 200)) << *last;
@@ -256,15 +259,18 @@ TEST(MqttBridge, WritesGoToTheDeviceAndBadOnesAreRefused) {
 
 TEST(MqttBridge, ComesBackWhenTheBrokerRestarts) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
-    auto gateway = open_gateway(broker.port(), false);
+    Broker broker;
+    testing::LogLines said;
+    GatewayOptions options;
+    options.log = said.sink();
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), false, "", std::move(options));
     {
         Watcher watcher(broker.port());
         ASSERT_TRUE(watcher.wait_for(prefix + "/status", "online"));
         ASSERT_TRUE(watcher.wait_for(prefix + "/oven/measured_value", is_number));
     }
     broker.stop();
-    std::this_thread::sleep_for(300ms);
+    ASSERT_TRUE(said.wait_for("connection lost")) << "the gateway never noticed its broker gone";
     broker.start();  // the same port; it kept nothing of before
     Watcher watcher(broker.port());
     EXPECT_TRUE(watcher.wait_for(prefix + "/status", "online")) << "the gateway did not reconnect";
@@ -274,10 +280,15 @@ TEST(MqttBridge, ComesBackWhenTheBrokerRestarts) {
 
 TEST(MqttBridge, AGatewayStartsWithoutItsBroker) {
     REQUIRE_BROKER();
-    const std::uint16_t port = free_port();
-    auto gateway = open_gateway(port, false);  // nothing listens there yet: not an error
-    std::this_thread::sleep_for(300ms);
-    Broker broker(port);
+    testing::PortReservation reserved;  // the broker's, before it starts
+    const std::uint16_t port = reserved.port();
+    testing::LogLines said;
+    GatewayOptions options;
+    options.log = said.sink();
+    // Nothing listens there yet: not an error.
+    auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", port), false, "", std::move(options));
+    ASSERT_TRUE(said.wait_for("cannot reach the broker")) << "the gateway never tried its broker";
+    Broker broker(std::move(reserved));
     Watcher watcher(port);
     EXPECT_TRUE(watcher.wait_for(prefix + "/status", "online")) << "the gateway did not connect once the broker came";
     EXPECT_TRUE(watcher.wait_for(prefix + "/oven/measured_value", is_number));
@@ -300,10 +311,9 @@ TEST(MqttBridge, AConnectionThatCannotCompleteHoldsUpNoPoll) {
     auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", full.port()), false, "");
     const auto answered = [&gateway] { return gateway->report().at(0).statistics.answered; };
     // Polls 100 ms apart: twenty more answered, within a bound that fails loudly, not a timing.
-    const auto until = std::chrono::steady_clock::now() + 30s;
     const auto first = answered();
-    while (answered() < first + 20 && std::chrono::steady_clock::now() < until) std::this_thread::sleep_for(10ms);
-    EXPECT_GE(answered(), first + 20) << "the polls stood still while the MQTT front waited for its broker";
+    EXPECT_TRUE(eventually([&] { return answered() >= first + 20; }))
+        << "the polls stood still while the MQTT front waited for its broker";
     gateway.reset();  // while the handshake is still pending: the stop does not wait for it either
     ::close(queued);
 }
@@ -314,6 +324,8 @@ class NotABroker {
 public:
     NotABroker() : thread_([this](std::stop_token stop) { serve(stop); }) {}
     std::uint16_t port() const { return listener_.port(); }
+    // The connections taken so far.
+    int connections() const { return connections_.load(); }
 
 private:
     void serve(const std::stop_token& stop) {
@@ -322,6 +334,7 @@ private:
             if (::poll(&ready, 1, 50) <= 0) continue;
             const int client = ::accept(listener_.fd(), nullptr, nullptr);
             if (client < 0) continue;
+            ++connections_;
             char connect[256];
             pollfd readable{client, POLLIN, 0};
             if (::poll(&readable, 1, 1000) > 0) (void)::recv(client, connect, sizeof connect, 0);
@@ -331,6 +344,7 @@ private:
         }
     }
     testing::LoopbackListener listener_;  // before the thread, which uses it
+    std::atomic<int> connections_{0};
     std::jthread thread_;
 };
 
@@ -343,7 +357,9 @@ TEST(MqttBridge, APortThatIsNotABrokerIsSaidToBeOne) {
     auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", not_a_broker.port()), false, "", std::move(options));
     EXPECT_TRUE(said.wait_for("ended before the broker accepted it")) << "nothing logged about the broker";
     EXPECT_TRUE(said.has("is this port an MQTT broker"));
-    std::this_thread::sleep_for(1500ms);  // a few more tries (0.5 s, then 1 s): still said once
+    // More tries (0.5 s, then 1 s apart): a third connection comes once the second has failed
+    // as the first did, which is still said once.
+    ASSERT_TRUE(eventually([&] { return not_a_broker.connections() >= 3; })) << "the gateway stopped trying";
     EXPECT_EQ(said.count("ended before the broker accepted it"), 1);
 }
 
@@ -380,7 +396,7 @@ WatcherOptions every_topic() {
 
 TEST(MqttBridge, MetaAndHomeAssistantDiscoveryDescribeEveryPolledParameter) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_topic());
     auto gateway = open_discovering_gateway(broker, R"("measured_value", "set_point", "control_state", "alarm_1_state")");
     const auto any = [](const std::string&) { return true; };
@@ -445,7 +461,7 @@ TEST(MqttBridge, MetaAndHomeAssistantDiscoveryDescribeEveryPolledParameter) {
 // loop; set to °F on the device, every document says °F.
 TEST(MqttBridge, HomeAssistantSeesTheTc10AsAThermostatInTheUnitItIsSetTo) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_topic());
     auto gateway = open_discovering_gateway(broker, R"("measured_value", "set_point", "temperature_unit")");
     const auto in_unit = [](const char* key, const char* unit) {
@@ -483,7 +499,7 @@ TEST(MqttBridge, HomeAssistantSeesTheTc10AsAThermostatInTheUnitItIsSetTo) {
 // number, the thermostat and /meta say so.
 TEST(MqttBridge, HomeAssistantAndMetaShowTheLimitsTheDeviceHolds) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_topic());
     auto gateway = open_discovering_gateway(broker, R"("measured_value", "set_point", "set_point_high_limit")");
     const auto with_number = [](const char* key, double wanted) {
@@ -610,7 +626,7 @@ discovery_prefix = "ha/x"
 
 TEST(MqttBridge, RepublishesUnchangedValuesEveryInterval) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port());
     auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), false, "republish = \"300ms\"", {},
                                 "plant.toml", R"("set_point")");
@@ -625,7 +641,7 @@ TEST(MqttBridge, RepublishesUnchangedValuesEveryInterval) {
 
 TEST(MqttBridge, AWriteToADeviceThatDoesNotAnswerIsRefusedAtOnce) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port());
     auto silent = std::make_shared<std::atomic<bool>>(false);
     GatewayOptions options;
@@ -649,7 +665,7 @@ TEST(MqttBridge, AWriteToADeviceThatDoesNotAnswerIsRefusedAtOnce) {
 
 TEST(MqttBridge, WhatChangedWhileTheBrokerWasAwayIsPublishedOnReturn) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     auto silent = std::make_shared<std::atomic<bool>>(false);
     GatewayOptions options;
     options.virtual_bus_faults = [silent](const std::string&, ByteView bytes) {
@@ -676,15 +692,10 @@ TEST(MqttBridge, WhatChangedWhileTheBrokerWasAwayIsPublishedOnReturn) {
     broker.stop();
     // While the broker is away the oven stops answering: its value becomes "no-reply".
     *silent = true;
-    const auto give_up = std::chrono::steady_clock::now() + deadline;
-    for (;;) {
-        {
-            std::lock_guard lock(mutex);
-            if (latest == "no-reply") break;
-        }
-        ASSERT_LT(std::chrono::steady_clock::now(), give_up) << "the polls never found the oven silent";
-        std::this_thread::sleep_for(50ms);
-    }
+    ASSERT_TRUE(eventually([&] {
+        std::lock_guard lock(mutex);
+        return latest == "no-reply";
+    })) << "the polls never found the oven silent";
     broker.start();
     Watcher watcher(broker.port());
     ASSERT_TRUE(watcher.wait_for(prefix + "/status", "online"));
@@ -733,9 +744,9 @@ TEST(MqttBridge, TlsWithAPasswordAndAWrongPasswordRetried) {
     ASSERT_TRUE(run({"mosquitto_passwd", "-c", "-b", passwords.string(), "gateway", "right-one"}, log));
     ASSERT_TRUE(run({"mosquitto_passwd", "-b", passwords.string(), "watcher", "watching"}, log));
     fs::permissions(passwords, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::others_read);
-    Broker broker(free_port(), fmt::format("cafile {}\ncertfile {}\nkeyfile {}\nallow_anonymous false\npassword_file {}\n",
-                                           certificates.ca.string(), certificates.server_cert.string(),
-                                           certificates.server_key.string(), passwords.string()));
+    Broker broker(fmt::format("cafile {}\ncertfile {}\nkeyfile {}\nallow_anonymous false\npassword_file {}\n",
+                              certificates.ca.string(), certificates.server_cert.string(),
+                              certificates.server_key.string(), passwords.string()));
     WatcherOptions options;
     options.ca_file = certificates.ca.string();
     options.username = "watcher";
@@ -902,7 +913,7 @@ private:
 
 TEST(MqttBridge, PayloadsThatAreNotUtf8OrTooLongAreRefusedAndTheNextWriteGoes) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port());
     LogLines lines;
     GatewayOptions options;
@@ -946,7 +957,7 @@ TEST(MqttBridge, PayloadsThatAreNotUtf8OrTooLongAreRefusedAndTheNextWriteGoes) {
 
 TEST(MqttBridge, AWriteToOneLineIsAnsweredWhileAnotherLineHoldsItsWrites) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port());
     support::SilencedUnit kiln(4);
     const std::string text = fmt::format(R"toml(
@@ -994,11 +1005,7 @@ writes = true
     // The kiln stops answering: its line waits out 4 s for each request, and writes to the kiln
     // wait for it, in order.
     kiln.silence();
-    const auto give_up = std::chrono::steady_clock::now() + deadline;
-    while (kiln.lost() == 0) {
-        ASSERT_LT(std::chrono::steady_clock::now(), give_up) << "nothing of the kiln's reached its line";
-        std::this_thread::sleep_for(20ms);
-    }
+    ASSERT_TRUE(eventually([&] { return kiln.lost() > 0; })) << "nothing of the kiln's reached its line";
     for (int i = 0; i < 3; ++i) watcher.publish(prefix + "/kiln/set_point/set", std::to_string(100 + i));
     // A write to the oven's line is answered while the kiln's wait.
     watcher.publish(prefix + "/oven/set_point/set", "190");
@@ -1066,7 +1073,7 @@ TEST(MqttBridge, ASetRedeliveredAfterAReconnectIsWrittenOnce) {
 // the device's line, and the MQTT front publishes what the next poll read.
 TEST(MqttBridge, TheSparkplugNodeAndTheMqttFrontShareTheBrokerAndTheDevice) {
     REQUIRE_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_topic());
     const std::string url = fmt::format("mqtt://127.0.0.1:{}", broker.port());
     auto gateway = open_gateway(url, false, fmt::format("\n[sparkplug]\nbroker = \"{}\"\ngroup_id = \"plant\"\nwrites = true\n", url));

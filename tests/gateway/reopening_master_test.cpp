@@ -23,6 +23,7 @@
 #include "session/slave.hpp"
 #include "simulation/register_bank.hpp"
 #include "simulation/simulated_lines.hpp"
+#include "support/eventually.hpp"
 #include "support/thread_names.hpp"
 #include "transport/virtual_bus.hpp"
 
@@ -352,17 +353,6 @@ private:
     std::shared_ptr<HeldLinkScript> script_;
 };
 
-// Polls `ready` until it holds; fails loudly after 30 s (the worker closes the link on its own thread).
-template <typename Ready>
-::testing::AssertionResult eventually(Ready ready, const char* what) {
-    const auto give_up = std::chrono::steady_clock::now() + 30s;
-    while (!ready()) {
-        if (std::chrono::steady_clock::now() > give_up) return ::testing::AssertionFailure() << "never: " << what;
-        std::this_thread::sleep_for(1ms);
-    }
-    return ::testing::AssertionSuccess();
-}
-
 // LinkConcurrency::several: requests reach the open link together instead of one at a time by
 // the worker; a link failure one of them meets on the link's own thread takes the line down, and
 // the link is closed on another thread (never its own, which would wait for itself).
@@ -393,7 +383,7 @@ TEST(ConcurrentReopeningMaster, CarriesSeveralAtOnceAndClosesALinkThatFailedUnde
     // The connection drops: the link's reader thread fails the next request.
     std::thread reader([&] { first->oldest()(make_error(ErrorKind::link, "connection to 192.0.2.7:502 lost: reset")); });
     reader.join();
-    ASSERT_TRUE(eventually([&] { return first->closed.load(); }, "the failed link was closed"));
+    ASSERT_TRUE(loopwire::testing::eventually([&] { return first->closed.load(); })) << "never: the failed link was closed";
     EXPECT_NE(first->closed_on, std::thread::id()) << "closed without a thread";
     EXPECT_NE(first->closed_on, std::this_thread::get_id());
     {
@@ -545,14 +535,14 @@ TEST(ReopeningMasterOnALoop, AnUpLineHasNoThreadOfItsOwnAndItsWorkerEndsOnceTheL
     auto failed = ask();
     ASSERT_FALSE(failed);
     EXPECT_THAT(failed.error().message, HasSubstr("unplugged"));
-    ASSERT_TRUE(eventually([&] { return !line.health().up; }, "the line went down"));
+    ASSERT_TRUE(loopwire::testing::eventually([&] { return !line.health().up; })) << "never: the line went down";
 
     *broken = false;
     clock->advance(1s);
     EXPECT_EQ(ask().value(), normal_reply());
     EXPECT_TRUE(line.health().up);
     EXPECT_EQ(opened.load(), 2);
-    EXPECT_TRUE(eventually([] { return testing::threads_named_like("lw-line ") == 0; }, "the worker ended once idle"));
+    EXPECT_TRUE(loopwire::testing::eventually([] { return testing::threads_named_like("lw-line ") == 0; })) << "never: the worker ended once idle";
     EXPECT_EQ(ask().value(), normal_reply());
 }
 

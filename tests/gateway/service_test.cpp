@@ -19,6 +19,7 @@
 
 #include "gateway/gateway.hpp"
 #include "gateway/service.hpp"
+#include "support/eventually.hpp"
 #include "support/history_test_support.hpp"
 #include "support/loopback_client.hpp"
 #include "support/loopback_listener.hpp"
@@ -27,6 +28,7 @@
 namespace loopwire::gateway {
 namespace {
 
+using loopwire::testing::eventually;
 using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 
@@ -187,17 +189,6 @@ TEST_F(GatewayService, AReloadThatCannotBeServedGivesWayToThePreviousConfigurati
     EXPECT_THAT(recorded.warning[0], HasSubstr("going back to the previous one"));
 }
 
-// Polls `done` every 10 ms until it holds or `limit` passes; false then.
-template <typename Condition>
-bool within(std::chrono::milliseconds limit, Condition done) {
-    const auto deadline = std::chrono::steady_clock::now() + limit;
-    while (!done()) {
-        if (std::chrono::steady_clock::now() > deadline) return false;
-        std::this_thread::sleep_for(10ms);
-    }
-    return true;
-}
-
 // A reload that leaves a line alone keeps it open - the line's figures go on
 // from where they were, its polls carry on, it never goes down - and one that changes the line
 // (here its timeout) opens it afresh.
@@ -212,7 +203,7 @@ TEST_F(GatewayService, AReloadKeepsTheLinesItLeavesAloneOpen) {
     hooks.serving = [&](const GatewayConfig&, const Gateway& gateway) {
         at_start.push_back(gateway.report().at(0).statistics);
         const auto answered_before = at_start.back().answered;
-        const bool polled = within(30s, [&] { return gateway.report().at(0).statistics.answered >= answered_before + 3; });
+        const bool polled = eventually([&] { return gateway.report().at(0).statistics.answered >= answered_before + 3; }, 30s);
         EXPECT_TRUE(polled) << "round " << at_start.size() << ": the line's polls were not answered";
         at_end.push_back(gateway.report().at(0).statistics);
         health.push_back(gateway.report().at(0).link_health);

@@ -21,6 +21,7 @@
 #include "gateway/engine.hpp"
 #include "gateway/sparkplug/sparkplug_node.hpp"
 #include "sparkplug/sparkplug_b.pb.h"
+#include "support/eventually.hpp"
 #include "support/history_test_support.hpp"
 #include "support/log_lines.hpp"
 #include "support/mosquitto_broker.hpp"
@@ -32,7 +33,7 @@ using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 using Payload = loopwire::sparkplug::b::Payload;
 using loopwire::testing::Broker;
-using loopwire::testing::free_port;
+using loopwire::testing::eventually;
 using loopwire::testing::Watcher;
 
 const std::string nbirth = "spBv1.0/plant/NBIRTH/edge1";
@@ -170,16 +171,6 @@ std::string power_command(std::uint32_t power) {
     return command.SerializeAsString();
 }
 
-// Waits until `count` lines of `log` hold `part`.
-bool wait_for_lines(loopwire::testing::LogLines& log, const std::string& part, int count) {
-    const auto give_up = std::chrono::steady_clock::now() + loopwire::testing::deadline;
-    while (log.count(part) < count) {
-        if (std::chrono::steady_clock::now() > give_up) return false;
-        std::this_thread::sleep_for(10ms);
-    }
-    return true;
-}
-
 std::string rebirth_command() {
     Payload command;
     auto* metric = command.add_metrics();
@@ -191,7 +182,7 @@ std::string rebirth_command() {
 
 TEST(SparkplugNode, BirthsDataDeathsAndARebirthKeepTheirOrderAndAliases) {
     SKIP_WITHOUT_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_sparkplug_topic());
     NodeFixture node(broker);
 
@@ -253,7 +244,7 @@ TEST(SparkplugNode, BirthsDataDeathsAndARebirthKeepTheirOrderAndAliases) {
 // state file before it connects; a file that holds no bdSeq is said and counting starts at 0.
 TEST(SparkplugNode, BdSeqCountsOnAcrossRestartsThroughItsStateFile) {
     SKIP_WITHOUT_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_sparkplug_topic());
     const loopwire::testing::TempFolder folder("loopwire-sparkplug");
     const auto file = folder.path / "sparkplug.state";
@@ -274,7 +265,7 @@ TEST(SparkplugNode, BdSeqCountsOnAcrossRestartsThroughItsStateFile) {
 
 TEST(SparkplugNode, AStaleValueIsNullWithItsQualityNeverItsOldNumber) {
     SKIP_WITHOUT_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_sparkplug_topic());
     auto clock = std::make_shared<VirtualClock>();
     NodeFixture node(broker, {}, clock);
@@ -297,7 +288,7 @@ TEST(SparkplugNode, AStaleValueIsNullWithItsQualityNeverItsOldNumber) {
 
 TEST(SparkplugNode, CommandsTheNodeCannotTakeAreRefusedInWords) {
     SKIP_WITHOUT_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_sparkplug_topic());
     NodeFixture node(broker);  // writes off
     node.device.answer(node.cache, 21.5, 40, "auto");
@@ -325,7 +316,7 @@ TEST(SparkplugNode, CommandsTheNodeCannotTakeAreRefusedInWords) {
 
 TEST(SparkplugNode, BirthsWaitForThePrimaryHostAndADeathFollowsItsGoingOffline) {
     SKIP_WITHOUT_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_sparkplug_topic());
     NodeFixture node(broker, "scada");
     node.device.answer(node.cache, 21.5, 40, "auto");
@@ -352,7 +343,7 @@ TEST(SparkplugNode, BirthsWaitForThePrimaryHostAndADeathFollowsItsGoingOffline) 
 // again after a reconnection. A live DCMD still goes to the writer.
 TEST(SparkplugNode, ARetainedCommandIsRefusedLiveAndAfterEveryReconnection) {
     SKIP_WITHOUT_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_sparkplug_topic());
     NodeFixture node(broker, "scada", steady_clock(), true);
     watcher.publish(host_state, state(true, 1), true);
@@ -388,14 +379,14 @@ TEST(SparkplugNode, ARetainedCommandIsRefusedLiveAndAfterEveryReconnection) {
     ASSERT_TRUE(watcher.nth(ndeath, 1));
     watcher.publish(host_state, state(true, 3), true);
     ASSERT_TRUE(watcher.nth(nbirth, 2));
-    EXPECT_TRUE(wait_for_lines(node.log, refused_retained, 2))
+    EXPECT_TRUE(eventually([&] { return node.log.count(refused_retained) >= 2; }))
         << "the retained DCMD was not refused after the reconnection";
     EXPECT_EQ(node.log.count("DCMD to d1 refused"), 3) << "every DCMD but the live one was refused as retained";
 }
 
 TEST(SparkplugNode, AStateOlderThanTheLastTakenChangesNothing) {
     SKIP_WITHOUT_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_sparkplug_topic());
     NodeFixture node(broker, "scada");
     watcher.publish(host_state, state(true, 1000), true);
@@ -417,7 +408,7 @@ TEST(SparkplugNode, AStateOlderThanTheLastTakenChangesNothing) {
 // every NDEATH the bdSeq of the NBIRTH before it, and no death is sent twice.
 TEST(SparkplugNode, UnderStateFlapsEachBirthCarriesItsOwnSessionsBdSeq) {
     SKIP_WITHOUT_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_sparkplug_topic());
     auto node = std::make_unique<NodeFixture>(broker, "scada");
     constexpr int flaps = 100;
@@ -434,11 +425,7 @@ TEST(SparkplugNode, UnderStateFlapsEachBirthCarriesItsOwnSessionsBdSeq) {
             std::find_if(order.rbegin(), order.rend(), [](const auto& m) { return m.first == host_state; });
         return last_state != order.rbegin();
     };
-    const auto give_up = std::chrono::steady_clock::now() + loopwire::testing::deadline;
-    while (!born_after_the_last_state()) {
-        ASSERT_LT(std::chrono::steady_clock::now(), give_up) << "no NBIRTH after the host's last STATE (online)";
-        std::this_thread::sleep_for(10ms);
-    }
+    ASSERT_TRUE(eventually(born_after_the_last_state)) << "no NBIRTH after the host's last STATE (online)";
     node.reset();  // a clean stop: its NDEATH, acknowledged
     const std::string marker = "spBv1.0/plant/TEST/edge1";
     watcher.publish(marker, "after the node's last message");

@@ -33,8 +33,10 @@ Loopback listen_on_loopback() {
 }
 
 // Reads `count` requests, then answers them in reverse order: each reply carries its request's
-// start address as the register value, so a mix-up shows.
-void answer_in_reverse(transport::TcpListener& listener, std::size_t count) {
+// start address as the register value, so a mix-up shows. The connection is handed to
+// `connection`, for the test to keep open until the master has read the replies.
+void answer_in_reverse(transport::TcpListener& listener, std::size_t count,
+                       std::unique_ptr<transport::ByteStream>& connection) {
     auto client = listener.accept(2s);
     ASSERT_TRUE(client.ok() && *client);
     codec::MbapDecoder decoder;
@@ -55,7 +57,7 @@ void answer_in_reverse(transport::TcpListener& listener, std::size_t count) {
         ASSERT_TRUE(pdu.ok());
         ASSERT_TRUE((*client)->write(codec::mbap_encode(it->transaction, it->unit, *pdu)).ok());
     }
-    std::this_thread::sleep_for(200ms);  // keep the connection until the master has read
+    connection = std::move(*client);
 }
 
 // A read of holding register 0 of unit 1, sent without waiting: its outcome comes in the future.
@@ -69,7 +71,8 @@ std::future<Result<codec::Reply>> read_later(Master& master) {
 
 TEST(TcpMaster, MatchesOutOfOrderRepliesByTransactionId) {
     auto [listener, link] = listen_on_loopback();
-    std::thread server([&, l = listener.get()] { answer_in_reverse(*l, 3); });
+    std::unique_ptr<transport::ByteStream> connection;  // open until the test has its replies
+    std::thread server([&, l = listener.get()] { answer_in_reverse(*l, 3, connection); });
     auto master = open_master(link, MasterOptions{});
     ASSERT_TRUE(master.ok()) << master.error().message;
     std::vector<std::future<Result<codec::Reply>>> replies;
@@ -163,7 +166,8 @@ TEST(TcpMasterOnALoop, IsReadOnTheLoopAndTimesOutOnItsClock) {
 // from the loop's own thread would wait for a reply read by that very thread: refused.
 TEST(TcpMasterOnALoop, MatchesRepliesAndRefusesABlockingCallFromTheLoop) {
     auto [listener, link] = listen_on_loopback();
-    std::thread server([&, l = listener.get()] { answer_in_reverse(*l, 3); });
+    std::unique_ptr<transport::ByteStream> connection;  // open until the test has its replies
+    std::thread server([&, l = listener.get()] { answer_in_reverse(*l, 3, connection); });
     auto loop = std::make_shared<LineLoop>();
     MasterOptions options;
     options.loop = loop;

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <vector>
 
+#include "support/eventually.hpp"
 #include "tcp_test_client.hpp"
 
 namespace loopwire::session {
@@ -158,12 +159,10 @@ public:
     ~ServerShortOfDescriptors() {
         ::close(command_);  // end of commands: the child exits
         int status = 0;
-        if (::waitpid(pid_, &status, WNOHANG) == 0) {
-            std::this_thread::sleep_for(100ms);
-            if (::waitpid(pid_, &status, WNOHANG) == 0) {
-                ::kill(pid_, SIGKILL);
-                ::waitpid(pid_, &status, 0);
-            }
+        // A moment to exit by itself, then killed.
+        if (!loopwire::testing::eventually([&] { return ::waitpid(pid_, &status, WNOHANG) != 0; }, 1s)) {
+            ::kill(pid_, SIGKILL);
+            ::waitpid(pid_, &status, 0);
         }
         ::close(report_);
     }

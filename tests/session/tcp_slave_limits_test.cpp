@@ -11,12 +11,14 @@
 #include <mutex>
 #include <vector>
 
+#include "support/eventually.hpp"
 #include "support/test_bytes.hpp"
 #include "tcp_test_client.hpp"
 
 namespace loopwire::session {
 namespace {
 
+using loopwire::testing::eventually;
 using loopwire::testing::hex;
 using testing::RawClient;
 using testing::ServedSlave;
@@ -94,17 +96,6 @@ SlaveOptions with_limits(std::size_t max_connections, std::chrono::milliseconds 
     options.tcp.idle_timeout = idle_timeout;
     options.tcp.max_outstanding_requests = max_outstanding;
     return options;
-}
-
-// Waits until `condition` holds, checking every few milliseconds; false after `patience`.
-template <typename Condition>
-bool eventually(Condition condition) {
-    const auto deadline = testing::Clock::now() + patience;
-    while (!condition()) {
-        if (testing::Clock::now() >= deadline) return false;
-        std::this_thread::sleep_for(5ms);  // polling a condition, not waiting for time to pass
-    }
-    return true;
 }
 
 // A read answered, so the client has been served and its connection is known to the server.

@@ -9,8 +9,12 @@
 #include <time.h>
 
 #include <condition_variable>
+#include <future>
 #include <mutex>
 #include <vector>
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/post.hpp>
 
 #include "codec/rtu.hpp"
 #include "support/test_bytes.hpp"
@@ -225,25 +229,34 @@ TEST(TcpSlaveDeferred, AReplyAfterTheServerStoppedIsDropped) {
 // handler when stop is requested reaches the client, then the connection closes.
 TEST(TcpSlaveDeferred, AReplyOwedWhenStopIsRequestedStillReachesTheClient) {
     auto unit = std::make_shared<DeferringUnit>();
-    ServedSlave served(UnitMap{{1, unit}});
-    RawClient client(served.port());
+    Slave slave(*transport::parse_link_url("tcp://127.0.0.1:0"), UnitMap{{1, unit}});
+    auto listener = transport::TcpListener::listen("127.0.0.1", 0);
+    ASSERT_TRUE(listener) << listener.error().message;
+    // The server on a loop of the test's, so the test can see when the stop has reached it.
+    boost::asio::io_context loop;
+    Result<void> served;
+    std::atomic<bool> stopped{false};
+    std::jthread server([&](std::stop_token stop) {
+        served = slave.serve_listener(**listener, std::move(stop), loop);
+        stopped = true;
+    });
+    RawClient client((*listener)->port());
     ASSERT_TRUE(client.send(testing::read_one_register(1, 0)));
     auto held = unit->take(1);
     ASSERT_EQ(held.size(), 1u);
-    std::atomic<bool> stopped{false};
-    std::thread stopper([&] {
-        served.stop();
-        stopped = true;
-    });
-    // Time for the stop to reach the server's loop, which must now wait for the reply owed.
-    std::this_thread::sleep_for(200ms);
+    // The stop request posts the server's stop to its loop before it returns; a handler posted
+    // after it runs once the server has taken the stop, and must now wait for the reply owed.
+    server.request_stop();
+    std::promise<void> stop_taken;
+    boost::asio::post(loop, [&stop_taken] { stop_taken.set_value(); });
+    ASSERT_EQ(stop_taken.get_future().wait_for(30s), std::future_status::ready) << "the server's loop ended first";
     EXPECT_FALSE(stopped) << "the server stopped with a reply still owed";
     held[0].second(hex("03 02 00 2A"));
     EXPECT_EQ(client.receive(11), hex("00 01 00 00 00 05 01 03 02 00 2A"));
     EXPECT_TRUE(client.closed_by_server_within(1000ms));
-    stopper.join();
+    server.join();
     EXPECT_TRUE(stopped);
-    EXPECT_TRUE(served.served_ok());
+    EXPECT_TRUE(served.ok()) << served.error().message;
 }
 
 TEST(TcpSlaveServer, StopsPromptlyWithClientsConnected) {

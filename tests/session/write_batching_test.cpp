@@ -67,7 +67,8 @@ TEST(WriteBatching, ATcpMastersRequestsOfOneRoundGoOutInOneWrite) {
     asio::post(loop, round.sender(**master));
     loop.run();
 
-    const auto reads = served.get();
+    const auto served_requests = served.get();
+    const auto& reads = served_requests.reads;
     ASSERT_FALSE(reads.empty());
     EXPECT_EQ(reads.front(), requests * 12) << "the server's first read brought only part of the round's requests";
     round.expect_answered();

@@ -6,8 +6,9 @@
 #include <functional>
 #include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
+
+#include "support/eventually.hpp"
 
 namespace loopwire::testing {
 
@@ -31,13 +32,8 @@ public:
         return lines_;
     }
     // Waits until a line holds `part`; false at the deadline.
-    bool wait_for(const std::string& part, std::chrono::milliseconds deadline = std::chrono::seconds(30)) {
-        const auto give_up = std::chrono::steady_clock::now() + deadline;
-        while (!has(part)) {
-            if (std::chrono::steady_clock::now() > give_up) return false;
-            std::this_thread::sleep_for(std::chrono::milliseconds(10));
-        }
-        return true;
+    bool wait_for(const std::string& part, std::chrono::milliseconds deadline = default_patience) {
+        return eventually([&] { return has(part); }, deadline);
     }
 
 private:

@@ -1,6 +1,6 @@
 #pragma once
 // A real mosquitto broker for the gateway's MQTT tests (the MQTT front, the Sparkplug B node),
-// on a free loopback port, and a libmosquitto client in the test that watches it as any
+// on a loopback port of its own, and a libmosquitto client in the test that watches it as any
 // subscriber would and publishes for the test.
 #include <gtest/gtest.h>
 
@@ -30,6 +30,8 @@
 #include <fmt/format.h>
 #include <mosquitto.h>
 
+#include "support/eventually.hpp"
+
 extern char** environ;
 
 namespace loopwire::testing {
@@ -40,23 +42,61 @@ inline constexpr const char* broker_program = "/usr/sbin/mosquitto";
 // Generous: CI runs this under ASan and TSan on two loaded cores.
 inline constexpr auto deadline = 30s;
 
-// A port nothing listens on now: bound to port 0 and let go. Another process could take it
-// before the broker does (a small race, accepted for a test; the broker would then fail to
-// start and the test say so).
-inline std::uint16_t free_port() {
-    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-    if (fd < 0) throw std::runtime_error("socket");
+// A loopback port held for a broker before it listens: bound with SO_REUSEADDR and never
+// listening, so the kernel gives the port to nothing else (no other bind to port 0, no outgoing
+// connection's own port) while mosquitto, which binds its listeners with SO_REUSEADDR too, can
+// take it. Unlike a port found free and let go, no other process can take it in between.
+// (mosquitto cannot be told port 0 and report the port it got.)
+class PortReservation {
+public:
+    PortReservation() : fd_(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0)) {
+        if (fd_ < 0) throw std::runtime_error("socket");
+        const int on = 1;
+        sockaddr_in address{};
+        address.sin_family = AF_INET;
+        address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        socklen_t length = sizeof address;
+        if (::setsockopt(fd_, SOL_SOCKET, SO_REUSEADDR, &on, sizeof on) != 0 ||
+            ::bind(fd_, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0 ||
+            ::getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &length) != 0) {
+            ::close(fd_);
+            throw std::runtime_error("cannot reserve a loopback port");
+        }
+        port_ = ntohs(address.sin_port);
+    }
+    ~PortReservation() {
+        if (fd_ >= 0) ::close(fd_);
+    }
+    PortReservation(PortReservation&& other) noexcept : fd_(std::exchange(other.fd_, -1)), port_(other.port_) {}
+    PortReservation& operator=(PortReservation&& other) noexcept {
+        if (this != &other) {
+            if (fd_ >= 0) ::close(fd_);
+            fd_ = std::exchange(other.fd_, -1);
+            port_ = other.port_;
+        }
+        return *this;
+    }
+    PortReservation(const PortReservation&) = delete;
+    PortReservation& operator=(const PortReservation&) = delete;
+
+    std::uint16_t port() const { return port_; }
+
+private:
+    int fd_;
+    std::uint16_t port_ = 0;
+};
+
+// Whether something listens on 127.0.0.1:port now.
+inline bool listening(std::uint16_t port) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (fd < 0) return false;
     sockaddr_in address{};
     address.sin_family = AF_INET;
+    address.sin_port = htons(port);
     address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    socklen_t length = sizeof address;
-    if (::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0 ||
-        ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) != 0) {
-        ::close(fd);
-        throw std::runtime_error("bind");
-    }
+    const bool connected = ::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0;
     ::close(fd);
-    return ntohs(address.sin_port);
+    return connected;
 }
 
 // Readable by all: mosquitto started as root reads its files as the user it drops to.
@@ -68,14 +108,24 @@ inline std::filesystem::path temporary_directory() {
     return pattern;
 }
 
-// A mosquitto broker on 127.0.0.1:port, nothing kept on disk: anonymous, or with the listener
-// settings `settings` (TLS files, a password file) written into its configuration.
+// A mosquitto broker on a loopback port of its own, nothing kept on disk: anonymous, or with the
+// listener settings `settings` (TLS files, a password file) written into its configuration. The
+// constructor returns once it listens. Should its port be taken all the same (a program binding
+// a fixed port with SO_REUSEADDR), it starts again on a fresh one, a few times.
 class Broker {
 public:
-    explicit Broker(std::uint16_t port, const std::string& settings = "allow_anonymous true\n")
-        : port_(port), directory_(temporary_directory()) {
-        std::ofstream(directory_ / "mosquitto.conf") << fmt::format(
-            "per_listener_settings true\npersistence false\nlistener {} 127.0.0.1\n{}", port, settings);
+    explicit Broker(const std::string& settings = "allow_anonymous true\n") : directory_(temporary_directory()) {
+        for (int attempt = 1;; ++attempt) {
+            if (attempt > 1) reservation_ = PortReservation();
+            configure(settings);
+            if (try_start()) return;
+            if (attempt == start_attempts) throw std::runtime_error("mosquitto did not start:\n" + log());
+        }
+    }
+    // On a port reserved beforehand: a broker that a gateway was told of before it started.
+    explicit Broker(PortReservation reservation, const std::string& settings = "allow_anonymous true\n")
+        : reservation_(std::move(reservation)), directory_(temporary_directory()) {
+        configure(settings);
         start();
     }
     ~Broker() {
@@ -86,20 +136,10 @@ public:
     Broker(const Broker&) = delete;
     Broker& operator=(const Broker&) = delete;
 
+    // Starts the broker (again, after stop(): the same port, nothing kept of before); returns once
+    // it listens.
     void start() {
-        const std::string config = (directory_ / "mosquitto.conf").string();
-        const std::string log = (directory_ / "broker.log").string();
-        posix_spawn_file_actions_t actions;
-        posix_spawn_file_actions_init(&actions);
-        posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-        posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
-        std::vector<std::string> words{broker_program, "-c", config};
-        std::vector<char*> argv;
-        for (auto& word : words) argv.push_back(word.data());
-        argv.push_back(nullptr);
-        const int rc = posix_spawn(&pid_, broker_program, &actions, nullptr, argv.data(), environ);
-        posix_spawn_file_actions_destroy(&actions);
-        if (rc != 0) throw std::runtime_error("cannot start mosquitto");
+        if (!try_start()) throw std::runtime_error("mosquitto did not start:\n" + log());
     }
     void stop() {
         if (pid_ <= 0) return;
@@ -109,14 +149,49 @@ public:
     }
     // SIGHUP: mosquitto reads its password file again.
     void reload() const { ::kill(pid_, SIGHUP); }
-    std::uint16_t port() const { return port_; }
+    std::uint16_t port() const { return reservation_.port(); }
     std::string log() const {
         std::ifstream in(directory_ / "broker.log");
         return std::string(std::istreambuf_iterator<char>(in), {});
     }
 
 private:
-    std::uint16_t port_;
+    static constexpr int start_attempts = 5;
+
+    void configure(const std::string& settings) const {
+        std::ofstream(directory_ / "mosquitto.conf") << fmt::format(
+            "per_listener_settings true\npersistence false\nlistener {} 127.0.0.1\n{}", port(), settings);
+    }
+
+    // Spawns mosquitto and waits until it listens (true) or has exited (false: its log says why,
+    // a port taken or a setting refused).
+    bool try_start() {
+        const std::string config = (directory_ / "mosquitto.conf").string();
+        const std::string log_file = (directory_ / "broker.log").string();
+        posix_spawn_file_actions_t actions;
+        posix_spawn_file_actions_init(&actions);
+        posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log_file.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+        posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+        std::vector<std::string> words{broker_program, "-c", config};
+        std::vector<char*> argv;
+        for (auto& word : words) argv.push_back(word.data());
+        argv.push_back(nullptr);
+        const int rc = posix_spawn(&pid_, broker_program, &actions, nullptr, argv.data(), environ);
+        posix_spawn_file_actions_destroy(&actions);
+        if (rc != 0) throw std::runtime_error("cannot start mosquitto");
+        bool exited = false;
+        const bool up = eventually(
+            [&] {
+                exited = ::waitpid(pid_, nullptr, WNOHANG) == pid_;
+                return exited || listening(port());
+            },
+            deadline);
+        if (exited) pid_ = -1;
+        if (!up) throw std::runtime_error("mosquitto did not listen in time:\n" + log());
+        return !exited;
+    }
+
+    PortReservation reservation_;
     std::filesystem::path directory_;
     pid_t pid_ = -1;
 };
@@ -159,12 +234,9 @@ public:
             watcher.messages_[message->topic].push_back({std::move(payload), message->retain});
             watcher.arrived_.notify_all();
         });
-        // The broker may still be starting: try until the deadline.
-        const auto give_up = std::chrono::steady_clock::now() + deadline;
-        while (mosquitto_connect(client_, "127.0.0.1", port, 30) != MOSQ_ERR_SUCCESS) {
-            if (std::chrono::steady_clock::now() > give_up) throw std::runtime_error("the broker did not start");
-            std::this_thread::sleep_for(50ms);
-        }
+        // The broker may still be starting (one started again after a stop): try until the deadline.
+        const auto connected = [&] { return mosquitto_connect(client_, "127.0.0.1", port, 30) == MOSQ_ERR_SUCCESS; };
+        if (!eventually(connected, deadline, 50ms)) throw std::runtime_error("the broker did not start");
         // Before the loop's thread starts, and not from a callback: libmosquitto calls those
         // holding a lock that a subscribe or publish there would take out of order.
         if (mosquitto_subscribe(client_, nullptr, options.topics.c_str(), 1) != MOSQ_ERR_SUCCESS) {

@@ -46,7 +46,7 @@ public:
         std::string pattern = (std::filesystem::temp_directory_path() / "loopwire-pg-XXXXXX").string();
         if (!::mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed");
         folder_ = pattern;
-        port_ = free_port();
+        port_ = socket_number();
         if (::geteuid() == 0) {
             const passwd* user = ::getpwnam("postgres");
             if (::chown(folder_.c_str(), user->pw_uid, user->pw_gid) != 0) throw std::runtime_error("chown failed");
@@ -92,10 +92,10 @@ private:
     std::string data() const { return (folder_ / "data").string(); }
     std::string log_file() const { return (folder_ / "server.log").string(); }
 
-    // A port the kernel had free: the socket's name carries it, and a test run in parallel
-    // with another cluster in the same folder never happens (each has its own folder), but a
-    // fixed number would read as if it mattered.
-    static int free_port() {
+    // The number in the name of the server's Unix socket: the server listens on no TCP port
+    // (listen_addresses is empty) and its socket lies in its own folder, so nothing can race
+    // for the number. One the kernel had free, as a fixed number would read as if it mattered.
+    static int socket_number() {
         const int s = ::socket(AF_INET, SOCK_STREAM, 0);
         sockaddr_in address{};
         address.sin_family = AF_INET;

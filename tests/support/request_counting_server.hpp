@@ -1,14 +1,15 @@
 #pragma once
 // A Modbus TCP server for tests of how requests reach a device: it reads until it has `count`
 // requests, noting how many bytes each read brought (one read of all of them: they came in one
-// write), then answers each with its start address as the value.
+// write), then answers each with its start address as the value, and hands the connection over
+// for the test to keep open while the master reads.
 #include <gtest/gtest.h>
 
 #include <array>
 #include <chrono>
 #include <functional>
 #include <future>
-#include <thread>
+#include <memory>
 #include <vector>
 
 #include "codec/pdu.hpp"
@@ -18,32 +19,39 @@
 
 namespace loopwire::testing {
 
-inline std::vector<std::size_t> serve_requests(transport::TcpListener& listener, std::size_t count) {
-    std::vector<std::size_t> reads;
+struct ServedRequests {
+    std::vector<std::size_t> reads;  // the bytes each read brought
+    // Open while the test holds it: the master reads the replies before the connection closes.
+    std::unique_ptr<transport::ByteStream> connection;
+};
+
+inline ServedRequests serve_requests(transport::TcpListener& listener, std::size_t count) {
+    ServedRequests served;
+    std::vector<std::size_t>& reads = served.reads;
     auto client = listener.accept(std::chrono::seconds(5));
-    if (!client.ok() || !*client) return reads;
+    if (!client.ok() || !*client) return served;
     codec::MbapDecoder decoder;
     std::vector<codec::Frame> requests;
     std::array<std::uint8_t, 1024> buffer{};
     while (requests.size() < count) {
         auto n = (*client)->read_some(buffer, std::chrono::seconds(5));
-        if (!n.ok() || *n == 0) return reads;
+        if (!n.ok() || *n == 0) return served;
         reads.push_back(*n);
         auto frames = decoder.feed(ByteView(buffer.data(), *n));
-        if (!frames.ok()) return reads;
+        if (!frames.ok()) return served;
         requests.insert(requests.end(), frames->begin(), frames->end());
     }
     Bytes replies;
     for (const auto& request : requests) {
         auto decoded = codec::decode_request(request.pdu);
-        if (!decoded.ok()) return reads;
+        if (!decoded.ok()) return served;
         auto pdu = codec::encode_reply({3, codec::ReplyKind::normal, 0, decoded->address, 1, {decoded->address}});
         const Bytes frame = codec::mbap_encode(request.transaction, request.unit, *pdu);
         replies.insert(replies.end(), frame.begin(), frame.end());
     }
     (void)(*client)->write(replies);
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));  // keep the connection until the master has read
-    return reads;
+    served.connection = std::move(*client);
+    return served;
 }
 
 // `count` reads of one register each, at addresses from `first`, sent on a master all from one

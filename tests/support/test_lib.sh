@@ -114,16 +114,30 @@ wait_for_log() {
 }
 
 # start_mosquitto LIFETIME [CONFIG_LINE]... : a mosquitto broker (Debian's /usr/sbin/mosquitto) for
-# LIFETIME seconds on a loopback port nothing listens on now (mosquitto cannot be given port 0; a
-# small race, accepted), with the extra configuration lines given; returns once it runs, its
-# port in MQTT_PORT and its log in $WORK_DIR/broker.log.
+# LIFETIME seconds on a loopback port nothing listens on now, with the extra configuration lines
+# given; returns once it runs, its port in MQTT_PORT and its log in $WORK_DIR/broker.log.
+# mosquitto cannot be given port 0 and name the port it got, so the port is one the kernel had
+# free a moment before; should another process take it in between, the broker says so and
+# exits, and it is started again on a fresh port (a few times, then the test fails).
 start_mosquitto() {
-    local lifetime=$1
+    local lifetime=$1 attempt
     shift
-    MQTT_PORT=$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-    printf '%s\n' "listener $MQTT_PORT 127.0.0.1" "allow_anonymous true" "persistence false" "$@" >"$WORK_DIR/mosquitto.conf"
-    start_background broker.log timeout "$lifetime" /usr/sbin/mosquitto -c "$WORK_DIR/mosquitto.conf"
-    wait_for_text "$WORK_DIR/broker.log" "running" 30
+    for attempt in 1 2 3 4 5; do
+        MQTT_PORT=$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+        printf '%s\n' "listener $MQTT_PORT 127.0.0.1" "allow_anonymous true" "persistence false" "$@" >"$WORK_DIR/mosquitto.conf"
+        start_background broker.log timeout "$lifetime" /usr/sbin/mosquitto -c "$WORK_DIR/mosquitto.conf"
+        wait_for 30 "mosquitto to run or exit" mosquitto_settled "$LAST_PID"
+        grep -qsF "running" "$WORK_DIR/broker.log" && return 0
+        grep -qsF "Address already in use" "$WORK_DIR/broker.log" ||
+            fail "mosquitto did not start: $(tail -n 20 "$WORK_DIR/broker.log")"
+        echo "mosquitto's port $MQTT_PORT was taken before it bound it (attempt $attempt): another port"
+    done
+    fail "mosquitto found its port taken $attempt times"
+}
+
+# mosquitto_settled PID : whether the broker runs, or its process (PID) has ended.
+mosquitto_settled() {
+    grep -qsF "running" "$WORK_DIR/broker.log" || ! kill -0 "$1" 2>/dev/null
 }
 
 # socat_pair A B : a connected pseudo-terminal pair with links at the two paths.

@@ -139,7 +139,6 @@ TEST(PseudoTerminal, ReadTimesOutWithZeroBytes) {
     ASSERT_TRUE(got);
     EXPECT_EQ(*got, 0u);
     EXPECT_GE(elapsed, 30ms);
-    EXPECT_LT(elapsed, 2s);
 }
 
 TEST(PseudoTerminal, UnlimitedTimeoutStillReturnsWhatArrived) {

@@ -170,7 +170,6 @@ TEST_F(SerialPort, ReadTimesOutWithZeroBytes) {
     ASSERT_TRUE(got) << got.error().message;
     EXPECT_EQ(*got, 0u);
     EXPECT_GE(elapsed, 40ms);
-    EXPECT_LT(elapsed, 2s);
 }
 
 // Far more than the terminal buffers hold: write() must carry on through partial writes
