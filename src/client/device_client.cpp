@@ -7,7 +7,7 @@
 
 #include <fmt/format.h>
 
-#include "client/device_identity.hpp"
+#include "client/identity_check.hpp"
 #include "codec/pdu.hpp"
 #include "common/text_parsing.hpp"
 

@@ -15,7 +15,7 @@ enum class DeviceStatus {
     no_reply,   // this sample's poll timed out
     line_down,  // the link the device is on failed or is down, so it could not be asked
     stale,      // the gateway's: its last poll answered but the next is long overdue (gateway/value_cache.hpp)
-    // The unit answers as another device: its identification words (client/device_identity.hpp)
+    // The unit answers as another device: its identification words (client/identity_check.hpp)
     // read something else than the profile expects, so none of its words are taken for values.
     wrong_device,
 };

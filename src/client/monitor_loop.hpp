@@ -24,7 +24,7 @@ struct MonitorTarget {
     // the device while it names a time, and keeps no back-off of its own, so the two cannot
     // compound. Unset (`loopwire monitor`): the poller's own back-off, as described below.
     std::function<std::optional<MonitorClock::time_point>()> held_until;
-    // Whether the poller checks the unit is the device named (client/device_identity.hpp): its
+    // Whether the poller checks the unit is the device named (client/identity_check.hpp): its
     // profile's identification words are read with the first poll and the first after every
     // outage, and a unit that answers as another device is `wrong-device`, none of its words
     // taken for values. `loopwire monitor --no-identify` and the gateway's `identify = false`.

@@ -4,7 +4,7 @@
 
 #include <fmt/format.h>
 
-#include "client/device_identity.hpp"
+#include "client/identity_check.hpp"
 #include "common/never_sent.hpp"
 
 namespace loopwire::device {

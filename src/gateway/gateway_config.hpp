@@ -34,7 +34,7 @@ struct DeviceConfig {
     std::uint8_t tcp_unit = 0;              // the unit id Modbus TCP clients use (default: the device's unit)
     std::chrono::milliseconds poll{1000};   // interval of the parameters polled
     std::vector<std::string> parameters;    // empty: the profile's default watch list
-    // Whether its polls check the unit is that device (client/device_identity.hpp) at start and
+    // Whether its polls check the unit is that device (client/identity_check.hpp) at start and
     // after every outage; a unit that answers as another is `wrong-device`, none of its values kept.
     bool identify = true;
 

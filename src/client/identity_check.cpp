@@ -1,4 +1,4 @@
-#include "client/device_identity.hpp"
+#include "client/identity_check.hpp"
 
 #include <cstdint>
 

@@ -1,8 +1,8 @@
 // The right device or none: the identification words read with a poll decide whether the poll
-// is of the device named (client/device_identity.hpp, client/monitor_state.hpp).
+// is of the device named (client/identity_check.hpp, client/monitor_state.hpp).
 #include <gtest/gtest.h>
 
-#include "client/device_identity.hpp"
+#include "client/identity_check.hpp"
 #include "client/monitor_state.hpp"
 #include "client/read_report_of.hpp"
 #include "common/result.hpp"
