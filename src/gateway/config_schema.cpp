@@ -59,7 +59,7 @@ constexpr std::array keys{
               "1"},
     ConfigKey{"lines", "rs485", "boolean or \"auto\"", "false", "true, false or \"auto\"; a serial line only",
               "Kernel RS-485 direction control (TIOCSRS485): the driver raises RTS while a frame is sent. true: a port "
-              "whose driver lacks it does not open; \"auto\": such a port runs without it, said once in the log. "
+              "whose driver lacks it does not open; \"auto\": such a port runs without it, said in the log when it opens. "
               "Overrides the link URL's rs485.",
               "\"auto\"", true},
     ConfigKey{"lines", "rs485_delay_before", "duration", "0", "1ms..1s, whole milliseconds; a serial line only",

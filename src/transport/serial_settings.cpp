@@ -10,8 +10,6 @@
 #include <array>
 #include <cerrno>
 #include <cstdio>
-#include <mutex>
-#include <set>
 
 #include "transport/file_descriptor.hpp"
 
@@ -133,14 +131,6 @@ Result<void> apply_serial_settings(int fd, const SerialSettings& settings, const
 
 namespace {
 
-// A line reopened after a fault would otherwise repeat the same warning at every reopening.
-bool first_warning_for(const std::string& what) {
-    static std::mutex mutex;
-    static std::set<std::string> warned;
-    const std::lock_guard lock(mutex);
-    return warned.insert(what).second;
-}
-
 int whole_ms(milliseconds delay) { return static_cast<int>(std::clamp<long long>(delay.count(), 0, 1000)); }
 
 }  // namespace
@@ -156,10 +146,10 @@ Result<void> apply_rs485(int fd, const SerialSettings& settings, const std::stri
     const std::string refusal = "kernel RS-485 direction control, which its driver does not support (TIOCSRS485: " +
                                 errno_text(err) + ")";
     if (settings.rs485 == Rs485::if_supported) {
-        if (first_warning_for(what)) {
-            std::fprintf(stderr, "loopwire: warning: %s: rs485=auto asked for %s; running without it\n", what.c_str(),
-                         refusal.c_str());
-        }
+        // Said at each open, which is once for a line that runs (a gateway reopens a port only
+        // after a fault, and logs that too); no record of warnings is kept across opens.
+        std::fprintf(stderr, "loopwire: warning: %s: rs485=auto asked for %s; running without it\n", what.c_str(),
+                     refusal.c_str());
         return {};
     }
     return make_error(ErrorKind::link, what + ": rs485 is on, which asks for " + refusal +

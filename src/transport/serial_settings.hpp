@@ -27,8 +27,8 @@ Result<void> apply_serial_settings(int fd, const SerialSettings& settings, const
 
 // As settings.rs485 says, asks the driver to switch the RS-485 transmitter on while sending (RTS
 // high during the frame, with the settings' delays). A driver without it fails Rs485::on with a
-// link error that says what to do; Rs485::if_supported runs on and warns once per `what` on
-// stderr. Rs485::off does nothing.
+// link error that says what to do; Rs485::if_supported runs on and warns on stderr, once per
+// open. Rs485::off does nothing.
 Result<void> apply_rs485(int fd, const SerialSettings& settings, const std::string& what);
 
 }  // namespace loopwire::transport::detail
