@@ -202,16 +202,16 @@ void add_profile_commands(CLI::App& app, int& exit_code, const ProfileOptions& p
             }
             identity = std::move(*read);
         }
-        const bool json = options->link.json;
+        const bool as_json = options->link.json;
         if (options->id.empty()) {
-            if (json) fmt::print("{}\n", nlohmann::ordered_json{{"unit", options->link.unit}, {"device_identity", *identity}}.dump());
+            if (as_json) fmt::print("{}\n", nlohmann::ordered_json{{"unit", options->link.unit}, {"device_identity", *identity}}.dump());
             else print_identity(options->link, *identity);
             exit_code = exit_ok;
             return;
         }
-        if (identity && !json) print_identity(options->link, *identity);
+        if (identity && !as_json) print_identity(options->link, *identity);
         exit_code = with_registry(profiles, [&](const device::ProfileRegistry& registry) {
-            return run_describe(registry, options->id, options->group, json, identity ? &*identity : nullptr);
+            return run_describe(registry, options->id, options->group, as_json, identity ? &*identity : nullptr);
         });
     });
 }
