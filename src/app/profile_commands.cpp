@@ -97,6 +97,8 @@ std::string groups_text(const device::Profile& p) {
 
 // What the unit on the link says of itself: null where it does not implement it.
 Result<nlohmann::ordered_json> read_identity(const MasterCommandOptions& link) {
+    // Unit 0 broadcasts, and nobody answers a broadcast.
+    if (link.unit == 0) return make_error(ErrorKind::usage, "describe --link asks one unit: give --unit 1 to 255, not 0 (broadcast)");
     auto master = link.open();
     if (!master) return master.error();
     auto identity = device::read_device_identity(**master, static_cast<std::uint8_t>(link.unit));

@@ -57,7 +57,7 @@ constexpr std::array keys{
               "Requests on the wire at once; a Modbus TCP device's replies are paired with requests by transaction id. "
               "Set it to what the device takes at once.",
               "1"},
-    ConfigKey{"lines", "rs485", "boolean or \"auto\"", "false", "true, false or \"auto\"; a serial line only",
+    ConfigKey{"lines", "rs485", "boolean or \"auto\"", "false", "a serial line only",
               "Kernel RS-485 direction control (TIOCSRS485): the driver raises RTS while a frame is sent. true: a port "
               "whose driver lacks it does not open; \"auto\": such a port runs without it, said in the log when it opens. "
               "Overrides the link URL's rs485.",

@@ -38,6 +38,7 @@ expect empty-config-not-written test ! -e "$empty"
 # A unit without Read Device Identification (43/14) answers exception 01h: describe says so.
 check describe-link-without-identification 0 "does not implement Read Device Identification" \
   "$loopwire" describe --link "rtu:$pty" --unit 9
+check describe-link-refuses-broadcast 2 "not 0 (broadcast)" "$loopwire" describe --link "rtu:$pty" --unit 0
 check describe-link-json-null 0 '{"unit":9,"device_identity":null}' "$loopwire" describe --link "rtu:$pty" --unit 9 --json
 
 # RS-485 direction control on a port that has none.
