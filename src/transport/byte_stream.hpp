@@ -17,7 +17,8 @@ using std::chrono::milliseconds;
 enum class Parity { none, even, odd };
 
 // Kernel RS-485 direction control (TIOCSRS485): off; on, where a port whose driver lacks it
-// fails to open; or if_supported ("auto"), where such a port runs without it and says so once.
+// fails to open; or if_supported ("auto"), where such a port runs without it and says so when
+// it opens.
 enum class Rs485 { off, on, if_supported };
 
 // Silence kept on a serial line before each frame, beyond the 3.5 characters RTU needs: in
