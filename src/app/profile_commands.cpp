@@ -1,7 +1,9 @@
 // loopwire devices [--json] and loopwire describe DEVICE [--group G] [--json]: what loopwire
-// knows about each device, straight from its profile.
+// knows about each device, straight from its profile; with --link URL [--unit N], describe also
+// reads what the unit says of itself (Read Device Identification, 43/14).
 #include <algorithm>
 #include <functional>
+#include <optional>
 
 #include <fmt/format.h>
 
@@ -10,6 +12,8 @@
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "app/master_options.hpp"
+#include "client/device_identity.hpp"
 #include "profile/name_matching.hpp"
 #include "profile/value_format.hpp"
 #include "profile/profile.hpp"
@@ -91,7 +95,30 @@ std::string groups_text(const device::Profile& p) {
     return fmt::format("{}", fmt::join(listed, ", "));
 }
 
-int run_describe(const device::ProfileRegistry& profiles, const std::string& id, const std::string& group, bool json) {
+// What the unit on the link says of itself: null where it does not implement it.
+Result<nlohmann::ordered_json> read_identity(const MasterCommandOptions& link) {
+    // Unit 0 broadcasts, and nobody answers a broadcast.
+    if (link.unit == 0) return make_error(ErrorKind::usage, "describe --link asks one unit: give --unit 1 to 255, not 0 (broadcast)");
+    auto master = link.open();
+    if (!master) return master.error();
+    auto identity = device::read_device_identity(**master, static_cast<std::uint8_t>(link.unit));
+    if (!identity) return identity.error();
+    if (!*identity) return nlohmann::ordered_json(nullptr);
+    return device::identity_json(**identity);
+}
+
+void print_identity(const MasterCommandOptions& link, const nlohmann::ordered_json& identity) {
+    if (identity.is_null()) {
+        fmt::print("unit {} does not implement Read Device Identification (function 43/14): it answered exception 01h "
+                   "(illegal function)\n", link.unit);
+        return;
+    }
+    fmt::print("unit {} at {} identifies itself (function 43/14):\n", link.unit, link.link);
+    for (const auto& [name, value] : identity.items()) fmt::print("  {:<20} {}\n", name, value.get<std::string>());
+}
+
+int run_describe(const device::ProfileRegistry& profiles, const std::string& id, const std::string& group, bool json,
+                 const nlohmann::ordered_json* identity) {
     auto profile = profiles.find(id);
     if (!profile) return report_error(profile.error());
     const auto& p = **profile;
@@ -108,8 +135,10 @@ int run_describe(const device::ProfileRegistry& profiles, const std::string& id,
         for (const auto* parameter : shown) list.push_back(parameter_json(*parameter));
         nlohmann::ordered_json aliases = nlohmann::ordered_json::object();
         for (const auto& [alias, name] : p.aliases) aliases[alias] = name;
-        fmt::print("{}\n", nlohmann::ordered_json{{"id", p.id}, {"title", p.title}, {"aliases", aliases},
-                                                  {"groups", device::group_names(p)}, {"parameters", list}}.dump());
+        nlohmann::ordered_json out{{"id", p.id}, {"title", p.title}, {"aliases", aliases}, {"groups", device::group_names(p)}};
+        if (identity) out["device_identity"] = *identity;
+        out["parameters"] = list;
+        fmt::print("{}\n", out.dump());
         return exit_ok;
     }
     fmt::print("{} — {}\n{:<34} {:<8} {:<8} {:>5} {:<3} {:<6} {:<24} {}\n", p.id, p.title, "name", "mnemonic", "table", "addr", "acc", "unit", "range", "meaning");
@@ -148,16 +177,43 @@ void add_profile_commands(CLI::App& app, int& exit_code, const ProfileOptions& p
     struct DescribeOptions {
         std::string id;
         std::string group;
-        bool json = false;
+        MasterCommandOptions link;  // --link, --unit, --timeout, --retries, -v, --json
     };
     auto options = std::make_shared<DescribeOptions>();
-    auto* describe = app.add_subcommand("describe", "Print a device's register map: names, mnemonics, addresses, access, units, ranges");
-    describe->add_option("device", options->id, "Profile id (see `loopwire devices`; --profile FILE.json adds a profile)")->required();
+    auto* describe = app.add_subcommand("describe", "Print a device's register map: names, mnemonics, addresses, access, units, "
+                                                    "ranges; with --link, what the unit says of itself (function 43/14)");
+    describe->add_option("device", options->id, "Profile id (see `loopwire devices`; --profile FILE.json adds a profile); "
+                                                "optional with --link");
     describe->add_option("--group", options->group, "Only this group or menu");
-    describe->add_flag("--json", options->json, "Print the map as JSON");
+    options->link.add_to(*describe);
+    describe->get_option("--link")->required(false)->description(
+        "Also read the unit's Read Device Identification (VendorName, ProductCode, ...) on this link URL");
     describe->callback([options, &exit_code, &profiles] {
+        const bool linked = !options->link.link.empty();
+        if (!linked && options->id.empty()) {
+            exit_code = report_error(make_error(ErrorKind::usage, "describe needs a DEVICE (see `loopwire devices`), or --link URL "
+                                                                  "to ask a unit what it is"));
+            return;
+        }
+        std::optional<nlohmann::ordered_json> identity;
+        if (linked) {
+            auto read = read_identity(options->link);
+            if (!read) {
+                exit_code = report_error(read.error());
+                return;
+            }
+            identity = std::move(*read);
+        }
+        const bool as_json = options->link.json;
+        if (options->id.empty()) {
+            if (as_json) fmt::print("{}\n", nlohmann::ordered_json{{"unit", options->link.unit}, {"device_identity", *identity}}.dump());
+            else print_identity(options->link, *identity);
+            exit_code = exit_ok;
+            return;
+        }
+        if (identity && !as_json) print_identity(options->link, *identity);
         exit_code = with_registry(profiles, [&](const device::ProfileRegistry& registry) {
-            return run_describe(registry, options->id, options->group, options->json);
+            return run_describe(registry, options->id, options->group, as_json, identity ? &*identity : nullptr);
         });
     });
 }

@@ -1,6 +1,8 @@
 // loopwire scan --link URL [--units 1-247] [--bauds 9600,19200] [--parities none,even,odd] [--json]
+//               [--emit-config FILE]
 // Finds the units that answer on a link, optionally sweeping line settings, and identifies each
-// by the profiles' identification words. Each unit is printed as it is found; Ctrl-C ends the
+// by the profiles' identification words and by Read Device Identification where it has it;
+// --emit-config writes a gateway configuration of what it found. Each unit is printed as it is found; Ctrl-C ends the
 // scan with what it found so far (exit 130).
 #include <unistd.h>
 
@@ -16,6 +18,8 @@
 #include "app/scan_report.hpp"
 #include "app/stop_signal.hpp"
 #include "client/scan.hpp"
+#include "client/scan_config.hpp"
+#include "common/atomic_file.hpp"
 
 namespace loopwire::app {
 namespace {
@@ -26,6 +30,7 @@ struct ScanOptions {
     std::string bauds;
     std::string parities;
     std::string timeout = "100ms";
+    std::string emit_config;  // FILE: a gateway configuration of what was found
     bool json = false;
     bool verbose = false;
 };
@@ -81,8 +86,9 @@ void print_found(const device::FoundUnit& f, bool json) {
         std::fflush(stdout);
         return;
     }
-    fmt::print("unit {:>3}  {:<10} {:<12} {}\n", f.unit, f.device.empty() ? "(unknown Modbus device)" : f.device, f.line,
-               f.identification.empty() ? "" : f.identification.dump());
+    fmt::print("unit {:>3}  {:<10} {:<12} {}{}\n", f.unit, f.device.empty() ? "(unknown Modbus device)" : f.device, f.line,
+               f.identification.empty() ? "" : f.identification.dump(),
+               f.device_identity.is_null() ? "" : (f.identification.empty() ? "" : " ") + f.device_identity.dump());
     std::fflush(stdout);
 }
 
@@ -91,7 +97,8 @@ void print_summary(const std::vector<device::FoundUnit>& found, bool json, bool 
         nlohmann::ordered_json list = nlohmann::ordered_json::array();
         for (const auto& f : found) {
             list.push_back({{"unit", f.unit}, {"device", f.device.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(f.device)},
-                            {"identification", f.identification}, {"line", f.line}, {"lines", f.lines}});
+                            {"identification", f.identification}, {"device_identity", f.device_identity},
+                            {"line", f.line}, {"lines", f.lines}});
         }
         nlohmann::ordered_json out{{"units", list}};
         if (interrupted) out["interrupted"] = true;
@@ -140,6 +147,20 @@ void print_warnings(const device::ScanResult& result, const device::UnitScan& sc
     }
 }
 
+// A configuration needs a device to poll: without one identified, nothing is written.
+Result<void> emit_config(const std::string& path, const device::UnitScan& scan, const std::vector<device::FoundUnit>& found) {
+    const bool identified = std::any_of(found.begin(), found.end(), [](const device::FoundUnit& f) { return !f.device.empty(); });
+    if (!identified) {
+        return make_error(ErrorKind::usage, fmt::format("--emit-config {}: no unit answered as a device loopwire has a profile "
+                                                        "for, so there is no device to configure; nothing was written", path));
+    }
+    if (auto written = write_file_atomically(path, device::scan_configuration(scan, found)); !written) {
+        return written.error();
+    }
+    fmt::print(stderr, "loopwire: wrote {}; check it with: loopwire gateway --config {} --check\n", path, path);
+    return {};
+}
+
 int run_scan(const ScanOptions& options) {
     auto units = parse_units(options.units);
     if (!units) return report_error(units.error());
@@ -151,6 +172,10 @@ int run_scan(const ScanOptions& options) {
     if (!scan) return report_error(scan.error());
     auto wait = parse_duration(options.timeout, "--timeout", std::chrono::milliseconds(1));
     if (!wait) return report_error(wait.error());
+    if (!options.emit_config.empty()) {
+        // Said before a long scan, not after it.
+        if (auto writable = check_writable_atomically(options.emit_config); !writable) return report_error(writable.error());
+    }
 
     StopSignal stop;  // before any link's threads start, so only its thread takes Ctrl-C
     ScanProgress progress(::isatty(STDERR_FILENO) == 1);
@@ -159,6 +184,9 @@ int run_scan(const ScanOptions& options) {
     if (!result) return report_error(result.error());
     print_warnings(*result, *scan, options.json);
     print_summary(result->found, options.json, result->interrupted);
+    if (!options.emit_config.empty()) {
+        if (auto written = emit_config(options.emit_config, *scan, result->found); !written) return report_error(written.error());
+    }
     return result->interrupted ? exit_interrupted : exit_ok;
 }
 
@@ -172,6 +200,9 @@ void add_scan_command(CLI::App& app, int& exit_code) {
     command->add_option("--bauds", options->bauds, "Serial: baud rates to sweep, e.g. 9600,19200,38400");
     command->add_option("--parities", options->parities, "Serial: parities to sweep, e.g. none,even,odd");
     command->add_option("--timeout", options->timeout, "Time to wait for each unit")->capture_default_str();
+    command->add_option("--emit-config", options->emit_config,
+                        "Write a gateway configuration (TOML) of the units found to FILE: the line as scanned, a device per "
+                        "unit identified, comments for the rest");
     command->add_flag("--json", options->json, "Print the result as JSON (at the end; without it each unit is printed as it is found)");
     command->add_flag("-v,--verbose", options->verbose, "Print every frame, with timestamps, on stderr");
     command->footer(exit_code_help);

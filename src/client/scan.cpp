@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include "client/device_client.hpp"
+#include "client/device_identity.hpp"
 #include "common/text_parsing.hpp"
 #include "transport/serial_port.hpp"
 
@@ -67,6 +68,10 @@ std::string line_text(const transport::LinkUrl& url) {
 
 // Names the unit by its profile and reads the words that profile shows when it identifies one.
 void identify(session::Master& master, FoundUnit& found) {
+    // A unit that does not answer it in time is scanned on: what it said already proved it there.
+    if (auto identity = read_device_identity(master, static_cast<std::uint8_t>(found.unit)); identity && *identity) {
+        found.device_identity = identity_json(**identity);
+    }
     const auto address = identify_unit(master, found.unit);
     if (!address) return;
     const Profile* profile = address->profile.get();

@@ -24,6 +24,9 @@ struct FoundUnit {
     std::string device;  // the profile id its identification words matched; empty: an unknown Modbus device
     nlohmann::ordered_json identification = nlohmann::ordered_json::object();
     std::vector<std::string> lines;  // every line setting it answered at, in the order tried
+    // What the unit said of itself through Read Device Identification (43/14): object names
+    // and values; null where it does not implement it.
+    nlohmann::ordered_json device_identity = nullptr;
 };
 
 // What a scan tells while it runs, each on the scanning thread; any may be left empty.
@@ -57,11 +60,14 @@ public:
 
     // The settings as people read them: "9600 8N1", or the URL of a network link.
     std::vector<std::string> settings_text() const;
+    // The settings as links, in the same order.
+    const std::vector<transport::LinkUrl>& settings() const { return settings_; }
 
     // Tries every unit at every setting, each with one read of holding register 0 waiting at
     // most `timeout`: any answer, an exception included, proves a unit is there (the TC10
     // refuses address 0 with exception 2); silence, and a gateway's 0Ah or 0Bh, mean nobody.
-    // Each unit found is identified, and listed once however many settings it answered at.
+    // Each unit found is identified (by profile, and by Read Device Identification where it
+    // has it), and listed once however many settings it answered at.
     // `trace` sees every frame. A link that cannot be opened ends the scan with its error.
     Result<ScanResult> run(const std::vector<int>& units, std::chrono::milliseconds timeout, const session::TraceSink& trace,
                            const ScanEvents& events, const std::stop_token& stop, const MasterOpener& open = {}) const;

@@ -57,6 +57,20 @@ constexpr std::array keys{
               "Requests on the wire at once; a Modbus TCP device's replies are paired with requests by transaction id. "
               "Set it to what the device takes at once.",
               "1"},
+    ConfigKey{"lines", "rs485", "boolean or \"auto\"", "false", "a serial line only",
+              "Kernel RS-485 direction control (TIOCSRS485): the driver raises RTS while a frame is sent. true: a port "
+              "whose driver lacks it does not open; \"auto\": such a port runs without it, said in the log when it opens. "
+              "Overrides the link URL's rs485.",
+              "\"auto\"", true},
+    ConfigKey{"lines", "rs485_delay_before", "duration", "0", "1ms..1s, whole milliseconds; a serial line only",
+              "With rs485: RTS is raised this long before the first bit of a frame.", "\"1ms\"", true},
+    ConfigKey{"lines", "rs485_delay_after", "duration", "0", "1ms..1s, whole milliseconds; a serial line only",
+              "With rs485: RTS is held this long after the last bit of a frame.", "\"1ms\"", true},
+    ConfigKey{"lines", "guard", "string", "3.5 characters", "\"Nc\" up to 1000c, or a duration up to 1s; a serial line only",
+              "Silence kept on the line before each request, counted from the last byte sent or received: in "
+              "characters at the line's speed (\"3.5c\") or a time (\"5ms\"). Never less than the 3.5 characters RTU "
+              "needs; more for devices slow to turn around.",
+              "\"5ms\"", true},
     ConfigKey{"lines", "speed", "number", "1.0", "0.001..100000; a simulated line only",
               "Process seconds per real second of the simulated devices, as `loopwire simulate --speed`.", "1.0"},
     ConfigKey{"lines", "seed", "integer", "1", "0..4294967295; a simulated line only",
@@ -230,6 +244,9 @@ constexpr std::array ranges{
     ConfigRange{"lines", "timeout", 1, unbounded},
     // A late reply comes at most a few timeouts late; a longer window would only stall the line.
     ConfigRange{"lines", "late_reply_window", 1, 60'000},
+    // What struct serial_rs485 carries; drivers cap it lower.
+    ConfigRange{"lines", "rs485_delay_before", 1, 1'000},
+    ConfigRange{"lines", "rs485_delay_after", 1, 1'000},
     ConfigRange{"lines.devices", "poll", 1, unbounded},
     ConfigRange{"modbus_tcp", "max_age", 1, unbounded},
     ConfigRange{"modbus_tcp", "idle_timeout", 1'000, 86'400'000},

@@ -1,6 +1,7 @@
 #include "gateway/gateway_config.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cctype>
 #include <cerrno>
@@ -28,7 +29,8 @@
 namespace loopwire::transport {
 bool operator==(const SerialSettings& a, const SerialSettings& b) {
     return a.baud == b.baud && a.data_bits == b.data_bits && a.parity == b.parity && a.stop_bits == b.stop_bits &&
-           a.rs485 == b.rs485;
+           a.rs485 == b.rs485 && a.rs485_delay_before == b.rs485_delay_before &&
+           a.rs485_delay_after == b.rs485_delay_after && a.guard == b.guard;
 }
 bool operator==(const LinkUrl& a, const LinkUrl& b) {
     return a.framing == b.framing && a.path == b.path && a.host == b.host && a.port == b.port && a.serial == b.serial;
@@ -431,6 +433,42 @@ Result<void> parse_max_in_flight(const Context& ctx, const toml::table& table, c
     return {};
 }
 
+// RS-485 direction control and the guard time of a serial line: keys of their own in the table,
+// which override the same options in the link URL.
+Result<void> parse_line_serial_keys(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
+    static constexpr std::array serial_keys{"rs485", "rs485_delay_before", "rs485_delay_after", "guard"};
+    for (const char* key : serial_keys) {
+        if (table.get(key) && !line.link.is_serial()) {
+            return ctx.fail(source_of(table, key), key_path(path, key),
+                            fmt::format("{} applies to a serial line only (this link is {})", key, line.link.to_string()));
+        }
+    }
+    auto& serial = line.link.serial;
+    if (const toml::node* rs485 = table.get("rs485")) {
+        if (const auto* on = rs485->as_boolean()) {
+            serial.rs485 = on->get() ? transport::Rs485::on : transport::Rs485::off;
+        } else if (const auto* text = rs485->as_string(); text && text->get() == "auto") {
+            serial.rs485 = transport::Rs485::if_supported;
+        } else {
+            return ctx.fail(rs485->source(), key_path(path, "rs485"), "expected true, false or \"auto\"");
+        }
+    }
+    auto before = bounded_duration(ctx, table, path, "lines", "rs485_delay_before", "e.g. \"1ms\"");
+    if (!before) return before.error();
+    if (*before) serial.rs485_delay_before = **before;
+    auto after = bounded_duration(ctx, table, path, "lines", "rs485_delay_after", "e.g. \"1ms\"");
+    if (!after) return after.error();
+    if (*after) serial.rs485_delay_after = **after;
+    auto guard_text = optional_value<std::string>(ctx, table, path, "guard", "a string such as \"3.5c\" or \"5ms\"");
+    if (!guard_text) return guard_text.error();
+    if (*guard_text) {
+        auto guard = transport::parse_line_guard(**guard_text);
+        if (!guard) return ctx.fail(source_of(table, "guard"), key_path(path, "guard"), guard.error().message);
+        serial.guard = *guard;
+    }
+    return {};
+}
+
 Result<void> parse_line_settings(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
     auto link_text = required_string(ctx, table, path, "link", "\"rtu:/dev/ttyUSB0?baud=19200\"");
     if (!link_text) return link_text.error();
@@ -438,6 +476,7 @@ Result<void> parse_line_settings(const Context& ctx, const toml::table& table, c
     if (!link) return ctx.fail(source_of(table, "link"), key_path(path, "link"), link.error().message);
     line.link = std::move(*link);
     line.link_written_at = fmt::format("{}:{}", ctx.source, source_of(table, "link").begin.line);
+    if (auto serial = parse_line_serial_keys(ctx, table, path, line); !serial) return serial.error();
     auto timeout = bounded_duration(ctx, table, path, "lines", "timeout", "e.g. \"1s\"");
     if (!timeout) return timeout.error();
     if (*timeout) line.timeout = **timeout;

@@ -68,6 +68,7 @@ public:
           loop_(options_.loop),
           clock_(loop_ ? loop_->clock() : options_.clock ? options_.clock : steady_clock()),
           inter_frame_gap_(gap_for(link)),
+          gap_before_sending_(std::max(inter_frame_gap_, guard_for(link))),
           name_(link.to_string()),
           copies_(copy_window()) {}
 
@@ -312,6 +313,13 @@ private:
         return codec::CharacterTiming{link.serial.baud, link.serial.bits_per_character()}.t3_5();
     }
 
+    // A line's guard (link_url.hpp) lengthens the silence before each frame for slaves that
+    // need more than 3.5 characters to turn around; the end of a frame is still told by 3.5.
+    static Duration guard_for(const transport::LinkUrl& link) {
+        if (!link.is_serial()) return Duration::zero();
+        return link.serial.guard_time();
+    }
+
     void trace(TraceDirection direction, ByteView bytes, std::string note) const {
         if (direction == TraceDirection::discarded && options_.discarded) options_.discarded->fetch_add(1, std::memory_order_relaxed);
         if (options_.trace) options_.trace({clock_->now(), direction, Bytes(bytes.begin(), bytes.end()), std::move(note)});
@@ -441,7 +449,7 @@ private:
         last_try_refused_a_copy_ = false;  // a try that fails before it waits refused nothing
         auto frame = codec_->encode(unit, pdu, 0);
         if (!frame) co_return frame.error();
-        co_await sleep_until(line_quiet_since_ + inter_frame_gap_);
+        co_await sleep_until(line_quiet_since_ + gap_before_sending_);
         hear_out_stray_input();
         stream_->discard_input();  // a late reply to an earlier try must not answer this one
         codec_->reset();
@@ -756,6 +764,7 @@ private:
     std::shared_ptr<LineLoop> loop_;  // null: the blocking calls run on the caller's thread
     std::shared_ptr<Clock> clock_;
     Duration inter_frame_gap_;
+    Duration gap_before_sending_;  // the 3.5 characters, or the line's guard where it is longer
     std::string name_;
     std::mutex line_;
     Instant line_quiet_since_{};

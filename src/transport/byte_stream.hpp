@@ -1,6 +1,7 @@
 #pragma once
 // A byte pipe: serial port, pseudo-terminal, TCP connection or a port on the virtual bus.
 // Transports know nothing of frames.
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <span>
@@ -15,17 +16,42 @@ using std::chrono::milliseconds;
 
 enum class Parity { none, even, odd };
 
+// Kernel RS-485 direction control (TIOCSRS485): off; on, where a port whose driver lacks it
+// fails to open; or if_supported ("auto"), where such a port runs without it and says so when
+// it opens.
+enum class Rs485 { off, on, if_supported };
+
+// Silence kept on a serial line before each frame, beyond the 3.5 characters RTU needs: in
+// characters at the line's speed ("3.5c") or as a time ("5ms"). Zero: none beyond the 3.5.
+struct LineGuard {
+    double characters = 0;
+    std::chrono::microseconds time{0};
+
+    bool operator==(const LineGuard&) const = default;
+};
+
 // Character format and speed of a serial line (also stored on pseudo-terminals, which ignore it).
 struct SerialSettings {
     std::uint32_t baud = 19200;
     unsigned data_bits = 8;
     Parity parity = Parity::even;
     unsigned stop_bits = 1;
-    bool rs485 = false;  // ask the kernel to drive the RS-485 transmitter (TIOCSRS485)
+    Rs485 rs485 = Rs485::off;  // ask the kernel to drive the RS-485 transmitter (TIOCSRS485)
+    // RTS raised this long before the first bit and held this long after the last (whole
+    // milliseconds: what struct serial_rs485 carries), for transceivers slow to turn around.
+    milliseconds rs485_delay_before{0};
+    milliseconds rs485_delay_after{0};
+    LineGuard guard;
 
     // 1 start bit + data + parity + stop: what one character costs on the wire.
     unsigned bits_per_character() const {
         return 1 + data_bits + (parity == Parity::none ? 0 : 1) + stop_bits;
+    }
+    // The guard as a time at this speed.
+    std::chrono::microseconds guard_time() const {
+        const double per_character_us = 1e6 * bits_per_character() / baud;
+        const auto from_characters = std::chrono::microseconds(static_cast<long long>(guard.characters * per_character_us + 0.5));
+        return std::max(guard.time, from_characters);
     }
 };
 

@@ -3,9 +3,12 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <charconv>
 #include <limits>
 #include <optional>
 #include <vector>
+
+#include <fmt/format.h>
 
 #include "common/text_parsing.hpp"
 #include "transport/serial_settings.hpp"
@@ -28,7 +31,7 @@ constexpr std::array<Scheme, 5> schemes{{
 }};
 
 constexpr std::string_view scheme_list = "rtu, ascii, linking, tcp, rtu+tcp";
-constexpr std::string_view option_list = "baud, parity, data, stop, rs485";
+constexpr std::string_view option_list = "baud, parity, data, stop, rs485, rs485_delay_before, rs485_delay_after, guard";
 // Names, IPv4 and (inside brackets) IPv6 addresses with an optional %zone.
 constexpr std::string_view host_characters =
     "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-._:%";
@@ -180,8 +183,17 @@ Result<void> UrlParser::apply_option(SerialSettings& settings, std::string_view 
         if (!bits || (*bits != 1 && *bits != 2)) return fail("stop bits '" + shown + "' is not valid (1 or 2)");
         settings.stop_bits = *bits;
     } else if (name == "rs485") {
-        if (value != "0" && value != "1") return fail("rs485 '" + shown + "' is not valid (1 to enable, 0 to disable)");
-        settings.rs485 = value == "1";
+        auto rs485 = parse_rs485(value);
+        if (!rs485) return fail(rs485.error().message);
+        settings.rs485 = *rs485;
+    } else if (name == "rs485_delay_before" || name == "rs485_delay_after") {
+        auto delay = parse_rs485_delay(value, name);
+        if (!delay) return fail(delay.error().message);
+        (name == "rs485_delay_before" ? settings.rs485_delay_before : settings.rs485_delay_after) = *delay;
+    } else if (name == "guard") {
+        auto guard = parse_line_guard(value);
+        if (!guard) return fail(guard.error().message);
+        settings.guard = *guard;
     } else {
         return fail("unknown option '" + std::string(name) + "' (valid: " + std::string(option_list) + ")");
     }
@@ -262,8 +274,73 @@ std::string LinkUrl::to_string() const {
     std::string text = scheme + ":" + path + "?baud=" + std::to_string(serial.baud) +
                        "&parity=" + std::string(parity_name(serial.parity)) +
                        "&data=" + std::to_string(serial.data_bits) + "&stop=" + std::to_string(serial.stop_bits);
-    if (serial.rs485) text += "&rs485=1";
+    if (serial.rs485 != Rs485::off) text += "&rs485=" + rs485_text(serial.rs485);
+    if (serial.rs485_delay_before.count() > 0) text += "&rs485_delay_before=" + std::to_string(serial.rs485_delay_before.count()) + "ms";
+    if (serial.rs485_delay_after.count() > 0) text += "&rs485_delay_after=" + std::to_string(serial.rs485_delay_after.count()) + "ms";
+    if (serial.guard != LineGuard{}) text += "&guard=" + line_guard_text(serial.guard);
     return text;
+}
+
+Result<Rs485> parse_rs485(std::string_view text) {
+    const std::string name = lower(text);
+    if (name == "1" || name == "true" || name == "on") return Rs485::on;
+    if (name == "0" || name == "false" || name == "off") return Rs485::off;
+    if (name == "auto") return Rs485::if_supported;
+    return make_error(ErrorKind::usage, "rs485 '" + std::string(text) +
+                                            "' is not valid (1 or true to enable, 0 or false to disable, auto to enable "
+                                            "where the driver supports it)");
+}
+
+Result<milliseconds> parse_rs485_delay(std::string_view text, std::string_view option) {
+    auto delay = parse_duration(text, option);
+    if (!delay) return delay.error();
+    if (delay->count() % 1000 != 0 || *delay > std::chrono::seconds(1)) {
+        return make_error(ErrorKind::usage, std::string(option) + " '" + std::string(text) +
+                                                "' is not valid: the driver takes whole milliseconds, 0ms to 1000ms");
+    }
+    return std::chrono::duration_cast<milliseconds>(*delay);
+}
+
+Result<LineGuard> parse_line_guard(std::string_view text) {
+    const auto bad = [&] {
+        return make_error(ErrorKind::usage, "guard '" + std::string(text) +
+                                                "' is not valid: write characters at the line's speed (\"3.5c\", up to "
+                                                "1000c, two decimals at most) or a time (\"5ms\", up to 1s)");
+    };
+    LineGuard guard;
+    if (text.ends_with('c')) {
+        const std::string_view number = text.substr(0, text.size() - 1);
+        double characters = 0;
+        const auto [end, ec] = std::from_chars(number.data(), number.data() + number.size(), characters, std::chars_format::fixed);
+        // Two decimals at most: a guard prints back as written (link URLs round-trip).
+        const auto point = number.find('.');
+        const bool few_decimals = point == std::string_view::npos || number.size() - point - 1 <= 2;
+        if (number.empty() || !std::isdigit(static_cast<unsigned char>(number.front())) || ec != std::errc() ||
+            end != number.data() + number.size() || characters > 1000 || !few_decimals) {
+            return bad();
+        }
+        guard.characters = characters;
+        return guard;
+    }
+    auto time = parse_duration(text, "guard");
+    if (!time || *time > std::chrono::seconds(1)) return bad();
+    guard.time = *time;
+    return guard;
+}
+
+std::string rs485_text(Rs485 rs485) {
+    switch (rs485) {
+        case Rs485::off: return "0";
+        case Rs485::on: return "1";
+        case Rs485::if_supported: return "auto";
+    }
+    return "0";
+}
+
+std::string line_guard_text(LineGuard guard) {
+    if (guard.characters > 0) return fmt::format("{:g}c", guard.characters);
+    if (guard.time.count() % 1000 == 0) return fmt::format("{}ms", guard.time.count() / 1000);
+    return fmt::format("{}us", guard.time.count());
 }
 
 Result<LinkUrl> parse_link_url(std::string_view text) { return UrlParser(text).parse(); }

@@ -122,9 +122,7 @@ Result<std::unique_ptr<ByteStream>> create_pseudo_terminal(const std::string& li
     // Settings live on the slave side, which is the terminal clients see.
     const std::string what = "pseudo-terminal " + pair->slave_path;
     if (auto ok = detail::apply_serial_settings(pair->slave.get(), settings, what); !ok) return ok.error();
-    if (settings.rs485) {
-        if (auto ok = detail::enable_rs485(pair->slave.get(), what); !ok) return ok.error();
-    }
+    if (auto ok = detail::apply_rs485(pair->slave.get(), settings, what); !ok) return ok.error();
     if (auto ok = place_symlink(link_path, pair->slave_path); !ok) return ok.error();
     return std::unique_ptr<ByteStream>(std::make_unique<PseudoTerminalStream>(
         std::move(pair->master), std::move(pair->slave), link_path, pair->slave_path));

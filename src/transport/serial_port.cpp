@@ -150,9 +150,7 @@ Result<std::unique_ptr<ByteStream>> open_serial_port(const std::string& path, co
     // a later step fails.
     auto stream = std::make_unique<SerialPortStream>(std::move(*fd), path, settings);
     if (auto ok = detail::apply_serial_settings(raw, settings, "serial port " + path); !ok) return ok.error();
-    if (settings.rs485) {
-        if (auto ok = detail::enable_rs485(raw, "serial port " + path); !ok) return ok.error();
-    }
+    if (auto ok = detail::apply_rs485(raw, settings, "serial port " + path); !ok) return ok.error();
     // Bytes that arrived before we opened belong to nobody's request.
     ::tcflush(raw, TCIOFLUSH);
     return std::unique_ptr<ByteStream>(std::move(stream));

@@ -6,8 +6,10 @@
 #include <sys/sysmacros.h>
 #include <termios.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
+#include <cstdio>
 
 #include "transport/file_descriptor.hpp"
 
@@ -127,19 +129,32 @@ Result<void> apply_serial_settings(int fd, const SerialSettings& settings, const
     return {};
 }
 
-Result<void> enable_rs485(int fd, const std::string& what) {
+namespace {
+
+int whole_ms(milliseconds delay) { return static_cast<int>(std::clamp<long long>(delay.count(), 0, 1000)); }
+
+}  // namespace
+
+Result<void> apply_rs485(int fd, const SerialSettings& settings, const std::string& what) {
+    if (settings.rs485 == Rs485::off) return {};
     serial_rs485 config{};
     config.flags = SER_RS485_ENABLED | SER_RS485_RTS_ON_SEND;
-    if (::ioctl(fd, TIOCSRS485, &config) != 0) {
-        const int err = errno;
-        return make_error(ErrorKind::link,
-                          what + ": rs485=1 asks the driver for kernel RS-485 direction control, "
-                                 "which it does not support (TIOCSRS485: " +
-                              errno_text(err) +
-                              ") — use an adapter that switches direction by itself and drop "
-                              "rs485=1 from the link URL");
+    config.delay_rts_before_send = static_cast<__u32>(whole_ms(settings.rs485_delay_before));
+    config.delay_rts_after_send = static_cast<__u32>(whole_ms(settings.rs485_delay_after));
+    if (::ioctl(fd, TIOCSRS485, &config) == 0) return {};
+    const int err = errno;
+    const std::string refusal = "kernel RS-485 direction control, which its driver does not support (TIOCSRS485: " +
+                                errno_text(err) + ")";
+    if (settings.rs485 == Rs485::if_supported) {
+        // Said at each open, which is once for a line that runs (a gateway reopens a port only
+        // after a fault, and logs that too); no record of warnings is kept across opens.
+        std::fprintf(stderr, "loopwire: warning: %s: rs485=auto asked for %s; running without it\n", what.c_str(),
+                     refusal.c_str());
+        return {};
     }
-    return {};
+    return make_error(ErrorKind::link, what + ": rs485 is on, which asks for " + refusal +
+                                           " — use an adapter that switches direction by itself and drop rs485, or "
+                                           "set rs485=auto to run without it where the driver lacks it");
 }
 
 }  // namespace loopwire::transport::detail

@@ -25,7 +25,10 @@ Result<void> check_settings(const SerialSettings& settings, const std::string& w
 // streams wait in poll() instead. `what` names the device in error messages.
 Result<void> apply_serial_settings(int fd, const SerialSettings& settings, const std::string& what);
 
-// Asks the driver to switch the RS-485 transmitter on while sending (RTS high during the frame).
-Result<void> enable_rs485(int fd, const std::string& what);
+// As settings.rs485 says, asks the driver to switch the RS-485 transmitter on while sending (RTS
+// high during the frame, with the settings' delays). A driver without it fails Rs485::on with a
+// link error that says what to do; Rs485::if_supported runs on and warns on stderr, once per
+// open. Rs485::off does nothing.
+Result<void> apply_rs485(int fd, const SerialSettings& settings, const std::string& what);
 
 }  // namespace loopwire::transport::detail

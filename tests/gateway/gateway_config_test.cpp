@@ -258,7 +258,9 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     EXPECT_EQ(device, "plant.toml:8: lines[0].devices[0].pol: unknown key (allowed here: name, device, poll, parameters, identify, tcp_unit)");
 
     const std::string line = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\ntimout = \"1s\"\n");
-    EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, late_reply_window, max_in_flight, speed, seed, devices)");
+    EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, late_reply_window, "
+                    "max_in_flight, rs485, rs485_delay_before, "
+                    "rs485_delay_after, guard, speed, seed, devices)");
 
     const std::string top = error_of(one_device("device = \"tc10@3\"\n") + "[modbus]\nlisten = \"127.0.0.1:1502\"\n");
     EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt, sparkplug, history, http)");
@@ -277,6 +279,33 @@ TEST(GatewayConfig, TheLateReplyWindowIsReadAndBounded) {
     EXPECT_THAT(zero, StartsWith("plant.toml:4: lines[0].late_reply_window: expected 1ms..1min")) << zero;
     const std::string huge = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\nlate_reply_window = \"2min\"\n");
     EXPECT_EQ(huge, "plant.toml:4: lines[0].late_reply_window: expected 1ms..1min (e.g. \"500ms\", default: the line's timeout)");
+}
+
+// RS-485 direction control and the guard are the link URL's options of those names, set by keys
+// of the line that override the URL's; a line without a serial port has neither.
+TEST(GatewayConfig, Rs485AndGuardKeysSetTheSerialLine) {
+    auto config = parse("[[lines]]\nname = \"l1\"\nlink = \"rtu:/dev/ttyUSB0?rs485=1&guard=2ms\"\nrs485 = \"auto\"\n"
+                        "rs485_delay_before = \"2ms\"\nrs485_delay_after = \"3ms\"\nguard = \"4.5c\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    const auto& serial = config->lines[0].link.serial;
+    EXPECT_EQ(serial.rs485, transport::Rs485::if_supported);
+    EXPECT_EQ(serial.rs485_delay_before, std::chrono::milliseconds(2));
+    EXPECT_EQ(serial.rs485_delay_after, std::chrono::milliseconds(3));
+    EXPECT_EQ(serial.guard.characters, 4.5);
+    EXPECT_EQ(serial.guard.time, std::chrono::microseconds(0));
+
+    auto on = parse("[[lines]]\nname = \"l1\"\nlink = \"rtu:/dev/ttyUSB0\"\nrs485 = true\n");
+    ASSERT_TRUE(on) << on.error().message;
+    EXPECT_EQ(on->lines[0].link.serial.rs485, transport::Rs485::on);
+
+    EXPECT_EQ(error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:/dev/ttyUSB0\"\nrs485 = \"yes\"\n"),
+              "plant.toml:4: lines[0].rs485: expected true, false or \"auto\"");
+    EXPECT_THAT(error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:/dev/ttyUSB0\"\nguard = \"fast\"\n"),
+                StartsWith("plant.toml:4: lines[0].guard: guard 'fast' is not valid"));
+    EXPECT_THAT(error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:/dev/ttyUSB0\"\nrs485_delay_after = \"2s\"\n"),
+                StartsWith("plant.toml:4: lines[0].rs485_delay_after: expected 1ms..1s"));
+    EXPECT_EQ(error_of("[[lines]]\nname = \"plc\"\nlink = \"tcp://192.0.2.7:502\"\nguard = \"5ms\"\n"),
+              "plant.toml:4: lines[0].guard: guard applies to a serial line only (this link is tcp://192.0.2.7:502)");
 }
 
 // Several requests at once only where replies say which request they answer: Modbus TCP.

@@ -20,7 +20,8 @@ bool same(const LinkUrl& a, const LinkUrl& b) {
     return a.framing == b.framing && a.path == b.path && a.host == b.host && a.port == b.port &&
            a.serial.baud == b.serial.baud && a.serial.data_bits == b.serial.data_bits &&
            a.serial.parity == b.serial.parity && a.serial.stop_bits == b.serial.stop_bits &&
-           a.serial.rs485 == b.serial.rs485;
+           a.serial.rs485 == b.serial.rs485 && a.serial.rs485_delay_before == b.serial.rs485_delay_before &&
+           a.serial.rs485_delay_after == b.serial.rs485_delay_after && a.serial.guard == b.serial.guard;
 }
 
 TEST(LinkUrl, FramingNames) {
@@ -40,7 +41,7 @@ TEST(LinkUrl, RtuWithEveryOption) {
     EXPECT_EQ(url.serial.parity, Parity::odd);
     EXPECT_EQ(url.serial.stop_bits, 2u);
     EXPECT_EQ(url.serial.data_bits, 7u);
-    EXPECT_TRUE(url.serial.rs485);
+    EXPECT_EQ(url.serial.rs485, Rs485::on);
 }
 
 TEST(LinkUrl, SerialDefaultsAreTheModbusSerialLineDefault) {
@@ -50,7 +51,8 @@ TEST(LinkUrl, SerialDefaultsAreTheModbusSerialLineDefault) {
         EXPECT_EQ(url.serial.data_bits, 8u) << text;
         EXPECT_EQ(url.serial.parity, Parity::even) << text;
         EXPECT_EQ(url.serial.stop_bits, 1u) << text;
-        EXPECT_FALSE(url.serial.rs485) << text;
+        EXPECT_EQ(url.serial.rs485, Rs485::off) << text;
+        EXPECT_EQ(url.serial.guard, LineGuard{}) << text;
     }
 }
 
@@ -105,7 +107,26 @@ TEST(LinkUrl, EverySupportedBaud) {
     }
 }
 
-TEST(LinkUrl, Rs485Zero) { EXPECT_FALSE(parse_ok("rtu:/dev/ttyS0?rs485=0").serial.rs485); }
+TEST(LinkUrl, Rs485Zero) { EXPECT_EQ(parse_ok("rtu:/dev/ttyS0?rs485=0").serial.rs485, Rs485::off); }
+
+TEST(LinkUrl, Rs485TakesWordsAutoAndDelays) {
+    EXPECT_EQ(parse_ok("rtu:/dev/ttyS0?rs485=true").serial.rs485, Rs485::on);
+    EXPECT_EQ(parse_ok("rtu:/dev/ttyS0?rs485=false").serial.rs485, Rs485::off);
+    const LinkUrl url = parse_ok("rtu:/dev/ttyS0?rs485=auto&rs485_delay_before=2ms&rs485_delay_after=0");
+    EXPECT_EQ(url.serial.rs485, Rs485::if_supported);
+    EXPECT_EQ(url.serial.rs485_delay_before, std::chrono::milliseconds(2));
+    EXPECT_EQ(url.serial.rs485_delay_after, std::chrono::milliseconds(0));
+}
+
+// 3.5 characters of 11 bits at 9600 baud are 4010 us; a guard in time is taken as written.
+TEST(LinkUrl, GuardInCharactersOrTime) {
+    const LinkUrl characters = parse_ok("rtu:/dev/ttyS0?baud=9600&guard=3.5c");
+    EXPECT_EQ(characters.serial.guard.characters, 3.5);
+    EXPECT_EQ(characters.serial.guard_time(), std::chrono::microseconds(4010));
+    const LinkUrl time = parse_ok("rtu:/dev/ttyS0?guard=5ms");
+    EXPECT_EQ(time.serial.guard_time(), std::chrono::milliseconds(5));
+    EXPECT_EQ(parse_ok("rtu:/dev/ttyS0?guard=250us").serial.guard_time(), std::chrono::microseconds(250));
+}
 
 TEST(LinkUrl, VirtualBus) {
     const LinkUrl url = parse_ok("rtu:virtual");
@@ -167,6 +188,8 @@ TEST_P(LinkUrlRoundTrip, CanonicalTextParsesBackToTheSameLink) {
 
 INSTANTIATE_TEST_SUITE_P(AcceptedForms, LinkUrlRoundTrip,
                          ::testing::Values("rtu:/dev/ttyUSB0?baud=19200&parity=even&stop=1&data=8&rs485=1",
+                                           "rtu:/dev/ttyUSB0?rs485=auto&rs485_delay_before=1ms&rs485_delay_after=3ms",
+                                           "rtu:/dev/ttyUSB0?guard=4.5c", "rtu:/dev/ttyUSB0?guard=750us",
                                            "rtu:/dev/ttyUSB0", "ascii:/dev/ttyS1?baud=9600&parity=even&data=7",
                                            "ascii:/dev/ttyS1?parity=n&stop=2&data=7", "linking:/dev/ttyS1?baud=9600",
                                            "linking:/dev/ttyS1?baud=38400&parity=o", "rtu:virtual",
@@ -232,7 +255,13 @@ INSTANTIATE_TEST_SUITE_P(
         BadUrl{"rtu:/dev/x?data=", {"data bits '' is not valid", "7 or 8"}},
         BadUrl{"rtu:/dev/x?stop=3", {"stop bits '3' is not valid", "1 or 2"}},
         BadUrl{"rtu:/dev/x?stop=1.5", {"stop bits '1.5' is not valid", "1 or 2"}},
-        BadUrl{"rtu:/dev/x?rs485=yes", {"rs485 'yes' is not valid", "1 to enable, 0 to disable"}},
+        BadUrl{"rtu:/dev/x?rs485=yes", {"rs485 'yes' is not valid", "1 or true to enable", "auto"}},
+        BadUrl{"rtu:/dev/x?rs485_delay_before=1.5ms", {"rs485_delay_before '1.5ms' is not valid", "whole milliseconds"}},
+        BadUrl{"rtu:/dev/x?rs485_delay_after=2s", {"rs485_delay_after '2s' is not valid", "0ms to 1000ms"}},
+        BadUrl{"rtu:/dev/x?guard=fast", {"guard 'fast' is not valid", "3.5c", "5ms"}},
+        BadUrl{"rtu:/dev/x?guard=c", {"guard 'c' is not valid"}},
+        BadUrl{"rtu:/dev/x?guard=2000c", {"guard '2000c' is not valid"}},
+        BadUrl{"rtu:/dev/x?guard=2s", {"guard '2s' is not valid"}},
         BadUrl{"rtu:/dev/x?baud=9600&baud=19200", {"option 'baud' is given twice"}},
         BadUrl{"rtu:/dev/x?parity=n&parity=e", {"option 'parity' is given twice"}},
         BadUrl{"tcp:127.0.0.1:502", {"tcp links are written tcp://host[:port]"}},

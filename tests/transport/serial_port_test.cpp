@@ -146,7 +146,7 @@ TEST_F(SerialPort, AppliesSpeedStopBitsAndNonBlockingReads) {
 
 TEST_F(SerialPort, Rs485OnAPseudoTerminalFailsWithAClearMessage) {
     SerialSettings settings;
-    settings.rs485 = true;
+    settings.rs485 = Rs485::on;
     auto port = open_serial_port(link, settings);
     ASSERT_FALSE(port);
     EXPECT_EQ(port.error().kind, ErrorKind::link);
@@ -154,10 +154,30 @@ TEST_F(SerialPort, Rs485OnAPseudoTerminalFailsWithAClearMessage) {
     EXPECT_TRUE(contains(message, link)) << message;
     EXPECT_TRUE(contains(message, "RS-485")) << message;
     EXPECT_TRUE(contains(message, "Inappropriate ioctl for device")) << message;
-    EXPECT_TRUE(contains(message, "drop rs485=1")) << message;
+    EXPECT_TRUE(contains(message, "drop rs485")) << message;
+    EXPECT_TRUE(contains(message, "rs485=auto")) << message;
     // The failed open must not leave the port locked.
     auto plain = open_serial_port(link, SerialSettings{});
     EXPECT_TRUE(plain) << plain.error().message;
+}
+
+// "auto" opens a port whose driver lacks RS-485 control and says so on stderr, once for the open.
+TEST_F(SerialPort, Rs485AutoOnAPseudoTerminalRunsWithoutItAndSaysSo) {
+    SerialSettings settings;
+    settings.rs485 = Rs485::if_supported;
+    settings.rs485_delay_before = std::chrono::milliseconds(2);
+    ::testing::internal::CaptureStderr();
+    auto port = open_serial_port(link, settings);
+    const std::string said = ::testing::internal::GetCapturedStderr();
+    ASSERT_TRUE(port) << port.error().message;
+    EXPECT_TRUE(contains(said, "warning: serial port " + link)) << said;
+    EXPECT_TRUE(contains(said, "rs485=auto")) << said;
+    EXPECT_TRUE(contains(said, "running without it")) << said;
+    EXPECT_EQ(said.find("rs485=auto"), said.rfind("rs485=auto")) << "said more than once: " << said;
+    // It still carries bytes.
+    const Bytes frame{0x01, 0x03, 0x00, 0x00, 0x00, 0x01, 0x84, 0x0A};
+    ASSERT_TRUE((*port)->write(frame));
+    EXPECT_EQ(read_exactly(*pty, frame.size(), 10s), frame);
 }
 
 TEST_F(SerialPort, ReadTimesOutWithZeroBytes) {
