@@ -100,14 +100,14 @@ assert all(v["operating_set_point"]["value"] == 300 for v in values), values
 '
 
 # One request per planned block: a monitor sample sends exactly what `read --device` of the same
-# names sends, nothing more (the reads skip their identification words, which a monitor does not
-# read). A request sent again at once is not counted: a block whose reply has the bytes of another
+# names sends, nothing more (both skip their identification words, which a monitor otherwise
+# reads with its first poll and the first after a failure). A request sent again at once is not counted: a block whose reply has the bytes of another
 # block's (two registers holding 0) is asked twice the first time, as that reply could be a copy.
 count_tx() { grep ' TX ' "$1" | awk '{ $1 = ""; if ($0 != previous) n++; previous = $0 } END { print n + 0 }'; }
 timeout 20 "$loopwire" read -v --no-identify --link "$link" --device tc10@3 measured_value set_point operating_set_point output_power \
   alarm_status control_state >/dev/null 2>"$WORK_DIR/r1.err"
 timeout 20 "$loopwire" read -v --no-identify --link "$link" --device rampsoak@5 process_value set_value output_percentage controller_status >/dev/null 2>"$WORK_DIR/r2.err"
-timeout 20 "$loopwire" monitor -v --link "$link" --device tc10@3 --device rampsoak@5 --interval 100ms --count 3 \
+timeout 20 "$loopwire" monitor -v --no-identify --link "$link" --device tc10@3 --device rampsoak@5 --interval 100ms --count 3 \
   >/dev/null 2>"$WORK_DIR/mv.err"
 per_sample=$(( $(count_tx "$WORK_DIR/r1.err") + $(count_tx "$WORK_DIR/r2.err") ))
 if [ "$per_sample" -ge 2 ] && [ "$(count_tx "$WORK_DIR/mv.err")" -eq $((3 * per_sample)) ]; then count_pass

@@ -30,7 +30,7 @@ TEST(DeviceStatus, EveryWordReadsBackAsItsStatus) {
         words.insert(status_text(status));
     }
     EXPECT_EQ(words.size(), std::size(all_device_statuses)) << "two statuses share a word";
-    EXPECT_EQ(words, (std::set<std::string_view>{"waiting", "ok", "partial", "no-reply", "line-down", "stale"}));
+    EXPECT_EQ(words, (std::set<std::string_view>{"waiting", "ok", "partial", "no-reply", "line-down", "stale", "wrong-device"}));
 }
 
 TEST(DeviceStatus, OtherTextIsNoStatus) {

@@ -41,7 +41,8 @@ TOML
 }
 start_gateway north
 start_gateway south
-arrived() { (($(pg_sql "SELECT count(DISTINCT gateway) FROM loopwire_values WHERE value IS NOT NULL" plant) == 2)); }
+# (The view is there once a gateway has connected; until then the count is 0.)
+arrived() { (($(pg_sql "SELECT count(DISTINCT gateway) FROM loopwire_values WHERE value IS NOT NULL" plant 2>/dev/null || echo 0) == 2)); }
 wait_for 60 "both gateways' values in the historian's view" arrived
 # A minute's rollup is written once its minute has samples; the queries below need one of each.
 wait_for 90 "a minute of rollup from both" bash -c \

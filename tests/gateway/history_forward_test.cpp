@@ -343,7 +343,7 @@ TEST_F(HistoryForward, TablesDroppedAndMadeAgainUnderAForwardingGatewayKeepEvery
     ASSERT_TRUE(north) << north.error().message;
     auto admin = connect(*server);
     const std::string drop_all =
-        "DROP TABLE loopwire_samples, loopwire_minutes, loopwire_series, loopwire_schema_version";
+        "DROP TABLE loopwire_samples, loopwire_minutes, loopwire_series, loopwire_schema_version CASCADE";  // and the view
     record_three_series(**north, 50, 0, t0);
     ASSERT_TRUE((*north)->forwarder()->forward_pending());
 
@@ -354,6 +354,7 @@ TEST_F(HistoryForward, TablesDroppedAndMadeAgainUnderAForwardingGatewayKeepEvery
     ASSERT_TRUE(again) << again.error().message;
     EXPECT_EQ(*again, 150u);
     EXPECT_EQ(scalar(admin, "SELECT count(*) FROM loopwire_samples"), 150);
+    EXPECT_EQ(scalar(admin, "SELECT count(*) FROM loopwire_values"), 150);  // the view made again too
 
     // Dropped and made again by another gateway's first connect: south's series are 1, 2, 3,
     // the ids north learnt for its own.

@@ -1060,7 +1060,7 @@ TEST(PrometheusText, EverySampleNamesItsGatewayAndEachAlarmBitIsAGauge) {
 
 TEST_F(HttpHistoryTest, MetricsCountTheHistoryRows) {
     const Reply reply = get(server_->port(), "/metrics");
-    EXPECT_THAT(reply.body, HasSubstr("loopwire_history_rows_written_total 1234\n"));
+    EXPECT_THAT(reply.body, HasSubstr("loopwire_history_rows_written_total{gateway=\"north\"} 1234\n"));
 }
 
 // A history forwarded to PostgreSQL: its outbox and the forwarder's counts, as the store says.
