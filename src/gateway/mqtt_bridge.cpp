@@ -21,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/device_status.hpp"
+#include "common/fnv1a.hpp"
 #include "common/peer_text.hpp"
 #include "gateway/mqtt_client.hpp"
 #include "gateway/mqtt_commands.hpp"
@@ -108,24 +109,8 @@ constexpr std::size_t remembered_commands = 1024;
 
 // FNV-1a over the topic, a separator no topic holds, and the payload.
 std::uint64_t command_digest(std::string_view topic, std::string_view payload) {
-    std::uint64_t hash = 14695981039346656037ull;
-    const auto add = [&hash](std::string_view text) {
-        for (const char c : text) {
-            hash ^= static_cast<unsigned char>(c);
-            hash *= 1099511628211ull;
-        }
-    };
-    add(topic);
-    add(std::string_view("\0", 1));
-    add(payload);
-    return hash;
+    return fnv1a(payload, fnv1a(std::string_view("\0", 1), fnv1a(topic)));
 }
-
-// What the last poll said about a device.
-struct DeviceSeen {
-    device::DeviceStatus status = device::DeviceStatus::waiting;
-    std::string error;
-};
 
 }  // namespace
 
