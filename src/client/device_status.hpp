@@ -15,14 +15,18 @@ enum class DeviceStatus {
     no_reply,   // this sample's poll timed out
     line_down,  // the link the device is on failed or is down, so it could not be asked
     stale,      // the gateway's: its last poll answered but the next is long overdue (gateway/value_cache.hpp)
+    // Something answers at the device's address, but its identification says it is not the
+    // configured device: its values are not shown, and nothing is written to it.
+    wrong_device,
 };
 
 // Every status, in declaration order.
 inline constexpr DeviceStatus all_device_statuses[] = {DeviceStatus::waiting,   DeviceStatus::ok,
                                                        DeviceStatus::partial,   DeviceStatus::no_reply,
-                                                       DeviceStatus::line_down, DeviceStatus::stale};
+                                                       DeviceStatus::line_down, DeviceStatus::stale,
+                                                       DeviceStatus::wrong_device};
 
-// The status's word: "waiting", "ok", "partial", "no-reply", "line-down", "stale".
+// The status's word: "waiting", "ok", "partial", "no-reply", "line-down", "stale", "wrong-device".
 constexpr std::string_view status_text(DeviceStatus status) {
     switch (status) {
         case DeviceStatus::waiting: return "waiting";
@@ -31,6 +35,7 @@ constexpr std::string_view status_text(DeviceStatus status) {
         case DeviceStatus::no_reply: return "no-reply";
         case DeviceStatus::line_down: return "line-down";
         case DeviceStatus::stale: return "stale";
+        case DeviceStatus::wrong_device: return "wrong-device";
     }
     return "waiting";  // not reached: every status is handled above
 }

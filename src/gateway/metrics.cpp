@@ -55,7 +55,8 @@ double seconds(std::chrono::microseconds time) { return static_cast<double>(time
 // the order the samples have always come in.
 constexpr device::DeviceStatus device_statuses[] = {device::DeviceStatus::ok,       device::DeviceStatus::partial,
                                                     device::DeviceStatus::no_reply, device::DeviceStatus::line_down,
-                                                    device::DeviceStatus::stale,    device::DeviceStatus::waiting};
+                                                    device::DeviceStatus::stale,    device::DeviceStatus::waiting,
+                                                    device::DeviceStatus::wrong_device};
 constexpr bool each_status_once() {
     for (const device::DeviceStatus status : device::all_device_statuses) {
         if (std::count(std::begin(device_statuses), std::end(device_statuses), status) != 1) return false;
@@ -213,7 +214,7 @@ std::string prometheus_text(const std::vector<LineReport>& lines, const std::vec
     const auto found = cached_devices(devices, values);
     poll_shortfall(out, lines, devices, found);
 
-    family(out, "device_status", "gauge", "1 for the device's status now (ok, partial, no-reply, line-down, stale, waiting), 0 for the others.");
+    family(out, "device_status", "gauge", "1 for the device's status now (ok, partial, no-reply, line-down, stale, waiting, wrong-device), 0 for the others.");
     for (std::size_t i = 0; i < devices.size(); ++i) {
         const device::DeviceStatus status = found[i] ? found[i]->state.status : device::DeviceStatus::waiting;
         for (const device::DeviceStatus candidate : device_statuses) {

@@ -63,21 +63,16 @@ constexpr int goodbye_turn_ms = 50;
     });
 }
 
-// The device's status topic: "online", "offline" (no reply), "error" (some values failed),
-// "line-down" (the cable or adapter, not the device, is what to look at; the value's meta gives
-// the reason) or "stale" (its poll is overdue: its values may no longer be the device's;
-// value_cache.hpp).
+// The one place MQTT maps a device's status. PREFIX/DEVICE/status carries its word, as every
+// front says it (client/device_status.hpp: "ok", "partial", "no-reply", "line-down", "stale",
+// "wrong-device"); PREFIX/DEVICE/availability what Home Assistant's availability reads:
+// "online" while its values are the device's and current (ok, partial), "offline" otherwise.
 // "waiting" is never published: a device skipped in back-off keeps its last word.
-std::string device_status_word(device::DeviceStatus status) {
-    switch (status) {
-        case device::DeviceStatus::ok: return "online";
-        case device::DeviceStatus::no_reply: return "offline";
-        case device::DeviceStatus::partial: return "error";
-        case device::DeviceStatus::line_down:
-        case device::DeviceStatus::stale:
-        case device::DeviceStatus::waiting: return std::string(device::status_text(status));
-    }
-    return std::string(device::status_text(status));  // not reached: every status is handled above
+constexpr std::string_view available = "online";
+constexpr std::string_view unavailable = "offline";
+
+std::string availability_word(device::DeviceStatus status) {
+    return std::string(device::answered(status) ? available : unavailable);
 }
 
 struct Publication {
@@ -193,8 +188,10 @@ struct MqttBridge::State {
         if (change.about_device()) {
             std::lock_guard lock(mutex);
             devices[change.device] = {change.device_status, change.error};
-            queue_locked(
-                {topic(change.device, "status"), device_status_word(change.device_status), true, qos_at_least_once});
+            queue_locked({topic(change.device, "status"), std::string(device::status_text(change.device_status)), true,
+                          qos_at_least_once});
+            queue_locked({topic(change.device, "availability"), availability_word(change.device_status), true,
+                          qos_at_least_once});
             return;
         }
         const std::string base = topic(change.device, change.parameter);
@@ -421,8 +418,14 @@ struct MqttBridge::State {
             }
             gateway_stays = gateway_continues;
         }
-        for (const auto& name : names) publish({topic(name, "status"), "offline", true, qos_at_least_once});
-        if (!gateway_stays) publish({config.prefix + "/status", "offline", true, qos_at_least_once});
+        // Nobody polls them from now on: unavailable, and not polled ("waiting") rather than the
+        // last word, which would stand retained as if it were still true.
+        for (const auto& name : names) {
+            publish({topic(name, "availability"), std::string(unavailable), true, qos_at_least_once});
+            publish({topic(name, "status"), std::string(device::status_text(device::DeviceStatus::waiting)), true,
+                     qos_at_least_once});
+        }
+        if (!gateway_stays) publish({config.prefix + "/status", std::string(unavailable), true, qos_at_least_once});
         // Disconnecting before the broker has acknowledged a QoS 1 publication makes its PUBACK
         // fail on a closed socket: mosquitto then takes the disconnection for a broken one
         // ("disconnected due to out of memory", eclipse-mosquitto/mosquitto#2627) and publishes

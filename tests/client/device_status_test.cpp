@@ -19,6 +19,7 @@ TEST(DeviceStatus, EachStatusHasItsFixedWord) {
     EXPECT_EQ(status_text(DeviceStatus::no_reply), "no-reply");
     EXPECT_EQ(status_text(DeviceStatus::line_down), "line-down");
     EXPECT_EQ(status_text(DeviceStatus::stale), "stale");
+    EXPECT_EQ(status_text(DeviceStatus::wrong_device), "wrong-device");
 }
 
 TEST(DeviceStatus, EveryWordReadsBackAsItsStatus) {
@@ -30,7 +31,7 @@ TEST(DeviceStatus, EveryWordReadsBackAsItsStatus) {
         words.insert(status_text(status));
     }
     EXPECT_EQ(words.size(), std::size(all_device_statuses)) << "two statuses share a word";
-    EXPECT_EQ(words, (std::set<std::string_view>{"waiting", "ok", "partial", "no-reply", "line-down", "stale"}));
+    EXPECT_EQ(words, (std::set<std::string_view>{"waiting", "ok", "partial", "no-reply", "line-down", "stale", "wrong-device"}));
 }
 
 TEST(DeviceStatus, OtherTextIsNoStatus) {

@@ -84,6 +84,9 @@ TEST(ResolvedValue, APolledValueCarriesItsStatusAndItsAgeAsOfTheView) {
     EXPECT_EQ(silent.text, "150.5");
     EXPECT_EQ(silent.error, "timeout: no reply within 1 s");
 
+    // What answered is not the configured device: none of its values is this device's.
+    device.status = DeviceStatus::wrong_device;
+    EXPECT_EQ(resolve_watched(device, value, read_at + 20s).status, "error");
 }
 
 }  // namespace

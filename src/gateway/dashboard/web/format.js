@@ -100,6 +100,7 @@ export function deviceStatusWord(status) {
   if (status === "line-down") return "line down";
   if (status === "partial") return "partial";
   if (status === "stale") return "stale: not polled";
+  if (status === "wrong-device") return "wrong device";
   return status || "waiting";
 }
 
