@@ -419,6 +419,13 @@ HttpOutcome HttpApi::State::write(const ConfiguredDevice& device, const HttpRequ
         if (!text) return {error(400, fmt::format("the value of \"{}\": {}", name, text.error().message)), {}, {}};
         assignments.push_back({name, std::move(*text)});
     }
+    // The writer's policy, answered as what it is: the device cannot take writes now (it does not
+    // answer, or its line is down), so nothing was sent and the same write may go later.
+    if (auto silent = sources.writer->refusal(device.name)) {
+        HttpResponse refused = error(503, silent->message);
+        refused.headers.emplace_back("Retry-After", "5");
+        return {std::move(refused), {}, {}};
+    }
     // Handed to the device's line; answered from its completion once the line has answered,
     // so a write waiting for a slow line holds up no other client and no other line.
     auto deferred = [writer = sources.writer, name = device.name, assignments = std::move(assignments)](HttpResponder respond) {

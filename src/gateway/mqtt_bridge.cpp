@@ -440,19 +440,6 @@ struct MqttBridge::State {
         }
         is_connected.store(false);
     }
-
-    // --- the writes ------------------------------------------------------------------------------
-
-    // Why a write to `device` cannot go now: its polls find it silent, so the line scheduler has
-    // it in back-off. Answered at once rather than left to time out on the line.
-    std::optional<std::string> not_answering(const std::string& device) {
-        std::lock_guard lock(mutex);
-        const auto found = devices.find(device);
-        if (found == devices.end() || found->second.status != device::DeviceStatus::no_reply) return std::nullopt;
-        return fmt::format("device {} does not answer ({}); nothing was sent: write again once {} is \"online\"", device,
-                           found->second.error.empty() ? "its polls time out" : found->second.error,
-                           topic(device, "status"));
-    }
 };
 
 MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache& cache, GatewayLog log, MqttTiming timing,
@@ -493,8 +480,7 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
         [&s](std::string topic, std::string payload) {
             s.queue({std::move(topic), std::move(payload), false, qos_at_least_once});
         },
-        [&s](const std::string& line) { s.say(line); },
-        [&s](const std::string& device) { return s.not_answering(device); });
+        [&s](const std::string& line) { s.say(line); });
     s.driver = std::make_unique<mqtt::LoopDriver>(loop, "lw-mqtt", s.client, s.config.host, s.timing.reconnect_first, s.timing.reconnect_last,
                                                   s.network_hooks());
     s.driver->start();
