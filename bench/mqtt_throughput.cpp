@@ -123,7 +123,9 @@ private:
     // The values a message carries, each the sample number / 10.
     std::vector<double> values_of(const mosquitto_message& message) const {
         if (!sparkplug_) {
-            if (std::string_view(message.topic).ends_with("/status")) return {};  // PREFIX/DEVICE/status, not a value
+            // PREFIX/DEVICE/status and PREFIX/DEVICE/availability: the device's, not a value.
+            const std::string_view topic(message.topic);
+            if (topic.ends_with("/status") || topic.ends_with("/availability")) return {};
             const char* text = static_cast<const char*>(message.payload);
             double value = 0;
             // A status word in place of a value ("no-reply") is no sample: not counted as one.

@@ -66,8 +66,7 @@ struct Front {
               [this](const std::string& line_text) {
                   std::lock_guard lock(answers.mutex);
                   answers.logged.push_back(line_text);
-              },
-              {}) {}
+              }) {}
 };
 
 Front& front() {

@@ -16,7 +16,8 @@ enum class DeviceStatus {
     line_down,  // the link the device is on failed or is down, so it could not be asked
     stale,      // the gateway's: its last poll answered but the next is long overdue (gateway/value_cache.hpp)
     // The unit answers as another device: its identification words (client/identity_check.hpp)
-    // read something else than the profile expects, so none of its words are taken for values.
+    // read something else than the profile expects: its values are not shown, and nothing is
+    // written to it.
     wrong_device,
 };
 

@@ -153,6 +153,8 @@ std::string value_status(const WatchedDevice& device, const WatchedValue& value)
     if (value.fresh) return value.last->status;
     // A device that answered did not give this value; otherwise the device's status says why.
     if (answered(device.status)) return std::string(failed_value_status);
+    // What answered is not the configured device: none of its values is this device's.
+    if (device.status == DeviceStatus::wrong_device) return std::string(failed_value_status);
     return std::string(status_text(device.status));
 }
 

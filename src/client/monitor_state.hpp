@@ -92,7 +92,7 @@ inline constexpr std::string_view failed_value_status = "error";
 // The status shown for one value: the value's own ("ok", a special state such as
 // "under-range") when fresh, else why it is not: the device's status unless its latest poll
 // answered and is not overdue ("no-reply", "line-down", "waiting", "stale"), else
-// failed_value_status ("error").
+// failed_value_status ("error"), which a wrong device's values say too.
 std::string value_status(const WatchedDevice& device, const WatchedValue& value);
 
 }  // namespace loopwire::device

@@ -13,6 +13,30 @@
 
 namespace loopwire::gateway {
 
+std::optional<Error> silent_device_refusal(const std::string& device, const std::optional<DeviceSeen>& seen) {
+    if (!seen) return std::nullopt;
+    const auto why = [&](const char* otherwise) { return seen->error.empty() ? std::string(otherwise) : seen->error; };
+    switch (seen->status) {
+        case device::DeviceStatus::no_reply:
+            return make_error(ErrorKind::timeout,
+                              fmt::format("device \"{}\" does not answer its polls ({}); nothing was sent: write again once "
+                                          "its status is \"ok\"", device, why("its polls time out")));
+        case device::DeviceStatus::line_down:
+            return make_error(ErrorKind::link,
+                              fmt::format("device \"{}\" cannot be reached: its line is down ({}); nothing was sent: write "
+                                          "again once its status is \"ok\"", device, why("the line failed")));
+        case device::DeviceStatus::wrong_device:
+            return make_error(ErrorKind::mismatch,
+                              fmt::format("device \"{}\": what answers at its address is not the configured device ({}); "
+                                          "nothing was sent", device, why("its identification differs")));
+        case device::DeviceStatus::waiting:
+        case device::DeviceStatus::ok:
+        case device::DeviceStatus::partial:
+        case device::DeviceStatus::stale: return std::nullopt;
+    }
+    return std::nullopt;  // not reached: every status is handled above
+}
+
 struct DeviceWriter::Target {
     WritableDevice device;
     LineWriter* line = nullptr;
@@ -211,6 +235,12 @@ bool DeviceWriter::write_async(const std::string& device, std::vector<WriteAssig
         job.written.values.emplace_back(parameter->name, assignment.text);
         job.planned.emplace_back(parameter, std::move(assignment.text));
     }
+    // The names and values are checked first: what is wrong with the write itself is worth
+    // saying whatever the device's state.
+    if (auto refused = refusal(device)) {
+        done(std::move(*refused));
+        return true;
+    }
     job.given_up = loop_.clock()->now() + target->line->write_limit;
     job.done = std::move(done);
     return target->line->submit(std::move(job));
@@ -229,6 +259,13 @@ Result<WrittenValues> DeviceWriter::write(const std::string& device, const std::
 }
 
 void DeviceWriter::on_written(WrittenHook hook) { *written_hook_ = std::move(hook); }
+
+void DeviceWriter::refuse_silent(DeviceLookup lookup) { lookup_ = std::move(lookup); }
+
+std::optional<Error> DeviceWriter::refusal(const std::string& device) const {
+    if (!lookup_) return std::nullopt;
+    return silent_device_refusal(device, lookup_(device));
+}
 
 std::size_t DeviceWriter::pending() const {
     std::size_t total = 0;

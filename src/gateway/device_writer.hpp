@@ -22,8 +22,18 @@
 #include "common/result.hpp"
 #include "gateway/event_loop.hpp"
 #include "gateway/line_scheduler.hpp"
+#include "gateway/value_cache.hpp"
 
 namespace loopwire::gateway {
+
+// The write policy every front follows (HTTP, MQTT, Sparkplug, the Modbus TCP front): a write
+// to a device its polls find silent (`no-reply`: in back-off until it answers again), whose
+// line is down (`line-down`), or that is not the configured device (`wrong-device`) is refused
+// at once, unsent, rather than left to wait out the line's timeout. The error's kind says
+// which: ErrorKind::timeout (the device is silent: the Modbus TCP front answers 0Bh),
+// ErrorKind::link (no path to it: 0Ah), ErrorKind::mismatch (another device answers: 0Bh).
+// None for any other status, and before the device's first poll: its write goes.
+std::optional<Error> silent_device_refusal(const std::string& device, const std::optional<DeviceSeen>& seen);
 
 // A device the fronts may write to: its configured name, profile and unit, and its line.
 struct WritableDevice {
@@ -84,6 +94,15 @@ public:
     // Writes queued or under way on every line now.
     std::size_t pending() const;
 
+    // From now on every write to a device `lookup` finds silent is refused at once
+    // (silent_device_refusal): write_async runs its completion before returning. Set once,
+    // before the first write; without it every write goes to its line.
+    void refuse_silent(DeviceLookup lookup);
+
+    // Why a write to `device` would be refused now (silent_device_refusal), or none: for a
+    // front that answers such a refusal in its own way (an HTTP status) before asking.
+    std::optional<Error> refusal(const std::string& device) const;
+
     // Told of every write that landed (the device's configured name and what was written),
     // on the engine's loop, before its asker: the polls read again the limits it may have
     // moved (PollGroups::written). Set once, before the first write.
@@ -95,6 +114,7 @@ private:
     struct LineWriter;
     EventLoop& loop_;
     std::shared_ptr<WrittenHook> written_hook_ = std::make_shared<WrittenHook>();
+    DeviceLookup lookup_;
     std::vector<std::unique_ptr<Target>> targets_;
     std::vector<std::unique_ptr<LineWriter>> lines_;  // one a line scheduler; stopped first
 };

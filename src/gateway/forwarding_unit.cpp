@@ -74,6 +74,14 @@ ForwardingUnit::ForwardingUnit(std::shared_ptr<LineScheduler> line, ForwardingSe
     }
 }
 
+std::optional<Bytes> ForwardingUnit::silent_refusal(ByteView request_pdu) const {
+    if (!settings_.write_refusal || only_reads(request_pdu[0])) return std::nullopt;
+    auto refused = settings_.write_refusal();
+    if (!refused) return std::nullopt;
+    if (log_) log_(fmt::format("refused function {} to unit {}: {}", request_pdu[0], settings_.line_unit, refused->message));
+    return failure_reply(request_pdu[0], *refused);
+}
+
 std::optional<Bytes> ForwardingUnit::refusal(ByteView request_pdu) const {
     if (settings_.writes_allowed || only_reads(request_pdu[0])) return std::nullopt;
     if (log_) {
@@ -118,6 +126,10 @@ LineRequest ForwardingUnit::line_request(Bytes request_pdu, bool broadcast, cons
 void ForwardingUnit::handle_async(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) {
     if (request_pdu.empty()) return reply(std::nullopt);
     if (auto refused = refusal(request_pdu)) return reply(broadcast ? std::nullopt : std::move(refused));
+    // A broadcast is every device's: one silent device does not hold it back.
+    if (!broadcast) {
+        if (auto refused = silent_refusal(request_pdu)) return reply(std::move(refused));
+    }
     // What was kept may be out of date once a write is taken. A broadcast write reaches this
     // device too, even when another unit carries it to the line.
     if (cache_ && !only_reads(request_pdu[0])) cache_->forget();

@@ -12,6 +12,7 @@
 #include <string_view>
 
 #include "common/clock.hpp"
+#include "common/result.hpp"
 #include "gateway/line_scheduler.hpp"
 #include "gateway/read_cache.hpp"
 #include "session/unit_handler.hpp"
@@ -32,6 +33,11 @@ struct ForwardingSettings {
     // Told, on the line's thread, of every write a client made through this unit that the device
     // answered with a normal reply: a word that bounds a polled value may have moved.
     std::function<void()> on_write_answered = {};
+    // Why a write (any function that is not a read) cannot go to the device now, or none: the
+    // gateway's write policy (gateway/device_writer.hpp, silent_device_refusal). A refused
+    // write is answered with failure_reply at once and never reaches the line; reads and
+    // broadcasts still go.
+    std::function<std::optional<Error>()> write_refusal = {};
 };
 
 // What the gateway says of refused or failed requests (for its log). A line that begins with
@@ -53,6 +59,7 @@ public:
 
 private:
     std::optional<Bytes> refusal(ByteView request_pdu) const;
+    std::optional<Bytes> silent_refusal(ByteView request_pdu) const;
     std::optional<Bytes> cached(ByteView request_pdu, bool broadcast) const;
     LineRequest line_request(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) const;
 

@@ -313,6 +313,11 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
             settings.writes_allowed = config.modbus_tcp.writes;
             settings.carries_broadcasts = std::exchange(first, false);
             settings.max_age = config.modbus_tcp.max_age;
+            // The writer's policy (device_writer.hpp): a write to a silent device is answered at
+            // once (0Bh; 0Ah when its line is down), not forwarded to wait out the line.
+            settings.write_refusal = [lookup = parts->cache.device_lookup(), name = device.name] {
+                return silent_device_refusal(name, lookup(name));
+            };
             settings.on_write_answered = [notices = std::weak_ptr<FrontWriteNotices>(parts->front_writes), name = device.name] {
                 if (auto open = notices.lock()) open->written(name);
             };
@@ -350,6 +355,8 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         }
     }
     parts->writer = std::make_unique<DeviceWriter>(*parts->engine, std::move(writable), write_limit);
+    // One write policy for every front: a device the polls find silent is refused at once.
+    parts->writer->refuse_silent(parts->cache.device_lookup());
     // A write of a word that bounds a polled value shows in every front's limits at the next poll.
     parts->writer->on_written([polls = parts->polls.get()](const std::string& device, const WrittenValues& written) {
         std::vector<std::string> parameters;

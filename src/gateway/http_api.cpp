@@ -14,6 +14,7 @@
 #include "client/device_status.hpp"
 #include "client/monitor_state.hpp"
 #include "client/resolved_value.hpp"
+#include "common/fnv1a.hpp"
 #include "common/peer_text.hpp"
 #include "gateway/dashboard_assets.hpp"
 #include "gateway/http_text.hpp"
@@ -43,23 +44,11 @@ HttpResponse not_allowed(const std::string& allowed) {
     return response;
 }
 
-Json bound_json(const std::optional<device::Bound>& bound) {
-    if (!bound) return nullptr;
-    if (const auto* number = std::get_if<double>(&*bound)) return *number;
-    return Json{{"parameter", std::get<std::string>(*bound)}};
-}
-
-// A bound another parameter sets, as the number that parameter holds when the gateway polls it
-// (the TC10's set point between its SP.LL and SP.HL); else the bounding parameter's name.
-Json resolved_bound(const std::optional<device::Bound>& bound, const device::WatchedDevice* state) {
-    const auto* name = bound ? std::get_if<std::string>(&*bound) : nullptr;
-    if (name && state) {
-        for (const auto& value : state->values) {
-            if (value.parameter->name != *name || !value.last) continue;
-            if (const auto* number = std::get_if<double>(&value.last->value)) return *number;
-        }
-    }
-    return bound_json(bound);
+// A limit as the view has it, else the name of the parameter that sets it (not read yet), else null.
+Json limit_json(const std::optional<double>& limit, const std::optional<device::Bound>& bound) {
+    if (limit) return *limit;
+    if (auto name = device::bounding_parameter(bound)) return Json{{"parameter", *name}};
+    return nullptr;
 }
 
 Json value_json(const device::EngineeringValue& value) {
@@ -91,14 +80,7 @@ Json change_json(const ValueChange& change) {
 }
 
 // The ETag of an asset: a hash of its bytes (FNV-1a), so it changes exactly when they do.
-std::string etag_of(std::string_view body) {
-    std::uint64_t hash = 14695981039346656037ull;
-    for (const char c : body) {
-        hash ^= static_cast<unsigned char>(c);
-        hash *= 1099511628211ull;
-    }
-    return fmt::format("\"{:016x}\"", hash);
-}
+std::string etag_of(std::string_view body) { return fmt::format("\"{:016x}\"", fnv1a(body)); }
 
 // Compares without stopping at the first difference, so the time taken says nothing of how much
 // of a guessed token was right.
@@ -322,7 +304,6 @@ HttpResponse HttpApi::State::devices_list() const {
 
 HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const {
     const auto cached = this->cached(device.name);
-    const auto now = device::MonitorClock::now();
     const device::Profile& profile = *device.address.profile;
     Json out{{"name", device.name}, {"device", profile.id}, {"title", profile.title}, {"line", device.line},
              {"unit", device.address.unit}};
@@ -342,27 +323,29 @@ HttpResponse HttpApi::State::device_detail(const ConfiguredDevice& device) const
         const bool polled = std::find(device.polled.begin(), device.polled.end(), &parameter) != device.polled.end();
         if (parameter.hidden && !polled) continue;
         if (std::find(groups.begin(), groups.end(), parameter.group) == groups.end()) groups.push_back(parameter.group);
-        // The resolved view the command line and the library show (client/resolved_value.hpp):
-        // the unit as the device is configured (a TC10's °C or °F), the limits as it holds them.
+        // The resolved view every front shows (client/resolved_value.hpp): the unit as the device
+        // is configured (a TC10's °C or °F), the limits as it holds them, the status, and the
+        // age as of the cache's view, on the clock the polls run on.
         const device::EngineeringValue* last = watched && watched->last ? &*watched->last : nullptr;
-        const auto resolved = device::resolve_value(parameter, last, cached ? cached->state.known : device::RawValues{});
+        // A parameter not polled still has its limits from the words the polls read.
+        const auto resolved = watched ? resolved_view(*cached, *watched)
+                                      : device::resolve_value(parameter, nullptr, cached ? cached->state.known : device::RawValues{});
         Json p{{"name", parameter.name}, {"mnemonic", parameter.mnemonic}, {"group", parameter.group},
                {"description", parameter.description}, {"unit", resolved.unit}, {"polled", polled}};
         p["value"] = last ? value_json(*last) : Json(nullptr);
         p["text"] = resolved.text;
         // A polled parameter not in the cache yet waits for its device's first poll.
-        p["status"] = watched ? device::value_status(cached->state, *watched)
+        p["status"] = watched ? resolved.status
                               : std::string(polled ? device::status_text(device::DeviceStatus::waiting) : "not-polled");
-        const auto age = watched ? device::age_seconds(*watched, now) : std::nullopt;
-        p["age"] = age ? Json(*age) : Json(nullptr);
-        p["error"] = watched && !watched->fresh ? watched->error : std::string();
+        p["age"] = resolved.age ? Json(*resolved.age) : Json(nullptr);
+        p["error"] = watched ? resolved.error : std::string();
         p["readable"] = parameter.readable;
         p["writable"] = parameter.writable;
-        // In engineering units as the device holds them (what a write is checked against); the
-        // profile's bound (a fixed number, or the bounding parameter's name) while not known.
+        // In engineering units as the device holds them (what a write is checked against), with
+        // the one fallback every front shows (device::ResolvedValue::limits); null while not known.
         const auto& limits = resolved.limits;
-        p["min"] = limits.min ? Json(*limits.min) : resolved_bound(parameter.min, cached ? &cached->state : nullptr);
-        p["max"] = limits.max ? Json(*limits.max) : resolved_bound(parameter.max, cached ? &cached->state : nullptr);
+        p["min"] = limit_json(limits.min, parameter.min);
+        p["max"] = limit_json(limits.max, parameter.max);
         // Fixed min/max still in display counts: the decimal point that scales them is not known.
         if (parameter.range_in_counts && !limits.min && !limits.max) p["range_counts"] = true;
         if (const auto* fixed = std::get_if<int>(&parameter.decimals)) {
@@ -435,6 +418,13 @@ HttpOutcome HttpApi::State::write(const ConfiguredDevice& device, const HttpRequ
         auto text = written_text(value);
         if (!text) return {error(400, fmt::format("the value of \"{}\": {}", name, text.error().message)), {}, {}};
         assignments.push_back({name, std::move(*text)});
+    }
+    // The writer's policy, answered as what it is: the device cannot take writes now (it does not
+    // answer, or its line is down), so nothing was sent and the same write may go later.
+    if (auto silent = sources.writer->refusal(device.name)) {
+        HttpResponse refused = error(503, silent->message);
+        refused.headers.emplace_back("Retry-After", "5");
+        return {std::move(refused), {}, {}};
     }
     // Handed to the device's line; answered from its completion once the line has answered,
     // so a write waiting for a slow line holds up no other client and no other line.

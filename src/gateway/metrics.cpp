@@ -132,17 +132,16 @@ void process_values(std::string& out, const std::vector<MetricsDevice>& devices,
         double age;
     };
     std::vector<Shown> shown;
-    const auto now = device::MonitorClock::now();
     for (std::size_t i = 0; i < devices.size(); ++i) {
         if (!found[i]) continue;
         for (const auto& value : found[i]->state.values) {
-            if (!value.last || device::value_status(found[i]->state, value) != "ok") continue;
-            const double* number = std::get_if<double>(&value.last->value);
-            if (!number) continue;
-            const auto& parameter = *value.parameter;
+            // The view every front shows (client/resolved_value.hpp): its status, unit and age as
+            // of the cache's view, on the clock the polls run on.
+            const device::ResolvedValue resolved = resolved_view(*found[i], value);
+            if (!resolved.number || resolved.status != "ok") continue;
             shown.push_back({fmt::format("device=\"{}\",parameter=\"{}\",unit=\"{}\"", label(devices[i].name),
-                                         label(parameter.name), label(device::shown_unit(parameter, &*value.last))),
-                             *number, device::age_seconds(value, now).value_or(0.0)});
+                                         label(value.parameter->name), label(resolved.unit)),
+                             *resolved.number, resolved.age.value_or(0.0)});
         }
     }
     family(out, "value", "gauge",

@@ -21,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/device_status.hpp"
+#include "common/fnv1a.hpp"
 #include "common/peer_text.hpp"
 #include "gateway/mqtt_client.hpp"
 #include "gateway/mqtt_commands.hpp"
@@ -62,22 +63,16 @@ constexpr int goodbye_turn_ms = 50;
     });
 }
 
-// The device's status topic: "online", "offline" (no reply), "error" (some values failed),
-// "line-down" (the cable or adapter, not the device, is what to look at; the value's meta gives
-// the reason) or "stale" (its poll is overdue: its values may no longer be the device's;
-// value_cache.hpp) or "wrong-device" (the unit answers as another device).
+// The one place MQTT maps a device's status. PREFIX/DEVICE/status carries its word, as every
+// front says it (client/device_status.hpp: "ok", "partial", "no-reply", "line-down", "stale",
+// "wrong-device"); PREFIX/DEVICE/availability what Home Assistant's availability reads:
+// "online" while its values are the device's and current (ok, partial), "offline" otherwise.
 // "waiting" is never published: a device skipped in back-off keeps its last word.
-std::string device_status_word(device::DeviceStatus status) {
-    switch (status) {
-        case device::DeviceStatus::ok: return "online";
-        case device::DeviceStatus::no_reply: return "offline";
-        case device::DeviceStatus::partial: return "error";
-        case device::DeviceStatus::line_down:
-        case device::DeviceStatus::stale:
-        case device::DeviceStatus::wrong_device:
-        case device::DeviceStatus::waiting: return std::string(device::status_text(status));
-    }
-    return std::string(device::status_text(status));  // not reached: every status is handled above
+constexpr std::string_view available = "online";
+constexpr std::string_view unavailable = "offline";
+
+std::string availability_word(device::DeviceStatus status) {
+    return std::string(device::answered(status) ? available : unavailable);
 }
 
 struct Publication {
@@ -109,24 +104,8 @@ constexpr std::size_t remembered_commands = 1024;
 
 // FNV-1a over the topic, a separator no topic holds, and the payload.
 std::uint64_t command_digest(std::string_view topic, std::string_view payload) {
-    std::uint64_t hash = 14695981039346656037ull;
-    const auto add = [&hash](std::string_view text) {
-        for (const char c : text) {
-            hash ^= static_cast<unsigned char>(c);
-            hash *= 1099511628211ull;
-        }
-    };
-    add(topic);
-    add(std::string_view("\0", 1));
-    add(payload);
-    return hash;
+    return fnv1a(payload, fnv1a(std::string_view("\0", 1), fnv1a(topic)));
 }
-
-// What the last poll said about a device.
-struct DeviceSeen {
-    device::DeviceStatus status = device::DeviceStatus::waiting;
-    std::string error;
-};
 
 }  // namespace
 
@@ -209,8 +188,10 @@ struct MqttBridge::State {
         if (change.about_device()) {
             std::lock_guard lock(mutex);
             devices[change.device] = {change.device_status, change.error};
-            queue_locked(
-                {topic(change.device, "status"), device_status_word(change.device_status), true, qos_at_least_once});
+            queue_locked({topic(change.device, "status"), std::string(device::status_text(change.device_status)), true,
+                          qos_at_least_once});
+            queue_locked({topic(change.device, "availability"), availability_word(change.device_status), true,
+                          qos_at_least_once});
             return;
         }
         const std::string base = topic(change.device, change.parameter);
@@ -437,8 +418,14 @@ struct MqttBridge::State {
             }
             gateway_stays = gateway_continues;
         }
-        for (const auto& name : names) publish({topic(name, "status"), "offline", true, qos_at_least_once});
-        if (!gateway_stays) publish({config.prefix + "/status", "offline", true, qos_at_least_once});
+        // Nobody polls them from now on: unavailable, and not polled ("waiting") rather than the
+        // last word, which would stand retained as if it were still true.
+        for (const auto& name : names) {
+            publish({topic(name, "availability"), std::string(unavailable), true, qos_at_least_once});
+            publish({topic(name, "status"), std::string(device::status_text(device::DeviceStatus::waiting)), true,
+                     qos_at_least_once});
+        }
+        if (!gateway_stays) publish({config.prefix + "/status", std::string(unavailable), true, qos_at_least_once});
         // Disconnecting before the broker has acknowledged a QoS 1 publication makes its PUBACK
         // fail on a closed socket: mosquitto then takes the disconnection for a broken one
         // ("disconnected due to out of memory", eclipse-mosquitto/mosquitto#2627) and publishes
@@ -452,19 +439,6 @@ struct MqttBridge::State {
                mosquitto_loop(client, goodbye_turn_ms, 1) == MOSQ_ERR_SUCCESS) {
         }
         is_connected.store(false);
-    }
-
-    // --- the writes ------------------------------------------------------------------------------
-
-    // Why a write to `device` cannot go now: its polls find it silent, so the line scheduler has
-    // it in back-off. Answered at once rather than left to time out on the line.
-    std::optional<std::string> not_answering(const std::string& device) {
-        std::lock_guard lock(mutex);
-        const auto found = devices.find(device);
-        if (found == devices.end() || found->second.status != device::DeviceStatus::no_reply) return std::nullopt;
-        return fmt::format("device {} does not answer ({}); nothing was sent: write again once {} is \"online\"", device,
-                           found->second.error.empty() ? "its polls time out" : found->second.error,
-                           topic(device, "status"));
     }
 };
 
@@ -506,8 +480,7 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
         [&s](std::string topic, std::string payload) {
             s.queue({std::move(topic), std::move(payload), false, qos_at_least_once});
         },
-        [&s](const std::string& line) { s.say(line); },
-        [&s](const std::string& device) { return s.not_answering(device); });
+        [&s](const std::string& line) { s.say(line); });
     s.driver = std::make_unique<mqtt::LoopDriver>(loop, "lw-mqtt", s.client, s.config.host, s.timing.reconnect_first, s.timing.reconnect_last,
                                                   s.network_hooks());
     s.driver->start();

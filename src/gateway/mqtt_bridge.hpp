@@ -6,7 +6,10 @@
 // configuration restricts to [A-Za-z0-9_-], so they are single topic levels that never need
 // escaping and never hold a wildcard):
 //   PREFIX/status                      "online"; "offline" on a clean stop and as the last will
-//   PREFIX/DEVICE/status               "online", "offline" (no reply) or "error" (partial)
+//   PREFIX/DEVICE/status               the device's status word: "ok", "partial", "no-reply",
+//                                      "line-down", "stale", "wrong-device" (client/device_status.hpp)
+//   PREFIX/DEVICE/availability         "online" while it answers (ok, partial), else "offline":
+//                                      what Home Assistant's availability reads
 //   PREFIX/DEVICE/PARAMETER            the value in engineering units, or its status when none
 //   PREFIX/DEVICE/PARAMETER/meta       JSON: unit, decimals, writable, min, max, enum labels,
 //                                      mnemonic, status, error, last_error (mqtt_documents.hpp)
@@ -18,9 +21,10 @@
 //   PREFIX/DEVICE/PARAMETER/set/result {"ok":true,"value":"..."} or {"ok":false,"error":"..."}
 //   DISCOVERY/COMPONENT/ID/config      with discovery = "homeassistant": Home Assistant's documents
 // All but set/result are retained. Values go out when they change and again every `republish`.
-// On a clean stop every PREFIX/DEVICE/status and PREFIX/status say "offline" (on a reload, only
-// what the next configuration no longer publishes: hand_over); a write to a device whose polls
-// find it silent is refused at once (it would only wait out the line).
+// On a clean stop every PREFIX/DEVICE/availability and PREFIX/status say "offline", and every
+// PREFIX/DEVICE/status "waiting" (on a reload, only what the next configuration no longer
+// publishes: hand_over); a write to a device whose polls find it silent is refused at once by
+// the writer's policy (gateway/device_writer.hpp).
 //
 // Threads: none of its own in the gateway. The libmosquitto client is driven on the engine's loop
 // (gateway/mqtt_loop_driver.hpp), with the polls: it connects and reconnects with back-off

@@ -22,7 +22,7 @@ std::optional<CommandTopic> command_topic(std::string_view prefix, std::string_v
     return command;
 }
 
-MqttCommands::MqttCommands(const MqttConfig& config, const DeviceWriter& writer, Publish publish, GatewayLog log, Silence silence,
+MqttCommands::MqttCommands(const MqttConfig& config, const DeviceWriter& writer, Publish publish, GatewayLog log,
                            std::size_t max_commands)
     : prefix_(config.prefix),
       writes_(config.writes),
@@ -30,8 +30,7 @@ MqttCommands::MqttCommands(const MqttConfig& config, const DeviceWriter& writer,
       max_commands_(max_commands),
       writer_(writer),
       publish_(std::move(publish)),
-      log_(std::move(log)),
-      silence_(std::move(silence)) {}
+      log_(std::move(log)) {}
 
 MqttCommands::~MqttCommands() { close(); }
 
@@ -56,9 +55,8 @@ void MqttCommands::take(std::string_view topic, std::string_view payload) {
                                   max_payload_));
     }
     if (!writes_) return answer(*command, payload, "writes are off ([mqtt] writes = false)");
-    if (writer_.find(command->device)) {
-        if (auto silent = silence_ ? silence_(command->device) : std::nullopt) return answer(*command, payload, *silent);
-    }
+    // Before counting it in: a device found silent is refused at once, and never counts as busy.
+    if (auto silent = writer_.refusal(command->device)) return answer(*command, payload, silent->message);
     if (auto refusal = admit()) return answer(*command, payload, *refusal);
     std::string text(payload);
     auto done = [this, command = *command, text](Result<WrittenValues> written) {

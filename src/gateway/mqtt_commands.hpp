@@ -37,12 +37,12 @@ class MqttCommands {
 public:
     // Publishes a set/result document (QoS 1, not retained); must only queue.
     using Publish = std::function<void(std::string topic, std::string payload)>;
-    // Why writes to the device cannot go now (its polls find it silent), or none.
-    using Silence = std::function<std::optional<std::string>(const std::string& device)>;
 
     static constexpr std::size_t default_max_commands = 256;
 
-    MqttCommands(const MqttConfig& config, const DeviceWriter& writer, Publish publish, GatewayLog log, Silence silence,
+    // A write to a device its polls find silent is refused at once by the writer's policy
+    // (silent_device_refusal), in the words every front gives.
+    MqttCommands(const MqttConfig& config, const DeviceWriter& writer, Publish publish, GatewayLog log,
                  std::size_t max_commands = default_max_commands);
     // close(), if not done yet.
     ~MqttCommands();
@@ -79,7 +79,6 @@ private:
     const DeviceWriter& writer_;
     Publish publish_;
     GatewayLog log_;
-    Silence silence_;
     mutable std::mutex mutex_;
     std::condition_variable all_answered_;
     std::size_t under_way_ = 0;

@@ -8,6 +8,8 @@
 
 #include <fmt/format.h>
 
+#include "client/resolved_value.hpp"
+
 namespace loopwire::gateway {
 namespace {
 
@@ -15,21 +17,9 @@ bool level_character(char c) {
     return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' || c == '_';
 }
 
-nlohmann::json bound_json(const device::Bound& bound) {
-    if (const auto* number = std::get_if<double>(&bound)) return *number;
-    return nlohmann::json{{"parameter", std::get<std::string>(bound)}};
-}
-
 nlohmann::json decimals_json(const device::Parameter& parameter) {
     if (const int* fixed = std::get_if<int>(&parameter.decimals)) return *fixed;
     return nlohmann::json{{"parameter", std::get<std::string>(parameter.decimals)}};
-}
-
-// Digits after the point in a value's text ("150.5" -> 1): the decimals of the sample, for a
-// parameter whose decimals another parameter sets.
-int decimals_in(const std::string& text) {
-    const auto point = text.find('.');
-    return point == std::string::npos ? 0 : static_cast<int>(text.size() - point - 1);
 }
 
 bool two_state_labels(const device::Parameter& parameter, std::string& on, std::string& off) {
@@ -56,16 +46,12 @@ std::vector<std::string> labels_of(const device::Parameter& parameter) {
     return labels;
 }
 
-// A number's limits for Home Assistant, which needs numbers (its defaults are 1..100): the
-// profile's fixed bound, else what the word can hold at the parameter's decimals (the device
-// still refuses what its live limit parameter does not allow, and set/result says so).
-double number_limit(const device::Parameter& parameter, const std::optional<device::Bound>& bound, bool upper, int decimals) {
-    if (bound) {
-        if (const auto* number = std::get_if<double>(&*bound)) {
-            // Display counts (range "counts") are scaled like the value itself.
-            return parameter.range_in_counts ? *number / std::pow(10.0, decimals) : *number;
-        }
-    }
+// A number's limit for Home Assistant, which needs numbers (its defaults are 1..100): the
+// value's own (device::ResolvedValue::limits, the one every front shows), else what the word can
+// hold at the parameter's decimals (the device still refuses what its live limit parameter does
+// not allow, and set/result says so).
+double number_limit(const device::Parameter& parameter, const std::optional<double>& limit, bool upper, int decimals) {
+    if (limit) return *limit;
     const double scale = std::pow(10.0, decimals);
     if (parameter.type == device::ValueType::int16) return (upper ? 32767.0 : -32768.0) / scale;
     return (upper ? 65535.0 : 0.0) / scale;
@@ -109,14 +95,18 @@ nlohmann::json meta_document(const ValueChange& change, const device::Parameter*
     meta["decimals"] = decimals_json(*parameter);
     // Set by another parameter: the sample's own, when it holds a number.
     if (meta["decimals"].is_object() && change.value && std::holds_alternative<double>(change.value->value)) {
-        meta["decimals"] = decimals_in(change.text);
+        meta["decimals"] = change.decimals;
     }
     meta["writable"] = parameter->writable;
-    // As the API gives them: numbers as the device holds them, else the profile's bound.
-    meta["min"] = change.limits.min ? nlohmann::json(*change.limits.min)
-                                    : parameter->min ? bound_json(*parameter->min) : nlohmann::json(nullptr);
-    meta["max"] = change.limits.max ? nlohmann::json(*change.limits.max)
-                                    : parameter->max ? bound_json(*parameter->max) : nlohmann::json(nullptr);
+    // As every front gives them (device::ResolvedValue::limits), else the name of the parameter
+    // that sets one (not read yet), else null.
+    const auto limit = [](const std::optional<double>& value, const std::optional<device::Bound>& bound) {
+        if (value) return nlohmann::json(*value);
+        if (auto name = device::bounding_parameter(bound)) return nlohmann::json{{"parameter", *name}};
+        return nlohmann::json(nullptr);
+    };
+    meta["min"] = limit(change.limits.min, parameter->min);
+    meta["max"] = limit(change.limits.max, parameter->max);
     nlohmann::json labels = nlohmann::json::object();
     for (const auto& [code, label] : parameter->enum_labels) labels[std::to_string(code)] = label;
     meta["enum"] = std::move(labels);
@@ -132,14 +122,12 @@ std::string meta_inputs(const ValueChange& change, const device::Parameter* para
     const auto bound = [](const std::optional<double>& value) { return value ? fmt::format("{}", *value) : std::string("-"); };
     const bool decimals_from_text = !std::holds_alternative<int>(parameter->decimals) && change.value &&
                                     std::holds_alternative<double>(change.value->value);
-    return fmt::format("{}\x1f{}\x1f{}\x1f{}", said, decimals_from_text ? decimals_in(change.text) : -1,
+    return fmt::format("{}\x1f{}\x1f{}\x1f{}", said, decimals_from_text ? change.decimals : -1,
                        bound(change.limits.min), bound(change.limits.max));
 }
 
 int shown_decimals(const device::Parameter& parameter, const ValueChange* latest) {
-    if (const int* fixed = std::get_if<int>(&parameter.decimals)) return *fixed;
-    if (latest && latest->value && std::holds_alternative<double>(latest->value->value)) return decimals_in(latest->text);
-    return 0;
+    return latest ? latest->decimals : device::shown_decimals(parameter, nullptr);
 }
 
 std::string friendly_name(const device::Parameter& parameter) {
@@ -191,16 +179,12 @@ nlohmann::json entity_base(const MqttConfig& config, const std::string& device_n
     return nlohmann::json{
         {"unique_id", object_id},
         {"device", std::move(device)},
-        // Both the gateway's (its last will) and the device's (its polls): a value is only
-        // current when the gateway is connected and the device answers. The device's status
-        // has more words than two (`error`, `line-down`, `stale`: its values may no longer be
-        // the device's): anything but `online` is unavailable.
+        // Both the gateway's (its last will) and the device's (its polls, mapped to online or
+        // offline on its availability topic; its status topic has the words): a value is only
+        // current when the gateway is connected and the device answers.
         {"availability",
          {{{"topic", config.prefix + "/status"}, {"payload_available", "online"}, {"payload_not_available", "offline"}},
-          {{"topic", device_topic + "/status"},
-           {"payload_available", "online"},
-           {"payload_not_available", "offline"},
-           {"value_template", "{{ 'online' if value == 'online' else 'offline' }}"}}}},
+          {{"topic", device_topic + "/availability"}, {"payload_available", "online"}, {"payload_not_available", "offline"}}}},
         {"availability_mode", "all"},
     };
 }
@@ -262,8 +246,8 @@ std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, cons
     doc["temperature_state_template"] = numbers_only;
     if (config.writes && loop.sp->writable) doc["temperature_command_topic"] = fmt::format("{}/{}/set", device_topic, loop.sp->name);
     doc["temperature_unit"] = sample.pv_unit == "°C" ? "C" : "F";
-    doc["min_temp"] = sample.sp_limits.min ? *sample.sp_limits.min : number_limit(*loop.sp, loop.sp->min, false, sample.sp_decimals);
-    doc["max_temp"] = sample.sp_limits.max ? *sample.sp_limits.max : number_limit(*loop.sp, loop.sp->max, true, sample.sp_decimals);
+    doc["min_temp"] = number_limit(*loop.sp, sample.sp_limits.min, false, sample.sp_decimals);
+    doc["max_temp"] = number_limit(*loop.sp, sample.sp_limits.max, true, sample.sp_decimals);
     doc["temp_step"] = std::pow(10.0, -sample.sp_decimals);
     // Home Assistant shows temperatures to 0.1, 0.5 or 1.
     doc["precision"] = sample.sp_decimals > 0 ? 0.1 : 1.0;
@@ -300,9 +284,10 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
         component = "number";
         const int decimals = shown_decimals(parameter, latest);
         doc["command_topic"] = state_topic + "/set";
-        const device::ValueLimits known = latest ? latest->limits : device::ValueLimits{};
-        doc["min"] = known.min ? *known.min : number_limit(parameter, parameter.min, false, decimals);
-        doc["max"] = known.max ? *known.max : number_limit(parameter, parameter.max, true, decimals);
+        // Before a value: the limits nothing read is needed for (a fixed bound in engineering units).
+        const device::ValueLimits known = latest ? latest->limits : device::limits_of(parameter, {});
+        doc["min"] = number_limit(parameter, known.min, false, decimals);
+        doc["max"] = number_limit(parameter, known.max, true, decimals);
         doc["step"] = std::pow(10.0, -decimals);
         doc["mode"] = "box";
     } else if (commands && (parameter.type == device::ValueType::enumeration || parameter.type == device::ValueType::boolean)) {

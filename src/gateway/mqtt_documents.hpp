@@ -54,8 +54,8 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
 std::vector<DiscoveryDocument> bit_documents(const MqttConfig& config, const std::string& device_name,
                                              const device::Profile& profile, const device::Parameter& parameter);
 
-// The decimals a value shows: the profile's fixed ones, else those of the latest value's text
-// (set by another parameter, e.g. a decimal-point word), else 0.
+// The decimals a value shows (device::ResolvedValue::decimals): the profile's fixed ones, else
+// those the latest value was read with (set by another parameter, e.g. a decimal-point word), else 0.
 int shown_decimals(const device::Parameter& parameter, const ValueChange* latest);
 
 // An entity's name in Home Assistant: the first sentence of the parameter's description (the

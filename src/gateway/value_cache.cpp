@@ -110,6 +110,7 @@ device::WatchedDevice stale_state(const device::WatchedDevice& polled_state, con
 
 CachedDevice as_seen(const DeviceEntry& entry, Instant now) {
     CachedDevice device = entry.latest;
+    device.seen_at = now;
     if (entry.answered_at) {
         device.since_answered = std::chrono::duration_cast<std::chrono::milliseconds>(now - *entry.answered_at);
     }
@@ -137,6 +138,7 @@ ValueChange value_change(const std::string& name, const device::WatchedDevice& s
     // the unit as the device is configured, its limits as it holds them, the text.
     const auto resolved = device::resolve_value(parameter, value.last ? &*value.last : nullptr, state.known);
     change.unit = resolved.unit;
+    change.decimals = resolved.decimals;
     change.limits = resolved.limits;
     change.status = device::value_status(state, value);
     change.sampled = sampled;
@@ -329,6 +331,21 @@ std::vector<ValueChange> ValueCache::told(const std::string& name) const {
     const auto it = std::find_if(hub_->devices.begin(), hub_->devices.end(),
                                  [&](const DeviceEntry& entry) { return entry.latest.name == name; });
     return it == hub_->devices.end() ? std::vector<ValueChange>{} : it->published;
+}
+
+DeviceLookup ValueCache::device_lookup() const {
+    return [hub = std::weak_ptr<ValueHub>(hub_)](const std::string& name) -> std::optional<DeviceSeen> {
+        const auto held = hub.lock();
+        if (!held) return std::nullopt;
+        std::lock_guard lock(held->mutex);
+        for (const DeviceEntry& entry : held->devices) {
+            if (entry.latest.name != name) continue;
+            const Instant now = held->clock->now();
+            if (overdue(entry, now)) return DeviceSeen{device::DeviceStatus::stale, overdue_reason(entry, now)};
+            return DeviceSeen{entry.latest.state.status, entry.latest.state.last_error};
+        }
+        return std::nullopt;
+    };
 }
 
 ValueSubscription ValueCache::subscribe(ValueCallback callback) {

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "client/monitor_state.hpp"
+#include "client/resolved_value.hpp"
 #include "common/clock.hpp"
 
 namespace loopwire::gateway {
@@ -43,7 +44,26 @@ struct CachedDevice {
     // Since its last poll that answered, on the cache's clock; none before one, and after a
     // poll that got no answer.
     std::optional<std::chrono::milliseconds> since_answered;
+    // The cache's clock (the engine's, which the polls stamp their reads with) when this view
+    // was taken: what the values' ages are measured to (resolved_view), never a front's clock.
+    Instant seen_at{};
 };
+
+// One of the device's values as every front shows it (client/resolved_value.hpp): its text,
+// decimals, unit, limits, status and age as of the view.
+inline device::ResolvedValue resolved_view(const CachedDevice& device, const device::WatchedValue& value) {
+    return device::resolve_watched(device.state, value, device.seen_at);
+}
+
+// What the polls last found of a device, as snapshot() would say it: its status, and why it is
+// not `ok`.
+struct DeviceSeen {
+    device::DeviceStatus status = device::DeviceStatus::waiting;
+    std::string error;
+};
+// Looks a device up by its configured name; none before its first poll. It reads the cache
+// through a weak hold: once the cache is gone, every device is none.
+using DeviceLookup = std::function<std::optional<DeviceSeen>(const std::string& name)>;
 
 // A parameter whose value or status changed, or a device whose status changed.
 struct ValueChange {
@@ -52,9 +72,10 @@ struct ValueChange {
     // The value read in this sample; none when it was not read (status and error say why).
     std::optional<device::EngineeringValue> value;
     std::string text;  // the value as people read it ("137.0", an enum label); empty with no value
+    int decimals = 0;  // the digits after the point `text` shows (device::ResolvedValue::decimals)
     std::string unit;  // "°C"; empty for the device's status
-    // A number's limits in engineering units as the device holds them (device::limits_of over
-    // every word the polls read): what the API, /meta and Home Assistant's number all show.
+    // A number's limits in engineering units as the device holds them, with the one fallback
+    // (device::ResolvedValue::limits): what the API, /meta, Sparkplug and Home Assistant show.
     device::ValueLimits limits = {};
     // A value's: "ok", its special state ("under-range", ...), "no-reply", "error" or "stale"
     // (device::value_status). The device's: the text of device_status. A stale value carries no
@@ -130,6 +151,10 @@ public:
     std::vector<std::string> mark_overdue();
 
     std::vector<CachedDevice> snapshot() const;  // in the order devices were first seen
+
+    // Reads one device's status as snapshot() would, for the write policy
+    // (gateway/device_writer.hpp); it may outlive the cache (above).
+    DeviceLookup device_lookup() const;
 
     // What the subscribers were last told of device `name`: its status, then each parameter, as
     // one whole sample (an update is told whole before the next one starts, so this is never

@@ -19,6 +19,7 @@ TEST(DeviceStatus, EachStatusHasItsFixedWord) {
     EXPECT_EQ(status_text(DeviceStatus::no_reply), "no-reply");
     EXPECT_EQ(status_text(DeviceStatus::line_down), "line-down");
     EXPECT_EQ(status_text(DeviceStatus::stale), "stale");
+    EXPECT_EQ(status_text(DeviceStatus::wrong_device), "wrong-device");
 }
 
 TEST(DeviceStatus, EveryWordReadsBackAsItsStatus) {

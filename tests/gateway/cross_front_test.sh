@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # One truth on every front: a gateway polls a simulated TC10 and AC20 with their
-# default watch lists and serves them over Modbus TCP, HTTP and MQTT with Home Assistant
-# discovery; cross_front_check.py reads every polled value through the HTTP API, MQTT and its
-# /meta, the discovery documents, /metrics, `loopwire read --json`, `loopwire monitor --format csv`
-# and the public library, and wants the same text, unit, numeric limits and status from all.
+# default watch lists and serves them over Modbus TCP, HTTP, MQTT with Home Assistant
+# discovery and Sparkplug B, and keeps their history; cross_front_check.py reads every polled
+# value through the HTTP API, MQTT and its /meta, the discovery documents, /metrics,
+# `loopwire read --json`, `loopwire monitor --format csv`, the public library, the Sparkplug
+# births and data, and the history file's last rows, and wants the same text, unit, numeric
+# limits and status from all.
 # Then the TC10's unit word is changed (°C to °F), and the word bounding its set point, through
 # the HTTP API, and every front must follow.
 set -u
@@ -15,6 +17,14 @@ broker_program=/usr/sbin/mosquitto
 skip() { echo "SKIP: $1 (scripts/setup installs it)"; exit 77; }
 [[ -x $broker_program ]] || skip "$broker_program is not installed (Debian package mosquitto)"
 $python -c 'import paho.mqtt' 2>/dev/null || skip "paho.mqtt is not importable by $python (Debian package python3-paho-mqtt)"
+command -v protoc >/dev/null || skip "protoc is not installed (Debian package protobuf-compiler): the Sparkplug observer needs it"
+$python -c 'import google.protobuf' 2>/dev/null || skip "google.protobuf is not importable by $python (Debian package python3-protobuf)"
+
+# The Sparkplug observer's own protobuf module, from the repository's .proto.
+repo=$(cd "$(dirname "$0")/../.." && pwd)
+protoc --python_out="$WORK_DIR" -I "$repo/src/gateway/sparkplug" "$repo/src/gateway/sparkplug/sparkplug_b.proto" ||
+  fail "protoc could not compile src/gateway/sparkplug/sparkplug_b.proto"
+export SPARKPLUG_PB_DIR=$WORK_DIR
 
 start_mosquitto 200
 mqtt_port=$MQTT_PORT
@@ -52,6 +62,13 @@ token_file = "$token_file"
 broker = "mqtt://127.0.0.1:$mqtt_port"
 writes = true
 discovery = "homeassistant"
+
+[sparkplug]
+broker = "mqtt://127.0.0.1:$mqtt_port"
+group_id = "plant"
+
+[history]
+database = "$WORK_DIR/plant.db"
 TOML
 
 start_background gateway.log timeout 200 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
@@ -61,7 +78,7 @@ wait_for_text "$WORK_DIR/gateway.log" "device oven (tc10@3) answers"
 wait_for_text "$WORK_DIR/gateway.log" "device furnace (ac20@1) answers"
 
 checker=("$python" "$(dirname "$0")/cross_front_check.py" "$loopwire" "$read_by_name" "$modbus_port" "$http_port" "$mqtt_port"
-         "$token_file")
+         "$token_file" --history "$WORK_DIR/plant.db")
 # run_checker NAME ARGS... : one run of the checker (up to 20 rounds of every front), its report shown.
 run_checker() {
     local name=$1

@@ -95,9 +95,9 @@ def check(topic, document, state_prefix):
             problems.append(f"{topic}: availability payload_available is not online")
     topics = [entry.get("topic") for entry in availability]
     state_topic = document.get(own_state, "")
-    device_status = "/".join(state_topic.split("/")[:-1]) + "/status"
-    if topics != [state_prefix + "/status", device_status] or document.get("availability_mode") != "all":
-        problems.append(f"{topic}: availability should be the gateway's and the device's status, mode all: {topics}")
+    device_availability = "/".join(state_topic.split("/")[:-1]) + "/availability"
+    if topics != [state_prefix + "/status", device_availability] or document.get("availability_mode") != "all":
+        problems.append(f"{topic}: availability should be the gateway's status and the device's availability, mode all: {topics}")
     if not state_topic.startswith(state_prefix + "/"):
         problems.append(f"{topic}: {own_state} outside {state_prefix}")
     if document.get("device_class") == "temperature" and document.get("unit_of_measurement") not in TEMPERATURE_UNITS:

@@ -387,10 +387,11 @@ private:
             for (const auto& device : line.devices) writable.push_back({device.name, device.address, schedulers.at(line.name)});
         }
         writer_ = std::make_unique<DeviceWriter>(events_, std::move(writable), std::chrono::milliseconds(10000));
+        // As the gateway has it: a write to a device its polls find silent is refused at once.
+        writer_->refuse_silent(cache_->device_lookup());
         api_ = std::make_unique<HttpApi>(config_, HttpApiSources{cache_.get(), writer_.get(), {}, {}, nullptr});
         mqtt_ = std::make_unique<MqttCommands>(
-            *config_.mqtt, *writer_, [this](std::string topic, std::string payload) { mqtt_published(topic, payload); }, GatewayLog{},
-            [this](const std::string& device) { return not_answering(device); });
+            *config_.mqtt, *writer_, [this](std::string topic, std::string payload) { mqtt_published(topic, payload); }, GatewayLog{});
     }
 
     // As ~Gateway takes them down: the handlers, then the writer, the polls and the cache.
@@ -588,8 +589,8 @@ private:
     }
 
     // Every 30 s while a device is silent, ten writes by name to it at once (an operator trying
-    // again and again): each waits out its timeout on that line, and none may hold up a write to
-    // another line.
+    // again and again): each is refused at once once the polls find the device silent, waits out
+    // its timeout on that line before they do, and none may hold up a write to another line.
     void write_to_silent(const Outage& outage) {
         const std::string name = device_name(outage.line, outage.unit);
         for (int write = 0; write < 10 && !reloading_; ++write) {
@@ -704,14 +705,6 @@ private:
         request.path = "/api/devices/" + device;
         const auto body = nlohmann::json::parse(api_->handle(request).response.body, nullptr, false);
         return body.is_object() ? body.value("status", std::string("none")) : std::string("not JSON");
-    }
-
-    // The MQTT front's word on a device its writes cannot reach now (gateway/mqtt_bridge.cpp
-    // says the same from what it was told): its polls find it silent.
-    std::optional<std::string> not_answering(const std::string& device) {
-        const std::size_t index = device_index(device);
-        if (told_status_[index] != device::status_text(device::DeviceStatus::no_reply)) return std::nullopt;
-        return fmt::format("device {} does not answer; nothing was sent", device);
     }
 
     // Every write_every: a front writes a random value by name to a random device's "setting":

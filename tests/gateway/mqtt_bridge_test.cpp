@@ -120,7 +120,8 @@ TEST(MqttBridge, PublishesTheGatewayStatusEachDeviceAndItsValues) {
     auto gateway = open_gateway(broker.port(), false);
 
     EXPECT_TRUE(watcher.wait_for(prefix + "/status", "online")) << "no gateway status";
-    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "online")) << "no device status";
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "ok")) << "no device status";
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/availability", "online")) << "no device availability";
     const auto value = watcher.wait_for(prefix + "/oven/measured_value", is_number);
     EXPECT_TRUE(value) << "no number for measured_value";
     const auto meta = watcher.wait_for(prefix + "/oven/measured_value/meta", [](const std::string&) { return true; });
@@ -147,10 +148,12 @@ TEST(MqttBridge, PublishesTheGatewayStatusEachDeviceAndItsValues) {
     EXPECT_EQ(nlohmann::json::parse(*refused).at("ok"), false) << *refused;
     EXPECT_NE(refused->find("writes are off"), std::string::npos) << *refused;
 
-    // A clean stop says "offline", for the gateway and for each device.
+    // A clean stop says "offline", for the gateway and for each device, whose status is then
+    // "waiting" (nobody polls it), not the last word.
     gateway.reset();
     EXPECT_TRUE(watcher.wait_for(prefix + "/status", "offline")) << "no offline on a clean stop";
-    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "offline")) << "no device offline on a clean stop";
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/availability", "offline")) << "no device offline on a clean stop";
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "waiting")) << "the device's last status stood after a clean stop";
 }
 
 // A stop that comes before the first poll has said anything of a device (a SIGTERM just after a
@@ -159,8 +162,8 @@ TEST(MqttBridge, AStopBeforeTheFirstPollSaysEveryDeviceOffline) {
     REQUIRE_BROKER();
     Broker broker;
     Watcher watcher(broker.port());
-    watcher.publish(prefix + "/oven/status", "online", true);
-    ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "online"));
+    watcher.publish(prefix + "/oven/availability", "online", true);
+    ASSERT_TRUE(watcher.wait_for(prefix + "/oven/availability", "online"));
     GatewayOptions options;
     // Nothing reaches unit 3, and its line waits 3 s for a reply: its first poll ends after the
     // stop (which waits for the exchange under way).
@@ -196,7 +199,7 @@ prefix = "{}"
     ASSERT_TRUE(watcher.wait_for(prefix + "/status", "online"));
     gateway->reset();
     EXPECT_TRUE(watcher.wait_for(prefix + "/status", "offline"));
-    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "offline")) << "the oven's retained status stayed \"online\"";
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/availability", "offline")) << "the oven's retained availability stayed \"online\"";
 }
 
 TEST(MqttBridge, WritesGoToTheDeviceAndBadOnesAreRefused) {
@@ -274,7 +277,7 @@ TEST(MqttBridge, ComesBackWhenTheBrokerRestarts) {
     broker.start();  // the same port; it kept nothing of before
     Watcher watcher(broker.port());
     EXPECT_TRUE(watcher.wait_for(prefix + "/status", "online")) << "the gateway did not reconnect";
-    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "online")) << "the device status was not republished";
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "ok")) << "the device status was not republished";
     EXPECT_TRUE(watcher.wait_for(prefix + "/oven/measured_value", is_number)) << "the values were not republished";
 }
 
@@ -431,7 +434,7 @@ TEST(MqttBridge, MetaAndHomeAssistantDiscoveryDescribeEveryPolledParameter) {
     EXPECT_EQ(number.at("availability_mode"), "all");
     ASSERT_EQ(number.at("availability").size(), 2u);
     EXPECT_EQ(number.at("availability")[0].at("topic"), prefix + "/status");
-    EXPECT_EQ(number.at("availability")[1].at("topic"), prefix + "/oven/status");
+    EXPECT_EQ(number.at("availability")[1].at("topic"), prefix + "/oven/availability");
     EXPECT_EQ(number.at("availability")[1].at("payload_available"), "online");
 
     const auto sensor_text = watcher.wait_for(head + "sensor/plant1_oven_measured_value/config", any);
@@ -652,9 +655,10 @@ TEST(MqttBridge, AWriteToADeviceThatDoesNotAnswerIsRefusedAtOnce) {
         return fault;
     };
     auto gateway = open_gateway(fmt::format("mqtt://127.0.0.1:{}", broker.port()), true, "", std::move(options));
-    ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "online"));
+    ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "ok"));
     *silent = true;
-    ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "offline")) << "the polls never found the oven silent";
+    ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "no-reply")) << "the polls never found the oven silent";
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/availability", "offline")) << "a silent device stayed available";
     watcher.publish(prefix + "/oven/set_point/set", "210");
     const auto result = watcher.nth(prefix + "/oven/set_point/set/result", 1);
     ASSERT_TRUE(result) << "no answer to a write while the device is silent";
@@ -701,7 +705,7 @@ TEST(MqttBridge, WhatChangedWhileTheBrokerWasAwayIsPublishedOnReturn) {
     ASSERT_TRUE(watcher.wait_for(prefix + "/status", "online"));
     // The last state wins, and the number from before the broker went away does not come back.
     EXPECT_TRUE(watcher.wait_for(topic, "no-reply")) << "the broker never got the value's last state";
-    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "offline")) << "the broker never got the device's last status";
+    EXPECT_TRUE(watcher.wait_for(prefix + "/oven/status", "no-reply")) << "the broker never got the device's last status";
     const auto first = watcher.nth(topic, 1);
     ASSERT_TRUE(first);
     EXPECT_NE(*first, before) << "the value from before the broker went away came back";
@@ -999,8 +1003,8 @@ writes = true
     auto opened = Gateway::open(*config, std::move(options));
     ASSERT_TRUE(opened) << opened.error().message;
     auto gateway = std::move(*opened);
-    ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "online"));
-    ASSERT_TRUE(watcher.wait_for(prefix + "/kiln/status", "online"));
+    ASSERT_TRUE(watcher.wait_for(prefix + "/oven/status", "ok"));
+    ASSERT_TRUE(watcher.wait_for(prefix + "/kiln/status", "ok"));
 
     // The kiln stops answering: its line waits out 4 s for each request, and writes to the kiln
     // wait for it, in order.

@@ -115,7 +115,7 @@ protected:
                 std::lock_guard lock(answers_.mutex);
                 answers_.logged.push_back(line);
             },
-            MqttCommands::Silence{}, max_commands);
+            max_commands);
     }
 
     std::shared_ptr<HeldLine> master_ = std::make_shared<HeldLine>();

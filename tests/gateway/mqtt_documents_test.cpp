@@ -13,13 +13,15 @@
 namespace loopwire::gateway {
 namespace {
 
-ValueChange number(double value, std::string text) {
+// A set point as read with `decimals` (the device's decimal point, which its text shows).
+ValueChange number(double value, std::string text, int decimals = 1) {
     ValueChange change;
     change.device = "oven";
     change.parameter = "set_point";
     change.value = device::EngineeringValue{};
     change.value->value = value;
     change.text = std::move(text);
+    change.decimals = decimals;
     change.unit = "°C";
     change.limits = {0.0, 400.0};
     change.status = "ok";
@@ -28,7 +30,7 @@ ValueChange number(double value, std::string text) {
 
 // Changes of one parameter that differ in one thing each, against the first.
 std::vector<ValueChange> variants() {
-    std::vector<ValueChange> all{number(137.0, "137.0"), number(142.5, "142.5"), number(142, "142")};
+    std::vector<ValueChange> all{number(137.0, "137.0"), number(142.5, "142.5"), number(142, "142", 0)};
     all.push_back(number(137.0, "137.0"));
     all.back().unit = "°F";
     all.push_back(number(137.0, "137.0"));

@@ -64,7 +64,8 @@ first_message=(mosquitto_sub -h 127.0.0.1 -p "$port" -C 1 -W 10 -t)
 sub() { timeout 15 "${first_message[@]}" "$1" 2>&1; }
 
 check gateway-online 0 "online" "${first_message[@]}" loopwire/plant1/status
-check device-online 0 "online" "${first_message[@]}" "$topic/status"
+check device-ok 0 "ok" "${first_message[@]}" "$topic/status"
+check device-online 0 "online" "${first_message[@]}" "$topic/availability"
 value=$(sub "$topic/measured_value")
 if [[ $value =~ ^-?[0-9]+(\.[0-9]+)?$ ]]; then count_pass; else echo "FAIL measured-value-is-a-number: '$value'"; failures=$((failures + 1)); fi
 check meta-has-the-unit 0 '"unit"' "${first_message[@]}" "$topic/set_point/meta"
@@ -149,15 +150,16 @@ count_pass
 kill "$results_pid"
 
 # SIGHUP with changes that reopen the gateway: first a slower poll and a device added, then the
-# device removed. The gateway and the device that stays never say "offline" across the reloads
-# (the next round publishes them again); the removed device does.
+# device removed. The gateway never says "offline" and the device that stays never "waiting" (the
+# word of a device nobody polls, said at a stop) across the reloads (the next round publishes
+# them again); the removed device does.
 start_background statuses.log timeout 100 mosquitto_sub -h 127.0.0.1 -p "$port" -v -t loopwire/plant1/status \
   -t "loopwire/plant1/+/status"
 statuses_pid=$LAST_PID
 # The retained status can be what the flood above left: on a loaded 2-core machine a poll may
 # time out while the gateway refuses 200 MB of payloads. The reloads start from an online device,
 # and only what is published after that moment counts.
-last_device_status_online() { [[ $(grep "^$topic/status " "$WORK_DIR/statuses.log" | tail -n 1) == "$topic/status online" ]]; }
+last_device_status_online() { [[ $(grep "^$topic/status " "$WORK_DIR/statuses.log" | tail -n 1) == "$topic/status ok" ]]; }
 wait_for 30 "the statuses' subscriber" grep -q "^loopwire/plant1/status online" "$WORK_DIR/statuses.log"
 wait_for 30 "the device online before the reloads" last_device_status_online
 before_reloads=$(wc -l <"$WORK_DIR/statuses.log")
@@ -169,33 +171,35 @@ poll = "300ms"
 parameters = ["measured_value"]'
 plant_config 300ms "$spare" >"$WORK_DIR/plant.toml"
 kill -HUP "$loopwire_pid"
-wait_for 30 "the added device online" grep -q "^loopwire/plant1/spare/status online" "$WORK_DIR/statuses.log"
+wait_for 30 "the added device online" grep -q "^loopwire/plant1/spare/status ok" "$WORK_DIR/statuses.log"
 # ... and the first reopened round's own status of the oven, before the next reload ends it (its
 # first poll may take a try more than the spare's: a reply with another block's bytes is asked
 # again, as it could be a copy).
-oven_status_since_reloads() { since_reloads | grep -qE "^$topic/status (online|error|stale|line-down)$"; }
+oven_status_since_reloads() { since_reloads | grep -qE "^$topic/status (ok|partial|stale|line-down|no-reply)$"; }
 wait_for 30 "the first reopened round's status of the oven" oven_status_since_reloads
 plant_config 200ms >"$WORK_DIR/plant.toml"
 kill -HUP "$loopwire_pid"
-wait_for 30 "the removed device offline" grep -q "^loopwire/plant1/spare/status offline" "$WORK_DIR/statuses.log"
+wait_for 30 "the removed device no longer polled" grep -q "^loopwire/plant1/spare/status waiting" "$WORK_DIR/statuses.log"
 wait_for 30 "the third round's connection" bash -c "(( \$(grep -c ': connected' '$WORK_DIR/gateway.log') >= 3 ))"
 expect two-reloads test "$(grep -c "configuration .* reloaded" "$WORK_DIR/gateway.log")" -eq 2
 expect_not() { local name=$1; shift; if "$@"; then count_failure "$name" "$WORK_DIR/statuses.log"; else count_pass; fi; }
 expect_not gateway-never-offline-across-reloads grep -q "^loopwire/plant1/status offline" "$WORK_DIR/statuses.log"
-device_offline_since_reloads() { since_reloads | grep -q "^$topic/status offline"; }
+device_offline_since_reloads() { since_reloads | grep -q "^$topic/status waiting"; }
 expect_not device-never-offline-across-reloads device_offline_since_reloads
 # Each reopened round publishes the device's status afresh: one from each of the two rounds
-# after the reloads. Any status but "offline" counts:
+# after the reloads. Any status but "waiting" counts:
 # on a 2-core machine with a browser test beside it, the simulated line's timing can make a round
-# read the device "error" or "stale", which is still that round's own word.
-fresh_statuses() { (($(since_reloads | grep -cE "^$topic/status (online|error|stale|line-down)$") >= 2)); }
+# read the device "partial" or "stale", which is still that round's own word.
+fresh_statuses() { (($(since_reloads | grep -cE "^$topic/status (ok|partial|stale|line-down|no-reply)$") >= 2)); }
 wait_for 30 "the reopened rounds' own statuses" fresh_statuses
 count_pass
 kill "$statuses_pid"
 
-# SIGTERM: a clean stop leaves "offline" retained for the gateway and each device.
+# SIGTERM: a clean stop leaves "offline" retained for the gateway and each device's availability,
+# and "waiting" (nobody polls it) as each device's status.
 kill -TERM "$gateway_pid"
 wait "$gateway_pid"
 check gateway-offline 0 "offline" "${first_message[@]}" loopwire/plant1/status
-check device-offline 0 "offline" "${first_message[@]}" "$topic/status"
+check device-offline 0 "offline" "${first_message[@]}" "$topic/availability"
+check device-waiting 0 "waiting" "${first_message[@]}" "$topic/status"
 finish

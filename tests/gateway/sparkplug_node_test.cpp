@@ -314,6 +314,24 @@ TEST(SparkplugNode, CommandsTheNodeCannotTakeAreRefusedInWords) {
     EXPECT_EQ(watcher.count(ddata), 1u);
 }
 
+// The gateway's one write policy (gateway/device_writer.hpp): a DCMD to a device its polls find
+// silent is refused at once, in the words every front gives, and never reaches a line.
+TEST(SparkplugNode, ACommandToASilentDeviceIsRefusedAtOnceInTheWritersWords) {
+    SKIP_WITHOUT_BROKER();
+    Broker broker(free_port());
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    NodeFixture node(broker, {}, steady_clock(), true);
+    node.writer.refuse_silent(node.cache.device_lookup());
+    node.device.answer(node.cache, 21.5, 40, "auto");
+    ASSERT_TRUE(watcher.nth(dbirth, 1));
+    node.device.silent(node.cache);
+    ASSERT_TRUE(watcher.nth(ddeath, 1));
+    const std::string words = node.writer.refusal("d1").value().message;
+    EXPECT_THAT(words, HasSubstr("device \"d1\" does not answer its polls"));
+    watcher.publish(dcmd, power_command(55));
+    EXPECT_TRUE(node.log.wait_for("DCMD to d1 refused: " + words));
+}
+
 TEST(SparkplugNode, BirthsWaitForThePrimaryHostAndADeathFollowsItsGoingOffline) {
     SKIP_WITHOUT_BROKER();
     Broker broker;

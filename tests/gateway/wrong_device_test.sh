@@ -98,7 +98,10 @@ polled = [p for p in device["parameters"] if p["polled"]]
 assert polled and all(p["value"] is None and p["status"] == "wrong-device" for p in polled), polled
 PY
 expect mqtt-status-wrong-device bash -c "[[ \$(mosquitto_sub -h 127.0.0.1 -p $MQTT_PORT -C 1 -W 10 -t loopwire/plant1/furnace/status) == wrong-device ]]"
-expect mqtt-oven-online bash -c "[[ \$(mosquitto_sub -h 127.0.0.1 -p $MQTT_PORT -C 1 -W 10 -t loopwire/plant1/oven/status) == online ]]"
+expect mqtt-oven-ok bash -c "[[ \$(mosquitto_sub -h 127.0.0.1 -p $MQTT_PORT -C 1 -W 10 -t loopwire/plant1/oven/status) == ok ]]"
+# Home Assistant's availability: the wrong device is unavailable, the right one available.
+expect ha-unavailable bash -c "[[ \$(mosquitto_sub -h 127.0.0.1 -p $MQTT_PORT -C 1 -W 10 -t loopwire/plant1/furnace/availability) == offline ]]"
+expect ha-available bash -c "[[ \$(mosquitto_sub -h 127.0.0.1 -p $MQTT_PORT -C 1 -W 10 -t loopwire/plant1/oven/availability) == online ]]"
 expect mqtt-no-garbage-value bash -c "! mosquitto_sub -h 127.0.0.1 -p $MQTT_PORT -C 1 -W 3 -t loopwire/plant1/furnace/measured_value | grep -qE '^-?[0-9]'"
 wait_for 30 "the oven's Sparkplug birth" grep -q 'spBv1.0/plant/DBIRTH/plant1/oven' "$WORK_DIR/births.log"
 expect sparkplug-no-birth-for-wrong-device bash -c "! grep -q 'DBIRTH/plant1/furnace' '$WORK_DIR/births.log'"

@@ -381,6 +381,9 @@ struct SparkplugNode::State {
         NodeDevice& device = devices[index_of_device];
         if (!config.writes) return refuse_write(index_of_device, "writes are off (set writes = true in [sparkplug] to take DCMDs)");
         if (!node_born) return refuse_write(index_of_device, "the node is dead (its NDEATH is out); nothing was sent");
+        // The writer's policy, in the words every front gives (device_writer.hpp); a device
+        // dead for another reason (no poll has told of it yet) is refused here.
+        if (auto silent = writer->refusal(device.name)) return refuse_write(index_of_device, silent->message);
         if (!device.born) return refuse_write(index_of_device, "the device does not answer now (DDEATH); nothing was sent");
         auto assignments = assignments_of(device, metrics);
         if (!assignments) return refuse_write(index_of_device, assignments.error().message);

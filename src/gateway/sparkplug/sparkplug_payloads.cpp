@@ -119,24 +119,6 @@ void add_quality(Payload::Metric& out, std::int32_t quality) {
     add_property(*out.mutable_properties(), "Quality", DataType::int32, static_cast<std::int64_t>(quality));
 }
 
-// A fixed limit in engineering units; a limit that is another parameter's value is left out
-// (the host application reads that parameter's own metric).
-std::optional<double> fixed_limit(const device::Parameter& parameter, const std::optional<device::Bound>& bound,
-                                  std::optional<int> decimals) {
-    if (!bound) return std::nullopt;
-    const auto* number = std::get_if<double>(&*bound);
-    if (!number) return std::nullopt;
-    // Display counts (range "counts", TC10 §5.3) are scaled like the value itself.
-    if (parameter.range_in_counts) return *number / std::pow(10.0, decimals.value_or(0));
-    return *number;
-}
-
-// Digits after the point in a value's text ("150.5": 1).
-int decimals_in(const std::string& text) {
-    const auto point = text.find('.');
-    return point == std::string::npos ? 0 : static_cast<int>(text.size() - point - 1);
-}
-
 // A Float as the decimal its sender meant: the shortest text that reads back as the same 32-bit
 // value, taken as a double. Widened as it is, 12.3 sent as a Float is 12.300000190734863, a value
 // finer than any parameter's decimals; the sender's 12.3 is the one decimal within half a Float's
@@ -225,13 +207,14 @@ MetricProperties properties_of(const MetricDefinition& metric, const ValueChange
     if (const int* fixed = std::get_if<int>(&parameter.decimals)) {
         properties.decimals = *fixed;
     } else if (latest && latest->value && std::holds_alternative<double>(latest->value->value)) {
-        properties.decimals = decimals_in(latest->text);
+        properties.decimals = latest->decimals;
     }
-    // The limits as the device holds them (a set point's SP.LL and SP.HL), as every other front
-    // shows them; the profile's fixed ones until the polls know them. A change is a new birth.
-    const device::ValueLimits known = latest ? latest->limits : device::ValueLimits{};
-    properties.low = known.min ? known.min : fixed_limit(parameter, parameter.min, properties.decimals);
-    properties.high = known.max ? known.max : fixed_limit(parameter, parameter.max, properties.decimals);
+    // The limits every front shows (device::ResolvedValue::limits: as the device holds them, a
+    // set point's SP.LL and SP.HL); before a value, those nothing read is needed for. A change is
+    // a new birth.
+    const device::ValueLimits known = latest ? latest->limits : device::limits_of(parameter, {});
+    properties.low = known.min;
+    properties.high = known.max;
     return properties;
 }
 
