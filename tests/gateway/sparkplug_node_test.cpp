@@ -318,7 +318,7 @@ TEST(SparkplugNode, CommandsTheNodeCannotTakeAreRefusedInWords) {
 // silent is refused at once, in the words every front gives, and never reaches a line.
 TEST(SparkplugNode, ACommandToASilentDeviceIsRefusedAtOnceInTheWritersWords) {
     SKIP_WITHOUT_BROKER();
-    Broker broker(free_port());
+    Broker broker;
     Watcher watcher(broker.port(), every_sparkplug_topic());
     NodeFixture node(broker, {}, steady_clock(), true);
     node.writer.refuse_silent(node.cache.device_lookup());
