@@ -883,7 +883,7 @@ TEST(GatewayConfig, SparkplugDefaultsAndRefusals) {
                 HasSubstr("sparkplug.ca_file: "));
     EXPECT_THAT(error_of(device + "[sparkplug]\nbroker = \"mqtt://b\"\ngroup_id = \"g\"\nprefix = \"x\"\n"),
                 StartsWith("plant.toml:11: sparkplug.prefix: unknown key (allowed here: broker, group_id, edge_node_id, "
-                           "primary_host, writes, client_id, ca_file, cert_file, key_file, username, password_file)"));
+                           "primary_host, state_file, writes, client_id, ca_file, cert_file, key_file, username, password_file)"));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -1020,6 +1020,7 @@ TEST(PrometheusText, AValueIsExportedOnlyWhileTheLatestPollReadIt) {
     state.values[1].last = device::EngineeringValue{150.0, "ok", 1500, "°C"};  // read before, not by this poll
     state.values[1].fresh = false;
     CachedDevice oven{"oven", state, std::chrono::system_clock::now(), 1s, std::chrono::milliseconds(2000)};
+    oven.seen_at = device::MonitorClock::now();  // the view taken now: ages are measured to it
 
     const std::string text = prometheus_text("", {}, {{"oven", "sim"}}, {oven}, nullptr);
     EXPECT_THAT(text, HasSubstr("# TYPE loopwire_value gauge\n"));

@@ -89,13 +89,15 @@ expect log-says-why grep -qE 'device furnace \(tc10@1\): the unit is not tc10@1:
 api() { curl -sf "http://127.0.0.1:$http/api/devices/$1"; }
 wait_for 20 "oven ok on the API" bash -c "curl -sf 'http://127.0.0.1:$http/api/devices/oven' | grep -q '\"status\":\"ok\"'"
 api furnace >"$WORK_DIR/furnace.json"
-if $python - "$WORK_DIR/furnace.json" <<'PY'; then count_pass; else count_failure api-wrong-device "$WORK_DIR/furnace.json"; fi
+if $python - "$WORK_DIR/furnace.json" <<'PY'; then count_pass; else count_failure api-wrong-device; fi
 import json, sys
 device = json.load(open(sys.argv[1]))
 assert device["status"] == "wrong-device", device
 assert "the unit is not tc10@1" in device.get("error", ""), device
 polled = [p for p in device["parameters"] if p["polled"]]
-assert polled and all(p["value"] is None and p["status"] == "wrong-device" for p in polled), polled
+# A value's own words are DESIGN's (error); the device's status and every value's error say why.
+assert polled and all(p["value"] is None and p["status"] == "error" and "the unit is not tc10@1" in p["error"]
+                      for p in polled), [(p["name"], p["status"], p["error"]) for p in polled]
 PY
 expect mqtt-status-wrong-device bash -c "[[ \$(mosquitto_sub -h 127.0.0.1 -p $MQTT_PORT -C 1 -W 10 -t loopwire/plant1/furnace/status) == wrong-device ]]"
 expect mqtt-oven-ok bash -c "[[ \$(mosquitto_sub -h 127.0.0.1 -p $MQTT_PORT -C 1 -W 10 -t loopwire/plant1/oven/status) == ok ]]"

@@ -70,6 +70,7 @@ link = "tcp://127.0.0.1:{tcp_port}"
 name = "bank7"
 device = "tc10@7"
 parameters = ["measured_value"]
+identify = false  # a plain register bank stands for a TC10 here: taken as it is, not identified
 
 [[lines]]
 name = "device-server"
@@ -79,6 +80,7 @@ link = "rtu+tcp://127.0.0.1:{rtu_tcp_port}"
 name = "bank8"
 device = "tc10@8"
 parameters = ["measured_value"]
+identify = false  # a plain register bank stands for a TC10 here: taken as it is, not identified
 
 [[lines]]
 name = "ascii-line"
