@@ -42,6 +42,7 @@ LATE_REPLY_WINDOW_MS = 600
 DUPLICATE_MS = 40         # a duplicated reply comes again this long after the first copy
 FAULT_PERCENT = 10        # of replies, each: held back, duplicated
 RUN_S = 20                # how long the clients read under faults
+SETUP_DEADLINE_S = 30     # the setup's writes are accepted within this, once the device's poll answers
 # The registers the clients read (TC10 §5.3: proportional band, integral and derivative time,
 # set point) and the distinct values written to them first.
 REGISTERS = {700: 45, 701: 240, 702: 61, 717: 777}
@@ -98,6 +99,24 @@ def relay(device_path, gateway_path, stop, faulty, counts):
     finally:
         os.close(device)
         os.close(gateway)
+
+
+def write_once_answering(client, address, value):
+    """Writes `value` to `address` through the gateway, as a SCADA would while the unit comes up.
+
+    The gateway refuses a write with 0Bh while the device's latest poll went unanswered (its write
+    policy: nothing is sent to a device that does not answer). On a loaded machine the first poll
+    can time out before the relay thread runs, and the refusal lasts until the next poll answers:
+    the write is tried again until then, within a deadline that fails loudly."""
+    deadline = time.monotonic() + SETUP_DEADLINE_S
+    while True:
+        response = client.write_register(address, value, slave=3)
+        if not response.isError():
+            return
+        if getattr(response, "exception_code", None) != 0x0B or time.monotonic() > deadline:
+            raise support.TestFailure(f"write {value} to {address}: pymodbus got an error instead of a reply "
+                                      f"(tried for {SETUP_DEADLINE_S} s while the device came up): {response}")
+        time.sleep(0.2)  # the device's next poll, at most 1 s away plus its back-off, clears the refusal
 
 
 def read_own_register(port, address, expected, stop, tally):
@@ -162,7 +181,7 @@ listen = "127.0.0.1:0"
         setup = ModbusTcpClient("127.0.0.1", port=port, timeout=5, retries=3)
         support.check_equal(setup.connect(), True, "a client connects to the gateway")
         for address, value in REGISTERS.items():
-            support.expect_reply(setup.write_register(address, value, slave=3), f"write {value} to {address}")
+            write_once_answering(setup, address, value)
             support.check_equal(support.expect_reply(setup.read_holding_registers(address, 1, slave=3),
                                                      f"read {address}").registers, [value], f"register {address}")
         setup.close()
