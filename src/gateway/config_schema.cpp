@@ -108,6 +108,12 @@ constexpr std::array keys{
               "Clients connected at once; a newcomer past it is admitted by closing the idlest connection.", "64"},
     ConfigKey{"modbus_tcp", "idle_timeout", "duration", "\"60s\"", "1s..24h, or \"off\"",
               "A connection that has sent nothing and waited for nothing this long is closed.", "\"60s\""},
+    ConfigKey{"modbus_tcp", "allow", "list of strings", "[]: every address", "IPv4 or IPv6 addresses and CIDR networks",
+              "The client addresses served; a client from any other is closed at once and counted.",
+              "[\"10.1.0.0/16\", \"127.0.0.1\"]", true},
+    ConfigKey{"modbus_tcp", "write_allow", "list of strings", "[]: every address", "IPv4 or IPv6 addresses and CIDR networks",
+              "The client addresses whose writes are passed on; a write from any other is answered with exception 01h.",
+              "[\"10.1.5.0/24\"]", true},
 
     ConfigKey{"log", "level", "string", "\"info\"", "\"debug\", \"info\", \"warning\" or \"error\"",
               "The least important events logged.", "\"info\""},
@@ -220,6 +226,9 @@ constexpr std::array keys{
     ConfigKey{"http", "hosts", "list of strings", "[]", "host names or addresses",
               "Host header names answered besides the listen address, localhost, 127.0.0.1 and [::1]; others get 421.",
               "[]"},
+    ConfigKey{"http", "allow", "list of strings", "[]: every address", "IPv4 or IPv6 addresses and CIDR networks",
+              "The client addresses served; a client from any other is closed at once and counted.",
+              "[\"10.1.0.0/16\", \"127.0.0.1\"]", true},
 };
 
 constexpr double unbounded = std::numeric_limits<double>::infinity();

@@ -82,11 +82,14 @@ std::optional<Bytes> ForwardingUnit::silent_refusal(ByteView request_pdu) const 
     return failure_reply(request_pdu[0], *refused);
 }
 
-std::optional<Bytes> ForwardingUnit::refusal(ByteView request_pdu) const {
-    if (settings_.writes_allowed || only_reads(request_pdu[0])) return std::nullopt;
+// Exception 01h for a write the front does not take: from every client (`writes = false`), or
+// from this client's address (outside `write_allow`).
+std::optional<Bytes> ForwardingUnit::refusal(ByteView request_pdu, const Asker& asker) const {
+    if ((settings_.writes_allowed && asker.may_write) || only_reads(request_pdu[0])) return std::nullopt;
     if (log_) {
-        log_(fmt::format("refused function {} to unit {}: this gateway is read-only (modbus_tcp.writes = false)",
-                         request_pdu[0], settings_.line_unit));
+        log_(fmt::format("refused function {} to unit {}: {}", request_pdu[0], settings_.line_unit,
+                         settings_.writes_allowed ? "the client's address is not in modbus_tcp.write_allow"
+                                                  : "this gateway is read-only (modbus_tcp.writes = false)"));
     }
     return exception_reply(request_pdu[0], illegal_function);
 }
@@ -125,7 +128,7 @@ LineRequest ForwardingUnit::line_request(Bytes request_pdu, bool broadcast, cons
 
 void ForwardingUnit::handle_async(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) {
     if (request_pdu.empty()) return reply(std::nullopt);
-    if (auto refused = refusal(request_pdu)) return reply(broadcast ? std::nullopt : std::move(refused));
+    if (auto refused = refusal(request_pdu, asker)) return reply(broadcast ? std::nullopt : std::move(refused));
     // A broadcast is every device's: one silent device does not hold it back.
     if (!broadcast) {
         if (auto refused = silent_refusal(request_pdu)) return reply(std::move(refused));

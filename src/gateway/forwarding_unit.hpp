@@ -58,7 +58,7 @@ public:
     void handle_async(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) override;
 
 private:
-    std::optional<Bytes> refusal(ByteView request_pdu) const;
+    std::optional<Bytes> refusal(ByteView request_pdu, const Asker& asker) const;
     std::optional<Bytes> silent_refusal(ByteView request_pdu) const;
     std::optional<Bytes> cached(ByteView request_pdu, bool broadcast) const;
     LineRequest line_request(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) const;

@@ -410,6 +410,7 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
         return reports;
     };
     sources.front = [&parts] { return parts.front ? parts.front->statistics() : FrontReport{}; };
+    sources.http_not_allowed = [&parts] { return parts.http ? parts.http->not_allowed() : std::uint64_t{0}; };
     parts.http_api = std::make_unique<HttpApi>(config, std::move(sources));
     HttpServerSettings settings;
     settings.host = http.host;
@@ -421,6 +422,7 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     settings.max_event_streams = http.max_event_streams;
     settings.max_event_streams_per_client = http.max_event_streams_per_client;
     settings.send_timeout = http.send_timeout;
+    settings.allow = http.allow;
     // On the engine's loop: no thread of its own (the thread count does not grow with
     // the fronts); what would block there is deferred (http_server.hpp).
     const bool kept = listener && listener->listens_as(http.host, http.port);
@@ -618,8 +620,8 @@ std::string describe(const LineReport& report, const LineReport* since) {
 
 std::string describe(const FrontReport& report) {
     return fmt::format("Modbus TCP front: {} connection(s) accepted, {} closed to admit a newer one, {} refused with every "
-                       "connection busy, {} closed idle; {} open",
-                       report.accepted, report.evicted, report.refused, report.idle_closed, report.open);
+                       "connection busy, {} closed idle, {} refused by the allow list; {} open",
+                       report.accepted, report.evicted, report.refused, report.idle_closed, report.not_allowed, report.open);
 }
 
 }  // namespace loopwire::gateway

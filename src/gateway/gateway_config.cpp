@@ -656,6 +656,31 @@ std::optional<HostPort> split_listen(std::string_view text) {
     return HostPort{std::string(host), static_cast<std::uint16_t>(*number)};  // 0..65535, checked
 }
 
+// `allow = ["10.1.0.0/16", "fd00::/8", "192.168.1.20"]` (key `key` of [section]): the client
+// addresses a front serves; absent or empty: every address.
+Result<transport::AddressAllowList> address_list(const Context& ctx, const toml::table& table, const std::string& section,
+                                                 const std::string& key) {
+    const toml::node* node = table.get(key);
+    if (!node) return transport::AddressAllowList{};
+    const auto* array = node->as_array();
+    const std::string path = section + "." + key;
+    constexpr std::string_view example = "[\"10.1.0.0/16\", \"192.168.1.20\", \"fd00::/8\"]";
+    if (!array) return ctx.fail(node->source(), path, fmt::format("expected a list of addresses and networks, e.g. {}", example));
+    std::vector<std::string> entries;
+    for (std::size_t i = 0; i < array->size(); ++i) {
+        const toml::node& element = *array->get(i);
+        const auto* entry = element.as_string();
+        if (!entry) {
+            return ctx.fail(element.source(), index_path(path, i), fmt::format("expected an address or a network (a string), e.g. {}", example));
+        }
+        if (auto checked = transport::check_allow_entry(entry->get()); !checked) {
+            return ctx.fail(element.source(), index_path(path, i), checked.error().message);
+        }
+        entries.push_back(entry->get());
+    }
+    return transport::AddressAllowList::parse(entries);
+}
+
 // `idle_timeout = "60s"`: a Modbus TCP connection quiet this long is closed; "off": never. Under
 // a second would close clients that poll every second between two of their requests.
 Result<std::optional<milliseconds>> front_idle_timeout(const Context& ctx, const toml::table& table) {
@@ -700,6 +725,12 @@ Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& 
     auto idle_timeout = front_idle_timeout(ctx, *table);
     if (!idle_timeout) return idle_timeout.error();
     config.idle_timeout = idle_timeout->value_or(config.idle_timeout);
+    auto allow = address_list(ctx, *table, "modbus_tcp", "allow");
+    if (!allow) return allow.error();
+    config.allow = std::move(*allow);
+    auto write_allow = address_list(ctx, *table, "modbus_tcp", "write_allow");
+    if (!write_allow) return write_allow.error();
+    config.write_allow = std::move(*write_allow);
     return config;
 }
 
@@ -1268,6 +1299,9 @@ Result<std::optional<HttpConfig>> parse_http(const Context& ctx, const toml::tab
     auto hosts = http_hosts(ctx, *table);
     if (!hosts) return hosts.error();
     config.hosts = std::move(*hosts);
+    auto allow = address_list(ctx, *table, "http", "allow");
+    if (!allow) return allow.error();
+    config.allow = std::move(*allow);
     if (!config.loopback() && config.token.empty()) {
         return ctx.fail(source_of(*table, "listen"), "http.listen",
                         fmt::format("\"{}\" is not a loopback address, so every request needs the token: set "

@@ -14,6 +14,7 @@
 #include "client/device_client.hpp"
 #include "common/result.hpp"
 #include "profile/profile_registry.hpp"
+#include "transport/address_allow_list.hpp"
 #include "transport/link_url.hpp"
 
 // Equality of the link and device types the configuration holds, for reload_needs_restart
@@ -89,6 +90,10 @@ struct ModbusTcpConfig {
     // A connection with nothing received and no request in progress for this long is closed;
     // zero ("off"): never.
     std::chrono::milliseconds idle_timeout{60000};
+    // Client addresses served (others are closed at accept, counted), and those whose writes
+    // are passed on (others get exception 01h); empty: every address.
+    transport::AddressAllowList allow;
+    transport::AddressAllowList write_allow;
 
     bool operator==(const ModbusTcpConfig&) const = default;
 };
@@ -209,6 +214,8 @@ struct HttpConfig {
     // (the names a browser uses to reach the gateway; any other is refused 421, which keeps a
     // page of another site from reading the API through DNS rebinding). Lower case.
     std::vector<std::string> hosts;
+    // Client addresses served; others are closed at accept, counted. Empty: every address.
+    transport::AddressAllowList allow;
 
     // Whether the address is loopback (127.0.0.0/8, ::1, localhost): only then are reads open.
     bool loopback() const;

@@ -463,8 +463,9 @@ HttpResponse HttpApi::State::metrics() const {
     HttpResponse response;
     response.content_type = "text/plain; version=0.0.4; charset=utf-8";
     const std::optional<FrontReport> front = sources.front ? std::optional(sources.front()) : std::nullopt;
-    response.body =
-        prometheus_text(gateway_name, sources.lines(), names, sources.cache->snapshot(), sources.history, front ? &*front : nullptr);
+    const HttpReport http{sources.http_not_allowed ? sources.http_not_allowed() : 0};
+    response.body = prometheus_text(gateway_name, sources.lines(), names, sources.cache->snapshot(), sources.history,
+                                    front ? &*front : nullptr, &http);
     response.headers.emplace_back("Cache-Control", "no-store");
     return response;
 }

@@ -30,6 +30,7 @@ struct HttpApiSources {
     const DeviceWriter* writer = nullptr;
     std::function<std::vector<LineReport>()> lines;  // the lines' figures, for /metrics
     std::function<FrontReport()> front;               // the Modbus TCP front's; none: not shown
+    std::function<std::uint64_t()> http_not_allowed;  // clients the HTTP server closed at accept
     const HistorySource* history = nullptr;           // none: /api/history answers 404
 };
 

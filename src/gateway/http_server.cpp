@@ -186,6 +186,7 @@ struct HttpServer::State : std::enable_shared_from_this<HttpServer::State> {
     asio::steady_timer accept_pause{loop};
     std::uint16_t port = 0;
     bool stopping = false;     // the network thread's
+    std::atomic<std::uint64_t> not_allowed{0};  // clients closed at accept: outside settings.allow
     bool handing_over = false;  // the network thread's: stopping, keep-alive connections go to `listener`
     std::once_flag stopped;
     std::thread thread;  // none on a loop another runs
@@ -622,6 +623,14 @@ void HttpServer::State::on_accept(const error_code& error, tcp::socket socket) {
         return;
     }
     const auto client = client_of(socket);
+    if (!settings.allow.allows(client)) {
+        // Closed before a byte is read: an address outside the allow list costs nothing more.
+        ++not_allowed;
+        error_code ignored;
+        socket.close(ignored);
+        accept();
+        return;
+    }
     auto refusal = over_limits(client);
     while (refusal && make_room(client, refusal->status == 429)) refusal = over_limits(client);
     if (refusal) {
@@ -844,6 +853,8 @@ Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& s
     }
     return std::unique_ptr<HttpServer>(new HttpServer(std::move(state)));
 }
+
+std::uint64_t HttpServer::not_allowed() const { return state_->not_allowed.load(std::memory_order_relaxed); }
 
 std::uint16_t HttpServer::port() const { return state_->port; }
 

@@ -36,6 +36,7 @@
 
 #include "common/result.hpp"
 #include "gateway/value_cache.hpp"
+#include "transport/address_allow_list.hpp"
 
 namespace boost::asio {
 class io_context;
@@ -99,6 +100,7 @@ struct HttpServerSettings {
     std::size_t event_queue_limit = 1024 * 1024;    // bytes an event stream may have waiting
     std::chrono::milliseconds send_timeout{10000};  // an event stream's client that takes nothing this long is dropped
     std::chrono::milliseconds event_heartbeat{15000};  // a comment line keeps idle streams alive
+    transport::AddressAllowList allow;              // others are closed at accept; empty: everyone
 };
 
 // What the server makes of the bytes of one request, without a socket: the request, or the
@@ -185,6 +187,8 @@ public:
     HttpServer& operator=(const HttpServer&) = delete;
 
     std::uint16_t port() const;  // the one the kernel chose for port 0
+    // Clients closed at accept so far: their address is outside settings.allow. Any thread.
+    std::uint64_t not_allowed() const;
 
     // Stops accepting, ends event streams and idle connections, lets the blocking work under way
     // finish and answer, then closes everything. Idempotent. Never on the loop's own thread: it

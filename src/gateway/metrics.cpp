@@ -73,6 +73,8 @@ void front_connections(std::string& out, const FrontReport& front) {
         std::uint64_t value;
     } counters[] = {
         {"modbus_tcp_connections_accepted_total", "Modbus TCP connections accepted.", front.accepted},
+        {"modbus_tcp_connections_not_allowed_total",
+         "Modbus TCP clients closed at accept: their address is outside [modbus_tcp] allow.", front.not_allowed},
         {"modbus_tcp_connections_evicted_total", "Idle Modbus TCP connections closed to admit a new client at max_connections.",
          front.evicted},
         {"modbus_tcp_connections_refused_total", "New Modbus TCP clients closed at once: every connection had a request in progress.",
@@ -205,7 +207,7 @@ std::string with_gateway_label(const std::string& text, const std::string& gatew
 
 std::string prometheus_text(const std::string& gateway, const std::vector<LineReport>& lines,
                             const std::vector<MetricsDevice>& devices, const std::vector<CachedDevice>& values,
-                            const HistorySource* history, const FrontReport* front) {
+                            const HistorySource* history, const FrontReport* front, const HttpReport* http) {
     std::string out;
     struct LineCounter {
         const char* name;
@@ -302,6 +304,11 @@ std::string prometheus_text(const std::string& gateway, const std::vector<LineRe
         if (const auto forward = history->forward_stats()) history_forwarding(out, *forward);
     }
     if (front) front_connections(out, *front);
+    if (http) {
+        family(out, "http_connections_not_allowed_total", "counter",
+               "HTTP clients closed at accept: their address is outside [http] allow.");
+        out += fmt::format("loopwire_http_connections_not_allowed_total {}\n", http->not_allowed);
+    }
     return with_gateway_label(out, gateway);
 }
 

@@ -23,10 +23,16 @@ struct MetricsDevice {
 // status as a 1 among 0s, its polls, failed and missed polls, and the age of its last answered
 // poll. Per polled numeric value read by the latest poll: the value in its unit and its age.
 // Each named bit of the polled bit fields as 1 or 0. The history store's rows, with one. The
-// Modbus TCP front's connections, with `front`. Every sample carries gateway="GATEWAY" (its
+// Modbus TCP front's connections, with `front`; the HTTP server's, with `http`. Every sample carries gateway="GATEWAY" (its
 // [gateway] name, when it has one) as its first label.
+// The HTTP server's own figures.
+struct HttpReport {
+    std::uint64_t not_allowed = 0;  // clients closed at accept: outside [http] allow
+};
+
 std::string prometheus_text(const std::string& gateway, const std::vector<LineReport>& lines,
                             const std::vector<MetricsDevice>& devices, const std::vector<CachedDevice>& values,
-                            const HistorySource* history, const FrontReport* front = nullptr);
+                            const HistorySource* history, const FrontReport* front = nullptr,
+                            const HttpReport* http = nullptr);
 
 }  // namespace loopwire::gateway

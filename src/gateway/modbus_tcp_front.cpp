@@ -50,6 +50,7 @@ Result<std::unique_ptr<ModbusTcpFront>> ModbusTcpFront::open(const ModbusTcpConf
     slave_options.tcp.max_connections = config.max_connections;
     slave_options.tcp.idle_timeout = config.idle_timeout;
     slave_options.tcp.max_outstanding_requests = requests_per_connection;
+    slave_options.access = {config.allow, config.write_allow};
     auto slave = std::make_unique<session::Slave>(*link, session::UnitMap{}, std::move(slave_options));
     return std::unique_ptr<ModbusTcpFront>(new ModbusTcpFront(config, std::move(*listener), std::move(slave)));
 }
@@ -82,7 +83,8 @@ ModbusTcpFront::~ModbusTcpFront() {
 
 bool ModbusTcpFront::listens_as(const ModbusTcpConfig& config) const {
     return config.enabled && config.host == config_.host && config.port == config_.port &&
-           config.max_connections == config_.max_connections && config.idle_timeout == config_.idle_timeout;
+           config.max_connections == config_.max_connections && config.idle_timeout == config_.idle_timeout &&
+           config.allow == config_.allow && config.write_allow == config_.write_allow;
 }
 
 void ModbusTcpFront::route_to(session::UnitMap units) { slave_->replace_units(std::move(units)); }

@@ -42,7 +42,8 @@ public:
     ModbusTcpFront(const ModbusTcpFront&) = delete;
     ModbusTcpFront& operator=(const ModbusTcpFront&) = delete;
 
-    // Whether this front is the one `config` asks for: the same address and connection limits.
+    // Whether this front is the one `config` asks for: the same address, connection limits and
+    // allow lists (a narrowed list closes the connections it no longer admits).
     // What the units do with requests (writes, max_age) is the routed gateway's.
     bool listens_as(const ModbusTcpConfig& config) const;
 

@@ -225,6 +225,7 @@ void Slave::StreamSteps::sending(const TimedReply& reply) const {
 TcpConnectionStatistics Slave::tcp_statistics() const {
     TcpConnectionStatistics statistics;
     statistics.accepted = accepted_.load(std::memory_order_relaxed);
+    statistics.not_allowed = not_allowed_.load(std::memory_order_relaxed);
     statistics.evicted = evicted_.load(std::memory_order_relaxed);
     statistics.refused = refused_.load(std::memory_order_relaxed);
     statistics.idle_closed = idle_closed_.load(std::memory_order_relaxed);
@@ -236,6 +237,7 @@ TcpConnectionStatistics Slave::tcp_statistics() const {
 void Slave::count(ConnectionEvent event) {
     switch (event) {
         case ConnectionEvent::accepted: ++accepted_; return;
+        case ConnectionEvent::not_allowed: ++not_allowed_; return;
         case ConnectionEvent::evicted: ++evicted_; return;
         case ConnectionEvent::refused: ++refused_; return;
         case ConnectionEvent::idle_closed: ++idle_closed_; return;

@@ -20,6 +20,7 @@
 #include "session/frame_codec.hpp"
 #include "session/trace.hpp"
 #include "session/unit_handler.hpp"
+#include "transport/address_allow_list.hpp"
 #include "transport/byte_stream.hpp"
 #include "transport/link_url.hpp"
 #include "transport/tcp.hpp"
@@ -56,9 +57,17 @@ struct TcpClientLimits {
     std::chrono::milliseconds accept_retry_delay{100};
 };
 
+// Who may use the TCP side of a slave, by address (a gateway's [modbus_tcp] allow and
+// write_allow). Empty lists: everyone.
+struct TcpAccess {
+    transport::AddressAllowList allow;        // others are closed at accept, counted
+    transport::AddressAllowList write_allow;  // others reach the units with Asker::may_write false
+};
+
 // What the TCP side of a slave has done with its connections (serve_listener).
 struct TcpConnectionStatistics {
     std::uint64_t accepted = 0;
+    std::uint64_t not_allowed = 0;  // closed at accept: the address is outside TcpAccess::allow
     std::uint64_t evicted = 0;      // closed to admit a newcomer at max_connections
     std::uint64_t refused = 0;      // newcomers closed at once: every connection was busy
     std::uint64_t idle_closed = 0;  // closed after idle_timeout
@@ -71,6 +80,7 @@ struct SlaveOptions {
     // debug level: under a flood these come by the thousand.
     std::function<void(const std::string&)> connection_log;
     TcpClientLimits tcp;
+    TcpAccess access;
     // What a TCP client addressing a unit nobody serves gets at once, instead of waiting for a
     // timeout (on a serial line other units may share the wire, so silence is the rule there).
     // Modbus application protocol V1.1b3, 7: 0Bh "gateway target device failed to respond"
@@ -142,7 +152,7 @@ public:
 
     // The TCP connections' figures so far; safe from any thread while serve_listener runs.
     TcpConnectionStatistics tcp_statistics() const;
-    enum class ConnectionEvent { accepted, evicted, refused, idle_closed, closed };
+    enum class ConnectionEvent { accepted, not_allowed, evicted, refused, idle_closed, closed };
     // Counted by the TCP server (session/tcp_slave_server.cpp) as they happen.
     void count(ConnectionEvent event);
 
@@ -173,6 +183,7 @@ private:
     std::shared_ptr<Clock> clock_;
     std::atomic<std::uint64_t> requests_{0};
     std::atomic<std::uint64_t> accepted_{0};
+    std::atomic<std::uint64_t> not_allowed_{0};
     std::atomic<std::uint64_t> evicted_{0};
     std::atomic<std::uint64_t> refused_{0};
     std::atomic<std::uint64_t> idle_closed_{0};

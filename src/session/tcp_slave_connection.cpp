@@ -58,6 +58,15 @@ void ReplyMailbox::close() {
     delivered_.clear();
 }
 
+// Whether the client at the socket's address is in the slave's write_allow, decided once at
+// accept: every request of the connection carries it to the units.
+bool TcpSlaveConnection::may_write(const Slave& slave, const asio::ip::tcp::socket& socket) {
+    if (slave.options().access.write_allow.empty()) return true;
+    error_code error;
+    const auto endpoint = socket.remote_endpoint(error);
+    return !error && slave.options().access.write_allow.allows(endpoint.address());
+}
+
 TcpSlaveConnection::TcpSlaveConnection(Slave& slave, ConnectionOwner& owner, std::shared_ptr<ReplyMailbox> mailbox,
                                        asio::ip::tcp::socket socket)
     : slave_(slave),
@@ -67,7 +76,7 @@ TcpSlaveConnection::TcpSlaveConnection(Slave& slave, ConnectionOwner& owner, std
       timer_(socket_.get_executor()),
       codec_(make_frame_codec(slave.link(), codec::Direction::request)),
       mbap_(slave.link().framing == transport::Framing::tcp),
-      asker_(++connections_made, wanted_) {
+      asker_(++connections_made, wanted_, may_write(slave, socket_)) {
     error_code error;
     const auto endpoint = socket_.remote_endpoint(error);
     peer_ = error ? std::string("a client that has gone")

@@ -95,6 +95,7 @@ public:
     const std::string& peer() const { return peer_; }
 
 private:
+    static bool may_write(const Slave& slave, const boost::asio::ip::tcp::socket& socket);
     void read();
     void on_read(const boost::system::error_code& error, std::size_t size);
     void take(const boost::system::error_code& error, std::size_t size);

@@ -57,6 +57,7 @@ private:
     Result<void> adopt(const transport::TcpListener& listener);
     void accept();
     void on_accept(const error_code& error, tcp::socket socket);
+    bool allowed(tcp::socket& newcomer);
     bool make_room(tcp::socket& newcomer);
     Connection eviction_candidate() const;
     void log(const std::string& line) const;
@@ -124,7 +125,7 @@ void TcpSlaveServer::accept() {
 void TcpSlaveServer::on_accept(const error_code& error, tcp::socket socket) {
     if (error == asio::error::operation_aborted) return;
     if (!error) {
-        if (!make_room(socket)) {
+        if (!allowed(socket) || !make_room(socket)) {
             accept();
             return;
         }
@@ -155,6 +156,20 @@ void TcpSlaveServer::on_accept(const error_code& error, tcp::socket socket) {
 void TcpSlaveServer::log(const std::string& line) const {
     if (slave_.options().connection_log) slave_.options().connection_log(line);
     if (slave_.tracing()) slave_.trace(TraceDirection::discarded, {}, line);
+}
+
+// A client whose address is outside TcpAccess::allow is closed before it is read, and counted.
+bool TcpSlaveServer::allowed(tcp::socket& newcomer) {
+    error_code error;
+    const auto endpoint = newcomer.remote_endpoint(error);
+    if (!error && slave_.options().access.allow.allows(endpoint.address())) return true;
+    if (!error) {
+        log(fmt::format("Modbus TCP: refused a client from {}:{}: its address is not in the allow list",
+                        endpoint.address().to_string(), endpoint.port()));
+    }
+    slave_.count(Slave::ConnectionEvent::not_allowed);
+    newcomer.close(error);
+    return false;
 }
 
 // The connection to close for a newcomer at max_connections: one whose client has ended its

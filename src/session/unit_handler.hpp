@@ -37,10 +37,13 @@ public:
     using WantedFlag = std::shared_ptr<const std::atomic<bool>>;
     static bool wanted(const WantedFlag& flag) { return !flag || flag->load(std::memory_order_relaxed); }
     struct Asker {
-        Asker(Origin from = 0, WantedFlag wanted = {})  // NOLINT: an Origin is an Asker
-            : origin(from), still_wanted(std::move(wanted)) {}
+        Asker(Origin from = 0, WantedFlag wanted = {}, bool writes = true)  // NOLINT: an Origin is an Asker
+            : origin(from), still_wanted(std::move(wanted)), may_write(writes) {}
         Origin origin;
         WantedFlag still_wanted;
+        // False for a TCP client whose address is outside the slave's write_allow
+        // (SlaveOptions::access): a handler passes on only its reads.
+        bool may_write;
         bool wanted() const { return UnitHandler::wanted(still_wanted); }
     };
 
