@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
 #include <loopwire/version.hpp>
@@ -41,16 +43,18 @@ int run_complete(const CLI::App& root, const std::vector<std::string>& words) {
 
 Result<std::string> read_text(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
-    if (!in) return make_error(ErrorKind::usage, fmt::format("cannot read '{}': give the README's path with --readme", path));
+    if (!in) return make_error(ErrorKind::usage, fmt::format("cannot read '{}': give the Markdown files' paths with --readme", path));
     return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
-int run_man_pages(const CLI::App& root, const std::string& output_dir, const std::string& readme_path) {
+// The examples live in README.md and the pages of docs/: their texts are read as one, each file
+// ending its own code blocks.
+int run_man_pages(const CLI::App& root, const std::string& output_dir, const std::vector<std::string>& readme_paths) {
     std::string readme;
-    if (!readme_path.empty()) {
-        auto text = read_text(readme_path);
+    for (const std::string& path : readme_paths) {
+        auto text = read_text(path);
         if (!text) return report_error(text.error());
-        readme = std::move(*text);
+        readme += *text + "\n";
     }
     for (const ManPage& page : man_pages(root, loopwire::version(), readme)) {
         // man1/loopwire.1, man5/loopwire-gateway.toml.5: the layout of share/man.
@@ -77,13 +81,13 @@ void add_hidden_commands(CLI::App& app, int& exit_code) {
 
     struct ManOptions {
         std::string output_dir;
-        std::string readme;
+        std::vector<std::string> readme;
     };
     auto options = std::make_shared<ManOptions>();
     auto* man = app.add_subcommand("__man-pages", "Write man1/loopwire.1, man1/loopwire-COMMAND.1 for every command and man5/loopwire-gateway.toml.5");
     man->group("");
     man->add_option("--output-dir", options->output_dir, "Folder to write the pages to, in man1/ and man5/")->required();
-    man->add_option("--readme", options->readme, "README.md, whose examples of each command go on its page");
+    man->add_option("--readme", options->readme, "README.md and the docs/*.md pages, whose examples of each command go on its page");
     man->callback([options, man, &exit_code] { exit_code = run_man_pages(root_of(*man), options->output_dir, options->readme); });
 }
 

@@ -16,7 +16,7 @@ struct ManPage {
     std::string text;
 };
 
-// `readme`: the README's text; its `sh` examples of each command become the page's EXAMPLES
+// `readme`: the text of README.md and docs/*.md; its `sh` examples of each command become the page's EXAMPLES
 // (a block showing option synopses in [brackets] is not examples).
 std::vector<ManPage> man_pages(const CLI::App& root, std::string_view version, std::string_view readme);
 

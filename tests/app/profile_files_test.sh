@@ -113,7 +113,7 @@ if [ "$(id -u)" -ne 0 ]; then  # root reads any folder, whatever its mode
   chmod 700 "$WORK_DIR/locked/loopwire/profiles"
 fi
 
-# The README's "copy a built-in as a start" commands, as printed, in a home of the test's own
+# docs/cli.md's "copy a built-in as a start" commands, as printed, in a home of the test's own
 # (from the repository's top folder, where the README's commands are run).
 readme_home="$WORK_DIR/readme-home"
 mkdir -p "$readme_home"

@@ -1,13 +1,17 @@
 #!/usr/bin/env bash
-# The README's examples of devices by name, run as written against simulated devices: only the
-# link (a serial port or an address of the reader's plant) is replaced by a simulator's. An
+# The command examples of README.md and docs/*.md, run as written against simulated devices: only the
+# link (a serial port or an address of the reader's plant) is replaced by a simulator's; a
+# simulate example serves on a pseudo-terminal in the test's folder and a port of the kernel's. An
 # example that names a parameter no profile has, or writes a value the device refuses, fails
 # here. Left out, with the reason: the synopsis (placeholders), scan (minutes of timeouts on a
-# line that answers only some units), simulate, demo and gateway (run by their own tests), and
-# examples that need the reader's own files (kiln.json, ac20.json, a copied profile).
+# line that answers only some units), demo and gateway (run by their own tests), and
+# examples that need the reader's own files (kiln.json, a copied profile). The AC20 restore
+# example's ac20.json is a dump of the simulated AC20, made first.
+# docs_references_test.py checks that every example is run by this test or another.
 set -u
 loopwire=$(realpath "${1:?usage: readme_examples_test.sh path/to/loopwire path/to/README.md}")
 readme=${2:?usage: readme_examples_test.sh path/to/loopwire path/to/README.md}
+docs=("$readme" "$(dirname "$readme")"/docs/*.md)  # the README and the pages it links
 source "$(dirname "$0")/../support/test_lib.sh"
 
 start_background sim.log timeout 90 "$loopwire" simulate --pty "$WORK_DIR/ttyR" \
@@ -17,17 +21,23 @@ start_tcp_server tcp.log timeout 90 "$loopwire" simulate --link tcp://127.0.0.1:
 serial="rtu:$WORK_DIR/ttyR?parity=none"
 tcp="tcp://127.0.0.1:$PORT"
 
-# The README's sh blocks, continuation lines joined, one command a line.
-mapfile -t examples < <(awk '/^```sh/{f=1;next} /^```/{f=0} f' "$readme" | sed -e ':a' -e '/\\$/N; s/\\\n *//; ta' |
-  grep -E '^loopwire (-v )?(read|write|monitor|dump|restore|decode|describe|help) ' | grep -vE ' URL |\[|DEVICE' |
-  grep -vE 'kiln\.json|ac20\.json|oven-x')
-((${#examples[@]} >= 10)) || fail "found only ${#examples[@]} README examples: $(printf '\n  %s' "${examples[@]}")"
+# The sh blocks of the README and docs/, continuation lines joined, one command a line.
+mapfile -t examples < <(awk '/^```sh/{f=1;next} /^```/{f=0} f' "${docs[@]}" | sed -e ':a' -e '/\\$/N; s/\\\n *//; ta' |
+  grep -E '^loopwire (-v )?(read|write|monitor|dump|restore|decode|describe|help|simulate) ' | grep -vE ' URL |\[|DEVICE' |
+  grep -vE 'kiln\.json|oven-x')
+((${#examples[@]} >= 10)) || fail "found only ${#examples[@]} examples in README.md and docs/: $(printf '\n  %s' "${examples[@]}")"
 
 cd "$WORK_DIR" || fail "no work dir"
+"$loopwire" dump --link "$serial" --device ac20@1 --output ac20.json >dump.log 2>&1 || fail "cannot dump the AC20: $(cat dump.log)"
 ran=0
 for example in "${examples[@]}"; do
     command=${example%%#*}  # a trailing comment explains the example
-    command=$(sed -E -e "s#--link 'rtu:[^']*'#--link '$serial'#" -e "s#--link tcp://[^ ]*#--link $tcp#" <<<"$command")
+    if [[ $command == "loopwire simulate "* ]]; then
+        command=${command//\/tmp\/ttyV0/$WORK_DIR/ttyV0}
+        command=${command//tcp:\/\/127.0.0.1:1502/tcp://127.0.0.1:0}
+    else
+        command=$(sed -E -e "s#--link 'rtu:[^']*'#--link '$serial'#" -e "s#--link tcp://[^ ]*#--link $tcp#" <<<"$command")
+    fi
     eval "words=($command)"
     status=0
     case ${words[1]} in
@@ -37,7 +47,10 @@ for example in "${examples[@]}"; do
             rm -f "$output"
             timeout 4 "$loopwire" "${words[@]:1}" >"out.txt" 2>&1 || status=$?
             if [[ $status -eq 124 && -s $output ]]; then status=0; fi ;;
-        decode)  # the README's example frame is one whose CRC is wrong: it must say so (exit 1)
+        simulate)  # serves until Ctrl-C: it must still be serving after 5 s, having said so
+            timeout 5 "$loopwire" "${words[@]:1}" >"out.txt" 2>&1 || status=$?
+            if [[ $status -eq 124 ]] && grep -q "Ctrl-C to stop" out.txt; then status=0; fi ;;
+        decode)  # the example frame is one whose CRC is wrong: it must say so (exit 1)
             timeout 30 "$loopwire" "${words[@]:1}" >"out.txt" 2>&1 || status=$?
             if [[ $status -eq 1 ]] && grep -q "CRC mismatch" out.txt; then status=0; fi ;;
         *) timeout 30 "$loopwire" "${words[@]:1}" >"out.txt" 2>&1 || status=$? ;;
@@ -45,10 +58,10 @@ for example in "${examples[@]}"; do
     ran=$((ran + 1))
     if [[ $status -eq 0 ]]; then count_pass; else count_failure "README: $example (exit $status)" out.txt; fi
 done
-echo "ran $ran README examples"
-# The README's two CSV monitors one after the other: the second appends to what the first wrote.
+echo "ran $ran examples of README.md and docs/"
+# The two CSV monitors of docs/cli.md one after the other: the second appends to what the first wrote.
 mapfile -t csv_monitors < <(printf '%s\n' "${examples[@]}" | grep -E '^loopwire monitor .*--output plant\.csv')
-((${#csv_monitors[@]} == 2)) || fail "expected two README monitors writing plant.csv, found ${#csv_monitors[@]}"
+((${#csv_monitors[@]} == 2)) || fail "expected two monitors writing plant.csv in docs/cli.md, found ${#csv_monitors[@]}"
 rm -f plant.csv
 for example in "${csv_monitors[@]}"; do
     command=$(sed -E -e "s#--link 'rtu:[^']*'#--link '$serial'#" <<<"${example%%#*}")

@@ -44,7 +44,7 @@ TOML
 }
 write_config "$WORK_DIR/plant.toml" true
 
-# The README's command, as printed, from the repository's top folder.
+# docs/gateway-configuration.md's command, as printed, from the repository's top folder.
 check readme-plan 0 "estimated line load" bash -c "cd '$(dirname "$0")/../..' && '$loopwire' gateway --config examples/plant.toml --check"
 
 check plan-names-the-line 0 "furnace-line" "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
@@ -227,7 +227,7 @@ check history-folder-missing-at-check 2 "history.toml:10: history.database: the 
   "$loopwire" gateway --config "$WORK_DIR/history.toml" --check
 check history-folder-missing-at-start 2 "mkdir -p $WORK_DIR/no-such-folder" "$loopwire" gateway --config "$WORK_DIR/history.toml"
 
-# The README's two commands, as printed, in a scratch folder: the complete example that
+# docs/gateway-configuration.md's two commands, as printed, in a scratch folder: the complete example that
 # --print-config writes passes --check unchanged (it also names every key: the man page test).
 check readme-print-config 0 "" bash -c "cd '$WORK_DIR' && '$loopwire' gateway --print-config > gateway.toml"
 check print-config-passes-check 0 "gateway.toml: 1 line" bash -c "cd '$WORK_DIR' && '$loopwire' gateway --config gateway.toml --check"

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The README's HTTP API commands (the curl lines of its sh blocks), run as written against
+# The HTTP API commands of README.md and docs/*.md (the curl lines of their sh blocks, all in
+# docs/http-api.md), run as written against
 # `loopwire gateway` with an [http] table: only the port (the kernel's choice, not 8080) and the
 # token file's path (a temporary one, not /etc/loopwire/token) are replaced.
 set -u
@@ -30,8 +31,8 @@ TOML
 start_background gateway.log timeout 60 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
 port=$(wait_for_log gateway.log 'HTTP API and dashboard on http:..127\.0\.0\.1:([0-9]+)' 20)
 
-mapfile -t examples < <(awk '/^```sh/{f=1;next} /^```/{f=0} f' "$readme" | grep -E '^curl ')
-expect_equal "${#examples[@]}" 4 "curl commands in the README"
+mapfile -t examples < <(awk '/^```sh/{f=1;next} /^```/{f=0} f' "$readme" "$(dirname "$readme")"/docs/*.md | grep -E '^curl ')
+expect_equal "${#examples[@]}" 4 "curl commands in README.md and docs/"
 cd "$WORK_DIR" || fail "no work dir"
 for i in "${!examples[@]}"; do
     command=${examples[$i]//127.0.0.1:8080/127.0.0.1:$port}

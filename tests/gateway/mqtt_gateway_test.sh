@@ -81,10 +81,10 @@ read_back() { [[ $(sub "$topic/set_point") =~ ^210(\.0+)?$ ]]; }
 wait_for 10 "set_point 210 on the broker" read_back
 count_pass
 
-# The README's commands, as printed, with the test broker's port.
+# The commands of README.md and docs/ (docs/mqtt-home-assistant.md), as printed, with the test broker's port.
 readme=$(dirname "$0")/../../README.md
-# (The Sparkplug section's mosquitto_sub is sparkplug_gateway_test.sh's.)
-mapfile -t readme_commands < <(awk '/^```sh/{f=1;next} /^```/{f=0} f' "$readme" | grep -E '^mosquitto_(sub|pub) ' | grep -v spBv1.0)
+# (docs/sparkplug.md's mosquitto_sub is sparkplug_gateway_test.sh's.)
+mapfile -t readme_commands < <(awk '/^```sh/{f=1;next} /^```/{f=0} f' "$readme" "$(dirname "$0")"/../../docs/*.md | grep -E '^mosquitto_(sub|pub) ' | grep -v spBv1.0)
 ((${#readme_commands[@]} == 2)) || fail "expected the README's mosquitto_sub and mosquitto_pub, found: ${readme_commands[*]}"
 for command in "${readme_commands[@]}"; do
     eval "words=(${command/-h 127.0.0.1/-h 127.0.0.1 -p $port})"

@@ -311,11 +311,11 @@ if [[ -n $found ]]; then
     --any "${answered[@]:1}"
 fi
 
-# The README's Sparkplug commands, as printed, with the test broker's port, in a folder where
+# The Sparkplug commands of README.md and docs/ (docs/sparkplug.md), as printed, with the test broker's port, in a folder where
 # tests/ is the repository's (their --out file lands there, not in the repository).
 readme_dir=$WORK_DIR/readme
 mkdir -p "$readme_dir" && ln -s "$repo/tests" "$readme_dir/tests"
-mapfile -t readme_commands < <(awk '/^```sh/{f=1;next} /^```/{f=0} f' "$repo/README.md" |
+mapfile -t readme_commands < <(awk '/^```sh/{f=1;next} /^```/{f=0} f' "$repo/README.md" "$repo"/docs/*.md |
   grep -E "spBv1.0|sparkplug_check.py")
 ((${#readme_commands[@]} == 3)) || fail "expected the README's three Sparkplug commands, found: ${readme_commands[*]}"
 for command in "${readme_commands[@]}"; do

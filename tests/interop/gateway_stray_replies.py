@@ -32,7 +32,7 @@ import interop_support as support  # noqa: E402  pylint: disable=wrong-import-po
 TIMEOUT_MS = 200          # the gateway line's reply timeout
 LATE_MS = 350             # a held-back reply comes this long after it was sent: 150 ms after the timeout
 # After a timeout or a bad reply the line stays quiet this long before its next request, so the
-# late reply is discarded there (README, "late_reply_window"). Its default, the timeout, left the
+# late reply is discarded there (docs/modbus-tcp.md, "late_reply_window"). Its default, the timeout, left the
 # relay 40 ms: on a loaded machine its thread woke later, the late reply came in the next
 # request's exchange and one client read register 700's value for 702 (what RTU cannot tell
 # apart; a user sets the window to what the slow device needs, as here). 600 ms leaves the relay

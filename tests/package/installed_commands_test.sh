@@ -47,7 +47,7 @@ for command in "${commands[@]}"; do
         expect "loopwire-$command(1) documents $option" grep -q -- "$option" "$WORK_DIR/loopwire-$command.txt"
     done
 done
-check "loopwire-read(1) shows the README's read examples" 0 "--device tc10@3 PV SP sp.ll" cat "$WORK_DIR/loopwire-read.txt"
+check "loopwire-read(1) shows the read examples of docs/cli.md" 0 "--device tc10@3 PV SP sp.ll" cat "$WORK_DIR/loopwire-read.txt"
 check "loopwire-read(1) gives the exit statuses" 0 "EXIT STATUS" cat "$WORK_DIR/loopwire-read.txt"
 check "loopwire(1) lists the read command" 0 "loopwire read" cat "$WORK_DIR/loopwire.txt"
 
