@@ -194,10 +194,11 @@ wait "$listener"
 if [[ $status -eq 0 ]] && grep -q "STATUS=serving 1 line(s), 3 device(s)" "$WORK_DIR/notify.out" && grep -q "STOPPING=1" "$WORK_DIR/notify.out"
 then count_pass; else echo "FAIL systemd-notify (exit $status)"; cat "$WORK_DIR/notify.out" "$WORK_DIR/notified.log"; failures=$((failures + 1)); fi
 
-# The unit file systemd would load, with ExecStart pointed at the binary under test.
-sed "s#^ExecStart=/usr/local/bin/loopwire #ExecStart=$(realpath "$loopwire") #" "$(dirname "$0")/../../packaging/loopwire-gateway.service" \
+# The unit file systemd would load, with ExecStart pointed at the binary under test, and its
+# Documentation= pages (verify runs man on each) the ones the build wrote beside it.
+sed "s#^ExecStart=/usr/bin/loopwire #ExecStart=$(realpath "$loopwire") #" "$(dirname "$0")/../../packaging/loopwire-gateway.service" \
   >"$WORK_DIR/loopwire-gateway.service"
-verify_out=$(timeout 20 systemd-analyze verify "$WORK_DIR/loopwire-gateway.service" 2>&1); verify_status=$?
+verify_out=$(MANPATH="$(dirname "$(realpath "$loopwire")")/man" timeout 20 systemd-analyze verify "$WORK_DIR/loopwire-gateway.service" 2>&1); verify_status=$?
 if [[ $verify_status -eq 0 && -z $verify_out ]]; then count_pass; else echo "FAIL unit-file-verifies (exit $verify_status)"; echo "$verify_out" | sed 's/^/    /'; failures=$((failures + 1)); fi
 
 # A broken configuration: refused before anything opens, naming file, line and key.
