@@ -163,20 +163,23 @@ dpkg-query -W -f='${Conffiles}\n' loopwire | grep -q '/etc/loopwire/plant.toml' 
 run_logged check-as-loopwire runuser -u loopwire -- /usr/bin/loopwire gateway --check --config /etc/loopwire/plant.toml
 grep -q 'history: /var/lib/loopwire/history.db' "$work/check-as-loopwire.log" || fail "the installed check does not record history in /var/lib/loopwire"
 # The enable links an administrator makes, for the purge to take away.
+enable_link=/etc/systemd/system/multi-user.target.wants/loopwire-gateway.service
 systemctl enable loopwire-gateway.service >/dev/null 2>&1 || true
-pass "dpkg -i: user loopwire (uid $uid, in dialout), /var/lib/loopwire, conffile; gateway --check as loopwire"
+links="no enable link (systemctl enable made none here)"
+[ -L "$enable_link" ] && links="enabled"
+pass "dpkg -i: user loopwire (uid $uid, in dialout), /var/lib/loopwire, conffile; gateway --check as loopwire; $links"
 
 run_logged dpkg-purge dpkg --purge loopwire
 installed_by_test=false
 for path in /usr/bin/loopwire /etc/loopwire /var/lib/loopwire /lib/systemd/system/loopwire-gateway.service \
-            /etc/systemd/system/multi-user.target.wants/loopwire-gateway.service; do
+            "$enable_link"; do
     if [ -e "$path" ] || [ -L "$path" ]; then fail "$path is still there after dpkg --purge"; fi
 done
 if ls /var/lib/systemd/deb-systemd-helper-enabled 2>/dev/null | grep -q loopwire; then fail "deb-systemd-helper state for the unit is left after purge"; fi
 # Debian keeps a package's system user on purge (postrm says why); the test removes the one it made.
 getent passwd loopwire >/dev/null || fail "purge removed the system user loopwire (Debian keeps system users)"
 if $user_made_by_test; then
-    deluser --system --quiet loopwire >/dev/null
+    deluser --system --quiet loopwire >/dev/null 2>&1
     delgroup --system --quiet loopwire >/dev/null 2>&1 || true
     user_made_by_test=false
     if getent passwd loopwire >/dev/null || getent group loopwire >/dev/null; then fail "user or group loopwire left behind"; fi
