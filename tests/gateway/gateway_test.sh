@@ -172,21 +172,27 @@ write_config "$WORK_DIR/read-only.toml" false
 kill -TERM "$LAST_PID"  # the line is the gateway's alone: free it for the next one
 wait "$LAST_PID" 2>/dev/null
 
-# Under systemd (Type=notify): READY=1 once serving, STOPPING=1 on SIGTERM, exit status 0.
+# Under systemd (Type=notify, WatchdogSec=): READY=1 once serving, WATCHDOG=1 again and again
+# (every half of WATCHDOG_USEC), STOPPING=1 on SIGTERM, exit status 0.
 notify="$WORK_DIR/notify.sock"
 $python - "$notify" >"$WORK_DIR/notify.out" 2>&1 <<'PY' &
 import socket, sys
 sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
 sock.bind(sys.argv[1])
 sock.settimeout(30)
-for _ in range(2):
-    print(sock.recv(4096).decode().replace("\n", " "), flush=True)
+while True:
+    message = sock.recv(4096).decode().replace("\n", " ")
+    print(message, flush=True)
+    if "STOPPING=1" in message:
+        break
 PY
 listener=$!
 wait_for_path "$notify"
-NOTIFY_SOCKET="$notify" "$loopwire" gateway --config "$WORK_DIR/read-only.toml" >"$WORK_DIR/notified.log" 2>&1 &
+NOTIFY_SOCKET="$notify" WATCHDOG_USEC=200000 "$loopwire" gateway --config "$WORK_DIR/read-only.toml" >"$WORK_DIR/notified.log" 2>&1 &
 notified=$!
 wait_for 30 "READY=1 from the gateway" grep -q "READY=1" "$WORK_DIR/notify.out"
+pinged_twice() { [ "$(grep -c "WATCHDOG=1" "$WORK_DIR/notify.out")" -ge 2 ]; }
+wait_for 30 "WATCHDOG=1 twice from the gateway" pinged_twice
 kill -TERM "$notified"
 wait "$notified"
 status=$?

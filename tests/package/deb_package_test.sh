@@ -72,7 +72,7 @@ pass "conffile, maintainer scripts, Depends: $depends"
 
 unit=$work/unit.service
 dpkg-deb --fsys-tarfile "$deb" | tar -xO ./lib/systemd/system/loopwire-gateway.service >"$unit"
-for directive in 'Type=notify' 'ExecStart=/usr/bin/loopwire gateway --config /etc/loopwire/plant.toml' \
+for directive in 'Type=notify' 'WatchdogSec=30s' 'ExecStart=/usr/bin/loopwire gateway --config /etc/loopwire/plant.toml' \
                  'ExecReload=/bin/kill -HUP $MAINPID' 'User=loopwire' 'SupplementaryGroups=dialout' \
                  'ProtectSystem=strict' 'ProtectHome=yes' 'PrivateTmp=yes' 'NoNewPrivileges=yes' 'CapabilityBoundingSet=' \
                  'RestrictAddressFamilies=AF_UNIX AF_INET AF_INET6' 'SystemCallFilter=@system-service' \
