@@ -175,7 +175,9 @@ for path in /usr/bin/loopwire /etc/loopwire /var/lib/loopwire /lib/systemd/syste
             "$enable_link"; do
     if [ -e "$path" ] || [ -L "$path" ]; then fail "$path is still there after dpkg --purge"; fi
 done
-if ls /var/lib/systemd/deb-systemd-helper-enabled 2>/dev/null | grep -q loopwire; then fail "deb-systemd-helper state for the unit is left after purge"; fi
+if [ -n "$(find /var/lib/systemd/deb-systemd-helper-enabled -name '*loopwire*' 2>/dev/null)" ]; then
+    fail "deb-systemd-helper state for the unit is left after purge"
+fi
 # Debian keeps a package's system user on purge (postrm says why); the test removes the one it made.
 getent passwd loopwire >/dev/null || fail "purge removed the system user loopwire (Debian keeps system users)"
 if $user_made_by_test; then
