@@ -18,8 +18,8 @@ add_custom_command(OUTPUT ${loopwire_man_stamp}
   VERBATIM)
 add_custom_target(loopwire_man_pages ALL DEPENDS ${loopwire_man_stamp})
 
-install(DIRECTORY ${loopwire_man_dir}/ DESTINATION ${CMAKE_INSTALL_MANDIR})
+install(DIRECTORY ${loopwire_man_dir}/ DESTINATION ${CMAKE_INSTALL_MANDIR} COMPONENT runtime)
 install(FILES ${PROJECT_SOURCE_DIR}/packaging/completion/loopwire.bash
-  DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/bash-completion/completions RENAME loopwire)
+  DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/bash-completion/completions RENAME loopwire COMPONENT runtime)
 install(FILES ${PROJECT_SOURCE_DIR}/packaging/completion/_loopwire
-  DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/zsh/site-functions)
+  DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/zsh/site-functions COMPONENT runtime)

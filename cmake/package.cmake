@@ -32,19 +32,23 @@ elseif(LOOPWIRE_TSAN)
   target_link_options(loopwire_library INTERFACE -fsanitize=thread)
 endif()
 
-install(TARGETS loopwire RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
-install(TARGETS loopwire_library EXPORT loopwireTargets ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
-install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/loopwire DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
-install(FILES ${PROJECT_BINARY_DIR}/include/loopwire/version.hpp DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/loopwire)
+# Two components: `runtime` (the binary, its man pages and completion: what scripts/package puts
+# in the Debian package) and `development` (the library, headers and CMake package). A plain
+# `cmake --install` installs both.
+install(TARGETS loopwire RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT runtime)
+install(TARGETS loopwire_library EXPORT loopwireTargets ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT development)
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/loopwire DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT development)
+install(FILES ${PROJECT_BINARY_DIR}/include/loopwire/version.hpp DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/loopwire
+  COMPONENT development)
 
 set(loopwire_package_dir ${CMAKE_INSTALL_LIBDIR}/cmake/loopwire)
-install(EXPORT loopwireTargets NAMESPACE loopwire:: DESTINATION ${loopwire_package_dir})
+install(EXPORT loopwireTargets NAMESPACE loopwire:: DESTINATION ${loopwire_package_dir} COMPONENT development)
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/loopwireConfig.cmake.in
   ${PROJECT_BINARY_DIR}/loopwireConfig.cmake INSTALL_DESTINATION ${loopwire_package_dir})
 # Before 1.0 a minor version may change the API: only the same MAJOR.MINOR is compatible.
 write_basic_package_version_file(${PROJECT_BINARY_DIR}/loopwireConfigVersion.cmake
   VERSION ${PROJECT_VERSION} COMPATIBILITY SameMinorVersion)
 install(FILES ${PROJECT_BINARY_DIR}/loopwireConfig.cmake ${PROJECT_BINARY_DIR}/loopwireConfigVersion.cmake
-  DESTINATION ${loopwire_package_dir})
+  DESTINATION ${loopwire_package_dir} COMPONENT development)
 
 include(${CMAKE_CURRENT_LIST_DIR}/man_pages_and_completion.cmake)

@@ -5,7 +5,10 @@
 // (gateway/service.hpp).
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <chrono>
+#include <cstdint>
 #include <cstring>
 #include <memory>
 #include <optional>
@@ -89,6 +92,17 @@ void announce(const gateway::GatewayLog& log_line, const gateway::GatewayConfig&
     sd_notifyf(0, "READY=1\nSTATUS=serving %zu line(s), %zu device(s)", config.lines.size(), devices);
 }
 
+// Under a unit with WatchdogSec= (packaging/loopwire-gateway.service), the engine's loop says
+// WATCHDOG=1 every half period, as sd_watchdog_enabled(3) advises: a loop that hangs goes
+// silent and systemd restarts the service. Without $WATCHDOG_USEC nothing is sent.
+void watch_over(gateway::GatewayOptions& options) {
+    std::uint64_t period_us = 0;
+    if (sd_watchdog_enabled(0, &period_us) <= 0 || period_us == 0) return;
+    options.alive_every = std::max(std::chrono::milliseconds(1),
+                                   std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::microseconds(period_us / 2)));
+    options.alive = [] { sd_notify(0, "WATCHDOG=1"); };
+}
+
 int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& profiles) {
     if (options.print_config) {
         fmt::print("{}", gateway::commented_example_config());
@@ -119,6 +133,7 @@ int run_gateway(const GatewayCommandOptions& options, const ProfileOptions& prof
     gateway_options.wait_for_stop = [&stop](const std::stop_token& until) { stop.wait(until); };
     gateway_options.log = log.info;
     gateway_options.debug_log = log.debug;
+    watch_over(gateway_options);
     if (options.verbose) gateway_options.trace = stderr_trace();
     gateway::ServiceHooks hooks;
     hooks.serving = [&log](const gateway::GatewayConfig& serving, const gateway::Gateway& running) { announce(log.info, serving, running); };

@@ -248,6 +248,8 @@ struct Gateway::Parts {
     }
 
     std::chrono::milliseconds statistics_interval{0};
+    std::function<void()> alive;               // GatewayOptions::alive
+    std::chrono::milliseconds alive_every{0};  // GatewayOptions::alive_every
     GatewayLog log;
     std::function<void(const std::stop_token&)> wait_for_stop;  // GatewayOptions::wait_for_stop
     std::function<bool()> http_listener_kept;                    // GatewayOptions::http_listener_kept
@@ -297,6 +299,8 @@ Gateway::~Gateway() {
 Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, GatewayOptions options) {
     auto parts = std::make_unique<Parts>(config.modbus_tcp.enabled ? options.front : nullptr, options.lines);
     parts->statistics_interval = config.log.statistics;
+    parts->alive = options.alive;
+    parts->alive_every = options.alive_every;
     parts->log = options.log;
     parts->wait_for_stop = options.wait_for_stop;
     parts->http_listener_kept = options.http_listener_kept;
@@ -517,6 +521,38 @@ private:
     std::shared_ptr<const bool> alive_ = std::make_shared<const bool>(true);  // reset at the take-down
 };
 
+// Calls `alive` every `every` on the engine's loop, the first time at once, until destroyed:
+// the beat comes from the loop that serves the fronts and polls, not from a thread of its own.
+class LoopHeartbeat {
+public:
+    LoopHeartbeat(Engine& engine, std::chrono::milliseconds every, std::function<void()> alive)
+        : engine_(engine), timer_(engine), every_(every), alive_(std::move(alive)) {
+        engine_.post([this] { beat(); });
+    }
+    // The take-down runs after the first beat (posted before it) and cancels the next.
+    ~LoopHeartbeat() {
+        engine_.take_down([this] {
+            stopped_ = true;
+            timer_.cancel();
+        });
+    }
+    LoopHeartbeat(const LoopHeartbeat&) = delete;
+    LoopHeartbeat& operator=(const LoopHeartbeat&) = delete;
+
+private:
+    void beat() {
+        if (stopped_) return;
+        alive_();
+        timer_.set(engine_.clock()->now() + every_, [this] { beat(); });
+    }
+
+    Engine& engine_;
+    LoopTimer timer_;  // on the loop's thread only
+    std::chrono::milliseconds every_;
+    std::function<void()> alive_;
+    bool stopped_ = false;  // on the loop's thread only
+};
+
 }  // namespace
 
 Result<void> Gateway::serve(std::stop_token stop) {
@@ -524,6 +560,8 @@ Result<void> Gateway::serve(std::stop_token stop) {
     if (parts_->log && parts_->statistics_interval.count() > 0) {
         statistics.emplace(*parts_->engine, parts_->lines, parts_->statistics_interval, parts_->log);
     }
+    std::optional<LoopHeartbeat> heartbeat;
+    if (parts_->alive && parts_->alive_every.count() > 0) heartbeat.emplace(*parts_->engine, parts_->alive_every, parts_->alive);
     // Ended by `stop`, or by the front when it fails.
     std::stop_source either;
     auto end = [&either] { either.request_stop(); };

@@ -1,6 +1,7 @@
 #pragma once
 // The running gateway: the lines it owns (one master and one scheduler each) and the Modbus TCP
 // front that shares them (docs/DESIGN.md, gateway).
+#include <chrono>
 #include <functional>
 #include <memory>
 #include <stop_token>
@@ -61,6 +62,11 @@ struct GatewayOptions {
     // serving thread takes SIGTERM and SIGHUP while it waits and no thread is kept for them.
     // Must return once the token is stopped.
     std::function<void(const std::stop_token&)> wait_for_stop;
+    // Called on the engine's loop every `alive_every` while serve() runs, the first time at once:
+    // a service manager's watchdog (the gateway command's WATCHDOG=1) hears from the loop itself,
+    // so a loop that hangs stops the calls and the manager restarts the service. Zero: never.
+    std::function<void()> alive;
+    std::chrono::milliseconds alive_every{0};
 };
 
 struct LineReport {

@@ -172,21 +172,27 @@ write_config "$WORK_DIR/read-only.toml" false
 kill -TERM "$LAST_PID"  # the line is the gateway's alone: free it for the next one
 wait "$LAST_PID" 2>/dev/null
 
-# Under systemd (Type=notify): READY=1 once serving, STOPPING=1 on SIGTERM, exit status 0.
+# Under systemd (Type=notify, WatchdogSec=): READY=1 once serving, WATCHDOG=1 again and again
+# (every half of WATCHDOG_USEC), STOPPING=1 on SIGTERM, exit status 0.
 notify="$WORK_DIR/notify.sock"
 $python - "$notify" >"$WORK_DIR/notify.out" 2>&1 <<'PY' &
 import socket, sys
 sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
 sock.bind(sys.argv[1])
 sock.settimeout(30)
-for _ in range(2):
-    print(sock.recv(4096).decode().replace("\n", " "), flush=True)
+while True:
+    message = sock.recv(4096).decode().replace("\n", " ")
+    print(message, flush=True)
+    if "STOPPING=1" in message:
+        break
 PY
 listener=$!
 wait_for_path "$notify"
-NOTIFY_SOCKET="$notify" "$loopwire" gateway --config "$WORK_DIR/read-only.toml" >"$WORK_DIR/notified.log" 2>&1 &
+NOTIFY_SOCKET="$notify" WATCHDOG_USEC=200000 "$loopwire" gateway --config "$WORK_DIR/read-only.toml" >"$WORK_DIR/notified.log" 2>&1 &
 notified=$!
 wait_for 30 "READY=1 from the gateway" grep -q "READY=1" "$WORK_DIR/notify.out"
+pinged_twice() { [ "$(grep -c "WATCHDOG=1" "$WORK_DIR/notify.out")" -ge 2 ]; }
+wait_for 30 "WATCHDOG=1 twice from the gateway" pinged_twice
 kill -TERM "$notified"
 wait "$notified"
 status=$?
@@ -194,10 +200,11 @@ wait "$listener"
 if [[ $status -eq 0 ]] && grep -q "STATUS=serving 1 line(s), 3 device(s)" "$WORK_DIR/notify.out" && grep -q "STOPPING=1" "$WORK_DIR/notify.out"
 then count_pass; else echo "FAIL systemd-notify (exit $status)"; cat "$WORK_DIR/notify.out" "$WORK_DIR/notified.log"; failures=$((failures + 1)); fi
 
-# The unit file systemd would load, with ExecStart pointed at the binary under test.
-sed "s#^ExecStart=/usr/local/bin/loopwire #ExecStart=$(realpath "$loopwire") #" "$(dirname "$0")/../../packaging/loopwire-gateway.service" \
+# The unit file systemd would load, with ExecStart pointed at the binary under test, and its
+# Documentation= pages (verify runs man on each) the ones the build wrote beside it.
+sed "s#^ExecStart=/usr/bin/loopwire #ExecStart=$(realpath "$loopwire") #" "$(dirname "$0")/../../packaging/loopwire-gateway.service" \
   >"$WORK_DIR/loopwire-gateway.service"
-verify_out=$(timeout 20 systemd-analyze verify "$WORK_DIR/loopwire-gateway.service" 2>&1); verify_status=$?
+verify_out=$(MANPATH="$(dirname "$(realpath "$loopwire")")/man" timeout 20 systemd-analyze verify "$WORK_DIR/loopwire-gateway.service" 2>&1); verify_status=$?
 if [[ $verify_status -eq 0 && -z $verify_out ]]; then count_pass; else echo "FAIL unit-file-verifies (exit $verify_status)"; echo "$verify_out" | sed 's/^/    /'; failures=$((failures + 1)); fi
 
 # A broken configuration: refused before anything opens, naming file, line and key.
