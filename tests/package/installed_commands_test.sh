@@ -70,7 +70,7 @@ expect "bash completion is installed" test -f "$prefix/share/bash-completion/com
 expect "zsh completion is installed" test -f "$prefix/share/zsh/site-functions/_loopwire"
 expect "the bash completion script parses" bash -n "$prefix/share/bash-completion/completions/loopwire"
 
-# The README's "Install" block and the command scripts/setup prints, run as written from a
+# The README's "Install for development" block and the command scripts/setup prints, run as written from a
 # checkout whose build/ is this build, for a user whose home is a scratch folder.
 checkout=$WORK_DIR/checkout
 mkdir -p "$checkout" && ln -s "$(realpath "$build")" "$checkout/build"
@@ -83,8 +83,8 @@ run_as_user() {  # NAME SCRIPT: runs SCRIPT in bash from the checkout with a fre
     expect "$1: bin/loopwire is in ~/.local" test -x "$home/.local/bin/loopwire"
     expect "$1: the man pages are in ~/.local" test -f "$home/.local/share/man/man1/loopwire-read.1"
 }
-readme_install=$(awk '/^## Install/{s=1; next} s && /^## /{s=0} s && /^```sh/{f=1; next} s && /^```/{f=0} s && f' "$source/README.md")
-[[ -n $readme_install ]] || fail "the README has no sh block under '## Install'"
+readme_install=$(awk '/^## Install for development/{s=1; next} s && /^## /{s=0} s && /^```sh/{f=1; next} s && /^```/{f=0} s && f' "$source/README.md")
+[[ -n $readme_install ]] || fail "the README has no sh block under '## Install for development'"
 echo "README Install block:"; echo "$readme_install" | sed 's/^/    /'
 run_as_user readme "$readme_install"
 check "README: man finds loopwire-read from the PATH the README sets" 0 "loopwire-read" cat "$WORK_DIR/readme.log"
