@@ -267,7 +267,7 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
 
     const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
     EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: enabled, listen, writes, max_age, "
-                   "max_connections, idle_timeout)");
+                   "max_connections, idle_timeout, allow, write_allow)");
 }
 
 TEST(GatewayConfig, TheLateReplyWindowIsReadAndBounded) {
