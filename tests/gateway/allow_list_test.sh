@@ -38,10 +38,6 @@ statistics = "off"
 TOML
 }
 
-metric() {  # PORT NAME : the value of one loopwire_ metric
-  curl -s --max-time 10 "http://127.0.0.1:$1/metrics" | awk -v name="loopwire_$2" '$1 == name || index($1, name "{") == 1 { print $2; exit }'
-}
-
 # ---- --check names a bad entry -----------------------------------------------------------------
 write_config "$WORK_DIR/bad.toml" 'allow = ["127.0.0.1", "10.1.0.0/33"]'
 check check-refuses-bad-network 2 '"10.1.0.0/33" is not an address or a network' \

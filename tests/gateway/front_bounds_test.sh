@@ -49,9 +49,6 @@ gateway_pid() {
   echo "$child"
 }
 
-metric() {  # PORT NAME : the value of one loopwire_ metric without labels, or of its first series
-  curl -s --max-time 10 "http://127.0.0.1:$1/metrics" | awk -v name="loopwire_$2" '$1 == name || index($1, name "{") == 1 { print $2; exit }'
-}
 
 # ---- FIFOs where files are expected: refused by --check at once, never opened ------------------
 mkfifo "$WORK_DIR/password.fifo" "$WORK_DIR/ca.fifo"

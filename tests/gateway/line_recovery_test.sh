@@ -132,12 +132,12 @@ expect_equal "$downs" 1 "'furnace-line is down' lines in the log"
 
 # /metrics counts the down periods and the reopen attempts.
 curl -sf "http://127.0.0.1:$http/metrics" >"$WORK_DIR/metrics.txt"
-metric() {  # REGEX : a line of /metrics matches
+metrics_line() {  # REGEX : a line of /metrics matches
   grep -qE "$1" "$WORK_DIR/metrics.txt" || { grep -E '^loopwire_line_(up|down|reopen)' "$WORK_DIR/metrics.txt"; return 1; }
 }
-expect furnace-line-down-counted metric '^loopwire_line_down_total\{line="furnace-line"\} 1$'
-expect later-line-reopen-attempts-counted metric '^loopwire_line_reopen_attempts_total\{line="later-line"\} [1-9]'
-expect later-line-up metric '^loopwire_line_up\{line="later-line"\} 1$'
+expect furnace-line-down-counted metrics_line '^loopwire_line_down_total\{line="furnace-line"\} 1$'
+expect later-line-reopen-attempts-counted metrics_line '^loopwire_line_reopen_attempts_total\{line="later-line"\} [1-9]'
+expect later-line-up metrics_line '^loopwire_line_up\{line="later-line"\} 1$'
 requests_before=$(sed -nE 's/^loopwire_line_requests_total\{line="furnace-line"\} ([0-9]+)$/\1/p' "$WORK_DIR/metrics.txt")
 
 # SIGHUP with only later-line retimed: furnace-line and virtual-line stay open,
@@ -157,8 +157,8 @@ api="http://127.0.0.1:$http/api/devices"
 wait_for 30 "oven1 ok after the reload" status_is oven1 ok
 wait_for 30 "kiln ok after the reload" status_is kiln ok
 curl -sf "http://127.0.0.1:$http/metrics" >"$WORK_DIR/metrics.txt"
-expect furnace-line-down-count-kept metric '^loopwire_line_down_total\{line="furnace-line"\} 1$'
-expect later-line-opened-afresh metric '^loopwire_line_down_total\{line="later-line"\} 0$'
+expect furnace-line-down-count-kept metrics_line '^loopwire_line_down_total\{line="furnace-line"\} 1$'
+expect later-line-opened-afresh metrics_line '^loopwire_line_down_total\{line="later-line"\} 0$'
 requests_after=$(sed -nE 's/^loopwire_line_requests_total\{line="furnace-line"\} ([0-9]+)$/\1/p' "$WORK_DIR/metrics.txt")
 expect furnace-line-requests-go-on test "${requests_after:-0}" -gt "${requests_before:-0}"
 check read-after-reload 0 "" "$loopwire" read --link "$modbus" --device tc10@3 set_point

@@ -154,6 +154,12 @@ expect_equal() {
     if ((${#1} > 160)); then echo "ok: $3 = ${1:0:140} ..."; else echo "ok: $3 = $1"; fi
 }
 
+# metric PORT NAME : the value of one loopwire_ metric of the gateway's HTTP front on PORT, without
+# labels or of its first series; empty when /metrics does not have it.
+metric() {
+    curl -s --max-time 10 "http://127.0.0.1:$1/metrics" | awk -v name="loopwire_$2" '$1 == name || index($1, name "{") == 1 { print $2; exit }'
+}
+
 # --- Tallied checks: a failure is counted and reported, and the test goes on. ---
 
 count_pass() { passes=$((passes + 1)); }
