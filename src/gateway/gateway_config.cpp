@@ -434,9 +434,8 @@ void parse_devices(const Context& ctx, const toml::table& table, const std::stri
 // Lines
 
 // `speed` and `seed` set the simulation of a virtual line and mean nothing on a real one.
+// On a real line only their being there is the mistake, whatever their values.
 void parse_line_simulation(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
-    auto speed = ctx.kept(optional_number(ctx, table, path, "lines", "speed"));
-    auto seed = ctx.kept(optional_integer(ctx, table, path, "lines", "seed"));
     if (!is_virtual_bus(line.link)) {
         for (std::string_view key : {"speed", "seed"}) {
             if (!table.contains(key)) continue;
@@ -446,6 +445,8 @@ void parse_line_simulation(const Context& ctx, const toml::table& table, const s
         }
         return;
     }
+    auto speed = ctx.kept(optional_number(ctx, table, path, "lines", "speed"));
+    auto seed = ctx.kept(optional_integer(ctx, table, path, "lines", "seed"));
     LineSimulation simulation;
     if (speed && *speed) simulation.speed = **speed;
     if (seed && *seed) simulation.seed = static_cast<std::uint64_t>(**seed);
