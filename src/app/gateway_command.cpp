@@ -151,7 +151,8 @@ void add_gateway_command(CLI::App& app, int& exit_code, const ProfileOptions& pr
     auto* command = app.add_subcommand("gateway", "Own the lines of a configuration file and serve them to Modbus TCP clients");
     auto* config = command->add_option("--config", options->config, "Gateway configuration (TOML): lines, devices, the Modbus TCP front")
         ->type_name("FILE.toml");
-    auto* check = command->add_flag("--check", options->check, "Check the configuration and print the plan (lines, devices, estimated line load); serve nothing");
+    auto* check = command->add_flag("--check", options->check, "Check the configuration and print the plan (lines, devices, estimated line load); serve nothing. "
+                                     "Every mistake is said, each at FILE:LINE, then their count");
     command
         ->add_flag("--print-config", options->print_config,
                    "Print a complete configuration with every key, its meaning, bounds and default (man loopwire-gateway.toml)")

@@ -41,10 +41,13 @@ struct ForwardingSettings {
 };
 
 // What the gateway says of refused or failed requests (for its log). A line that begins with
-// "warning: " is one a person must see (a device gone silent, polls falling behind): the log
-// gives it the warning level, without the prefix (app/gateway_log.hpp).
+// "warning: " is one a person must see (a line down, a device gone silent or answering as
+// another, polls falling behind): the log gives it the warning level, without the prefix. One
+// that begins with "notice: " says such a state has ended (the line up again, the device
+// answering again): the notice level, between warning and info (app/gateway_log.hpp).
 using GatewayLog = std::function<void(const std::string&)>;
 inline constexpr std::string_view gateway_warning_prefix = "warning: ";
+inline constexpr std::string_view gateway_notice_prefix = "notice: ";
 
 class ForwardingUnit final : public session::UnitHandler {
 public:

@@ -59,9 +59,29 @@ std::string key_path(const std::string& parent, std::string_view key) {
 
 std::string index_path(const std::string& parent, std::size_t index) { return fmt::format("{}[{}]", parent, index); }
 
+// Mistakes are collected, not thrown at the first: a key whose value is wrong keeps its default
+// and the keys, tables, lines and devices after it are still checked, so that one run of
+// `--check` lists every mistake of the file. A check that a mistake makes meaningless (a
+// device's parameters when its profile is unknown, the serial keys of a link that does not
+// parse) is left out rather than reported as a second, made-up mistake.
 struct Context {
     const std::string& source;
     const device::ProfileRegistry& profiles;
+    std::vector<Error>& mistakes;
+
+    void note(Error mistake) const { mistakes.push_back(std::move(mistake)); }
+
+    // The value when it parsed; else its mistake is noted and there is none.
+    template <typename T>
+    std::optional<T> kept(Result<T> parsed) const {
+        if (parsed) return std::optional<T>(std::move(*parsed));
+        note(parsed.error());
+        return std::nullopt;
+    }
+    bool kept(const Result<void>& checked) const {
+        if (!checked) note(checked.error());
+        return checked.ok();
+    }
 
     Error fail(const toml::source_region& where, const std::string& path, const std::string& what) const {
         // Line 0 means toml++ knows no position (a node built in code); the root is line 1.
@@ -86,15 +106,15 @@ std::string without_option_name(const std::string& message) {
 
 // `schema_table`: the table's name in config_schema.hpp ("lines.devices"), where its keys are
 // described; `path` is where it is in the file ("lines[0].devices[1]").
-Result<void> check_keys(const Context& ctx, const toml::table& table, const std::string& path, std::string_view schema_table) {
+// Every unknown key is noted; the table's other keys are read as if it were not there.
+void check_keys(const Context& ctx, const toml::table& table, const std::string& path, std::string_view schema_table) {
     const std::vector<std::string_view> allowed = config_keys_of(schema_table);
     for (auto&& [key, node] : table) {
         if (std::find(allowed.begin(), allowed.end(), key.str()) != allowed.end()) continue;
         // A typo must not leave a setting at its default without a word: unknown keys are errors.
-        return ctx.fail(key.source(), key_path(path, key.str()),
-                        fmt::format("unknown key (allowed here: {})", fmt::join(allowed, ", ")));
+        ctx.note(ctx.fail(key.source(), key_path(path, key.str()),
+                          fmt::format("unknown key (allowed here: {})", fmt::join(allowed, ", "))));
     }
-    return {};
 }
 
 template <typename T>
@@ -252,44 +272,55 @@ Result<void> claim_name(const Context& ctx, std::map<std::string, Seen>& names, 
 // ---------------------------------------------------------------------------------------------
 // Devices
 
-Result<std::vector<std::string>> parameter_names(const Context& ctx, const toml::table& table, const std::string& path,
-                                                 const device::Profile& profile, const std::string& device_name) {
+// One name of `parameters`, resolved as `loopwire read` resolves names, so what works there
+// works here. `named_at`: where each parameter was named first.
+Result<std::string> polled_parameter(const Context& ctx, const toml::node& element, const std::string& list_path,
+                                     std::size_t index, const device::Profile& profile, const std::string& device_name,
+                                     std::map<const device::Parameter*, std::size_t>& named_at) {
+    const std::string path = index_path(list_path, index);
+    const auto* name = element.as_string();
+    if (!name) return ctx.fail(element.source(), path, "expected a parameter name (a string)");
+    auto found = device::resolve_parameters(profile, {name->get()});
+    if (!found) return ctx.fail(element.source(), path, fmt::format("device {}: {}", device_name, found.error().message));
+    for (const device::Parameter* parameter : *found) {
+        if (!parameter->readable) {
+            return ctx.fail(element.source(), path,
+                            fmt::format("device {}: {} is write-only and cannot be polled", device_name, parameter->name));
+        }
+        // "PV" and "measured_value" are one parameter: polled once, so named once.
+        const auto [first, added] = named_at.emplace(parameter, index);
+        if (!added) {
+            return ctx.fail(element.source(), path,
+                            fmt::format("device {}: \"{}\" is {}, already named at {}; name each parameter once",
+                                        device_name, name->get(), parameter->name, index_path(list_path, first->second)));
+        }
+    }
+    return name->get();
+}
+
+// Each name of the list is checked, whatever is wrong with another.
+std::vector<std::string> parameter_names(const Context& ctx, const toml::table& table, const std::string& path,
+                                         const device::Profile& profile, const std::string& device_name) {
     std::vector<std::string> names;
     const toml::node* node = table.get("parameters");
     if (!node) return names;
     const std::string list_path = key_path(path, "parameters");
     const auto* array = node->as_array();
-    if (!array) return ctx.fail(node->source(), list_path, "expected a list of parameter names, e.g. [\"measured_value\"]");
-    if (array->empty()) {
-        return ctx.fail(node->source(), list_path,
-                        fmt::format("device {}: an empty list polls nothing; name the parameters to poll, or leave the key "
-                                    "out for the profile's watch list", device_name));
+    if (!array) {
+        ctx.note(ctx.fail(node->source(), list_path, "expected a list of parameter names, e.g. [\"measured_value\"]"));
+        return names;
     }
-    std::map<const device::Parameter*, std::size_t> named_at;  // where each was named first
+    if (array->empty()) {
+        ctx.note(ctx.fail(node->source(), list_path,
+                          fmt::format("device {}: an empty list polls nothing; name the parameters to poll, or leave the "
+                                      "key out for the profile's watch list", device_name)));
+        return names;
+    }
+    std::map<const device::Parameter*, std::size_t> named_at;
     for (std::size_t i = 0; i < array->size(); ++i) {
-        const toml::node& element = *array->get(i);
-        const auto* name = element.as_string();
-        if (!name) return ctx.fail(element.source(), index_path(list_path, i), "expected a parameter name (a string)");
-        // Resolved as `loopwire read` resolves names, so what works there works here.
-        auto found = device::resolve_parameters(profile, {name->get()});
-        if (!found) {
-            return ctx.fail(element.source(), index_path(list_path, i),
-                            fmt::format("device {}: {}", device_name, found.error().message));
+        if (auto name = ctx.kept(polled_parameter(ctx, *array->get(i), list_path, i, profile, device_name, named_at))) {
+            names.push_back(std::move(*name));
         }
-        for (const device::Parameter* parameter : *found) {
-            if (!parameter->readable) {
-                return ctx.fail(element.source(), index_path(list_path, i),
-                                fmt::format("device {}: {} is write-only and cannot be polled", device_name, parameter->name));
-            }
-            // "PV" and "measured_value" are one parameter: polled once, so named once.
-            const auto [first, added] = named_at.emplace(parameter, i);
-            if (!added) {
-                return ctx.fail(element.source(), index_path(list_path, i),
-                                fmt::format("device {}: \"{}\" is {}, already named at {}; name each parameter once",
-                                            device_name, name->get(), parameter->name, index_path(list_path, first->second)));
-            }
-        }
-        names.push_back(name->get());
     }
     return names;
 }
@@ -324,17 +355,8 @@ Result<void> check_protocol(const Context& ctx, const LineConfig& line, const De
                                 device.name, device.address.profile->id, spoken, line.name, fmt::join(protocols, ", ")));
 }
 
-Result<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry,
-                                  DeviceSeen& seen) {
-    if (auto keys = check_keys(ctx, table, path, "lines.devices"); !keys) return keys.error();
-    DeviceConfig device;
-    auto name = checked_name(ctx, table, path);
-    if (!name) return name.error();
-    device.name = std::move(*name);
-    seen.seen = Seen{path, table.source().begin.line, device.name};
-    if (auto claimed = claim_name(ctx, registry.device_names, seen.seen, source_of(table, "name"), "device"); !claimed) {
-        return claimed.error();
-    }
+// `device = "PROFILE@UNIT"`.
+Result<device::DeviceAddress> device_address(const Context& ctx, const toml::table& table, const std::string& path) {
     auto text = required_string(ctx, table, path, "device", "\"tc10@3\"");
     if (!text) return text.error();
     // The command line's "tc10" means unit 1; in a configuration, where each device of a line
@@ -346,24 +368,40 @@ Result<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, 
     }
     auto address = device::parse_device_address(ctx.profiles, *text);
     if (!address) return ctx.fail(source_of(table, "device"), key_path(path, "device"), address.error().message);
+    return std::move(*address);
+}
+
+// The device, its mistakes noted; none when its profile and unit are unknown, which the checks
+// of its parameters and against the line and the other devices need.
+std::optional<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, const std::string& path,
+                                         Registry& registry, DeviceSeen& seen) {
+    check_keys(ctx, table, path, "lines.devices");
+    DeviceConfig device;
+    // A device without a valid name is still checked, called by its place in the file.
+    auto name = ctx.kept(checked_name(ctx, table, path));
+    device.name = name ? std::move(*name) : path;
+    seen.seen = Seen{path, table.source().begin.line, device.name};
+    if (name) ctx.kept(claim_name(ctx, registry.device_names, seen.seen, source_of(table, "name"), "device"));
+    if (auto poll = ctx.kept(bounded_duration(ctx, table, path, "lines.devices", "poll", "e.g. \"1s\"")); poll && *poll) {
+        device.poll = **poll;
+    }
+    if (auto identify = ctx.kept(optional_value<bool>(ctx, table, path, "identify", "true or false")); identify && *identify) {
+        device.identify = **identify;
+    }
+    auto tcp_unit = ctx.kept(optional_integer(ctx, table, path, "lines.devices", "tcp_unit"));
+    auto address = ctx.kept(device_address(ctx, table, path));
+    if (!address) return std::nullopt;
     device.address = std::move(*address);
-    auto poll = bounded_duration(ctx, table, path, "lines.devices", "poll", "e.g. \"1s\"");
-    if (!poll) return poll.error();
-    if (*poll) device.poll = **poll;
-    auto parameters = parameter_names(ctx, table, path, *device.address.profile, device.name);
-    if (!parameters) return parameters.error();
-    device.parameters = std::move(*parameters);
-    auto identify = optional_value<bool>(ctx, table, path, "identify", "true or false");
-    if (!identify) return identify.error();
-    if (*identify) device.identify = **identify;
-    auto tcp_unit = optional_integer(ctx, table, path, "lines.devices", "tcp_unit");
-    if (!tcp_unit) return tcp_unit.error();
+    device.parameters = parameter_names(ctx, table, path, *device.address.profile, device.name);
+    // A wrong tcp_unit leaves seen.tcp_unit 0, out of the clash check: its own mistake is said.
+    if (!tcp_unit) return device;
     // The manuals allow units past 247 (AC20: 1-255, TC10: up to 254), Modbus TCP clients reach
     // 1..247 only (application protocol V1.1b3, 4.2: 248-255 reserved).
     if (!*tcp_unit && device.address.unit > 247) {
-        return ctx.fail(source_of(table, "device"), key_path(path, "device"),
-                        fmt::format("device {}: unit {} cannot be a Modbus TCP unit (1..247); give it one with "
-                                    "tcp_unit = N", device.name, device.address.unit));
+        ctx.note(ctx.fail(source_of(table, "device"), key_path(path, "device"),
+                          fmt::format("device {}: unit {} cannot be a Modbus TCP unit (1..247); give it one with "
+                                      "tcp_unit = N", device.name, device.address.unit)));
+        return device;
     }
     device.tcp_unit = *tcp_unit ? static_cast<std::uint8_t>(**tcp_unit) : device.address.unit;  // 1..247, checked
     seen.tcp_unit = device.tcp_unit;
@@ -372,49 +410,47 @@ Result<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, 
     return device;
 }
 
-Result<void> parse_devices(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry,
-                           LineConfig& line) {
-    auto tables = tables_of(ctx, table, path, "devices");
-    if (!tables) return tables.error();
+// `link_known`: whether the line's link parsed; a device's protocol is checked against it only then.
+void parse_devices(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry,
+                   LineConfig& line, bool link_known) {
+    auto tables = ctx.kept(tables_of(ctx, table, path, "devices"));
+    if (!tables) return;
     std::vector<Seen> line_devices;
     for (std::size_t i = 0; i < tables->size(); ++i) {
         const std::string device_path = index_path(key_path(path, "devices"), i);
         DeviceSeen seen;
         auto device = parse_device(ctx, *(*tables)[i], device_path, registry, seen);
-        if (!device) return device.error();
+        if (!device) continue;
         const auto& where = source_of(*(*tables)[i], "device");
-        if (auto speaks = check_protocol(ctx, line, *device, where, device_path); !speaks) return speaks.error();
-        if (auto free = check_unit_free_on_line(ctx, line, *device, line_devices, where, device_path); !free) return free.error();
+        if (link_known) ctx.kept(check_protocol(ctx, line, *device, where, device_path));
+        ctx.kept(check_unit_free_on_line(ctx, line, *device, line_devices, where, device_path));
         line_devices.push_back(seen.seen);
         registry.devices.push_back(std::move(seen));
         line.devices.push_back(std::move(*device));
     }
-    return {};
 }
 
 // ---------------------------------------------------------------------------------------------
 // Lines
 
 // `speed` and `seed` set the simulation of a virtual line and mean nothing on a real one.
-Result<void> parse_line_simulation(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
-    auto speed = optional_number(ctx, table, path, "lines", "speed");
-    if (!speed) return speed.error();
-    auto seed = optional_integer(ctx, table, path, "lines", "seed");
-    if (!seed) return seed.error();
+// On a real line only their being there is the mistake, whatever their values.
+void parse_line_simulation(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
     if (!is_virtual_bus(line.link)) {
         for (std::string_view key : {"speed", "seed"}) {
             if (!table.contains(key)) continue;
-            return ctx.fail(source_of(table, key), key_path(path, key),
-                            fmt::format("{} applies to a simulated line only (link = \"rtu:virtual?baud=19200\"); "
-                                        "remove it for a line with a real device", key));
+            ctx.note(ctx.fail(source_of(table, key), key_path(path, key),
+                              fmt::format("{} applies to a simulated line only (link = \"rtu:virtual?baud=19200\"); "
+                                          "remove it for a line with a real device", key)));
         }
-        return {};
+        return;
     }
+    auto speed = ctx.kept(optional_number(ctx, table, path, "lines", "speed"));
+    auto seed = ctx.kept(optional_integer(ctx, table, path, "lines", "seed"));
     LineSimulation simulation;
-    if (*speed) simulation.speed = **speed;
-    if (*seed) simulation.seed = static_cast<std::uint64_t>(**seed);
+    if (speed && *speed) simulation.speed = **speed;
+    if (seed && *seed) simulation.seed = static_cast<std::uint64_t>(**seed);
     line.simulation = simulation;
-    return {};
 }
 
 // A serial line carries one request at a time: RTU, ASCII and Linking replies say nothing of
@@ -433,62 +469,72 @@ Result<void> parse_max_in_flight(const Context& ctx, const toml::table& table, c
     return {};
 }
 
-// RS-485 direction control and the guard time of a serial line: keys of their own in the table,
-// which override the same options in the link URL.
-Result<void> parse_line_serial_keys(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
-    static constexpr std::array serial_keys{"rs485", "rs485_delay_before", "rs485_delay_after", "guard"};
-    for (const char* key : serial_keys) {
-        if (table.get(key) && !line.link.is_serial()) {
-            return ctx.fail(source_of(table, key), key_path(path, key),
-                            fmt::format("{} applies to a serial line only (this link is {})", key, line.link.to_string()));
-        }
-    }
-    auto& serial = line.link.serial;
-    if (const toml::node* rs485 = table.get("rs485")) {
-        if (const auto* on = rs485->as_boolean()) {
-            serial.rs485 = on->get() ? transport::Rs485::on : transport::Rs485::off;
-        } else if (const auto* text = rs485->as_string(); text && text->get() == "auto") {
-            serial.rs485 = transport::Rs485::if_supported;
-        } else {
-            return ctx.fail(rs485->source(), key_path(path, "rs485"), "expected true, false or \"auto\"");
-        }
-    }
-    auto before = bounded_duration(ctx, table, path, "lines", "rs485_delay_before", "e.g. \"1ms\"");
-    if (!before) return before.error();
-    if (*before) serial.rs485_delay_before = **before;
-    auto after = bounded_duration(ctx, table, path, "lines", "rs485_delay_after", "e.g. \"1ms\"");
-    if (!after) return after.error();
-    if (*after) serial.rs485_delay_after = **after;
-    auto guard_text = optional_value<std::string>(ctx, table, path, "guard", "a string such as \"3.5c\" or \"5ms\"");
-    if (!guard_text) return guard_text.error();
-    if (*guard_text) {
-        auto guard = transport::parse_line_guard(**guard_text);
-        if (!guard) return ctx.fail(source_of(table, "guard"), key_path(path, "guard"), guard.error().message);
-        serial.guard = *guard;
-    }
-    return {};
+// `rs485 = true`, false or "auto".
+Result<std::optional<transport::Rs485>> rs485_setting(const Context& ctx, const toml::table& table, const std::string& path) {
+    const toml::node* rs485 = table.get("rs485");
+    if (!rs485) return std::optional<transport::Rs485>{};
+    if (const auto* on = rs485->as_boolean()) return std::optional{on->get() ? transport::Rs485::on : transport::Rs485::off};
+    if (const auto* text = rs485->as_string(); text && text->get() == "auto") return std::optional{transport::Rs485::if_supported};
+    return ctx.fail(rs485->source(), key_path(path, "rs485"), "expected true, false or \"auto\"");
 }
 
-Result<void> parse_line_settings(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
+// RS-485 direction control and the guard time of a serial line: keys of their own in the table,
+// which override the same options in the link URL.
+void parse_line_serial_keys(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
+    static constexpr std::array serial_keys{"rs485", "rs485_delay_before", "rs485_delay_after", "guard"};
+    if (!line.link.is_serial()) {
+        for (const char* key : serial_keys) {
+            if (!table.get(key)) continue;
+            ctx.note(ctx.fail(source_of(table, key), key_path(path, key),
+                              fmt::format("{} applies to a serial line only (this link is {})", key, line.link.to_string())));
+        }
+        return;
+    }
+    auto& serial = line.link.serial;
+    if (auto rs485 = ctx.kept(rs485_setting(ctx, table, path)); rs485 && *rs485) serial.rs485 = **rs485;
+    auto before = ctx.kept(bounded_duration(ctx, table, path, "lines", "rs485_delay_before", "e.g. \"1ms\""));
+    if (before && *before) serial.rs485_delay_before = **before;
+    auto after = ctx.kept(bounded_duration(ctx, table, path, "lines", "rs485_delay_after", "e.g. \"1ms\""));
+    if (after && *after) serial.rs485_delay_after = **after;
+    auto guard_text = ctx.kept(optional_value<std::string>(ctx, table, path, "guard", "a string such as \"3.5c\" or \"5ms\""));
+    if (guard_text && *guard_text) {
+        auto guard = transport::parse_line_guard(**guard_text);
+        if (guard) {
+            serial.guard = *guard;
+        } else {
+            ctx.note(ctx.fail(source_of(table, "guard"), key_path(path, "guard"), guard.error().message));
+        }
+    }
+}
+
+Result<transport::LinkUrl> line_link(const Context& ctx, const toml::table& table, const std::string& path) {
     auto link_text = required_string(ctx, table, path, "link", "\"rtu:/dev/ttyUSB0?baud=19200\"");
     if (!link_text) return link_text.error();
     auto link = transport::parse_link_url(*link_text);
     if (!link) return ctx.fail(source_of(table, "link"), key_path(path, "link"), link.error().message);
+    return std::move(*link);
+}
+
+// The line's own keys; false when its link is unknown, which the serial keys, max_in_flight,
+// the simulation and the devices' protocols are checked against.
+bool parse_line_settings(const Context& ctx, const toml::table& table, const std::string& path, LineConfig& line) {
+    if (auto timeout = ctx.kept(bounded_duration(ctx, table, path, "lines", "timeout", "e.g. \"1s\"")); timeout && *timeout) {
+        line.timeout = **timeout;
+    }
+    if (auto retries = ctx.kept(optional_integer(ctx, table, path, "lines", "retries")); retries && *retries) {
+        line.retries = static_cast<unsigned>(**retries);  // 0..10, checked
+    }
+    auto late_reply_window = ctx.kept(bounded_duration(ctx, table, path, "lines", "late_reply_window",
+                                                       "e.g. \"500ms\", default: the line's timeout"));
+    if (late_reply_window && *late_reply_window) line.late_reply_window = **late_reply_window;
+    auto link = ctx.kept(line_link(ctx, table, path));
+    if (!link) return false;
     line.link = std::move(*link);
     line.link_written_at = fmt::format("{}:{}", ctx.source, source_of(table, "link").begin.line);
-    if (auto serial = parse_line_serial_keys(ctx, table, path, line); !serial) return serial.error();
-    auto timeout = bounded_duration(ctx, table, path, "lines", "timeout", "e.g. \"1s\"");
-    if (!timeout) return timeout.error();
-    if (*timeout) line.timeout = **timeout;
-    auto retries = optional_integer(ctx, table, path, "lines", "retries");
-    if (!retries) return retries.error();
-    if (*retries) line.retries = static_cast<unsigned>(**retries);  // 0..10, checked
-    auto late_reply_window = bounded_duration(ctx, table, path, "lines", "late_reply_window",
-                                              "e.g. \"500ms\", default: the line's timeout");
-    if (!late_reply_window) return late_reply_window.error();
-    if (*late_reply_window) line.late_reply_window = **late_reply_window;
-    if (auto in_flight = parse_max_in_flight(ctx, table, path, line); !in_flight) return in_flight.error();
-    return parse_line_simulation(ctx, table, path, line);
+    parse_line_serial_keys(ctx, table, path, line);
+    ctx.kept(parse_max_in_flight(ctx, table, path, line));
+    parse_line_simulation(ctx, table, path, line);
+    return true;
 }
 
 // One serial port is one line: two lines on it would each open it, and the second would find it
@@ -505,17 +551,17 @@ Result<void> claim_port(const Context& ctx, Registry& registry, const Seen& line
                                 first->second.line));
 }
 
-Result<LineConfig> parse_line(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry) {
-    if (auto keys = check_keys(ctx, table, path, "lines"); !keys) return keys.error();
+LineConfig parse_line(const Context& ctx, const toml::table& table, const std::string& path, Registry& registry) {
+    check_keys(ctx, table, path, "lines");
     LineConfig line;
-    auto name = checked_name(ctx, table, path);
-    if (!name) return name.error();
-    line.name = std::move(*name);
+    // A line without a valid name is still checked, called by its place in the file.
+    auto name = ctx.kept(checked_name(ctx, table, path));
+    line.name = name ? std::move(*name) : path;
     const Seen seen{path, table.source().begin.line, line.name};
-    if (auto claimed = claim_name(ctx, registry.line_names, seen, source_of(table, "name"), "line"); !claimed) return claimed.error();
-    if (auto settings = parse_line_settings(ctx, table, path, line); !settings) return settings.error();
-    if (auto port = claim_port(ctx, registry, seen, table, line); !port) return port.error();
-    if (auto devices = parse_devices(ctx, table, path, registry, line); !devices) return devices.error();
+    if (name) ctx.kept(claim_name(ctx, registry.line_names, seen, source_of(table, "name"), "line"));
+    const bool link_known = parse_line_settings(ctx, table, path, line);
+    if (link_known) ctx.kept(claim_port(ctx, registry, seen, table, line));
+    parse_devices(ctx, table, path, registry, line, link_known);
     return line;
 }
 
@@ -529,34 +575,33 @@ unsigned free_tcp_unit(const std::vector<DeviceSeen>& devices) {
 }
 
 // Modbus TCP clients address devices by unit id alone, across every line: each needs its own.
-Result<void> check_tcp_units(const Context& ctx, const std::vector<DeviceSeen>& devices) {
+// Each device that takes a unit an earlier one has is a mistake of its own; one whose unit is
+// unknown (0: its tcp_unit or device is wrong, and said so) clashes with none.
+void check_tcp_units(const Context& ctx, const std::vector<DeviceSeen>& devices) {
     for (std::size_t later = 0; later < devices.size(); ++later) {
+        if (devices[later].tcp_unit == 0) continue;
         for (std::size_t earlier = 0; earlier < later; ++earlier) {
             if (devices[earlier].tcp_unit != devices[later].tcp_unit) continue;
             const Seen& a = devices[earlier].seen;
             const Seen& b = devices[later].seen;
-            return ctx.fail(devices[later].tcp_unit_source, key_path(b.path, devices[later].tcp_unit_key),
-                            fmt::format("Modbus TCP unit {} would be both {} ({}, line {}) and {} ({}, line {}); map one "
-                                        "of them to another unit with tcp_unit = {}", devices[later].tcp_unit, a.name,
-                                        a.path, a.line, b.name, b.path, b.line, free_tcp_unit(devices)));
+            ctx.note(ctx.fail(devices[later].tcp_unit_source, key_path(b.path, devices[later].tcp_unit_key),
+                              fmt::format("Modbus TCP unit {} would be both {} ({}, line {}) and {} ({}, line {}); map one "
+                                          "of them to another unit with tcp_unit = {}", devices[later].tcp_unit, a.name,
+                                          a.path, a.line, b.name, b.path, b.line, free_tcp_unit(devices))));
+            break;
         }
     }
-    return {};
 }
 
-Result<std::vector<LineConfig>> parse_lines(const Context& ctx, const toml::table& root, Registry& registry) {
-    auto tables = tables_of(ctx, root, "", "lines");
-    if (!tables) return tables.error();
-    if (tables->empty()) {
-        return ctx.fail(source_of(root, "lines"), "lines",
-                        "no lines: at least one [[lines]] table is needed, with a name and a link");
-    }
+std::vector<LineConfig> parse_lines(const Context& ctx, const toml::table& root, Registry& registry) {
     std::vector<LineConfig> lines;
-    for (std::size_t i = 0; i < tables->size(); ++i) {
-        auto line = parse_line(ctx, *(*tables)[i], index_path("lines", i), registry);
-        if (!line) return line.error();
-        lines.push_back(std::move(*line));
+    auto tables = ctx.kept(tables_of(ctx, root, "", "lines"));
+    if (!tables) return lines;
+    if (tables->empty()) {
+        ctx.note(ctx.fail(source_of(root, "lines"), "lines",
+                          "no lines: at least one [[lines]] table is needed, with a name and a link"));
     }
+    for (std::size_t i = 0; i < tables->size(); ++i) lines.push_back(parse_line(ctx, *(*tables)[i], index_path("lines", i), registry));
     return lines;
 }
 
@@ -589,19 +634,18 @@ Result<std::chrono::milliseconds> statistics_interval(const Context& ctx, const 
     return **interval;
 }
 
-Result<LogConfig> parse_log(const Context& ctx, const toml::table& root) {
+LogConfig parse_log(const Context& ctx, const toml::table& root) {
     LogConfig config;
     const toml::node* node = root.get("log");
     if (!node) return config;
     const auto* table = node->as_table();
-    if (!table) return ctx.fail(node->source(), "log", "expected a [log] table");
-    if (auto keys = check_keys(ctx, *table, "log", "log"); !keys) return keys.error();
-    auto level = log_level(ctx, *table);
-    if (!level) return level.error();
-    config.level = *level;
-    auto interval = statistics_interval(ctx, *table);
-    if (!interval) return interval.error();
-    config.statistics = *interval;
+    if (!table) {
+        ctx.note(ctx.fail(node->source(), "log", "expected a [log] table"));
+        return config;
+    }
+    check_keys(ctx, *table, "log", "log");
+    if (auto level = ctx.kept(log_level(ctx, *table))) config.level = *level;
+    if (auto interval = ctx.kept(statistics_interval(ctx, *table))) config.statistics = *interval;
     return config;
 }
 
@@ -657,28 +701,34 @@ std::optional<HostPort> split_listen(std::string_view text) {
 }
 
 // `allow = ["10.1.0.0/16", "fd00::/8", "192.168.1.20"]` (key `key` of [section]): the client
-// addresses a front serves; absent or empty: every address.
-Result<transport::AddressAllowList> address_list(const Context& ctx, const toml::table& table, const std::string& section,
-                                                 const std::string& key) {
+// addresses a front serves; absent or empty: every address. Each entry is checked, whatever is
+// wrong with another; the list is the entries that parse.
+transport::AddressAllowList address_list(const Context& ctx, const toml::table& table, const std::string& section,
+                                         const std::string& key) {
     const toml::node* node = table.get(key);
-    if (!node) return transport::AddressAllowList{};
+    if (!node) return {};
     const auto* array = node->as_array();
     const std::string path = section + "." + key;
     constexpr std::string_view example = "[\"10.1.0.0/16\", \"192.168.1.20\", \"fd00::/8\"]";
-    if (!array) return ctx.fail(node->source(), path, fmt::format("expected a list of addresses and networks, e.g. {}", example));
+    if (!array) {
+        ctx.note(ctx.fail(node->source(), path, fmt::format("expected a list of addresses and networks, e.g. {}", example)));
+        return {};
+    }
     std::vector<std::string> entries;
     for (std::size_t i = 0; i < array->size(); ++i) {
         const toml::node& element = *array->get(i);
         const auto* entry = element.as_string();
         if (!entry) {
-            return ctx.fail(element.source(), index_path(path, i), fmt::format("expected an address or a network (a string), e.g. {}", example));
+            ctx.note(ctx.fail(element.source(), index_path(path, i),
+                              fmt::format("expected an address or a network (a string), e.g. {}", example)));
+        } else if (auto checked = transport::check_allow_entry(entry->get()); !checked) {
+            ctx.note(ctx.fail(element.source(), index_path(path, i), checked.error().message));
+        } else {
+            entries.push_back(entry->get());
         }
-        if (auto checked = transport::check_allow_entry(entry->get()); !checked) {
-            return ctx.fail(element.source(), index_path(path, i), checked.error().message);
-        }
-        entries.push_back(entry->get());
     }
-    return transport::AddressAllowList::parse(entries);
+    auto list = transport::AddressAllowList::parse(entries);
+    return list ? std::move(*list) : transport::AddressAllowList{};  // every entry was checked above
 }
 
 // `idle_timeout = "60s"`: a Modbus TCP connection quiet this long is closed; "off": never. Under
@@ -690,47 +740,40 @@ Result<std::optional<milliseconds>> front_idle_timeout(const Context& ctx, const
                             "e.g. \"60s\"; \"off\" keeps idle connections open");
 }
 
-Result<ModbusTcpConfig> parse_modbus_tcp(const Context& ctx, const toml::table& root) {
+ModbusTcpConfig parse_modbus_tcp(const Context& ctx, const toml::table& root) {
     ModbusTcpConfig config;
     const toml::node* node = root.get("modbus_tcp");
     if (!node) return config;
     const auto* table = node->as_table();
-    if (!table) return ctx.fail(node->source(), "modbus_tcp", "expected a [modbus_tcp] table");
-    if (auto keys = check_keys(ctx, *table, "modbus_tcp", "modbus_tcp"); !keys) return keys.error();
-    auto listen = optional_value<std::string>(ctx, *table, "modbus_tcp", "listen", "a string such as \"127.0.0.1:1502\"");
-    if (!listen) return listen.error();
-    if (*listen) {
-        auto address = split_listen(**listen);
-        if (!address) {
-            return ctx.fail(source_of(*table, "listen"), "modbus_tcp.listen",
-                            fmt::format("{} is not an address to listen on (expected HOST:PORT with a port 0..65535, "
-                                        "0 for any free one, e.g. \"127.0.0.1:1502\", \"0.0.0.0:502\" or \"[::1]:1502\")",
-                                        quoted_excerpt(**listen)));
-        }
-        config.host = std::move(address->host);
-        config.port = address->port;
+    if (!table) {
+        ctx.note(ctx.fail(node->source(), "modbus_tcp", "expected a [modbus_tcp] table"));
+        return config;
     }
-    auto writes = optional_value<bool>(ctx, *table, "modbus_tcp", "writes", "true or false");
-    if (!writes) return writes.error();
-    config.writes = writes->value_or(config.writes);
-    auto enabled = optional_value<bool>(ctx, *table, "modbus_tcp", "enabled", "true or false");
-    if (!enabled) return enabled.error();
-    config.enabled = enabled->value_or(config.enabled);
-    auto max_age = bounded_duration(ctx, *table, "modbus_tcp", "modbus_tcp", "max_age", "e.g. \"250ms\"");
-    if (!max_age) return max_age.error();
-    config.max_age = max_age->value_or(config.max_age);
-    auto max_connections = optional_integer(ctx, *table, "modbus_tcp", "modbus_tcp", "max_connections");
-    if (!max_connections) return max_connections.error();
-    if (*max_connections) config.max_connections = static_cast<std::size_t>(**max_connections);  // 1..10000, checked
-    auto idle_timeout = front_idle_timeout(ctx, *table);
-    if (!idle_timeout) return idle_timeout.error();
-    config.idle_timeout = idle_timeout->value_or(config.idle_timeout);
-    auto allow = address_list(ctx, *table, "modbus_tcp", "allow");
-    if (!allow) return allow.error();
-    config.allow = std::move(*allow);
-    auto write_allow = address_list(ctx, *table, "modbus_tcp", "write_allow");
-    if (!write_allow) return write_allow.error();
-    config.write_allow = std::move(*write_allow);
+    check_keys(ctx, *table, "modbus_tcp", "modbus_tcp");
+    auto listen = ctx.kept(optional_value<std::string>(ctx, *table, "modbus_tcp", "listen", "a string such as \"127.0.0.1:1502\""));
+    if (listen && *listen) {
+        if (auto address = split_listen(**listen)) {
+            config.host = std::move(address->host);
+            config.port = address->port;
+        } else {
+            ctx.note(ctx.fail(source_of(*table, "listen"), "modbus_tcp.listen",
+                              fmt::format("{} is not an address to listen on (expected HOST:PORT with a port 0..65535, "
+                                          "0 for any free one, e.g. \"127.0.0.1:1502\", \"0.0.0.0:502\" or \"[::1]:1502\")",
+                                          quoted_excerpt(**listen))));
+        }
+    }
+    auto writes = ctx.kept(optional_value<bool>(ctx, *table, "modbus_tcp", "writes", "true or false"));
+    if (writes && *writes) config.writes = **writes;
+    auto enabled = ctx.kept(optional_value<bool>(ctx, *table, "modbus_tcp", "enabled", "true or false"));
+    if (enabled && *enabled) config.enabled = **enabled;
+    auto max_age = ctx.kept(bounded_duration(ctx, *table, "modbus_tcp", "modbus_tcp", "max_age", "e.g. \"250ms\""));
+    if (max_age && *max_age) config.max_age = **max_age;
+    auto max_connections = ctx.kept(optional_integer(ctx, *table, "modbus_tcp", "modbus_tcp", "max_connections"));
+    if (max_connections && *max_connections) config.max_connections = static_cast<std::size_t>(**max_connections);  // 1..10000, checked
+    auto idle_timeout = ctx.kept(front_idle_timeout(ctx, *table));
+    if (idle_timeout && *idle_timeout) config.idle_timeout = **idle_timeout;
+    config.allow = address_list(ctx, *table, "modbus_tcp", "allow");
+    config.write_allow = address_list(ctx, *table, "modbus_tcp", "write_allow");
     return config;
 }
 
@@ -850,68 +893,61 @@ Result<std::string> read_password(const Context& ctx, const toml::table& table, 
 
 // The broker's TLS files and credentials, the same keys in [mqtt] and [sparkplug].
 template <typename BrokerConfig>
-Result<void> parse_broker_security(const Context& ctx, const toml::table& table, const std::string& table_name, bool tls,
-                                   BrokerConfig& config) {
-    auto ca_file = readable_file(ctx, table, table_name, "ca_file", "the broker's CA certificate, PEM");
-    if (!ca_file) return ca_file.error();
-    auto cert_file = readable_file(ctx, table, table_name, "cert_file", "the gateway's client certificate, PEM");
-    if (!cert_file) return cert_file.error();
-    auto key_file = readable_file(ctx, table, table_name, "key_file", "the private key of cert_file, PEM");
-    if (!key_file) return key_file.error();
+void parse_broker_security(const Context& ctx, const toml::table& table, const std::string& table_name, bool tls,
+                           BrokerConfig& config) {
+    auto ca_file = ctx.kept(readable_file(ctx, table, table_name, "ca_file", "the broker's CA certificate, PEM"));
+    auto cert_file = ctx.kept(readable_file(ctx, table, table_name, "cert_file", "the gateway's client certificate, PEM"));
+    auto key_file = ctx.kept(readable_file(ctx, table, table_name, "key_file", "the private key of cert_file, PEM"));
     for (const auto key : {"ca_file", "cert_file", "key_file"}) {
         if (!tls && table.get(key)) {
-            return ctx.fail(source_of(table, key), key_path(table_name, key),
-                            fmt::format("only used over TLS; the broker is {} (write mqtts://... to use TLS)", config.broker));
+            ctx.note(ctx.fail(source_of(table, key), key_path(table_name, key),
+                              fmt::format("only used over TLS; the broker is {} (write mqtts://... to use TLS)", config.broker)));
         }
     }
-    if (cert_file->empty() != key_file->empty()) {
-        const auto* missing = cert_file->empty() ? "cert_file" : "key_file";
-        return ctx.fail(table.source(), table_name, fmt::format("cert_file and key_file go together: `{}` is missing", missing));
+    // Whether both are written, whatever is wrong with the files they name.
+    if (table.contains("cert_file") != table.contains("key_file")) {
+        const auto* missing = table.contains("cert_file") ? "key_file" : "cert_file";
+        ctx.note(ctx.fail(table.source(), table_name, fmt::format("cert_file and key_file go together: `{}` is missing", missing)));
     }
-    if (tls) config.tls = MqttTls{std::move(*ca_file), std::move(*cert_file), std::move(*key_file)};
-    auto username = optional_value<std::string>(ctx, table, table_name, "username", "a string such as \"gateway\"");
-    if (!username) return username.error();
-    config.username = username->value_or("");
-    auto password = read_password(ctx, table, table_name);
-    if (!password) return password.error();
-    config.password = std::move(*password);
-    if (!config.password.empty() && config.username.empty()) {
-        return ctx.fail(source_of(table, "password_file"), key_path(table_name, "password_file"), "a password needs a `username` too");
+    if (tls) config.tls = MqttTls{ca_file.value_or(""), cert_file.value_or(""), key_file.value_or("")};
+    auto username = ctx.kept(optional_value<std::string>(ctx, table, table_name, "username", "a string such as \"gateway\""));
+    if (username && *username) config.username = **username;
+    if (auto password = ctx.kept(read_password(ctx, table, table_name))) config.password = std::move(*password);
+    if (!config.password.empty() && !table.contains("username")) {
+        ctx.note(ctx.fail(source_of(table, "password_file"), key_path(table_name, "password_file"),
+                          "a password needs a `username` too"));
     }
-    return {};
 }
 
-Result<void> parse_mqtt_publishing(const Context& ctx, const toml::table& table, MqttConfig& config) {
-    auto republish = optional_value<std::string>(ctx, table, "mqtt", "republish", "a duration such as \"5m\", or \"off\"");
-    if (!republish) return republish.error();
-    if (*republish == "off") {
+void parse_mqtt_publishing(const Context& ctx, const toml::table& table, MqttConfig& config) {
+    auto republish = ctx.kept(optional_value<std::string>(ctx, table, "mqtt", "republish", "a duration such as \"5m\", or \"off\""));
+    if (republish && *republish == "off") {
         config.republish.reset();
-    } else if (*republish) {
-        auto every = bounded_duration(ctx, table, "mqtt", "mqtt", "republish",
-                                      "e.g. \"5m\"; \"off\": values are then published only when they change");
-        if (!every) return every.error();
-        config.republish = **every;
+    } else if (republish && *republish) {
+        auto every = ctx.kept(bounded_duration(ctx, table, "mqtt", "mqtt", "republish",
+                                               "e.g. \"5m\"; \"off\": values are then published only when they change"));
+        if (every && *every) config.republish = **every;
     }
-    auto discovery = optional_value<std::string>(ctx, table, "mqtt", "discovery", "\"homeassistant\" or \"none\"");
-    if (!discovery) return discovery.error();
-    if (*discovery == "homeassistant") {
+    auto discovery = ctx.kept(optional_value<std::string>(ctx, table, "mqtt", "discovery", "\"homeassistant\" or \"none\""));
+    if (discovery && *discovery == "homeassistant") {
         config.discovery = MqttConfig::Discovery::homeassistant;
-    } else if (*discovery && **discovery != "none") {
-        return ctx.fail(source_of(table, "discovery"), "mqtt.discovery",
-                        fmt::format("{} is not a discovery scheme (expected \"homeassistant\" or \"none\")", quoted_excerpt(**discovery)));
+    } else if (discovery && *discovery && **discovery != "none") {
+        ctx.note(ctx.fail(source_of(table, "discovery"), "mqtt.discovery",
+                          fmt::format("{} is not a discovery scheme (expected \"homeassistant\" or \"none\")",
+                                      quoted_excerpt(**discovery))));
     }
-    auto discovery_prefix = optional_value<std::string>(ctx, table, "mqtt", "discovery_prefix", "a string such as \"homeassistant\"");
-    if (!discovery_prefix) return discovery_prefix.error();
-    if (*discovery_prefix) {
+    auto discovery_prefix =
+        ctx.kept(optional_value<std::string>(ctx, table, "mqtt", "discovery_prefix", "a string such as \"homeassistant\""));
+    if (discovery_prefix && *discovery_prefix) {
         const auto& text = **discovery_prefix;
-        if (!valid_prefix(text)) {
-            return ctx.fail(source_of(table, "discovery_prefix"), "mqtt.discovery_prefix",
-                            fmt::format("{} is not a topic prefix (expected levels joined by '/', none empty, "
-                                        "without '+', '#' or spaces, e.g. \"homeassistant\")", quoted_excerpt(text)));
+        if (valid_prefix(text)) {
+            config.discovery_prefix = text;
+        } else {
+            ctx.note(ctx.fail(source_of(table, "discovery_prefix"), "mqtt.discovery_prefix",
+                              fmt::format("{} is not a topic prefix (expected levels joined by '/', none empty, "
+                                          "without '+', '#' or spaces, e.g. \"homeassistant\")", quoted_excerpt(text))));
         }
-        config.discovery_prefix = text;
     }
-    return {};
 }
 
 // The prefix's last level with anything but letters, digits, '-' and '_' made '_'.
@@ -921,63 +957,66 @@ std::string last_level_name(const std::string& prefix) {
     return name;
 }
 
-// `broker` and its security keys, the same in [mqtt] and [sparkplug].
+// `broker` and its security keys, the same in [mqtt] and [sparkplug]. Whether the TLS files
+// belong depends on the broker's scheme: with the broker wrong they are not looked at.
 template <typename BrokerConfig>
-Result<void> parse_broker(const Context& ctx, const toml::table& table, const std::string& table_name, BrokerConfig& config) {
-    auto broker = required_string(ctx, table, table_name, "broker", "\"mqtt://127.0.0.1:1883\"");
-    if (!broker) return broker.error();
+void parse_broker(const Context& ctx, const toml::table& table, const std::string& table_name, BrokerConfig& config) {
+    auto broker = ctx.kept(required_string(ctx, table, table_name, "broker", "\"mqtt://127.0.0.1:1883\""));
+    if (!broker) return;
     bool tls = false;
     auto address = split_broker(*broker, tls);
     if (!address) {
-        return ctx.fail(source_of(table, "broker"), key_path(table_name, "broker"),
-                        fmt::format("{} is not a broker address (expected mqtt://HOST[:PORT], or mqtts://HOST[:PORT] "
-                                    "for TLS, with a port 1..65535, e.g. \"mqtt://127.0.0.1:1883\")", quoted_excerpt(*broker)));
+        ctx.note(ctx.fail(source_of(table, "broker"), key_path(table_name, "broker"),
+                          fmt::format("{} is not a broker address (expected mqtt://HOST[:PORT], or mqtts://HOST[:PORT] "
+                                      "for TLS, with a port 1..65535, e.g. \"mqtt://127.0.0.1:1883\")", quoted_excerpt(*broker))));
+        return;
     }
     config.broker = *broker;
     config.host = std::move(address->host);
     config.port = address->port;
-    return parse_broker_security(ctx, table, table_name, tls, config);
+    parse_broker_security(ctx, table, table_name, tls, config);
 }
 
-Result<std::optional<MqttConfig>> parse_mqtt(const Context& ctx, const toml::table& root, const std::string& gateway_name) {
+std::optional<MqttConfig> parse_mqtt(const Context& ctx, const toml::table& root, const std::string& gateway_name) {
     const toml::node* node = root.get("mqtt");
-    if (!node) return std::optional<MqttConfig>{};
+    if (!node) return std::nullopt;
     const auto* table = node->as_table();
-    if (!table) return ctx.fail(node->source(), "mqtt", "expected an [mqtt] table");
-    if (auto keys = check_keys(ctx, *table, "mqtt", "mqtt"); !keys) return keys.error();
+    if (!table) {
+        ctx.note(ctx.fail(node->source(), "mqtt", "expected an [mqtt] table"));
+        return std::nullopt;
+    }
+    check_keys(ctx, *table, "mqtt", "mqtt");
     MqttConfig config;
-    if (auto broker = parse_broker(ctx, *table, "mqtt", config); !broker) return broker.error();
+    parse_broker(ctx, *table, "mqtt", config);
     if (!gateway_name.empty()) config.prefix = "loopwire/" + gateway_name;
-    auto prefix = optional_value<std::string>(ctx, *table, "mqtt", "prefix", "a string such as \"loopwire/plant1\"");
-    if (!prefix) return prefix.error();
-    if (*prefix) {
-        if (!valid_prefix(**prefix)) {
-            return ctx.fail(source_of(*table, "prefix"), "mqtt.prefix",
-                            fmt::format("{} is not a topic prefix (expected levels joined by '/', none empty, "
-                                        "without '+', '#' or spaces, not starting with '$', e.g. \"loopwire/plant1\")",
-                                        quoted_excerpt(**prefix)));
+    auto prefix = ctx.kept(optional_value<std::string>(ctx, *table, "mqtt", "prefix", "a string such as \"loopwire/plant1\""));
+    if (prefix && *prefix) {
+        if (valid_prefix(**prefix)) {
+            config.prefix = std::move(**prefix);
+        } else {
+            ctx.note(ctx.fail(source_of(*table, "prefix"), "mqtt.prefix",
+                              fmt::format("{} is not a topic prefix (expected levels joined by '/', none empty, "
+                                          "without '+', '#' or spaces, not starting with '$', e.g. \"loopwire/plant1\")",
+                                          quoted_excerpt(**prefix))));
         }
-        config.prefix = std::move(**prefix);
     }
     config.gateway_name = gateway_name.empty() ? last_level_name(config.prefix) : gateway_name;
-    auto writes = optional_value<bool>(ctx, *table, "mqtt", "writes", "true or false");
-    if (!writes) return writes.error();
-    config.writes = writes->value_or(config.writes);
-    auto client_id = optional_value<std::string>(ctx, *table, "mqtt", "client_id", "a string such as \"gateway-plant1\"");
-    if (!client_id) return client_id.error();
-    if (*client_id) {
+    auto writes = ctx.kept(optional_value<bool>(ctx, *table, "mqtt", "writes", "true or false"));
+    if (writes && *writes) config.writes = **writes;
+    auto client_id = ctx.kept(optional_value<std::string>(ctx, *table, "mqtt", "client_id", "a string such as \"gateway-plant1\""));
+    if (client_id && *client_id) {
         // MQTT 3.1.1 (3.1.3.1): brokers must accept 1..23 characters; most take more.
         if ((*client_id)->empty() || (*client_id)->size() > 256) {
-            return ctx.fail(source_of(*table, "client_id"), "mqtt.client_id", "expected 1..256 characters");
+            ctx.note(ctx.fail(source_of(*table, "client_id"), "mqtt.client_id", "expected 1..256 characters"));
+        } else {
+            config.client_id = std::move(**client_id);
         }
-        config.client_id = std::move(**client_id);
     }
-    if (auto publishing = parse_mqtt_publishing(ctx, *table, config); !publishing) return publishing.error();
+    parse_mqtt_publishing(ctx, *table, config);
     // A value is a few bytes; 64 KiB is far beyond any, and still small to hold a few hundred of.
-    auto max_payload = optional_integer(ctx, *table, "mqtt", "mqtt", "max_payload");
-    if (!max_payload) return max_payload.error();
-    if (*max_payload) config.max_payload = static_cast<std::size_t>(**max_payload);  // 16..65536, checked
-    return std::optional<MqttConfig>{std::move(config)};
+    auto max_payload = ctx.kept(optional_integer(ctx, *table, "mqtt", "mqtt", "max_payload"));
+    if (max_payload && *max_payload) config.max_payload = static_cast<std::size_t>(**max_payload);  // 16..65536, checked
+    return config;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1001,46 +1040,51 @@ Result<std::optional<std::string>> sparkplug_id(const Context& ctx, const toml::
     return id;
 }
 
-Result<std::optional<SparkplugConfig>> parse_sparkplug(const Context& ctx, const toml::table& root, const std::string& gateway_name) {
-    const toml::node* node = root.get("sparkplug");
-    if (!node) return std::optional<SparkplugConfig>{};
-    const auto* table = node->as_table();
-    if (!table) return ctx.fail(node->source(), "sparkplug", "expected a [sparkplug] table");
-    if (auto keys = check_keys(ctx, *table, "sparkplug", "sparkplug"); !keys) return keys.error();
-    SparkplugConfig config;
-    if (auto broker = parse_broker(ctx, *table, "sparkplug", config); !broker) return broker.error();
-    auto group = sparkplug_id(ctx, *table, "group_id", "\"plant1\"");
-    if (!group) return group.error();
-    if (!*group) return ctx.fail(table->source(), "sparkplug", "missing `group_id` (e.g. group_id = \"plant1\")");
-    config.group_id = std::move(**group);
-    auto edge = sparkplug_id(ctx, *table, "edge_node_id", "\"cabinet1\"");
-    if (!edge) return edge.error();
-    config.edge_node_id = edge->value_or(gateway_name.empty() ? "loopwire" : gateway_name);
-    auto host = sparkplug_id(ctx, *table, "primary_host", "\"scada\"");
-    if (!host) return host.error();
-    config.primary_host = host->value_or("");
-    auto writes = optional_value<bool>(ctx, *table, "sparkplug", "writes", "true or false");
-    if (!writes) return writes.error();
-    config.writes = writes->value_or(config.writes);
-    auto client_id = optional_value<std::string>(ctx, *table, "sparkplug", "client_id", "a string such as \"cabinet1-sparkplug\"");
-    if (!client_id) return client_id.error();
-    if (*client_id && ((*client_id)->empty() || (*client_id)->size() > 256)) {
-        return ctx.fail(source_of(*table, "client_id"), "sparkplug.client_id", "expected 1..256 characters");
-    }
-    config.client_id = client_id->value_or(fmt::format("loopwire-sparkplug-{}-{}", config.group_id, config.edge_node_id));
-    auto state_file = optional_value<std::string>(ctx, *table, "sparkplug", "state_file", "a file name such as \"sparkplug.state\"");
+// `state_file`: created when absent; when present it must be a regular file.
+Result<std::filesystem::path> sparkplug_state_file(const Context& ctx, const toml::table& table) {
+    auto state_file = optional_value<std::string>(ctx, table, "sparkplug", "state_file", "a file name such as \"sparkplug.state\"");
     if (!state_file) return state_file.error();
-    if (*state_file) {
-        if ((*state_file)->empty()) return ctx.fail(source_of(*table, "state_file"), "sparkplug.state_file", "expected a file name");
-        const std::filesystem::path path(**state_file);
-        config.state_file = path.is_absolute() ? path : std::filesystem::path(ctx.source).parent_path() / path;
-        if (auto what = not_a_regular_file(config.state_file); what && *what != "does not exist") {
-            return not_regular(ctx, source_of(*table, "state_file"), "sparkplug.state_file",
-                               fmt::format("\"{}\" {}", config.state_file.string(), *what),
-                               "the node's small state file, created when absent");
-        }
+    if (!*state_file) return std::filesystem::path{};
+    if ((*state_file)->empty()) return ctx.fail(source_of(table, "state_file"), "sparkplug.state_file", "expected a file name");
+    const std::filesystem::path path = beside_config(ctx, **state_file);
+    if (auto what = not_a_regular_file(path); what && *what != "does not exist") {
+        return not_regular(ctx, source_of(table, "state_file"), "sparkplug.state_file", fmt::format("\"{}\" {}", path.string(), *what),
+                           "the node's small state file, created when absent");
     }
-    return std::optional<SparkplugConfig>{std::move(config)};
+    return path;
+}
+
+std::optional<SparkplugConfig> parse_sparkplug(const Context& ctx, const toml::table& root, const std::string& gateway_name) {
+    const toml::node* node = root.get("sparkplug");
+    if (!node) return std::nullopt;
+    const auto* table = node->as_table();
+    if (!table) {
+        ctx.note(ctx.fail(node->source(), "sparkplug", "expected a [sparkplug] table"));
+        return std::nullopt;
+    }
+    check_keys(ctx, *table, "sparkplug", "sparkplug");
+    SparkplugConfig config;
+    parse_broker(ctx, *table, "sparkplug", config);
+    auto group = ctx.kept(sparkplug_id(ctx, *table, "group_id", "\"plant1\""));
+    if (group && !*group) ctx.note(ctx.fail(table->source(), "sparkplug", "missing `group_id` (e.g. group_id = \"plant1\")"));
+    if (group && *group) config.group_id = std::move(**group);
+    auto edge = ctx.kept(sparkplug_id(ctx, *table, "edge_node_id", "\"cabinet1\""));
+    config.edge_node_id = edge && *edge ? **edge : gateway_name.empty() ? "loopwire" : gateway_name;
+    auto host = ctx.kept(sparkplug_id(ctx, *table, "primary_host", "\"scada\""));
+    if (host && *host) config.primary_host = **host;
+    auto writes = ctx.kept(optional_value<bool>(ctx, *table, "sparkplug", "writes", "true or false"));
+    if (writes && *writes) config.writes = **writes;
+    auto client_id =
+        ctx.kept(optional_value<std::string>(ctx, *table, "sparkplug", "client_id", "a string such as \"cabinet1-sparkplug\""));
+    if (client_id && *client_id && ((*client_id)->empty() || (*client_id)->size() > 256)) {
+        ctx.note(ctx.fail(source_of(*table, "client_id"), "sparkplug.client_id", "expected 1..256 characters"));
+    } else if (client_id && *client_id) {
+        config.client_id = **client_id;
+    } else {
+        config.client_id = fmt::format("loopwire-sparkplug-{}-{}", config.group_id, config.edge_node_id);
+    }
+    if (auto state_file = ctx.kept(sparkplug_state_file(ctx, *table))) config.state_file = std::move(*state_file);
+    return config;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1070,76 +1114,84 @@ Result<std::chrono::milliseconds> history_heartbeat(const Context& ctx, const to
     return **heartbeat;
 }
 
-// `forward_to` and its `password_file`: the connection string is checked as libpq reads it
-// (without connecting: that is `--check`'s and the forwarder's), the password read now as
-// [mqtt]'s is, so that a reload sees a changed one.
-Result<void> history_forwarding(const Context& ctx, const toml::table& table, HistoryConfig& config) {
+Result<std::string> forward_target(const Context& ctx, const toml::table& table) {
     auto target = optional_value<std::string>(ctx, table, "history", "forward_to",
                                               "a PostgreSQL connection string such as \"postgresql://gateway@historian/plant\"");
     if (!target) return target.error();
-    if (*target) {
-        if (!postgres::is_conninfo(**target)) {
-            return ctx.fail(source_of(table, "forward_to"), "history.forward_to",
-                            fmt::format("{} is not a PostgreSQL connection string (expected \"postgresql://USER@HOST:PORT/DATABASE\" "
-                                        "or \"host=... dbname=...\")", quoted_excerpt(**target)));
-        }
-        if (auto valid = postgres::check_conninfo(**target); !valid) {
-            return ctx.fail(source_of(table, "forward_to"), "history.forward_to", valid.error().message);
-        }
-        config.forward_to = **target;
+    if (!*target) return std::string();
+    if (!postgres::is_conninfo(**target)) {
+        return ctx.fail(source_of(table, "forward_to"), "history.forward_to",
+                        fmt::format("{} is not a PostgreSQL connection string (expected \"postgresql://USER@HOST:PORT/DATABASE\" "
+                                    "or \"host=... dbname=...\")", quoted_excerpt(**target)));
     }
-    auto password = read_password(ctx, table, "history", "PostgreSQL");
-    if (!password) return password.error();
-    if (!password->empty() && config.forward_to.empty()) {
-        return ctx.fail(source_of(table, "password_file"), "history.password_file", "only used with `forward_to`");
+    if (auto valid = postgres::check_conninfo(**target); !valid) {
+        return ctx.fail(source_of(table, "forward_to"), "history.forward_to", valid.error().message);
     }
-    config.password = std::move(*password);
-    return {};
+    return std::move(**target);
 }
 
-Result<std::optional<HistoryConfig>> parse_history(const Context& ctx, const toml::table& root) {
-    const toml::node* node = root.get("history");
-    if (!node) return std::optional<HistoryConfig>{};
-    const auto* table = node->as_table();
-    if (!table) return ctx.fail(node->source(), "history", "expected a [history] table");
-    if (auto keys = check_keys(ctx, *table, "history", "history"); !keys) return keys.error();
-    HistoryConfig config;
-    auto database = required_string(ctx, *table, "history", "database", "\"plant.db\"");
+// `forward_to` and its `password_file`: the connection string is checked as libpq reads it
+// (without connecting: that is `--check`'s and the forwarder's), the password read now as
+// [mqtt]'s is, so that a reload sees a changed one.
+void history_forwarding(const Context& ctx, const toml::table& table, HistoryConfig& config) {
+    if (auto target = ctx.kept(forward_target(ctx, table))) config.forward_to = std::move(*target);
+    auto password = ctx.kept(read_password(ctx, table, "history", "PostgreSQL"));
+    if (!password) return;
+    if (!password->empty() && !table.contains("forward_to")) {
+        ctx.note(ctx.fail(source_of(table, "password_file"), "history.password_file", "only used with `forward_to`"));
+    }
+    config.password = std::move(*password);
+}
+
+// `database`: the SQLite file, resolved against the configuration's folder.
+Result<void> history_database(const Context& ctx, const toml::table& table, HistoryConfig& config) {
+    auto database = required_string(ctx, table, "history", "database", "\"plant.db\"");
     if (!database) return database.error();
     if (database->empty()) {
-        return ctx.fail(source_of(*table, "database"), "history.database",
+        return ctx.fail(source_of(table, "database"), "history.database",
                         "expected the database file's path, e.g. \"plant.db\" (relative to this file's folder)");
     }
     // The historian's string where the local file goes: the SQLite file stays, as the buffer.
     const bool historian = database->rfind("postgresql:", 0) == 0 || database->rfind("postgres:", 0) == 0 ||
                            database->find("host=") != std::string::npos;
     if (historian) {
-        return ctx.fail(source_of(*table, "database"), "history.database",
+        return ctx.fail(source_of(table, "database"), "history.database",
                         fmt::format("\"{}\" is a PostgreSQL connection string; database is the gateway's own SQLite "
                                     "file, which buffers what is forwarded: write database = \"plant.db\" and "
                                     "forward_to = \"{}\"",
                                     *database, *database));
     }
     config.database_as_written = *database;
-    config.written_at = fmt::format("{}:{}", ctx.source, source_of(*table, "database").begin.line);
+    config.written_at = fmt::format("{}:{}", ctx.source, source_of(table, "database").begin.line);
     const std::filesystem::path path(*database);
     config.database = path.is_absolute() ? path : std::filesystem::path(ctx.source).parent_path() / path;
     // Created when absent; when present it must be a regular file, told before SQLite opens it.
     if (auto what = not_a_regular_file(config.database); what && *what != "does not exist") {
-        return not_regular(ctx, source_of(*table, "database"), "history.database",
+        return not_regular(ctx, source_of(table, "database"), "history.database",
                            fmt::format("\"{}\" {}", config.database.string(), *what),
                            "the SQLite database file, created when absent");
     }
-    auto keep = history_keep(ctx, *table);
-    if (!keep) return keep.error();
-    config.keep = *keep;
-    auto heartbeat = history_heartbeat(ctx, *table);
-    if (!heartbeat) return heartbeat.error();
-    config.heartbeat = *heartbeat;
-    if (auto forwarding = history_forwarding(ctx, *table, config); !forwarding) return forwarding.error();
-    return std::optional<HistoryConfig>{std::move(config)};
+    return {};
 }
 
+std::optional<HistoryConfig> parse_history(const Context& ctx, const toml::table& root) {
+    const toml::node* node = root.get("history");
+    if (!node) return std::nullopt;
+    const auto* table = node->as_table();
+    if (!table) {
+        ctx.note(ctx.fail(node->source(), "history", "expected a [history] table"));
+        return std::nullopt;
+    }
+    check_keys(ctx, *table, "history", "history");
+    HistoryConfig config;
+    ctx.kept(history_database(ctx, *table, config));
+    if (auto keep = ctx.kept(history_keep(ctx, *table))) config.keep = *keep;
+    if (auto heartbeat = ctx.kept(history_heartbeat(ctx, *table))) config.heartbeat = *heartbeat;
+    history_forwarding(ctx, *table, config);
+    return config;
+}
+
+// ---------------------------------------------------------------------------------------------
 // [http]
 
 // The token's file: a regular file, not readable by every user (the token guards the writes),
@@ -1193,24 +1245,30 @@ bool host_name(std::string_view name) {
 }
 
 // `hosts = ["gateway.plant.local", "192.168.1.10"]`: the names, in lower case (Host names are
-// compared without case, RFC 3986, 3.2.2).
-Result<std::vector<std::string>> http_hosts(const Context& ctx, const toml::table& table) {
+// compared without case, RFC 3986, 3.2.2). Each name is checked, whatever is wrong with another.
+std::vector<std::string> http_hosts(const Context& ctx, const toml::table& table) {
     std::vector<std::string> hosts;
     const toml::node* node = table.get("hosts");
     if (!node) return hosts;
     const auto* array = node->as_array();
     constexpr std::string_view example = "[\"gateway.plant.local\", \"192.168.1.10\", \"[fd00::10]\"]";
-    if (!array) return ctx.fail(node->source(), "http.hosts", fmt::format("expected a list of host names, e.g. {}", example));
+    if (!array) {
+        ctx.note(ctx.fail(node->source(), "http.hosts", fmt::format("expected a list of host names, e.g. {}", example)));
+        return hosts;
+    }
     for (std::size_t i = 0; i < array->size(); ++i) {
         const toml::node& element = *array->get(i);
         const auto* name = element.as_string();
         if (!name) {
-            return ctx.fail(element.source(), index_path("http.hosts", i), fmt::format("expected a host name (a string), e.g. {}", example));
+            ctx.note(ctx.fail(element.source(), index_path("http.hosts", i),
+                              fmt::format("expected a host name (a string), e.g. {}", example)));
+            continue;
         }
         if (!host_name(name->get())) {
-            return ctx.fail(element.source(), index_path("http.hosts", i),
-                            fmt::format("{} is not a host name (expected a name or address as a browser's address bar has "
-                                        "it, without a port or scheme, e.g. {})", quoted_excerpt(name->get()), example));
+            ctx.note(ctx.fail(element.source(), index_path("http.hosts", i),
+                              fmt::format("{} is not a host name (expected a name or address as a browser's address bar "
+                                          "has it, without a port or scheme, e.g. {})", quoted_excerpt(name->get()), example)));
+            continue;
         }
         std::string lower = name->get();
         std::transform(lower.begin(), lower.end(), lower.begin(),
@@ -1221,103 +1279,110 @@ Result<std::vector<std::string>> http_hosts(const Context& ctx, const toml::tabl
 }
 
 // The share of `connections` event streams may hold (key `key`): half when not given, and
-// always fewer, so that requests find a connection however many dashboards are open.
+// always fewer, so that requests find a connection however many dashboards are open. With
+// `connections` unknown (its own key is wrong) only the key's range is checked.
 Result<unsigned> stream_share(const Context& ctx, const toml::table& table, std::string_view key, std::string_view of,
-                              unsigned connections) {
+                              std::optional<unsigned> connections) {
     auto given = optional_integer(ctx, table, "http", "http", key);
     if (!given) return given.error();
-    if (!*given) return connections / 2;
-    if (**given >= connections) {
+    const unsigned limit = connections.value_or(std::numeric_limits<unsigned>::max());
+    if (!*given) return limit / 2;
+    if (**given >= limit) {
         return ctx.fail(source_of(table, key), fmt::format("http.{}", key),
                         fmt::format("{} event streams leave no connection of [http] {} ({}) for requests: make it "
                                     "at most {}",
-                                    **given, of, connections, connections - 1));
+                                    **given, of, limit, limit - 1));
     }
     return static_cast<unsigned>(**given);  // 1..10000, checked
 }
 
 // The limits that keep a few clients from taking every connection.
-Result<void> parse_http_limits(const Context& ctx, const toml::table& table, HttpConfig& config) {
-    auto read_timeout = bounded_duration(ctx, table, "http", "http", "read_timeout", "e.g. \"10s\"");
-    if (!read_timeout) return read_timeout.error();
-    if (*read_timeout) config.read_timeout = **read_timeout;
-    auto send_timeout = bounded_duration(ctx, table, "http", "http", "send_timeout", "e.g. \"10s\"");
-    if (!send_timeout) return send_timeout.error();
-    if (*send_timeout) config.send_timeout = **send_timeout;
-    auto max_connections = optional_integer(ctx, table, "http", "http", "max_connections");
-    if (!max_connections) return max_connections.error();
-    if (*max_connections) config.max_connections = static_cast<unsigned>(**max_connections);  // 1..10000, checked
-    auto per_client = optional_integer(ctx, table, "http", "http", "max_connections_per_client");
-    if (!per_client) return per_client.error();
-    if (*per_client) config.max_connections_per_client = static_cast<unsigned>(**per_client);  // 1..10000, checked
-    auto header_timeout = bounded_duration(ctx, table, "http", "http", "header_timeout", "e.g. \"5s\"");
-    if (!header_timeout) return header_timeout.error();
-    if (*header_timeout) config.header_timeout = **header_timeout;
-    auto streams = stream_share(ctx, table, "max_event_streams", "max_connections", config.max_connections);
-    if (!streams) return streams.error();
-    config.max_event_streams = *streams;
-    auto client_streams = stream_share(ctx, table, "max_event_streams_per_client", "max_connections_per_client",
-                                       config.max_connections_per_client);
-    if (!client_streams) return client_streams.error();
-    config.max_event_streams_per_client = *client_streams;
+void parse_http_limits(const Context& ctx, const toml::table& table, HttpConfig& config) {
+    auto read_timeout = ctx.kept(bounded_duration(ctx, table, "http", "http", "read_timeout", "e.g. \"10s\""));
+    if (read_timeout && *read_timeout) config.read_timeout = **read_timeout;
+    auto send_timeout = ctx.kept(bounded_duration(ctx, table, "http", "http", "send_timeout", "e.g. \"10s\""));
+    if (send_timeout && *send_timeout) config.send_timeout = **send_timeout;
+    auto header_timeout = ctx.kept(bounded_duration(ctx, table, "http", "http", "header_timeout", "e.g. \"5s\""));
+    if (header_timeout && *header_timeout) config.header_timeout = **header_timeout;
+    auto max_connections = ctx.kept(optional_integer(ctx, table, "http", "http", "max_connections"));
+    if (max_connections && *max_connections) config.max_connections = static_cast<unsigned>(**max_connections);  // 1..10000, checked
+    auto per_client = ctx.kept(optional_integer(ctx, table, "http", "http", "max_connections_per_client"));
+    if (per_client && *per_client) config.max_connections_per_client = static_cast<unsigned>(**per_client);  // 1..10000, checked
+    const auto known = [](const auto& parsed, unsigned value) { return parsed ? std::optional<unsigned>(value) : std::nullopt; };
+    auto streams = ctx.kept(stream_share(ctx, table, "max_event_streams", "max_connections",
+                                         known(max_connections, config.max_connections)));
+    if (streams) config.max_event_streams = *streams;
+    auto client_streams = ctx.kept(stream_share(ctx, table, "max_event_streams_per_client", "max_connections_per_client",
+                                                known(per_client, config.max_connections_per_client)));
+    if (client_streams) config.max_event_streams_per_client = *client_streams;
+}
+
+// `token_file`, resolved as [history] database is: a relative path is taken from the
+// configuration file's folder. Empty when not given.
+Result<void> http_token(const Context& ctx, const toml::table& table, HttpConfig& config) {
+    auto token_file = optional_value<std::string>(ctx, table, "http", "token_file", "a string such as \"/etc/loopwire/token\"");
+    if (!token_file) return token_file.error();
+    if (!*token_file) return {};
+    if ((*token_file)->empty()) return ctx.fail(source_of(table, "token_file"), "http.token_file", "expected a file name");
+    const std::string file = beside_config(ctx, **token_file).string();
+    auto token = read_token(ctx, table, file);
+    if (!token) return token.error();
+    config.token_file = file;
+    config.token = std::move(*token);
     return {};
 }
 
-Result<std::optional<HttpConfig>> parse_http(const Context& ctx, const toml::table& root) {
+// `listen`: false when it is wrong (and said so).
+bool http_listen(const Context& ctx, const toml::table& table, HttpConfig& config) {
+    auto listen = ctx.kept(optional_value<std::string>(ctx, table, "http", "listen", "a string such as \"127.0.0.1:8080\""));
+    if (!listen) return false;
+    if (!*listen) return true;
+    auto address = split_listen(**listen);
+    if (!address) {
+        ctx.note(ctx.fail(source_of(table, "listen"), "http.listen",
+                          fmt::format("{} is not an address to listen on (expected HOST:PORT with a port 0..65535, "
+                                      "0 for any free one, e.g. \"127.0.0.1:8080\" or \"[::1]:8080\")", quoted_excerpt(**listen))));
+        return false;
+    }
+    config.host = std::move(address->host);
+    config.port = address->port;
+    return true;
+}
+
+std::optional<HttpConfig> parse_http(const Context& ctx, const toml::table& root) {
     const toml::node* node = root.get("http");
-    if (!node) return std::optional<HttpConfig>{};
+    if (!node) return std::nullopt;
     const auto* table = node->as_table();
-    if (!table) return ctx.fail(node->source(), "http", "expected an [http] table");
-    if (auto keys = check_keys(ctx, *table, "http", "http"); !keys) return keys.error();
+    if (!table) {
+        ctx.note(ctx.fail(node->source(), "http", "expected an [http] table"));
+        return std::nullopt;
+    }
+    check_keys(ctx, *table, "http", "http");
     HttpConfig config;
-    auto listen = optional_value<std::string>(ctx, *table, "http", "listen", "a string such as \"127.0.0.1:8080\"");
-    if (!listen) return listen.error();
-    if (*listen) {
-        auto address = split_listen(**listen);
-        if (!address) {
-            return ctx.fail(source_of(*table, "listen"), "http.listen",
-                            fmt::format("{} is not an address to listen on (expected HOST:PORT with a port 0..65535, "
-                                        "0 for any free one, e.g. \"127.0.0.1:8080\" or \"[::1]:8080\")", quoted_excerpt(**listen)));
-        }
-        config.host = std::move(address->host);
-        config.port = address->port;
+    const bool listen_known = http_listen(ctx, *table, config);
+    const bool token_known = ctx.kept(http_token(ctx, *table, config));
+    parse_http_limits(ctx, *table, config);
+    config.hosts = http_hosts(ctx, *table);
+    config.allow = address_list(ctx, *table, "http", "allow");
+    if (listen_known && token_known && !config.loopback() && config.token.empty()) {
+        ctx.note(ctx.fail(source_of(*table, "listen"), "http.listen",
+                          fmt::format("\"{}\" is not a loopback address, so every request needs the token: set "
+                                      "http.token_file too (or listen on 127.0.0.1)", config.host)));
     }
-    auto token_file = optional_value<std::string>(ctx, *table, "http", "token_file", "a string such as \"/etc/loopwire/token\"");
-    if (!token_file) return token_file.error();
-    if (*token_file) {
-        if ((*token_file)->empty()) return ctx.fail(source_of(*table, "token_file"), "http.token_file", "expected a file name");
-        // Like [history] database: a relative path is taken from the configuration file's folder.
-        const std::filesystem::path as_written(**token_file);
-        const std::string file =
-            (as_written.is_absolute() ? as_written : std::filesystem::path(ctx.source).parent_path() / as_written).string();
-        auto token = read_token(ctx, *table, file);
-        if (!token) return token.error();
-        config.token_file = file;
-        config.token = std::move(*token);
-    }
-    if (auto limits = parse_http_limits(ctx, *table, config); !limits) return limits.error();
-    auto hosts = http_hosts(ctx, *table);
-    if (!hosts) return hosts.error();
-    config.hosts = std::move(*hosts);
-    auto allow = address_list(ctx, *table, "http", "allow");
-    if (!allow) return allow.error();
-    config.allow = std::move(*allow);
-    if (!config.loopback() && config.token.empty()) {
-        return ctx.fail(source_of(*table, "listen"), "http.listen",
-                        fmt::format("\"{}\" is not a loopback address, so every request needs the token: set "
-                                    "http.token_file too (or listen on 127.0.0.1)", config.host));
-    }
-    return std::optional<HttpConfig>{std::move(config)};
+    return config;
 }
 
 // [gateway]: the gateway's own name.
-Result<std::string> parse_gateway_name(const Context& ctx, const toml::table& root) {
+std::string parse_gateway_name(const Context& ctx, const toml::table& root) {
     const toml::node* node = root.get("gateway");
     if (!node) return std::string();
     const auto* table = node->as_table();
-    if (!table) return ctx.fail(node->source(), "gateway", "expected a [gateway] table");
-    if (auto keys = check_keys(ctx, *table, "gateway", "gateway"); !keys) return keys.error();
-    return checked_name(ctx, *table, "gateway");
+    if (!table) {
+        ctx.note(ctx.fail(node->source(), "gateway", "expected a [gateway] table"));
+        return std::string();
+    }
+    check_keys(ctx, *table, "gateway", "gateway");
+    return ctx.kept(checked_name(ctx, *table, "gateway")).value_or("");
 }
 
 Result<toml::table> parse_toml(std::string_view text, const std::string& source) {
@@ -1339,6 +1404,25 @@ Result<toml::table> parse_toml(std::string_view text, const std::string& source)
 #endif
 }
 
+// The line a mistake is at: each message begins "SOURCE:LINE: " (Context::fail).
+toml::source_index line_of(const std::string& source, const Error& mistake) {
+    std::string_view after = std::string_view(mistake.message).substr(std::min(source.size() + 1, mistake.message.size()));
+    after = after.substr(0, std::min(after.find_first_not_of("0123456789"), std::size_t{9}));
+    return static_cast<toml::source_index>(parse_decimal_digits(after).value_or(0));
+}
+
+// One mistake is its own message. Several are one a line, in the file's order, then their count
+// ("6 mistakes in plant.toml"): what `--check` prints, and why the gateway does not start.
+Error all_mistakes(const std::string& source, std::vector<Error> mistakes) {
+    if (mistakes.size() == 1) return std::move(mistakes.front());
+    std::stable_sort(mistakes.begin(), mistakes.end(),
+                     [&source](const Error& a, const Error& b) { return line_of(source, a) < line_of(source, b); });
+    std::string message;
+    for (const Error& mistake : mistakes) message += mistake.message + "\n";
+    message += fmt::format("{} mistakes in {}", mistakes.size(), source);
+    return make_error(ErrorKind::usage, std::move(message));
+}
+
 }  // namespace
 
 
@@ -1356,47 +1440,33 @@ bool reload_needs_restart(const GatewayConfig& running, const GatewayConfig& nex
 
 Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::string& source,
                                            const device::ProfileRegistry& profiles) {
+    // A file that is not TOML has no keys to check: its one mistake is all there is to say.
     auto root = parse_toml(text, source);
     if (!root) return root.error();
-    const Context ctx{source, profiles};
-    if (auto keys = check_keys(ctx, *root, "", ""); !keys) return keys.error();
+    std::vector<Error> mistakes;
+    const Context ctx{source, profiles, mistakes};
+    check_keys(ctx, *root, "", "");
     GatewayConfig config;
     config.source = source;
     Registry registry;
-    auto lines = parse_lines(ctx, *root, registry);
-    if (!lines) return lines.error();
-    config.lines = std::move(*lines);
-    auto modbus_tcp = parse_modbus_tcp(ctx, *root);
-    if (!modbus_tcp) return modbus_tcp.error();
-    config.modbus_tcp = std::move(*modbus_tcp);
+    config.lines = parse_lines(ctx, *root, registry);
+    config.modbus_tcp = parse_modbus_tcp(ctx, *root);
     // Modbus TCP clients name devices by unit id alone: two devices on one id only matter when
     // the front serves them (a plant of more than 247 devices runs without it).
-    if (config.modbus_tcp.enabled) {
-        if (auto units = check_tcp_units(ctx, registry.devices); !units) return units.error();
+    if (config.modbus_tcp.enabled) check_tcp_units(ctx, registry.devices);
+    config.log = parse_log(ctx, *root);
+    config.name = parse_gateway_name(ctx, *root);
+    config.mqtt = parse_mqtt(ctx, *root, config.name);
+    config.sparkplug = parse_sparkplug(ctx, *root, config.name);
+    config.history = parse_history(ctx, *root);
+    // Many gateways share the historian: the name is what keeps their series apart. (A [gateway]
+    // table without a valid name has that mistake said already.)
+    if (config.history && !config.history->forward_to.empty() && !root->contains("gateway")) {
+        ctx.note(ctx.fail(source_of(*root->get("history")->as_table(), "forward_to"), "history.forward_to",
+                          "needs [gateway] name: it is part of every series in the shared historian"));
     }
-    auto log = parse_log(ctx, *root);
-    if (!log) return log.error();
-    config.log = *log;
-    auto name = parse_gateway_name(ctx, *root);
-    if (!name) return name.error();
-    config.name = std::move(*name);
-    auto mqtt = parse_mqtt(ctx, *root, config.name);
-    if (!mqtt) return mqtt.error();
-    config.mqtt = std::move(*mqtt);
-    auto sparkplug = parse_sparkplug(ctx, *root, config.name);
-    if (!sparkplug) return sparkplug.error();
-    config.sparkplug = std::move(*sparkplug);
-    auto history = parse_history(ctx, *root);
-    if (!history) return history.error();
-    config.history = std::move(*history);
-    if (config.history && !config.history->forward_to.empty() && config.name.empty()) {
-        // Many gateways share the historian: the name is what keeps their series apart.
-        return ctx.fail(source_of(*root->get("history")->as_table(), "forward_to"), "history.forward_to",
-                        "needs [gateway] name: it is part of every series in the shared historian");
-    }
-    auto http = parse_http(ctx, *root);
-    if (!http) return http.error();
-    config.http = std::move(*http);
+    config.http = parse_http(ctx, *root);
+    if (!mistakes.empty()) return all_mistakes(source, std::move(mistakes));
     return config;
 }
 

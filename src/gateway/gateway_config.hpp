@@ -240,7 +240,9 @@ struct GatewayConfig {
 // Whether `link` names the in-process virtual bus rather than a device file.
 bool is_virtual_bus(const transport::LinkUrl& link);
 
-// Parses and checks a configuration; `source` names it in errors ("plant.toml").
+// Parses and checks a configuration; `source` names it in errors ("plant.toml"). The error
+// lists every mistake found, one a line in the file's order, then their count when there are
+// several ("6 mistakes in plant.toml"); a file that is not TOML gives its syntax error alone.
 Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::string& source,
                                            const device::ProfileRegistry& profiles);
 Result<GatewayConfig> load_gateway_config(const std::filesystem::path& file, const device::ProfileRegistry& profiles);

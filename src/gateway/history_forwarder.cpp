@@ -8,6 +8,7 @@
 
 #include "common/thread_name.hpp"
 #include "gateway/forward_batch.hpp"
+#include "gateway/forwarding_unit.hpp"  // the GatewayLog level prefixes
 #include "gateway/postgres_history_schema.hpp"
 
 namespace loopwire::gateway {
@@ -143,10 +144,12 @@ Result<void> HistoryForwarder::connect() {
     // A historian that stops answering (statement_timeout is the server's, which a frozen server
     // does not keep) is said so in the log, as is its return: the forwarder waits on meanwhile.
     postgres::StallWatch watch{[this](const std::string& line) {
-        constexpr std::string_view warning = "warning: ";
         if (!log_) return;
-        if (!line.starts_with(warning)) return log(line);
-        log_(fmt::format("{}history: {}", warning, line.substr(warning.size())));  // a warning still
+        // A warning or notice still, its prefix kept first (GatewayLog).
+        for (const std::string_view level : {gateway_warning_prefix, gateway_notice_prefix}) {
+            if (line.starts_with(level)) return log_(fmt::format("{}history: {}", level, line.substr(level.size())));
+        }
+        log(line);
     }};
     auto db = postgres::Connection::connect(options_.conninfo, options_.password, options_.connect_timeout_seconds,
                                             "loopwire", std::move(watch));

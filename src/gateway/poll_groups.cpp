@@ -91,7 +91,9 @@ private:
         answering_[i] = answers;
         if (!log_) return;
         if (answers) {
-            log_(fmt::format("device {} ({}) {}", names_[i], device.label, first ? "answers" : "answers again"));
+            // Answering again ends the warning that said it did not: a notice.
+            log_(first ? fmt::format("device {} ({}) answers", names_[i], device.label)
+                       : fmt::format("notice: device {} ({}) answers again", names_[i], device.label));
         } else {
             // A warning (GatewayLog): what a person reading `journalctl -p warning` must see.
             log_(fmt::format("warning: device {} ({}) does not answer: {}; polled again with back-off", names_[i], device.label,
@@ -111,7 +113,8 @@ private:
                              "false on the device to take it as it is)",
                              names_[i], device.label, device.last_error, device.label));
         } else {
-            log_(fmt::format("device {} ({}) is identified", names_[i], device.label));
+            // Said only after it answered as another: the end of that warning, a notice.
+            log_(fmt::format("notice: device {} ({}) is identified", names_[i], device.label));
         }
     }
 
@@ -130,7 +133,7 @@ private:
         }
         if (behind_ && ++on_time_ >= samples_on_time_to_recover) {
             behind_ = false;
-            if (log_) log_(fmt::format("the polls every {} ms of {} keep their interval again", interval_.count(), joined(names_)));
+            if (log_) log_(fmt::format("notice: the polls every {} ms of {} keep their interval again", interval_.count(), joined(names_)));
         }
     }
 
@@ -176,7 +179,7 @@ private:
                                  name, overdue_intervals_allowed));
             }
             for (const auto& name : stale_) {
-                if (!now.count(name)) log_(fmt::format("device {} is polled again: its values are current", name));
+                if (!now.count(name)) log_(fmt::format("notice: device {} is polled again: its values are current", name));
             }
         }
         stale_ = now;

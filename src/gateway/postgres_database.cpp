@@ -93,7 +93,7 @@ public:
             calls_.erase(it);
         }
         if (!call.reported) return;
-        call.watch.log(fmt::format("{} answers again: {} came back after {}", call.server, call.what,
+        call.watch.log(fmt::format("notice: {} answers again: {} came back after {}", call.server, call.what,
                                    seconds_text(std::chrono::steady_clock::now() - call.started)));
     }
 

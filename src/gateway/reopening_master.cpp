@@ -88,7 +88,8 @@ struct ReopeningMaster::State {
         ++counts.reopened;
         const auto down_for = std::chrono::duration_cast<std::chrono::microseconds>(now - down_since);
         counts.down_time += down_for;
-        say(fmt::format("line {} ({}) is up again after {} down ({} reopen attempt{})", name, link, seconds_text(down_for),
+        // A notice: the end of the warning that said the line went down.
+        say(fmt::format("notice: line {} ({}) is up again after {} down ({} reopen attempt{})", name, link, seconds_text(down_for),
                         attempts_this_period(), attempts_this_period() == 1 ? "" : "s"));
         reason.clear();
         backoff.succeeded();

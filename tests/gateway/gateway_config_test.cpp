@@ -530,6 +530,141 @@ TEST(GatewayConfig, SpeedAndSeedAreRefusedOnARealLineAndRangeChecked) {
               "plant.toml:4: lines[0].seed: -1 is out of range (expected an integer 0..4294967295)");
 }
 
+// The lines of a message of several mistakes.
+std::vector<std::string> lines_of(const std::string& message) {
+    std::vector<std::string> lines;
+    std::size_t start = 0;
+    for (std::size_t end = message.find('\n'); end != std::string::npos; end = message.find('\n', start)) {
+        lines.push_back(message.substr(start, end - start));
+        start = end + 1;
+    }
+    lines.push_back(message.substr(start));
+    return lines;
+}
+
+TEST(GatewayConfigMistakes, EveryIndependentMistakeIsSaidWithItsLineAndTheyAreCounted) {
+    // Six mistakes, one in each of six tables; none depends on another.
+    const std::string text = R"toml([[lines]]
+name = "furnace-line"
+link = "rtu:virtual?baud=19200"
+timeout = "fast"
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@3"
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@4"
+
+[modbus_tcp]
+listen = "127.0.0.1:99999"
+
+[log]
+file = "gateway.log"
+
+[mqtt]
+broker = "mqtt://127.0.0.1:1883"
+max_payload = 8
+
+[http]
+read_timeout = "1ms"
+)toml";
+    const std::string message = error_of(text);
+    const auto lines = lines_of(message);
+    ASSERT_EQ(lines.size(), 7u) << message;
+    EXPECT_THAT(lines[0], StartsWith("plant.toml:4: lines[0].timeout: 'fast' is not a duration"));
+    EXPECT_EQ(lines[1], "plant.toml:11: lines[0].devices[1].name: \"oven1\" is already the name of lines[0].devices[0] "
+                        "(line 6); device names must be unique");
+    EXPECT_THAT(lines[2], StartsWith("plant.toml:15: modbus_tcp.listen: \"127.0.0.1:99999\" is not an address to listen on"));
+    EXPECT_EQ(lines[3], "plant.toml:18: log.file: unknown key (allowed here: level, statistics)");
+    EXPECT_EQ(lines[4], "plant.toml:22: mqtt.max_payload: 8 is out of range (expected an integer 16..65536)");
+    EXPECT_EQ(lines[5], "plant.toml:25: http.read_timeout: expected 100ms..10min (e.g. \"10s\")");
+    EXPECT_EQ(lines[6], "6 mistakes in plant.toml");
+}
+
+TEST(GatewayConfigMistakes, EveryUnknownKeyAndEveryBadValueOfATableIsSaid) {
+    const std::string message = error_of(one_device("device = \"tc10@3\"\npol = \"1s\"\nidentify = \"no\"\ntcp_unit = 0\n"
+                                                    "parameters = [\"no_such\", \"set_point\", 3]\n") +
+                                         "[modbus_tcp]\nwrites = \"yes\"\nidle = \"1m\"\n");
+    const auto lines = lines_of(message);
+    ASSERT_EQ(lines.size(), 8u) << message;
+    EXPECT_THAT(lines[0], StartsWith("plant.toml:8: lines[0].devices[0].pol: unknown key"));
+    EXPECT_THAT(lines[1], StartsWith("plant.toml:9: lines[0].devices[0].identify: expected true or false"));
+    EXPECT_THAT(lines[2], StartsWith("plant.toml:10: lines[0].devices[0].tcp_unit: 0 is out of range"));
+    EXPECT_THAT(lines[3], StartsWith("plant.toml:11: lines[0].devices[0].parameters[0]: device oven1: "));
+    EXPECT_THAT(lines[4], StartsWith("plant.toml:11: lines[0].devices[0].parameters[2]: expected a parameter name"));
+    EXPECT_THAT(lines[5], StartsWith("plant.toml:13: modbus_tcp.writes: expected true or false"));
+    EXPECT_THAT(lines[6], StartsWith("plant.toml:14: modbus_tcp.idle: unknown key"));
+    EXPECT_EQ(lines[7], "7 mistakes in plant.toml");
+}
+
+TEST(GatewayConfigMistakes, EachLineAndDeviceIsCheckedWhateverIsWrongWithAnother) {
+    // Two lines of one port, a unit twice on the first, and two devices on one Modbus TCP unit:
+    // each clash is said once, at the later of the two.
+    const std::string message = error_of(R"toml([[lines]]
+name = "a"
+link = "rtu:/dev/ttyUSB0"
+
+[[lines.devices]]
+name = "one"
+device = "tc10@3"
+
+[[lines.devices]]
+name = "two"
+device = "ac20@3"
+
+[[lines]]
+name = "b"
+link = "rtu:/dev/ttyUSB0"
+
+[[lines]]
+name = "c"
+link = "tcp://192.0.2.7:502"
+
+[[lines.devices]]
+name = "three"
+device = "tc10@3"
+)toml");
+    const auto lines = lines_of(message);
+    ASSERT_EQ(lines.size(), 5u) << message;
+    EXPECT_THAT(lines[0], StartsWith("plant.toml:11: lines[0].devices[1].device: unit 3 is already used by one"));
+    EXPECT_THAT(lines[1], StartsWith("plant.toml:11: lines[0].devices[1].device: Modbus TCP unit 3 would be both one"));
+    EXPECT_THAT(lines[2], StartsWith("plant.toml:15: lines[1].link: /dev/ttyUSB0 is already the port of line a"));
+    EXPECT_THAT(lines[3], StartsWith("plant.toml:23: lines[2].devices[0].device: Modbus TCP unit 3 would be both one"));
+    EXPECT_EQ(lines[4], "4 mistakes in plant.toml");
+}
+
+TEST(GatewayConfigMistakes, WhatAMistakeMakesMeaninglessIsNotCheckedToo) {
+    // A link that does not parse: its serial keys, its simulation keys and its devices' protocol
+    // are not judged against it; the device's own keys still are.
+    const std::string bad_link = error_of(R"toml([[lines]]
+name = "a"
+link = "rtu:/dev/ttyUSB0?baud=12345"
+rs485 = true
+speed = 3
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+poll = "often"
+)toml");
+    const auto link_lines = lines_of(bad_link);
+    ASSERT_EQ(link_lines.size(), 3u) << bad_link;
+    EXPECT_THAT(link_lines[0], StartsWith("plant.toml:3: lines[0].link: "));
+    EXPECT_THAT(link_lines[1], StartsWith("plant.toml:10: lines[0].devices[0].poll: "));
+    // An unknown profile: the parameters, named in its terms, are not looked up.
+    EXPECT_THAT(error_of(one_device("device = \"nosuch@3\"\nparameters = [\"whatever\"]\n")),
+                AllOf(StartsWith("plant.toml:7: lines[0].devices[0].device: "), Not(HasSubstr("\n"))));
+    // A wrong tcp_unit clashes with nothing: only its own mistake is said.
+    EXPECT_THAT(error_of(one_device("device = \"tc10@3\"\n\n[[lines.devices]]\nname = \"b\"\ndevice = \"tc10@4\"\n"
+                                    "tcp_unit = 300\n")),
+                AllOf(StartsWith("plant.toml:12: lines[0].devices[1].tcp_unit: 300 is out of range"), Not(HasSubstr("\n"))));
+    // A file that is not TOML has nothing else to check.
+    EXPECT_THAT(error_of("[[lines]]\nname = \"a\nlink = 3\n[log]\nlevel = \"loud\"\n"),
+                AllOf(StartsWith("plant.toml:2:"), HasSubstr("TOML syntax error"), Not(HasSubstr("\n"))));
+}
+
 TEST(GatewayConfig, LogLevelAndStatisticsIntervalAreRead) {
     auto defaults = parse(one_device("device = \"tc10@3\"\n"));
     ASSERT_TRUE(defaults) << defaults.error().message;
@@ -1086,7 +1221,11 @@ TEST(GatewayConfig, TheGatewayNameGivesTheMqttPrefixAndDiscoveryName) {
     ASSERT_TRUE(unnamed) << unnamed.error().message;
     EXPECT_EQ(unnamed->mqtt->gateway_name, "gw_1_x");
     EXPECT_THAT(error_of("[gateway]\nname = \"my plant\"\n" + device), StartsWith("plant.toml:2: gateway.name: \"my plant\" is not a valid name"));
-    EXPECT_THAT(error_of("[gateway]\nnom = \"x\"\n" + device), StartsWith("plant.toml:2: gateway.nom: unknown key (allowed here: name)"));
+    // A misspelt key is unknown, and the key meant is missing: both are said.
+    EXPECT_EQ(error_of("[gateway]\nnom = \"x\"\n" + device),
+              "plant.toml:1: gateway: missing `name` (e.g. name = \"furnace-line\")\n"
+              "plant.toml:2: gateway.nom: unknown key (allowed here: name)\n"
+              "2 mistakes in plant.toml");
 }
 
 TEST(GatewayConfig, MqttPublishingSettingsAreRead) {

@@ -216,6 +216,48 @@ timeout = "fast"
 TOML
 check broken-config-names-file-line-key 2 "broken.toml:4" "$loopwire" gateway --config "$WORK_DIR/broken.toml" --check
 check missing-config 2 "nowhere.toml" "$loopwire" gateway --config "$WORK_DIR/nowhere.toml"
+# Six mistakes in six tables: one run of --check says each at its line, then their count; a start
+# refuses the file with the same list.
+cat >"$WORK_DIR/six.toml" <<TOML
+[[lines]]
+name = "furnace-line"
+link = "rtu:$pty"
+timeout = "fast"
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@3"
+
+[[lines.devices]]
+name = "oven1"
+device = "tc10@4"
+
+[modbus_tcp]
+listen = "127.0.0.1:99999"
+
+[log]
+file = "gateway.log"
+
+[mqtt]
+broker = "mqtt://127.0.0.1:1883"
+max_payload = 8
+
+[http]
+read_timeout = "1ms"
+TOML
+six_mistakes() {  # COMMAND... : passes when its output is the six mistakes, at their lines, and the count
+  local out status=0
+  out=$("$@" 2>&1) || status=$?
+  local lines
+  lines=$(sed -n 's/^\(loopwire: error: \)\{0,1\}[^ ]*six\.toml:\([0-9]*\): \([^:]*\):.*/\2 \3/p' <<<"$out" | tr '\n' ' ')
+  if [[ $status -eq 2 && $lines == "4 lines[0].timeout 11 lines[0].devices[1].name 15 modbus_tcp.listen 18 log.file 22 mqtt.max_payload 25 http.read_timeout " && $(tail -n 1 <<<"$out") == "6 mistakes in $WORK_DIR/six.toml" ]]; then
+    count_pass
+  else
+    echo "FAIL six-mistakes: $* (exit $status), output:"; echo "$out" | sed 's/^/    /'; failures=$((failures + 1))
+  fi
+}
+six_mistakes timeout 20 "$loopwire" gateway --config "$WORK_DIR/six.toml" --check
+six_mistakes timeout 20 "$loopwire" gateway --config "$WORK_DIR/six.toml"
 # A history database in a folder that is not there: --check says so with file:line, and so does a
 # start, before any line opens.
 cat >"$WORK_DIR/history.toml" <<TOML

@@ -223,7 +223,7 @@ TEST_F(HistorianReaderTest, AHistorianThatStopsAnsweringIsLoggedAndSoIsItsReturn
     std::lock_guard lock(mutex);
     ASSERT_EQ(lines.size(), 2u);
     EXPECT_THAT(lines[0], ::testing::MatchesRegex("warning: postgresql .* has not answered for [0-9.]+ s: a statement waits .*"));
-    EXPECT_THAT(lines[1], ::testing::MatchesRegex("postgresql .* answers again: a statement came back after [0-9.]+ s"));
+    EXPECT_THAT(lines[1], ::testing::MatchesRegex("notice: postgresql .* answers again: a statement came back after [0-9.]+ s"));
 }
 
 }  // namespace

@@ -8,7 +8,8 @@
 # The gateway starts although later-line's port is missing, serves virtual-line's device,
 # reports the missing and the killed lines as down (log, /api/devices, 0Ah to Modbus TCP
 # clients), and each line comes up again by itself once its port is back. A reload that leaves
-# two of the lines alone keeps them open.
+# two of the lines alone keeps them open. The gateway logs as under systemd with stderr to the
+# journal (JOURNAL_STREAM names its stderr): a line down is a warning, its coming up a notice.
 set -u
 loopwire=${1:?usage: line_recovery_test.sh path/to/loopwire}
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -81,7 +82,10 @@ sed "s|rtu:$later_pty?|rtu:/dev/zero?|" "$WORK_DIR/plant.toml" >"$WORK_DIR/zero-
 check check-refuses-dev-zero-as-port 2 "line later-line: /dev/zero is a character device of the kernel's \"mem\" class" \
   "$loopwire" gateway --config "$WORK_DIR/zero-port.toml" --check
 
-start_tcp_server gateway.log timeout 100 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+# The device and inode of the gateway's stderr, as systemd gives them for the journal's stream.
+: >"$WORK_DIR/gateway.log"
+journal_stream=$(stat -c '%d:%i' "$WORK_DIR/gateway.log")
+start_tcp_server gateway.log env JOURNAL_STREAM="$journal_stream" timeout 100 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
 gateway_pid=$(pgrep -P "$LAST_PID")  # the gateway itself, not `timeout` around it
 modbus="tcp://127.0.0.1:$PORT"
 http=$(wait_for_log gateway.log 'HTTP API and dashboard on http:..127\.0\.0\.1:([0-9]+)' 20)
@@ -125,6 +129,16 @@ start_furnace_simulator sim2.log
 wait_for 45 "oven1 ok again after the simulator came back" status_is oven1 ok
 wait_for_log gateway.log "line furnace-line \(rtu:[^)]*\) is (up) again after" 10 >/dev/null
 check read-after-reopen 0 "" "$loopwire" read --link "$modbus" --device tc10@3 set_point
+
+# Each line begins with the priority journald gives its entry (sd-daemon prefixes): the lines
+# down are warnings (4), which `journalctl -p warning` shows; their coming up again notices (5),
+# which `-p notice` shows and `-p warning` does not.
+expect furnace-down-is-a-warning grep -qE '^<4>gateway: line furnace-line \(rtu:[^)]*\) is down: ' "$WORK_DIR/gateway.log"
+expect later-down-is-a-warning grep -qE '^<4>gateway: line later-line \(rtu:[^)]*\) is down: ' "$WORK_DIR/gateway.log"
+expect furnace-up-is-a-notice grep -qE '^<5>gateway: line furnace-line \(rtu:[^)]*\) is up again after' "$WORK_DIR/gateway.log"
+expect later-up-is-a-notice grep -qE '^<5>gateway: line later-line \(rtu:[^)]*\) is up again after' "$WORK_DIR/gateway.log"
+expect up-again-is-no-warning bash -c "! grep -E '^<[0-4]>' '$WORK_DIR/gateway.log' | grep -q 'up again'"
+expect the-rest-is-info grep -qE '^<6>gateway: .*listening on port' "$WORK_DIR/gateway.log"
 
 # Logged once per change of state, not once per try: one "down" line per line that went down.
 downs=$(grep -c "line furnace-line (.*) is down: " "$WORK_DIR/gateway.log")

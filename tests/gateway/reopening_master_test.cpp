@@ -225,7 +225,7 @@ TEST_F(ReopeningMasterTest, ALinkThatFailsUnderARequestIsClosedAndReopenedByTheF
     const auto lines = logged();
     ASSERT_EQ(lines.size(), 2u);
     EXPECT_THAT(lines[0], HasSubstr("is down: serial port /dev/ttyUSB0 hung up"));
-    EXPECT_EQ(lines[1], "line furnace (rtu:/dev/ttyUSB0?baud=19200) is up again after 1.0 s down (1 reopen attempt)");
+    EXPECT_EQ(lines[1], "notice: line furnace (rtu:/dev/ttyUSB0?baud=19200) is up again after 1.0 s down (1 reopen attempt)");
 }
 
 TEST_F(ReopeningMasterTest, TheWaitStartsOverAtOneSecondEachTimeTheLineGoesDown) {

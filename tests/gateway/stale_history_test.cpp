@@ -151,6 +151,7 @@ struct Outcome {
     unsigned stale_told = 0;  // the changes to `stale` the history was told
     unsigned ok_after_stale = 0;  // ... and to `ok` right after one
     std::map<std::string, std::vector<Row>> rows;  // each parameter's rows in the file, by time
+    std::vector<std::string> log;  // what the polls logged (GatewayLog), in order
 };
 
 class LateReplies {
@@ -193,7 +194,9 @@ public:
         });
         const GatewayConfig config = one_device();
         polls_ = std::make_unique<PollGroups>(events_, config, std::map<std::string, std::shared_ptr<LineScheduler>>{{"plant", scheduler_}},
-                                              *cache_, GatewayLog{}, nullptr);
+                                              *cache_, [this](const std::string& line) {
+                                                  if (!over_) outcome_.log.push_back(line);
+                                              }, nullptr);
         std::promise<void> ended;
         auto done = ended.get_future();
         loop_->post([this, &ended] { begin(ended); });
@@ -296,6 +299,17 @@ TEST(StaleHistory, ADeviceStaleWithItsPollInFlightIsOkInItsHistoryFromTheReplyOn
     // The case arose: the device went stale with a poll in flight, and the late reply made it ok.
     EXPECT_GE(outcome.stale_told, 2u) << "the device never went stale while its replies were held back: the test proves nothing";
     EXPECT_EQ(outcome.ok_after_stale, outcome.stale_told);
+    // The log says each spell at the level an operator filters on: going stale a warning, its
+    // end a notice (app/gateway_log.hpp), one after the other.
+    std::vector<std::string> spells;
+    for (const std::string& line : outcome.log) {
+        if (line.find("device oven is ") != std::string::npos) spells.push_back(line);
+    }
+    EXPECT_GE(spells.size(), 2u);
+    for (std::size_t i = 0; i < spells.size(); ++i) {
+        const std::string expected = i % 2 == 0 ? "warning: device oven is stale: " : "notice: device oven is polled again: ";
+        EXPECT_EQ(spells[i].rfind(expected, 0), 0u) << spells[i];
+    }
     ASSERT_NE(outcome.holding_ended_ms, 0);
     // What /api/devices says at the end: ok, answered within the last poll or so.
     EXPECT_EQ(outcome.status, device::DeviceStatus::ok);

@@ -85,7 +85,8 @@ gateway_port=$PORT
 http=$(wait_for_log gateway.log 'HTTP API and dashboard on http:..127\.0\.0\.1:([0-9]+)' 30)
 
 wait_for_text "$WORK_DIR/gateway.log" "the unit is not tc10@1" 30
-expect log-says-why grep -qE 'device furnace \(tc10@1\): the unit is not tc10@1: its .* reads' "$WORK_DIR/gateway.log"
+# At warning, which `journalctl -p warning` and `level = "warning"` keep.
+expect log-says-why grep -qE 'Z warning loopwire: gateway: device furnace \(tc10@1\): the unit is not tc10@1: its .* reads' "$WORK_DIR/gateway.log"
 api() { curl -sf "http://127.0.0.1:$http/api/devices/$1"; }
 wait_for 20 "oven ok on the API" bash -c "curl -sf 'http://127.0.0.1:$http/api/devices/oven' | grep -q '\"status\":\"ok\"'"
 api furnace >"$WORK_DIR/furnace.json"
