@@ -1009,6 +1009,14 @@ Result<std::optional<SparkplugConfig>> parse_sparkplug(const Context& ctx, const
                                "the node's small state file, created when absent");
         }
     }
+    auto store = optional_value<std::string>(ctx, *table, "sparkplug", "store_and_forward", "a duration such as \"10m\", or \"off\"");
+    if (!store) return store.error();
+    if (*store && **store != "off") {
+        auto kept = bounded_duration(ctx, *table, "sparkplug", "sparkplug", "store_and_forward",
+                                     "e.g. \"10m\"; \"off\": what changes while the broker is away is lost");
+        if (!kept) return kept.error();
+        config.store_and_forward = **kept;
+    }
     return std::optional<SparkplugConfig>{std::move(config)};
 }
 
