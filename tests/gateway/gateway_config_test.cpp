@@ -895,6 +895,7 @@ TEST(GatewayConfig, SparkplugStoreAndForwardIsADurationOrOff) {
     config = parse(head + "store_and_forward = \"10m\"\n");
     ASSERT_TRUE(config) << config.error().message;
     EXPECT_EQ(config->sparkplug->store_and_forward, std::chrono::minutes(10));
+    EXPECT_THAT(describe_plan(*config), HasSubstr("store and forward: data kept for 10m while the node is dead"));
     config = parse(head + "store_and_forward = \"off\"\n");
     ASSERT_TRUE(config) << config.error().message;
     EXPECT_FALSE(config->sparkplug->store_and_forward);

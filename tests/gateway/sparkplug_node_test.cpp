@@ -96,14 +96,15 @@ public:
     }
     std::vector<const device::Parameter*> parameters() const { return {&temperature_, &power_, &mode_}; }
 
-    // One poll that answered with these values.
-    void answer(ValueCache& cache, double temperature, double power, const std::string& mode) {
+    // One poll that answered with these values, sampled now or at `sampled`.
+    void answer(ValueCache& cache, double temperature, double power, const std::string& mode,
+                std::optional<std::chrono::system_clock::time_point> sampled = std::nullopt) {
         device::ReadReport report;
         add(report, temperature_, temperature, {});
         add(report, power_, power, {});
         add(report, mode_, 0, mode);
         device::record_poll(state_, report, true, "", device::MonitorClock::now());
-        cache.update("d1", state_, std::chrono::system_clock::now());
+        cache.update("d1", state_, sampled.value_or(std::chrono::system_clock::now()));
     }
     // One poll that got no reply.
     void silent(ValueCache& cache) {
@@ -376,12 +377,15 @@ TEST(SparkplugNode, WhatChangedWhileDeadFollowsTheBirthsAsHistoricalInItsOrder) 
     watcher.publish(host_state, state(false, 2), true);
     ASSERT_TRUE(watcher.nth(ndeath, 1));
 
+    // Polls 100 ms apart (their own times: the test answers faster than that).
     const std::vector<double> temperatures{22.0, 22.5, 23.0, 23.5};
+    const auto first = std::chrono::system_clock::now();
+    const auto sampled = [&first](std::size_t i) { return first + i * 100ms; };
     for (std::size_t i = 0; i < 3; ++i) {
-        node.device.answer(node.cache, temperatures[i], 40, "auto");
+        node.device.answer(node.cache, temperatures[i], 40, "auto", sampled(i));
         ASSERT_TRUE(eventually([&] { return node.node->stored() == i + 1; })) << "value " << i << " not kept";
     }
-    node.device.answer(node.cache, temperatures[3], 40, "auto");
+    node.device.answer(node.cache, temperatures[3], 40, "auto", sampled(3));
     ASSERT_TRUE(node.log.wait_for("store and forward holds 3 values, its most"));
 
     watcher.publish(host_state, state(true, 3), true);
@@ -410,6 +414,34 @@ TEST(SparkplugNode, WhatChangedWhileDeadFollowsTheBirthsAsHistoricalInItsOrder) 
     EXPECT_EQ(historical, (std::vector<double>{22.5, 23.0}));
     EXPECT_DOUBLE_EQ(born->double_value(), 23.5);
     EXPECT_EQ(node.node->stored(), 0u);
+}
+
+// A reload that keeps [sparkplug] hands the node, connected, to the next gateway: no NDEATH, no
+// NBIRTH; a device gone dies (DDEATH), one added back is born with the aliases it had.
+TEST(SparkplugNode, TakenOverAcrossAReloadTheSessionGoesOnAndOnlyTheDevicesThatChangedAreTold) {
+    SKIP_WITHOUT_BROKER();
+    Broker broker;
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    NodeFixture node(broker);
+    node.device.answer(node.cache, 21.5, 40, "auto");
+    const Payload birth = decoded(watcher.nth(dbirth, 1));
+    const auto lines = [] { return std::vector<SparkplugLineFigures>{{"line1", 10, 9, 1, true}}; };
+
+    ASSERT_TRUE(node.node->release());
+    ValueCache next_cache;
+    node.node->take_over({}, node.writer, next_cache, lines, node.log.sink(), nullptr);
+    EXPECT_EQ(decoded(watcher.nth(ddeath, 1)).seq(), birth.seq() + 1) << "the session's seq goes on";
+
+    ASSERT_TRUE(node.node->release());
+    ValueCache last_cache;
+    node.node->take_over({{"d1", node.device.parameters()}}, node.writer, last_cache, lines, node.log.sink(), nullptr);
+    node.device.answer(last_cache, 22.0, 40, "auto");
+    const Payload again = decoded(watcher.nth(dbirth, 2));
+    ASSERT_NE(named(again, "temperature"), nullptr);
+    EXPECT_EQ(named(again, "temperature")->alias(), named(birth, "temperature")->alias());
+    EXPECT_EQ(watcher.count(nbirth), 1u);
+    EXPECT_EQ(watcher.count(ndeath), 0u);
+    node.node.reset();  // before the caches it reads
 }
 
 // A DCMD published with the retain flag is refused whether it comes live (the node subscribes

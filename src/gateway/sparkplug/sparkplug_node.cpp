@@ -440,9 +440,9 @@ struct SparkplugNode::State {
     }
 
     // After the births: what was stored, in the order it was made, each metric with
-    // is_historical and its own timestamp. A value the births already carry (the latest
-    // sample, taken after the store's last look) is not sent again, nor is one of a device
-    // that is not born now (a host would not know its aliases).
+    // is_historical and its own timestamp. A value the births already carry (the same sample:
+    // its time and value) is not sent again, nor is one of a device that is not born now (a
+    // host would not know its aliases).
     void forward_stored() {
         if (!config.store_and_forward) return;
         drop_old();
@@ -460,7 +460,7 @@ struct SparkplugNode::State {
             std::vector<const std::pair<std::size_t, MetricSample>*> due;
             for (const auto& metric : data.metrics) {
                 const auto& born = device.sent[metric.first];
-                if (born && metric.second.timestamp >= born->timestamp) {
+                if (born && metric.second.timestamp == born->timestamp && metric.second.same_report(*born)) {
                     ++in_births;
                 } else {
                     due.push_back(&metric);
