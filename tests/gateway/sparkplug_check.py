@@ -13,6 +13,10 @@ Subcommands (all take the recording, a file of JSON lines, as written by `record
   expect-metrics  assert a birth's (or data message's) metrics: datatype, value, properties
   show          print messages in a readable form, data metrics named from their births
   check         replay the whole recording against the Sparkplug rules; print every failure
+                (a historical metric, store and forward's, is a value of the past: never taken
+                for the current one, and each metric's come in their order)
+  historical    store and forward's figures after a line: historical values, duplicates, order
+  series        every value of one device's metric, live and historical, for a comparison
   publish-ncmd, publish-dcmd, publish-state   encode and publish what a host would send
   flap-state    publish the host's STATE online and offline in turn, quickly, ending online
   selftest      round-trip payloads through the proto and prove `check` catches each rule
