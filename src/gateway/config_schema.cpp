@@ -163,6 +163,11 @@ constexpr std::array keys{
               "Where the node keeps the bdSeq of its next session, written at each connect, so that a host sees it count "
               "on across restarts (Sparkplug 3.0); relative to this file's folder.",
               "\"/var/lib/loopwire/sparkplug.state\"", true},
+    ConfigKey{"sparkplug", "store_and_forward", "duration", "\"off\"", "1s..24h, or \"off\"",
+              "While the broker cannot be reached (or the primary host is offline), the data the node would have sent "
+              "is kept this long (at most 100000 values, the oldest dropped first) and sent after the next births "
+              "with is_historical and its own timestamps.",
+              "\"10m\"", true},
     ConfigKey{"sparkplug", "writes", "boolean", "false", "",
               "Whether DCMD metrics are written to the device (checked as `loopwire write` checks them).", "false"},
     ConfigKey{"sparkplug", "client_id", "string", "loopwire-sparkplug-GROUP-EDGE", "1..256 characters",
@@ -263,6 +268,9 @@ constexpr std::array ranges{
     ConfigRange{"log", "statistics", 1'000, unbounded},
     ConfigRange{"mqtt", "republish", 100, unbounded},
     ConfigRange{"history", "heartbeat", 1'000, unbounded},
+    // The values are kept in memory (at most 100000 of them): a day covers an outage someone
+    // attends to; a longer one is for a historian that reads the [history] database.
+    ConfigRange{"sparkplug", "store_and_forward", 1'000, 86'400'000},
     ConfigRange{"http", "read_timeout", 100, 600'000},
     ConfigRange{"http", "header_timeout", 100, 600'000},
     ConfigRange{"http", "send_timeout", 100, 600'000},

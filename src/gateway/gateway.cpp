@@ -285,6 +285,8 @@ struct Gateway::Parts {
     // and write through the writer.
     std::unique_ptr<MqttBridge> mqtt;
     std::unique_ptr<SparkplugNode> sparkplug;
+    std::optional<SparkplugConfig> sparkplug_config;  // the [sparkplug] it runs
+    KeptSparkplug* kept_sparkplug = nullptr;           // GatewayOptions::sparkplug
     std::unique_ptr<HttpApi> http_api;
     std::unique_ptr<HttpServer> http;  // last: stopped (its connections closed) before the API goes
 };
@@ -374,7 +376,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         parts->mqtt = std::make_unique<MqttBridge>(*config.mqtt, *parts->writer, parts->cache, options.log, MqttTiming{},
                                                    &parts->engine->loop());
     }
-    if (config.sparkplug) open_sparkplug(*config.sparkplug, config, *parts, options.log);
+    if (config.sparkplug) open_sparkplug(*config.sparkplug, config, *parts, options.log, options.sparkplug);
     if (config.http) {
         if (auto opened = open_http(*config.http, config, options.http_listener, *parts); !opened) return opened.error();
     }
@@ -382,7 +384,10 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
     return std::unique_ptr<Gateway>(new Gateway(std::move(parts)));
 }
 
-void Gateway::open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConfig& config, Parts& parts, GatewayLog log) {
+void Gateway::open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConfig& config, Parts& parts, GatewayLog log,
+                             KeptSparkplug* kept) {
+    parts.sparkplug_config = sparkplug;
+    parts.kept_sparkplug = kept;
     std::vector<SparkplugDevice> devices;
     for (const auto& line : config.lines) {
         for (const auto& device : line.devices) devices.push_back({device.name, polled_parameters(device)});
@@ -396,6 +401,14 @@ void Gateway::open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConf
         }
         return figures;
     };
+    if (kept && kept->node && kept->config == sparkplug) {
+        // The last gateway's session carries on (hand_over_to).
+        parts.sparkplug = std::move(kept->node);
+        parts.sparkplug->take_over(std::move(devices), *parts.writer, parts.cache, std::move(lines), std::move(log),
+                                   &parts.engine->loop());
+        return;
+    }
+    if (kept) kept->node.reset();  // a session for another [sparkplug]: it ends (NDEATH)
     // Like MQTT: started here, retried in the background, never an error.
     // On the engine's loop, as the MQTT front: no thread of its own.
     parts.sparkplug = std::make_unique<SparkplugNode>(sparkplug, std::move(devices), *parts.writer, parts.cache, std::move(lines),
@@ -585,6 +598,13 @@ Result<void> Gateway::serve(std::stop_token stop) {
 
 void Gateway::hand_over_to(const GatewayConfig& next) {
     if (parts_->keeper) keep_lines_for(next);
+    // The Sparkplug session goes on when the next [sparkplug] is this one: the node is left to
+    // the next gateway, which tells the host only what the devices' changes call for.
+    if (parts_->sparkplug && parts_->kept_sparkplug && next.sparkplug && next.sparkplug == parts_->sparkplug_config &&
+        parts_->sparkplug->release()) {
+        parts_->kept_sparkplug->config = *next.sparkplug;
+        parts_->kept_sparkplug->node = std::move(parts_->sparkplug);
+    }
     if (!parts_->mqtt) return;
     std::set<std::string> next_devices;
     for (const auto& line : next.lines) {

@@ -25,6 +25,15 @@ namespace loopwire::gateway {
 
 class LineKeeper;
 class HttpListener;
+class SparkplugNode;
+
+// The Sparkplug node kept across a reload that leaves [sparkplug] as it is (Gateway::hand_over_to),
+// so that its session goes on: no NDEATH, no NBIRTH (SparkplugNode::release, take_over). The
+// holder includes gateway/sparkplug/sparkplug_node.hpp.
+struct KeptSparkplug {
+    SparkplugConfig config;  // the [sparkplug] it runs
+    std::unique_ptr<SparkplugNode> node;
+};
 
 struct GatewayOptions {
     session::TraceSink trace;  // every frame on the lines and the front (-v)
@@ -57,6 +66,10 @@ struct GatewayOptions {
     // listener (a reload that leaves [http] listen alone). Then the clients' keep-alive
     // connections are parked in it for that gateway instead of closed (HttpServer::stop).
     std::function<bool()> http_listener_kept;
+    // With [sparkplug]: where a reload leaves the node for the next gateway, which takes it when
+    // its [sparkplug] is the same. None: the node is made and ended with the gateway. Must
+    // outlive the gateway.
+    KeptSparkplug* sparkplug = nullptr;
     // How serve() waits for its stop: on a condition variable when empty. The gateway command
     // passes its signal handling here (app/stop_signal.hpp, StopSignal::Waits::caller), so the
     // serving thread takes SIGTERM and SIGHUP while it waits and no thread is kept for them.
@@ -111,7 +124,8 @@ public:
     // After serve() returned for a reload, before the gateway is destroyed: hands over to the
     // gateway that `next` opens what both publish (MqttBridge::hand_over), so that it does not
     // flap offline and online across the reload, and, with GatewayOptions::lines, the lines
-    // `next` runs alike, which stay open.
+    // `next` runs alike, which stay open; with GatewayOptions::sparkplug, the Sparkplug node and
+    // its session when `next` has the same [sparkplug].
     void hand_over_to(const GatewayConfig& next);
 
     // The Modbus TCP front's connections so far; all zero when the front is disabled.
@@ -135,7 +149,8 @@ private:
     static Result<void> open_http(const HttpConfig& http, const GatewayConfig& config, HttpListener* listener,
                                   Parts& parts);
     void keep_lines_for(const GatewayConfig& next);
-    static void open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConfig& config, Parts& parts, GatewayLog log);
+    static void open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConfig& config, Parts& parts, GatewayLog log,
+                               KeptSparkplug* kept);
     std::unique_ptr<Parts> parts_;
 };
 

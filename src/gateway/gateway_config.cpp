@@ -1054,6 +1054,18 @@ Result<std::filesystem::path> sparkplug_state_file(const Context& ctx, const tom
     return path;
 }
 
+// `store_and_forward = "10m"`: how long the values the node could not send are kept; "off"
+// (the default): none are.
+Result<std::optional<std::chrono::milliseconds>> sparkplug_store_and_forward(const Context& ctx, const toml::table& table) {
+    auto store = optional_value<std::string>(ctx, table, "sparkplug", "store_and_forward", "a duration such as \"10m\", or \"off\"");
+    if (!store) return store.error();
+    if (!*store || **store == "off") return std::optional<std::chrono::milliseconds>{};
+    auto kept = bounded_duration(ctx, table, "sparkplug", "sparkplug", "store_and_forward",
+                                 "e.g. \"10m\"; \"off\": what changes while the broker is away is lost");
+    if (!kept) return kept.error();
+    return *kept;
+}
+
 std::optional<SparkplugConfig> parse_sparkplug(const Context& ctx, const toml::table& root, const std::string& gateway_name) {
     const toml::node* node = root.get("sparkplug");
     if (!node) return std::nullopt;
@@ -1084,6 +1096,7 @@ std::optional<SparkplugConfig> parse_sparkplug(const Context& ctx, const toml::t
         config.client_id = fmt::format("loopwire-sparkplug-{}-{}", config.group_id, config.edge_node_id);
     }
     if (auto state_file = ctx.kept(sparkplug_state_file(ctx, *table))) config.state_file = std::move(*state_file);
+    if (auto store = ctx.kept(sparkplug_store_and_forward(ctx, *table))) config.store_and_forward = *store;
     return config;
 }
 

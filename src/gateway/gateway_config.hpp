@@ -160,6 +160,10 @@ struct SparkplugConfig {
     // (Sparkplug 3.0, bdSeq); resolved against the configuration file's folder. Empty: counted
     // from 0 at each start.
     std::filesystem::path state_file;
+    // Store and forward (Sparkplug 3.0): while the broker cannot be reached (or the primary host
+    // is offline) the DDATA the node would have sent is kept for at most this long, and sent
+    // after the next births as historical. None: what changes meanwhile is lost.
+    std::optional<std::chrono::milliseconds> store_and_forward;
 
     bool operator==(const SparkplugConfig&) const = default;
 };

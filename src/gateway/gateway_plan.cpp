@@ -182,6 +182,10 @@ void describe_sparkplug(std::ostringstream& out, const std::optional<SparkplugCo
                        config->edge_node_id,
                        config->primary_host.empty() ? "" : fmt::format("births once host {} is online, ", config->primary_host),
                        config->writes ? "allowed" : "refused");
+    if (config->store_and_forward) {
+        out << fmt::format("  store and forward: data kept for {} while the node is dead, sent after its births as historical\n",
+                           duration_text(*config->store_and_forward));
+    }
 }
 
 // Days, hours or minutes, whichever is whole ("90d", "36h").

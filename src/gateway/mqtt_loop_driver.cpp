@@ -220,6 +220,13 @@ void LoopDriver::start() {
     asio::post(core_->loop, [core = core_] { core->attempt(); });
 }
 
+void LoopDriver::resume() {
+    asio::post(core_->loop, [core = core_] {
+        if (mosquitto_socket(core->client) >= 0) return core->watch();
+        core->attempt();
+    });
+}
+
 void LoopDriver::wake() {
     if (core_->wake_posted.exchange(true)) return;
     asio::post(core_->loop, [core = core_] { core->woken(); });

@@ -52,6 +52,9 @@ public:
     LoopDriver& operator=(const LoopDriver&) = delete;
 
     void start();  // the first connection attempt, on the loop; from any thread
+    // Instead of start(), for a client whose connection another driver made and let go (stop):
+    // watches that connection as it is, or connects when it has none; from any thread.
+    void resume();
     // A turn soon, on the loop (something was queued to send); from any thread, as often as
     // wanted: one turn for all the calls before it runs.
     void wake();

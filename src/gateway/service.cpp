@@ -8,6 +8,7 @@
 #include "gateway/http_server.hpp"
 #include "gateway/line_keeper.hpp"
 #include "gateway/modbus_tcp_front.hpp"
+#include "gateway/sparkplug/sparkplug_node.hpp"
 
 namespace loopwire::gateway {
 namespace {
@@ -61,6 +62,7 @@ struct Service {
     LineKeeper lines;
     std::unique_ptr<ModbusTcpFront> front;  // kept across reloads that leave [modbus_tcp] alone
     std::optional<HttpListener> http_listener;  // kept across reloads that leave [http] listen alone
+    KeptSparkplug sparkplug;  // between two rounds whose [sparkplug] is the same; its session ends with the service
 
     // Serves `config` until `stop` or a reload is requested; the error when it cannot be opened.
     Result<void> round(const GatewayConfig& config) {
@@ -72,6 +74,7 @@ struct Service {
         round_options.front = front.get();
         round_options.lines = &lines;
         round_options.http_listener = http_listener ? &*http_listener : nullptr;
+        round_options.sparkplug = &sparkplug;
         round_options.http_listener_kept = [this] {
             const auto next = reloads.next();
             return next && !stop.stop_requested() && next->http && http_listener &&
@@ -132,7 +135,7 @@ std::optional<GatewayConfig> ConfigReloads::take() {
 
 Result<void> serve_with_reloads(GatewayConfig config, const GatewayOptions& options, ConfigReloads& reloads,
                                 const std::stop_token& stop, const ServiceLog& log, const ServiceHooks& hooks) {
-    Service service{options, reloads, stop, log, hooks, {}, nullptr, std::nullopt};
+    Service service{options, reloads, stop, log, hooks, {}, nullptr, std::nullopt, {}};
     GatewayConfig current = std::move(config);
     std::optional<GatewayConfig> previous;
     for (;;) {

@@ -1018,7 +1018,27 @@ TEST(GatewayConfig, SparkplugDefaultsAndRefusals) {
                 HasSubstr("sparkplug.ca_file: "));
     EXPECT_THAT(error_of(device + "[sparkplug]\nbroker = \"mqtt://b\"\ngroup_id = \"g\"\nprefix = \"x\"\n"),
                 StartsWith("plant.toml:11: sparkplug.prefix: unknown key (allowed here: broker, group_id, edge_node_id, "
-                           "primary_host, state_file, writes, client_id, ca_file, cert_file, key_file, username, password_file)"));
+                           "primary_host, state_file, store_and_forward, writes, client_id, ca_file, cert_file, key_file, "
+                           "username, password_file)"));
+}
+
+TEST(GatewayConfig, SparkplugStoreAndForwardIsADurationOrOff) {
+    const std::string head = one_device("device = \"tc10@3\"\n") + "[sparkplug]\nbroker = \"mqtt://b\"\ngroup_id = \"g\"\n";
+    auto config = parse(head);
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_FALSE(config->sparkplug->store_and_forward);  // off unless asked for
+    config = parse(head + "store_and_forward = \"10m\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_EQ(config->sparkplug->store_and_forward, std::chrono::minutes(10));
+    EXPECT_THAT(describe_plan(*config), HasSubstr("store and forward: data kept for 10m while the node is dead"));
+    config = parse(head + "store_and_forward = \"off\"\n");
+    ASSERT_TRUE(config) << config.error().message;
+    EXPECT_FALSE(config->sparkplug->store_and_forward);
+    // Refused where it is written, with what is taken.
+    EXPECT_THAT(error_of(head + "store_and_forward = \"10 minutes\"\n"), StartsWith("plant.toml:11: sparkplug.store_and_forward: "));
+    EXPECT_THAT(error_of(head + "store_and_forward = \"500ms\"\n"),
+                StartsWith("plant.toml:11: sparkplug.store_and_forward: expected 1s..24h, or \"off\""));
+    EXPECT_THAT(error_of(head + "store_and_forward = 600\n"), StartsWith("plant.toml:11: sparkplug.store_and_forward: "));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -13,6 +13,10 @@ Subcommands (all take the recording, a file of JSON lines, as written by `record
   expect-metrics  assert a birth's (or data message's) metrics: datatype, value, properties
   show          print messages in a readable form, data metrics named from their births
   check         replay the whole recording against the Sparkplug rules; print every failure
+                (a historical metric, store and forward's, is a value of the past: never taken
+                for the current one, and each metric's come in their order)
+  historical    store and forward's figures after a line: historical values, duplicates, order
+  series        every value of one device's metric, live and historical, for a comparison
   publish-ncmd, publish-dcmd, publish-state   encode and publish what a host would send
   flap-state    publish the host's STATE online and offline in turn, quickly, ending online
   selftest      round-trip payloads through the proto and prove `check` catches each rule
@@ -74,6 +78,9 @@ LAST_ERROR = "Device Control/Last Error"
 # machine running a sanitized gateway can hold a message for seconds.
 TIMESTAMP_PAST_MS = 120_000
 TIMESTAMP_FUTURE_MS = 5_000
+# A historical metric (store and forward) carries the time of its sample, from before the
+# outage it was kept through: as old as the node's store_and_forward, never from the future.
+HISTORICAL_PAST_MS = 7 * 24 * 3600 * 1000
 
 
 # --- The generated protobuf module --------------------------------------------------------------
@@ -228,7 +235,7 @@ def build_payload(seq=None, timestamp=None, metrics=()):
         p.seq = seq
     for spec in metrics:
         m = p.metrics.add()
-        for key in ("name", "alias", "timestamp", "datatype", "is_null"):
+        for key in ("name", "alias", "timestamp", "datatype", "is_null", "is_historical"):
             if spec.get(key) is not None:
                 setattr(m, key, spec[key])
         if "raw_field" in spec:
@@ -365,6 +372,7 @@ class Device:
         self.metrics = {}   # alias -> MetricInfo, from the current DBIRTH
         self.last = {}      # alias -> (is_null, value, quality) last reported
         self.values = {}    # name -> last value reported (for `value --latest`)
+        self.historical = {}  # alias -> timestamp of the last historical value, since the birth
 
 
 class Node:
@@ -567,8 +575,16 @@ class Model:
             if alias in seen:
                 problems.append("reported twice in one message")
             seen.add(alias)
+            historical = bool(m.get("is_historical"))
             if "timestamp" not in m:
                 problems.append("no timestamp")
+            elif historical:
+                if not rec["t"] - HISTORICAL_PAST_MS <= m["timestamp"] <= rec["t"] + TIMESTAMP_FUTURE_MS:
+                    problems.append(f"historical timestamp {m['timestamp']} is not of the past week")
+                before = getattr(owner, "historical", {}).get(alias)
+                if before is not None and m["timestamp"] <= before:
+                    problems.append(f"historical value of {m['timestamp']} after one of {before}: store and forward "
+                                    "sends a metric's values in their order, each once")
             else:
                 self.check_timestamp(rec, m["timestamp"], f"metric {label}")
             datatype = info.datatype if info else m.get("datatype")
@@ -577,7 +593,12 @@ class Model:
             value, is_null, quality, props = self.read_metric(rec, m, datatype, problems, notes)
             rec["_resolved"].append(resolved(info.name if info else m.get("name"), alias, datatype, value,
                                              is_null, quality, props))
-            if info is not None:
+            if info is not None and historical:
+                # A value of the past: recorded by a host, never taken for the current one, so it
+                # is judged neither against the last report nor as the next to compare with.
+                if hasattr(owner, "historical") and "timestamp" in m:
+                    owner.historical[alias] = m["timestamp"]
+            elif info is not None:
                 state = (is_null, value, quality)
                 if owner.last.get(alias) == state:
                     text = (f"repeated unchanged: value {value!r}, is_null {is_null}, Quality {quality}, "
@@ -729,6 +750,7 @@ class Model:
                 self.fail("dbirth", rec, f"{LAST_ERROR!r} is {dt_name(info.datatype)}, must be String")
         device.born, device.birth_line = True, rec["line"]
         device.metrics, device.last, device.values = infos, last, values
+        device.historical = {}
 
     def on_ddata(self, node, rec):
         if not node.born:
@@ -1050,6 +1072,71 @@ def cmd_value(args):
     raise SystemExit(f"no current value for {args.metric!r} of {args.edge}/{args.device}")
 
 
+def cmd_historical(args):
+    """Store and forward, for the messages of one node after a line. Prints the figures; the
+    exit status says whether they hold: each historical value once (no two with the same device,
+    metric and timestamp, and none the births or live data also carried), in its metric's order,
+    all of a device's before its first live DDATA after its birth, every one with a timestamp
+    between --from-ms and --to-ms when given, and at least --at-least of them."""
+    model, records = replay(args.log)
+    historical = duplicates = out_of_order = after_live = outside = 0
+    live = set()    # (device, name, timestamp) of every birth or live data value
+    kept = {}       # (device, name, timestamp) -> how often it came as historical
+    last_ts = {}    # (device, name) -> last historical timestamp
+    live_since_birth = {}
+    first = last = None
+    for rec in records:
+        if rec["line"] <= args.after_line or rec.get("edge") != args.edge:
+            continue
+        kind, device = rec.get("type"), rec.get("device")
+        if kind == "DBIRTH":
+            live_since_birth[device] = False
+        if kind not in ("DBIRTH", "DDATA"):
+            continue
+        any_historical = False
+        for m, r in zip(rec["metrics"], rec["_resolved"]):
+            key = (device, r["name"], m.get("timestamp"))
+            if not m.get("is_historical"):
+                live.add(key)
+                continue
+            any_historical = True
+            historical += 1
+            kept[key] = kept.get(key, 0) + 1
+            ts = m.get("timestamp")
+            first = ts if first is None else min(first, ts)
+            last = ts if last is None else max(last, ts)
+            before = last_ts.get((device, r["name"]))
+            if before is not None and ts <= before:
+                out_of_order += 1
+            last_ts[(device, r["name"])] = ts
+            if live_since_birth.get(device):
+                after_live += 1
+            if (args.from_ms is not None and ts < args.from_ms) or (args.to_ms is not None and ts > args.to_ms):
+                outside += 1
+        if kind == "DDATA" and not any_historical:
+            live_since_birth[device] = True
+    duplicates = sum(count - 1 for count in kept.values()) + sum(1 for key in kept if key in live)
+    print(f"historical={historical} duplicates={duplicates} out_of_order={out_of_order} after_live={after_live} "
+          f"outside_window={outside} first_ms={first} last_ms={last}")
+    ok = duplicates == 0 and out_of_order == 0 and after_live == 0 and outside == 0 and historical >= args.at_least
+    return 0 if ok else 1
+
+
+def cmd_series(args):
+    """Every value of one device's metric in the recording, in arrival order, one a line:
+    LINE TYPE TIMESTAMP VALUE H|L (historical or live; a birth's is live), for a comparison
+    with another record of the same values (the gateway's [history])."""
+    model, records = replay(args.log)
+    for rec in records:
+        if rec.get("edge") != args.edge or rec.get("device") != args.device or rec.get("type") not in ("DBIRTH", "DDATA"):
+            continue
+        for m, r in zip(rec["metrics"], rec["_resolved"]):
+            if name_matches(r["name"], args.metric):
+                value = "null" if r["is_null"] else format_value(r["value"])
+                print(f"{rec['line']} {rec['type']} {m.get('timestamp')} {value} {'H' if m.get('is_historical') else 'L'}")
+    return 0
+
+
 def spec_matches(actual, want):
     """WANT from the command line: '*' present, '-' absent, 'a|b' either, else equal."""
     if want == "*":
@@ -1329,6 +1416,12 @@ def healthy_story():
     n.ndeath(0)
     n.nbirth(1)             # the same process, next connection
     n.dbirth("d1", 10)
+    # Store and forward: the outage's values after the births, historical, in their order; one
+    # equal to the birth's is no repetition (a host does not take it for the current value).
+    n.ddata("d1", [{"alias": 10, "value": 25.0, "is_historical": True, "timestamp": n.t - 4000}])
+    n.ddata("d1", [{"alias": 10, "value": 24.0, "is_historical": True, "timestamp": n.t - 3000},
+                   {"alias": 11, "value": -6, "is_historical": True, "timestamp": n.t - 3000}])
+    n.ddata("d1", [{"alias": 10, "value": 24.5}])
     n.ndeath(1)
     n.nbirth(0)             # a new process
     n.dbirth("d1", 30)      # may choose other aliases
@@ -1361,6 +1454,11 @@ def broken_stories():
     @story("data", "DDATA repeats an unchanged value")
     def _(n):
         n.ddata("d1", [{"alias": 10, "value": 25.0}])
+
+    @story("data", "historical values out of their order")
+    def _(n):
+        n.ddata("d1", [{"alias": 10, "value": 24.0, "is_historical": True, "timestamp": n.t - 2000}])
+        n.ddata("d1", [{"alias": 10, "value": 24.5, "is_historical": True, "timestamp": n.t - 3000}])
 
     @story("data", "a stale value sent with its old number")
     def _(n):
@@ -1584,6 +1682,22 @@ def main():
     p.add_argument("--limit", type=int, default=1000, help="the last N matching messages")
     p.add_argument("--metrics", type=int, default=40, help="metrics shown per message")
     p.set_defaults(func=cmd_show)
+
+    p = sub.add_parser("historical", help="figures of store and forward: historical values, duplicates, order")
+    p.add_argument("log")
+    p.add_argument("--edge", required=True)
+    p.add_argument("--after-line", type=int, default=0)
+    p.add_argument("--from-ms", type=int, help="every historical value is of this time or later")
+    p.add_argument("--to-ms", type=int, help="every historical value is of this time or earlier")
+    p.add_argument("--at-least", type=int, default=1, help="historical values expected at least")
+    p.set_defaults(func=cmd_historical)
+
+    p = sub.add_parser("series", help="every value of one device's metric: line, type, timestamp, value, H|L")
+    p.add_argument("log")
+    p.add_argument("--edge", required=True)
+    p.add_argument("--device", required=True)
+    p.add_argument("--metric", required=True, help="metric name suffix")
+    p.set_defaults(func=cmd_series)
 
     p = sub.add_parser("value", help="print one field of a message, or a device's current value")
     p.add_argument("log")

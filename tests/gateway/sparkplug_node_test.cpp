@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -95,14 +96,15 @@ public:
     }
     std::vector<const device::Parameter*> parameters() const { return {&temperature_, &power_, &mode_}; }
 
-    // One poll that answered with these values.
-    void answer(ValueCache& cache, double temperature, double power, const std::string& mode) {
+    // One poll that answered with these values, sampled now or at `sampled`.
+    void answer(ValueCache& cache, double temperature, double power, const std::string& mode,
+                std::optional<std::chrono::system_clock::time_point> sampled = std::nullopt) {
         device::ReadReport report;
         add(report, temperature_, temperature, {});
         add(report, power_, power, {});
         add(report, mode_, 0, mode);
         device::record_poll(state_, report, true, "", device::MonitorClock::now());
-        cache.update("d1", state_, std::chrono::system_clock::now());
+        cache.update("d1", state_, sampled.value_or(std::chrono::system_clock::now()));
     }
     // One poll that got no reply.
     void silent(ValueCache& cache) {
@@ -134,7 +136,8 @@ private:
 struct NodeFixture {
     explicit NodeFixture(Broker& broker, const std::string& primary_host = {},
                          std::shared_ptr<Clock> clock = steady_clock(), bool writes = false,
-                         const std::filesystem::path& state_file = {})
+                         const std::filesystem::path& state_file = {},
+                         const std::function<void(SparkplugConfig&, SparkplugTiming&)>& adjust = {})
         : cache(std::move(clock)) {
         config.state_file = state_file;
         config.broker = fmt::format("mqtt://127.0.0.1:{}", broker.port());
@@ -148,6 +151,7 @@ struct NodeFixture {
         SparkplugTiming timing;
         timing.reconnect_first = 50ms;
         timing.reconnect_last = 200ms;
+        if (adjust) adjust(config, timing);
         node = std::make_unique<SparkplugNode>(config, std::vector<SparkplugDevice>{{"d1", device.parameters()}}, writer, cache,
                                                [] { return std::vector<SparkplugLineFigures>{{"line1", 10, 9, 1, true}}; },
                                                log.sink(), timing);
@@ -353,6 +357,91 @@ TEST(SparkplugNode, BirthsWaitForThePrimaryHostAndADeathFollowsItsGoingOffline) 
     EXPECT_EQ(watcher.count(nbirth), 1u);
     watcher.publish("spBv1.0/STATE/scada", R"({"online": true, "timestamp": 3})", true);
     EXPECT_EQ(named(decoded(watcher.nth(nbirth, 2)), "bdSeq")->long_value(), 1u);
+}
+
+// Store and forward: while the primary host is offline (the node dead, disconnected) the DDATA
+// it would have sent is kept, at most max_stored values, the oldest dropped and counted; once
+// the host is back, after the NBIRTH and DBIRTH, it comes in its order with is_historical and
+// the samples' own timestamps, but for the value the DBIRTH carries already.
+TEST(SparkplugNode, WhatChangedWhileDeadFollowsTheBirthsAsHistoricalInItsOrder) {
+    SKIP_WITHOUT_BROKER();
+    Broker broker;
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    NodeFixture node(broker, "scada", steady_clock(), false, {}, [](SparkplugConfig& config, SparkplugTiming& timing) {
+        config.store_and_forward = 1min;
+        timing.max_stored = 3;
+    });
+    watcher.publish(host_state, state(true, 1), true);
+    node.device.answer(node.cache, 21.5, 40, "auto");
+    ASSERT_TRUE(watcher.nth(dbirth, 1));
+    watcher.publish(host_state, state(false, 2), true);
+    ASSERT_TRUE(watcher.nth(ndeath, 1));
+
+    // Polls 100 ms apart (their own times: the test answers faster than that).
+    const std::vector<double> temperatures{22.0, 22.5, 23.0, 23.5};
+    const auto first = std::chrono::system_clock::now();
+    const auto sampled = [&first](std::size_t i) { return first + i * 100ms; };
+    for (std::size_t i = 0; i < 3; ++i) {
+        node.device.answer(node.cache, temperatures[i], 40, "auto", sampled(i));
+        ASSERT_TRUE(eventually([&] { return node.node->stored() == i + 1; })) << "value " << i << " not kept";
+    }
+    node.device.answer(node.cache, temperatures[3], 40, "auto", sampled(3));
+    ASSERT_TRUE(node.log.wait_for("store and forward holds 3 values, its most"));
+
+    watcher.publish(host_state, state(true, 3), true);
+    ASSERT_TRUE(watcher.nth(nbirth, 2));
+    const Payload birth = decoded(watcher.nth(dbirth, 2));
+    const auto* born = named(birth, "temperature");
+    ASSERT_NE(born, nullptr);
+    ASSERT_TRUE(watcher.nth(ddata, 1));
+    ASSERT_TRUE(node.log.wait_for("store and forward: 2 values of the outage forwarded as historical in 2 DDATA (1 already in "
+                                  "the births, 0 of devices not born now, 0 older than 60 s and 1 over the most of 3 dropped)"));
+    std::vector<double> historical;
+    std::uint64_t last_timestamp = 0;
+    for (const auto& [topic, bytes] : watcher.arrived([](const std::string& topic) { return topic == ddata; })) {
+        Payload data;
+        ASSERT_TRUE(data.ParseFromString(bytes));
+        for (const auto& metric : data.metrics()) {
+            EXPECT_TRUE(metric.is_historical());
+            EXPECT_EQ(metric.alias(), born->alias());
+            EXPECT_GT(metric.timestamp(), last_timestamp) << "out of order";
+            EXPECT_LT(metric.timestamp(), born->timestamp()) << "the birth's own value sent again";
+            last_timestamp = metric.timestamp();
+            historical.push_back(metric.double_value());
+        }
+    }
+    // 22.0 was the oldest over the most; 23.5 is the birth's.
+    EXPECT_EQ(historical, (std::vector<double>{22.5, 23.0}));
+    EXPECT_DOUBLE_EQ(born->double_value(), 23.5);
+    EXPECT_EQ(node.node->stored(), 0u);
+}
+
+// A reload that keeps [sparkplug] hands the node, connected, to the next gateway: no NDEATH, no
+// NBIRTH; a device gone dies (DDEATH), one added back is born with the aliases it had.
+TEST(SparkplugNode, TakenOverAcrossAReloadTheSessionGoesOnAndOnlyTheDevicesThatChangedAreTold) {
+    SKIP_WITHOUT_BROKER();
+    Broker broker;
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    NodeFixture node(broker);
+    node.device.answer(node.cache, 21.5, 40, "auto");
+    const Payload birth = decoded(watcher.nth(dbirth, 1));
+    const auto lines = [] { return std::vector<SparkplugLineFigures>{{"line1", 10, 9, 1, true}}; };
+
+    ASSERT_TRUE(node.node->release());
+    ValueCache next_cache;
+    node.node->take_over({}, node.writer, next_cache, lines, node.log.sink(), nullptr);
+    EXPECT_EQ(decoded(watcher.nth(ddeath, 1)).seq(), birth.seq() + 1) << "the session's seq goes on";
+
+    ASSERT_TRUE(node.node->release());
+    ValueCache last_cache;
+    node.node->take_over({{"d1", node.device.parameters()}}, node.writer, last_cache, lines, node.log.sink(), nullptr);
+    node.device.answer(last_cache, 22.0, 40, "auto");
+    const Payload again = decoded(watcher.nth(dbirth, 2));
+    ASSERT_NE(named(again, "temperature"), nullptr);
+    EXPECT_EQ(named(again, "temperature")->alias(), named(birth, "temperature")->alias());
+    EXPECT_EQ(watcher.count(nbirth), 1u);
+    EXPECT_EQ(watcher.count(ndeath), 0u);
+    node.node.reset();  // before the caches it reads
 }
 
 // A DCMD published with the retain flag is refused whether it comes live (the node subscribes

@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <atomic>
 #include <condition_variable>
+#include <deque>
 #include <fstream>
 #include <map>
 #include <mutex>
 #include <optional>
+#include <set>
 
 #include <fmt/format.h>
 #include <mosquitto.h>
@@ -81,6 +83,23 @@ struct Command {
     bool retained = false;  // as its publisher sent it (MQTT 5 "retain as published")
 };
 
+// One DDATA the node would have sent while it was not born (store and forward): the device's
+// changed metrics (by their index in NodeDevice::metrics) with the samples, and their time.
+struct StoredData {
+    std::string device;
+    std::vector<std::pair<std::size_t, MetricSample>> metrics;
+    std::uint64_t made_at = 0;  // ms since the epoch
+};
+
+// Whether two definitions of a device's metrics are the same to a host application: the same
+// names, aliases, datatypes and bits, in the same order (the parameters behind them may be
+// another configuration's).
+bool same_definitions(const std::vector<MetricDefinition>& a, const std::vector<MetricDefinition>& b) {
+    return std::equal(a.begin(), a.end(), b.begin(), b.end(), [](const MetricDefinition& x, const MetricDefinition& y) {
+        return x.name == y.name && x.alias == y.alias && x.type == y.type && x.bit == y.bit;
+    });
+}
+
 }  // namespace
 
 struct SparkplugNode::State {
@@ -124,6 +143,29 @@ struct SparkplugNode::State {
     bool told_no_handshake = false;  // until a connection is accepted
     bool told_refused = false;
     int unacknowledged_goodbye = -1;
+
+    // Aliases, given once per process: a metric (its device, "" for the node's own, and its
+    // name) keeps its alias across rebirths and reloads, and no other metric ever takes it.
+    std::map<std::pair<std::string, std::string>, std::uint64_t> aliases;
+    std::uint64_t next_alias = 0;
+    // After a reload (take_over): the devices gone, told dead at the next turn, and whether the
+    // lines' metrics changed, which is a new NBIRTH.
+    std::vector<std::string> deaths_due;
+    bool node_birth_due = false;
+
+    // Store and forward ([sparkplug] store_and_forward). Kept in memory, not read back from
+    // [history]: the history is optional, holds each parameter's changes and heartbeats rather
+    // than the node's messages (nulls with their Quality, Last Error, what a turn coalesced), and
+    // reading it means queries through its reader's thread mapped back to metrics. The queue
+    // holds exactly the DDATA the node would have sent, bounded by age and by count; the
+    // loop only appends and drops, never waits.
+    std::deque<StoredData> stored;
+    std::size_t stored_metrics = 0;
+    std::atomic<std::size_t> stored_now{0};  // stored_metrics, for other threads (stored())
+    std::uint64_t dropped_old = 0;    // this outage's values older than store_and_forward
+    std::uint64_t dropped_count = 0;  // this outage's values dropped at max_stored
+    bool told_store_full = false;
+    bool born_once = false;  // the devices' `sent` is what a host was told: data is stored against it
 
     std::unique_ptr<mqtt::LoopDriver> driver;  // the network, on the loop
     ValueSubscription subscription;
@@ -208,8 +250,12 @@ struct SparkplugNode::State {
         publish(node_topic("NBIRTH"), birth.bytes());
         node_born = true;
         next_node_data = std::chrono::steady_clock::now() + timing.node_data_every;
+        born_once = true;
+        deaths_due.clear();  // the births say everything there is
+        node_birth_due = false;
         for (auto& device : devices) device.born = false;
         publish_devices(true);
+        forward_stored();
     }
 
     // The lines' figures that changed, when due.
@@ -298,7 +344,7 @@ struct SparkplugNode::State {
     // Births, deaths and data for every device the polls told of since the last look (all of
     // them when `everything`, after the node's birth).
     void publish_devices(bool everything) {
-        if (!node_born) return;
+        if (!node_born) return store_devices();
         std::vector<std::size_t> looked_at;
         {
             std::lock_guard lock(mutex);
@@ -311,6 +357,9 @@ struct SparkplugNode::State {
         for (const std::size_t i : looked_at) {
             NodeDevice& device = devices[i];
             const DevicePicture seen = picture_of(device.name);
+            // The polls have told nothing of it yet: after a reload (a new cache), what the host
+            // was told of it stands until they do.
+            if (!seen.status) continue;
             if (!alive(seen.status)) {
                 if (device.born) death_device(device);
                 continue;
@@ -324,6 +373,212 @@ struct SparkplugNode::State {
             } else {
                 data_device(device, *picture);
             }
+        }
+    }
+
+    // --- store and forward ------------------------------------------------------------------------
+
+    // While the node is not born (the broker away, the primary host offline): the DDATA each
+    // device the host knows would have had, kept instead of sent. A device that dies meanwhile
+    // keeps what was stored before; what it does after is in its next birth.
+    void store_devices() {
+        if (!config.store_and_forward || !born_once) return;
+        std::vector<std::size_t> looked_at;
+        {
+            std::lock_guard lock(mutex);
+            for (std::size_t i = 0; i < devices.size(); ++i) {
+                if (dirty[i]) looked_at.push_back(i);
+                dirty[i] = 0;
+            }
+        }
+        for (const std::size_t i : looked_at) {
+            NodeDevice& device = devices[i];
+            if (!device.born) continue;
+            const DevicePicture seen = picture_of(device.name);
+            if (!seen.status) continue;
+            if (!alive(seen.status)) {
+                device.born = false;
+                continue;
+            }
+            auto picture = metrics_of(device, seen);
+            if (!picture || picture->properties != device.born_with) continue;  // a rebirth's, not data
+            StoredData data{device.name, {}, now_ms()};
+            for (std::size_t m = 1; m < device.metrics.size(); ++m) {
+                if (device.sent[m] && device.sent[m]->same_report(picture->samples[m])) continue;
+                data.metrics.emplace_back(m, picture->samples[m]);
+                device.sent[m] = picture->samples[m];
+            }
+            if (!data.metrics.empty()) keep(std::move(data));
+        }
+    }
+
+    void keep(StoredData data) {
+        stored_metrics += data.metrics.size();
+        stored.push_back(std::move(data));
+        drop_old();
+        while (stored_metrics > timing.max_stored && stored.size() > 1) {
+            dropped_count += stored.front().metrics.size();
+            stored_metrics -= stored.front().metrics.size();
+            stored.pop_front();
+            if (!std::exchange(told_store_full, true)) {
+                warn(fmt::format("store and forward holds {} values, its most: the oldest are dropped (counted when they "
+                                 "are forwarded)", timing.max_stored));
+            }
+        }
+        stored_now.store(stored_metrics);
+    }
+
+    void drop_old() {
+        const std::uint64_t kept_for = static_cast<std::uint64_t>(config.store_and_forward->count());
+        const std::uint64_t now = now_ms();
+        while (!stored.empty() && stored.front().made_at + kept_for < now) {
+            dropped_old += stored.front().metrics.size();
+            stored_metrics -= stored.front().metrics.size();
+            stored.pop_front();
+        }
+        stored_now.store(stored_metrics);
+    }
+
+    // After the births: what was stored, in the order it was made, each metric with
+    // is_historical and its own timestamp. A value the births already carry (the same sample:
+    // its time and value) is not sent again, nor is one of a device that is not born now (a
+    // host would not know its aliases).
+    void forward_stored() {
+        if (!config.store_and_forward) return;
+        drop_old();
+        std::uint64_t forwarded = 0;
+        std::uint64_t messages = 0;
+        std::uint64_t in_births = 0;
+        std::uint64_t unborn = 0;
+        for (const StoredData& data : stored) {
+            const auto found = index.find(data.device);
+            if (found == index.end() || !devices[found->second].born) {
+                unborn += data.metrics.size();
+                continue;
+            }
+            const NodeDevice& device = devices[found->second];
+            std::vector<const std::pair<std::size_t, MetricSample>*> due;
+            for (const auto& metric : data.metrics) {
+                const auto& born = device.sent[metric.first];
+                if (born && metric.second.timestamp == born->timestamp && metric.second.same_report(*born)) {
+                    ++in_births;
+                } else {
+                    due.push_back(&metric);
+                }
+            }
+            if (due.empty()) continue;
+            PayloadWriter ddata(now_ms(), take_seq());
+            for (const auto* metric : due) ddata.data_metric(device.metrics[metric->first], metric->second, true, true);
+            publish(device_topic("DDATA", device.name), ddata.bytes());
+            forwarded += due.size();
+            ++messages;
+        }
+        if (forwarded + in_births + unborn + dropped_old + dropped_count > 0) {
+            say(fmt::format("store and forward: {} values of the outage forwarded as historical in {} DDATA ({} already in the "
+                            "births, {} of devices not born now, {} older than {} s and {} over the most of {} dropped)",
+                            forwarded, messages, in_births, unborn, dropped_old, config.store_and_forward->count() / 1000,
+                            dropped_count, timing.max_stored));
+        }
+        if (dropped_old + dropped_count > 0) {
+            warn(fmt::format("store and forward dropped {} values of the outage ({} too old, {} over its most)",
+                            dropped_old + dropped_count, dropped_old, dropped_count));
+        }
+        stored.clear();
+        stored_metrics = 0;
+        stored_now.store(0);
+        dropped_old = dropped_count = 0;
+        told_store_full = false;
+    }
+
+    // --- the devices of a configuration ----------------------------------------------------------
+
+    std::uint64_t alias_for(const std::string& owner, const std::string& name) {
+        const auto [found, added] = aliases.try_emplace({owner, name}, next_alias);
+        if (added) ++next_alias;
+        return found->second;
+    }
+
+    std::vector<MetricDefinition> node_metrics_for(const std::vector<SparkplugLineFigures>& figures) {
+        std::vector<MetricDefinition> metrics;
+        metrics.push_back({"bdSeq", alias_for("", "bdSeq"), DataType::uint64, nullptr, {}});
+        metrics.push_back({rebirth_metric, alias_for("", rebirth_metric), DataType::boolean, nullptr, {}});
+        for (const auto& line : figures) {
+            const std::string base = "Lines/" + line.name + "/";
+            metrics.push_back({base + "Requests", alias_for("", base + "Requests"), DataType::uint64, nullptr, {}});
+            metrics.push_back({base + "Answered", alias_for("", base + "Answered"), DataType::uint64, nullptr, {}});
+            metrics.push_back({base + "Timeouts", alias_for("", base + "Timeouts"), DataType::uint64, nullptr, {}});
+            metrics.push_back({base + "Open", alias_for("", base + "Open"), DataType::boolean, nullptr, {}});
+        }
+        return metrics;
+    }
+
+    NodeDevice device_for(const SparkplugDevice& configured) {
+        NodeDevice device;
+        device.name = configured.name;
+        device.metrics.push_back({last_error_metric, alias_for(configured.name, last_error_metric), DataType::string, nullptr, {}});
+        for (const device::Parameter* parameter : configured.parameters) {
+            std::uint64_t scratch = 0;
+            for (auto& metric : parameter_metrics(*parameter, scratch)) {
+                metric.alias = alias_for(configured.name, metric.name);
+                device.metrics.push_back(std::move(metric));
+            }
+        }
+        device.parameter_count = configured.parameters.size();
+        return device;
+    }
+
+    // The devices `configured` names. One that carries on with the same metrics keeps what the
+    // host was told of it and says nothing new; one added, or whose metrics changed, is born at
+    // the next look; one gone dies at the next turn (if the host knows it).
+    void adopt(const std::vector<SparkplugDevice>& configured) {
+        for (const auto& device : devices) {
+            const bool kept = std::any_of(configured.begin(), configured.end(),
+                                          [&device](const SparkplugDevice& wanted) { return wanted.name == device.name; });
+            if (!kept && device.born) deaths_due.push_back(device.name);
+        }
+        std::vector<NodeDevice> next;
+        std::map<std::string, std::size_t> next_index;
+        std::set<std::string> carried_on;
+        for (const auto& wanted : configured) {
+            NodeDevice device = device_for(wanted);
+            const auto old = index.find(wanted.name);
+            if (old != index.end() && same_definitions(devices[old->second].metrics, device.metrics)) {
+                NodeDevice& kept = devices[old->second];
+                kept.metrics = std::move(device.metrics);  // the same, with this configuration's parameters
+                device = std::move(kept);
+                carried_on.insert(wanted.name);
+            } else if (old != index.end()) {
+                say(fmt::format("device {}: its metrics changed: born again", wanted.name));
+                device.last_error = devices[old->second].last_error;
+            }
+            next_index[wanted.name] = next.size();
+            next.push_back(std::move(device));
+        }
+        std::lock_guard lock(mutex);
+        devices = std::move(next);
+        index = std::move(next_index);
+        dirty.assign(devices.size(), 1);  // every device looked at once the polls tell of it
+        // What was stored of a device gone or changed names aliases no host will know.
+        std::erase_if(stored, [&carried_on](const StoredData& data) { return !carried_on.contains(data.device); });
+        stored_metrics = 0;
+        for (const auto& data : stored) stored_metrics += data.metrics.size();
+        stored_now.store(stored_metrics);
+    }
+
+    // After a reload, on the loop: the deaths of the devices gone and, when the lines' metrics
+    // changed, the node's birth again (seq 0, the same bdSeq, every device born after it).
+    void after_reload() {
+        const auto deaths = std::exchange(deaths_due, {});
+        const bool birth = std::exchange(node_birth_due, false);
+        if (!node_born) return;
+        if (birth) {
+            say("the lines changed with the reload: births again");
+            return birth_node();
+        }
+        for (const auto& name : deaths) {
+            say(fmt::format("device {} is no longer configured: DDEATH", name));
+            PayloadWriter death(now_ms(), take_seq());
+            publish(device_topic("DDEATH", name), death.bytes());
         }
     }
 
@@ -630,6 +885,7 @@ struct SparkplugNode::State {
     bool turned() {
         const bool accepted = std::exchange(just_connected, false);
         if (accepted) announce();
+        after_reload();
         take_commands();
         take_outcomes();
         publish_devices(false);
@@ -680,6 +936,11 @@ struct SparkplugNode::State {
         leave();
         is_connected.store(false);
     }
+
+    void wait_for_writes() {
+        std::unique_lock lock(mutex);
+        writes_done.wait(lock, [this] { return pending_writes == 0; });
+    }
 };
 
 SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice> devices, const DeviceWriter& writer,
@@ -695,29 +956,8 @@ SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice
     s.lines = std::move(lines);
     s.take_kept_bd_seq();
     // Aliases from the configuration: the node's metrics, then each device's in order.
-    std::uint64_t alias = 0;
-    s.node_metrics.push_back({"bdSeq", alias++, DataType::uint64, nullptr, {}});
-    s.node_metrics.push_back({rebirth_metric, alias++, DataType::boolean, nullptr, {}});
-    for (const auto& line : s.lines ? s.lines() : std::vector<SparkplugLineFigures>{}) {
-        const std::string base = "Lines/" + line.name + "/";
-        s.node_metrics.push_back({base + "Requests", alias++, DataType::uint64, nullptr, {}});
-        s.node_metrics.push_back({base + "Answered", alias++, DataType::uint64, nullptr, {}});
-        s.node_metrics.push_back({base + "Timeouts", alias++, DataType::uint64, nullptr, {}});
-        s.node_metrics.push_back({base + "Open", alias++, DataType::boolean, nullptr, {}});
-    }
-    for (const auto& device : devices) {
-        NodeDevice node_device;
-        node_device.name = device.name;
-        node_device.metrics.push_back({last_error_metric, alias++, DataType::string, nullptr, {}});
-        for (const device::Parameter* parameter : device.parameters) {
-            auto metrics = parameter_metrics(*parameter, alias);
-            node_device.metrics.insert(node_device.metrics.end(), metrics.begin(), metrics.end());
-        }
-        node_device.parameter_count = device.parameters.size();
-        s.index[device.name] = s.devices.size();
-        s.devices.push_back(std::move(node_device));
-    }
-    s.dirty.resize(s.devices.size(), 0);
+    s.node_metrics = s.node_metrics_for(s.lines ? s.lines() : std::vector<SparkplugLineFigures>{});
+    s.adopt(devices);
     s.cache = &cache;
     // A clean session (Sparkplug 3.0: edge nodes connect with Clean Session set): commands sent
     // while the node was away are not for it, its births make the host application's picture.
@@ -748,16 +988,59 @@ SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice
 SparkplugNode::~SparkplugNode() {
     State& s = *state_;
     s.subscription.reset();
-    s.driver->stop();  // from here on the client is this thread's alone
+    if (s.driver) s.driver->stop();  // from here on the client is this thread's alone
     if (s.is_connected.load()) s.say_goodbye();
     // The writes still under way end on their lines (within the writer's time limit), and their
     // completions hold this state: it goes once the last has run.
-    std::unique_lock lock(s.mutex);
-    s.writes_done.wait(lock, [&s] { return s.pending_writes == 0; });
-    lock.unlock();
+    s.wait_for_writes();
     mosquitto_destroy(s.client);
 }
 
+bool SparkplugNode::release() {
+    State& s = *state_;
+    s.subscription.reset();
+    s.driver->stop();
+    s.wait_for_writes();
+    // A connection half made (its CONNACK awaited) cannot be picked up where it is; a node
+    // leaving for a primary host gone offline has said its death already.
+    const bool half_made = !s.is_connected.load() && mosquitto_socket(s.client) >= 0;
+    if (half_made || s.leaving_until) return false;
+    s.driver.reset();  // while its loop is still there: its waits go with it
+    s.cache = nullptr;
+    s.writer = nullptr;
+    s.lines = {};
+    return true;
+}
+
+void SparkplugNode::take_over(std::vector<SparkplugDevice> devices, const DeviceWriter& writer, ValueCache& cache,
+                              SparkplugLines lines, GatewayLog log, boost::asio::io_context* loop) {
+    State& s = *state_;
+    s.writer = &writer;
+    s.lines = std::move(lines);
+    s.log = std::move(log);
+    auto node_metrics = s.node_metrics_for(s.lines ? s.lines() : std::vector<SparkplugLineFigures>{});
+    if (!same_definitions(node_metrics, s.node_metrics)) {
+        s.node_metrics = std::move(node_metrics);
+        s.node_birth_due = true;
+    }
+    s.adopt(devices);
+    s.cache = &cache;
+    s.driver = std::make_unique<mqtt::LoopDriver>(loop, "lw-sparkplug", s.client, s.config.host, s.timing.reconnect_first,
+                                                  s.timing.reconnect_last, s.network_hooks());
+    // The connection the last gateway's loop drove goes on (or, when there was none, the next
+    // attempt starts now).
+    if (s.is_connected.load()) {
+        s.driver->resume();
+    } else {
+        s.driver->start();
+    }
+    s.subscription = cache.subscribe([&s](const ValueChange& change) { s.on_change(change); });
+    s.driver->wake();  // the deaths and births the reload calls for
+    s.say(fmt::format("carries on across the reload with {} devices (bdSeq {}, no new session)", s.devices.size(), s.bd_seq));
+}
+
 bool SparkplugNode::connected() const { return state_->is_connected.load(); }
+
+std::size_t SparkplugNode::stored() const { return state_->stored_now.load(); }
 
 }  // namespace loopwire::gateway

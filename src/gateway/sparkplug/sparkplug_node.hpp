@@ -19,6 +19,10 @@
 //                                      a refusal is told in Device Control/Last Error
 //   spBv1.0/STATE/HOST                 with primary_host: births wait for {"online": true}; a
 //                                      STATE older than the last taken is ignored
+// With store_and_forward, the DDATA the node would have sent while it was not born (the broker
+// away, the primary host offline) is kept, bounded by age and count, and sent after the next
+// births in its order, each metric with is_historical and its own timestamp.
+// A reload that leaves [sparkplug] as it is keeps the session (release, take_over).
 // An NCMD or DCMD published with the retain flag is refused unread (MQTT 5, "retain as
 // published": live or as the broker's retained copy at each subscription), so that an old
 // command is never written again at a reconnection.
@@ -70,6 +74,8 @@ struct SparkplugTiming {
     std::chrono::milliseconds reconnect_first{500};
     std::chrono::milliseconds reconnect_last{10000};
     std::chrono::milliseconds node_data_every{10000};  // how often the lines' figures are looked at
+    // Store and forward: the most values kept while the node is not born (the oldest dropped).
+    std::size_t max_stored = 100000;
 };
 
 class SparkplugNode {
@@ -88,6 +94,22 @@ public:
     SparkplugNode& operator=(const SparkplugNode&) = delete;
 
     bool connected() const;
+    // The values store and forward holds now, to send once the node is born again.
+    std::size_t stored() const;
+
+    // For a reload that leaves [sparkplug] as it is (Gateway::hand_over_to): lets go of the
+    // gateway's loop, cache, writer and lines, keeping the MQTT connection and every Sparkplug
+    // state (bdSeq, seq, what each device was told, what is stored to forward), so that
+    // take_over() carries on the same session: no NDEATH, no NBIRTH. False when there is no
+    // session to carry on (a connection half made, or the node leaving for a primary host gone
+    // offline): then it is destroyed as on a stop. Not on the loop's thread, which must run.
+    bool release();
+    // After release(), the next gateway's: a device added, or whose metrics changed, is born
+    // (DBIRTH) once its polls tell of it, one gone dies (DDEATH), the others carry on without a
+    // word; lines added or gone change the node's metrics, and the node is born again (NBIRTH,
+    // the same bdSeq, as on a Rebirth command).
+    void take_over(std::vector<SparkplugDevice> devices, const DeviceWriter& writer, ValueCache& cache, SparkplugLines lines,
+                   GatewayLog log, boost::asio::io_context* loop);
 
 private:
     struct State;

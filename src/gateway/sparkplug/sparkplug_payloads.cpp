@@ -249,10 +249,11 @@ void PayloadWriter::birth_metric(const MetricDefinition& metric, const MetricSam
     if (!properties->documentation.empty()) add_property(set, "documentation", DataType::string, properties->documentation);
 }
 
-void PayloadWriter::data_metric(const MetricDefinition& metric, const MetricSample& sample, bool with_quality) {
+void PayloadWriter::data_metric(const MetricDefinition& metric, const MetricSample& sample, bool with_quality, bool historical) {
     Payload::Metric& out = *message_->payload.add_metrics();
     out.set_alias(metric.alias);
     out.set_timestamp(sample.timestamp);
+    if (historical) out.set_is_historical(true);
     set_value(out, sample.value, metric.type);
     if (with_quality) add_quality(out, sample.quality);
 }

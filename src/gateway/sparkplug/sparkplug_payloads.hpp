@@ -104,7 +104,9 @@ public:
     void birth_metric(const MetricDefinition& metric, const MetricSample& sample, const MetricProperties* properties);
     // In data: the alias alone (6.4.10: a birth named it), timestamp and value; the Quality
     // property when `with_quality` (the node sends it when the quality is not good, or was not).
-    void data_metric(const MetricDefinition& metric, const MetricSample& sample, bool with_quality);
+    // `historical`: a value of the past sent late (store and forward), which a host records
+    // without taking it for the metric's current value.
+    void data_metric(const MetricDefinition& metric, const MetricSample& sample, bool with_quality, bool historical = false);
 
     std::string bytes() const;
 

@@ -1,0 +1,268 @@
+#!/usr/bin/env bash
+# The Sparkplug B session of `loopwire gateway` across restarts, reloads and an outage, against
+# a real mosquitto broker, watched by the independent observer (sparkplug_check.py):
+#   1. [sparkplug] state_file: three runs of the gateway are born with bdSeq 0, 1 and 2;
+#   2. SIGHUP reloads that leave [sparkplug] as it is keep the session (no NDEATH, no NBIRTH):
+#      one changing only [http] listen says nothing at all, one removing a device sends exactly
+#      its DDEATH, one adding it back exactly its DBIRTH;
+#   3. store and forward: the node's way to the broker is cut for 6 s (short enough for CI)
+#      while the devices' values change; back, after NBIRTH and the DBIRTHs, every value the node
+#      kept arrives once, in its order, with is_historical and its own timestamp, before the live
+#      ones; and the furnace's output values are those the gateway's [history] recorded for the
+#      outage (sparkplug_outage_values.py), each once. The node reaches the broker through a TCP relay (socat) that is stopped and started
+#      again, not the broker itself, so that the observer stays subscribed through the outage and
+#      sees everything the node sends when it is back (the broker publishes the will NDEATH when
+#      the relay drops the node's connection, as when a node's network goes).
+#
+# SPARKPLUG_KEEP_DIR=DIR keeps the recording and the logs there (the work folder is removed).
+set -u
+loopwire=${1:?usage: sparkplug_session_test.sh path/to/loopwire}
+# shellcheck source=tests/support/test_lib.sh
+source "$(dirname "$0")/../support/test_lib.sh"
+here=$(cd "$(dirname "$0")" && pwd)
+repo=$(cd "$here/../.." && pwd)
+python=/usr/bin/python3
+skip() { echo "SKIP: $1 (scripts/setup installs it)"; exit 77; }
+[[ -x /usr/sbin/mosquitto ]] || skip "/usr/sbin/mosquitto is not installed (Debian package mosquitto)"
+command -v socat >/dev/null || skip "socat is not installed (Debian package socat)"
+command -v protoc >/dev/null || skip "protoc is not installed (Debian package protobuf-compiler)"
+$python -c 'import google.protobuf' 2>/dev/null || skip "google.protobuf is not importable by $python (Debian package python3-protobuf)"
+$python -c 'import paho.mqtt' 2>/dev/null || skip "paho.mqtt is not importable by $python (Debian package python3-paho-mqtt)"
+
+budget_end=$((SECONDS + 190))
+protoc --python_out="$WORK_DIR" -I "$repo/src/gateway/sparkplug" "$repo/src/gateway/sparkplug/sparkplug_b.proto" ||
+  fail "protoc could not compile src/gateway/sparkplug/sparkplug_b.proto"
+export SPARKPLUG_PB_DIR=$WORK_DIR
+checker=("$python" "$here/sparkplug_check.py")
+sp() { "${checker[@]}" "$@"; }
+check checker-selftest 0 "selftest: ok" "${checker[@]}" selftest
+
+start_mosquitto 220 "log_dest stderr" "log_type error" "log_type warning" "log_type notice" "log_type information"
+recording=$WORK_DIR/sparkplug.jsonl
+start_background recorder.log timeout 220 "${checker[@]}" record --port "$MQTT_PORT" --out "$recording" --duration 215
+wait_for_text "$WORK_DIR/recorder.log" "subscribed" 30
+touch "$recording"
+lines_now() { wc -l <"$recording"; }
+free_port() { $python -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
+now_ms() { $python -c 'import time; print(int(time.time() * 1000))'; }
+
+keep_evidence() {
+  [[ -n ${SPARKPLUG_KEEP_DIR:-} ]] || return 0
+  mkdir -p "$SPARKPLUG_KEEP_DIR" && cp "$recording" "$WORK_DIR"/*.log "$WORK_DIR"/*.toml "$SPARKPLUG_KEEP_DIR"/
+}
+
+found=
+await() {  # NAME TIMEOUT FILTER... (sparkplug_check.py wait): the line in $found, or a counted failure
+  local name=$1 limit=$2
+  shift 2
+  local left=$((budget_end - SECONDS))
+  ((limit > left)) && limit=$((left > 1 ? left : 1))
+  if sp wait "$recording" --timeout "$limit" "$@" >"$WORK_DIR/wait.out" 2>&1; then
+    found=$(sed -nE '1s/^line ([0-9]+) .*/\1/p' "$WORK_DIR/wait.out")
+    echo "ok: $name: $(head -c 300 "$WORK_DIR/wait.out" | head -n 1)"
+    count_pass
+  else
+    found=
+    count_failure "$name" "$WORK_DIR/wait.out"
+  fi
+}
+must_await() {
+  await "$@"
+  [[ -n $found ]] || { keep_evidence; fail "$1: the rest of the scenario depends on it (tally so far: $passes passed, $failures failed)"; }
+}
+same() {
+  if [[ $2 == "$3" ]]; then
+    echo "ok: $1 = $2"
+    count_pass
+  else
+    echo "FAIL $1: expected '$3', got '$2'"
+    failures=$((failures + 1))
+  fi
+}
+value_at() { sp value "$recording" --line "$1" --metric "$2" "${@:3}"; }
+count_since() { sp count "$recording" --edge cabinet1 --after-line "$@"; }
+stopped() { local state; state=$(ps -o stat= -p "$1"); [[ -z $state || $state == Z* ]]; }
+
+# The relay the node reaches the broker through: one connection, then it exits (no fork, so
+# stopping it cuts that connection).
+relay_port=$(free_port)
+start_relay() {
+  start_background relay.log socat -d -d "TCP-LISTEN:$relay_port,bind=127.0.0.1,reuseaddr" "TCP:127.0.0.1:$MQTT_PORT"
+  relay=$LAST_PID
+  wait_for_text "$WORK_DIR/relay.log" "listening on" 10
+}
+
+http_port_a=$(free_port)
+http_port_b=$(free_port)
+# plant_config HTTP_PORT WITH_KILN : oven (TC10), furnace (AC20, whose main_output_value moves
+# nearly every poll) and kiln (TC10, which the reloads remove and add back) on a simulated line.
+plant_config() {
+cat <<TOML
+[gateway]
+name = "plant1"
+
+[[lines]]
+name = "sim"
+link = "rtu:virtual?baud=115200"
+
+[[lines.devices]]
+name = "oven"
+device = "tc10@3"
+poll = "100ms"
+parameters = ["measured_value", "set_point", "control_state"]
+
+[[lines.devices]]
+name = "furnace"
+device = "ac20@1"
+poll = "100ms"
+parameters = ["carbon_potential", "probe_temperature", "main_set_point", "main_output_value"]
+TOML
+if [[ $2 == yes ]]; then
+cat <<TOML
+
+[[lines.devices]]
+name = "kiln"
+device = "tc10@4"
+poll = "100ms"
+parameters = ["measured_value", "set_point"]
+TOML
+fi
+cat <<TOML
+
+[modbus_tcp]
+enabled = false
+
+[log]
+statistics = "off"
+
+[http]
+listen = "127.0.0.1:$1"
+
+[history]
+database = "plant.db"
+
+[sparkplug]
+broker = "mqtt://127.0.0.1:$relay_port"
+group_id = "plant"
+edge_node_id = "cabinet1"
+state_file = "sparkplug.state"
+store_and_forward = "1m"
+TOML
+}
+plant_config "$http_port_a" yes >"$WORK_DIR/plant.toml"
+check config-accepted 0 "" "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
+
+########## 1. bdSeq 0, 1, 2 over two restarts (state_file)
+
+start_run() {  # LOG
+  start_relay
+  start_background "$1" timeout 200 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+  gateway=$LAST_PID
+}
+stop_run() {  # NAME
+  local before status=0
+  before=$(lines_now)
+  kill -TERM "$gateway"
+  wait_for 30 "gateway $1 to stop on SIGTERM" stopped "$gateway"
+  wait "$gateway" || status=$?
+  same "$1-exit-status" "$status" 0
+  await "$1-ndeath" 20 --type NDEATH --edge cabinet1 --after-line "$before"
+  wait_for 10 "the relay to end with the node's connection" stopped "$relay"
+}
+bdseqs=()
+for run in 1 2 3; do
+  before=$(lines_now)
+  start_run "gateway$run.log"
+  must_await "run$run-nbirth" 60 --type NBIRTH --edge cabinet1 --after-line "$before"
+  birth=$found
+  bdseqs+=("$(value_at "$birth" bdSeq)")
+  ((run < 3)) && stop_run "run$run"
+done
+same bdseq-over-two-restarts "${bdseqs[*]}" "0 1 2"
+same state-file-holds-the-next "$(cat "$WORK_DIR/sparkplug.state")" "bdSeq 3"
+
+########## 2. Reloads that leave [sparkplug] as it is
+
+for device in oven furnace kiln; do
+  must_await "dbirth-$device" 60 --type DBIRTH --edge cabinet1 --device "$device" --after-line "$birth"
+done
+session_start=$(lines_now)
+
+# reload CONFIG_ARGS... : writes the configuration, sends SIGHUP and waits until the next gateway
+# runs and the node has carried its session over; then until the furnace's data flows again.
+reloads=0
+carried_over() { (($(grep -c "carries on across the reload" "$WORK_DIR/gateway3.log") >= $1)); }
+reload() {
+  plant_config "$@" >"$WORK_DIR/plant.toml"
+  reloads=$((reloads + 1))
+  kill -HUP "$(pgrep -P "$gateway" | head -n 1)"
+  wait_for 30 "reload $reloads to carry the session over" carried_over "$reloads"
+  await "reload$reloads-data-flows" 30 --type DDATA --edge cabinet1 --device furnace --after-line "$(lines_now)"
+}
+
+before=$(lines_now)
+reload "$http_port_b" yes
+same http-port-reload-no-session-messages "$(count_since "$before" --type NBIRTH,NDEATH,DBIRTH,DDEATH)" 0
+grep -qF "HTTP API and dashboard on http://127.0.0.1:$http_port_b" "$WORK_DIR/gateway3.log" && count_pass ||
+  count_failure "the reload moved the HTTP API to port $http_port_b" "$WORK_DIR/gateway3.log"
+
+before=$(lines_now)
+reload "$http_port_b" no
+await kiln-removed-ddeath 20 --type DDEATH --edge cabinet1 --device kiln --after-line "$before"
+same kiln-removed-only-its-ddeath "$(count_since "$before" --type NBIRTH,NDEATH,DBIRTH,DDEATH)" 1
+
+before=$(lines_now)
+reload "$http_port_b" yes
+await kiln-added-dbirth 30 --type DBIRTH --edge cabinet1 --device kiln --after-line "$before"
+same kiln-added-only-its-dbirth "$(count_since "$before" --type NBIRTH,NDEATH,DBIRTH,DDEATH)" 1
+same session-bdseq-unchanged "$(sp count "$recording" --type NBIRTH --edge cabinet1 --after-line "$session_start")" 0
+
+########## 3. Store and forward across a 6 s outage
+
+await furnace-live-before-outage 20 --type DDATA --edge cabinet1 --device furnace --after-line "$(lines_now)"
+before=$(lines_now)
+cut_ms=$(now_ms)
+kill -TERM "$relay"
+await will-ndeath-at-outage 20 --type NDEATH --edge cabinet1 --after-line "$before"
+outage_start=${found:-$before}
+wait_for 10 "the relay to stop" stopped "$relay"
+# The outage itself: a fixed 6 s, for the values to change meanwhile (nothing to wait for).
+sleep 6
+start_relay
+must_await nbirth-after-outage 60 --type NBIRTH --edge cabinet1 --after-line "$outage_start"
+rebirth=$found
+same bdseq-after-outage "$(value_at "$rebirth" bdSeq)" 3
+back_ms=$(value_at "$rebirth" bdSeq --what text | sed -nE 's/.* ts=([0-9]+).*/\1/p')
+await furnace-data-after-outage 30 --type DDATA --edge cabinet1 --device furnace --after-line "$rebirth"
+wait_for 20 "the node to say what it forwarded" grep -qsE "store and forward: [0-9]+ values" "$WORK_DIR/gateway3.log"
+told=$(sed -nE 's/.*store and forward: ([0-9]+) values of the outage forwarded.*/\1/p' "$WORK_DIR/gateway3.log" | tail -n 1)
+echo "    node: $(grep -oE "store and forward: .*" "$WORK_DIR/gateway3.log" | tail -n 1)"
+# Every historical value of the outage: taken after the cut (with a second of slack for a
+# sample taken just before it) and before the NBIRTH that ended it; the furnace's output alone
+# changes nearly every 100 ms poll, so 6 s give many more than 20.
+figures=$(sp historical "$recording" --edge cabinet1 --after-line "$outage_start" --from-ms $((cut_ms - 1000)) \
+  --to-ms "$back_ms" --at-least 20) && count_pass || count_failure "store-and-forward figures: $figures"
+echo "    observer: $figures"
+same historical-received-is-what-the-node-forwarded "$(sed -nE 's/^historical=([0-9]+) .*/\1/p' <<<"$figures")" "$told"
+same historical-duplicates "$(sed -nE 's/.* duplicates=([0-9]+) .*/\1/p' <<<"$figures")" 0
+same historical-out-of-order "$(sed -nE 's/.* out_of_order=([0-9]+) .*/\1/p' <<<"$figures")" 0
+
+stop_run run3
+
+# The same values from another record of them: the furnace's output as the gateway's [history]
+# recorded it (every change the polls found, in SQLite) between the last value the observer saw
+# before the outage and the DBIRTH after it, each there once as a historical value.
+sp series "$recording" --edge cabinet1 --device furnace --metric main_output_value >"$WORK_DIR/series.txt"
+compared=$($python "$here/sparkplug_outage_values.py" "$WORK_DIR/plant.db" furnace main_output_value "$outage_start" \
+  <"$WORK_DIR/series.txt") && count_pass || count_failure "every-outage-value-once-as-historical: $compared"
+echo "    history against observer: $compared"
+
+########## The whole recording against the rules
+
+status=0
+sp check "$recording" >"$WORK_DIR/check.out" 2>&1 || status=$?
+echo "--- sparkplug_check.py check ---"
+cat "$WORK_DIR/check.out"
+if ((status == 0)); then count_pass; else count_failure sparkplug-rules; fi
+keep_evidence
+finish
