@@ -18,7 +18,8 @@ number, a select or a thermostat rejects; a value must render to what the platfo
 Limits: a number's min/max and a thermostat's min_temp/max_temp are the limits the value's
 /meta document gives (the device's), and absent where it gives none.
 
-usage: ha_discovery_check.py PORT DISCOVERY_PREFIX STATE_PREFIX COMPONENT... [--expect TOPIC=KEY:VALUE]...
+usage: ha_discovery_check.py PORT DISCOVERY_PREFIX STATE_PREFIX COMPONENT... [--expect=OBJECT_ID=KEY:JSON]...
+(KEY:absent and KEY:present ask only whether the document has the key.)
 Exits 0 when a document of each COMPONENT came and every document passed; prints what failed
 and the counts.
 """
@@ -473,7 +474,7 @@ def main():
         problems += check_templates(topic, document, states, counts)
         problems += check_bits(topic, document)
         problems += check_mode_commands(topic, document)
-    # --expect=OBJECT_ID=KEY:JSON, or KEY:absent: what a test asks of one document.
+    # --expect=OBJECT_ID=KEY:JSON, KEY:absent or KEY:present: what a test asks of one document.
     for expectation in expectations:
         object_id, rest = expectation.split("=", 1)
         key, value = rest.split(":", 1)
@@ -484,7 +485,9 @@ def main():
         present = key in matching[0]
         if value == "absent" and present:
             problems.append(f"{object_id}: {key} should be absent, is {matching[0][key]!r}")
-        elif value != "absent" and (not present or matching[0][key] != json.loads(value)):
+        elif value == "present" and not present:
+            problems.append(f"{object_id}: {key} should be present")
+        elif value not in ("absent", "present") and (not present or matching[0][key] != json.loads(value)):
             problems.append(f"{object_id}: {key} should be {value}, is {matching[0].get(key, '(absent)')!r}")
     for problem in problems:
         print("FAIL", problem)

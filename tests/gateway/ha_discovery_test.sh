@@ -95,12 +95,14 @@ checker=("$python" "$(dirname "$0")/ha_discovery_check.py" "$port" homeassistant
          sensor number select binary_sensor climate)
 # The AC20's output: its range is ñ.OLL .. ñ.OLH as the device holds them (0.0 .. 100.0 %), not
 # the word's -3276.8 .. 3276.7; the ramp/soak set value has no limit: no min/max at all; a
-# segment's output limit is the 0 .. 100 % its profile states; local/remote is a select.
+# segment's output limit is the 0 .. 100 % its profile states; local/remote is a select; the
+# thermostat's slider has a range (the checker compares it with SP.LL .. SP.HL as read).
 expectations=(--expect=plant1_furnace_main_output_value=min:0.0 --expect=plant1_furnace_main_output_value=max:100.0
               --expect=plant1_kiln_set_value=min:absent --expect=plant1_kiln_set_value=max:absent
               --expect=plant1_kiln_pattern_1_segment_1_output_limit=max:100.0
               --expect='plant1_furnace_local_remote=options:["local","remote"]'
               --expect=plant1_oven_control_loop=action_topic:'"loopwire/plant1/oven/output_power"'
+              --expect=plant1_oven_control_loop=min_temp:present --expect=plant1_oven_control_loop=max_temp:present
               --expect=plant1_gateway=state_topic:'"loopwire/plant1/status"')
 if timeout 60 "${checker[@]}" "${expectations[@]}" >"$WORK_DIR/check1.out" 2>&1; then count_pass; else count_failure three-devices "$WORK_DIR/check1.out"; fi
 tail -n 1 "$WORK_DIR/check1.out"
