@@ -254,11 +254,15 @@ void add_modes(nlohmann::json& doc, const MqttConfig& config, const std::string&
 
 }  // namespace
 
-std::string gateway_device_id(const MqttConfig& config) { return sanitized_level(config.gateway_name + "_gateway"); }
+// The gateway's name alone: a controller's device is GATEWAY_DEVICE, never the name alone, so
+// no configured device name can make one the other.
+std::string gateway_device_id(const MqttConfig& config) { return sanitized_level(config.gateway_name); }
 
 DiscoveryDocument gateway_document(const MqttConfig& config) {
-    const std::string object_id = gateway_device_id(config);
-    nlohmann::json device{{"identifiers", {object_id}}, {"name", config.gateway_name}, {"model", "loopwire gateway"},
+    // GATEWAY_status: every controller's entity id has a device and a parameter level after the
+    // gateway's name, and "status" holds no '_' to split into two.
+    const std::string object_id = sanitized_level(config.gateway_name + "_status");
+    nlohmann::json device{{"identifiers", {gateway_device_id(config)}}, {"name", config.gateway_name}, {"model", "loopwire gateway"},
                           {"manufacturer", "loopwire"}, {"sw_version", std::string(loopwire::version())}};
     if (!config.configuration_url.empty()) device["configuration_url"] = config.configuration_url;
     // The gateway's status topic is its connection: "online", and "offline" from its last will

@@ -36,9 +36,10 @@ struct DiscoveryDocument {
     nlohmann::json config;  // null: the entity is removed (an empty retained payload)
 };
 
-// The gateway as Home Assistant's device of its own, which every controller's device block
-// names as its via_device: a connectivity binary_sensor on PREFIX/status, with loopwire's version
-// and the dashboard's address (configuration_url) when the HTTP front serves one.
+// The gateway as Home Assistant's device of its own (identifier: the gateway's name), which every
+// controller's device block names as its via_device: a connectivity binary_sensor
+// GATEWAY_status on PREFIX/status, with loopwire's version and the dashboard's address
+// (configuration_url) when the HTTP front serves one.
 DiscoveryDocument gateway_document(const MqttConfig& config);
 std::string gateway_device_id(const MqttConfig& config);
 

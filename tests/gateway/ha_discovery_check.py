@@ -434,7 +434,7 @@ def main():
     expectations = [argument[len("--expect="):] for argument in sys.argv[1:] if argument.startswith("--expect=")]
     port, discovery_prefix, state_prefix = int(arguments[0]), arguments[1], arguments[2]
     wanted = set(arguments[3:])
-    gateway_id = re.sub(r"[^A-Za-z0-9_-]", "_", state_prefix.split("/")[-1]) + "_gateway"
+    gateway_id = re.sub(r"[^A-Za-z0-9_-]", "_", state_prefix.split("/")[-1])
     documents, states, metas = {}, {}, {}
     done = threading.Event()
 

@@ -103,7 +103,7 @@ expectations=(--expect=plant1_furnace_main_output_value=min:0.0 --expect=plant1_
               --expect='plant1_furnace_local_remote=options:["local","remote"]'
               --expect=plant1_oven_control_loop=action_topic:'"loopwire/plant1/oven/output_power"'
               --expect=plant1_oven_control_loop=min_temp:present --expect=plant1_oven_control_loop=max_temp:present
-              --expect=plant1_gateway=state_topic:'"loopwire/plant1/status"')
+              --expect=plant1_status=state_topic:'"loopwire/plant1/status"')
 if timeout 60 "${checker[@]}" "${expectations[@]}" >"$WORK_DIR/check1.out" 2>&1; then count_pass; else count_failure three-devices "$WORK_DIR/check1.out"; fi
 tail -n 1 "$WORK_DIR/check1.out"
 expect configuration-url grep -q "\"configuration_url\":\"http://127.0.0.1:$http_port/\"" "$WORK_DIR/everything.log"

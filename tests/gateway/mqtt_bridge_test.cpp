@@ -433,12 +433,12 @@ TEST(MqttBridge, MetaAndHomeAssistantDiscoveryDescribeEveryPolledParameter) {
     EXPECT_EQ(number.value("min", 0.0), -1999.0) << *number_text;
     EXPECT_EQ(number.value("max", 0.0), 9999.0) << *number_text;
     EXPECT_EQ(number.at("value_template"), "{{ value if value | is_number else None }}");
-    EXPECT_EQ(number.at("device").at("via_device"), "plant1_gateway");
-    const auto gateway_text = watcher.wait_for(head + "binary_sensor/plant1_gateway/config", any);
+    EXPECT_EQ(number.at("device").at("via_device"), "plant1");
+    const auto gateway_text = watcher.wait_for(head + "binary_sensor/plant1_status/config", any);
     ASSERT_TRUE(gateway_text) << "no device for the gateway itself";
     const auto gateway_document = nlohmann::json::parse(*gateway_text);
     EXPECT_EQ(gateway_document.at("state_topic"), prefix + "/status");
-    EXPECT_EQ(gateway_document.at("device").at("identifiers"), nlohmann::json::array({"plant1_gateway"}));
+    EXPECT_EQ(gateway_document.at("device").at("identifiers"), nlohmann::json::array({"plant1"}));
     EXPECT_TRUE(gateway_document.at("device").contains("sw_version"));
     EXPECT_EQ(number.at("device").at("manufacturer"), "Yokogawa");
     EXPECT_EQ(number.at("device").at("model"), "TC10");

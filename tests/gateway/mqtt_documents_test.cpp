@@ -139,13 +139,16 @@ TEST(HomeAssistantDocuments, TheGatewayIsTheDeviceEveryControllerIsReachedThroug
     mqtt.gateway_name = "plant1";
     mqtt.configuration_url = "http://gateway.example:8080/";
     const auto gateway = gateway_document(mqtt);
-    EXPECT_EQ(gateway.topic, "homeassistant/binary_sensor/plant1_gateway/config");
-    EXPECT_EQ(gateway.config.at("device").at("identifiers"), nlohmann::json::array({"plant1_gateway"}));
+    EXPECT_EQ(gateway.topic, "homeassistant/binary_sensor/plant1_status/config");
+    EXPECT_EQ(gateway.config.at("device").at("identifiers"), nlohmann::json::array({"plant1"}));
     EXPECT_FALSE(gateway.config.at("device").at("sw_version").get<std::string>().empty());
     EXPECT_EQ(gateway.config.at("device").at("configuration_url"), "http://gateway.example:8080/");
     EXPECT_EQ(gateway.config.at("payload_on"), "online");
     const auto sensor = discovery_document(mqtt, "oven", *tc10, *tc10->find("measured_value"));
-    EXPECT_EQ(sensor.config.at("device").at("via_device"), "plant1_gateway");
+    EXPECT_EQ(sensor.config.at("device").at("via_device"), "plant1");
+    // A controller named "gateway" is still not the gateway.
+    EXPECT_EQ(discovery_document(mqtt, "gateway", *tc10, *tc10->find("measured_value")).config.at("device").at("identifiers"),
+              nlohmann::json::array({"plant1_gateway"}));
     EXPECT_EQ(sensor.config.at("device").at("configuration_url"), "http://gateway.example:8080/");
 }
 
