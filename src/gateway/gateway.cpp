@@ -373,8 +373,16 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         // Started here, not in serve(): it needs nothing from the TCP front, and a broker that
         // cannot be reached is retried in the background, never an error.
         // On the engine's loop: no thread of its own.
+        // What each device publishes, so that what it no longer does is cleared from the broker.
+        PublishedParameters published;
+        for (const auto& line : config.lines) {
+            for (const auto& device : line.devices) {
+                auto& names = published[device.name];
+                for (const device::Parameter* parameter : polled_parameters(device)) names.insert(parameter->name);
+            }
+        }
         parts->mqtt = std::make_unique<MqttBridge>(*config.mqtt, *parts->writer, parts->cache, options.log, MqttTiming{},
-                                                   &parts->engine->loop());
+                                                   &parts->engine->loop(), std::move(published));
     }
     if (config.sparkplug) open_sparkplug(*config.sparkplug, config, *parts, options.log, options.sparkplug);
     if (config.http) {

@@ -977,6 +977,21 @@ void parse_broker(const Context& ctx, const toml::table& table, const std::strin
     parse_broker_security(ctx, table, table_name, tls, config);
 }
 
+// The dashboard's address as a browser elsewhere on the network reaches it: the listen address,
+// or the machine's host name for a wildcard one. Empty for port 0 (any free port, known only
+// once the front listens: tests).
+std::string dashboard_url(const HttpConfig& http) {
+    if (http.port == 0) return {};
+    std::string host = http.host;
+    if (host.empty() || host == "0.0.0.0" || host == "::") {
+        std::array<char, 256> name{};
+        if (::gethostname(name.data(), name.size() - 1) != 0 || name[0] == '\0') return {};
+        host = name.data();
+    }
+    const bool ipv6 = host.find(':') != std::string::npos;
+    return fmt::format("http://{}{}{}:{}/", ipv6 ? "[" : "", host, ipv6 ? "]" : "", http.port);
+}
+
 std::optional<MqttConfig> parse_mqtt(const Context& ctx, const toml::table& root, const std::string& gateway_name) {
     const toml::node* node = root.get("mqtt");
     if (!node) return std::nullopt;
@@ -1480,6 +1495,7 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     }
     config.http = parse_http(ctx, *root);
     if (!mistakes.empty()) return all_mistakes(source, std::move(mistakes));
+    if (config.mqtt && config.http) config.mqtt->configuration_url = dashboard_url(*config.http);
     return config;
 }
 

@@ -135,6 +135,9 @@ struct MqttConfig {
     std::string discovery_prefix = "homeassistant";
     // The gateway's name in discovery ids: [gateway] name, else the prefix's last level.
     std::string gateway_name = "gateway";
+    // The dashboard's address in the discovery documents' device blocks (configuration_url):
+    // http://HOST:PORT/ of [http] when it is enabled, else empty (no link).
+    std::string configuration_url;
     // A .../set payload longer than this many bytes is refused unread (a value is a few bytes).
     std::size_t max_payload = 1024;
 

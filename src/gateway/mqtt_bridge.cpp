@@ -135,6 +135,7 @@ struct MqttBridge::State {
         std::optional<std::string> pv_unit;
         std::optional<int> sp_decimals;
         bool mode_polled = false;
+        bool out_polled = false;
         device::ValueLimits sp_limits;
         std::optional<ControlLoopSample> announced;
     };
@@ -156,6 +157,16 @@ struct MqttBridge::State {
     // reload rather than a stop.
     bool gateway_continues = false;
     std::set<std::string> continuing_devices;
+
+    // The sweep (mqtt_bridge.hpp): the network's own. Once per bridge, at its first connection
+    // (again on the next one when that connection broke before it ended).
+    PublishedParameters published;
+    struct Sweep {
+        bool done = false;
+        int awaited = -1;  // the message id of the last subscription's SUBACK
+        std::optional<std::chrono::steady_clock::time_point> ends;  // set at that SUBACK
+        std::set<std::string> found;  // this gateway's retained topics seen meanwhile
+    } sweep;
 
     std::unique_ptr<MqttCommands> commands;  // the writes from the broker; before the driver
     std::unique_ptr<mqtt::LoopDriver> driver;  // the network, on the loop
@@ -243,7 +254,7 @@ struct MqttBridge::State {
         }
         if (!latest) return documents;
         const ControlLoop loop = control_loop_of(profile);
-        if (&parameter != loop.pv && &parameter != loop.sp && &parameter != loop.mode) return documents;
+        if (&parameter != loop.pv && &parameter != loop.sp && &parameter != loop.mode && &parameter != loop.out) return documents;
         LoopSeen& seen = loops[change.device];
         if (&parameter == loop.pv) seen.pv_unit = change.unit;
         if (&parameter == loop.sp) {
@@ -251,8 +262,9 @@ struct MqttBridge::State {
             seen.sp_limits = change.limits;
         }
         if (&parameter == loop.mode) seen.mode_polled = true;
+        if (&parameter == loop.out) seen.out_polled = true;
         if (!seen.pv_unit || !seen.sp_decimals) return documents;
-        const ControlLoopSample sample{*seen.pv_unit, *seen.sp_decimals, seen.mode_polled, seen.sp_limits};
+        const ControlLoopSample sample{*seen.pv_unit, *seen.sp_decimals, seen.mode_polled, seen.out_polled, seen.sp_limits};
         if (seen.announced == sample) return documents;
         auto climate = climate_document(config, change.device, profile, sample);
         const bool was_climate = seen.announced && climate_document(config, change.device, profile, *seen.announced);
@@ -342,7 +354,98 @@ struct MqttBridge::State {
         const std::string commands_topic = config.prefix + "/+/+/set";
         (void)mosquitto_subscribe(client, nullptr, commands_topic.c_str(), qos_at_least_once);
         for (const auto& [name, topic_state] : retained) publish({name, topic_state.payload, true, 0});
+        start_sweep();
         if (config.republish) next_republish = std::chrono::steady_clock::now() + *config.republish;
+    }
+
+    // --- the sweep ---------------------------------------------------------------------------
+
+    std::vector<std::string> sweep_subscriptions() const {
+        return {config.discovery_prefix + "/+/+/config", config.prefix + "/+/+", config.prefix + "/+/+/meta"};
+    }
+
+    void start_sweep() {
+        if (sweep.done) return;
+        sweep.ends.reset();
+        sweep.found.clear();
+        for (const auto& pattern : sweep_subscriptions()) {
+            (void)mosquitto_subscribe(client, &sweep.awaited, pattern.c_str(), qos_at_least_once);
+        }
+    }
+
+    // In mosquitto_loop (libmosquitto's callback): only notes the time.
+    void on_subscribed(int mid) {
+        if (!sweep.done && mid == sweep.awaited) sweep.ends = std::chrono::steady_clock::now() + timing.sweep_window;
+    }
+
+    // Whether a retained discovery document is this gateway's: its availability, or its state
+    // (the gateway's own entity), is this gateway's status topic. Another gateway's documents,
+    // or another program's, are never touched.
+    bool own_discovery(std::string_view payload) const {
+        constexpr std::size_t largest_document = 64 * 1024;
+        if (payload.size() > largest_document) return false;
+        const auto document = nlohmann::json::parse(payload, nullptr, false);
+        if (!document.is_object()) return false;
+        const std::string status = config.prefix + "/status";
+        if (document.value("state_topic", nlohmann::json()) == status) return true;
+        const auto availability = document.find("availability");
+        if (availability == document.end() || !availability->is_array()) return false;
+        return std::any_of(availability->begin(), availability->end(), [&](const nlohmann::json& entry) {
+            return entry.is_object() && entry.value("topic", nlohmann::json()) == status;
+        });
+    }
+
+    void note_retained(const mosquitto_message& message, std::string_view topic, std::string_view payload) {
+        constexpr std::size_t most_topics = 100000;  // whatever the broker holds, memory stays bounded
+        if (sweep.done || !message.retain || payload.empty() || sweep.found.size() >= most_topics) return;
+        const bool discovery = topic.starts_with(config.discovery_prefix + "/") && topic.ends_with("/config");
+        if (discovery ? own_discovery(payload) : topic.starts_with(config.prefix + "/")) sweep.found.emplace(topic);
+    }
+
+    // Every topic the configuration publishes, whether or not it has been published yet: the
+    // gateway's and each device's status topics, each published parameter's value and meta, and
+    // with discovery their documents (whose topics depend on the parameter, not on its value).
+    std::set<std::string> configured_topics() const {
+        std::set<std::string> topics{config.prefix + "/status"};
+        const bool discovering = config.discovery == MqttConfig::Discovery::homeassistant;
+        if (discovering) topics.insert(gateway_document(config).topic);
+        for (const auto& name : configured_devices) {
+            topics.insert(topic(name, "status"));
+            topics.insert(topic(name, "availability"));
+            const WritableDevice* device = writer->find(name);
+            if (!device) continue;
+            const device::Profile& profile = *device->address.profile;
+            const auto listed = published.find(name);
+            for (const auto& parameter : profile.parameters) {
+                if (listed != published.end() && !listed->second.contains(parameter.name)) continue;
+                topics.insert(topic(name, parameter.name));
+                topics.insert(topic(name, parameter.name) + "/meta");
+                if (!discovering) continue;
+                topics.insert(discovery_document(config, name, profile, parameter).topic);
+                for (const auto& bit : bit_documents(config, name, profile, parameter)) topics.insert(bit.topic);
+            }
+            if (discovering) topics.insert(climate_topic(config, name));
+        }
+        return topics;
+    }
+
+    // On a turn: once the window has passed, clears what was found and is no longer configured.
+    void finish_sweep_when_due() {
+        if (sweep.done || !sweep.ends || std::chrono::steady_clock::now() < *sweep.ends || !is_connected.load()) return;
+        sweep.done = true;
+        for (const auto& pattern : sweep_subscriptions()) (void)mosquitto_unsubscribe(client, nullptr, pattern.c_str());
+        const std::set<std::string> keep = configured_topics();
+        std::size_t cleared = 0;
+        for (const auto& found : sweep.found) {
+            if (keep.contains(found)) continue;
+            const auto published_now = retained.find(found);
+            if (published_now != retained.end() && !published_now->second.payload.empty()) continue;
+            retained.erase(found);
+            publish({found, std::string(), true, qos_at_least_once});
+            ++cleared;
+        }
+        if (cleared > 0) say(fmt::format("cleared {} retained topic{} the configuration no longer publishes", cleared, cleared == 1 ? "" : "s"));
+        sweep.found.clear();
     }
 
     // Whether the command is a copy of one taken earlier in this session; remembers it if not.
@@ -359,9 +462,9 @@ struct MqttBridge::State {
     void on_message(const mosquitto_message& message) {
         if (!message.topic) return;
         const std::string_view topic = message.topic;
-        if (!command_topic(config.prefix, topic)) return;
         const std::string_view payload(static_cast<const char*>(message.payload),
                                        static_cast<std::size_t>(std::max(message.payloadlen, 0)));
+        if (!command_topic(config.prefix, topic)) return note_retained(message, topic, payload);
         // A retained command is one the broker replays at every (re)subscription: applying it
         // would write the same value again after each reconnect. It is refused, and said so on
         // its result topic, as the Sparkplug node refuses a retained DCMD.
@@ -386,6 +489,7 @@ struct MqttBridge::State {
         hooks.turned = [this] {
             send_queued();
             republish_when_due();
+            finish_sweep_when_due();
             if (!std::exchange(just_connected, false)) return false;
             announce();
             return true;
@@ -443,12 +547,13 @@ struct MqttBridge::State {
 };
 
 MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache& cache, GatewayLog log, MqttTiming timing,
-                       boost::asio::io_context* loop)
+                       boost::asio::io_context* loop, PublishedParameters published)
     : state_(std::make_unique<State>()) {
     mqtt::init_library_once();
     State& s = *state_;
     s.config = std::move(config);
     s.timing = timing;
+    s.published = std::move(published);
     s.log = std::move(log);
     s.writer = &writer;
     s.configured_devices = writer.device_names();
@@ -468,6 +573,9 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
     mosquitto_publish_callback_set(s.client, [](mosquitto*, void* state, int mid) {
         static_cast<State*>(state)->unacknowledged.erase(mid);  // on the loop, in its turn
     });
+    mosquitto_subscribe_callback_set(s.client, [](mosquitto*, void* state, int mid, int, const int*) {
+        static_cast<State*>(state)->on_subscribed(mid);  // on the loop, in its turn
+    });
     mosquitto_message_callback_set(s.client, [](mosquitto*, void* state, const mosquitto_message* message) {
         if (message) static_cast<State*>(state)->on_message(*message);
     });
@@ -484,6 +592,11 @@ MqttBridge::MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache
     s.driver = std::make_unique<mqtt::LoopDriver>(loop, "lw-mqtt", s.client, s.config.host, s.timing.reconnect_first, s.timing.reconnect_last,
                                                   s.network_hooks());
     s.driver->start();
+    if (s.config.discovery == MqttConfig::Discovery::homeassistant) {
+        // The gateway's own device, which every controller's names as its via_device.
+        const DiscoveryDocument gateway = gateway_document(s.config);
+        s.queue({gateway.topic, json_text(gateway.config), true, qos_at_least_once});
+    }
     s.subscription = cache.subscribe([&s](const ValueChange& change) { s.on_change(change); });
 }
 

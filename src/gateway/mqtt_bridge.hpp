@@ -21,6 +21,12 @@
 //   PREFIX/DEVICE/PARAMETER/set/result {"ok":true,"value":"..."} or {"ok":false,"error":"..."}
 //   DISCOVERY/COMPONENT/ID/config      with discovery = "homeassistant": Home Assistant's documents
 // All but set/result are retained. Values go out when they change and again every `republish`.
+// The sweep: at its first connection the bridge subscribes for a moment to its own retained
+// topics (every DISCOVERY/+/+/config document whose availability or state is PREFIX/status, and
+// PREFIX/+/+, PREFIX/+/+/meta), and clears, with an empty retained message, every one the
+// configuration no longer publishes: a device or parameter removed (at start or on a reload)
+// leaves no entity in Home Assistant and no retained value, status or availability behind. The
+// collection never blocks the loop: it ends on a turn after MqttTiming::sweep_window.
 // On a clean stop every PREFIX/DEVICE/availability and PREFIX/status say "offline", and every
 // PREFIX/DEVICE/status "waiting" (on a reload, only what the next configuration no longer
 // publishes: hand_over); a write to a device whose polls find it silent is refused at once by
@@ -35,6 +41,7 @@
 // write to another line. A payload over [mqtt] max_payload is refused unread, and at most a
 // bounded number of writes wait at once: whatever is published, memory stays bounded.
 #include <chrono>
+#include <map>
 #include <memory>
 #include <optional>
 #include <set>
@@ -56,7 +63,15 @@ struct MqttTiming {
     // Waits between attempts to reach the broker: doubling from the first to the last.
     std::chrono::milliseconds reconnect_first{500};
     std::chrono::milliseconds reconnect_last{10000};
+    // How long after its subscriptions are acknowledged the bridge collects what it finds
+    // retained of its own (the sweep, below): the broker sends the retained messages right after
+    // the SUBACK, so this is a margin for a loaded machine, not a guess at a size.
+    std::chrono::milliseconds sweep_window{1500};
 };
+
+// The parameters each device publishes (its poll list), by configured device name: what the
+// sweep keeps. A device missing here keeps every parameter of its profile.
+using PublishedParameters = std::map<std::string, std::set<std::string>>;
 
 class MqttBridge {
 public:
@@ -67,7 +82,7 @@ public:
     // its owner for as long as the bridge exists: the gateway's engine), or on a thread of its own
     // when none is given.
     MqttBridge(MqttConfig config, const DeviceWriter& writer, ValueCache& cache, GatewayLog log, MqttTiming timing = {},
-               boost::asio::io_context* loop = nullptr);
+               boost::asio::io_context* loop = nullptr, PublishedParameters published = {});
     // Publishes PREFIX/status "offline" and disconnects cleanly, on the caller's thread (never the
     // loop's) once the loop has let the client go.
     ~MqttBridge();

@@ -7,6 +7,7 @@
 #include <string_view>
 
 #include <fmt/format.h>
+#include <loopwire/version.hpp>
 
 #include "client/resolved_value.hpp"
 
@@ -46,15 +47,20 @@ std::vector<std::string> labels_of(const device::Parameter& parameter) {
     return labels;
 }
 
-// A number's limit for Home Assistant, which needs numbers (its defaults are 1..100): the
-// value's own (device::ResolvedValue::limits, the one every front shows), else what the word can
-// hold at the parameter's decimals (the device still refuses what its live limit parameter does
-// not allow, and set/result says so).
-double number_limit(const device::Parameter& parameter, const std::optional<double>& limit, bool upper, int decimals) {
-    if (limit) return *limit;
-    const double scale = std::pow(10.0, decimals);
-    if (parameter.type == device::ValueType::int16) return (upper ? 32767.0 : -32768.0) / scale;
-    return (upper ? 65535.0 : 0.0) / scale;
+// A number's limits for Home Assistant: only the value's own (device::ResolvedValue::limits, the
+// ones every front shows: the profile's range, or the words that bound it once read). Where
+// there are none the keys are left out and Home Assistant uses its defaults: what the word can
+// hold (-3276.8 .. 3276.7 % for an output) would be a slider nobody can use, and the device
+// still refuses what it does not take, which set/result says.
+void put_limits(nlohmann::json& doc, const device::ValueLimits& limits, const char* min_key, const char* max_key) {
+    if (limits.min) doc[min_key] = *limits.min;
+    if (limits.max) doc[max_key] = *limits.max;
+    // Home Assistant refuses a document whose minimum is not below its maximum (limit words
+    // read while someone moves them): the pair is left out rather than the entity lost.
+    if (limits.min && limits.max && !(*limits.min < *limits.max)) {
+        doc.erase(min_key);
+        doc.erase(max_key);
+    }
 }
 
 // Home Assistant's entity categories: `config` for an entity that changes how the device is set
@@ -151,7 +157,7 @@ ControlLoop control_loop_of(const device::Profile& profile) {
     };
     const device::Parameter* mode = named("MODE");
     if (mode && (mode->type != device::ValueType::enumeration || mode->enum_labels.empty())) mode = nullptr;
-    return {named("PV"), named("SP"), mode};
+    return {named("PV"), named("SP"), mode, named("OUT")};
 }
 
 namespace {
@@ -168,14 +174,18 @@ std::string device_id_of(const MqttConfig& config, const std::string& device_nam
     return sanitized_level(fmt::format("{}_{}", config.gateway_name, device_name));
 }
 
-// What every entity of the device shares: its device block and its availability.
+// What every entity of the device shares: its device block and its availability. The
+// controller is reached through the gateway (via_device, the gateway's own device), and its
+// page is the gateway's dashboard where the HTTP front serves one.
 nlohmann::json entity_base(const MqttConfig& config, const std::string& device_name, const device::Profile& profile,
                            const std::string& object_id) {
     const std::string device_topic = device_topic_of(config, device_name);
     const std::string device_id = device_id_of(config, device_name);
     nlohmann::json device{{"identifiers", {device_id}}, {"name", device_name},
-                          {"model", profile.model.empty() ? profile.title : profile.model}};
+                          {"model", profile.model.empty() ? profile.title : profile.model},
+                          {"via_device", gateway_device_id(config)}};
     if (!profile.manufacturer.empty()) device["manufacturer"] = profile.manufacturer;
+    if (!config.configuration_url.empty()) device["configuration_url"] = config.configuration_url;
     return nlohmann::json{
         {"unique_id", object_id},
         {"device", std::move(device)},
@@ -193,9 +203,18 @@ std::string climate_object_id(const MqttConfig& config, const std::string& devic
     return sanitized_level(device_id_of(config, device_name) + "_control_loop");
 }
 
-// A special state ("under-range") is text: Home Assistant shows it as unknown rather than
-// rejecting a number's non-numeric state.
+// What a value topic holds when there is no value is a word: the device's status ("no-reply",
+// "stale", "line-down", "wrong-device", "waiting", "error") or a special state ("under-range").
+// Every template maps such a word to None, which Home Assistant takes for "unknown" (its
+// payload_reset and PAYLOAD_NONE), never to text a number, a select or a thermostat rejects; the
+// device's availability topic says besides whether it answers.
 constexpr const char* numbers_only = "{{ value if value | is_number else None }}";
+
+// Only the given words, else None: a select's options, an enum sensor's, a binary sensor's
+// payloads (as JSON strings, which Jinja reads alike).
+std::string words_only(const std::vector<std::string>& words) {
+    return fmt::format("{{{{ value if value in {} else None }}}}", nlohmann::json(words).dump());
+}
 
 // A mode label meaning the loop does not control (Home Assistant's `off`).
 bool means_off(const std::string& label) { return label == "standby" || label == "off" || label == "stop"; }
@@ -217,11 +236,16 @@ void add_modes(nlohmann::json& doc, const MqttConfig& config, const std::string&
     }
     doc["preset_modes"] = labels;
     doc["preset_mode_state_topic"] = topic;
+    doc["preset_mode_value_template"] = words_only(labels);
     if (commanded) doc["preset_mode_command_topic"] = topic + "/set";
-    if (off.empty() || heat.empty()) return;
-    doc["modes"] = {"heat", "off"};
     doc["mode_state_topic"] = topic;
-    doc["mode_state_template"] = fmt::format("{{{{ 'off' if value == {} else 'heat' }}}}", nlohmann::json(off).dump());
+    if (off.empty() || heat.empty()) {
+        doc["mode_state_template"] = fmt::format("{{{{ 'heat' if value in {} else None }}}}", nlohmann::json(labels).dump());
+        return;
+    }
+    doc["modes"] = {"heat", "off"};
+    doc["mode_state_template"] = fmt::format("{{{{ ('off' if value == {} else 'heat') if value in {} else None }}}}",
+                                             nlohmann::json(off).dump(), nlohmann::json(labels).dump());
     if (!commanded) return;
     doc["mode_command_topic"] = topic + "/set";
     doc["mode_command_template"] =
@@ -229,6 +253,30 @@ void add_modes(nlohmann::json& doc, const MqttConfig& config, const std::string&
 }
 
 }  // namespace
+
+// The gateway's name alone: a controller's device is GATEWAY_DEVICE, never the name alone, so
+// no configured device name can make one the other.
+std::string gateway_device_id(const MqttConfig& config) { return sanitized_level(config.gateway_name); }
+
+DiscoveryDocument gateway_document(const MqttConfig& config) {
+    // GATEWAY_status: every controller's entity id has a device and a parameter level after the
+    // gateway's name, and "status" holds no '_' to split into two.
+    const std::string object_id = sanitized_level(config.gateway_name + "_status");
+    nlohmann::json device{{"identifiers", {gateway_device_id(config)}}, {"name", config.gateway_name}, {"model", "loopwire gateway"},
+                          {"manufacturer", "loopwire"}, {"sw_version", std::string(loopwire::version())}};
+    if (!config.configuration_url.empty()) device["configuration_url"] = config.configuration_url;
+    // The gateway's status topic is its connection: "online", and "offline" from its last will
+    // or a clean stop. No availability of its own: offline is the state to show, not unknown.
+    nlohmann::json doc{{"unique_id", object_id},
+                       {"name", "connected"},
+                       {"device", std::move(device)},
+                       {"state_topic", config.prefix + "/status"},
+                       {"payload_on", "online"},
+                       {"payload_off", "offline"},
+                       {"device_class", "connectivity"},
+                       {"entity_category", "diagnostic"}};
+    return {fmt::format("{}/binary_sensor/{}/config", config.discovery_prefix, object_id), std::move(doc)};
+}
 
 std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, const std::string& device_name,
                                                   const device::Profile& profile, const ControlLoopSample& sample) {
@@ -245,14 +293,32 @@ std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, cons
     doc["temperature_state_topic"] = fmt::format("{}/{}", device_topic, loop.sp->name);
     doc["temperature_state_template"] = numbers_only;
     if (config.writes && loop.sp->writable) doc["temperature_command_topic"] = fmt::format("{}/{}/set", device_topic, loop.sp->name);
+    // The unit the device is set to, as its PV's unit word says (°C or °F): Home Assistant
+    // converts to the user's unit itself, and would otherwise take the device's numbers for its own.
     doc["temperature_unit"] = sample.pv_unit == "°C" ? "C" : "F";
-    doc["min_temp"] = number_limit(*loop.sp, sample.sp_limits.min, false, sample.sp_decimals);
-    doc["max_temp"] = number_limit(*loop.sp, sample.sp_limits.max, true, sample.sp_decimals);
+    // The slider spans the set point's limits as the device holds them (or its profile's fixed
+    // ones); none known: Home Assistant's defaults, not what the word can hold.
+    put_limits(doc, sample.sp_limits, "min_temp", "max_temp");
     doc["temp_step"] = std::pow(10.0, -sample.sp_decimals);
     // Home Assistant shows temperatures to 0.1, 0.5 or 1.
     doc["precision"] = sample.sp_decimals > 0 ? 0.1 : 1.0;
     doc["modes"] = {"heat"};
-    if (loop.mode && sample.mode_polled) add_modes(doc, config, device_topic, *loop.mode);
+    if (loop.mode && sample.mode_polled) {
+        add_modes(doc, config, device_topic, *loop.mode);
+    } else {
+        // Without a mode word the loop always controls: heat while its set point reads, unknown
+        // while the device does not answer (Home Assistant would otherwise take it for off).
+        doc["mode_state_topic"] = doc["temperature_state_topic"];
+        doc["mode_state_template"] = "{{ 'heat' if value | is_number else None }}";
+    }
+    // What the loop does now, from its control output (alias OUT, in %) where it is polled:
+    // heating while it drives the output, cooling below 0 (a heat/cool loop's second output),
+    // idle at 0.
+    if (loop.out && is_number(*loop.out) && sample.out_polled) {
+        doc["action_topic"] = fmt::format("{}/{}", device_topic, loop.out->name);
+        doc["action_template"] =
+            "{{ ('heating' if value | float > 0 else 'cooling' if value | float < 0 else 'idle') if value | is_number else None }}";
+    }
     return DiscoveryDocument{climate_topic(config, device_name), std::move(doc)};
 }
 
@@ -286,24 +352,25 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
         doc["command_topic"] = state_topic + "/set";
         // Before a value: the limits nothing read is needed for (a fixed bound in engineering units).
         const device::ValueLimits known = latest ? latest->limits : device::limits_of(parameter, {});
-        doc["min"] = number_limit(parameter, known.min, false, decimals);
-        doc["max"] = number_limit(parameter, known.max, true, decimals);
+        put_limits(doc, known, "min", "max");
         doc["step"] = std::pow(10.0, -decimals);
+        doc["value_template"] = numbers_only;
         doc["mode"] = "box";
     } else if (commands && (parameter.type == device::ValueType::enumeration || parameter.type == device::ValueType::boolean)) {
         component = "select";
         doc["command_topic"] = state_topic + "/set";
-        if (parameter.type == device::ValueType::boolean && two_state_labels(parameter, on, off)) {
-            doc["options"] = {off, on};
-        } else {
-            doc["options"] = labels_of(parameter);
-        }
+        const std::vector<std::string> options =
+            parameter.type == device::ValueType::boolean && two_state_labels(parameter, on, off) ? std::vector{off, on}
+                                                                                                 : labels_of(parameter);
+        doc["options"] = options;
+        doc["value_template"] = words_only(options);
         doc.erase("unit_of_measurement");
         doc.erase("device_class");
     } else if (two_state_labels(parameter, on, off)) {
         component = "binary_sensor";
         doc["payload_on"] = on;
         doc["payload_off"] = off;
+        doc["value_template"] = words_only({on, off});
         doc.erase("unit_of_measurement");
         doc.erase("device_class");
     } else {
@@ -315,6 +382,7 @@ DiscoveryDocument discovery_document(const MqttConfig& config, const std::string
         } else if (parameter.type == device::ValueType::enumeration && !parameter.enum_labels.empty()) {
             doc["device_class"] = "enum";
             doc["options"] = labels_of(parameter);
+            doc["value_template"] = words_only(labels_of(parameter));
             doc.erase("unit_of_measurement");
         }
     }
@@ -336,7 +404,8 @@ std::vector<DiscoveryDocument> bit_documents(const MqttConfig& config, const std
         doc["state_topic"] = state_topic;
         // The state is the field's text, the set bits' names: "{alarm_1, loop_break_alarm}"
         // (device::value_text); the name is quoted as a JSON string, which Jinja reads alike.
-        doc["value_template"] = fmt::format("{{{{ 'ON' if {} in value[1:-1].split(', ') else 'OFF' }}}}",
+        // A status word in its place ("no-reply") is no set of bits: unknown.
+        doc["value_template"] = fmt::format("{{{{ ('ON' if {} in value[1:-1].split(', ') else 'OFF') if value[:1] == '{{' else None }}}}",
                                             nlohmann::json(name).dump());
         if (names_a_problem(name)) doc["device_class"] = "problem";
         if (parameter.persistent) doc["entity_category"] = "diagnostic";

@@ -36,6 +36,13 @@ struct DiscoveryDocument {
     nlohmann::json config;  // null: the entity is removed (an empty retained payload)
 };
 
+// The gateway as Home Assistant's device of its own (identifier: the gateway's name), which every
+// controller's device block names as its via_device: a connectivity binary_sensor
+// GATEWAY_status on PREFIX/status, with loopwire's version and the dashboard's address
+// (configuration_url) when the HTTP front serves one.
+DiscoveryDocument gateway_document(const MqttConfig& config);
+std::string gateway_device_id(const MqttConfig& config);
+
 // The component that fits the parameter: number (a writable number), select (a writable enum or
 // bit), binary_sensor (a read-only bit, or an enum whose labels are on/off), sensor (the rest).
 // Writable components only when the configuration takes writes; a read-only view otherwise.
@@ -72,6 +79,7 @@ struct ControlLoopSample {
     std::string pv_unit;  // "°C"
     int sp_decimals = 0;  // of the set point's latest text ("150.5": 1)
     bool mode_polled = false;  // the loop's mode word (alias MODE) has a value on its topic
+    bool out_polled = false;   // the loop's control output (alias OUT) has a value on its topic
     device::ValueLimits sp_limits = {};  // the set point's limits as the device holds them, where known
 
     bool operator==(const ControlLoopSample&) const = default;
@@ -90,7 +98,7 @@ std::optional<DiscoveryDocument> climate_document(const MqttConfig& config, cons
 // (a PV whose unit is no longer a temperature).
 std::string climate_topic(const MqttConfig& config, const std::string& device_name);
 
-// The profile's PV, SP and MODE parameters (its aliases), for the loop above; null when it has
+// The profile's PV, SP, MODE and OUT parameters (its aliases), for the loop above; null when it has
 // none. MODE is an enumeration of the device's own operating modes (TC10: auto, manual,
 // standby): the thermostat's presets, and its on/off (Home Assistant's heat/off) where one of
 // them means the loop is not controlling.
@@ -98,6 +106,7 @@ struct ControlLoop {
     const device::Parameter* pv = nullptr;
     const device::Parameter* sp = nullptr;
     const device::Parameter* mode = nullptr;
+    const device::Parameter* out = nullptr;  // the control output, in %: heating or idle
 };
 ControlLoop control_loop_of(const device::Profile& profile);
 

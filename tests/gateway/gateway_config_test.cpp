@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <array>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -1163,6 +1164,29 @@ TEST(GatewayConfig, HttpSettingsAndTheTokenAreRead) {
     EXPECT_EQ(config->http->send_timeout, std::chrono::seconds(30));
     EXPECT_EQ(config->http->hosts, (std::vector<std::string>{"gateway.plant.local", "192.168.1.10", "[fd00::10]"}));
     EXPECT_THAT(describe_plan(*config), HasSubstr(fmt::format("reads need the token, writes need the token in {}", token.path())));
+}
+
+// Home Assistant links each device to the dashboard (configuration_url) when [http] serves one:
+// at its listen address, or the machine's name for a wildcard one, which a browser elsewhere
+// can reach; none without [http], or on port 0 (known only once it listens).
+TEST(GatewayConfig, TheDashboardsAddressIsHomeAssistantsConfigurationUrl) {
+    const std::string mqtt = "[mqtt]\nbroker = \"mqtt://127.0.0.1\"\ndiscovery = \"homeassistant\"\n";
+    TokenFile token("s3cret-token-value\n", owner_only);  // for a listen address that is not loopback
+    const auto with_http = [&](const std::string& listen) {
+        auto config = parse(one_device("device = \"tc10@3\"\n") + mqtt +
+                            fmt::format("[http]\nlisten = \"{}\"\ntoken_file = \"{}\"\n", listen, token.path()));
+        EXPECT_TRUE(config) << config.error().message;
+        return config ? config->mqtt->configuration_url : std::string("(refused)");
+    };
+    EXPECT_EQ(with_http("127.0.0.1:8080"), "http://127.0.0.1:8080/");
+    EXPECT_EQ(with_http("[::1]:8080"), "http://[::1]:8080/");
+    EXPECT_EQ(with_http("127.0.0.1:0"), "");
+    std::array<char, 256> host{};
+    ASSERT_EQ(::gethostname(host.data(), host.size() - 1), 0);
+    EXPECT_EQ(with_http("0.0.0.0:8080"), fmt::format("http://{}:8080/", host.data()));
+    auto without = parse(one_device("device = \"tc10@3\"\n") + mqtt);
+    ASSERT_TRUE(without) << without.error().message;
+    EXPECT_EQ(without->mqtt->configuration_url, "");
 }
 
 TEST(GatewayConfig, ABadTokenFileNamesTheKeyAndSaysWhatToDo) {

@@ -427,7 +427,19 @@ TEST(MqttBridge, MetaAndHomeAssistantDiscoveryDescribeEveryPolledParameter) {
     EXPECT_EQ(number.at("unique_id"), "plant1_oven_set_point");
     EXPECT_EQ(number.at("state_topic"), prefix + "/oven/set_point");
     EXPECT_EQ(number.at("command_topic"), prefix + "/oven/set_point/set");
-    EXPECT_TRUE(number.at("min").is_number() && number.at("max").is_number() && number.at("step").is_number()) << *number_text;
+    EXPECT_TRUE(number.at("step").is_number()) << *number_text;
+    // SP.LL and SP.HL are not polled: the widest the device allows them (the manual's display
+    // range, -1999 .. 9999 counts), never what the word can hold (-32768 .. 32767).
+    EXPECT_EQ(number.value("min", 0.0), -1999.0) << *number_text;
+    EXPECT_EQ(number.value("max", 0.0), 9999.0) << *number_text;
+    EXPECT_EQ(number.at("value_template"), "{{ value if value | is_number else None }}");
+    EXPECT_EQ(number.at("device").at("via_device"), "plant1");
+    const auto gateway_text = watcher.wait_for(head + "binary_sensor/plant1_status/config", any);
+    ASSERT_TRUE(gateway_text) << "no device for the gateway itself";
+    const auto gateway_document = nlohmann::json::parse(*gateway_text);
+    EXPECT_EQ(gateway_document.at("state_topic"), prefix + "/status");
+    EXPECT_EQ(gateway_document.at("device").at("identifiers"), nlohmann::json::array({"plant1"}));
+    EXPECT_TRUE(gateway_document.at("device").contains("sw_version"));
     EXPECT_EQ(number.at("device").at("manufacturer"), "Yokogawa");
     EXPECT_EQ(number.at("device").at("model"), "TC10");
     EXPECT_EQ(number.at("device").at("identifiers"), nlohmann::json::array({"plant1_oven"}));
@@ -485,7 +497,9 @@ TEST(MqttBridge, HomeAssistantSeesTheTc10AsAThermostatInTheUnitItIsSetTo) {
     EXPECT_EQ(climate.at("current_temperature_topic"), prefix + "/oven/measured_value");
     EXPECT_EQ(climate.at("temperature_state_topic"), prefix + "/oven/set_point");
     EXPECT_EQ(climate.at("temperature_command_topic"), prefix + "/oven/set_point/set");
-    EXPECT_LT(climate.at("min_temp").get<double>(), climate.at("max_temp").get<double>());
+    // The set point's limit words are not polled: the widest the device allows, not ±32768.
+    EXPECT_EQ(climate.value("min_temp", 0.0), -1999.0) << *climate_text;
+    EXPECT_EQ(climate.value("max_temp", 0.0), 9999.0) << *climate_text;
     EXPECT_EQ(climate.at("availability").size(), 2u);
     EXPECT_EQ(climate.at("device").at("identifiers"), nlohmann::json::array({"plant1_oven"}));
 
@@ -553,13 +567,15 @@ TEST(MqttDocuments, AClimateIsForATemperatureLoopOnly) {
     EXPECT_EQ(doc.at("preset_mode_state_topic"), "loopwire/plant1/oven/control_state");
     EXPECT_EQ(doc.at("preset_mode_command_topic"), "loopwire/plant1/oven/control_state/set");
     EXPECT_EQ(doc.at("modes"), nlohmann::json::array({"heat", "off"}));
-    EXPECT_EQ(doc.at("mode_state_template"), "{{ 'off' if value == \"standby\" else 'heat' }}");
+    EXPECT_EQ(doc.at("mode_state_template"),
+              "{{ ('off' if value == \"standby\" else 'heat') if value in [\"auto\",\"manual\",\"standby\"] else None }}");
     EXPECT_EQ(doc.at("mode_command_template"), "{{ \"standby\" if value == 'off' else \"auto\" }}");
     EXPECT_EQ(doc.at("mode_command_topic"), "loopwire/plant1/oven/control_state/set");
     const auto no_mode_word = climate_document(mqtt, "furnace", **ac20, {"°C", 1, true});
     ASSERT_TRUE(no_mode_word);
     EXPECT_FALSE(no_mode_word->config.contains("preset_modes")) << "the AC20's profile names no MODE";
     EXPECT_EQ(no_mode_word->config.at("modes"), nlohmann::json::array({"heat"}));
+    EXPECT_EQ(no_mode_word->config.at("mode_state_topic"), "loopwire/plant1/furnace/main_set_point");
     EXPECT_EQ(friendly_name(*(*tc10)->find("measured_value")), "Measured value (rV)");
     EXPECT_EQ(friendly_name(*(*tc10)->find("output_power")), "Output power");
     EXPECT_EQ(friendly_name(*(*ac20)->find("main_set_point")), "Main set point");
@@ -594,7 +610,7 @@ TEST(MqttDocuments, ConfigurationIsCategorisedAndEveryAlarmBitIsABinarySensor) {
     EXPECT_EQ(loop_break->config.at("state_topic"), "loopwire/plant1/oven/alarm_status");
     EXPECT_EQ(loop_break->config.at("device_class"), "problem");
     EXPECT_EQ(loop_break->config.at("value_template"),
-              "{{ 'ON' if \"loop_break_alarm\" in value[1:-1].split(', ') else 'OFF' }}");
+              "{{ ('ON' if \"loop_break_alarm\" in value[1:-1].split(', ') else 'OFF') if value[:1] == '{' else None }}");
     EXPECT_EQ(loop_break->config.at("unique_id"), "plant1_oven_alarm_status_loop_break_alarm");
 }
 
