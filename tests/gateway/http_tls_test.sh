@@ -7,7 +7,7 @@
 # - TLS 1.3 is spoken, TLS 1.1 refused; plain HTTP on the port is closed, the gateway lives on;
 # - a client that connects and never says hello is closed after header_timeout;
 # - certificate files replaced + SIGHUP: a new connection sees the new subject, while the event
-#   stream opened before goes on receiving.
+#   stream opened before goes on receiving; a file that no longer loads keeps the running one.
 set -u
 loopwire=$(realpath "${1:?usage: http_tls_test.sh path/to/loopwire}")
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -128,6 +128,11 @@ check write-after-reload 0 '' curl -sS --max-time 10 --cacert ca.crt -H "Authori
 wait_for 20 "the written set_point on the stream opened before the reload" \
   grep -q '"parameter":"set_point","value":137' events.log
 expect stream-still-open kill -0 "$events_pid"
+# A certificate file that no longer loads: the reload is refused, the running certificate stays.
+echo "truncated" >https.crt
+kill -HUP "$gateway_pid"
+wait_for_text gateway.log 'configuration not reloaded' 20
+expect_equal "$(subject)" loopwire-two subject-kept-on-a-bad-file
 check curl-new-certificate 0 '"oven-a"' curl -sS --max-time 10 --cacert ca.crt "$url/api/devices"
 
 kill -TERM "$gateway_pid"
