@@ -7,7 +7,8 @@
 # - TLS 1.3 is spoken, TLS 1.1 refused; plain HTTP on the port is closed, the gateway lives on;
 # - a client that connects and never says hello is closed after header_timeout;
 # - certificate files replaced + SIGHUP: a new connection sees the new subject, while the event
-#   stream opened before goes on receiving; a file that no longer loads keeps the running one.
+#   stream opened before goes on receiving; a file that no longer loads keeps the running one;
+#   a reload that reopens the gateway serves TLS again on the same port.
 set -u
 loopwire=$(realpath "${1:?usage: http_tls_test.sh path/to/loopwire}")
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -134,6 +135,18 @@ kill -HUP "$gateway_pid"
 wait_for_text gateway.log 'configuration not reloaded' 20
 expect_equal "$(subject)" loopwire-two subject-kept-on-a-bad-file
 check curl-new-certificate 0 '"oven-a"' curl -sS --max-time 10 --cacert ca.crt "$url/api/devices"
+
+# A reload that reopens the gateway ([http] changed, listen kept): the next server speaks TLS with
+# the files' certificate on the same port.
+cp two.crt https.crt
+sed -i 's/^header_timeout = "1s"/header_timeout = "2s"/' plant.toml
+kill -HUP "$gateway_pid"
+wait_for_text gateway.log 'plant.toml reloaded' 20
+wait_for 20 "the reopened gateway to answer over TLS" \
+  curl -sS --max-time 5 -o /dev/null --cacert ca.crt "$url/api/devices"
+expect_equal "$(subject)" loopwire-two subject-after-a-restarting-reload
+check hsts-after-a-restarting-reload 0 'strict-transport-security' \
+  bash -c "curl -sS --max-time 10 --cacert ca.crt -D - -o /dev/null '$url/api/devices' | tr 'A-Z' 'a-z'"
 
 kill -TERM "$gateway_pid"
 wait_for 30 "the gateway to stop on SIGTERM" bash -c "! kill -0 $gateway_pid 2>/dev/null"
