@@ -83,7 +83,8 @@ void announce(const gateway::GatewayLog& log_line, const gateway::GatewayConfig&
     if (config.history) log_line(fmt::format("history: recording to {}", config.history->database.string()));
     if (config.http) {
         const bool ipv6 = config.http->host.find(':') != std::string::npos;
-        log_line(fmt::format("HTTP API and dashboard on http://{}{}{}:{}/ (writes {})", ipv6 ? "[" : "", config.http->host,
+        log_line(fmt::format("HTTP API and dashboard on {}://{}{}{}:{}/ (writes {})",
+                             config.http->certificate.empty() ? "http" : "https", ipv6 ? "[" : "", config.http->host,
                              ipv6 ? "]" : "", running.http_port(),
                              config.http->token.empty() ? "refused: no http.token_file" : "with the token"));
     }

@@ -210,6 +210,11 @@ constexpr std::array keys{
     ConfigKey{"http", "token_file", "file", "none: writes are refused", "a regular file readable by the gateway's user alone",
               "A file whose first line is the bearer token writes need; relative to the configuration file's folder.",
               "\"/etc/loopwire/token\"", true},
+    ConfigKey{"http", "certificate", "file", "none: plain HTTP", "a regular file, PEM; needs private_key",
+              "The server's certificate (its chain after it): the API and dashboard are served over HTTPS alone (TLS 1.2 "
+              "and 1.3). A reload (SIGHUP) reads it again.", "\"/etc/loopwire/https.crt\"", true},
+    ConfigKey{"http", "private_key", "file", "none", "a regular file not readable by every user, PEM; needs certificate",
+              "The certificate's private key, without a passphrase.", "\"/etc/loopwire/https.key\"", true},
     ConfigKey{"http", "read_timeout", "duration", "\"10s\"", "100ms..10min",
               "A client that has not sent its whole request this long after it began is closed.", "\"10s\""},
     ConfigKey{"http", "send_timeout", "duration", "\"10s\"", "100ms..10min",

@@ -448,6 +448,8 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     settings.max_event_streams_per_client = http.max_event_streams_per_client;
     settings.send_timeout = http.send_timeout;
     settings.allow = http.allow;
+    settings.certificate = http.certificate;
+    settings.private_key = http.private_key;
     // On the engine's loop: no thread of its own (the thread count does not grow with
     // the fronts); what would block there is deferred (http_server.hpp).
     const bool kept = listener && listener->listens_as(http.host, http.port);
@@ -460,6 +462,8 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
 std::uint16_t Gateway::modbus_tcp_port() const { return parts_->front ? parts_->front->port() : 0; }
 
 std::uint16_t Gateway::http_port() const { return parts_->http ? parts_->http->port() : 0; }
+
+Result<void> Gateway::reload_http_certificate() { return parts_->http ? parts_->http->reload_certificate() : Result<void>{}; }
 
 namespace {
 

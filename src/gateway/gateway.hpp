@@ -112,6 +112,9 @@ public:
 
     // The port the HTTP API listens on (the one the kernel chose for port 0); 0 without [http].
     std::uint16_t http_port() const;
+    // Reads the HTTP API's certificate and key again (the same files, replaced): see
+    // HttpServer::reload_certificate. Any thread.
+    Result<void> reload_http_certificate();
 
     // Serves until `stop` is requested, then drains: the requests already taken are answered
     // (5 s at most) before the front closes, or, when the front is the caller's, holds it

@@ -23,6 +23,7 @@
 #include "common/regular_file.hpp"
 #include "common/text_parsing.hpp"
 #include "gateway/config_schema.hpp"
+#include "gateway/http_server.hpp"
 #include "gateway/postgres_database.hpp"
 #include "profile/request_planner.hpp"
 
@@ -1259,6 +1260,38 @@ Result<std::string> read_token(const Context& ctx, const toml::table& table, con
     return token;
 }
 
+// certificate and private_key: HTTPS, both or neither. Each a regular file the gateway can read,
+// the key not readable by every user (it is the server's identity), and the pair one that loads
+// (PEM, the key the certificate's).
+Result<void> parse_http_tls(const Context& ctx, const toml::table& table, HttpConfig& config) {
+    auto certificate = readable_file(ctx, table, "http", "certificate", "the server's certificate, PEM");
+    if (!certificate) return certificate.error();
+    auto key = readable_file(ctx, table, "http", "private_key", "the certificate's private key, PEM");
+    if (!key) return key.error();
+    if (certificate->empty() != key->empty()) {
+        const auto* missing = certificate->empty() ? "certificate" : "private_key";
+        return ctx.fail(table.source(), "http",
+                        fmt::format("certificate and private_key go together (HTTPS needs both): `{}` is missing", missing));
+    }
+    if (certificate->empty()) return {};
+    std::error_code error;
+    const auto permissions = std::filesystem::status(*key, error).permissions();
+    if (!error && (permissions & std::filesystem::perms::others_read) != std::filesystem::perms::none) {
+        return ctx.fail(source_of(table, "private_key"), "http.private_key",
+                        fmt::format("\"{}\" is readable by every user; the key is the server's identity: `chmod 600 {}`",
+                                    key->string(), key->string()));
+    }
+    if (auto loaded = check_tls_files(certificate->string(), key->string()); !loaded) {
+        // Which file is at fault: the key's when the certificate loaded.
+        const bool key_at_fault = loaded.error().message.find("key") != std::string::npos;
+        const char* name = key_at_fault ? "private_key" : "certificate";
+        return ctx.fail(source_of(table, name), key_path("http", name), loaded.error().message);
+    }
+    config.certificate = certificate->string();
+    config.private_key = key->string();
+    return {};
+}
+
 // A name the Host header may give: a DNS name or IPv4 address ([A-Za-z0-9.-]), or an IPv6
 // address in brackets, without a port (RFC 7230, 5.4: Host is uri-host [ ":" port ]).
 bool host_name(std::string_view name) {
@@ -1390,6 +1423,7 @@ std::optional<HttpConfig> parse_http(const Context& ctx, const toml::table& root
     const bool listen_known = http_listen(ctx, *table, config);
     const bool token_known = ctx.kept(http_token(ctx, *table, config));
     parse_http_limits(ctx, *table, config);
+    ctx.kept(parse_http_tls(ctx, *table, config));
     config.hosts = http_hosts(ctx, *table);
     config.allow = address_list(ctx, *table, "http", "allow");
     if (listen_known && token_known && !config.loopback() && config.token.empty()) {

@@ -223,6 +223,10 @@ struct HttpConfig {
     std::vector<std::string> hosts;
     // Client addresses served; others are closed at accept, counted. Empty: every address.
     transport::AddressAllowList allow;
+    // HTTPS: the server's certificate and its private key, PEM files (both or neither). The same
+    // names across a reload re-read them: new connections get the files' new certificate.
+    std::string certificate;
+    std::string private_key;
 
     // Whether the address is loopback (127.0.0.0/8, ::1, localhost): only then are reads open.
     bool loopback() const;

@@ -18,11 +18,16 @@
 
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
+#include <boost/asio/ssl.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/write.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
 #include <fmt/format.h>
+#include <openssl/err.h>
+#include <openssl/ssl.h>
+#include <openssl/x509.h>
 
 #include "common/thread_name.hpp"
 
@@ -158,8 +163,84 @@ struct EventQueue {
     bool flush_posted = false;
 };
 
+using PlainStream = beast::tcp_stream;
+using TlsStream = beast::ssl_stream<beast::tcp_stream>;
+using TlsContext = std::shared_ptr<asio::ssl::context>;
+
+// What OpenSSL says went wrong: asio's error is the code it took from OpenSSL's queue; the rest
+// of the queue (the same failure, further down) is dropped.
+std::string openssl_error(const error_code& error) {
+    ::ERR_clear_error();
+    return error.message();
+}
+
+// The server's TLS: 1.2 and 1.3 only (1.0 and 1.1 are deprecated, RFC 8996), with OpenSSL's
+// default ciphers at security level 2 (112 bits: no RSA or DH key under 2048 bits, no EC key under
+// 224, no RC4, no compression), which is sound for a server that browsers and curl reach.
+Result<TlsContext> load_tls(const std::string& certificate, const std::string& private_key) {
+    auto context = std::make_shared<asio::ssl::context>(asio::ssl::context::tls_server);
+    context->set_options(asio::ssl::context::default_workarounds | asio::ssl::context::no_sslv2 |
+                         asio::ssl::context::no_sslv3 | asio::ssl::context::no_tlsv1 | asio::ssl::context::no_tlsv1_1 |
+                         asio::ssl::context::single_dh_use);
+    SSL_CTX* native = context->native_handle();
+    ::SSL_CTX_set_min_proto_version(native, TLS1_2_VERSION);
+    ::SSL_CTX_set_security_level(native, 2);
+    ::ERR_clear_error();
+    error_code error;
+    context->use_certificate_chain_file(certificate, error);
+    if (error) {
+        return make_error(ErrorKind::usage, fmt::format("\"{}\" does not load as a certificate ({}); name the server's "
+                                                        "certificate, PEM (with its chain after it)",
+                                                        certificate, openssl_error(error)));
+    }
+    context->use_private_key_file(private_key, asio::ssl::context::pem, error);
+    // A key that loads but is another certificate's is refused as it is loaded (asio's error is
+    // OpenSSL's code).
+    if (error && error.category() == asio::error::get_ssl_category() &&
+        ERR_GET_REASON(static_cast<unsigned long>(error.value())) == X509_R_KEY_VALUES_MISMATCH) {
+        ::ERR_clear_error();
+        return make_error(ErrorKind::usage, fmt::format("\"{}\" is not the key of the certificate \"{}\"; name the key "
+                                                        "the certificate was made for", private_key, certificate));
+    }
+    if (error) {
+        return make_error(ErrorKind::usage, fmt::format("\"{}\" does not load as a private key ({}); name the "
+                                                        "certificate's key, PEM, without a passphrase",
+                                                        private_key, openssl_error(error)));
+    }
+    if (::SSL_CTX_check_private_key(native) != 1) {
+        ::ERR_clear_error();
+        return make_error(ErrorKind::usage, fmt::format("\"{}\" is not the key of the certificate \"{}\"; name the key "
+                                                        "the certificate was made for", private_key, certificate));
+    }
+    return context;
+}
+
 }  // namespace
 
+Result<void> check_tls_files(const std::string& certificate, const std::string& private_key) {
+    auto loaded = load_tls(certificate, private_key);
+    if (!loaded) return loaded.error();
+    return {};
+}
+
+namespace {
+
+// What the server knows of a connection, whatever it speaks (plain HTTP or TLS).
+class ConnectionBase {
+public:
+    virtual ~ConnectionBase() = default;
+    virtual void stop(bool hand_over) = 0;
+    virtual void close() = 0;
+    // Since when it has waited for a request's header (or a TLS handshake), while it does
+    // (nullopt otherwise): what makes it one to close for a newcomer at a limit
+    // (HttpServer::State::make_room).
+    virtual std::optional<std::chrono::steady_clock::time_point> waiting_for_header_since() const = 0;
+    virtual const asio::ip::address& client() const = 0;
+};
+
+}  // namespace
+
+template <typename Stream>
 class Connection;
 
 // Shared by the server and every handler and connection on the loop: on a loop another runs,
@@ -174,7 +255,7 @@ struct HttpServer::State : std::enable_shared_from_this<HttpServer::State> {
     HttpListener* listener;  // the caller's, kept across reloads; none when the server listens itself
     // Before the loop, so still there when the loop's pending handlers release the last
     // connections.
-    std::map<Connection*, std::weak_ptr<Connection>> connections;  // the network thread's
+    std::map<ConnectionBase*, std::weak_ptr<ConnectionBase>> connections;  // the network thread's
     std::map<asio::ip::address, std::size_t> per_client;           // open connections by address
     std::size_t event_streams = 0;                                  // of `connections`
     std::map<asio::ip::address, std::size_t> streams_per_client;   // event streams by address
@@ -187,6 +268,10 @@ struct HttpServer::State : std::enable_shared_from_this<HttpServer::State> {
     std::uint16_t port = 0;
     bool stopping = false;     // the network thread's
     std::atomic<std::uint64_t> not_allowed{0};  // clients closed at accept: outside settings.allow
+    // With TLS: what new connections take; a reload's certificate replaces it, while connections
+    // open keep theirs (each holds its own).
+    mutable std::mutex tls_mutex;
+    TlsContext tls;  // guarded by tls_mutex; none for plain HTTP
     bool handing_over = false;  // the network thread's: stopping, keep-alive connections go to `listener`
     std::once_flag stopped;
     std::thread thread;  // none on a loop another runs
@@ -205,20 +290,29 @@ struct HttpServer::State : std::enable_shared_from_this<HttpServer::State> {
     bool make_room(const asio::ip::address& client, bool from_client);
     void serve(tcp::socket socket, const asio::ip::address& client, std::string_view buffered);
     void adopt(std::vector<HttpListener::Parked> parked);
-    static void refuse(tcp::socket& socket, unsigned status, std::string_view reason, std::string_view message);
+    void refuse(tcp::socket& socket, unsigned status, std::string_view reason, std::string_view message) const;
+    TlsContext tls_context() const {
+        std::lock_guard lock(tls_mutex);
+        return tls;
+    }
     void shut_down(bool hand_over);
     void count_live(int change);
 };
 
-// One client's connection, on the network thread only (but for its event queue).
-class Connection : public std::enable_shared_from_this<Connection> {
+// One client's connection, on the network thread only (but for its event queue). `Stream`: a
+// PlainStream, or a TlsStream over one; the HTTP is the same, the TLS adds a handshake first.
+template <typename Stream>
+class Connection : public ConnectionBase, public std::enable_shared_from_this<Connection<Stream>> {
+    static constexpr bool tls = std::is_same_v<Stream, TlsStream>;
+
 public:
-    Connection(std::shared_ptr<HttpServer::State> server, tcp::socket socket, asio::ip::address client)
-        : kept_(std::move(server)), server_(*kept_), client_(client), stream_(std::move(socket)), heartbeat_(server_.loop) {
+    Connection(std::shared_ptr<HttpServer::State> server, tcp::socket socket, asio::ip::address client, TlsContext context)
+        : kept_(std::move(server)), server_(*kept_), client_(client), context_(std::move(context)),
+          stream_(make_stream(std::move(socket), context_)), heartbeat_(server_.loop) {
         ++server_.per_client[client_];
         server_.count_live(+1);
     }
-    ~Connection() {
+    ~Connection() override {
         subscription_.reset();
         let_go();
         server_.count_live(-1);
@@ -229,12 +323,16 @@ public:
     void start(std::string_view buffered) {
         if (buffered.size() > buffer_.max_size()) return close();  // more than this server's limits take
         buffer_.commit(asio::buffer_copy(buffer_.prepare(buffered.size()), asio::buffer(buffered.data(), buffered.size())));
-        read_request();
+        if constexpr (tls) {
+            handshake();
+        } else {
+            read_request();
+        }
     }
 
     // Ends the connection now, or after the response of the blocking work under way. Handing
     // over, a keep-alive connection goes to the listener instead once its response has gone.
-    void stop(bool hand_over) {
+    void stop(bool hand_over) override {
         if (hand_over && phase_ == Phase::header) return stop_reading();
         // A request being answered or its response sent goes on: parked by send() after.
         if (hand_over && (phase_ == Phase::answering || phase_ == Phase::writing)) return;
@@ -252,20 +350,43 @@ private:
     // Where a connection is, for a stop that hands it over.
     enum class Phase { header, body, answering, writing, finishing, events };
 
+    static Stream make_stream(tcp::socket socket, const TlsContext& context) {
+        if constexpr (tls) {
+            return Stream(std::move(socket), *context);
+        } else {
+            return Stream(std::move(socket));
+        }
+    }
+    beast::tcp_stream& layer() { return beast::get_lowest_layer(stream_); }
+    tcp::socket& socket() { return layer().socket(); }
+
+    // TLS first, within the time a request's header has (a client that connects and never says
+    // hello is closed as one that sends no request), and waiting for a header meanwhile: a
+    // newcomer at a limit may take its place.
+    void handshake() requires tls {
+        phase_ = Phase::header;
+        header_since_ = std::chrono::steady_clock::now();
+        layer().expires_after(std::min(server_.settings.header_timeout, server_.settings.read_timeout));
+        stream_.async_handshake(asio::ssl::stream_base::server, [self = this->shared_from_this()](const error_code& error) {
+            if (error) return self->close();  // not TLS (plain HTTP), a protocol refused, or too slow
+            self->read_request();
+        });
+    }
+
     // The read of a header ends now (parking it, on_header); every byte it took is then in
     // buffer_. A read whose bytes had already come but did not complete a header reads on: it is
     // cancelled again until the header is complete (and answered) or the read has ended.
     void stop_reading() {
         error_code ignored;
-        stream_.socket().cancel(ignored);
-        asio::post(server_.loop, [self = shared_from_this()] {
+        socket().cancel(ignored);
+        asio::post(server_.loop, [self = this->shared_from_this()] {
             if (!self->closed_ && self->phase_ == Phase::header) self->stop_reading();
         });
     }
 
     void wait_briefly_for_body() {
         body_grace_.expires_after(hand_over_body_grace);
-        body_grace_.async_wait([self = shared_from_this()](const error_code& error) {
+        body_grace_.async_wait([self = this->shared_from_this()](const error_code& error) {
             if (!error && self->phase_ == Phase::body) self->close();
         });
     }
@@ -273,8 +394,9 @@ private:
     // Into the listener for the next server, with what it has read of the next request.
     void park() {
         if (closed_) return;
+        if constexpr (tls) return close();
         error_code error;
-        const int fd = stream_.socket().release(error);
+        const int fd = socket().release(error);
         if (!error) {
             const auto bytes = buffer_.cdata();
             // Between requests (after a response) the parser holds the last one, already answered.
@@ -293,9 +415,9 @@ private:
         // The header within header_timeout and the whole request within read_timeout, both from
         // here: a client that sends half of one and stalls is closed, as is one that trickles it
         // a byte at a time (which read_timeout alone would let hold its slot for longer).
-        stream_.expires_after(std::min(server_.settings.header_timeout, server_.settings.read_timeout));
+        layer().expires_after(std::min(server_.settings.header_timeout, server_.settings.read_timeout));
         http::async_read_header(stream_, buffer_, *parser_,
-                                [self = shared_from_this()](const error_code& error, std::size_t) { self->on_header(error); });
+                                [self = this->shared_from_this()](const error_code& error, std::size_t) { self->on_header(error); });
     }
 
     void on_header(const error_code& error) {
@@ -303,7 +425,7 @@ private:
         if (server_.handing_over && error == asio::error::operation_aborted) return park();
         if (error) return refuse_unreadable(error);
         phase_ = Phase::body;
-        stream_.expires_at(header_since_ + server_.settings.read_timeout);
+        layer().expires_at(header_since_ + server_.settings.read_timeout);
         if (server_.handing_over) wait_briefly_for_body();  // a header completed as the stop came
         if (auto refused = framing_refusal(*parser_)) return send(*refused, true);
         const auto& header = parser_->get();
@@ -312,7 +434,7 @@ private:
         }
         if (beast::iequals(header[http::field::expect], "100-continue")) {
             continue_ = std::make_shared<std::string>("HTTP/1.1 100 Continue\r\n\r\n");
-            asio::async_write(stream_, asio::buffer(*continue_), [self = shared_from_this()](const error_code& e, std::size_t) {
+            asio::async_write(stream_, asio::buffer(*continue_), [self = this->shared_from_this()](const error_code& e, std::size_t) {
                 if (e) return self->close();
                 self->read_body();
             });
@@ -322,7 +444,7 @@ private:
     }
 
     void read_body() {
-        http::async_read(stream_, buffer_, *parser_, [self = shared_from_this()](const error_code& error, std::size_t) {
+        http::async_read(stream_, buffer_, *parser_, [self = this->shared_from_this()](const error_code& error, std::size_t) {
             if (error) return self->refuse_unreadable(error);
             self->dispatch();
         });
@@ -362,9 +484,9 @@ private:
     // back, even when stop() has closed everything else.
     void run_deferred(const std::function<void(HttpResponder)>& start) {
         waiting_for_worker_ = true;
-        stream_.expires_never();
+        layer().expires_never();
         auto answered = std::make_shared<std::atomic<bool>>(false);
-        auto pending = std::make_shared<Pending>(shared_from_this());
+        auto pending = std::make_shared<Pending>(this->shared_from_this());
         start([pending, answered](HttpResponse response) {
             if (answered->exchange(true)) return;
             asio::post(pending->connection->server_.loop, [self = pending->connection, response = std::move(response)] {
@@ -403,6 +525,7 @@ private:
         phase_ = Phase::writing;
         auto message = std::make_shared<http::response<http::string_body>>(static_cast<http::status>(response.status), 11);
         message->set(http::field::server, "loopwire");
+        if constexpr (tls) message->set(http::field::strict_transport_security, hsts);
         message->set(http::field::content_type, response.content_type);
         for (const auto& [name, value] : response.headers) message->set(name, value);
         message->body() = response.body;
@@ -414,8 +537,8 @@ private:
             message->body().clear();
             message->content_length(length);
         }
-        stream_.expires_after(server_.settings.read_timeout);
-        http::async_write(stream_, *message, [self = shared_from_this(), message, again](const error_code& error, std::size_t) {
+        layer().expires_after(server_.settings.read_timeout);
+        http::async_write(stream_, *message, [self = this->shared_from_this(), message, again](const error_code& error, std::size_t) {
             if (error) return self->close();
             if (!again) return self->finish();
             if (!self->server_.stopping) return self->read_request();
@@ -429,16 +552,23 @@ private:
     // connection before the client has read the response.
     void finish() {
         phase_ = Phase::finishing;
+        if constexpr (tls) {
+            // close_notify, so that the client knows the response is whole; its own awaited for
+            // a moment.
+            layer().expires_after(std::chrono::seconds(1));
+            stream_.async_shutdown([self = this->shared_from_this()](const error_code&) { self->close(); });
+            return;
+        }
         error_code ignored;
-        stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
-        stream_.expires_after(std::chrono::seconds(1));
+        socket().shutdown(tcp::socket::shutdown_send, ignored);
+        layer().expires_after(std::chrono::seconds(1));
         drain_ = std::make_shared<std::array<char, 4096>>();
         drain_some(0);
     }
 
     void drain_some(std::size_t drained) {
         if (drained > server_.settings.body_limit * 4) return close();
-        stream_.async_read_some(asio::buffer(*drain_), [self = shared_from_this(), drained](const error_code& error, std::size_t n) {
+        stream_.async_read_some(asio::buffer(*drain_), [self = this->shared_from_this(), drained](const error_code& error, std::size_t n) {
             if (error) return self->close();
             self->drain_some(drained + n);
         });
@@ -454,14 +584,16 @@ private:
         queue_ = std::make_shared<EventQueue>();
         queue_->pending =
             "HTTP/1.1 200 OK\r\nServer: loopwire\r\nContent-Type: text/event-stream\r\nCache-Control: no-cache\r\n"
-            "Connection: close\r\nX-Accel-Buffering: no\r\n\r\n";
-        stream_.expires_never();
+            "Connection: close\r\nX-Accel-Buffering: no\r\n";
+        if constexpr (tls) queue_->pending += fmt::format("Strict-Transport-Security: {}\r\n", hsts);
+        queue_->pending += "\r\n";
+        layer().expires_never();
         // A small send buffer: a client that stops reading backs the stream up into a write that
         // waits (and is timed out by send_timeout) after kilobytes, not after megabytes the
         // kernel would otherwise take on its behalf.
         error_code ignored;
-        stream_.socket().set_option(asio::socket_base::send_buffer_size(event_send_buffer), ignored);
-        std::weak_ptr<Connection> weak = shared_from_this();
+        socket().set_option(asio::socket_base::send_buffer_size(event_send_buffer), ignored);
+        std::weak_ptr<Connection> weak = this->shared_from_this();
         subscription_ = subscribe([queue = queue_, weak, &loop = server_.loop, limit = server_.settings.event_queue_limit](
                                       const std::string& event) {
             std::lock_guard lock(queue->mutex);
@@ -502,16 +634,16 @@ private:
     // Piece by piece, each given send_timeout: a client that reads, however slowly, stays; one
     // that has taken nothing for send_timeout is dropped (its slot is for someone who reads).
     void write_events(std::size_t from) {
-        stream_.expires_after(server_.settings.send_timeout);
+        layer().expires_after(server_.settings.send_timeout);
         stream_.async_write_some(asio::buffer(out_.data() + from, out_.size() - from),
-                                 [self = shared_from_this(), from](const error_code& error, std::size_t written) {
+                                 [self = this->shared_from_this(), from](const error_code& error, std::size_t written) {
                                      if (error) {
                                          self->writing_ = false;
                                          return self->close();
                                      }
                                      if (from + written < self->out_.size()) return self->write_events(from + written);
                                      self->writing_ = false;
-                                     self->stream_.expires_never();
+                                     self->layer().expires_never();
                                      self->flush_events();
                                  });
     }
@@ -519,15 +651,22 @@ private:
     // The client sends nothing more on an event stream: a read ends only when it goes.
     void watch_for_close() {
         drain_ = std::make_shared<std::array<char, 4096>>();
-        stream_.socket().async_read_some(asio::buffer(*drain_), [self = shared_from_this()](const error_code& error, std::size_t) {
+        auto on_read = [self = this->shared_from_this()](const error_code& error, std::size_t) {
             if (error) return self->close();
             self->watch_for_close();
-        });
+        };
+        // Plain, on the socket itself: no timeout of the stream's (a write's) ends it. Over TLS
+        // through the session, which must see what comes (an alert, close_notify).
+        if constexpr (tls) {
+            stream_.async_read_some(asio::buffer(*drain_), std::move(on_read));
+        } else {
+            socket().async_read_some(asio::buffer(*drain_), std::move(on_read));
+        }
     }
 
     void beat() {
         heartbeat_.expires_after(server_.settings.event_heartbeat);
-        heartbeat_.async_wait([self = shared_from_this()](const error_code& error) {
+        heartbeat_.async_wait([self = this->shared_from_this()](const error_code& error) {
             if (error || self->closed_) return;
             {
                 std::lock_guard lock(self->queue_->mutex);
@@ -541,25 +680,27 @@ private:
 public:
     // Since when it has waited for a request's header, while it does (nullopt otherwise): what
     // makes it one to close for a newcomer at a limit (HttpServer::State::make_room).
-    std::optional<std::chrono::steady_clock::time_point> waiting_for_header_since() const {
+    std::optional<std::chrono::steady_clock::time_point> waiting_for_header_since() const override {
         if (closed_ || phase_ != Phase::header) return std::nullopt;
         return header_since_;
     }
-    const asio::ip::address& client() const { return client_; }
+    const asio::ip::address& client() const override { return client_; }
 
-    void close() {
+    void close() override {
         if (std::exchange(closed_, true)) return;
         subscription_.reset();  // waits for a callback under way on a poll thread; it only queues
         heartbeat_.cancel();
         body_grace_.cancel();
         error_code ignored;
-        stream_.socket().shutdown(tcp::socket::shutdown_both, ignored);
-        stream_.close();
+        socket().shutdown(tcp::socket::shutdown_both, ignored);
+        layer().close();
         let_go();
     }
 
 private:
     static constexpr int event_send_buffer = 16 * 1024;
+    // Browsers that have seen this over HTTPS use HTTPS alone for the host for a year.
+    static constexpr const char* hsts = "max-age=31536000";
     static constexpr std::chrono::seconds hand_over_body_grace{1};
 
     // The connection no longer counts against the limits; once.
@@ -577,10 +718,11 @@ private:
     std::shared_ptr<HttpServer::State> kept_;  // first: goes last
     HttpServer::State& server_;
     asio::ip::address client_;
+    TlsContext context_;  // the TLS session's, kept for as long as it lasts; none for plain HTTP
     bool counted_ = true;
     bool streaming_ = false;  // counted as an event stream
     std::chrono::steady_clock::time_point header_since_;  // when the read of the latest header began
-    beast::tcp_stream stream_;
+    Stream stream_;
     beast::flat_buffer buffer_{read_buffer_limit(server_.settings)};
     std::optional<http::request_parser<http::string_body>> parser_;
     std::shared_ptr<std::string> continue_;
@@ -683,7 +825,7 @@ std::optional<HttpResponse> HttpServer::State::over_stream_limits(const asio::ip
 // instead would let clients that reconnect as soon as header_timeout closes them hold every slot.
 // None being answered or streaming is closed: false when there is no other.
 bool HttpServer::State::make_room(const asio::ip::address& client, bool from_client) {
-    std::shared_ptr<Connection> idlest;
+    std::shared_ptr<ConnectionBase> idlest;
     std::optional<std::chrono::steady_clock::time_point> idlest_since;
     for (const auto& [raw, weak] : connections) {
         auto connection = weak.lock();
@@ -700,15 +842,23 @@ bool HttpServer::State::make_room(const asio::ip::address& client, bool from_cli
 }
 
 void HttpServer::State::serve(tcp::socket socket, const asio::ip::address& client, std::string_view buffered) {
-    auto connection = std::make_shared<Connection>(shared_from_this(), std::move(socket), client);
-    connections[connection.get()] = connection;
-    connection->start(buffered);
+    auto start = [&](auto connection) {
+        connections[connection.get()] = connection;
+        connection->start(buffered);
+    };
+    if (auto context = tls_context()) {
+        start(std::make_shared<Connection<TlsStream>>(shared_from_this(), std::move(socket), client, std::move(context)));
+    } else {
+        start(std::make_shared<Connection<PlainStream>>(shared_from_this(), std::move(socket), client, nullptr));
+    }
 }
 
 // The keep-alive connections the server before this one parked in the listener (a reload): served
 // on as if accepted here. Beyond this server's limits they are closed, unanswered: their clients
 // sent nothing yet that an answer would belong to, and reconnect.
 void HttpServer::State::adopt(std::vector<HttpListener::Parked> parked) {
+    // Handed over by a plain HTTP server: their clients would not speak TLS to this one.
+    if (tls_context()) return;  // closed with `parked`
     for (auto& connection : parked) {
         tcp::socket socket(loop);
         error_code error;
@@ -726,11 +876,16 @@ void HttpServer::State::adopt(std::vector<HttpListener::Parked> parked) {
 
 // Told so in one small write the socket buffer takes at once, then closed. The messages are
 // the server's own, with nothing to escape.
-void HttpServer::State::refuse(tcp::socket& socket, unsigned status, std::string_view reason, std::string_view body) {
+void HttpServer::State::refuse(tcp::socket& socket, unsigned status, std::string_view reason, std::string_view body) const {
+    error_code ignored;
+    if (tls_context()) {
+        // A refusal over TLS would cost a handshake, which is what the limit is there to spare.
+        socket.close(ignored);
+        return;
+    }
     const std::string refusal = fmt::format(
         "HTTP/1.1 {} {}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nRetry-After: 1\r\n"
         "Connection: close\r\n\r\n{}", status, reason, body.size(), body);
-    error_code ignored;
     socket.non_blocking(true, ignored);
     socket.write_some(asio::buffer(refusal), ignored);
     socket.shutdown(tcp::socket::shutdown_both, ignored);
@@ -831,6 +986,11 @@ Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& s
         listener = &*own;
     }
     auto state = std::make_shared<State>(settings, handler, loop, kept);
+    if (!settings.certificate.empty()) {
+        auto context = load_tls(settings.certificate, settings.private_key);
+        if (!context) return make_error(ErrorKind::usage, fmt::format("http: {}", context.error().message));
+        state->tls = std::move(*context);
+    }
     // The server accepts on a descriptor of its own: closing it when the server stops leaves the
     // listener (a kept one) listening.
     const int fd = ::fcntl(listener->fd(), F_DUPFD_CLOEXEC, 0);
@@ -857,6 +1017,16 @@ Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& s
 std::uint64_t HttpServer::not_allowed() const { return state_->not_allowed.load(std::memory_order_relaxed); }
 
 std::uint16_t HttpServer::port() const { return state_->port; }
+
+Result<void> HttpServer::reload_certificate() {
+    const auto& settings = state_->settings;
+    if (settings.certificate.empty()) return {};
+    auto context = load_tls(settings.certificate, settings.private_key);
+    if (!context) return context.error();
+    std::lock_guard lock(state_->tls_mutex);
+    state_->tls = std::move(*context);
+    return {};
+}
 
 void HttpServer::stop(bool hand_over) {
     std::call_once(state_->stopped, [this, hand_over] {

@@ -101,7 +101,17 @@ struct HttpServerSettings {
     std::chrono::milliseconds send_timeout{10000};  // an event stream's client that takes nothing this long is dropped
     std::chrono::milliseconds event_heartbeat{15000};  // a comment line keeps idle streams alive
     transport::AddressAllowList allow;              // others are closed at accept; empty: everyone
+    // PEM files; both set: the server speaks HTTPS alone (TLS 1.2 and 1.3, OpenSSL's default
+    // ciphers at security level 2), and every response says Strict-Transport-Security. Both
+    // empty: plain HTTP.
+    std::string certificate;
+    std::string private_key;
 };
+
+// Whether `certificate` (PEM, the server's certificate and its chain) and `private_key` (PEM,
+// its key) can serve TLS: both read, and the key the certificate's. The error says which file
+// and what is wrong with it, without a location (the caller knows where they were named).
+Result<void> check_tls_files(const std::string& certificate, const std::string& private_key);
 
 // What the server makes of the bytes of one request, without a socket: the request, or the
 // response that refuses it (400 malformed or with two Hosts, 413, 431, 501 for a Transfer-Encoding
@@ -190,13 +200,21 @@ public:
     // Clients closed at accept so far: their address is outside settings.allow. Any thread.
     std::uint64_t not_allowed() const;
 
+    // Reads settings.certificate and private_key again (a reload whose configuration names the
+    // same files, which were replaced): connections accepted from here on get the new ones,
+    // those open keep what they began with. An error (a file that does not load) changes
+    // nothing. Any thread; nothing to do without TLS.
+    Result<void> reload_certificate();
+
     // Stops accepting, ends event streams and idle connections, lets the blocking work under way
     // finish and answer, then closes everything. Idempotent. Never on the loop's own thread: it
     // waits for the loop to close the connections.
     // With `hand_over` (a reload whose next server accepts on the same listener), keep-alive
     // connections are not closed but parked in the listener once the response under way has
     // gone out, keep-alive: their clients see no reload. Event streams end either way (a stream
-    // follows this server's values; the client reconnects to the next one's).
+    // follows this server's values; the client reconnects to the next one's). Over TLS none is
+    // handed over (the session's state is the server's, not the socket's): keep-alive ones are
+    // closed once their response has gone, and the clients reconnect.
     void stop(bool hand_over = false);
 
     struct State;

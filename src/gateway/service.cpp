@@ -86,7 +86,9 @@ struct Service {
         std::stop_source either;
         std::stop_callback on_stop(stop, [&either] { either.request_stop(); });
         std::stop_callback on_reload(reload, [&either] { either.request_stop(); });
+        reloads.while_serving([&gateway = **running] { return gateway.reload_http_certificate(); });
         auto served = (*running)->serve(either.get_token());
+        reloads.while_serving(nullptr);
         if (auto next = reloads.next(); next && !stop.stop_requested()) (*running)->hand_over_to(*next);
         for (const auto& line : (*running)->report()) say(log.info, describe(line));
         if (config.modbus_tcp.enabled) say(log.info, describe((*running)->front_report()));
@@ -108,12 +110,26 @@ void ConfigReloads::hangup() {
         const bool level_changed = serving_->log.level != loaded->log.level;
         serving_->log.level = loaded->log.level;
         if (log_.set_level) log_.set_level(loaded->log.level);
+        // The certificate files may have been replaced (a renewal): new connections get theirs.
+        if (reread_ && loaded->http && !loaded->http->certificate.empty()) {
+            if (auto reread = reread_(); !reread) {
+                say(log_.warning, fmt::format("HTTPS certificate not reloaded, the running one is kept: {}",
+                                              reread.error().message));
+            } else {
+                say(log_.info, fmt::format("HTTPS certificate {} re-read for new connections", loaded->http->certificate));
+            }
+        }
         say(log_.info, fmt::format("configuration {} re-read: {}; lines, listeners, connections and MQTT stay up", file_,
                                    level_changed ? "only the log level changed" : "nothing changed"));
         return;
     }
     next_ = std::move(*loaded);
     running_.request_stop();
+}
+
+void ConfigReloads::while_serving(std::function<Result<void>()> reread) {
+    std::lock_guard lock(mutex_);
+    reread_ = std::move(reread);
 }
 
 std::stop_token ConfigReloads::start_round(const GatewayConfig& config) {

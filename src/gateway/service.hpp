@@ -48,6 +48,10 @@ public:
 
     const std::string& file() const { return file_; }
 
+    // While a gateway serves: what re-reads the files its configuration names but does not hold
+    // (the HTTPS certificate), for a reload that changes nothing else. None between gateways.
+    void while_serving(std::function<Result<void>()> reread);
+
 private:
     std::string file_;
     const device::ProfileRegistry& profiles_;
@@ -56,6 +60,7 @@ private:
     std::stop_source running_;
     std::optional<GatewayConfig> next_;
     std::optional<GatewayConfig> serving_;  // what the running gateway was opened with
+    std::function<Result<void>()> reread_;  // while_serving's
 };
 
 struct ServiceHooks {
