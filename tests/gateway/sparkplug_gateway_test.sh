@@ -22,82 +22,14 @@ set -u
 loopwire=${1:?usage: sparkplug_gateway_test.sh path/to/loopwire}
 # shellcheck source=tests/support/test_lib.sh
 source "$(dirname "$0")/../support/test_lib.sh"
-here=$(cd "$(dirname "$0")" && pwd)
-repo=$(cd "$here/../.." && pwd)
-python=/usr/bin/python3
-broker_program=/usr/sbin/mosquitto
-# Without a tool the checks below cannot be made: exit 77, which ctest shows as skipped
-# (SKIP_RETURN_CODE in tests/gateway/CMakeLists.txt), never as passed.
-skip() { echo "SKIP: $1 (scripts/setup installs it)"; exit 77; }
-[[ -x $broker_program ]] || skip "$broker_program is not installed (Debian package mosquitto)"
-command -v protoc >/dev/null || skip "protoc is not installed (Debian package protobuf-compiler)"
-$python -c 'import google.protobuf' 2>/dev/null || skip "google.protobuf is not importable by $python (Debian package python3-protobuf)"
-$python -c 'import paho.mqtt' 2>/dev/null || skip "paho.mqtt is not importable by $python (Debian package python3-paho-mqtt)"
-
-# Every wait below is cut to what is left of this budget, so that a gateway that answers
-# nothing fails with the tally and the checker's account, before CTest's 240 s kill.
+# Every wait below is cut to what is left of this budget (sparkplug_observer_lib.sh).
 budget_end=$((SECONDS + 195))
-
-# The observer's protobuf module, from the same .proto as the gateway's but generated here.
-protoc --python_out="$WORK_DIR" -I "$repo/src/gateway/sparkplug" "$repo/src/gateway/sparkplug/sparkplug_b.proto" ||
-  fail "protoc could not compile src/gateway/sparkplug/sparkplug_b.proto"
-export SPARKPLUG_PB_DIR=$WORK_DIR
-checker=("$python" "$here/sparkplug_check.py")
-sp() { "${checker[@]}" "$@"; }
-# The observer must notice broken messages before its silence about the gateway's means anything.
-check checker-selftest 0 "selftest: ok" "${checker[@]}" selftest
-
+# shellcheck source=tests/gateway/sparkplug_observer_lib.sh
+source "$(dirname "$0")/sparkplug_observer_lib.sh"
 # log_type subscribe: the broker's log says when the node has subscribed to the host's STATE.
-start_mosquitto 230 "log_dest stderr" "log_type error" "log_type warning" "log_type notice" "log_type information" \
-  "log_type subscribe"
+start_recording 230 "log_type subscribe"
 port=$MQTT_PORT
 
-# The recorder subscribes before any gateway starts: the recording holds every message of
-# every run, in the order the broker delivered them.
-recording=$WORK_DIR/sparkplug.jsonl
-start_background recorder.log timeout 230 "${checker[@]}" record --port "$port" --out "$recording" --duration 225
-wait_for_text "$WORK_DIR/recorder.log" "subscribed" 30
-touch "$recording"
-
-keep_evidence() {
-  [[ -n ${SPARKPLUG_KEEP_DIR:-} ]] || return 0
-  mkdir -p "$SPARKPLUG_KEEP_DIR" && cp "$recording" "$WORK_DIR"/*.log "$WORK_DIR"/*.toml "$SPARKPLUG_KEEP_DIR"/
-}
-lines_now() { wc -l <"$recording"; }
-
-# await NAME TIMEOUT FILTER... : waits for a recorded message matching FILTER (sparkplug_check.py
-# wait). Found: a pass, its line in $found. Timeout: a counted failure with the observer's account
-# of what it saw instead, and $found empty.
-found=
-await() {
-  local name=$1 limit=$2
-  shift 2
-  local left=$((budget_end - SECONDS))
-  ((limit > left)) && limit=$((left > 1 ? left : 1))
-  if sp wait "$recording" --timeout "$limit" "$@" >"$WORK_DIR/wait.out" 2>&1; then
-    found=$(sed -nE '1s/^line ([0-9]+) .*/\1/p' "$WORK_DIR/wait.out")
-    echo "ok: $name: $(head -c 400 "$WORK_DIR/wait.out" | head -n 1)"
-    count_pass
-  else
-    found=
-    count_failure "$name" "$WORK_DIR/wait.out"
-  fi
-}
-# must_await: the same, for a message the rest of the scenario cannot do without.
-must_await() {
-  await "$@"
-  [[ -n $found ]] || { keep_evidence; fail "$1: the rest of the scenario depends on it (tally so far: $passes passed, $failures failed)"; }
-}
-# same NAME ACTUAL EXPECTED : a counted check that two values are equal.
-same() {
-  if [[ $2 == "$3" ]]; then
-    echo "ok: $1 = $2"
-    count_pass
-  else
-    echo "FAIL $1: expected '$3', got '$2'"
-    failures=$((failures + 1))
-  fi
-}
 # says NAME TEXT PART : a counted check that TEXT holds PART.
 says() {
   if [[ $2 == *"$3"* ]]; then
@@ -108,11 +40,8 @@ says() {
     failures=$((failures + 1))
   fi
 }
-value_at() { sp value "$recording" --line "$1" --metric "$2" "${@:3}"; }
 # flaps_recorded LINE COUNT : COUNT STATEs of scada recorded after LINE.
 flaps_recorded() { (($(sp count "$recording" --type STATE --host scada --after-line "$1") >= $2)); }
-# stopped PID : the process has exited (a zombie not yet waited for counts as exited).
-stopped() { local state; state=$(ps -o stat= -p "$1"); [[ -z $state || $state == Z* ]]; }
 gateway_pid() { pgrep -P "$1" | head -n 1; }  # the gateway itself, not the `timeout` that runs it
 
 pty=$WORK_DIR/ttyFurnace

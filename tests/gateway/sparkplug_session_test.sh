@@ -19,69 +19,14 @@ set -u
 loopwire=${1:?usage: sparkplug_session_test.sh path/to/loopwire}
 # shellcheck source=tests/support/test_lib.sh
 source "$(dirname "$0")/../support/test_lib.sh"
-here=$(cd "$(dirname "$0")" && pwd)
-repo=$(cd "$here/../.." && pwd)
-python=/usr/bin/python3
-skip() { echo "SKIP: $1 (scripts/setup installs it)"; exit 77; }
-[[ -x /usr/sbin/mosquitto ]] || skip "/usr/sbin/mosquitto is not installed (Debian package mosquitto)"
-command -v socat >/dev/null || skip "socat is not installed (Debian package socat)"
-command -v protoc >/dev/null || skip "protoc is not installed (Debian package protobuf-compiler)"
-$python -c 'import google.protobuf' 2>/dev/null || skip "google.protobuf is not importable by $python (Debian package python3-protobuf)"
-$python -c 'import paho.mqtt' 2>/dev/null || skip "paho.mqtt is not importable by $python (Debian package python3-paho-mqtt)"
-
 budget_end=$((SECONDS + 190))
-protoc --python_out="$WORK_DIR" -I "$repo/src/gateway/sparkplug" "$repo/src/gateway/sparkplug/sparkplug_b.proto" ||
-  fail "protoc could not compile src/gateway/sparkplug/sparkplug_b.proto"
-export SPARKPLUG_PB_DIR=$WORK_DIR
-checker=("$python" "$here/sparkplug_check.py")
-sp() { "${checker[@]}" "$@"; }
-check checker-selftest 0 "selftest: ok" "${checker[@]}" selftest
-
-start_mosquitto 220 "log_dest stderr" "log_type error" "log_type warning" "log_type notice" "log_type information"
-recording=$WORK_DIR/sparkplug.jsonl
-start_background recorder.log timeout 220 "${checker[@]}" record --port "$MQTT_PORT" --out "$recording" --duration 215
-wait_for_text "$WORK_DIR/recorder.log" "subscribed" 30
-touch "$recording"
-lines_now() { wc -l <"$recording"; }
+# shellcheck source=tests/gateway/sparkplug_observer_lib.sh
+source "$(dirname "$0")/sparkplug_observer_lib.sh"
+command -v socat >/dev/null || skip "socat is not installed (Debian package socat)"
+start_recording 220
 free_port() { $python -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
 now_ms() { $python -c 'import time; print(int(time.time() * 1000))'; }
-
-keep_evidence() {
-  [[ -n ${SPARKPLUG_KEEP_DIR:-} ]] || return 0
-  mkdir -p "$SPARKPLUG_KEEP_DIR" && cp "$recording" "$WORK_DIR"/*.log "$WORK_DIR"/*.toml "$SPARKPLUG_KEEP_DIR"/
-}
-
-found=
-await() {  # NAME TIMEOUT FILTER... (sparkplug_check.py wait): the line in $found, or a counted failure
-  local name=$1 limit=$2
-  shift 2
-  local left=$((budget_end - SECONDS))
-  ((limit > left)) && limit=$((left > 1 ? left : 1))
-  if sp wait "$recording" --timeout "$limit" "$@" >"$WORK_DIR/wait.out" 2>&1; then
-    found=$(sed -nE '1s/^line ([0-9]+) .*/\1/p' "$WORK_DIR/wait.out")
-    echo "ok: $name: $(head -c 300 "$WORK_DIR/wait.out" | head -n 1)"
-    count_pass
-  else
-    found=
-    count_failure "$name" "$WORK_DIR/wait.out"
-  fi
-}
-must_await() {
-  await "$@"
-  [[ -n $found ]] || { keep_evidence; fail "$1: the rest of the scenario depends on it (tally so far: $passes passed, $failures failed)"; }
-}
-same() {
-  if [[ $2 == "$3" ]]; then
-    echo "ok: $1 = $2"
-    count_pass
-  else
-    echo "FAIL $1: expected '$3', got '$2'"
-    failures=$((failures + 1))
-  fi
-}
-value_at() { sp value "$recording" --line "$1" --metric "$2" "${@:3}"; }
 count_since() { sp count "$recording" --edge cabinet1 --after-line "$@"; }
-stopped() { local state; state=$(ps -o stat= -p "$1"); [[ -z $state || $state == Z* ]]; }
 
 # The relay the node reaches the broker through: one connection, then it exits (no fork, so
 # stopping it cuts that connection).
