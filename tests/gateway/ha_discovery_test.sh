@@ -19,7 +19,7 @@ done
 start_mosquitto 200
 port=$MQTT_PORT
 # The dashboard's port is in the documents (configuration_url): one the kernel had free.
-http_port=$($python -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+http_port=$(free_port)
 
 # plant_config WITH_KILN : the gateway's configuration, with or without the ramp/soak controller.
 plant_config() {

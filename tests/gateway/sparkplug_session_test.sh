@@ -24,7 +24,6 @@ budget_end=$((SECONDS + 190))
 source "$(dirname "$0")/sparkplug_observer_lib.sh"
 command -v socat >/dev/null || skip "socat is not installed (Debian package socat)"
 start_recording 220
-free_port() { $python -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
 now_ms() { $python -c 'import time; print(int(time.time() * 1000))'; }
 count_since() { sp count "$recording" --edge cabinet1 --after-line "$@"; }
 

@@ -83,6 +83,13 @@ start_tcp_server() {
     PORT=$(wait_for_log "$log" 'listening on port ([0-9]+)')
 }
 
+# free_port : a loopback TCP port the kernel had free a moment ago, for a program that cannot
+# be given port 0 and name the port it got (mosquitto, PostgreSQL, a URL written in advance);
+# the caller retries or fails loudly should another process take it in between.
+free_port() {
+    /usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'
+}
+
 # wait_for SECONDS WHAT COMMAND... : runs COMMAND every 20 ms until it succeeds; if it has not
 # within SECONDS, fails the test saying it waited for WHAT.
 wait_for() {
@@ -123,7 +130,7 @@ start_mosquitto() {
     local lifetime=$1 attempt
     shift
     for attempt in 1 2 3 4 5; do
-        MQTT_PORT=$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+        MQTT_PORT=$(free_port)
         printf '%s\n' "listener $MQTT_PORT 127.0.0.1" "allow_anonymous true" "persistence false" "$@" >"$WORK_DIR/mosquitto.conf"
         start_background broker.log timeout "$lifetime" /usr/sbin/mosquitto -c "$WORK_DIR/mosquitto.conf"
         wait_for 30 "mosquitto to run or exit" mosquitto_settled "$LAST_PID"
@@ -222,7 +229,7 @@ start_postgres() {
         exit 77
     fi
     PG_HOST=$WORK_DIR/pg
-    PG_PORT=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+    PG_PORT=$(free_port)
     mkdir -p "$PG_HOST"
     local as=()
     if ((EUID == 0)); then
