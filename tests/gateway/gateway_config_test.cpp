@@ -120,7 +120,7 @@ TEST(GatewayConfig, TwoLinesOnOneSerialPortAreRefused) {
     EXPECT_TRUE(parse("[[lines]]\nname = \"a\"\nlink = \"rtu:virtual\"\n\n[[lines]]\nname = \"b\"\nlink = \"rtu:virtual\"\n"));
 }
 
-TEST(GatewayConfig, TheIssueExampleParsesToItsValues) {
+TEST(GatewayConfig, AFullExampleParsesToItsValues) {
     auto config = parse(example);
     ASSERT_TRUE(config) << config.error().message;
     EXPECT_EQ(config->source, "plant.toml");
