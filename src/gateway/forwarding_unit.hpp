@@ -41,8 +41,8 @@ struct ForwardingSettings {
     std::function<std::optional<Error>()> write_refusal = {};
     // Every write a client asks for (any function that is not a read) is audited here, once:
     // refused, answered or failed. None: not audited. Must outlive the unit.
-    std::shared_ptr<const WriteAudit> audit;
-    std::string device;  // the device's configured name, for the audit
+    std::shared_ptr<const WriteAudit> audit = {};
+    std::string device = {};  // the device's configured name, for the audit
 };
 
 // What the gateway says of refused or failed requests (for its log). A line that begins with

@@ -284,7 +284,7 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
         return {get ? device_detail(*device) : not_allowed(readable), {}, {}};
     }
     if (!api && (path == "/" || assets.count(path) != 0)) return {get ? asset(request) : not_allowed(readable), {}, {}};
-    return {error(404, fmt::format("no such resource: {} (the API is under /api/: devices, events, history; and /metrics)", path)),
+    return {error(404, fmt::format("no such resource: {} (the API is under /api/: devices, events, history, audit; and /metrics)", path)),
             {}, {}};
 }
 

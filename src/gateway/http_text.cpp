@@ -301,14 +301,14 @@ Result<AuditQuery> audit_query(std::string_view text, system_clock::time_point n
 }
 
 std::string audit_json(const std::vector<AuditRecord>& records) {
-    auto list = nlohmann::json::array();
+    auto list = nlohmann::ordered_json::array();
     for (const auto& record : records) {
         list.push_back({{"time", iso_time(record.time)}, {"front", record.origin.front}, {"peer", record.origin.peer},
                         {"user", record.origin.user}, {"device", record.device}, {"parameter", record.parameter},
                         {"old_value", record.old_value}, {"new_value", record.new_value}, {"outcome", record.outcome}});
     }
     // Bytes a peer sent that are no UTF-8 (a Modbus client's values never are text) as U+FFFD.
-    return nlohmann::json{{"records", std::move(list)}}.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+    return nlohmann::ordered_json{{"records", std::move(list)}}.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 
 std::string audit_csv(const std::vector<AuditRecord>& records) {
