@@ -31,23 +31,75 @@ std::string bits_from(ByteView pdu, std::size_t at, std::size_t count) {
     return out;
 }
 
+// The length of the well-formed UTF-8 sequence at `at` (RFC 3629, 4: no overlong forms, no
+// surrogates, nothing past U+10FFFF), or 0.
+std::size_t utf8_sequence(std::string_view text, std::size_t at) {
+    const auto byte = [&](std::size_t i) { return static_cast<unsigned char>(text[i]); };
+    const unsigned char lead = byte(at);
+    std::size_t length = 0;
+    unsigned char low = 0x80;
+    unsigned char high = 0xBF;
+    if (lead >= 0xC2 && lead <= 0xDF) {
+        length = 2;
+    } else if (lead >= 0xE0 && lead <= 0xEF) {
+        length = 3;
+        if (lead == 0xE0) low = 0xA0;
+        if (lead == 0xED) high = 0x9F;
+    } else if (lead >= 0xF0 && lead <= 0xF4) {
+        length = 4;
+        if (lead == 0xF0) low = 0x90;
+        if (lead == 0xF4) high = 0x8F;
+    } else {
+        return 0;
+    }
+    if (at + length > text.size()) return 0;
+    if (byte(at + 1) < low || byte(at + 1) > high) return 0;
+    for (std::size_t i = 2; i < length; ++i) {
+        if (byte(at + i) < 0x80 || byte(at + i) > 0xBF) return 0;
+    }
+    return length;
+}
+
+// A field a peer may have given (an MQTT topic's or payload's bytes, an HTTP body's names), for
+// the log: control bytes and bytes that are not UTF-8 as \xNN, text in any script as it is,
+// and cut after `limit` bytes (a refusal's reason is the gateway's own words, kept whole).
+std::string shown(std::string_view text, std::size_t limit = 4 * peer_text_excerpt) {
+    std::string out;
+    std::size_t at = 0;
+    while (at < text.size() && at < limit) {
+        const auto byte = static_cast<unsigned char>(text[at]);
+        if (byte >= 0x20 && byte < 0x7F) {
+            out += text[at++];
+        } else if (const std::size_t length = byte >= 0x80 ? utf8_sequence(text, at) : 0; length > 0) {
+            out.append(text.substr(at, length));
+            at += length;
+        } else {
+            out += fmt::format("\\x{:02x}", byte);
+            ++at;
+        }
+    }
+    if (at < text.size()) out += fmt::format("… ({} bytes)", text.size());
+    return out;
+}
+
 }  // namespace
 
 std::string audit_refused(std::string_view reason) { return fmt::format("refused: {}", reason); }
 
 std::string audit_line(const AuditRecord& record) {
     const std::string who = record.origin.peer.empty() ? record.origin.front
-                                                      : fmt::format("{} {}", record.origin.front, record.origin.peer);
-    const std::string user = record.origin.user.empty() ? std::string() : fmt::format(" ({})", record.origin.user);
+                                                      : fmt::format("{} {}", record.origin.front, shown(record.origin.peer));
+    const std::string user = record.origin.user.empty() ? std::string() : fmt::format(" ({})", shown(record.origin.user));
     // A raw Modbus write names registers, not a parameter, and has no old value.
     if (record.parameter.starts_with("function ")) {
-        return without_control_bytes(fmt::format("audit: {}{}: {} {} values {}: {}", who, user, record.device, record.parameter,
-                                                 record.new_value, record.outcome));
+        return fmt::format("audit: {}{}: {} {} values {}: {}", who, user, shown(record.device), record.parameter,
+                           shown(record.new_value), shown(record.outcome, record.outcome.size()));
     }
-    // A peer's bytes (an MQTT payload, a parameter's name) never break the log's lines.
-    return without_control_bytes(fmt::format("audit: {}{}: {}.{} {} → {}: {}", who, user, record.device, record.parameter,
-                                             record.old_value.empty() ? "?" : record.old_value, record.new_value,
-                                             record.outcome));
+    // A peer's bytes (an MQTT topic or payload, a name in an HTTP body) never break the log's
+    // lines nor reach it raw.
+    return fmt::format("audit: {}{}: {}.{} {} → {}: {}", who, user, shown(record.device), shown(record.parameter),
+                       record.old_value.empty() ? "?" : shown(record.old_value), shown(record.new_value),
+                       shown(record.outcome, record.outcome.size()));
 }
 
 // Modbus application protocol V1.1b3, 6.5, 6.6, 6.11, 6.12, 6.16 and 6.17: where each write

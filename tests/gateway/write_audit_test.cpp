@@ -54,10 +54,14 @@ TEST(WriteAudit, LogLineOfARawWriteNamesItsRegisters) {
                                "refused: exception 02h");
 }
 
-TEST(WriteAudit, APeersBytesNeverBreakTheLogLine) {
+TEST(WriteAudit, APeersBytesNeverBreakTheLogLineNorReachItRaw) {
     AuditRecord record = set_point_write();
-    record.new_value = "1\n2";
-    EXPECT_EQ(audit_line(record).find('\n'), std::string::npos);
+    record.parameter = "set_p\xffoint";
+    record.new_value = "1\n2 °C";
+    EXPECT_EQ(audit_line(record), "audit: http 127.0.0.1: oven.set_p\\xffoint 150.0 °C → 1\\x0a2 °C: confirmed");
+    record.new_value = std::string(300, '7');
+    EXPECT_EQ(audit_line(record), "audit: http 127.0.0.1: oven.set_p\\xffoint 150.0 °C → " + std::string(256, '7') +
+                                      "\u2026 (300 bytes): confirmed");
 }
 
 TEST(WriteAudit, RawWritesInWords) {
