@@ -89,4 +89,17 @@ else
   count_failure "one-audit-record-a-write" "$WORK_DIR/check.out"
 fi
 cat "$WORK_DIR/check.out"
+
+# `loopwire audit` in its other formats and filters, and what it refuses.
+db=$WORK_DIR/plant.db
+audited() { "$loopwire" audit --database "$db" --from -1h "$@" | tr -d '\r'; }  # the CSV ends its lines with CRLF
+expect_equal "$(audited --format csv | head -n 1)" "time,front,peer,user,device,parameter,old_value,new_value,outcome" \
+  "the CSV's header"
+expect_equal "$(audited --format csv | tail -n +2 | wc -l)" 6 "CSV rows: one a write"
+expect_equal "$(audited --device absent --format csv | tail -n +2 | cut -d, -f5 | sort -u)" absent "--device absent"
+expect_equal "$(audited --limit 1 --format csv | tail -n +2 | cut -d, -f2)" http "--limit 1: the newest write"
+check table-names-the-raw-write 0 "function 6 address 717 count 1" "$loopwire" audit --database "$db"
+check refuses-a-time-it-cannot-read 2 'from="yesterday" is not a time' "$loopwire" audit --database "$db" --from yesterday
+check refuses-a-file-that-is-not-there 2 "is not a history file" "$loopwire" audit --database "$WORK_DIR/none.db"
+check refuses-what-is-no-history-file 2 "cannot be read as an SQLite database" "$loopwire" audit --database "$WORK_DIR/plant.toml"
 finish
