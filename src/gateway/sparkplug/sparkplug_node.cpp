@@ -402,14 +402,18 @@ struct SparkplugNode::State {
         if (auto silent = writer->refusal(device.name)) return refuse(silent->message);
         if (!device.born) return refuse("the device does not answer now (DDEATH); nothing was sent");
         if (!assignments) return refuse(assignments.error().message);
+        std::optional<std::size_t> waiting;
         {
             std::lock_guard lock(mutex);
             if (pending_writes >= max_pending_writes) {
-                const auto waiting = pending_writes;
-                return refuse(fmt::format("{} writes are waiting already; write again later", waiting));
+                waiting = pending_writes;
+            } else {
+                ++pending_writes;
             }
-            ++pending_writes;
         }
+        // Refused outside the lock: the audit reads the value cache, whose changes this node
+        // takes under it.
+        if (waiting) return refuse(fmt::format("{} writes are waiting already; write again later", *waiting));
         const bool queued = writer->write_async(device.name, std::move(*assignments), [this, index_of_device](Result<WrittenValues> written) {
             std::lock_guard lock(mutex);
             outcomes.push_back({index_of_device, written ? std::string() : written.error().message});
