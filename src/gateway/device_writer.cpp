@@ -1,6 +1,8 @@
 #include "gateway/device_writer.hpp"
 
+#include <algorithm>
 #include <condition_variable>
+#include <cstdlib>
 #include <deque>
 #include <future>
 #include <mutex>
@@ -36,6 +38,47 @@ std::optional<Error> silent_device_refusal(const std::string& device, const std:
     }
     return std::nullopt;  // not reached: every status is handled above
 }
+
+namespace {
+
+// The audit records of one write, one an assignment, finished once with the write's outcome.
+struct AuditedWrite {
+    const WriteAudit* audit = nullptr;
+    std::vector<AuditRecord> records;
+
+    void finish(const std::string& outcome) {
+        for (auto& record : records) {
+            record.outcome = outcome;
+            audit->record(std::move(record));
+        }
+        records.clear();
+    }
+};
+
+// "160" as the cache shows the parameter's values ("160.0 °C"); a text that is no number (an
+// enum label) as it was given.
+std::string in_units(const std::string& text, const std::optional<KnownValue>& known, const std::string& profile_unit) {
+    const std::string unit = known && !known->unit.empty() ? known->unit : profile_unit;
+    std::string shown = text;
+    if (known) {
+        char* end = nullptr;
+        const double number = std::strtod(text.c_str(), &end);
+        if (end && *end == '\0' && end != text.c_str()) shown = fmt::format("{:.{}f}", number, std::max(known->decimals, 0));
+    }
+    return unit.empty() ? shown : fmt::format("{} {}", shown, unit);
+}
+
+// The record of an assignment once its parameter is known: the profile's name, the value the
+// polls last read and the one written, in engineering units.
+void name_in_record(AuditRecord& record, const device::Parameter& parameter, const std::string& text,
+                    const KnownValueLookup& known_values) {
+    const auto known = known_values ? known_values(record.device, parameter.name) : std::nullopt;
+    record.parameter = parameter.name;
+    if (known) record.old_value = known->unit.empty() ? known->text : fmt::format("{} {}", known->text, known->unit);
+    if (!text.empty()) record.new_value = in_units(text, known, parameter.unit);
+}
+
+}  // namespace
 
 struct DeviceWriter::Target {
     WritableDevice device;
@@ -200,7 +243,33 @@ std::vector<std::string> DeviceWriter::device_names() const {
     return names;
 }
 
-bool DeviceWriter::write_async(const std::string& device, std::vector<WriteAssignment> assignments, WriteCompletion done) const {
+bool DeviceWriter::write_async(const std::string& device, std::vector<WriteAssignment> assignments, WriteCompletion done,
+                               WriteOrigin origin) const {
+    // Every way out below runs `done` once (or returns false, busy): the audit's records are
+    // finished in the completion, so each assignment is recorded once whatever happens.
+    std::shared_ptr<AuditedWrite> audited;
+    if (audit_) {
+        audited = std::make_shared<AuditedWrite>();
+        audited->audit = audit_;
+        for (const auto& assignment : assignments) {
+            AuditRecord record;
+            record.origin = origin;
+            record.device = device;
+            record.parameter = assignment.parameter;
+            record.new_value = assignment.text;
+            audited->records.push_back(std::move(record));
+        }
+        if (audited->records.empty()) {
+            AuditRecord record;
+            record.origin = std::move(origin);
+            record.device = device;
+            audited->records.push_back(std::move(record));
+        }
+        done = [audited, done = std::move(done)](Result<WrittenValues> outcome) {
+            audited->finish(outcome ? std::string(audit_confirmed) : audit_refused(outcome.error().message));
+            done(std::move(outcome));
+        };
+    }
     const Target* target = nullptr;
     for (const auto& candidate : targets_) {
         if (candidate->device.name == device) target = candidate.get();
@@ -228,6 +297,7 @@ bool DeviceWriter::write_async(const std::string& device, std::vector<WriteAssig
             return true;
         }
         const device::Parameter* parameter = resolved->front();
+        if (audited) name_in_record(audited->records[job.planned.size()], *parameter, assignment.text, known_);
         if (assignment.text.empty()) {
             done(make_error(ErrorKind::usage, fmt::format("no value given for {}", parameter->name)));
             return true;
@@ -243,14 +313,18 @@ bool DeviceWriter::write_async(const std::string& device, std::vector<WriteAssig
     }
     job.given_up = loop_.clock()->now() + target->line->write_limit;
     job.done = std::move(done);
-    return target->line->submit(std::move(job));
+    if (target->line->submit(std::move(job))) return true;
+    if (audited) audited->finish(audit_refused(fmt::format("busy: the line of device \"{}\" has too many writes waiting", device)));
+    return false;
 }
 
-Result<WrittenValues> DeviceWriter::write(const std::string& device, const std::vector<WriteAssignment>& assignments) const {
+Result<WrittenValues> DeviceWriter::write(const std::string& device, const std::vector<WriteAssignment>& assignments,
+                                          WriteOrigin origin) const {
     std::promise<Result<WrittenValues>> answered;
     auto future = answered.get_future();
     const bool queued =
-        write_async(device, assignments, [&answered](Result<WrittenValues> outcome) { answered.set_value(std::move(outcome)); });
+        write_async(device, assignments, [&answered](Result<WrittenValues> outcome) { answered.set_value(std::move(outcome)); },
+                    std::move(origin));
     if (!queued) {
         return make_error(ErrorKind::link, fmt::format("device \"{}\": its line has too many writes waiting; write again later",
                                                        device));
@@ -259,6 +333,40 @@ Result<WrittenValues> DeviceWriter::write(const std::string& device, const std::
 }
 
 void DeviceWriter::on_written(WrittenHook hook) { *written_hook_ = std::move(hook); }
+
+void DeviceWriter::audit_refusal(const std::string& device, const std::vector<WriteAssignment>& assignments,
+                                 const WriteOrigin& origin, const std::string& reason) const {
+    if (!audit_) return;
+    AuditedWrite audited;
+    audited.audit = audit_;
+    const Target* target = nullptr;
+    for (const auto& candidate : targets_) {
+        if (candidate->device.name == device) target = candidate.get();
+    }
+    for (const auto& assignment : assignments) {
+        AuditRecord record;
+        record.origin = origin;
+        record.device = device;
+        record.parameter = assignment.parameter;
+        record.new_value = assignment.text;
+        auto resolved = target ? device::resolve_parameters(*target->device.address.profile, {assignment.parameter})
+                               : Result<std::vector<const device::Parameter*>>(make_error(ErrorKind::usage, "no device"));
+        if (resolved && resolved->size() == 1) name_in_record(record, *resolved->front(), assignment.text, known_);
+        audited.records.push_back(std::move(record));
+    }
+    if (audited.records.empty()) {
+        AuditRecord record;
+        record.origin = origin;
+        record.device = device;
+        audited.records.push_back(std::move(record));
+    }
+    audited.finish(audit_refused(reason));
+}
+
+void DeviceWriter::audit(const WriteAudit* audit, KnownValueLookup known) {
+    audit_ = audit;
+    known_ = std::move(known);
+}
 
 void DeviceWriter::refuse_silent(DeviceLookup lookup) { lookup_ = std::move(lookup); }
 

@@ -23,6 +23,7 @@
 #include "gateway/event_loop.hpp"
 #include "gateway/line_scheduler.hpp"
 #include "gateway/value_cache.hpp"
+#include "gateway/write_audit.hpp"
 
 namespace loopwire::gateway {
 
@@ -59,6 +60,15 @@ struct WrittenValues {
 // or parameter, no value).
 using WriteCompletion = std::function<void(Result<WrittenValues>)>;
 
+// A value as the polls last read it, for the audit's "old value": its text with the decimals
+// it is shown with, and its unit. None when the device or parameter has not been read.
+struct KnownValue {
+    std::string text;
+    int decimals = 0;
+    std::string unit;
+};
+using KnownValueLookup = std::function<std::optional<KnownValue>(const std::string& device, const std::string& parameter)>;
+
 class DeviceWriter {
 public:
     static constexpr std::size_t default_queue_limit = 256;
@@ -84,12 +94,16 @@ public:
     //
     // Returns false, and `done` never runs, when the device's line already has `queue_limit`
     // writes waiting: the caller answers "busy" in its own words.
+    //
+    // With an audit (audit()), each assignment leaves one record with `origin`, whatever the
+    // outcome: refused before anything is sent, busy, or the device's answer.
     [[nodiscard]] bool write_async(const std::string& device, std::vector<WriteAssignment> assignments,
-                                   WriteCompletion done) const;
+                                   WriteCompletion done, WriteOrigin origin = {}) const;
 
     // The same, waiting for the outcome (a busy line is an error here). For callers that may
     // block: never the engine's loop, which the fronts run on.
-    Result<WrittenValues> write(const std::string& device, const std::vector<WriteAssignment>& assignments) const;
+    Result<WrittenValues> write(const std::string& device, const std::vector<WriteAssignment>& assignments,
+                                WriteOrigin origin = {}) const;
 
     // Writes queued or under way on every line now.
     std::size_t pending() const;
@@ -109,12 +123,25 @@ public:
     using WrittenHook = std::function<void(const std::string& device, const WrittenValues& written)>;
     void on_written(WrittenHook hook);
 
+    // A front's refusal of a write it never handed over (its own policy, a value it could not
+    // read, its own limit of writes waiting, the device's silence it checked first): audited as
+    // write_async's refusals are, one record an assignment (one without a parameter when there
+    // is none). Nothing without an audit.
+    void audit_refusal(const std::string& device, const std::vector<WriteAssignment>& assignments, const WriteOrigin& origin,
+                       const std::string& reason) const;
+
+    // Every write is audited from now on, its old value looked up in `known` (the value
+    // cache). Set once, before the first write; `audit` must outlive the writer.
+    void audit(const WriteAudit* audit, KnownValueLookup known);
+
 private:
     struct Target;
     struct LineWriter;
     EventLoop& loop_;
     std::shared_ptr<WrittenHook> written_hook_ = std::make_shared<WrittenHook>();
     DeviceLookup lookup_;
+    const WriteAudit* audit_ = nullptr;
+    KnownValueLookup known_;
     std::vector<std::unique_ptr<Target>> targets_;
     std::vector<std::unique_ptr<LineWriter>> lines_;  // one a line scheduler; stopped first
 };

@@ -74,24 +74,45 @@ ForwardingUnit::ForwardingUnit(std::shared_ptr<LineScheduler> line, ForwardingSe
     }
 }
 
-std::optional<Bytes> ForwardingUnit::silent_refusal(ByteView request_pdu) const {
+std::optional<Bytes> ForwardingUnit::silent_refusal(ByteView request_pdu, std::string& reason) const {
     if (!settings_.write_refusal || only_reads(request_pdu[0])) return std::nullopt;
     auto refused = settings_.write_refusal();
     if (!refused) return std::nullopt;
-    if (log_) log_(fmt::format("refused function {} to unit {}: {}", request_pdu[0], settings_.line_unit, refused->message));
+    reason = refused->message;
+    if (log_) log_(fmt::format("refused function {} to unit {}: {}", request_pdu[0], settings_.line_unit, reason));
     return failure_reply(request_pdu[0], *refused);
 }
 
 // Exception 01h for a write the front does not take: from every client (`writes = false`), or
 // from this client's address (outside `write_allow`).
-std::optional<Bytes> ForwardingUnit::refusal(ByteView request_pdu, const Asker& asker) const {
+std::optional<Bytes> ForwardingUnit::refusal(ByteView request_pdu, const Asker& asker, std::string& reason) const {
     if ((settings_.writes_allowed && asker.may_write) || only_reads(request_pdu[0])) return std::nullopt;
-    if (log_) {
-        log_(fmt::format("refused function {} to unit {}: {}", request_pdu[0], settings_.line_unit,
-                         settings_.writes_allowed ? "the client's address is not in modbus_tcp.write_allow"
-                                                  : "this gateway is read-only (modbus_tcp.writes = false)"));
-    }
+    reason = settings_.writes_allowed ? "the client's address is not in modbus_tcp.write_allow"
+                                      : "this gateway is read-only (modbus_tcp.writes = false)";
+    if (log_) log_(fmt::format("refused function {} to unit {}: {}", request_pdu[0], settings_.line_unit, reason));
     return exception_reply(request_pdu[0], illegal_function);
+}
+
+// A write's record, its outcome still to come; none for a read, and for a broadcast at every
+// unit but the one that carries it (a broadcast is one write, recorded once).
+std::optional<AuditRecord> ForwardingUnit::audit_record(ByteView request_pdu, bool broadcast, const Asker& asker) const {
+    if (!settings_.audit || only_reads(request_pdu[0]) || (broadcast && !settings_.carries_broadcasts)) return std::nullopt;
+    AuditRecord record;
+    record.origin.front = "modbus_tcp";
+    if (asker.peer) record.origin.peer = *asker.peer;
+    record.device = broadcast ? std::string("broadcast (unit 0)")
+                              : (settings_.device.empty() ? fmt::format("unit {}", settings_.line_unit) : settings_.device);
+    auto described = describe_raw_write(request_pdu);
+    record.parameter = std::move(described.what);
+    record.new_value = std::move(described.values);
+    return record;
+}
+
+void ForwardingUnit::audit(std::optional<AuditRecord>& record, std::string outcome) const {
+    if (!record) return;
+    record->outcome = std::move(outcome);
+    settings_.audit->record(std::move(*record));
+    record.reset();
 }
 
 std::optional<Bytes> ForwardingUnit::cached(ByteView request_pdu, bool broadcast) const {
@@ -99,7 +120,8 @@ std::optional<Bytes> ForwardingUnit::cached(ByteView request_pdu, bool broadcast
     return cache_->find(request_pdu, clock_->now());
 }
 
-LineRequest ForwardingUnit::line_request(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) const {
+LineRequest ForwardingUnit::line_request(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply,
+                                         std::optional<AuditRecord> audited) const {
     const std::uint8_t function = request_pdu[0];
     const bool write = !only_reads(function);
     CacheUpdate update{cache_, clock_, {}, 0, write};
@@ -116,8 +138,18 @@ LineRequest ForwardingUnit::line_request(Bytes request_pdu, bool broadcast, cons
     request.deadline = clock_->now() + settings_.queue_limit;
     std::function<void()> on_written = write ? settings_.on_write_answered : nullptr;
     request.done = [function, broadcast, update = std::move(update), on_written = std::move(on_written),
-                    reply = std::move(reply)](Result<Bytes> answered) {
+                    reply = std::move(reply), audited = std::move(audited), audit = settings_.audit](Result<Bytes> answered) mutable {
         update(answered);
+        if (audited) {
+            if (!answered) {
+                audited->outcome = audit_refused(answered.error().message);
+            } else if (broadcast) {
+                audited->outcome = "sent: a broadcast is not answered";
+            } else {
+                audited->outcome = raw_reply_outcome(*answered);
+            }
+            audit->record(std::move(*audited));
+        }
         // A normal reply: the function code echoed, not function + 80h. A broadcast has none.
         if (on_written && answered && !answered->empty() && ((*answered)[0] & 0x80) == 0) on_written();
         if (broadcast) return reply(std::nullopt);  // nobody answers a broadcast (2.1 of the serial spec)
@@ -128,17 +160,25 @@ LineRequest ForwardingUnit::line_request(Bytes request_pdu, bool broadcast, cons
 
 void ForwardingUnit::handle_async(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) {
     if (request_pdu.empty()) return reply(std::nullopt);
-    if (auto refused = refusal(request_pdu, asker)) return reply(broadcast ? std::nullopt : std::move(refused));
+    auto audited = audit_record(request_pdu, broadcast, asker);
+    std::string reason;
+    if (auto refused = refusal(request_pdu, asker, reason)) {
+        audit(audited, audit_refused(reason));
+        return reply(broadcast ? std::nullopt : std::move(refused));
+    }
     // A broadcast is every device's: one silent device does not hold it back.
     if (!broadcast) {
-        if (auto refused = silent_refusal(request_pdu)) return reply(std::move(refused));
+        if (auto refused = silent_refusal(request_pdu, reason)) {
+            audit(audited, audit_refused(reason));
+            return reply(std::move(refused));
+        }
     }
     // What was kept may be out of date once a write is taken. A broadcast write reaches this
     // device too, even when another unit carries it to the line.
     if (cache_ && !only_reads(request_pdu[0])) cache_->forget();
     if (broadcast && !settings_.carries_broadcasts) return reply(std::nullopt);
     if (auto kept = cached(request_pdu, broadcast)) return reply(std::move(kept));
-    line_->submit(line_request(std::move(request_pdu), broadcast, asker, std::move(reply)));
+    line_->submit(line_request(std::move(request_pdu), broadcast, asker, std::move(reply), std::move(audited)));
 }
 
 std::optional<Bytes> ForwardingUnit::handle(ByteView request_pdu, bool broadcast) {

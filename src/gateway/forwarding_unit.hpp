@@ -15,6 +15,7 @@
 #include "common/result.hpp"
 #include "gateway/line_scheduler.hpp"
 #include "gateway/read_cache.hpp"
+#include "gateway/write_audit.hpp"
 #include "session/unit_handler.hpp"
 
 namespace loopwire::gateway {
@@ -38,6 +39,10 @@ struct ForwardingSettings {
     // write is answered with failure_reply at once and never reaches the line; reads and
     // broadcasts still go.
     std::function<std::optional<Error>()> write_refusal = {};
+    // Every write a client asks for (any function that is not a read) is audited here, once:
+    // refused, answered or failed. None: not audited. Must outlive the unit.
+    std::shared_ptr<const WriteAudit> audit = {};
+    std::string device = {};  // the device's configured name, for the audit
 };
 
 // What the gateway says of refused or failed requests (for its log). A line that begins with
@@ -61,10 +66,13 @@ public:
     void handle_async(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) override;
 
 private:
-    std::optional<Bytes> refusal(ByteView request_pdu, const Asker& asker) const;
-    std::optional<Bytes> silent_refusal(ByteView request_pdu) const;
+    std::optional<Bytes> refusal(ByteView request_pdu, const Asker& asker, std::string& reason) const;
+    std::optional<Bytes> silent_refusal(ByteView request_pdu, std::string& reason) const;
+    std::optional<AuditRecord> audit_record(ByteView request_pdu, bool broadcast, const Asker& asker) const;
+    void audit(std::optional<AuditRecord>& record, std::string outcome) const;
     std::optional<Bytes> cached(ByteView request_pdu, bool broadcast) const;
-    LineRequest line_request(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply) const;
+    LineRequest line_request(Bytes request_pdu, bool broadcast, const Asker& asker, ReplyCallback reply,
+                             std::optional<AuditRecord> audited) const;
 
     std::shared_ptr<LineScheduler> line_;
     ForwardingSettings settings_;

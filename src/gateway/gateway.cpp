@@ -142,6 +142,21 @@ std::optional<ForwardOptions> forward_options(const HistoryConfig& history, cons
     return forward;
 }
 
+// A value's text and unit as the polls last read it, for the audit's old value of a write.
+KnownValueLookup known_values(const ValueCache& cache) {
+    return [&cache](const std::string& device, const std::string& parameter) -> std::optional<KnownValue> {
+        for (const auto& cached : cache.snapshot()) {
+            if (cached.name != device) continue;
+            for (const auto& value : cached.state.values) {
+                if (!value.parameter || value.parameter->name != parameter || !value.last) continue;
+                const auto resolved = resolved_view(cached, value);
+                return KnownValue{resolved.text, resolved.decimals, resolved.unit};
+            }
+        }
+        return std::nullopt;
+    };
+}
+
 // The history's three parts, each on its own thread and connection: the store writes the file,
 // the forwarder ships the file's outbox to the historian, the reader answers the queries (of the
 // file, and of other gateways' history in the historian). They start and stop here alone:
@@ -154,6 +169,8 @@ struct History {
     History(const History&) = delete;
     History& operator=(const History&) = delete;
     ~History() {
+        // The writes audited from now on (a line finishing its last) go to the log alone.
+        if (audit) audit->attach(nullptr);
         reader.reset();
         store.reset();
         forwarder.reset();
@@ -161,6 +178,7 @@ struct History {
     std::unique_ptr<HistoryForwarder> forwarder;  // none unless [history] forward_to
     std::unique_ptr<HistoryStore> store;
     std::unique_ptr<HistoryReader> reader;
+    std::shared_ptr<WriteAudit> audit;  // given the store while both are there
 };
 
 // Another gateway's history for the HTTP API: from the historian this one forwards to, with a
@@ -264,6 +282,9 @@ struct Gateway::Parts {
     // The loop that carries the serial lines (session/line_loop.hpp); the lines' masters hold it
     // too, and it goes once they have.
     std::shared_ptr<session::LineLoop> line_loop;
+    // Every write from every front is audited through it (write_audit.hpp); before the lines,
+    // the units and the writer, so it outlives the writes they finish as they go.
+    std::shared_ptr<WriteAudit> audit;
     // The front is destroyed first, then the polls (members go in reverse order): no request
     // reaches a line scheduler that is gone.
     std::vector<OpenLine> lines;
@@ -304,6 +325,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
     parts->alive = options.alive;
     parts->alive_every = options.alive_every;
     parts->log = options.log;
+    parts->audit = std::make_shared<WriteAudit>(options.log);
     parts->wait_for_stop = options.wait_for_stop;
     parts->http_listener_kept = options.http_listener_kept;
     session::UnitMap& units = parts->units;
@@ -327,6 +349,8 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
             settings.on_write_answered = [notices = std::weak_ptr<FrontWriteNotices>(parts->front_writes), name = device.name] {
                 if (auto open = notices.lock()) open->written(name);
             };
+            settings.audit = parts->audit;
+            settings.device = device.name;
             units[device.tcp_unit] = std::make_shared<ForwardingUnit>(opened->scheduler, settings, clock, options.log);
         }
         parts->lines.push_back(std::move(*opened));
@@ -341,6 +365,8 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         auto history = open_history(*config.history, config, options.log);
         if (!history) return history.error();
         parts->history = std::move(*history);
+        parts->history->audit = parts->audit;
+        parts->audit->attach(parts->history->store.get());
         parts->history_subscription =
             parts->cache.subscribe([store = parts->history->store.get()](const ValueChange& change) { store->record(change); });
     }
@@ -363,6 +389,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
     parts->writer = std::make_unique<DeviceWriter>(*parts->engine, std::move(writable), write_limit);
     // One write policy for every front: a device the polls find silent is refused at once.
     parts->writer->refuse_silent(parts->cache.device_lookup());
+    parts->writer->audit(parts->audit.get(), known_values(parts->cache));
     // A write of a word that bounds a polled value shows in every front's limits at the next poll.
     parts->writer->on_written([polls = parts->polls.get()](const std::string& device, const WrittenValues& written) {
         std::vector<std::string> parameters;

@@ -311,5 +311,38 @@ Result<std::vector<HistorySeries>> run_query(sqlite::Connection& db, const Histo
     return result;
 }
 
+Result<std::vector<AuditRecord>> run_audit_query(sqlite::Connection& db, const AuditQuery& query) {
+    std::vector<AuditRecord> records;
+    auto tables = db.query_integer("SELECT count(*) FROM sqlite_schema WHERE type = 'table' AND name = 'writes'");
+    if (!tables) return tables.error();
+    if (*tables == 0) return records;
+    auto statement = db.prepare(
+        "SELECT t, front, peer, user, device, parameter, old_value, new_value, outcome FROM writes "
+        "WHERE t >= ?1 AND t <= ?2 AND (?3 = '' OR device = ?3) ORDER BY t DESC, id DESC LIMIT ?4");
+    if (!statement) return statement.error();
+    const auto ms = [](std::chrono::system_clock::time_point time) -> std::int64_t {
+        return std::chrono::duration_cast<std::chrono::milliseconds>(time.time_since_epoch()).count();
+    };
+    statement->bind(1, ms(query.from));
+    statement->bind(2, ms(query.to));
+    statement->bind(3, std::string_view(query.device));
+    statement->bind(4, static_cast<std::int64_t>(query.limit));
+    for (;;) {
+        auto row = statement->step();
+        if (!row) return row.error();
+        if (!*row) break;
+        AuditRecord record;
+        record.time = std::chrono::system_clock::time_point(std::chrono::milliseconds(statement->integer(0)));
+        record.origin = {statement->text(1), statement->text(2), statement->text(3)};
+        record.device = statement->text(4);
+        record.parameter = statement->text(5);
+        record.old_value = statement->text(6);
+        record.new_value = statement->text(7);
+        record.outcome = statement->text(8);
+        records.push_back(std::move(record));
+    }
+    return records;
+}
+
 }  // namespace history
 }  // namespace loopwire::gateway

@@ -7,6 +7,7 @@
 #include "gateway/history_source.hpp"
 #include "gateway/history_store.hpp"
 #include "gateway/sqlite_database.hpp"
+#include "gateway/write_audit.hpp"
 
 namespace loopwire::gateway::history {
 
@@ -14,5 +15,9 @@ namespace loopwire::gateway::history {
 constexpr std::size_t max_points = 10000;
 
 Result<std::vector<HistorySeries>> run_query(sqlite::Connection& db, const HistoryQuery& query);
+
+// The audit's records the query asks for, newest first (a file of a loopwire before the audit
+// has none).
+Result<std::vector<AuditRecord>> run_audit_query(sqlite::Connection& db, const AuditQuery& query);
 
 }  // namespace loopwire::gateway::history

@@ -87,6 +87,10 @@ Result<std::vector<std::string>> HistoryReader::historian_gateways() const {
     return on_reader_thread<std::vector<std::string>>([this] { return historian_->gateways(); });
 }
 
+Result<std::vector<AuditRecord>> HistoryReader::audit(const AuditQuery& query) const {
+    return on_reader_thread<std::vector<AuditRecord>>([&] { return history::run_audit_query(db_, query); });
+}
+
 std::uint64_t HistoryReader::rows_written() const { return store_.rows_written(); }
 
 std::optional<ForwardStats> HistoryReader::forward_stats() const {

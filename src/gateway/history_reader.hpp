@@ -66,6 +66,7 @@ public:
     // API does); from any other thread, handed to it and waited for.
     Result<std::vector<HistorySeries>> query(const HistoryQuery& query) const override;
     Result<std::vector<std::string>> historian_gateways() const override;
+    Result<std::vector<AuditRecord>> audit(const AuditQuery& query) const override;
     std::uint64_t rows_written() const override;
     std::optional<ForwardStats> forward_stats() const override;
 

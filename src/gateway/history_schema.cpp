@@ -56,6 +56,14 @@ SELECT strftime('%Y-%m-%dT%H:%M:%fZ', s.t / 1000.0, 'unixepoch') AS time, s.t, n
 FROM samples s JOIN series n ON n.id = s.series_id
 )sql";
 
+// The audit of writes (gateway/write_audit.hpp): one row a write, from any front; t in ms since
+// the epoch. Kept as long as the samples ([history] keep).
+constexpr std::string_view create_writes =
+    "CREATE TABLE IF NOT EXISTS writes(id INTEGER PRIMARY KEY, t INTEGER NOT NULL, front TEXT NOT NULL, peer TEXT NOT NULL, "
+    "user TEXT NOT NULL, device TEXT NOT NULL, parameter TEXT NOT NULL, old_value TEXT NOT NULL, new_value TEXT NOT NULL, "
+    "outcome TEXT NOT NULL)";
+constexpr std::string_view create_writes_index = "CREATE INDEX IF NOT EXISTS writes_by_time ON writes(t)";
+
 Error refuse(const std::filesystem::path& file, const std::string& what) {
     return make_error(ErrorKind::usage, fmt::format("history database {}: {}", file.string(), what));
 }
@@ -139,8 +147,9 @@ Result<sqlite::Connection> open_for_writing(const std::filesystem::path& file) {
     // order they were committed, and the view for Grafana's SQLite data source and the sqlite3
     // shell. Created in every file, as the index above, so a file of an earlier loopwire, or
     // one that starts being forwarded later, needs no other schema; the outbox stays empty
-    // unless [history] forward_to.
-    for (const std::string_view sql : {create_outbox, create_values_view}) {
+    // unless [history] forward_to. The audit's table, the same way: a file of an earlier
+    // loopwire gains it, and is still the schema it was (only added to, nothing changed).
+    for (const std::string_view sql : {create_outbox, create_values_view, create_writes, create_writes_index}) {
         if (auto made = db->execute(sql); !made) {
             return refuse(file, fmt::format("cannot be written ({}); check the gateway may write to it and its folder",
                                             made.error().message));

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "common/result.hpp"
+#include "gateway/write_audit.hpp"
 
 namespace loopwire::gateway {
 
@@ -92,6 +93,11 @@ public:
     // there is no historian ([history] forward_to absent).
     virtual Result<std::vector<std::string>> historian_gateways() const {
         return make_error(ErrorKind::usage, "no historian: the history is forwarded nowhere ([history] forward_to absent)");
+    }
+    // The audit of writes (gateway/write_audit.hpp), newest first; ErrorKind::usage where no
+    // audit is kept.
+    virtual Result<std::vector<AuditRecord>> audit(const AuditQuery& /*query*/) const {
+        return make_error(ErrorKind::usage, "no audit of writes is kept here");
     }
 };
 

@@ -43,6 +43,8 @@ struct HistoryStore::Writer {
     sqlite::Statement expire_samples;
     sqlite::Statement expire_minutes;
     sqlite::Statement add_outbox;  // prepared only with an outbox
+    sqlite::Statement add_write;
+    sqlite::Statement expire_writes;
     std::uint64_t outbox_added = 0;  // in the transaction being written, and the first's stamp
     std::int64_t outbox_first_t = 0;
     // Looked up with std::tie of the row's strings (std::less<>): no copies per row.
@@ -75,6 +77,10 @@ struct Statements {
         "DELETE FROM minutes WHERE series_id = ?1 AND minute < ?2 AND minute <= "
         "coalesce((SELECT minute FROM minutes WHERE series_id = ?1 ORDER BY minute LIMIT 1 OFFSET ?3 - 1), ?2)";
     const char* add_outbox = "INSERT INTO outbox(series_id, t) VALUES(?1, ?2)";
+    const char* add_write =
+        "INSERT INTO writes(t, front, peer, user, device, parameter, old_value, new_value, outcome) "
+        "VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)";
+    const char* expire_writes = "DELETE FROM writes WHERE t < ?1";
 };
 
 }  // namespace
@@ -90,7 +96,8 @@ Result<std::unique_ptr<HistoryStore>> HistoryStore::open(HistoryOptions options,
     const std::pair<sqlite::Statement*, const char*> statements[] = {
         {&writer->find_series, sql.find_series}, {&writer->add_series, sql.add_series},
         {&writer->add_sample, sql.add_sample},   {&writer->add_minute, sql.add_minute},
-        {&writer->expire_samples, sql.expire_samples}, {&writer->expire_minutes, sql.expire_minutes}};
+        {&writer->expire_samples, sql.expire_samples}, {&writer->expire_minutes, sql.expire_minutes},
+        {&writer->add_write, sql.add_write},           {&writer->expire_writes, sql.expire_writes}};
     for (const auto& [statement, text] : statements) {
         auto prepared = writer->db.prepare(text);
         if (!prepared) return prepared.error();
@@ -153,6 +160,12 @@ void HistoryStore::record(const ValueChange& change) {
         return;
     }
     queue_.push_back(std::move(row));
+}
+
+void HistoryStore::record_write(const AuditRecord& record) {
+    std::lock_guard lock(queue_mutex_);
+    // Few (a person's or a program's writes), and each one matters: not bounded by max_queued.
+    writes_queue_.push_back(record);
 }
 
 std::uint64_t HistoryStore::rows_written() const {
@@ -279,6 +292,29 @@ Result<std::uint64_t> HistoryStore::commit(const std::vector<QueuedRow>& rows) {
     return inserted;
 }
 
+Result<void> HistoryStore::commit_writes(const std::vector<AuditRecord>& writes) {
+    Writer& w = *writer_;
+    if (writes.empty()) return {};
+    if (auto begun = w.db.execute("BEGIN IMMEDIATE"); !begun) return begun.error();
+    Result<void> written;
+    for (const AuditRecord& record : writes) {
+        w.add_write.bind(1, to_ms(record.time));
+        const std::string* texts[] = {&record.origin.front, &record.origin.peer,  &record.origin.user, &record.device,
+                                      &record.parameter,    &record.old_value,    &record.new_value,   &record.outcome};
+        int column = 2;
+        for (const std::string* text : texts) w.add_write.bind(column++, std::string_view(*text));
+        auto added = w.add_write.step();
+        w.add_write.reset();
+        if (!added) {
+            written = added.error();
+            break;
+        }
+    }
+    if (written) written = w.db.execute("COMMIT");
+    if (!written) (void)w.db.execute("ROLLBACK");
+    return written;
+}
+
 // A row that says nothing was read is never repeated by a heartbeat: a heartbeat of it would
 // stamp the present on a reading nobody made, which is how a frozen value used to look fresh
 // for minutes.
@@ -327,6 +363,11 @@ Result<bool> HistoryStore::retention_step(bool force) {
     if (w.to_sweep.empty()) {
         if (!force && w.next_sweep && now < *w.next_sweep) return false;
         w.next_sweep = now + retention_interval;
+        // The audit's rows go with the samples of their age; few, so in one statement.
+        w.expire_writes.bind(1, to_ms(now) - std::chrono::duration_cast<milliseconds>(options_.keep).count());
+        auto expired = w.expire_writes.step();
+        w.expire_writes.reset();
+        if (!expired) return expired.error();
         auto ids = w.db.prepare("SELECT id FROM series ORDER BY id DESC");
         if (!ids) return ids.error();
         for (;;) {
@@ -351,11 +392,19 @@ Result<bool> HistoryStore::retention_step(bool force) {
 Result<void> HistoryStore::write_pending() {
     Writer& w = *writer_;
     std::vector<QueuedRow> batch;
+    std::vector<AuditRecord> writes;
     std::uint64_t dropped = 0;
     {
         std::lock_guard lock(queue_mutex_);
         batch.swap(queue_);
+        writes.swap(writes_queue_);
         dropped = dropped_;
+    }
+    if (auto audited = commit_writes(writes); !audited) {
+        log(fmt::format("the audit of {} write(s) not written yet: {} (kept in memory and retried)", writes.size(),
+                        audited.error().message));
+        std::lock_guard lock(queue_mutex_);
+        writes_queue_.insert(writes_queue_.begin(), std::make_move_iterator(writes.begin()), std::make_move_iterator(writes.end()));
     }
     if (dropped > w.dropped_logged) {
         log(fmt::format("{} change(s) not recorded: the database fell behind by {} queued rows (a slow or full disk?)",

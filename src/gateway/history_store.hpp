@@ -39,6 +39,7 @@
 #include "common/result.hpp"
 #include "gateway/sqlite_database.hpp"
 #include "gateway/value_cache.hpp"
+#include "gateway/write_audit.hpp"
 
 namespace loopwire::gateway {
 
@@ -93,6 +94,9 @@ public:
     // Queues a change for the writer (the value cache's callback: quick, never blocks on the
     // database). Changes of a device's own status are not history and are ignored.
     void record(const ValueChange& change);
+    // Queues a write's audit record for the writer (WriteAudit's: quick, never blocks), committed
+    // with the next batch into the `writes` table.
+    void record_write(const AuditRecord& record);
 
     // Commits what is queued, writes the heartbeats that are due and one retention batch: the
     // writer thread's step, called by the owner when there is no thread (never beside it).
@@ -127,6 +131,7 @@ private:
     Result<std::int64_t> series_id(const std::string& device, const std::string& parameter, const std::string& unit);
     Result<void> insert_rows(const std::vector<QueuedRow>& rows, std::uint64_t& inserted);
     Result<std::uint64_t> commit(const std::vector<QueuedRow>& rows);  // the rows inserted
+    Result<void> commit_writes(const std::vector<AuditRecord>& writes);
     void add_heartbeats(std::vector<QueuedRow>& batch);
     Result<std::int64_t> expire(sqlite::Statement& statement, std::int64_t series, std::int64_t before);
     Result<bool> retention_step(bool force);  // false: nothing was due
@@ -140,6 +145,7 @@ private:
     mutable std::mutex queue_mutex_;
     std::condition_variable_any stop_woken_;
     std::vector<QueuedRow> queue_;
+    std::vector<AuditRecord> writes_queue_;
     // The last row of each series, for the heartbeats (the writer's).
     std::map<std::pair<std::string, std::string>, QueuedRow> last_;
     std::uint64_t dropped_ = 0;               // queue lock

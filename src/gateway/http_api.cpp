@@ -221,6 +221,7 @@ struct HttpApi::State {
     HttpOutcome events(const HttpRequest& request) const;
     HttpOutcome history(const HttpRequest& request) const;
     HttpOutcome history_gateways() const;
+    HttpOutcome audit(const HttpRequest& request) const;
     HttpResponse metrics() const;
     HttpResponse asset(const HttpRequest& request) const;
 };
@@ -263,6 +264,7 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
     if (path == "/api/devices") return {get ? devices_list() : not_allowed(readable), {}, {}};
     if (path == "/api/events") return get ? events(request) : HttpOutcome{not_allowed(readable), {}, {}};
     if (path == "/api/history") return get ? history(request) : HttpOutcome{not_allowed(readable), {}, {}};
+    if (path == "/api/audit") return get ? audit(request) : HttpOutcome{not_allowed(readable), {}, {}};
     if (path == "/api/history/gateways") return get ? history_gateways() : HttpOutcome{not_allowed(readable), {}, {}};
     if (path == "/metrics") return {get ? metrics() : not_allowed(readable), {}, {}};
     constexpr std::string_view prefix = "/api/devices/";
@@ -282,7 +284,7 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
         return {get ? device_detail(*device) : not_allowed(readable), {}, {}};
     }
     if (!api && (path == "/" || assets.count(path) != 0)) return {get ? asset(request) : not_allowed(readable), {}, {}};
-    return {error(404, fmt::format("no such resource: {} (the API is under /api/: devices, events, history; and /metrics)", path)),
+    return {error(404, fmt::format("no such resource: {} (the API is under /api/: devices, events, history, audit; and /metrics)", path)),
             {}, {}};
 }
 
@@ -413,24 +415,32 @@ HttpOutcome HttpApi::State::write(const ConfiguredDevice& device, const HttpRequ
                            "{\"mode\": \"manual\"}"),
                 {}, {}};
     }
+    const WriteOrigin origin{"http", request.client, {}};
     std::vector<WriteAssignment> assignments;
     for (const auto& [name, value] : body.items()) {
         auto text = written_text(value);
-        if (!text) return {error(400, fmt::format("the value of \"{}\": {}", name, text.error().message)), {}, {}};
+        if (!text) {
+            const std::string why = fmt::format("the value of \"{}\": {}", name, text.error().message);
+            sources.writer->audit_refusal(device.name, {{name, value.dump(-1, ' ', false, Json::error_handler_t::replace)}},
+                                          origin, why);
+            return {error(400, why), {}, {}};
+        }
         assignments.push_back({name, std::move(*text)});
     }
     // The writer's policy, answered as what it is: the device cannot take writes now (it does not
     // answer, or its line is down), so nothing was sent and the same write may go later.
     if (auto silent = sources.writer->refusal(device.name)) {
+        sources.writer->audit_refusal(device.name, assignments, origin, silent->message);
         HttpResponse refused = error(503, silent->message);
         refused.headers.emplace_back("Retry-After", "5");
         return {std::move(refused), {}, {}};
     }
     // Handed to the device's line; answered from its completion once the line has answered,
     // so a write waiting for a slow line holds up no other client and no other line.
-    auto deferred = [writer = sources.writer, name = device.name, assignments = std::move(assignments)](HttpResponder respond) {
+    auto deferred = [writer = sources.writer, name = device.name, assignments = std::move(assignments),
+                     origin](HttpResponder respond) {
         const bool queued = writer->write_async(
-            name, assignments, [respond](Result<WrittenValues> written) { respond(write_response(written)); });
+            name, assignments, [respond](Result<WrittenValues> written) { respond(write_response(written)); }, origin);
         if (!queued) {
             HttpResponse busy = error(503, fmt::format("the line of device \"{}\" has too many writes waiting; nothing was "
                                                        "sent, write again later", name));
@@ -559,6 +569,31 @@ HttpOutcome HttpApi::State::history(const HttpRequest& request) const {
         if (resolved && resolved->size() == 1) name = resolved->front()->name;
     }
     return deferred_history(*sources.history, std::move(*query));
+}
+
+// The audit of writes, newest first, from the history file: read on the history reader's
+// thread, as a history query is.
+HttpOutcome HttpApi::State::audit(const HttpRequest& request) const {
+    if (!sources.history) {
+        return {error(404, "no [history] configured: the audit of writes is kept in the history file; add a [history] "
+                           "table to the gateway's configuration"),
+                {}, {}};
+    }
+    auto query = audit_query(request.query, std::chrono::system_clock::now());
+    if (!query) return {error(400, query.error().message), {}, {}};
+    if (!query->device.empty() && !find(query->device)) {
+        return {error(404, fmt::format("no device \"{}\" on this gateway (GET /api/devices lists them)", query->device)), {}, {}};
+    }
+    return {{}, [history = sources.history, query = std::move(*query)](HttpResponder respond) {
+                history->run_blocking([history, query, respond = std::move(respond)] {
+                    auto records = history->audit(query);
+                    if (!records) return respond(error(history_failure_status(records.error()), records.error().message));
+                    HttpResponse response;
+                    response.headers.emplace_back("Cache-Control", "no-store");
+                    response.body = audit_json(*records);
+                    respond(std::move(response));
+                });
+            }, {}};
 }
 
 // The gateways whose history the historian holds, for the dashboard's choice of whose trend

@@ -7,6 +7,7 @@
 //   GET  /api/events                  server-sent events: the full picture, then each change
 //   GET  /api/history?device=...      downsampled series from the history store, JSON or CSV;
 //                                     &gateway=NAME: another gateway's, from the shared historian
+//   GET  /api/audit?from=&to=&device= the audit of writes from every front, newest first
 //   GET  /metrics                     Prometheus text: the lines' and devices' figures
 //   GET  /, /assets/*                 the dashboard (gateway/dashboard_assets.hpp)
 // Errors are {"error": "..."} with a status that fits.

@@ -464,6 +464,7 @@ private:
         keep_alive_ = message.keep_alive();
         head_ = message.method() == http::verb::head;
         HttpRequest request = to_request(message);
+        request.client = client_.to_string();
         if (head_) request.method = "GET";
         HttpOutcome outcome = server_.handler.handle(request);
         if (head_ && outcome.events) {

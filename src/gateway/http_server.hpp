@@ -52,6 +52,7 @@ struct HttpRequest {
     std::string authorization;  // the Authorization header
     std::string if_none_match;  // the If-None-Match header
     std::string body;
+    std::string client;         // the client's address ("127.0.0.1"), for the audit of writes
 };
 
 struct HttpResponse {

@@ -4,6 +4,7 @@
 #include <charconv>
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include "common/peer_text.hpp"
 #include "common/text_parsing.hpp"
@@ -257,6 +258,66 @@ std::string history_csv(const std::vector<HistorySeries>& series) {
                                       out += fmt::format("{},{},,,,,gap,{}\r\n", name, iso_time(gap.start),
                                                          gap.end ? iso_time(*gap.end) : "");
                                   }});
+    }
+    return out;
+}
+
+Result<AuditQuery> audit_query(std::string_view text, system_clock::time_point now) {
+    const auto values = parse_query(text);
+    for (const auto& [name, value] : values) {
+        if (name != "device" && name != "from" && name != "to" && name != "limit") {
+            return make_error(ErrorKind::usage,
+                              fmt::format("unknown query parameter \"{}\" (allowed: from, to, device, limit)", name));
+        }
+    }
+    AuditQuery query;
+    query.to = now;
+    for (const char* name : {"from", "to"}) {
+        auto it = values.find(name);
+        if (it == values.end()) continue;
+        auto time = query_time(it->second, now);
+        if (!time) {
+            return make_error(ErrorKind::usage, fmt::format("{}=\"{}\" is not a time: give it in ISO 8601 with its zone "
+                                                            "(2026-12-02T08:00:00Z), as a time before now (-1h, -7d) or as now",
+                                                            name, printable_excerpt(it->second)));
+        }
+        (std::string_view(name) == "from" ? query.from : query.to) = *time;
+    }
+    if (values.find("from") == values.end()) query.from = query.to - hours(24);
+    if (query.from > query.to) {
+        return make_error(ErrorKind::usage, fmt::format("from ({}) must not be after to ({})", iso_time(query.from),
+                                                        iso_time(query.to)));
+    }
+    if (auto device = values.find("device"); device != values.end()) query.device = device->second;
+    if (auto limit = values.find("limit"); limit != values.end()) {
+        const auto number = parse_decimal_digits(limit->second);
+        if (!number || *number < 1 || *number > max_audit_limit) {
+            return make_error(ErrorKind::usage, fmt::format("limit=\"{}\" must be a whole number 1..{}",
+                                                            printable_excerpt(limit->second), max_audit_limit));
+        }
+        query.limit = static_cast<std::size_t>(*number);
+    }
+    return query;
+}
+
+std::string audit_json(const std::vector<AuditRecord>& records) {
+    auto list = nlohmann::ordered_json::array();
+    for (const auto& record : records) {
+        list.push_back({{"time", iso_time(record.time)}, {"front", record.origin.front}, {"peer", record.origin.peer},
+                        {"user", record.origin.user}, {"device", record.device}, {"parameter", record.parameter},
+                        {"old_value", record.old_value}, {"new_value", record.new_value}, {"outcome", record.outcome}});
+    }
+    // Bytes a peer sent that are no UTF-8 (a Modbus client's values never are text) as U+FFFD.
+    return nlohmann::ordered_json{{"records", std::move(list)}}.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+std::string audit_csv(const std::vector<AuditRecord>& records) {
+    std::string out = "time,front,peer,user,device,parameter,old_value,new_value,outcome\r\n";
+    for (const auto& record : records) {
+        out += fmt::format("{},{},{},{},{},{},{},{},{}\r\n", iso_time(record.time), csv_field(record.origin.front),
+                           csv_field(record.origin.peer), csv_field(record.origin.user), csv_field(record.device),
+                           csv_field(record.parameter), csv_field(record.old_value), csv_field(record.new_value),
+                           csv_field(record.outcome));
     }
     return out;
 }

@@ -11,6 +11,7 @@
 
 #include "common/result.hpp"
 #include "gateway/history_source.hpp"
+#include "gateway/write_audit.hpp"
 
 namespace loopwire::gateway {
 
@@ -59,5 +60,16 @@ struct HistoryRowVisitor {
     std::function<void(const HistoryGap&)> gap;
 };
 void visit_in_time_order(const HistorySeries& series, const HistoryRowVisitor& visit);
+
+// GET /api/audit's query: from and to as the history's (default the last 24 hours up to
+// `now`), device (default every one), limit 1..100000 (default 1000). The error says which is
+// wrong and how it should look.
+Result<AuditQuery> audit_query(std::string_view query, std::chrono::system_clock::time_point now);
+
+// The audit's records as JSON ({"records": [{"time", "front", "peer", "user", "device",
+// "parameter", "old_value", "new_value", "outcome"}, ...]}) and as CSV with a header line of the
+// same names, in the order given.
+std::string audit_json(const std::vector<AuditRecord>& records);
+std::string audit_csv(const std::vector<AuditRecord>& records);
 
 }  // namespace loopwire::gateway

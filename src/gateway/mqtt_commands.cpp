@@ -45,25 +45,37 @@ std::size_t MqttCommands::under_way() const {
     return under_way_;
 }
 
+namespace {
+
+// MQTT tells no publisher's identity: a write came through the broker.
+const WriteOrigin from_broker{"mqtt", "broker", {}};
+
+}  // namespace
+
 void MqttCommands::take(std::string_view topic, std::string_view payload) {
     auto command = command_topic(prefix_, topic);
     if (!command) return;
+    // Each refusal here, before the writer has the write, is audited as the writer audits its own.
+    const auto refuse = [&](std::string_view value, const std::string& why) {
+        writer_.audit_refusal(command->device, {{command->parameter, std::string(value)}}, from_broker, why);
+        answer(*command, payload, why);
+    };
     if (payload.size() > max_payload_) {
         // Neither echoed nor parsed: the log and the answer say only how long it was.
-        return answer(*command, payload,
+        return refuse(fmt::format("({} bytes)", payload.size()),
                       fmt::format("the value is {} bytes long; at most {} are taken ([mqtt] max_payload)", payload.size(),
                                   max_payload_));
     }
-    if (!writes_) return answer(*command, payload, "writes are off ([mqtt] writes = false)");
+    if (!writes_) return refuse(payload, "writes are off ([mqtt] writes = false)");
     // Before counting it in: a device found silent is refused at once, and never counts as busy.
-    if (auto silent = writer_.refusal(command->device)) return answer(*command, payload, silent->message);
-    if (auto refusal = admit()) return answer(*command, payload, *refusal);
+    if (auto silent = writer_.refusal(command->device)) return refuse(payload, silent->message);
+    if (auto refusal = admit()) return refuse(payload, *refusal);
     std::string text(payload);
     auto done = [this, command = *command, text](Result<WrittenValues> written) {
         answer(command, text, written ? std::string() : written.error().message);
         finished();
     };
-    if (!writer_.write_async(command->device, {{command->parameter, std::move(text)}}, std::move(done))) {
+    if (!writer_.write_async(command->device, {{command->parameter, std::move(text)}}, std::move(done), from_broker)) {
         answer(*command, payload,
                fmt::format("busy: the line of device \"{}\" has too many writes waiting; nothing was sent, write again later",
                            command->device));
@@ -74,7 +86,9 @@ void MqttCommands::take(std::string_view topic, std::string_view payload) {
 void MqttCommands::refuse_retained(std::string_view topic, std::string_view payload) {
     const auto command = command_topic(prefix_, topic);
     if (!command) return;
-    answer(*command, payload, mqtt::retained_command_refusal(topic));
+    const std::string why = mqtt::retained_command_refusal(topic);
+    writer_.audit_refusal(command->device, {{command->parameter, std::string(payload)}}, from_broker, why);
+    answer(*command, payload, why);
 }
 
 std::optional<std::string> MqttCommands::admit() {

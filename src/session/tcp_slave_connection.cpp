@@ -67,6 +67,17 @@ bool TcpSlaveConnection::may_write(const Slave& slave, const asio::ip::tcp::sock
     return !error && slave.options().access.write_allow.allows(endpoint.address());
 }
 
+namespace {
+
+// The client's address and port as the log and the audit name it.
+std::string peer_of(const asio::ip::tcp::socket& socket) {
+    error_code error;
+    const auto endpoint = socket.remote_endpoint(error);
+    return error ? std::string("a client that has gone") : fmt::format("{}:{}", endpoint.address().to_string(), endpoint.port());
+}
+
+}  // namespace
+
 TcpSlaveConnection::TcpSlaveConnection(Slave& slave, ConnectionOwner& owner, std::shared_ptr<ReplyMailbox> mailbox,
                                        asio::ip::tcp::socket socket)
     : slave_(slave),
@@ -76,12 +87,8 @@ TcpSlaveConnection::TcpSlaveConnection(Slave& slave, ConnectionOwner& owner, std
       timer_(socket_.get_executor()),
       codec_(make_frame_codec(slave.link(), codec::Direction::request)),
       mbap_(slave.link().framing == transport::Framing::tcp),
-      asker_(++connections_made, wanted_, may_write(slave, socket_)) {
-    error_code error;
-    const auto endpoint = socket_.remote_endpoint(error);
-    peer_ = error ? std::string("a client that has gone")
-                  : fmt::format("{}:{}", endpoint.address().to_string(), endpoint.port());
-}
+      asker_(++connections_made, wanted_, may_write(slave, socket_), std::make_shared<const std::string>(peer_of(socket_))),
+      peer_(*asker_.peer) {}
 
 // Requests keep being read while replies queue up: a client that does not read its replies
 // is closed at the bound instead (queue()). Pausing reads for it would only keep its memory and

@@ -6,6 +6,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <string>
 #include <utility>
 
 #include "codec/pdu.hpp"
@@ -37,13 +38,17 @@ public:
     using WantedFlag = std::shared_ptr<const std::atomic<bool>>;
     static bool wanted(const WantedFlag& flag) { return !flag || flag->load(std::memory_order_relaxed); }
     struct Asker {
-        Asker(Origin from = 0, WantedFlag wanted = {}, bool writes = true)  // NOLINT: an Origin is an Asker
-            : origin(from), still_wanted(std::move(wanted)), may_write(writes) {}
+        Asker(Origin from = 0, WantedFlag wanted = {}, bool writes = true,  // NOLINT: an Origin is an Asker
+              std::shared_ptr<const std::string> address = {})
+            : origin(from), still_wanted(std::move(wanted)), may_write(writes), peer(std::move(address)) {}
         Origin origin;
         WantedFlag still_wanted;
         // False for a TCP client whose address is outside the slave's write_allow
         // (SlaveOptions::access): a handler passes on only its reads.
         bool may_write;
+        // The client's address ("127.0.0.1:50312"), shared by the requests of its connection (no
+        // copy a request); none for a serial master.
+        std::shared_ptr<const std::string> peer;
         bool wanted() const { return UnitHandler::wanted(still_wanted); }
     };
 

@@ -25,6 +25,9 @@
 namespace loopwire::gateway {
 namespace {
 
+// Sparkplug tells no publisher's identity: a DCMD came through the broker.
+const WriteOrigin from_broker{"sparkplug", "broker", {}};
+
 using namespace sparkplug;
 
 constexpr int keepalive_seconds = 30;
@@ -634,27 +637,44 @@ struct SparkplugNode::State {
 
     void on_device_command(std::size_t index_of_device, const std::vector<CommandMetric>& metrics) {
         NodeDevice& device = devices[index_of_device];
-        if (!config.writes) return refuse_write(index_of_device, "writes are off (set writes = true in [sparkplug] to take DCMDs)");
-        if (!node_born) return refuse_write(index_of_device, "the node is dead (its NDEATH is out); nothing was sent");
+        // Worked out first, for the audit of a refusal too: what the DCMD asked for.
+        auto assignments = assignments_of(device, metrics);
+        // A refusal here, before the writer has the write, is audited as the writer audits its own.
+        const auto refuse = [&](std::string why) {
+            std::vector<WriteAssignment> asked;
+            if (assignments) {
+                asked = *assignments;
+            } else {
+                for (const auto& metric : metrics) asked.push_back({metric.name, value_words(metric.value)});
+            }
+            writer->audit_refusal(device.name, asked, from_broker, why);
+            refuse_write(index_of_device, std::move(why));
+        };
+        if (!config.writes) return refuse("writes are off (set writes = true in [sparkplug] to take DCMDs)");
+        if (!node_born) return refuse("the node is dead (its NDEATH is out); nothing was sent");
         // The writer's policy, in the words every front gives (device_writer.hpp); a device
         // dead for another reason (no poll has told of it yet) is refused here.
-        if (auto silent = writer->refusal(device.name)) return refuse_write(index_of_device, silent->message);
-        if (!device.born) return refuse_write(index_of_device, "the device does not answer now (DDEATH); nothing was sent");
-        auto assignments = assignments_of(device, metrics);
-        if (!assignments) return refuse_write(index_of_device, assignments.error().message);
+        if (auto silent = writer->refusal(device.name)) return refuse(silent->message);
+        if (!device.born) return refuse("the device does not answer now (DDEATH); nothing was sent");
+        if (!assignments) return refuse(assignments.error().message);
+        std::optional<std::size_t> waiting;
         {
             std::lock_guard lock(mutex);
             if (pending_writes >= max_pending_writes) {
-                return refuse_write(index_of_device, fmt::format("{} writes are waiting already; write again later", pending_writes));
+                waiting = pending_writes;
+            } else {
+                ++pending_writes;
             }
-            ++pending_writes;
         }
+        // Refused outside the lock: the audit reads the value cache, whose changes this node
+        // takes under it.
+        if (waiting) return refuse(fmt::format("{} writes are waiting already; write again later", *waiting));
         const bool queued = writer->write_async(device.name, std::move(*assignments), [this, index_of_device](Result<WrittenValues> written) {
             std::lock_guard lock(mutex);
             outcomes.push_back({index_of_device, written ? std::string() : written.error().message});
             driver->wake();
             if (--pending_writes == 0) writes_done.notify_all();
-        });
+        }, from_broker);
         if (!queued) {
             {
                 std::lock_guard lock(mutex);
