@@ -78,6 +78,28 @@ void name_in_record(AuditRecord& record, const device::Parameter& parameter, con
     if (!text.empty()) record.new_value = in_units(text, known, parameter.unit);
 }
 
+// One record an assignment (one for the whole write when it has none), each as given until
+// its parameter is known.
+std::vector<AuditRecord> records_of(const WriteOrigin& origin, const std::string& device,
+                                    const std::vector<WriteAssignment>& assignments) {
+    std::vector<AuditRecord> records;
+    for (const auto& assignment : assignments) {
+        AuditRecord record;
+        record.origin = origin;
+        record.device = device;
+        record.parameter = assignment.parameter;
+        record.new_value = assignment.text;
+        records.push_back(std::move(record));
+    }
+    if (records.empty()) {
+        AuditRecord record;
+        record.origin = origin;
+        record.device = device;
+        records.push_back(std::move(record));
+    }
+    return records;
+}
+
 }  // namespace
 
 struct DeviceWriter::Target {
@@ -251,20 +273,7 @@ bool DeviceWriter::write_async(const std::string& device, std::vector<WriteAssig
     if (audit_) {
         audited = std::make_shared<AuditedWrite>();
         audited->audit = audit_;
-        for (const auto& assignment : assignments) {
-            AuditRecord record;
-            record.origin = origin;
-            record.device = device;
-            record.parameter = assignment.parameter;
-            record.new_value = assignment.text;
-            audited->records.push_back(std::move(record));
-        }
-        if (audited->records.empty()) {
-            AuditRecord record;
-            record.origin = std::move(origin);
-            record.device = device;
-            audited->records.push_back(std::move(record));
-        }
+        audited->records = records_of(origin, device, assignments);
         done = [audited, done = std::move(done)](Result<WrittenValues> outcome) {
             audited->finish(outcome ? std::string(audit_confirmed) : audit_refused(outcome.error().message));
             done(std::move(outcome));
@@ -337,28 +346,12 @@ void DeviceWriter::on_written(WrittenHook hook) { *written_hook_ = std::move(hoo
 void DeviceWriter::audit_refusal(const std::string& device, const std::vector<WriteAssignment>& assignments,
                                  const WriteOrigin& origin, const std::string& reason) const {
     if (!audit_) return;
-    AuditedWrite audited;
-    audited.audit = audit_;
-    const Target* target = nullptr;
-    for (const auto& candidate : targets_) {
-        if (candidate->device.name == device) target = candidate.get();
-    }
-    for (const auto& assignment : assignments) {
-        AuditRecord record;
-        record.origin = origin;
-        record.device = device;
-        record.parameter = assignment.parameter;
-        record.new_value = assignment.text;
-        auto resolved = target ? device::resolve_parameters(*target->device.address.profile, {assignment.parameter})
-                               : Result<std::vector<const device::Parameter*>>(make_error(ErrorKind::usage, "no device"));
-        if (resolved && resolved->size() == 1) name_in_record(record, *resolved->front(), assignment.text, known_);
-        audited.records.push_back(std::move(record));
-    }
-    if (audited.records.empty()) {
-        AuditRecord record;
-        record.origin = origin;
-        record.device = device;
-        audited.records.push_back(std::move(record));
+    AuditedWrite audited{audit_, records_of(origin, device, assignments)};
+    if (const WritableDevice* target = find(device)) {
+        for (std::size_t i = 0; i < assignments.size(); ++i) {
+            auto resolved = device::resolve_parameters(*target->address.profile, {assignments[i].parameter});
+            if (resolved && resolved->size() == 1) name_in_record(audited.records[i], *resolved->front(), assignments[i].text, known_);
+        }
     }
     audited.finish(audit_refused(reason));
 }
