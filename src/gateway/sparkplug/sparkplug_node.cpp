@@ -1044,6 +1044,9 @@ void SparkplugNode::take_over(std::vector<SparkplugDevice> devices, const Device
         s.node_birth_due = true;
     }
     s.adopt(devices);
+    // Worded before the driver starts: from then on its thread may connect and move bdSeq on.
+    const std::string carried_on =
+        fmt::format("carries on across the reload with {} devices (bdSeq {}, no new session)", s.devices.size(), s.bd_seq);
     s.cache = &cache;
     s.driver = std::make_unique<mqtt::LoopDriver>(loop, "lw-sparkplug", s.client, s.config.host, s.timing.reconnect_first,
                                                   s.timing.reconnect_last, s.network_hooks());
@@ -1056,7 +1059,7 @@ void SparkplugNode::take_over(std::vector<SparkplugDevice> devices, const Device
     }
     s.subscription = cache.subscribe([&s](const ValueChange& change) { s.on_change(change); });
     s.driver->wake();  // the deaths and births the reload calls for
-    s.say(fmt::format("carries on across the reload with {} devices (bdSeq {}, no new session)", s.devices.size(), s.bd_seq));
+    s.say(carried_on);
 }
 
 bool SparkplugNode::connected() const { return state_->is_connected.load(); }
