@@ -542,11 +542,23 @@ TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItRe
         ASSERT_TRUE(eventually([&] { return cached_ok(running, truth, device.name); }, 10s)) << device.name;
     }
 
+    // The others' cadence with every unit answering, over a window as long as the one measured
+    // below and under the same load: a loaded machine (a sanitizer's stage) polls less often
+    // than the interval asks, and the dead unit's cost is what is asserted, not the host's speed.
+    constexpr auto window = 2400ms;
+    const auto baseline_start = Clock::now();
+    std::this_thread::sleep_until(baseline_start + window);  // the window being measured
+    std::map<std::string, unsigned> baseline;
+    for (const auto& sample : samples.between(baseline_start, baseline_start + window)) {
+        for (std::size_t i = 0; i < devices.size(); ++i) {
+            baseline[devices[i].name] += sample.devices.at(i).status == device::DeviceStatus::ok;
+        }
+    }
+
     // The kiln dies: the cache says so, and the others keep their cadence.
     const auto before = running.statistics();
     const auto died = Clock::now();
     dead->unit = 2;
-    constexpr auto window = 2400ms;
     ASSERT_TRUE(eventually(
         [&] { return cached_state(running.gateway(), "kiln").status == device::DeviceStatus::no_reply; }, 5s))
         << "the cache never showed the kiln as not answering";
@@ -579,18 +591,23 @@ TEST(GatewayOnFaultyBus, AUnitThatDiesCostsTheOthersLittleAndIsReadAgainWhenItRe
     // a few timeouts in the window, not one per sample.
     EXPECT_GE(dead_timeouts, 1u);
     EXPECT_LE(dead_timeouts, 4u) << "the dead unit was polled without back-off";
-    // Each timeout costs the others at most the slot it overran into: most samples still read
-    // them (without back-off, at most every other sample would).
+    // Each timeout costs the others the slots it overran into (two on an idle host, three seen
+    // under a sanitizer's load): at least half the samples still read them as often as before the
+    // unit died. Polled without back-off, the dead unit would have cost one timeout a sample, which
+    // the bound on timeouts above catches first.
     for (const auto& name : {"furnace", "oven"}) {
-        EXPECT_GE(fresh[name], slots * 6 / 10)
-            << name << ": " << fresh[name] << " fresh samples in " << slots << " slots";
+        const unsigned expected = std::min(slots, baseline[name]);
+        EXPECT_GE(fresh[name], expected / 2)
+            << name << ": " << fresh[name] << " fresh samples in " << slots << " slots, " << baseline[name]
+            << " in as long a window before the unit died";
     }
     EXPECT_EQ(fresh_after_silence, 0u) << "the dead unit had fresh values";
     std::cout << fmt::format(
         "dead for {:.1f} s: {} frames dropped, {} timeouts, {} polls refused in back-off; of {} slots, "
-        "furnace fresh in {} (longest gap {:.2f} s), oven fresh in {} (longest gap {:.2f} s)\n",
+        "furnace fresh in {} (longest gap {:.2f} s, {} before), oven fresh in {} (longest gap {:.2f} s, {} before)\n",
         seconds(window), dead->dropped.load(), dead_timeouts, during.backed_off - before.backed_off, slots,
-        fresh["furnace"], seconds(longest_gap["furnace"]), fresh["oven"], seconds(longest_gap["oven"]));
+        fresh["furnace"], seconds(longest_gap["furnace"]), baseline["furnace"], fresh["oven"],
+        seconds(longest_gap["oven"]), baseline["oven"]);
 
     // It returns: the polls find it and the cache shows it answering with its value, at the
     // scheduler's next try (the poller keeps no back-off of its own in the gateway, so the two
@@ -891,7 +908,12 @@ TEST(GatewayOnFaultyBus, ClientsReadingDifferentRegistersNeverGetAnotherRegister
         after.bad_replies - before.bad_replies, garbled);
     EXPECT_TRUE(wrong.empty()) << wrong.size() << " wrong answers:\n" << first_of(wrong);
     EXPECT_TRUE(faults->each_happened(1)) << faults->describe();
-    EXPECT_GT(right, 100u);
+    // Through the faults, every client is answered right, and more often right than refused; how
+    // many answers fit in the run is the host's speed (90 to 400 seen), not asserted.
+    for (std::size_t i = 0; i < tallies.size(); ++i) {
+        EXPECT_GT(tallies[i].right, 0u) << "the client of register " << registers[i].first << " was never answered right";
+    }
+    EXPECT_GT(right, target_failed);
     EXPECT_GT(target_failed, 0u);  // the faults reached the clients, as 0Bh
     // The line saw the faults as what they are: no reply it could take, or a bad (ambiguous) one.
     EXPECT_GT(after.timeouts - before.timeouts + after.bad_replies - before.bad_replies, 0u);
