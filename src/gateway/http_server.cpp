@@ -819,26 +819,34 @@ std::optional<HttpResponse> HttpServer::State::over_stream_limits(const asio::ip
     return refusal;
 }
 
-// Room for a newcomer at a limit: the connection that has waited longest for a request's header
-// (of `client`'s own when `from_client`, at its per-address limit) is closed. It is idle between
-// requests (HTTP lets a server close those), or sends its header too slowly to be worth its slot;
-// the oldest, so that one just connected, whose header may be on its way, goes last. Refusing
-// instead would let clients that reconnect as soon as header_timeout closes them hold every slot.
+// Room for a newcomer at a limit: a connection waiting for a request's header is closed. It is
+// idle between requests (HTTP lets a server close those), or sends its header too slowly to be
+// worth its slot. Refusing instead would let clients that reconnect as soon as header_timeout
+// closes them hold every slot. Which one: at its address's limit (`from_client`), the newcomer's
+// own; at the server's limit, one of the address that holds the most connections. Of those, the
+// one that has waited longest, so that one just connected, whose header may be on its way, goes
+// last. By address first: clients that open many connections (a slowloris reconnecting as fast as
+// it is closed) take each other's places, not that of a client that has just opened its one.
 // None being answered or streaming is closed: false when there is no other.
 bool HttpServer::State::make_room(const asio::ip::address& client, bool from_client) {
-    std::shared_ptr<ConnectionBase> idlest;
-    std::optional<std::chrono::steady_clock::time_point> idlest_since;
+    std::shared_ptr<ConnectionBase> chosen;
+    std::size_t chosen_holds = 0;
+    std::chrono::steady_clock::time_point chosen_since;
     for (const auto& [raw, weak] : connections) {
         auto connection = weak.lock();
         if (!connection || (from_client && connection->client() != client)) continue;
         const auto since = connection->waiting_for_header_since();
-        if (since && (!idlest_since || *since < *idlest_since)) {
-            idlest = std::move(connection);
-            idlest_since = *since;
+        if (!since) continue;
+        const auto found = per_client.find(connection->client());
+        const std::size_t holds = found == per_client.end() ? 0 : found->second;
+        if (!chosen || holds > chosen_holds || (holds == chosen_holds && *since < chosen_since)) {
+            chosen = std::move(connection);
+            chosen_holds = holds;
+            chosen_since = *since;
         }
     }
-    if (!idlest) return false;
-    idlest->close();
+    if (!chosen) return false;
+    chosen->close();
     return true;
 }
 

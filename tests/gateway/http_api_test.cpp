@@ -1196,6 +1196,26 @@ TEST_F(HttpLimitsTest, ANewcomerAtTheLimitTakesThePlaceOfTheConnectionIdleLonges
     EXPECT_THAT(second.receive_until("\r\n\r\n"), HasSubstr("200 OK"));
 }
 
+TEST_F(HttpLimitsTest, AtTheLimitTheAddressHoldingTheMostConnectionsGivesOneUp) {
+    HttpServerSettings settings;
+    settings.max_connections = 4;
+    start(settings);
+    // One keep-alive connection from 127.0.0.2, idle longest; then three from 127.0.0.3.
+    std::vector<std::unique_ptr<Socket>> open;
+    for (const char* from : {"127.0.0.2", "127.0.0.3", "127.0.0.3", "127.0.0.3"}) {
+        open.push_back(std::make_unique<Socket>(server_->port(), 0, from));
+        ASSERT_TRUE(open.back()->send("GET /api/devices HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
+        EXPECT_THAT(open.back()->receive_until("\r\n\r\n"), HasSubstr("200 OK"));
+    }
+    EXPECT_EQ(get(server_->port(), "/api/devices").status, 200u);
+    // The oldest of 127.0.0.3's made room; 127.0.0.2's one, older still, is served on.
+    EXPECT_FALSE(open[1]->receive(deadline)) << "the busiest address's oldest connection was not closed";
+    for (std::size_t kept : {0u, 2u, 3u}) {
+        ASSERT_TRUE(open[kept]->send("GET /api/devices HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")) << kept;
+        EXPECT_THAT(open[kept]->receive_until("\r\n\r\n"), HasSubstr("200 OK")) << kept;
+    }
+}
+
 TEST_F(HttpLimitsTest, EventStreamsBeyondTheirShareAreRefusedAndLeaveRoomForRequests) {
     HttpServerSettings settings;
     settings.max_connections = 8;
