@@ -267,7 +267,16 @@ struct HttpServer::State : std::enable_shared_from_this<HttpServer::State> {
     asio::steady_timer accept_pause{loop};
     std::uint16_t port = 0;
     bool stopping = false;     // the network thread's
-    std::atomic<std::uint64_t> not_allowed{0};  // clients closed at accept: outside settings.allow
+    // Clients closed as outside settings.allow, at accept or adopted across a reload: the
+    // listener's count when there is one (it goes on across reloads).
+    std::atomic<std::uint64_t> not_allowed{0};
+    void count_not_allowed() {
+        if (listener) {
+            listener->count_not_allowed();
+        } else {
+            not_allowed.fetch_add(1, std::memory_order_relaxed);
+        }
+    }
     // With TLS: what new connections take; a reload's certificate replaces it, while connections
     // open keep theirs (each holds its own).
     mutable std::mutex tls_mutex;
@@ -768,7 +777,7 @@ void HttpServer::State::on_accept(const error_code& error, tcp::socket socket) {
     const auto client = client_of(socket);
     if (!settings.allow.allows(client)) {
         // Closed before a byte is read: an address outside the allow list costs nothing more.
-        ++not_allowed;
+        count_not_allowed();
         error_code ignored;
         socket.close(ignored);
         accept();
@@ -878,6 +887,11 @@ void HttpServer::State::adopt(std::vector<HttpListener::Parked> parked) {
             continue;
         }
         const auto client = client_of(socket);
+        // A reload that narrowed `allow` closes the parked connections it no longer lets in.
+        if (!settings.allow.allows(client)) {
+            count_not_allowed();
+            continue;  // closed with `socket`
+        }
         if (stopping || over_limits(client)) continue;  // closed with `socket`
         serve(std::move(socket), client, connection.buffered());
     }
@@ -950,7 +964,7 @@ Result<HttpListener> HttpListener::open(const std::string& host, std::uint16_t p
 HttpListener::HttpListener(HttpListener&& other) noexcept
     : host_(std::move(other.host_)), asked_port_(other.asked_port_), port_(other.port_),
       fd_(std::exchange(other.fd_, -1)), ipv6_(other.ipv6_), parked_mutex_(std::move(other.parked_mutex_)),
-      parked_(std::move(other.parked_)) {}
+      parked_(std::move(other.parked_)), not_allowed_(std::move(other.not_allowed_)) {}
 
 HttpListener& HttpListener::operator=(HttpListener&& other) noexcept {
     if (this != &other) {
@@ -962,6 +976,7 @@ HttpListener& HttpListener::operator=(HttpListener&& other) noexcept {
         ipv6_ = other.ipv6_;
         parked_mutex_ = std::move(other.parked_mutex_);
         parked_ = std::move(other.parked_);
+        not_allowed_ = std::move(other.not_allowed_);
     }
     return *this;
 }
@@ -1023,7 +1038,9 @@ Result<std::unique_ptr<HttpServer>> HttpServer::open(const HttpServerSettings& s
     return std::unique_ptr<HttpServer>(new HttpServer(std::move(state)));
 }
 
-std::uint64_t HttpServer::not_allowed() const { return state_->not_allowed.load(std::memory_order_relaxed); }
+std::uint64_t HttpServer::not_allowed() const {
+    return state_->listener ? state_->listener->not_allowed() : state_->not_allowed.load(std::memory_order_relaxed);
+}
 
 std::uint16_t HttpServer::port() const { return state_->port; }
 

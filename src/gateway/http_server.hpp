@@ -22,6 +22,7 @@
 // has waited longest for a request's header (an idle keep-alive one, or a client too slow to send
 // one), so clients that open connections and send nothing, however fast they reconnect, cannot
 // lock out a request either.
+#include <atomic>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -169,6 +170,10 @@ public:
     void park(int fd, std::string buffered);
     // For the next server.
     std::vector<Parked> take_parked();
+    // Clients closed as outside [http] allow, by every server on this listener: the count goes on
+    // across reloads, as the listener does.
+    void count_not_allowed() { not_allowed_->fetch_add(1, std::memory_order_relaxed); }
+    std::uint64_t not_allowed() const { return not_allowed_->load(std::memory_order_relaxed); }
 
 private:
     HttpListener(std::string host, std::uint16_t asked_port, std::uint16_t port, int fd, bool ipv6)
@@ -180,6 +185,7 @@ private:
     bool ipv6_ = false;
     std::unique_ptr<std::mutex> parked_mutex_ = std::make_unique<std::mutex>();
     std::vector<Parked> parked_;  // guarded by *parked_mutex_
+    std::unique_ptr<std::atomic<std::uint64_t>> not_allowed_ = std::make_unique<std::atomic<std::uint64_t>>(0);
 };
 
 class HttpServer {

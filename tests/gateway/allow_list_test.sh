@@ -6,6 +6,8 @@
 # - [modbus_tcp] write_allow: 127.0.0.3 reads, but its write is answered with exception 01h
 #   and logged, and the set point keeps 127.0.0.1's value;
 # - [http] allow: curl from 127.0.0.2 gets no response, from 127.0.0.1 the API; counted;
+# - a reload that narrows [http] allow closes the kept-alive connection of an address it leaves
+#   out (127.0.0.4), counted, while the others are served;
 # - a list entry that is not an address or a network is refused by --check with its place.
 set -u
 loopwire=${1:?usage: allow_list_test.sh path/to/loopwire}
@@ -49,9 +51,10 @@ check check-wants-a-list 2 'http.allow: expected a list of addresses and network
 
 # ---- the lists at work -------------------------------------------------------------------------
 write_config "$WORK_DIR/plant.toml" 'allow = ["127.0.0.1", "127.0.0.3/32", "::1"]
-write_allow = ["127.0.0.1"]' 'allow = ["127.0.0.0/31"]'
+write_allow = ["127.0.0.1"]' 'allow = ["127.0.0.0/31", "127.0.0.4"]'
 check check-accepts-lists 0 "" "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
 start_tcp_server gateway.log timeout 120 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+LAST_GATEWAY_PID=$LAST_PID
 modbus_port=$PORT
 http_port=$(wait_for_log gateway.log 'HTTP API and dashboard on http:..127\.0\.0\.1:([0-9]+)')
 
@@ -70,9 +73,40 @@ if [[ $status -ne 0 && ! -s $WORK_DIR/outside.txt ]]; then count_pass
 else count_failure "http-outside-gets-nothing (curl status $status)" "$WORK_DIR/outside.txt"; fi
 check http-inside-served 0 '"oven"' curl -s --max-time 10 "http://127.0.0.1:$http_port/api/devices"
 
+# A keep-alive connection from 127.0.0.4, answered once (a short 404); then a reload leaves 127.0.0.4 out.
+keep_alive() {  # asks twice on one connection from 127.0.0.4, the second time once $WORK_DIR/go exists
+  /usr/bin/python3 - "$http_port" "$WORK_DIR/go" <<'PY'
+import os, socket, sys, time
+port, go = int(sys.argv[1]), sys.argv[2]
+ask = b"GET /api/no-such-thing HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+s = socket.create_connection(("127.0.0.1", port), timeout=10, source_address=("127.0.0.4", 0))
+s.sendall(ask)
+print("first:", s.recv(65536).split(b"\r\n", 1)[0].decode(), flush=True)
+deadline = time.monotonic() + 30
+while not os.path.exists(go) and time.monotonic() < deadline:
+    time.sleep(0.02)
+try:
+    s.sendall(ask)
+    answer = s.recv(65536)
+    print("second:", answer.split(b"\r\n", 1)[0].decode() if answer else "closed", flush=True)
+except OSError as error:
+    print("second: closed", error, flush=True)
+PY
+}
+start_background keep_alive.log keep_alive
+wait_for_text "$WORK_DIR/keep_alive.log" "first: HTTP/1.1 404"
+write_config "$WORK_DIR/plant.toml" 'allow = ["127.0.0.1", "127.0.0.3/32", "::1"]
+write_allow = ["127.0.0.1"]' 'allow = ["127.0.0.0/31"]'
+kill -HUP "$LAST_GATEWAY_PID"
+wait_for_log gateway.log 'configuration .* (reloaded)' 30 >/dev/null
+touch "$WORK_DIR/go"
+wait_for_text "$WORK_DIR/keep_alive.log" "second:" 30
+expect keep-alive-outside-closed-on-reload grep -q "second: closed" "$WORK_DIR/keep_alive.log"
+check http-inside-served-after-reload 0 '"oven"' curl -s --max-time 10 "http://127.0.0.1:$http_port/api/devices"
+
 modbus_refused=$(metric "$http_port" modbus_tcp_connections_not_allowed_total)
 http_refused=$(metric "$http_port" http_connections_not_allowed_total)
 echo "refused at accept: Modbus TCP ${modbus_refused:-?}, HTTP ${http_refused:-?}"
 expect_equal "${modbus_refused:-}" 1 "Modbus TCP clients refused by the allow list"
-expect_equal "${http_refused:-}" 1 "HTTP clients refused by the allow list"
+expect_equal "${http_refused:-}" 2 "HTTP clients refused by the allow list (one at accept, one at the reload)"
 finish
