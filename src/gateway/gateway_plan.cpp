@@ -21,6 +21,7 @@
 #include "codec/rtu.hpp"
 #include "gateway/history_schema.hpp"
 #include "profile/request_planner.hpp"
+#include "transport/serial_settings.hpp"
 
 namespace loopwire::gateway {
 namespace {
@@ -286,6 +287,15 @@ Result<void> check_ports(const GatewayConfig& config) {
                                                             "(e.g. /dev/ttyUSB0, or /dev/serial/by-id/...)",
                                                             line.link_written_at.empty() ? config.source : line.link_written_at,
                                                             line.name, line.link.path, *what));
+        }
+        // rs485 = true on a port that has no kernel RS-485 control would fail at its first open.
+        if (line.link.serial.rs485 != transport::Rs485::on) continue;
+        if (auto refusal = transport::detail::rs485_unsupported(line.link.path)) {
+            return make_error(ErrorKind::usage,
+                              fmt::format("{}: line {}: rs485 = true, but the driver of {} {}: use an adapter that switches "
+                                          "direction by itself and drop rs485, or set rs485 = \"auto\" to run without it",
+                                          line.link_written_at.empty() ? config.source : line.link_written_at, line.name,
+                                          line.link.path, *refusal));
         }
     }
     return {};

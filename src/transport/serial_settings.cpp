@@ -1,10 +1,12 @@
 #include "transport/serial_settings.hpp"
 
+#include <fcntl.h>
 #include <linux/serial.h>
 #include <sys/ioctl.h>
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
 #include <termios.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -155,6 +157,17 @@ Result<void> apply_rs485(int fd, const SerialSettings& settings, const std::stri
     return make_error(ErrorKind::link, what + ": rs485 is on, which asks for " + refusal +
                                            " — use an adapter that switches direction by itself and drop rs485, or "
                                            "set rs485=auto to run without it where the driver lacks it");
+}
+
+std::optional<std::string> rs485_unsupported(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) return std::nullopt;
+    serial_rs485 config{};
+    const bool supported = ::ioctl(fd, TIOCGRS485, &config) == 0;
+    const int err = errno;
+    ::close(fd);
+    if (supported) return std::nullopt;
+    return "has no kernel RS-485 direction control (TIOCGRS485: " + errno_text(err) + ")";
 }
 
 }  // namespace loopwire::transport::detail

@@ -2,6 +2,7 @@
 // Internal to the transport layer: serial settings → termios, shared by serial ports and
 // pseudo-terminals, and the list of rates the link URL parser checks against.
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 
@@ -30,5 +31,11 @@ Result<void> apply_serial_settings(int fd, const SerialSettings& settings, const
 // link error that says what to do; Rs485::if_supported runs on and warns on stderr, once per
 // open. Rs485::off does nothing.
 Result<void> apply_rs485(int fd, const SerialSettings& settings, const std::string& what);
+
+// Whether the driver of the port at `path` has kernel RS-485 direction control, asked without
+// changing it (TIOCGRS485 on the port opened without becoming its controlling terminal, closed at
+// once): nullopt when it has, or when the port cannot be opened now (the line's own open says
+// why); otherwise the refusal's text.
+std::optional<std::string> rs485_unsupported(const std::string& path);
 
 }  // namespace loopwire::transport::detail

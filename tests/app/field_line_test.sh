@@ -4,6 +4,7 @@
 #   one line writes a gateway configuration that `gateway --config FILE --check` passes, with a
 #   device per identified unit and a comment for the unit it could not identify;
 # - rs485 in the link URL: true refuses a port without kernel RS-485 control (a pseudo-terminal)
+# - rs485 = true in a gateway's line: --check refuses such a port, "auto" passes
 #   and says what to do; auto runs without it and says so on stderr.
 set -u
 loopwire=${1:?usage: field_line_test.sh path/to/loopwire}
@@ -46,5 +47,14 @@ check rs485-true-refused 3 "rs485=auto" "$loopwire" read --link "rtu:$pty?rs485=
 check rs485-true-says-why 3 "TIOCSRS485" "$loopwire" read --link "rtu:$pty?rs485=1" --unit 9 holding 0 1
 check rs485-auto-runs 0 "running without it" "$loopwire" read --link "rtu:$pty?rs485=auto&rs485_delay_before=1ms" --unit 9 holding 0 1
 check guard-in-link-runs 0 "" "$loopwire" read --link "rtu:$pty?guard=3.5c" --unit 9 holding 0 1
+
+# rs485 = true in a gateway's line on a port without kernel RS-485 control: --check refuses it,
+# saying what to do; rs485 = "auto" passes.
+sed "s|^link = \"rtu:$pty?\(.*\)\"$|link = \"rtu:$pty?\\1\"\nrs485 = true|" "$config" >"$WORK_DIR/rs485.toml"
+expect rs485-config-written grep -q '^rs485 = true$' "$WORK_DIR/rs485.toml"
+check rs485-true-refused-by-check 2 'rs485 = "auto"' "$loopwire" gateway --config "$WORK_DIR/rs485.toml" --check
+check rs485-check-says-why 2 "TIOCGRS485" "$loopwire" gateway --config "$WORK_DIR/rs485.toml" --check
+sed 's|^rs485 = true$|rs485 = "auto"|' "$WORK_DIR/rs485.toml" >"$WORK_DIR/rs485-auto.toml"
+check rs485-auto-passes-check 0 "" "$loopwire" gateway --config "$WORK_DIR/rs485-auto.toml" --check
 
 finish
