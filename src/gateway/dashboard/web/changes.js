@@ -6,7 +6,7 @@
 import { getJson } from "./api.js";
 import { escapeHtml, ageText, parseTime } from "./format.js";
 
-const SHOWN = 20;
+const SHOWN = 10;  // the last few: GET /api/audit and `loopwire audit` have them all
 const REFRESH_MS = 5000;
 
 function whoText(record) {

@@ -1,6 +1,6 @@
 // A device page: its key values, a trend, and every parameter grouped as `loopwire describe`
-// groups them, live, with a write form on each writable one; then its recent changes (the audit
-// of writes to it, changes.js).
+// groups them, live, with a write form on each writable one; above them its recent changes (the
+// audit of writes to it, changes.js).
 import { loadDevice, deviceNamed, onChange, loadDevices } from "./store.js";
 import { writeParameter, listHistoryGateways } from "./api.js";
 import { escapeHtml, readingHtml, ageText, alarmReasons, deviceStatusClass, deviceStatusWord, statusChipClass, valueText } from "./format.js";
@@ -180,16 +180,16 @@ export function showDevice(view, name) {
         <div class="trend-note" id="trend-note"></div>
       </div>
     </section>
+    <section class="panel" aria-labelledby="changes-title">
+      <div class="panel-head"><h2 id="changes-title">Changes</h2></div>
+      <div class="device-changes"><div class="panel-body"><div class="notice">Loading changes…</div></div></div>
+    </section>
     <section class="panel" aria-labelledby="params-title">
       <div class="panel-head">
         <h2 id="params-title">Parameters <span class="count params-count"></span></h2>
         <div class="param-tools"><input class="search" type="search" placeholder="Filter parameters" aria-label="Filter parameters"></div>
       </div>
       <div class="param-groups"><div class="panel-body"><div class="notice">Loading parameters…</div></div></div>
-    </section>
-    <section class="panel" aria-labelledby="changes-title">
-      <div class="panel-head"><h2 id="changes-title">Changes</h2></div>
-      <div class="device-changes"><div class="panel-body"><div class="notice">Loading changes…</div></div></div>
     </section>`;
 
   const statusPill = view.querySelector(".device-status");
