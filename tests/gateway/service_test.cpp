@@ -246,9 +246,19 @@ TEST_F(GatewayService, AReloadThatCannotBeServedGivesWayToThePreviousConfigurati
         else stop.request_stop();
     };
     hooks.reloading = [&reloading] { ++reloading; };
-    auto result = serve(reloads, stop, hooks);
+    // The gateways' own log: the audit's lines of the two reloads.
+    RecordedLog gateways;
+    GatewayOptions options;
+    options.log = [&gateways](const std::string& line) {
+        if (line.find("audit: reload") != std::string::npos) gateways.add(gateways.info, line);
+    };
+    auto result = serve(reloads, stop, hooks, options);
     ASSERT_TRUE(result) << result.error().message;
     EXPECT_EQ(served, (std::vector<std::chrono::milliseconds>{100ms, 100ms, 200ms}));
+    // The one that could not be served is recorded, refused, by the gateway that runs again.
+    ASSERT_EQ(gateways.info.size(), 2u);
+    EXPECT_THAT(gateways.info[0], HasSubstr("[modbus_tcp] enabled: refused: cannot be served ("));
+    EXPECT_THAT(gateways.info[1], HasSubstr(": device oven1 changed: confirmed"));
     EXPECT_EQ(reloading, 2u);
     ASSERT_EQ(recorded.warning.size(), 1u);
     EXPECT_THAT(recorded.warning[0], HasSubstr("the reloaded configuration cannot be served"));
