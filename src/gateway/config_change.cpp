@@ -23,7 +23,9 @@ void compare_line(const LineConfig& before, const LineConfig& after, std::vector
     const auto old_devices = by_name(before.devices);
     const auto new_devices = by_name(after.devices);
     for (const auto& [name, device] : old_devices) {
-        if (new_devices.count(name) == 0) changes.push_back(fmt::format("device {} removed from line {}", name, after.name));
+        if (new_devices.count(name) == 0) {
+            changes.push_back(fmt::format("device {} removed from line {}", name, after.name));
+        }
     }
     for (const auto& [name, device] : new_devices) {
         const auto old = old_devices.find(name);
@@ -53,7 +55,9 @@ std::string describe_config_change(const GatewayConfig& before, const GatewayCon
     const auto old_lines = by_name(before.lines);
     const auto new_lines = by_name(after.lines);
     for (const auto& [name, line] : old_lines) {
-        if (new_lines.count(name) == 0) changes.push_back(fmt::format("line {} removed ({})", name, devices_counted(line->devices.size())));
+        if (new_lines.count(name) == 0) {
+            changes.push_back(fmt::format("line {} removed ({})", name, devices_counted(line->devices.size())));
+        }
     }
     for (const auto& [name, line] : new_lines) {
         const auto old = old_lines.find(name);
@@ -63,7 +67,9 @@ std::string describe_config_change(const GatewayConfig& before, const GatewayCon
             compare_line(*old->second, *line, changes);
         }
     }
-    if (before.name != after.name) changes.push_back(fmt::format("[gateway] name \"{}\" → \"{}\"", before.name, after.name));
+    if (before.name != after.name) {
+        changes.push_back(fmt::format("[gateway] name \"{}\" → \"{}\"", before.name, after.name));
+    }
     // [modbus_tcp] is always there (enabled = false turns it off).
     if (before.modbus_tcp.enabled != after.modbus_tcp.enabled) {
         changes.push_back(after.modbus_tcp.enabled ? "[modbus_tcp] enabled" : "[modbus_tcp] disabled");
@@ -88,7 +94,9 @@ AuditRecord reload_record(const std::string& who, const std::string& file, std::
     record.parameter = fmt::format("configuration {}", file);
     record.new_value = std::move(change);
     // A configuration's mistakes come one a line: the audit's row keeps to one (CSV, the log).
-    for (std::size_t at = outcome.find('\n'); at != std::string::npos; at = outcome.find('\n', at)) outcome.replace(at, 1, "; ");
+    for (std::size_t at = outcome.find('\n'); at != std::string::npos; at = outcome.find('\n', at)) {
+        outcome.replace(at, 1, "; ");
+    }
     record.outcome = std::move(outcome);
     return record;
 }

@@ -409,7 +409,9 @@ Result<void> HistoryForwarder::ship_writes() {
         for (const LocalWrite& row : *rows) {
             columns[0].emplace_back(std::to_string(row.id));
             columns[1].emplace_back(std::to_string(row.t));
-            for (std::size_t i = 0; i < row.fields.size() && i + 2 < columns.size(); ++i) columns[i + 2].emplace_back(row.fields[i]);
+            for (std::size_t i = 0; i < row.fields.size() && i + 2 < columns.size(); ++i) {
+                columns[i + 2].emplace_back(row.fields[i]);
+            }
         }
         postgres::Parameters parameters{options_.gateway};
         for (const auto& column : columns) parameters.emplace_back(postgres::array_literal(column));

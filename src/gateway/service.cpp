@@ -109,7 +109,9 @@ void ConfigReloads::hangup() {
     if (!loaded) {
         say(log_.warning, fmt::format("configuration not reloaded, the running one is kept: {}", loaded.error().message));
         std::lock_guard lock(mutex_);
-        if (audit_) audit_(reload_record(reloader, file_, "none: the file does not load", audit_refused(loaded.error().message)));
+        if (audit_) {
+            audit_(reload_record(reloader, file_, "none: the file does not load", audit_refused(loaded.error().message)));
+        }
         return;
     }
     std::lock_guard lock(mutex_);
@@ -187,7 +189,8 @@ Result<void> serve_with_reloads(GatewayConfig config, const GatewayOptions& opti
             // one that ran.
             say(log.warning, fmt::format("the reloaded configuration cannot be served ({}); going back to the previous one",
                                          served.error().message));
-            reloads.reload_refused(fmt::format("cannot be served ({}); the previous configuration runs again", served.error().message));
+            reloads.reload_refused(
+                fmt::format("cannot be served ({}); the previous configuration runs again", served.error().message));
             current = std::move(*std::exchange(previous, std::nullopt));
             continue;
         }

@@ -69,7 +69,7 @@ private:
     std::optional<GatewayConfig> next_;
     std::optional<GatewayConfig> serving_;  // what the running gateway was opened with
     std::function<Result<void>()> reread_;  // while_serving's
-    std::function<void(AuditRecord)> audit_;  // while_serving's
+    std::function<void(AuditRecord)> audit_;    // while_serving's
     std::optional<AuditRecord> reload_record_;  // of the reload that asked for next_
 };
 

@@ -93,7 +93,8 @@ std::string audit_line(const AuditRecord& record) {
     const std::string user = record.origin.user.empty() ? std::string() : fmt::format(" ({})", shown(record.origin.user));
     // A reload names the configuration and what it changed (gateway/config_change.hpp).
     if (record.origin.front == "reload") {
-        return fmt::format("audit: {}{}: {}: {}: {}", who, user, shown(record.parameter), shown(record.new_value, record.new_value.size()),
+        return fmt::format("audit: {}{}: {}: {}: {}", who, user, shown(record.parameter),
+                           shown(record.new_value, record.new_value.size()),
                            shown(record.outcome, record.outcome.size()));
     }
     // A raw Modbus write names registers, not a parameter, and has no old value.
