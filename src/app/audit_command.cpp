@@ -1,7 +1,8 @@
 // loopwire audit --database FILE [--from -24h] [--to now] [--device NAME] [--limit N]
 //                [--format table|csv|json]
 // The audit of writes a gateway keeps in its [history] file: every write from every front
-// (HTTP, MQTT, Sparkplug, Modbus TCP), newest first, as GET /api/audit answers it.
+// (HTTP, MQTT, Sparkplug, Modbus TCP) and every reload of its configuration, newest first, as
+// GET /api/audit answers it.
 #include <cctype>
 #include <filesystem>
 
@@ -49,7 +50,9 @@ void print_table(const std::vector<gateway::AuditRecord>& records) {
     for (const auto& record : records) {
         fmt::print("{:<24} {:<10} {:<22} {:<20} {:<32} {:>14} {:>14}  {}\n", gateway::iso_time(record.time),
                    record.origin.front, record.origin.peer, record.device, record.parameter,
-                   record.old_value.empty() ? "?" : record.old_value, record.new_value, record.outcome);
+                   // A reload has no old value to be unknown: what changed is its new one.
+                   record.old_value.empty() && record.origin.front != "reload" ? "?" : record.old_value,
+                   record.new_value, record.outcome);
     }
 }
 
@@ -79,7 +82,8 @@ int run_audit(const AuditCommandOptions& options) {
 
 void add_audit_command(CLI::App& app, int& exit_code) {
     auto options = std::make_shared<AuditCommandOptions>();
-    auto* command = app.add_subcommand("audit", "Print the audit of writes a gateway keeps in its history file, newest first");
+    auto* command = app.add_subcommand(
+        "audit", "Print the audit of writes and reloads a gateway keeps in its history file, newest first");
     command->add_option("--database", options->database, "A gateway's [history] database file")->type_name("FILE")->required();
     command->add_option("--device", options->device, "Only this device's writes (its name in the gateway's configuration)")
         ->type_name("NAME");

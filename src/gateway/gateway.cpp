@@ -490,6 +490,8 @@ std::uint16_t Gateway::modbus_tcp_port() const { return parts_->front ? parts_->
 
 std::uint16_t Gateway::http_port() const { return parts_->http ? parts_->http->port() : 0; }
 
+void Gateway::audit(AuditRecord record) const { parts_->audit->record(std::move(record)); }
+
 Result<void> Gateway::reload_http_certificate() { return parts_->http ? parts_->http->reload_certificate() : Result<void>{}; }
 
 namespace {

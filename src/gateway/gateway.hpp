@@ -116,6 +116,10 @@ public:
     // HttpServer::reload_certificate. Any thread.
     Result<void> reload_http_certificate();
 
+    // Records `record` in the audit of writes (its log line and, with [history], its row): a
+    // reload's (gateway/config_change.hpp). Any thread.
+    void audit(AuditRecord record) const;
+
     // Serves until `stop` is requested, then drains: the requests already taken are answered
     // (5 s at most) before the front closes, or, when the front is the caller's, holds it
     // (ModbusTcpFront::hold) for the next gateway. Logs each line's statistics every

@@ -72,6 +72,21 @@ JOIN unnest($2::bigint[], $3::text[], $4::text[], $5::text[]) AS w(id, device, p
 WHERE s.gateway = $1 FOR KEY SHARE OF s
 )sql";
 
+// The audit's rows: the last one the historian has of this gateway, and a batch of new ones
+// (ON CONFLICT: one sent before is not doubled).
+constexpr const char* last_write_shipped =
+    "SELECT t, local_id FROM loopwire_writes WHERE gateway = $1 ORDER BY t DESC, local_id DESC LIMIT 1";
+constexpr const char* insert_writes = R"sql(
+INSERT INTO loopwire_writes(gateway, local_id, t, time, front, peer, user_name, device, parameter, old_value, new_value, outcome)
+SELECT $1, w.local_id, w.t, to_timestamp(w.t / 1000.0), w.front, w.peer, w.user_name, w.device, w.parameter, w.old_value,
+       w.new_value, w.outcome
+FROM unnest($2::bigint[], $3::bigint[], $4::text[], $5::text[], $6::text[], $7::text[], $8::text[], $9::text[],
+            $10::text[], $11::text[])
+  AS w(local_id, t, front, peer, user_name, device, parameter, old_value, new_value, outcome)
+ON CONFLICT DO NOTHING
+)sql";
+constexpr std::size_t writes_batch = 1000;
+
 // How often the historian's expired partitions are looked for.
 constexpr milliseconds partition_sweep_interval{std::chrono::hours(1)};
 
@@ -141,6 +156,7 @@ Result<void> HistoryForwarder::connect() {
     remote_.reset();
     remote_ids_.clear();
     partitions_.clear();
+    writes_shipped_.reset();
     // A historian that stops answering (statement_timeout is the server's, which a frozen server
     // does not keep) is said so in the log, as is its return: the forwarder waits on meanwhile.
     postgres::StallWatch watch{[this](const std::string& line) {
@@ -217,6 +233,7 @@ Result<void> HistoryForwarder::verified(const HistorianBatch& batch) {
 Result<void> HistoryForwarder::start_over_with_schema() {
     remote_ids_.clear();
     partitions_.clear();
+    writes_shipped_.reset();
     if (auto migrated = postgres_history::migrate(*remote_); !migrated) return migrated.error();
     return remote_->run(create_staging);
 }
@@ -365,11 +382,54 @@ Result<void> HistoryForwarder::forward_all() {
     return done;
 }
 
+// The audit rows the historian does not have yet; a failure on a working connection is tried
+// once more after start_over_with_schema(), as a batch of samples is (its table dropped under
+// this gateway: made again, and every row of the file sent to it).
+Result<void> HistoryForwarder::forward_writes() {
+    auto shipped = ship_writes();
+    if (shipped || !remote_ || remote_->broken()) return shipped;
+    if (auto again = start_over_with_schema(); !again) return shipped;
+    return ship_writes();
+}
+
+// A batch a statement (each its own transaction); a failure makes the next try ask the
+// historian where it is again.
+Result<void> HistoryForwarder::ship_writes() {
+    if (!writes_shipped_) {
+        auto last = remote_->execute(last_write_shipped, {options_.gateway});
+        if (!last) return last.error();
+        writes_shipped_.emplace(0, 0);
+        if (last->rows() == 1) writes_shipped_.emplace(last->integer(0, 0), last->integer(0, 1));
+    }
+    for (;;) {
+        auto rows = outbox_.writes_after(writes_shipped_->first, writes_shipped_->second, writes_batch);
+        if (!rows) return rows.error();
+        if (rows->empty()) return {};
+        std::vector<std::vector<std::optional<std::string>>> columns(10);
+        for (const LocalWrite& row : *rows) {
+            columns[0].emplace_back(std::to_string(row.id));
+            columns[1].emplace_back(std::to_string(row.t));
+            for (std::size_t i = 0; i < row.fields.size() && i + 2 < columns.size(); ++i) {
+                columns[i + 2].emplace_back(row.fields[i]);
+            }
+        }
+        postgres::Parameters parameters{options_.gateway};
+        for (const auto& column : columns) parameters.emplace_back(postgres::array_literal(column));
+        if (auto shipped = remote_->run(insert_writes, parameters); !shipped) {
+            writes_shipped_.reset();
+            return shipped.error();
+        }
+        writes_shipped_.emplace(rows->back().t, rows->back().id);
+        if (rows->size() < writes_batch) return {};
+    }
+}
+
 Result<std::uint64_t> HistoryForwarder::forward_pending() {
     std::lock_guard lock(mutex_);
     const std::uint64_t before = forwarded_.load();
     Result<void> done = connect();
     if (done) done = forward_all();
+    if (done) done = forward_writes();
     refresh_waiting();
     if (!done) {
         ++errors_;

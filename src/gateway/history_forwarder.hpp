@@ -28,6 +28,13 @@
 // the middle of a statement without closing its socket (a frozen host) holds the stop until the
 // kernel gives up on the connection.
 //
+// The audit of writes and reloads (the file's `writes` table) goes to the historian's
+// loopwire_writes after the samples, in the same rounds: the rows after the last (t, id) the
+// historian holds for this gateway, asked of it once per connection (and after a failed batch)
+// and followed here after; a row sent twice (a crash between the historian's commit and the
+// next round) is there once. The file keeps the rows for `keep` whether shipped or not, so a
+// gateway that starts forwarding later ships the audit it has.
+//
 // Retention: a sample older than `keep` is deleted from the file whether or not it was shipped
 // (the local disk is the bound); when the forwarder meets such an outbox row it drops it and
 // logs how many it dropped. The historian's own day partitions are dropped after `keep` too.
@@ -45,6 +52,7 @@
 #include <string>
 #include <thread>
 #include <tuple>
+#include <utility>
 
 #include "common/result.hpp"
 #include "gateway/forward_batch.hpp"
@@ -110,6 +118,8 @@ private:
     Result<void> in_transaction(Steps steps);
     Result<void> ship(const HistorianBatch& batch, const std::function<void()>& meanwhile);
     Result<void> cleared(const OutboxBatch& batch);
+    Result<void> forward_writes();
+    Result<void> ship_writes();
     void refresh_waiting();
     std::int64_t now_ms() const;
     void log(const std::string& message) const;
@@ -126,6 +136,9 @@ private:
     std::map<std::int64_t, std::int64_t> remote_ids_;
     std::map<std::int64_t, SeriesNames> local_names_;  // local series id -> its names in the file
     std::set<std::int64_t> partitions_;                // days known to have a partition
+    // The (t, id) of the last audit row the historian has of this gateway's file; none: to be
+    // asked of it (a new connection, a failed batch).
+    std::optional<std::pair<std::int64_t, std::int64_t>> writes_shipped_;
     std::string last_failed_state_;                    // the SQLSTATE of in_transaction's last failure
     bool connected_once_ = false;
     std::atomic<std::uint64_t> waiting_{0};

@@ -57,6 +57,25 @@ Result<SeriesNames> Outbox::names(std::int64_t series) {
     return SeriesNames{names->text(0), names->text(1), names->text(2)};
 }
 
+Result<std::vector<LocalWrite>> Outbox::writes_after(std::int64_t t, std::int64_t id, std::size_t limit) {
+    auto statement = db_.prepare(
+        "SELECT id, t, front, peer, user, device, parameter, old_value, new_value, outcome FROM writes "
+        "WHERE t > ?1 OR (t = ?1 AND id > ?2) ORDER BY t, id LIMIT ?3");
+    if (!statement) return statement.error();
+    statement->bind(1, t);
+    statement->bind(2, id);
+    statement->bind(3, static_cast<std::int64_t>(limit));
+    std::vector<LocalWrite> rows;
+    for (;;) {
+        auto row = statement->step();
+        if (!row) return row.error();
+        if (!*row) return rows;
+        LocalWrite write{statement->integer(0), statement->integer(1), {}};
+        for (int column = 2; column < 10; ++column) write.fields.push_back(statement->text(column));
+        rows.push_back(std::move(write));
+    }
+}
+
 Result<std::int64_t> Outbox::waiting() { return db_.query_integer("SELECT count(*) FROM outbox"); }
 
 Result<std::int64_t> Outbox::oldest_t() {

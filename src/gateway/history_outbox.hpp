@@ -30,6 +30,14 @@ struct OutboxBatch {
     bool empty() const { return last_seq == 0; }
 };
 
+// A row of the file's audit table (`writes`), as the historian's loopwire_writes takes it; its
+// place in the table's order is (t, id).
+struct LocalWrite {
+    std::int64_t id = 0;
+    std::int64_t t = 0;
+    std::vector<std::string> fields;  // front, peer, user, device, parameter, old_value, new_value, outcome
+};
+
 struct SeriesNames {
     std::string device;
     std::string parameter;
@@ -45,6 +53,9 @@ public:
     // Deletes the rows up to sequence number `last` (inclusive): the historian has them.
     Result<void> clear(std::int64_t last);
     Result<SeriesNames> names(std::int64_t series);
+    // Up to `limit` audit rows after (t, id), in that order: the rows the historian does not have
+    // yet when (t, id) is the last one it has.
+    Result<std::vector<LocalWrite>> writes_after(std::int64_t t, std::int64_t id, std::size_t limit);
     Result<std::int64_t> waiting();
     Result<std::int64_t> oldest_t();  // 0 when empty
     const std::string& file() const { return db_.file(); }

@@ -37,6 +37,20 @@ CREATE TABLE IF NOT EXISTS loopwire_minutes(
   total double precision NOT NULL,
   n bigint NOT NULL,
   PRIMARY KEY(series_id, minute));
+CREATE TABLE IF NOT EXISTS loopwire_writes(
+  gateway text NOT NULL,
+  local_id bigint NOT NULL,
+  t bigint NOT NULL,
+  time timestamptz NOT NULL,
+  front text NOT NULL,
+  peer text NOT NULL,
+  user_name text NOT NULL,
+  device text NOT NULL,
+  parameter text NOT NULL,
+  old_value text NOT NULL,
+  new_value text NOT NULL,
+  outcome text NOT NULL,
+  PRIMARY KEY(gateway, t, local_id));
 )sql";
 
 // Version 2: the samples without a value (special states, missed replies) indexed apart, so a
@@ -130,7 +144,9 @@ Result<int> drop_partitions_before(postgres::Connection& db, std::int64_t cutoff
             }
         }
         const postgres::Parameters minute{std::to_string(day_of(cutoff_ms) * day_ms / 60000)};
-        return db.run("DELETE FROM loopwire_minutes WHERE minute < $1", minute);
+        if (auto gone = db.run("DELETE FROM loopwire_minutes WHERE minute < $1", minute); !gone) return gone.error();
+        // The audit's rows are few: deleted by row, at the same day's bound as the samples.
+        return db.run("DELETE FROM loopwire_writes WHERE t < $1", {std::to_string(day_of(cutoff_ms) * day_ms)});
     });
     if (!done) return done.error();
     return dropped;

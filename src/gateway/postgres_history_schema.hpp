@@ -15,6 +15,11 @@
 //     really inserted: a batch sent twice (a crash after PostgreSQL committed, before the
 //     outbox was cleared) adds neither samples nor minutes twice.
 //   loopwire_samples_gaps (version 2): the samples without a value, indexed apart for the gaps.
+//   loopwire_writes(gateway, local_id, t, time, front, peer, user_name, device, parameter,
+//     old_value, new_value, outcome), key (gateway, t, local_id): the audit of writes and
+//     reloads (gateway/write_audit.hpp), a row of the gateway's file's `writes` table each; a row
+//     sent twice is there once. Added to version 2 without a new version: a table no earlier
+//     gateway reads, which would otherwise refuse a historian a newer one had connected to.
 #include <chrono>
 #include <cstdint>
 #include <vector>

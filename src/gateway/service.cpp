@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include "gateway/config_change.hpp"
 #include "gateway/http_server.hpp"
 #include "gateway/line_keeper.hpp"
 #include "gateway/modbus_tcp_front.hpp"
@@ -12,6 +13,9 @@
 
 namespace loopwire::gateway {
 namespace {
+
+// Who asks for a reload, as the audit names it: the signal, sent by `systemctl reload` or kill -HUP.
+constexpr const char* reloader = "SIGHUP";
 
 void say(const GatewayLog& log, const std::string& line) {
     if (log) log(line);
@@ -82,11 +86,13 @@ struct Service {
         };
         auto running = Gateway::open(config, round_options);
         if (!running) return running.error();
+        if (auto reloaded = reloads.take_reload_record()) (*running)->audit(std::move(*reloaded));
         if (hooks.serving) hooks.serving(config, **running);
         std::stop_source either;
         std::stop_callback on_stop(stop, [&either] { either.request_stop(); });
         std::stop_callback on_reload(reload, [&either] { either.request_stop(); });
-        reloads.while_serving([&gateway = **running] { return gateway.reload_http_certificate(); });
+        reloads.while_serving([&gateway = **running] { return gateway.reload_http_certificate(); },
+                              [&gateway = **running](AuditRecord record) { gateway.audit(std::move(record)); });
         auto served = (*running)->serve(either.get_token());
         reloads.while_serving(nullptr);
         if (auto next = reloads.next(); next && !stop.stop_requested()) (*running)->hand_over_to(*next);
@@ -102,10 +108,16 @@ void ConfigReloads::hangup() {
     auto loaded = load_gateway_config(file_, profiles_);
     if (!loaded) {
         say(log_.warning, fmt::format("configuration not reloaded, the running one is kept: {}", loaded.error().message));
+        std::lock_guard lock(mutex_);
+        if (audit_) {
+            audit_(reload_record(reloader, file_, "none: the file does not load", audit_refused(loaded.error().message)));
+        }
         return;
     }
     std::lock_guard lock(mutex_);
+    const std::string change = serving_ ? describe_config_change(*serving_, *loaded) : "the whole configuration";
     if (serving_ && !reload_needs_restart(*serving_, *loaded)) {
+        if (audit_) audit_(reload_record(reloader, file_, change, std::string(audit_confirmed)));
         // Nothing the gateway runs has changed: everything stays up; a new log level applies now.
         const bool level_changed = serving_->log.level != loaded->log.level;
         serving_->log.level = loaded->log.level;
@@ -124,12 +136,26 @@ void ConfigReloads::hangup() {
         return;
     }
     next_ = std::move(*loaded);
+    // Stamped now: the row says when it was asked for, though the new gateway records it.
+    reload_record_ = reload_record(reloader, file_, change, std::string(audit_confirmed));
+    reload_record_->time = std::chrono::system_clock::now();
     running_.request_stop();
 }
 
-void ConfigReloads::while_serving(std::function<Result<void>()> reread) {
+void ConfigReloads::while_serving(std::function<Result<void>()> reread, std::function<void(AuditRecord)> audit) {
     std::lock_guard lock(mutex_);
     reread_ = std::move(reread);
+    audit_ = std::move(audit);
+}
+
+std::optional<AuditRecord> ConfigReloads::take_reload_record() {
+    std::lock_guard lock(mutex_);
+    return std::exchange(reload_record_, std::nullopt);
+}
+
+void ConfigReloads::reload_refused(const std::string& reason) {
+    std::lock_guard lock(mutex_);
+    if (reload_record_) reload_record_->outcome = audit_refused(reason);
 }
 
 std::stop_token ConfigReloads::start_round(const GatewayConfig& config) {
@@ -163,6 +189,8 @@ Result<void> serve_with_reloads(GatewayConfig config, const GatewayOptions& opti
             // one that ran.
             say(log.warning, fmt::format("the reloaded configuration cannot be served ({}); going back to the previous one",
                                          served.error().message));
+            reloads.reload_refused(
+                fmt::format("cannot be served ({}); the previous configuration runs again", served.error().message));
             current = std::move(*std::exchange(previous, std::nullopt));
             continue;
         }

@@ -49,8 +49,16 @@ public:
     const std::string& file() const { return file_; }
 
     // While a gateway serves: what re-reads the files its configuration names but does not hold
-    // (the HTTPS certificate), for a reload that changes nothing else. None between gateways.
-    void while_serving(std::function<Result<void>()> reread);
+    // (the HTTPS certificate), for a reload that changes nothing else, and its audit, which
+    // records each reload that does not restart it (gateway/config_change.hpp). None between
+    // gateways.
+    void while_serving(std::function<Result<void>()> reread, std::function<void(AuditRecord)> audit = {});
+
+    // The audit record of the reload that asked for the next round, for that round's gateway to
+    // record once open (its history file is the new configuration's); refused with `reason`
+    // when the round cannot be opened, for the previous configuration's gateway to record.
+    std::optional<AuditRecord> take_reload_record();
+    void reload_refused(const std::string& reason);
 
 private:
     std::string file_;
@@ -61,6 +69,8 @@ private:
     std::optional<GatewayConfig> next_;
     std::optional<GatewayConfig> serving_;  // what the running gateway was opened with
     std::function<Result<void>()> reread_;  // while_serving's
+    std::function<void(AuditRecord)> audit_;    // while_serving's
+    std::optional<AuditRecord> reload_record_;  // of the reload that asked for next_
 };
 
 struct ServiceHooks {

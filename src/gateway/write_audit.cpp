@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "common/peer_text.hpp"
+#include "gateway/forwarding_unit.hpp"  // the GatewayLog level prefixes
 #include "gateway/history_store.hpp"
 
 namespace loopwire::gateway {
@@ -90,6 +91,12 @@ std::string audit_line(const AuditRecord& record) {
     const std::string who = record.origin.peer.empty() ? record.origin.front
                                                       : fmt::format("{} {}", record.origin.front, shown(record.origin.peer));
     const std::string user = record.origin.user.empty() ? std::string() : fmt::format(" ({})", shown(record.origin.user));
+    // A reload names the configuration and what it changed (gateway/config_change.hpp).
+    if (record.origin.front == "reload") {
+        return fmt::format("audit: {}{}: {}: {}: {}", who, user, shown(record.parameter),
+                           shown(record.new_value, record.new_value.size()),
+                           shown(record.outcome, record.outcome.size()));
+    }
     // A raw Modbus write names registers, not a parameter, and has no old value.
     if (record.parameter.starts_with("function ")) {
         return fmt::format("audit: {}{}: {} {} values {}: {}", who, user, shown(record.device), record.parameter,
@@ -153,7 +160,9 @@ void WriteAudit::attach(HistoryStore* store) {
 
 void WriteAudit::record(AuditRecord record) const {
     if (record.time == std::chrono::system_clock::time_point{}) record.time = clock_();
-    if (log_) log_(audit_line(record));
+    // At notice level: a write changes a device, which `journalctl -p notice` should show
+    // without the info lines of every poll.
+    if (log_) log_(fmt::format("{}{}", gateway_notice_prefix, audit_line(record)));
     std::lock_guard lock(store_mutex_);
     if (store_) store_->record_write(record);
 }

@@ -19,7 +19,8 @@ namespace loopwire::gateway {
 
 class HistoryStore;
 
-// Who asked for a write: the front ("http", "mqtt", "sparkplug", "modbus_tcp"), the peer as
+// Who asked for a write: the front ("http", "mqtt", "sparkplug", "modbus_tcp"; "reload" for a
+// reload of the configuration, gateway/config_change.hpp), the peer as
 // the front knows it (the HTTP or Modbus TCP client's address, the broker's client id or
 // "broker"), and the user (empty until the fronts know users).
 struct WriteOrigin {
@@ -49,7 +50,8 @@ std::string audit_refused(std::string_view reason);
 
 // The record's log line: "audit: http 127.0.0.1: oven.set_point 150.0 °C → 160.0 °C: confirmed"
 // ("? → 160.0 °C" when the old value is unknown; no peer, no space for it); a raw Modbus write:
-// "audit: modbus_tcp 127.0.0.1:50312: oven function 6 address 717 count 1 values 1600: confirmed".
+// "audit: modbus_tcp 127.0.0.1:50312: oven function 6 address 717 count 1 values 1600: confirmed";
+// a reload: "audit: reload SIGHUP: configuration plant.toml: device kiln added to line furnace: confirmed".
 std::string audit_line(const AuditRecord& record);
 
 // A raw Modbus write request's PDU in words, for the audit: its function, address, count and
@@ -86,7 +88,8 @@ public:
     // going). The store must outlive its attachment.
     void attach(HistoryStore* store);
 
-    // Stamps the record now (when its time is unset), logs it and queues its row.
+    // Stamps the record now (when its time is unset), logs it at notice level (gateway_notice_prefix)
+    // and queues its row.
     void record(AuditRecord record) const;
 
 private:

@@ -163,6 +163,62 @@ TEST_F(HistoryForward, ShipsEveryRowOnceWithItsMinutesAndEmptiesTheOutbox) {
 // A crash after PostgreSQL committed a batch and before the outbox was cleared: the batch is
 // sent again, and neither its samples nor its minutes count twice. The outbox is refilled by
 // hand, as the crash would have left it, so the resend is certain rather than a race.
+// The audit's rows of the file as the historian has them, oldest first: "front device parameter old→new outcome".
+std::vector<std::string> writes_of(postgres::Connection& db, const std::string& gateway) {
+    auto rows = db.execute(
+        "SELECT front || ' ' || peer || ' ' || device || ' ' || parameter || ' ' || old_value || '→' || new_value || ' ' || "
+        "outcome || ' ' || (extract(epoch FROM time) * 1000)::bigint - t FROM loopwire_writes WHERE gateway = $1 ORDER BY t, local_id",
+        {gateway});
+    if (!rows) throw std::runtime_error(rows.error().message);
+    std::vector<std::string> writes;
+    for (int i = 0; i < rows->rows(); ++i) writes.push_back(rows->text(i, 0));
+    return writes;
+}
+
+AuditRecord audited(const std::string& front, const std::string& new_value, SystemTime time) {
+    AuditRecord record;
+    record.time = time;
+    record.origin = {front, front == "http" ? "127.0.0.1" : "broker", ""};
+    record.device = "oven1";
+    record.parameter = "set_point";
+    record.old_value = "150 °C";
+    record.new_value = new_value;
+    record.outcome = "confirmed";
+    return record;
+}
+
+TEST_F(HistoryForward, TheAuditOfWritesGoesToTheHistorianOnceEach) {
+    auto store = HistoryParts::open(forwarding(folder.path / "h.db", wall, server->url()));
+    ASSERT_TRUE(store) << store.error().message;
+    (*store)->store->record_write(audited("http", "160 °C", t0));
+    (*store)->store->record_write(audited("mqtt", "170 °C", t0));  // the same ms: told apart by its id
+    ASSERT_TRUE((*store)->write_pending());
+    auto shipped = (*store)->forwarder()->forward_pending();
+    ASSERT_TRUE(shipped) << shipped.error().message;
+    auto db = connect(*server);
+    EXPECT_EQ(writes_of(db, "plant1"), (std::vector<std::string>{"http 127.0.0.1 oven1 set_point 150 °C→160 °C confirmed 0",
+                                                                 "mqtt broker oven1 set_point 150 °C→170 °C confirmed 0"}));
+    // Nothing new: nothing sent again; a new one alone.
+    ASSERT_TRUE((*store)->forwarder()->forward_pending());
+    (*store)->store->record_write(audited("sparkplug", "180 °C", t0 + 1s));
+    ASSERT_TRUE((*store)->write_pending());
+    ASSERT_TRUE((*store)->forwarder()->forward_pending());
+    EXPECT_EQ(writes_of(db, "plant1").size(), 3u);
+    // A forwarder that starts again (a new connection) asks the historian where it is: no row twice.
+    store->reset();
+    auto again = HistoryParts::open(forwarding(folder.path / "h.db", wall, server->url()));
+    ASSERT_TRUE(again) << again.error().message;
+    ASSERT_TRUE((*again)->forwarder()->forward_pending());
+    EXPECT_EQ(writes_of(db, "plant1").size(), 3u);
+    // The table dropped under it: made again and filled again from the file.
+    ASSERT_TRUE(db.run("DROP TABLE loopwire_writes"));
+    (*again)->store->record_write(audited("http", "190 °C", t0 + 2s));
+    ASSERT_TRUE((*again)->write_pending());
+    auto refilled = (*again)->forwarder()->forward_pending();
+    ASSERT_TRUE(refilled) << refilled.error().message;
+    EXPECT_EQ(writes_of(db, "plant1").size(), 4u);
+}
+
 TEST_F(HistoryForward, ABatchSentAgainAddsNoSamplesNorMinutes) {
     const auto file = folder.path / "h.db";
     auto store = HistoryParts::open(forwarding(file, wall, server->url()));

@@ -12,7 +12,9 @@
 # - `loopwire history` reads a gateway's history from the historian and from its own file;
 # - row by row, each gateway's file against the historian: every row forwarded (not waiting in
 #   the outbox) since the ids were started again is there once, under its own gateway's series,
-#   and the historian holds no row its gateway's file does not.
+#   and the historian holds no row its gateway's file does not;
+# - the audit of writes and reloads (a `loopwire write` through the Modbus TCP front, the
+#   password's SIGHUP) arrives in loopwire_writes as the gateway's file has it.
 set -u
 loopwire=${1:?usage: history_forward_test.sh path/to/loopwire}
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -118,6 +120,21 @@ check history-cli-file 0 "measured_value" "$loopwire" history --database "$WORK_
 # Enough rows of both to compare (heartbeats every second, of each polled value).
 wait_for 120 "50 of north's rows after the cut in PostgreSQL" arrived_after_cut north 50
 wait_for 120 "50 of south's rows in PostgreSQL" arrived_after_cut south 50
+# The audit goes to the historian too: north's reload (the password file's SIGHUP above) and a
+# write by `loopwire write` through north's Modbus TCP front, each once, as north's file has them.
+north_port=$(wait_for_log north.log 'Modbus TCP on 127\.0\.0\.1 \(listening on port ([0-9]+)\)' 5)
+check cli-write-through-the-front 0 "" "$loopwire" write --link "tcp://127.0.0.1:$north_port" --device tc10@3 SP=150
+historian_writes() {
+  pg_sql "SELECT string_agg(front || '|' || peer || '|' || device || '|' || parameter || '|' || new_value || '|' || outcome, E'\n' ORDER BY t, local_id) FROM loopwire_writes WHERE gateway = '$1'" plant
+}
+local_writes() {
+  sqlite3 "$WORK_DIR/$1.db" "SELECT group_concat(front || '|' || peer || '|' || device || '|' || parameter || '|' || new_value || '|' || outcome, char(10)) FROM (SELECT * FROM writes ORDER BY t, id)"
+}
+write_forwarded() { [[ $(historian_writes north) == *"modbus_tcp|"*"|oven|function "*"|confirmed"* ]]; }
+wait_for 60 "north's audited write in PostgreSQL" write_forwarded
+expect_equal "$(historian_writes north)" "$(local_writes north)" "north's audit rows in the historian, as in its file"
+expect_equal "$(historian_writes north | cut -d'|' -f1,2,6 | head -n 1)" "reload|SIGHUP|confirmed" "north's reload, audited"
+expect_equal "$(pg_sql "SELECT count(*) FROM loopwire_writes WHERE gateway = 'south'" plant)" 0 "south's audit rows (none)"
 # Row by row, once both have stopped: each gateway's rows in its file (those stamped after the cut
 # for north: the ones before went with the dropped and emptied tables), less those still waiting
 # in its outbox, are in the historian once, under its own gateway's series; and every row the

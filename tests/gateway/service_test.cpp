@@ -17,6 +17,7 @@
 
 #include <fmt/format.h>
 
+#include "gateway/config_change.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/service.hpp"
 #include "support/eventually.hpp"
@@ -158,6 +159,71 @@ TEST_F(GatewayService, AnyOtherChangeStopsTheRoundAndHandsTheConfigurationOver) 
     EXPECT_FALSE(reloads.take());
 }
 
+// Each reload leaves one audit record: who asked (SIGHUP), what changed in words and how it
+// ended. One that changes nothing the gateway runs, or does not load, is recorded by the running
+// gateway at once; one that restarts it is handed to the next round's gateway, refused when
+// that one cannot be opened.
+TEST_F(GatewayService, EveryReloadIsAuditedWithWhatItChanged) {
+    write(plant("100ms"));
+    ConfigReloads reloads(file, profiles(), recorded.log());
+    std::vector<AuditRecord> audited;
+    const auto round = reloads.start_round(load());
+    reloads.while_serving({}, [&audited](AuditRecord record) { audited.push_back(std::move(record)); });
+    write("[[lines]]\nname = 3\n");
+    reloads.hangup();
+    write(plant("100ms", "debug"));
+    reloads.hangup();
+    ASSERT_EQ(audited.size(), 2u);
+    EXPECT_EQ(audited[0].origin.front, "reload");
+    EXPECT_EQ(audited[0].origin.peer, "SIGHUP");
+    EXPECT_EQ(audited[0].parameter, "configuration " + file);
+    EXPECT_EQ(audited[0].new_value, "none: the file does not load");
+    EXPECT_THAT(audited[0].outcome, HasSubstr("refused: " + file));
+    EXPECT_EQ(audited[0].outcome.find('\n'), std::string::npos);  // the mistakes on one line
+    EXPECT_EQ(audited[1].new_value, "[log] changed");
+    EXPECT_EQ(audited[1].outcome, "confirmed");
+    EXPECT_EQ(audit_line(audited[1]), "audit: reload SIGHUP: configuration " + file + ": [log] changed: confirmed");
+    EXPECT_FALSE(reloads.take_reload_record());
+
+    write(plant("200ms", "debug"));
+    reloads.hangup();
+    EXPECT_TRUE(round.stop_requested());
+    EXPECT_EQ(audited.size(), 2u);  // the next round's gateway records it
+    reloads.reload_refused("cannot be served (port taken)");
+    auto handed = reloads.take_reload_record();
+    ASSERT_TRUE(handed);
+    EXPECT_EQ(handed->new_value, "device oven1 changed");
+    EXPECT_EQ(handed->outcome, "refused: cannot be served (port taken)");
+    EXPECT_NE(handed->time, std::chrono::system_clock::time_point{});  // when it was asked for
+    EXPECT_FALSE(reloads.take_reload_record());
+}
+
+TEST(ConfigChange, NamesTheLinesDevicesAndTablesAddedRemovedOrChanged) {
+    GatewayConfig before;
+    before.lines.resize(2);
+    before.lines[0].name = "furnace";
+    before.lines[0].devices.resize(2);
+    before.lines[0].devices[0].name = "oven";
+    before.lines[0].devices[1].name = "kiln";
+    before.lines[1].name = "bench";
+    EXPECT_EQ(describe_config_change(before, before), "nothing changed");
+    GatewayConfig after = before;
+    after.lines.pop_back();
+    after.lines.emplace_back().name = "dock";
+    after.lines[0].devices.pop_back();
+    after.lines[0].devices.emplace_back().name = "dryer";
+    after.lines[0].devices[0].poll = std::chrono::milliseconds(200);
+    after.lines[0].timeout = std::chrono::milliseconds(300);
+    after.modbus_tcp.enabled = false;
+    after.mqtt.emplace();
+    after.http.emplace();
+    before.history.emplace();
+    EXPECT_EQ(describe_config_change(before, after),
+              "line bench removed (0 devices); line dock added (0 devices); device kiln removed from line furnace; "
+              "device dryer added to line furnace; device oven changed; line furnace changed; [modbus_tcp] disabled; "
+              "[mqtt] added; [http] added; [history] removed");
+}
+
 
 // A port something else listens on: a Modbus TCP front cannot open there.
 using TakenPort = testing::LoopbackListener;
@@ -180,9 +246,19 @@ TEST_F(GatewayService, AReloadThatCannotBeServedGivesWayToThePreviousConfigurati
         else stop.request_stop();
     };
     hooks.reloading = [&reloading] { ++reloading; };
-    auto result = serve(reloads, stop, hooks);
+    // The gateways' own log: the audit's lines of the two reloads.
+    RecordedLog gateways;
+    GatewayOptions options;
+    options.log = [&gateways](const std::string& line) {
+        if (line.find("audit: reload") != std::string::npos) gateways.add(gateways.info, line);
+    };
+    auto result = serve(reloads, stop, hooks, options);
     ASSERT_TRUE(result) << result.error().message;
     EXPECT_EQ(served, (std::vector<std::chrono::milliseconds>{100ms, 100ms, 200ms}));
+    // The one that could not be served is recorded, refused, by the gateway that runs again.
+    ASSERT_EQ(gateways.info.size(), 2u);
+    EXPECT_THAT(gateways.info[0], HasSubstr("[modbus_tcp] enabled: refused: cannot be served ("));
+    EXPECT_THAT(gateways.info[1], HasSubstr(": device oven1 changed: confirmed"));
     EXPECT_EQ(reloading, 2u);
     ASSERT_EQ(recorded.warning.size(), 1u);
     EXPECT_THAT(recorded.warning[0], HasSubstr("the reloaded configuration cannot be served"));

@@ -181,7 +181,7 @@ TEST(WriteAudit, ModbusWriteRefusedByTheFrontIsRecordedOnce) {
     ASSERT_TRUE(replied);
     EXPECT_EQ(*replied, (Bytes{0x86, 0x01}));
     ASSERT_EQ(lines.size(), 1u);
-    EXPECT_EQ(lines[0], "audit: modbus_tcp 127.0.0.1:50312: oven function 6 address 717 count 1 values 1600: refused: this "
+    EXPECT_EQ(lines[0], "notice: audit: modbus_tcp 127.0.0.1:50312: oven function 6 address 717 count 1 values 1600: refused: this "
                         "gateway is read-only (modbus_tcp.writes = false)");
 }
 

@@ -3,7 +3,9 @@
 # ("absent"), serves HTTP (with a token), MQTT, Sparkplug B and Modbus TCP, and keeps a history
 # file. write_audit_check.py writes once through every front, then a value out of range and a
 # write to the silent device, and wants exactly one audit record a write, with the right front,
-# peer, old and new values and outcome, from GET /api/audit, `loopwire audit` and the log.
+# peer, old and new values and outcome, from GET /api/audit, `loopwire audit` and the log (at
+# notice level). Then two reloads (SIGHUP): a file that does not load and one that adds a
+# device, each one row with what changed.
 set -u
 loopwire=${1:?usage: write_audit_test.sh path/to/loopwire}
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -76,6 +78,7 @@ database = "$WORK_DIR/plant.db"
 TOML
 
 start_background gateway.log timeout 160 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+gateway=$LAST_PID
 modbus_port=$(wait_for_log gateway.log 'Modbus TCP on 127\.0\.0\.1 \(listening on port ([0-9]+)\)' 20)
 http_port=$(wait_for_log gateway.log 'HTTP API and dashboard on http:..127\.0\.0\.1:([0-9]+)' 20)
 wait_for_text "$WORK_DIR/gateway.log" "device oven (tc10@3) answers" 20
@@ -102,4 +105,39 @@ check table-names-the-raw-write 0 "function 6 address 717 count 1" "$loopwire" a
 check refuses-a-time-it-cannot-read 2 'from="yesterday" is not a time' "$loopwire" audit --database "$db" --from yesterday
 check refuses-a-file-that-is-not-there 2 "is not a history file" "$loopwire" audit --database "$WORK_DIR/none.db"
 check refuses-what-is-no-history-file 2 "cannot be read as an SQLite database" "$loopwire" audit --database "$WORK_DIR/plant.toml"
+# Every audit line is at notice level, one a record.
+expect_equal "$(grep -c 'audit: ' "$WORK_DIR/gateway.log")" 6 "audit lines in the log"
+expect_equal "$(grep 'audit: ' "$WORK_DIR/gateway.log" | grep -vc ' notice ')" 0 "audit lines not at notice level"
+
+# Reloads are audited: a file that does not load (refused, the running configuration kept),
+# then one that adds a device (the gateway restarts; its successor records the reload).
+# To loopwire itself: timeout(1) would send a signal to its whole process group as well, and
+# then ignore the next one.
+gateway_process=$(pgrep -P "$gateway")
+cp "$WORK_DIR/plant.toml" "$WORK_DIR/plant.good"
+printf '[[lines]]\nname = 3\n' >"$WORK_DIR/plant.toml"
+kill -HUP "$gateway_process"
+wait_for_log gateway.log '(audit: reload SIGHUP: configuration .*plant.toml: none: the file does not load: refused: )' 30 >/dev/null
+{
+  sed '/^\[modbus_tcp\]/,$d' "$WORK_DIR/plant.good"
+  printf '[[lines.devices]]\nname = "dryer"\ndevice = "tc10@5"\npoll = "1s"\n\n'
+  sed -n '/^\[modbus_tcp\]/,$p' "$WORK_DIR/plant.good"
+} >"$WORK_DIR/plant.toml"
+kill -HUP "$gateway_process"
+wait_for_log gateway.log '(audit: reload SIGHUP: configuration .*plant.toml: device dryer added to line furnace-line: confirmed)' 30 >/dev/null
+# The reloaded gateway's HTTP API (port 0: the kernel's choice again).
+new_http_port() { sed -nE 's/.*HTTP API and dashboard on http:..127\.0\.0\.1:([0-9]+).*/\1/p' "$WORK_DIR/gateway.log" | tail -n 1; }
+reload_rows() {  # the reload rows of GET /api/audit, oldest first: "peer|device|new_value|outcome"
+  curl -fsS "http://127.0.0.1:$(new_http_port)/api/audit?from=-1h" 2>/dev/null |
+    $python -c 'import json, sys
+for r in reversed(json.load(sys.stdin)["records"]):
+    if r["front"] == "reload": print(r["peer"], r["device"], r["new_value"], r["outcome"].split(":")[0], sep="|")' 2>/dev/null
+}
+two_reloads() { [[ $(reload_rows | wc -l) == 2 ]]; }
+wait_for 30 "two reload rows in GET /api/audit" two_reloads
+expect_equal "$(reload_rows)" "SIGHUP||none: the file does not load|refused
+SIGHUP||device dryer added to line furnace-line|confirmed" "GET /api/audit: the reloads"
+expect_equal "$(audited --format csv | tail -n +2 | cut -d, -f2 | sort | uniq -c | tr -s ' ' | tr '\n' ';')" \
+  " 3 http; 1 modbus_tcp; 1 mqtt; 2 reload; 1 sparkplug;" "loopwire audit: rows by front after the reloads"
+check table-shows-the-reload 0 "device dryer added to line furnace-line" "$loopwire" audit --database "$db"
 finish

@@ -20,7 +20,7 @@ endif()
 # URL path = file; "/" is served as /index.html, everything else lives under /assets/.
 set(dashboard_assets /index.html=${dashboard_web}/index.html)
 set(dashboard_files ${dashboard_web}/index.html)
-foreach(file app.js api.js store.js format.js keys.js ui.js overview.js device.js trend.js app.css favicon.svg)
+foreach(file app.js api.js store.js format.js keys.js ui.js overview.js device.js changes.js trend.js app.css favicon.svg)
   list(APPEND dashboard_assets /assets/${file}=${dashboard_web}/${file})
   list(APPEND dashboard_files ${dashboard_web}/${file})
 endforeach()

@@ -410,6 +410,42 @@ test("a write from the form changes the device, and a refused write shows the re
   await page.screenshot({ path: path.join(artifacts, "device-phone.png"), fullPage: false });
 });
 
+test("a write from the form appears in the device's changes, with who, old → new and the outcome", async ({ page, request }) => {
+  await page.addInitScript((token) => localStorage.setItem("loopwire.token", token), gateway.token);
+  await page.goto(`${gateway.base}/#/devices/oven`);
+  const row = page.locator('tr.param-row[data-param="set_point"]');
+  await expect(row.locator(".param-value .num")).toHaveText(/\d/, { timeout: 10_000 });
+  // The value the write replaces, as the audit gives it: the polls' text and unit.
+  const before = await parameter(request, "oven", "set_point");
+  const old = `${before.text} ${before.unit}`;
+  const decimals = (before.text.split(".")[1] || "").length;
+  const wanted = Number(before.text) === 760 ? 770 : 760;
+  await row.getByRole("button", { name: "Change" }).click();
+  const form = page.locator('tr.write-row[data-write="set_point"] form');
+  await form.locator("input").fill(String(wanted));
+  await form.getByRole("button", { name: "Write" }).click();
+  await expect(form.locator(".write-result")).toHaveText(new RegExp(`Written: ${wanted}`));
+  const newest = page.locator(".device-changes tr.change-row").first();
+  await expect(newest.locator(".change-values")).toHaveText(`${old} → ${wanted.toFixed(decimals)} ${before.unit}`, { timeout: 5_000 });
+  await expect(newest.locator(".change-who")).toHaveText(/^http 127\.0\.0\.1/);
+  await expect(newest.locator(".change-parameter")).toHaveText("set point");
+  await expect(newest.locator(".change-outcome")).toHaveText("confirmed");
+  await expect(newest).toHaveAttribute("data-outcome", "confirmed");
+  // The same row the API gives: one record for the one write.
+  const { body } = await api(request, "GET", "/api/audit?device=oven&limit=1");
+  expect(body.records[0]).toMatchObject({ front: "http", parameter: "set_point", old_value: old, new_value: `${wanted.toFixed(decimals)} ${before.unit}`,
+    outcome: "confirmed" });
+
+  // A refused write is a row too, with the reason.
+  await form.locator("input").fill("99999");
+  await form.getByRole("button", { name: "Write" }).click();
+  await expect(form.locator(".write-result")).toHaveClass(/error/);
+  await expect(newest).toHaveAttribute("data-outcome", "refused", { timeout: 5_000 });
+  await expect(newest.locator(".change-outcome")).toContainText(/^refused: /);
+  await expect(page.locator(".device-changes tr.change-row").nth(1).locator(".change-outcome")).toHaveText("confirmed");
+  await page.locator(".device-changes").screenshot({ path: path.join(artifacts, "device-changes.png") });
+});
+
 test("without the token a write is refused and says what to do", async ({ page }) => {
   await page.goto(`${gateway.base}/#/devices/kiln`);
   const row = page.locator('tr.param-row[data-param="set_value"]');

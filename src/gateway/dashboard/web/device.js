@@ -1,10 +1,12 @@
 // A device page: its key values, a trend, and every parameter grouped as `loopwire describe`
-// groups them, live, with a write form on each writable one.
+// groups them, live, with a write form on each writable one; above them its recent changes (the
+// audit of writes to it, changes.js).
 import { loadDevice, deviceNamed, onChange, loadDevices } from "./store.js";
 import { writeParameter, listHistoryGateways } from "./api.js";
 import { escapeHtml, readingHtml, ageText, alarmReasons, deviceStatusClass, deviceStatusWord, statusChipClass, valueText } from "./format.js";
 import { keyParameters } from "./keys.js";
 import { Trend } from "./trend.js";
+import { ChangesList } from "./changes.js";
 import { openTokenDialog, deviceSubtitle } from "./ui.js";
 
 const RANGES = [["5 min", 300], ["15 min", 900], ["1 h", 3600], ["6 h", 21600], ["24 h", 86400]];
@@ -178,6 +180,10 @@ export function showDevice(view, name) {
         <div class="trend-note" id="trend-note"></div>
       </div>
     </section>
+    <section class="panel" aria-labelledby="changes-title">
+      <div class="panel-head"><h2 id="changes-title">Changes</h2></div>
+      <div class="device-changes"><div class="panel-body"><div class="notice">Loading changes…</div></div></div>
+    </section>
     <section class="panel" aria-labelledby="params-title">
       <div class="panel-head">
         <h2 id="params-title">Parameters <span class="count params-count"></span></h2>
@@ -195,6 +201,7 @@ export function showDevice(view, name) {
   const liveButton = view.querySelector('[data-action="live"]');
   const chartBox = view.querySelector("#trend");
   const trend = new Trend(chartBox, view.querySelector("#trend-note"), name);
+  const changes = new ChangesList(view.querySelector(".device-changes"), name);
   let charted = null;  // names on the trend, in order
   let closed = false;
   let frame = 0;
@@ -316,7 +323,9 @@ export function showDevice(view, name) {
       const answer = await writeParameter(name, param, typed);
       result.className = "write-result ok";
       result.textContent = writtenText(answer, param, typed, entry.unit);
+      changes.written();
     } catch (error) {
+      if (error.status !== 401) changes.written();  // a refusal is audited too
       result.className = "write-result error";
       if (error.status === 401) {
         result.textContent = `Refused: ${error.message}. Set the gateway's access token (key button, top right) and write again.`;
@@ -418,5 +427,6 @@ export function showDevice(view, name) {
     clearInterval(zoomWatch);
     if (frame) cancelAnimationFrame(frame);
     trend.destroy();
+    changes.destroy();
   };
 }
