@@ -473,6 +473,7 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
         return reports;
     };
     sources.front = [&parts] { return parts.front ? parts.front->statistics() : FrontReport{}; };
+    if (parts.opcua) sources.opcua = [&parts] { return parts.opcua->figures(); };
     sources.http_not_allowed = [&parts] { return parts.http ? parts.http->not_allowed() : std::uint64_t{0}; };
     parts.http_api = std::make_unique<HttpApi>(config, std::move(sources));
     HttpServerSettings settings;

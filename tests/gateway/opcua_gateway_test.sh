@@ -69,6 +69,12 @@ expect client-check timeout 90 node "$checker" check "$endpoint" "http://127.0.0
 # Every write the client made is audited as the OPC UA front's.
 expect audit-confirmed grep -qE 'audit: opcua .*oven\.set_point .*: confirmed' "$WORK_DIR/gateway.log"
 expect audit-out-of-range grep -qE 'audit: opcua .*oven\.set_point .*99999 .*refused' "$WORK_DIR/gateway.log"
+# /metrics: the writes by outcome (the read-only word is refused by the server itself, unasked),
+# and no session left open by the client that closed its own.
+metrics=$(curl -s --max-time 10 "http://127.0.0.1:$http_port/metrics")
+expect metrics-confirmed grep -qx 'loopwire_opcua_writes_total{gateway="plant1",outcome="confirmed"} 1' <<<"$metrics"
+expect metrics-refused grep -qx 'loopwire_opcua_writes_total{gateway="plant1",outcome="refused"} 1' <<<"$metrics"
+expect metrics-sessions grep -qE '^loopwire_opcua_sessions\{gateway="plant1"\} [0-9]+$' <<<"$metrics"
 
 kill "$simulator"
 expect silent-is-no-communication timeout 60 node "$checker" status "$endpoint" ns=1\;s=oven.measured_value BadNoCommunication 30

@@ -106,12 +106,14 @@ struct OpcuaServer::State {
     std::atomic<std::uint64_t> writes_confirmed{0};
     std::atomic<std::uint64_t> writes_refused{0};
 
+    bool started = false;  // UA_Server_run_startup succeeded: shut down before deleting
+
     ~State() {
+        subscription.reset();  // first: nothing more is queued
         stopping = true;
         if (thread.joinable()) thread.join();
-        subscription.reset();
         if (server) {
-            UA_Server_run_shutdown(server);
+            if (started) UA_Server_run_shutdown(server);
             UA_Server_delete(server);
         }
         for (auto& variable : variables) UA_Variant_clear(&variable.value);
@@ -358,6 +360,7 @@ Result<std::unique_ptr<OpcuaServer>> OpcuaServer::open(const OpcuaConfig& config
         return make_error(ErrorKind::link, fmt::format("[opcua] listen {}: cannot listen on port {}: {}", config.listen,
                                                        state->port, UA_StatusCode_name(started)));
     }
+    state->started = true;
     State* running = state.get();
     state->subscription = cache.subscribe([running](const ValueChange& change) { running->queue(change); });
     state->thread = std::thread([running] {

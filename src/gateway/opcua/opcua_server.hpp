@@ -23,6 +23,7 @@
 #include "gateway/device_writer.hpp"
 #include "gateway/forwarding_unit.hpp"
 #include "gateway/gateway_config.hpp"
+#include "gateway/opcua/opcua_figures.hpp"
 #include "gateway/value_cache.hpp"
 
 namespace loopwire::gateway {
@@ -32,15 +33,6 @@ struct OpcuaDevice {
     std::string name;
     std::string line;
     std::vector<const device::Parameter*> parameters;
-};
-
-// What /metrics shows of the front.
-struct OpcuaFigures {
-    std::uint64_t sessions = 0;
-    std::uint64_t subscriptions = 0;
-    std::uint64_t monitored_items = 0;
-    std::uint64_t writes_confirmed = 0;
-    std::uint64_t writes_refused = 0;
 };
 
 class OpcuaServer {
