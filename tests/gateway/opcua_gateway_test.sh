@@ -76,6 +76,27 @@ expect metrics-confirmed grep -qx 'loopwire_opcua_writes_total{gateway="plant1",
 expect metrics-refused grep -qx 'loopwire_opcua_writes_total{gateway="plant1",outcome="refused"} 1' <<<"$metrics"
 expect metrics-sessions grep -qE '^loopwire_opcua_sessions\{gateway="plant1"\} [0-9]+$' <<<"$metrics"
 
+# A second gateway on the same endpoint does not start as if it served: it says the port is taken.
+cat >"$WORK_DIR/second.toml" <<TOML
+[[lines]]
+name = "sim"
+link = "rtu:virtual?baud=19200"
+
+[[lines.devices]]
+name = "other"
+device = "tc10@3"
+
+[modbus_tcp]
+listen = "127.0.0.1:0"
+
+[opcua]
+listen = "opc.tcp://127.0.0.1:$opcua_port"
+TOML
+timeout 20 "$loopwire" gateway --config "$WORK_DIR/second.toml" >"$WORK_DIR/second.log" 2>&1
+second_status=$?
+expect second-refused test "$second_status" -ne 0 -a "$second_status" -ne 124
+expect second-says-why grep -q "\[opcua\] listen opc.tcp://127.0.0.1:$opcua_port: cannot listen there" "$WORK_DIR/second.log"
+
 kill "$simulator"
 expect silent-is-no-communication timeout 60 node "$checker" status "$endpoint" ns=1\;s=oven.measured_value BadNoCommunication 30
 start_simulator

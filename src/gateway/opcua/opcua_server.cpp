@@ -9,6 +9,7 @@
 #include <condition_variable>
 #include <cstdarg>
 #include <cstdio>
+#include <cerrno>
 #include <cstring>
 #include <deque>
 #include <future>
@@ -33,27 +34,35 @@ constexpr std::chrono::seconds write_wait{30};
 // How often the front's thread wakes at the least to take the value changes queued for it.
 constexpr double apply_every_ms = 50;
 
-// A free TCP port on `host` for port 0: open62541 1.4 does not say which port it took.
-std::optional<std::uint16_t> free_port(const std::string& host) {
+// Binds `port` on `host` (0: any free one) and lets it go: the port the kernel gave, or why not.
+// open62541 1.4 neither says which port it took for 0 nor fails its startup when it cannot
+// listen (it logs and serves nothing), so the gateway asks first and says so itself.
+Result<std::uint16_t> try_port(const std::string& host, std::uint16_t wanted) {
     const bool ipv6 = host.find(':') != std::string::npos;
     const int fd = ::socket(ipv6 ? AF_INET6 : AF_INET, SOCK_STREAM, 0);
-    if (fd < 0) return std::nullopt;
+    if (fd < 0) return make_error(ErrorKind::link, std::strerror(errno));
+    const int on = 1;
+    ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &on, sizeof on);  // as a listener after a restart
     sockaddr_storage address{};
     socklen_t length = 0;
     if (ipv6) {
         auto* in6 = reinterpret_cast<sockaddr_in6*>(&address);
         in6->sin6_family = AF_INET6;
-        if (::inet_pton(AF_INET6, host.c_str(), &in6->sin6_addr) != 1) in6->sin6_addr = in6addr_loopback;
+        in6->sin6_port = htons(wanted);
+        if (::inet_pton(AF_INET6, host.c_str(), &in6->sin6_addr) != 1) in6->sin6_addr = in6addr_any;
         length = sizeof(sockaddr_in6);
     } else {
         auto* in4 = reinterpret_cast<sockaddr_in*>(&address);
         in4->sin_family = AF_INET;
+        in4->sin_port = htons(wanted);
         if (::inet_pton(AF_INET, host.c_str(), &in4->sin_addr) != 1) in4->sin_addr.s_addr = htonl(INADDR_ANY);
         length = sizeof(sockaddr_in);
     }
-    std::optional<std::uint16_t> port;
-    if (::bind(fd, reinterpret_cast<sockaddr*>(&address), length) == 0 &&
-        ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) == 0) {
+    Result<std::uint16_t> port = make_error(ErrorKind::link, "");
+    if (::bind(fd, reinterpret_cast<sockaddr*>(&address), length) != 0 || ::listen(fd, 1) != 0 ||
+        ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) != 0) {
+        port = make_error(ErrorKind::link, std::strerror(errno));
+    } else {
         port = ntohs(ipv6 ? reinterpret_cast<sockaddr_in6*>(&address)->sin6_port : reinterpret_cast<sockaddr_in*>(&address)->sin_port);
     }
     ::close(fd);
@@ -289,12 +298,13 @@ Result<std::unique_ptr<OpcuaServer>> OpcuaServer::open(const OpcuaConfig& config
     state->config = config;
     state->writer = &writer;
     state->log = log ? std::move(log) : GatewayLog([](const std::string&) {});
-    state->port = config.port;
-    if (state->port == 0) {
-        auto port = free_port(config.host);
-        if (!port) return make_error(ErrorKind::link, fmt::format("[opcua] listen {}: no free port on {}", config.listen, config.host));
-        state->port = *port;
+    auto port = try_port(config.host, config.port);
+    if (!port) {
+        return make_error(ErrorKind::link, fmt::format("[opcua] listen {}: cannot listen there: {} (another program on the port? "
+                                                       "choose another, or 0 for any free one)",
+                                                       config.listen, port.error().message));
     }
+    state->port = *port;
     UA_ServerConfig server_config;
     std::memset(&server_config, 0, sizeof server_config);
     if (UA_StatusCode status = configure(server_config, *state); status != UA_STATUSCODE_GOOD) {
