@@ -88,6 +88,11 @@ void announce(const gateway::GatewayLog& log_line, const gateway::GatewayConfig&
                              ipv6 ? "]" : "", running.http_port(),
                              config.http->token.empty() ? "refused: no http.token_file" : "with the token"));
     }
+    if (config.opcua) {
+        const bool ipv6 = config.opcua->host.find(':') != std::string::npos;
+        log_line(fmt::format("OPC UA on opc.tcp://{}{}{}:{} (writes {})", ipv6 ? "[" : "", config.opcua->host, ipv6 ? "]" : "",
+                             running.opcua_port(), config.opcua->writes ? "confirmed by the device" : "refused"));
+    }
     // Under systemd (Type=notify, packaging/loopwire-gateway.service) the unit is up once the
     // lines and the listener are open; without $NOTIFY_SOCKET these calls do nothing.
     sd_notifyf(0, "READY=1\nSTATUS=serving %zu line(s), %zu device(s)", config.lines.size(), devices);

@@ -32,6 +32,9 @@ constexpr std::array tables{
                 "Record every change of a polled value, and a heartbeat of each, in an SQLite file the HTTP API "
                 "charts from, and optionally forward it to a PostgreSQL historian. Absent: no history."},
     ConfigTable{"http", "[http]", "The HTTP API and the live dashboard. Absent: no HTTP."},
+    ConfigTable{"opcua", "[opcua]",
+                "The OPC UA front: every polled parameter a variable ns=1;s=DEVICE.PARAMETER under "
+                "Objects/GATEWAY/LINE/DEVICE. Absent: no OPC UA."},
 };
 
 constexpr std::array keys{
@@ -239,6 +242,22 @@ constexpr std::array keys{
     ConfigKey{"http", "allow", "list of strings", "[]: every address", "IPv4 or IPv6 addresses and CIDR networks",
               "The client addresses served; a client from any other is closed at once and counted.",
               "[\"10.1.0.0/16\", \"127.0.0.1\"]", true},
+
+    ConfigKey{"opcua", "listen", "string", "\"opc.tcp://127.0.0.1:4840\"",
+              "opc.tcp://HOST:PORT or opc.tcp://[IPV6]:PORT; port 0 takes any free one",
+              "The endpoint OPC UA clients connect to.", "\"opc.tcp://127.0.0.1:4840\""},
+    ConfigKey{"opcua", "writes", "boolean", "false", "",
+              "Whether clients may write variables; false answers every write Bad_NotWritable.", "false"},
+    ConfigKey{"opcua", "anonymous", "boolean", "true", "",
+              "Whether anonymous sessions are taken; the endpoint offers security policy None only.", "true"},
+    ConfigKey{"opcua", "application_name", "string", "\"loopwire GATEWAY\"", "",
+              "The server's application name, as clients list it.", "\"loopwire plant1\"", true},
+    ConfigKey{"opcua", "application_uri", "string", "\"urn:loopwire:GATEWAY\"", "",
+              "The server's application URI.", "\"urn:loopwire:plant1\"", true},
+    ConfigKey{"opcua", "max_sessions", "integer", "100", "1..10000", "Sessions open at once.", "100"},
+    ConfigKey{"opcua", "max_subscriptions", "integer", "1000", "1..100000", "Subscriptions over every session.", "1000"},
+    ConfigKey{"opcua", "max_monitored_items", "integer", "100000", "1..1000000",
+              "Monitored items over every subscription.", "100000"},
 };
 
 constexpr double unbounded = std::numeric_limits<double>::infinity();
@@ -259,6 +278,9 @@ constexpr std::array ranges{
     ConfigRange{"http", "max_connections_per_client", 1, 10000},
     ConfigRange{"http", "max_event_streams", 1, 10000},
     ConfigRange{"http", "max_event_streams_per_client", 1, 10000},
+    ConfigRange{"opcua", "max_sessions", 1, 10000},
+    ConfigRange{"opcua", "max_subscriptions", 1, 100000},
+    ConfigRange{"opcua", "max_monitored_items", 1, 1000000},
     // Durations, in milliseconds.
     ConfigRange{"lines", "timeout", 1, unbounded},
     // A late reply comes at most a few timeouts late; a longer window would only stall the line.

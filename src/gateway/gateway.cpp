@@ -22,6 +22,7 @@
 #include "gateway/http_server.hpp"
 #include "gateway/line_keeper.hpp"
 #include "gateway/mqtt_bridge.hpp"
+#include "gateway/opcua/opcua_server.hpp"
 #include "gateway/sparkplug/sparkplug_node.hpp"
 #include "session/line_loop.hpp"
 #include "session/master.hpp"
@@ -308,6 +309,7 @@ struct Gateway::Parts {
     std::unique_ptr<SparkplugNode> sparkplug;
     std::optional<SparkplugConfig> sparkplug_config;  // the [sparkplug] it runs
     KeptSparkplug* kept_sparkplug = nullptr;           // GatewayOptions::sparkplug
+    std::unique_ptr<OpcuaServer> opcua;  // [opcua]; before the writer and the cache, which it uses, go
     std::unique_ptr<HttpApi> http_api;
     std::unique_ptr<HttpServer> http;  // last: stopped (its connections closed) before the API goes
 };
@@ -412,6 +414,15 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
                                                    &parts->engine->loop(), std::move(published));
     }
     if (config.sparkplug) open_sparkplug(*config.sparkplug, config, *parts, options.log, options.sparkplug);
+    if (config.opcua) {
+        std::vector<OpcuaDevice> devices;
+        for (const auto& line : config.lines) {
+            for (const auto& device : line.devices) devices.push_back({device.name, line.name, polled_parameters(device)});
+        }
+        auto opcua = OpcuaServer::open(*config.opcua, config.name, std::move(devices), *parts->writer, parts->cache, options.log);
+        if (!opcua) return opcua.error();
+        parts->opcua = std::move(*opcua);
+    }
     if (config.http) {
         if (auto opened = open_http(*config.http, config, options.http_listener, *parts); !opened) return opened.error();
     }
@@ -462,6 +473,7 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
         return reports;
     };
     sources.front = [&parts] { return parts.front ? parts.front->statistics() : FrontReport{}; };
+    if (parts.opcua) sources.opcua = [&parts] { return parts.opcua->figures(); };
     sources.http_not_allowed = [&parts] { return parts.http ? parts.http->not_allowed() : std::uint64_t{0}; };
     parts.http_api = std::make_unique<HttpApi>(config, std::move(sources));
     HttpServerSettings settings;
@@ -487,6 +499,8 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
 }
 
 std::uint16_t Gateway::modbus_tcp_port() const { return parts_->front ? parts_->front->port() : 0; }
+
+std::uint16_t Gateway::opcua_port() const { return parts_->opcua ? parts_->opcua->port() : 0; }
 
 std::uint16_t Gateway::http_port() const { return parts_->http ? parts_->http->port() : 0; }
 

@@ -110,6 +110,9 @@ public:
     // front is disabled.
     std::uint16_t modbus_tcp_port() const;
 
+    // The port the OPC UA front listens on (the one taken for port 0); 0 without [opcua].
+    std::uint16_t opcua_port() const;
+
     // The port the HTTP API listens on (the one the kernel chose for port 0); 0 without [http].
     std::uint16_t http_port() const;
     // Reads the HTTP API's certificate and key again (the same files, replaced): see

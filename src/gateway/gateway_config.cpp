@@ -1434,6 +1434,64 @@ std::optional<HttpConfig> parse_http(const Context& ctx, const toml::table& root
     return config;
 }
 
+// [opcua] listen: opc.tcp://HOST:PORT (IPv6 in brackets); false when it is wrong (and said so).
+bool opcua_listen(const Context& ctx, const toml::table& table, OpcuaConfig& config) {
+    auto listen = ctx.kept(optional_value<std::string>(ctx, table, "opcua", "listen", "a string such as \"opc.tcp://127.0.0.1:4840\""));
+    if (!listen) return false;
+    if (!*listen) return true;
+    constexpr std::string_view scheme = "opc.tcp://";
+    const std::string_view text = **listen;
+    auto address = text.starts_with(scheme) ? split_listen(text.substr(scheme.size())) : std::nullopt;
+    if (!address) {
+        ctx.note(ctx.fail(source_of(table, "listen"), "opcua.listen",
+                          fmt::format("{} is not an OPC UA endpoint to listen on (expected opc.tcp://HOST:PORT with a port "
+                                      "0..65535, 0 for any free one, e.g. \"opc.tcp://127.0.0.1:4840\")",
+                                      quoted_excerpt(text))));
+        return false;
+    }
+    config.listen = std::string(text);
+    config.host = std::move(address->host);
+    config.port = address->port;
+    return true;
+}
+
+std::optional<OpcuaConfig> parse_opcua(const Context& ctx, const toml::table& root, const std::string& gateway_name) {
+    const toml::node* node = root.get("opcua");
+    if (!node) return std::nullopt;
+    const auto* table = node->as_table();
+    if (!table) {
+        ctx.note(ctx.fail(node->source(), "opcua", "expected an [opcua] table"));
+        return std::nullopt;
+    }
+    check_keys(ctx, *table, "opcua", "opcua");
+    OpcuaConfig config;
+    opcua_listen(ctx, *table, config);
+    for (auto [key, flag] : {std::pair{"writes", &config.writes}, std::pair{"anonymous", &config.anonymous}}) {
+        auto value = ctx.kept(optional_value<bool>(ctx, *table, "opcua", key, "true or false"));
+        if (value && *value) *flag = **value;
+    }
+    const std::string suffix = gateway_name.empty() ? std::string() : gateway_name;
+    config.application_name = suffix.empty() ? "loopwire" : "loopwire " + suffix;
+    config.application_uri = suffix.empty() ? "urn:loopwire" : "urn:loopwire:" + suffix;
+    for (auto [key, text] : {std::pair{"application_name", &config.application_name},
+                             std::pair{"application_uri", &config.application_uri}}) {
+        auto value = ctx.kept(optional_value<std::string>(ctx, *table, "opcua", key, "a string"));
+        if (!value || !*value) continue;
+        if ((*value)->empty()) {
+            ctx.note(ctx.fail(source_of(*table, key), key_path("opcua", key), "expected a non-empty string"));
+            continue;
+        }
+        *text = std::move(**value);
+    }
+    for (auto [key, limit] : {std::pair{"max_sessions", &config.max_sessions},
+                              std::pair{"max_subscriptions", &config.max_subscriptions},
+                              std::pair{"max_monitored_items", &config.max_monitored_items}}) {
+        auto value = ctx.kept(optional_integer(ctx, *table, "opcua", "opcua", key));
+        if (value && *value) *limit = static_cast<unsigned>(**value);  // within the schema's range, checked
+    }
+    return config;
+}
+
 // [gateway]: the gateway's own name.
 std::string parse_gateway_name(const Context& ctx, const toml::table& root) {
     const toml::node* node = root.get("gateway");
@@ -1528,6 +1586,7 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
                           "needs [gateway] name: it is part of every series in the shared historian"));
     }
     config.http = parse_http(ctx, *root);
+    config.opcua = parse_opcua(ctx, *root, config.name);
     if (!mistakes.empty()) return all_mistakes(source, std::move(mistakes));
     if (config.mqtt && config.http) config.mqtt->configuration_url = dashboard_url(*config.http);
     return config;

@@ -234,6 +234,23 @@ struct HttpConfig {
     bool operator==(const HttpConfig&) const = default;
 };
 
+// [opcua]: the OPC UA front (gateway/opcua/opcua_server.hpp): every polled parameter a variable
+// under Objects/GATEWAY/LINE/DEVICE, written through the same write policy as every front.
+struct OpcuaConfig {
+    std::string listen = "opc.tcp://127.0.0.1:4840";  // as written, for messages
+    std::string host = "127.0.0.1";
+    std::uint16_t port = 4840;  // 0: any free port, said in the log and /api/health
+    bool writes = false;        // a Write is answered Bad_NotWritable unless true
+    bool anonymous = true;      // whether sessions without a user are taken
+    std::string application_name;  // empty: "loopwire GATEWAY" (or "loopwire")
+    std::string application_uri;   // empty: "urn:loopwire:GATEWAY" (or "urn:loopwire")
+    unsigned max_sessions = 100;
+    unsigned max_subscriptions = 1000;      // over every session
+    unsigned max_monitored_items = 100000;  // over every subscription
+
+    bool operator==(const OpcuaConfig&) const = default;
+};
+
 struct GatewayConfig {
     std::string source;  // the file it came from, for messages
     std::string name;    // [gateway] name: in MQTT's default prefix and discovery ids; may be empty
@@ -244,6 +261,7 @@ struct GatewayConfig {
     std::optional<SparkplugConfig> sparkplug;  // absent [sparkplug] table: no Sparkplug B
     std::optional<HistoryConfig> history;  // absent [history] table: no history
     std::optional<HttpConfig> http;  // absent [http] table: no HTTP API
+    std::optional<OpcuaConfig> opcua;  // absent [opcua] table: no OPC UA
 
     bool operator==(const GatewayConfig&) const = default;
 };

@@ -213,6 +213,13 @@ void describe_http(std::ostringstream& out, const std::optional<HttpConfig>& con
                                              : fmt::format("need the token in {}", config->token_file));
 }
 
+void describe_opcua(std::ostringstream& out, const std::optional<OpcuaConfig>& config) {
+    if (!config) return;
+    out << fmt::format("OPC UA: {} ({}), {}, at most {} sessions, writes {}\n", config->listen, config->application_uri,
+                       config->anonymous ? "anonymous" : "no anonymous", config->max_sessions,
+                       config->writes ? "confirmed by the device" : "refused (Bad_NotWritable)");
+}
+
 }  // namespace
 
 // What one poll asks for: the configured names, or the profile's default watch list.
@@ -337,6 +344,7 @@ std::string describe_plan(const GatewayConfig& config) {
     describe_sparkplug(out, config.sparkplug);
     describe_history(out, config.history);
     describe_http(out, config.http);
+    describe_opcua(out, config.opcua);
     return out.str();
 }
 

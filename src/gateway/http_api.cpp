@@ -474,8 +474,9 @@ HttpResponse HttpApi::State::metrics() const {
     response.content_type = "text/plain; version=0.0.4; charset=utf-8";
     const std::optional<FrontReport> front = sources.front ? std::optional(sources.front()) : std::nullopt;
     const HttpReport http{sources.http_not_allowed ? sources.http_not_allowed() : 0};
+    const std::optional<OpcuaFigures> opcua = sources.opcua ? std::optional(sources.opcua()) : std::nullopt;
     response.body = prometheus_text(gateway_name, sources.lines(), names, sources.cache->snapshot(), sources.history,
-                                    front ? &*front : nullptr, &http);
+                                    front ? &*front : nullptr, &http, opcua ? &*opcua : nullptr);
     response.headers.emplace_back("Cache-Control", "no-store");
     return response;
 }

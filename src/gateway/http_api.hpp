@@ -21,6 +21,7 @@
 #include "gateway/gateway_config.hpp"
 #include "gateway/history_source.hpp"
 #include "gateway/http_server.hpp"
+#include "gateway/opcua/opcua_figures.hpp"
 #include "gateway/value_cache.hpp"
 
 namespace loopwire::gateway {
@@ -33,6 +34,7 @@ struct HttpApiSources {
     std::function<FrontReport()> front;               // the Modbus TCP front's; none: not shown
     std::function<std::uint64_t()> http_not_allowed;  // clients the HTTP server closed at accept
     const HistorySource* history = nullptr;           // none: /api/history answers 404
+    std::function<OpcuaFigures()> opcua = {};         // the OPC UA front's; none: not shown
 };
 
 class HttpApi final : public HttpHandler {

@@ -89,6 +89,18 @@ void front_connections(std::string& out, const FrontReport& front) {
     out += fmt::format("loopwire_modbus_tcp_connections_open {}\n", front.open);
 }
 
+// [opcua]: the front's sessions and monitored items now, and its writes by outcome.
+void opcua_figures(std::string& out, const OpcuaFigures& opcua) {
+    family(out, "opcua_sessions", "gauge", "OPC UA sessions open now.");
+    out += fmt::format("loopwire_opcua_sessions {}\n", opcua.sessions);
+    family(out, "opcua_monitored_items", "gauge", "OPC UA monitored items over every subscription now.");
+    out += fmt::format("loopwire_opcua_monitored_items {}\n", opcua.monitored_items);
+    family(out, "opcua_writes_total", "counter",
+           "OPC UA writes: confirmed by the device, or refused (checks, a silent device, the device's refusal, no answer).");
+    out += fmt::format("loopwire_opcua_writes_total{{outcome=\"confirmed\"}} {}\n", opcua.writes_confirmed);
+    out += fmt::format("loopwire_opcua_writes_total{{outcome=\"refused\"}} {}\n", opcua.writes_refused);
+}
+
 // Each configured device's cached state, in configured order; null when never polled.
 std::vector<const CachedDevice*> cached_devices(const std::vector<MetricsDevice>& devices, const std::vector<CachedDevice>& values) {
     std::vector<const CachedDevice*> found;
@@ -207,7 +219,8 @@ std::string with_gateway_label(const std::string& text, const std::string& gatew
 
 std::string prometheus_text(const std::string& gateway, const std::vector<LineReport>& lines,
                             const std::vector<MetricsDevice>& devices, const std::vector<CachedDevice>& values,
-                            const HistorySource* history, const FrontReport* front, const HttpReport* http) {
+                            const HistorySource* history, const FrontReport* front, const HttpReport* http,
+                            const OpcuaFigures* opcua) {
     std::string out;
     struct LineCounter {
         const char* name;
@@ -309,6 +322,7 @@ std::string prometheus_text(const std::string& gateway, const std::vector<LineRe
                "HTTP clients closed at accept: their address is outside [http] allow.");
         out += fmt::format("loopwire_http_connections_not_allowed_total {}\n", http->not_allowed);
     }
+    if (opcua) opcua_figures(out, *opcua);
     return with_gateway_label(out, gateway);
 }
 

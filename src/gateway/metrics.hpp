@@ -6,6 +6,7 @@
 
 #include "gateway/gateway.hpp"
 #include "gateway/history_source.hpp"
+#include "gateway/opcua/opcua_figures.hpp"
 #include "gateway/value_cache.hpp"
 
 namespace loopwire::gateway {
@@ -25,6 +26,7 @@ struct MetricsDevice {
 // Each named bit of the polled bit fields as 1 or 0. The history store's rows, with one. The
 // Modbus TCP front's connections, with `front`; the HTTP server's, with `http`. Every sample carries gateway="GATEWAY" (its
 // [gateway] name, when it has one) as its first label.
+// The OPC UA front's sessions, monitored items and writes by outcome, with `opcua`.
 // The HTTP server's own figures.
 struct HttpReport {
     std::uint64_t not_allowed = 0;  // clients closed at accept: outside [http] allow
@@ -33,6 +35,6 @@ struct HttpReport {
 std::string prometheus_text(const std::string& gateway, const std::vector<LineReport>& lines,
                             const std::vector<MetricsDevice>& devices, const std::vector<CachedDevice>& values,
                             const HistorySource* history, const FrontReport* front = nullptr,
-                            const HttpReport* http = nullptr);
+                            const HttpReport* http = nullptr, const OpcuaFigures* opcua = nullptr);
 
 }  // namespace loopwire::gateway

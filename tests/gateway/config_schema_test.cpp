@@ -38,6 +38,7 @@ std::string configuration_with(std::string_view table, const std::string& extra)
         {"sparkplug", "[sparkplug]\nbroker = \"mqtt://127.0.0.1:1883\"\ngroup_id = \"plant1\"\n"},
         {"history", "[history]\ndatabase = \"plant.db\"\n"},
         {"http", "[http]\n"},
+        {"opcua", "[opcua]\n"},
     };
     std::string text;
     for (const auto& [name, block] : blocks) text += block + (name == table ? extra : "") + "\n";
