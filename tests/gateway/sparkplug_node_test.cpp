@@ -402,6 +402,7 @@ TEST(SparkplugNode, WhatChangedWhileDeadFollowsTheBirthsAsHistoricalInItsOrder) 
     ASSERT_TRUE(watcher.nth(ddata, 1));
     ASSERT_TRUE(node.log.wait_for("store and forward: 2 values of the outage forwarded as historical in 2 DDATA (1 already in "
                                   "the births, 0 of devices not born now, 0 older than 60 s and 1 over the most of 3 dropped)"));
+    ASSERT_TRUE(watcher.nth(ddata, 2));  // published before the line above: arrived by now or soon
     std::vector<double> historical;
     std::uint64_t last_timestamp = 0;
     for (const auto& [topic, bytes] : watcher.arrived([](const std::string& topic) { return topic == ddata; })) {
@@ -474,6 +475,7 @@ TEST(SparkplugNode, WhatAStoppedRunKeptInTheHistoryFileTheNextRunForwardsAfterTh
     const Payload birth = decoded(watcher.nth(dbirth, births_before + 1));
     ASSERT_TRUE(next.log.wait_for("store and forward: 4 values of the outage forwarded as historical in 3 DDATA"))
         << ::testing::PrintToString(next.log.all());
+    ASSERT_TRUE(watcher.nth(ddata, 3)) << "the forwarded DDATA did not arrive";
     std::vector<double> historical;
     std::vector<std::uint32_t> powers;
     for (const auto& [topic, bytes] : watcher.arrived([](const std::string& topic) { return topic == ddata; })) {
