@@ -447,18 +447,30 @@ void Gateway::open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConf
         }
         return figures;
     };
+    // Store and forward keeps its queue in the history file too, when there is one.
+    SparkplugPending pending;
+    if (sparkplug.store_and_forward && parts.history) pending = sparkplug_pending_in(*parts.history->store);
     if (kept && kept->node && kept->config == sparkplug) {
         // The last gateway's session carries on (hand_over_to).
         parts.sparkplug = std::move(kept->node);
         parts.sparkplug->take_over(std::move(devices), *parts.writer, parts.cache, std::move(lines), std::move(log),
-                                   &parts.engine->loop());
+                                   &parts.engine->loop(), std::move(pending));
         return;
+    }
+    if (pending.add) {
+        if (auto loaded = load_sparkplug_pending(parts.history->store->database())) {
+            pending.loaded = std::move(*loaded);
+        } else if (log) {
+            log(std::string(gateway_warning_prefix) + "sparkplug: what the last run kept to forward cannot be read (" +
+                loaded.error().message + "); it is not forwarded");
+        }
     }
     if (kept) kept->node.reset();  // a session for another [sparkplug]: it ends (NDEATH)
     // Like MQTT: started here, retried in the background, never an error.
     // On the engine's loop, as the MQTT front: no thread of its own.
-    parts.sparkplug = std::make_unique<SparkplugNode>(sparkplug, std::move(devices), *parts.writer, parts.cache, std::move(lines),
-                                                      std::move(log), SparkplugTiming{}, &parts.engine->loop());
+    parts.sparkplug =
+        std::make_unique<SparkplugNode>(sparkplug, std::move(devices), *parts.writer, parts.cache, std::move(lines),
+                                        std::move(log), SparkplugTiming{}, &parts.engine->loop(), std::move(pending));
 }
 
 Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& config, HttpListener* listener,

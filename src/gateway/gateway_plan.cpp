@@ -177,7 +177,7 @@ void describe_mqtt(std::ostringstream& out, const std::optional<MqttConfig>& con
                        config->writes ? "allowed" : "refused");
 }
 
-void describe_sparkplug(std::ostringstream& out, const std::optional<SparkplugConfig>& config) {
+void describe_sparkplug(std::ostringstream& out, const std::optional<SparkplugConfig>& config, bool has_history) {
     if (!config) return;
     out << fmt::format("Sparkplug B: {} as edge node spBv1.0/{}/.../{}, {}DCMD writes {}\n", config->broker, config->group_id,
                        config->edge_node_id,
@@ -186,6 +186,10 @@ void describe_sparkplug(std::ostringstream& out, const std::optional<SparkplugCo
     if (config->store_and_forward) {
         out << fmt::format("  store and forward: data kept for {} while the node is dead, sent after its births as historical\n",
                            duration_text(*config->store_and_forward));
+        // Kept in the history file, it survives a restart; without one, in memory only.
+        out << (has_history
+                    ? "  store and forward: kept in the history file too, so a restart forwards it\n"
+                    : "  note: store and forward keeps its data in memory only (no [history]): a restart loses it\n");
     }
 }
 
@@ -341,7 +345,7 @@ std::string describe_plan(const GatewayConfig& config) {
     for (const LineConfig& line : config.lines) describe_line(out, line);
     describe_modbus_tcp(out, config.modbus_tcp);
     describe_mqtt(out, config.mqtt);
-    describe_sparkplug(out, config.sparkplug);
+    describe_sparkplug(out, config.sparkplug, config.history.has_value());
     describe_history(out, config.history);
     describe_http(out, config.http);
     describe_opcua(out, config.opcua);

@@ -64,6 +64,15 @@ constexpr std::string_view create_writes =
     "outcome TEXT NOT NULL)";
 constexpr std::string_view create_writes_index = "CREATE INDEX IF NOT EXISTS writes_by_time ON writes(t)";
 
+// Sparkplug's store and forward (gateway/sparkplug/sparkplug_pending.hpp): the data the node could
+// not send while it was dead, one row a metric, until it is forwarded after the next births.
+constexpr std::string_view create_sparkplug_pending =
+    "CREATE TABLE IF NOT EXISTS sparkplug_pending(id INTEGER PRIMARY KEY, made_at INTEGER NOT NULL, "
+    "device TEXT NOT NULL, metric TEXT NOT NULL, t INTEGER NOT NULL, quality INTEGER NOT NULL, "
+    "kind INTEGER NOT NULL, value)";
+constexpr std::string_view create_sparkplug_pending_index =
+    "CREATE INDEX IF NOT EXISTS sparkplug_pending_by_time ON sparkplug_pending(made_at)";
+
 Error refuse(const std::filesystem::path& file, const std::string& what) {
     return make_error(ErrorKind::usage, fmt::format("history database {}: {}", file.string(), what));
 }
@@ -149,7 +158,8 @@ Result<sqlite::Connection> open_for_writing(const std::filesystem::path& file) {
     // one that starts being forwarded later, needs no other schema; the outbox stays empty
     // unless [history] forward_to. The audit's table, the same way: a file of an earlier
     // loopwire gains it, and is still the schema it was (only added to, nothing changed).
-    for (const std::string_view sql : {create_outbox, create_values_view, create_writes, create_writes_index}) {
+    for (const std::string_view sql : {create_outbox, create_values_view, create_writes, create_writes_index,
+                                       create_sparkplug_pending, create_sparkplug_pending_index}) {
         if (auto made = db->execute(sql); !made) {
             return refuse(file, fmt::format("cannot be written ({}); check the gateway may write to it and its folder",
                                             made.error().message));

@@ -168,6 +168,11 @@ void HistoryStore::record_write(const AuditRecord& record) {
     writes_queue_.push_back(record);
 }
 
+void HistoryStore::run_in_writer(WriterJob job) {
+    std::lock_guard lock(queue_mutex_);
+    jobs_.push_back(std::move(job));
+}
+
 std::uint64_t HistoryStore::rows_written() const {
     std::lock_guard lock(queue_mutex_);
     return rows_written_;
@@ -315,6 +320,23 @@ Result<void> HistoryStore::commit_writes(const std::vector<AuditRecord>& writes)
     return written;
 }
 
+Result<void> HistoryStore::run_jobs(std::vector<WriterJob>& jobs) {
+    Writer& w = *writer_;
+    std::size_t done = 0;
+    Result<void> outcome;
+    for (; done < jobs.size(); ++done) {
+        if (outcome = w.db.execute("BEGIN IMMEDIATE"); !outcome) break;
+        outcome = jobs[done](w.db);
+        if (outcome) outcome = w.db.execute("COMMIT");
+        if (!outcome) {
+            (void)w.db.execute("ROLLBACK");
+            break;
+        }
+    }
+    jobs.erase(jobs.begin(), jobs.begin() + static_cast<std::ptrdiff_t>(done));
+    return outcome;
+}
+
 // A row that says nothing was read is never repeated by a heartbeat: a heartbeat of it would
 // stamp the present on a reading nobody made, which is how a frozen value used to look fresh
 // for minutes.
@@ -393,11 +415,13 @@ Result<void> HistoryStore::write_pending() {
     Writer& w = *writer_;
     std::vector<QueuedRow> batch;
     std::vector<AuditRecord> writes;
+    std::vector<WriterJob> jobs;
     std::uint64_t dropped = 0;
     {
         std::lock_guard lock(queue_mutex_);
         batch.swap(queue_);
         writes.swap(writes_queue_);
+        jobs.swap(jobs_);
         dropped = dropped_;
     }
     if (auto audited = commit_writes(writes); !audited) {
@@ -424,10 +448,16 @@ Result<void> HistoryStore::write_pending() {
             batch.erase(batch.begin(), batch.begin() + static_cast<std::ptrdiff_t>(batch.size() - room));
         }
         queue_.insert(queue_.begin(), std::make_move_iterator(batch.begin()), std::make_move_iterator(batch.end()));
+        jobs_.insert(jobs_.begin(), std::make_move_iterator(jobs.begin()), std::make_move_iterator(jobs.end()));
         return committed.error();
     }
     if (w.failing) log("writing again");
     w.failing = false;
+    if (auto ran = run_jobs(jobs); !ran) {
+        log(fmt::format("{} (kept in memory and retried)", ran.error().message));
+        std::lock_guard lock(queue_mutex_);
+        jobs_.insert(jobs_.begin(), std::make_move_iterator(jobs.begin()), std::make_move_iterator(jobs.end()));
+    }
     {
         std::lock_guard lock(queue_mutex_);
         rows_written_ += *committed;

@@ -97,6 +97,12 @@ public:
     // Queues a write's audit record for the writer (WriteAudit's: quick, never blocks), committed
     // with the next batch into the `writes` table.
     void record_write(const AuditRecord& record);
+    // Queues `job` for the writer: run in a transaction of its own at the next commit, after the
+    // changes queued before it, in the order given (quick, never blocks on the database). For a
+    // part of the gateway that keeps its own rows in the file (Sparkplug's store and forward,
+    // gateway/sparkplug/sparkplug_pending.hpp). A job that fails is logged and retried.
+    using WriterJob = std::function<Result<void>(sqlite::Connection&)>;
+    void run_in_writer(WriterJob job);
 
     // Commits what is queued, writes the heartbeats that are due and one retention batch: the
     // writer thread's step, called by the owner when there is no thread (never beside it).
@@ -132,6 +138,7 @@ private:
     Result<void> insert_rows(const std::vector<QueuedRow>& rows, std::uint64_t& inserted);
     Result<std::uint64_t> commit(const std::vector<QueuedRow>& rows);  // the rows inserted
     Result<void> commit_writes(const std::vector<AuditRecord>& writes);
+    Result<void> run_jobs(std::vector<WriterJob>& jobs);  // those not done are left in `jobs`
     void add_heartbeats(std::vector<QueuedRow>& batch);
     Result<std::int64_t> expire(sqlite::Statement& statement, std::int64_t series, std::int64_t before);
     Result<bool> retention_step(bool force);  // false: nothing was due
@@ -146,6 +153,7 @@ private:
     std::condition_variable_any stop_woken_;
     std::vector<QueuedRow> queue_;
     std::vector<AuditRecord> writes_queue_;
+    std::vector<WriterJob> jobs_;
     // The last row of each series, for the heartbeats (the writer's).
     std::map<std::pair<std::string, std::string>, QueuedRow> last_;
     std::uint64_t dropped_ = 0;               // queue lock

@@ -1032,6 +1032,8 @@ TEST(GatewayConfig, SparkplugStoreAndForwardIsADurationOrOff) {
     ASSERT_TRUE(config) << config.error().message;
     EXPECT_EQ(config->sparkplug->store_and_forward, std::chrono::minutes(10));
     EXPECT_THAT(describe_plan(*config), HasSubstr("store and forward: data kept for 10m while the node is dead"));
+    // No [history] here: in memory only, and --check says so.
+    EXPECT_THAT(describe_plan(*config), HasSubstr("note: store and forward keeps its data in memory only (no [history])"));
     config = parse(head + "store_and_forward = \"off\"\n");
     ASSERT_TRUE(config) << config.error().message;
     EXPECT_FALSE(config->sparkplug->store_and_forward);

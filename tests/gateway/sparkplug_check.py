@@ -397,6 +397,7 @@ class Node:
         self.processes = 0
         self.counts = {}
         self.bdseqs = []
+        self.restart_line = None        # the last broker restart the recorder saw (a BROKER record)
 
     def device(self, name):
         if name not in self.devices:
@@ -440,6 +441,9 @@ class Model:
             self.fail("decode", rec, rec["error"])
         if kind == "STATE":
             self.on_state(rec)
+            return
+        if kind == "BROKER":
+            self.on_broker_restart(rec)
             return
         if kind not in NODE_MESSAGES | DEVICE_MESSAGES or "metrics" not in rec:
             if not rec.get("error"):
@@ -666,6 +670,11 @@ class Model:
                 previous = node.last_death_bdseq
                 if previous is not None and bdseq == (previous + 1) % 256:
                     pass  # the same process on a new connection
+                elif node.restart_line and node.restart_line > (node.birth_line or 0) and bdseq != previous:
+                    # After a broker restart: the attempts the node made while no broker was
+                    # there are not seen, and a process started meanwhile counts on from its
+                    # state file; only the lost connection's bdSeq may not be born again.
+                    pass
                 elif bdseq == 0:
                     self.new_process(node)
                 else:
@@ -681,6 +690,20 @@ class Model:
         for device in node.devices.values():
             device.born = False  # every device is born again after its node
         node.metrics, node.last, node.values = self.birth_metrics(node, None, rec)
+
+    def on_broker_restart(self, rec):
+        """The recorder connected again: the broker was restarted, every node's connection ended
+        without an NDEATH (the will went with the old broker) and its devices are dead."""
+        self.note(rec, "the broker was restarted: every node's connection ended (its will went with the old "
+                       "broker, or it published it as it stopped)")
+        for node in self.nodes.values():
+            node.restart_line = rec["line"]
+            if node.last_event == "NBIRTH":
+                node.last_event = "LOST"
+                node.last_death_bdseq = node.bdseq
+            node.born = False
+            for device in node.devices.values():
+                device.born = False
 
     def new_process(self, node):
         node.registry, node.aliases = {}, {}
@@ -709,7 +732,13 @@ class Model:
                           f"{node.birth_line}) had bdSeq {node.bdseq}")
         elif node.last_event == "NDEATH":
             previous = node.last_death_bdseq
-            if bdseq == previous:
+            if bdseq == previous and rec.get("timestamp") == node.last_death_timestamp and node.restart_line and \
+                    node.last_death_line < node.restart_line:
+                # The will the old broker published as it stopped, delivered again by the new one
+                # from the observer's persisted session: the broker's redelivery, not the node's.
+                self.note(rec, f"NDEATH (bdSeq {bdseq}) of line {node.last_death_line} delivered again after "
+                               "the broker's restart")
+            elif bdseq == previous:
                 # The timestamps tell a resent NDEATH (the same one) from the broker's will (made
                 # at connect, older).
                 self.fail("bdseq", rec, f"a second NDEATH with bdSeq {bdseq} and no NBIRTH between: this one's "
@@ -943,10 +972,24 @@ def cmd_record(args):
     line = [sum(1 for _ in open(args.out, encoding="utf-8"))]
     lock = threading.Lock()
 
+    connections = [0]
+
     def on_connect(client, userdata, flags, rc, properties=None):
         if rc != 0:
             print(f"connect refused: {rc}", flush=True)
             return
+        connections[0] += 1
+        if connections[0] > 1:
+            # Connected again (the broker was restarted): a record of it, before what the broker
+            # kept for this session while it was away, so that `check` knows the nodes' connections
+            # ended with no NDEATH (the old broker took their wills with it).
+            with lock:
+                line[0] += 1
+                rec = {"line": line[0], "t": now_ms(), "topic": "", "type": "BROKER", "event": "reconnected",
+                       "session_present": bool(flags.get("session present"))}
+                out.write(json.dumps(rec) + "\n")
+                out.flush()
+            print(f"connected again (session present: {bool(flags.get('session present'))})", flush=True)
         # retainAsPublished: the retain flag as the publisher set it, so a node publishing
         # retained is seen even while this subscriber is online.
         client.subscribe(f"{NAMESPACE}/#", options=SubscribeOptions(qos=1, retainAsPublished=True))
@@ -969,7 +1012,17 @@ def cmd_record(args):
     client = mqtt.Client(client_id=f"sparkplug-check-recorder-{os.getpid()}", protocol=mqtt.MQTTv5)
     client.on_connect, client.on_subscribe = on_connect, on_subscribe
     client.on_message, client.on_disconnect = on_message, on_disconnect
-    client.connect(args.host, args.port, keepalive=30)
+    if args.session:
+        # A session the broker keeps (and, with its persistence, across its restart) with what is
+        # published while this recorder is away: a broker restarted loses none of the messages.
+        from paho.mqtt.packettypes import PacketTypes
+        from paho.mqtt.properties import Properties
+        connect_properties = Properties(PacketTypes.CONNECT)
+        connect_properties.SessionExpiryInterval = int(args.session)
+        client.reconnect_delay_set(min_delay=1, max_delay=1)
+        client.connect(args.host, args.port, keepalive=30, clean_start=False, properties=connect_properties)
+    else:
+        client.connect(args.host, args.port, keepalive=30)
     client.loop_start()
     time.sleep(args.duration)
     client.disconnect()
@@ -1663,6 +1716,9 @@ def main():
     broker(p)
     p.add_argument("--out", required=True)
     p.add_argument("--duration", type=float, default=300, help="stop after this many seconds")
+    p.add_argument("--session", type=int, default=0,
+                   help="keep a session this many seconds (MQTT 5 session expiry): with a broker that persists "
+                        "sessions and queues QoS 0 messages, nothing is lost across its restart")
     p.set_defaults(func=cmd_record)
 
     p = sub.add_parser("wait", help="wait for a message matching the filter")

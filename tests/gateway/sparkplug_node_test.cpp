@@ -7,8 +7,7 @@
 // one always), births held back until the primary host is online, a STATE older than the last
 // ignored, and under STATE flaps no NBIRTH with the bdSeq of an NDEATH already sent. Skipped
 // without /usr/sbin/mosquitto.
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
+#include "gateway/sparkplug/sparkplug_node.hpp"
 
 #include <algorithm>
 #include <filesystem>
@@ -19,8 +18,11 @@
 #include <thread>
 #include <utility>
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include "gateway/engine.hpp"
-#include "gateway/sparkplug/sparkplug_node.hpp"
+#include "gateway/history_store.hpp"
 #include "sparkplug/sparkplug_b.pb.h"
 #include "support/eventually.hpp"
 #include "support/history_test_support.hpp"
@@ -137,7 +139,8 @@ struct NodeFixture {
     explicit NodeFixture(Broker& broker, const std::string& primary_host = {},
                          std::shared_ptr<Clock> clock = steady_clock(), bool writes = false,
                          const std::filesystem::path& state_file = {},
-                         const std::function<void(SparkplugConfig&, SparkplugTiming&)>& adjust = {})
+                         const std::function<void(SparkplugConfig&, SparkplugTiming&)>& adjust = {},
+                         SparkplugPending pending = {})
         : cache(std::move(clock)) {
         config.state_file = state_file;
         config.broker = fmt::format("mqtt://127.0.0.1:{}", broker.port());
@@ -152,9 +155,12 @@ struct NodeFixture {
         timing.reconnect_first = 50ms;
         timing.reconnect_last = 200ms;
         if (adjust) adjust(config, timing);
-        node = std::make_unique<SparkplugNode>(config, std::vector<SparkplugDevice>{{"d1", device.parameters()}}, writer, cache,
-                                               [] { return std::vector<SparkplugLineFigures>{{"line1", 10, 9, 1, true}}; },
-                                               log.sink(), timing);
+        node = std::make_unique<SparkplugNode>(
+            config, std::vector<SparkplugDevice>{{"d1", device.parameters()}}, writer, cache,
+            [] {
+                return std::vector<SparkplugLineFigures>{{"line1", 10, 9, 1, true}};
+            },
+            log.sink(), timing, nullptr, std::move(pending));
     }
 
     SparkplugConfig config;
@@ -396,6 +402,7 @@ TEST(SparkplugNode, WhatChangedWhileDeadFollowsTheBirthsAsHistoricalInItsOrder) 
     ASSERT_TRUE(watcher.nth(ddata, 1));
     ASSERT_TRUE(node.log.wait_for("store and forward: 2 values of the outage forwarded as historical in 2 DDATA (1 already in "
                                   "the births, 0 of devices not born now, 0 older than 60 s and 1 over the most of 3 dropped)"));
+    ASSERT_TRUE(watcher.nth(ddata, 2));  // published before the line above: arrived by now or soon
     std::vector<double> historical;
     std::uint64_t last_timestamp = 0;
     for (const auto& [topic, bytes] : watcher.arrived([](const std::string& topic) { return topic == ddata; })) {
@@ -414,6 +421,80 @@ TEST(SparkplugNode, WhatChangedWhileDeadFollowsTheBirthsAsHistoricalInItsOrder) 
     EXPECT_EQ(historical, (std::vector<double>{22.5, 23.0}));
     EXPECT_DOUBLE_EQ(born->double_value(), 23.5);
     EXPECT_EQ(node.node->stored(), 0u);
+}
+
+// Store and forward with a history file: what one run kept while dead and could not forward is
+// in the file when it stops (table sparkplug_pending, with each value's kind and quality); the
+// next run forwards it as historical once the device is born (its polls answer after the
+// NBIRTH), each value once, and the file is emptied of it.
+TEST(SparkplugNode, WhatAStoppedRunKeptInTheHistoryFileTheNextRunForwardsAfterTheBirth) {
+    SKIP_WITHOUT_BROKER();
+    loopwire::testing::TempFolder folder("loopwire-sparkplug");
+    HistoryOptions options;
+    options.database = folder.path / "plant.db";
+    auto store = HistoryStore::open(options);
+    ASSERT_TRUE(store) << store.error().message;  // no writer thread: write_pending() below
+    const auto with_store_and_forward = [](SparkplugConfig& config, SparkplugTiming&) {
+        config.store_and_forward = 1min;
+    };
+    Broker broker;
+    Watcher watcher(broker.port(), every_sparkplug_topic());
+    const std::vector<double> temperatures{22.0, 22.5, 23.0};
+    const auto first = std::chrono::system_clock::now() - 1s;
+    {
+        NodeFixture run(broker, "scada", steady_clock(), false, {}, with_store_and_forward,
+                        sparkplug_pending_in(**store));
+        watcher.publish(host_state, state(true, 1), true);
+        run.device.answer(run.cache, 21.5, 40, "auto");
+        ASSERT_TRUE(watcher.nth(dbirth, 1));
+        watcher.publish(host_state, state(false, 2), true);
+        ASSERT_TRUE(watcher.nth(ndeath, 1));
+        for (std::size_t i = 0; i < temperatures.size(); ++i) {
+            run.device.answer(run.cache, temperatures[i], i == 2 ? 41 : 40, "auto", first + i * 100ms);
+            ASSERT_TRUE(eventually([&] { return run.node->stored() >= i + 1; })) << "value " << i << " not kept";
+        }
+    }
+    ASSERT_TRUE((*store)->write_pending());
+    auto kept = load_sparkplug_pending(options.database);
+    ASSERT_TRUE(kept) << kept.error().message;
+    ASSERT_EQ(kept->size(), 4u);  // three temperatures, and the power with the last
+    EXPECT_EQ((*kept)[0].metric, "temperature");
+    EXPECT_EQ((*kept)[0].sample.value, sparkplug::MetricValue{22.0});
+    EXPECT_EQ((*kept)[3].metric, "power");
+    EXPECT_EQ((*kept)[3].sample.value, sparkplug::MetricValue{std::uint64_t{41}});
+
+    const std::size_t births_before = watcher.arrived([](const std::string& topic) { return topic == dbirth; }).size();
+    SparkplugPending pending = sparkplug_pending_in(**store);
+    pending.loaded = std::move(*kept);
+    watcher.publish(host_state, state(true, 3), true);
+    NodeFixture next(broker, "scada", steady_clock(), false, {}, with_store_and_forward, std::move(pending));
+    ASSERT_TRUE(next.log.wait_for("store and forward: 4 values the last run kept"));
+    ASSERT_TRUE(watcher.nth(nbirth, 2));
+    EXPECT_EQ(next.node->stored(), 4u) << "forwarded before the device was born";
+    next.device.answer(next.cache, 24.0, 42, "manual");
+    const Payload birth = decoded(watcher.nth(dbirth, births_before + 1));
+    ASSERT_TRUE(next.log.wait_for("store and forward: 4 values of the outage forwarded as historical in 3 DDATA"))
+        << ::testing::PrintToString(next.log.all());
+    ASSERT_TRUE(watcher.nth(ddata, 3)) << "the forwarded DDATA did not arrive";
+    std::vector<double> historical;
+    std::vector<std::uint32_t> powers;
+    for (const auto& [topic, bytes] : watcher.arrived([](const std::string& topic) { return topic == ddata; })) {
+        Payload data;
+        ASSERT_TRUE(data.ParseFromString(bytes));
+        for (const auto& metric : data.metrics()) {
+            EXPECT_TRUE(metric.is_historical());
+            EXPECT_LT(metric.timestamp(), named(birth, "temperature")->timestamp());
+            if (metric.has_double_value()) historical.push_back(metric.double_value());
+            if (metric.has_int_value()) powers.push_back(metric.int_value());
+        }
+    }
+    EXPECT_EQ(historical, temperatures);
+    EXPECT_EQ(powers, std::vector<std::uint32_t>{41});
+    EXPECT_EQ(next.node->stored(), 0u);
+    ASSERT_TRUE((*store)->write_pending());
+    auto left = load_sparkplug_pending(options.database);
+    ASSERT_TRUE(left);
+    EXPECT_TRUE(left->empty()) << left->size() << " values would be forwarded again by a third run";
 }
 
 // A reload that keeps [sparkplug] hands the node, connected, to the next gateway: no NDEATH, no

@@ -26,17 +26,30 @@ sp() { "${checker[@]}" "$@"; }
 check checker-selftest 0 "selftest: ok" "${checker[@]}" selftest
 
 recording=$WORK_DIR/sparkplug.jsonl
+# Options for the recorder (sparkplug_check.py record), e.g. (--session 600) to outlive a broker
+# restart.
+record_options=()
 # start_recording LIFETIME [MOSQUITTO CONFIG LINE]... : a broker for LIFETIME seconds (its port in
-# MQTT_PORT) and the recorder, subscribed before any gateway starts: the recording holds every
-# message of every run, in the order the broker delivered them.
+# MQTT_PORT, its process in $broker) and the recorder, subscribed before any gateway starts: the
+# recording holds every message of every run, in the order the broker delivered them.
 start_recording() {
   local lifetime=$1
   shift
   start_mosquitto "$lifetime" "log_dest stderr" "log_type error" "log_type warning" "log_type notice" "log_type information" "$@"
+  broker=$LAST_PID
+  broker_end=$((SECONDS + lifetime))
   start_background recorder.log timeout "$lifetime" "${checker[@]}" record --port "$MQTT_PORT" --out "$recording" \
-    --duration $((lifetime - 5))
+    --duration $((lifetime - 5)) "${record_options[@]}"
   wait_for_text "$WORK_DIR/recorder.log" "subscribed" 30
   touch "$recording"
+}
+
+# restart_broker LOG : a new broker with the same configuration on the same port (the last one
+# stopped), until the first one's lifetime ends; its process in $broker.
+restart_broker() {
+  start_background "$1" timeout $((broker_end - SECONDS)) /usr/sbin/mosquitto -c "$WORK_DIR/mosquitto.conf"
+  broker=$LAST_PID
+  wait_for_text "$WORK_DIR/$1" "running" 30
 }
 
 # SPARKPLUG_KEEP_DIR=DIR keeps the recording and the logs there (the work folder is removed).

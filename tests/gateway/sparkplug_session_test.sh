@@ -5,35 +5,36 @@
 #   2. SIGHUP reloads that leave [sparkplug] as it is keep the session (no NDEATH, no NBIRTH):
 #      one changing only [http] listen says nothing at all, one removing a device sends exactly
 #      its DDEATH, one adding it back exactly its DBIRTH;
-#   3. store and forward: the node's way to the broker is cut for 30 s
-#      while the devices' values change; back, after NBIRTH and the DBIRTHs, every value the node
-#      kept arrives once, in its order, with is_historical and its own timestamp, before the live
-#      ones; and the furnace's output values are those the gateway's [history] recorded for the
-#      outage (sparkplug_outage_values.py), each once. The node reaches the broker through a TCP relay (socat) that is stopped and started
-#      again, not the broker itself, so that the observer stays subscribed through the outage and
-#      sees everything the node sends when it is back (the broker publishes the will NDEATH when
-#      the relay drops the node's connection, as when a node's network goes).
+#   3. store and forward: the broker itself is stopped (SIGTERM) for 30 s while the devices'
+#      values change, and a new one started on the same port; after NBIRTH and the DBIRTHs, every
+#      value the node kept arrives once, in its order, with is_historical and its own timestamp,
+#      before the live ones; and the furnace's output values are those the gateway's [history]
+#      recorded for the outage (sparkplug_outage_values.py), each once;
+#   4. the same with the gateway stopped during the outage (10 s of it) and started again once
+#      the broker is back: the values it kept in its history file arrive after the births, once.
+# The observer outlives the broker's restarts: it keeps an MQTT 5 session the broker persists
+# (persistence, QoS 0 messages queued for it), so what the node sends before the observer is
+# connected again is delivered to it, in order, after a record of the restart.
 #
 # SPARKPLUG_KEEP_DIR=DIR keeps the recording and the logs there (the work folder is removed).
 set -u
 loopwire=${1:?usage: sparkplug_session_test.sh path/to/loopwire}
 # shellcheck source=tests/support/test_lib.sh
 source "$(dirname "$0")/../support/test_lib.sh"
-budget_end=$((SECONDS + 215))
+budget_end=$((SECONDS + 265))
 # shellcheck source=tests/gateway/sparkplug_observer_lib.sh
 source "$(dirname "$0")/sparkplug_observer_lib.sh"
-command -v socat >/dev/null || skip "socat is not installed (Debian package socat)"
-start_recording 245
+record_options=(--session 600)
+# (user root: a broker started as root keeps the right to save its sessions in the work folder.)
+start_recording 295 "persistence true" "persistence_location $WORK_DIR/" "queue_qos0_messages true" \
+  "max_queued_messages 0" "user root"
 now_ms() { $python -c 'import time; print(int(time.time() * 1000))'; }
 count_since() { sp count "$recording" --edge cabinet1 --after-line "$@"; }
 
-# The relay the node reaches the broker through: one connection, then it exits (no fork, so
-# stopping it cuts that connection).
-relay_port=$(free_port)
-start_relay() {
-  start_background relay.log socat -d -d "TCP-LISTEN:$relay_port,bind=127.0.0.1,reuseaddr" "TCP:127.0.0.1:$MQTT_PORT"
-  relay=$LAST_PID
-  wait_for_text "$WORK_DIR/relay.log" "listening on" 10
+# stop_broker NAME : SIGTERM to the broker (it saves the sessions), until it has stopped.
+stop_broker() {
+  kill -TERM "$broker"
+  wait_for 20 "the broker to stop ($1)" stopped "$broker"
 }
 
 http_port_a=$(free_port)
@@ -86,7 +87,7 @@ listen = "127.0.0.1:$1"
 database = "plant.db"
 
 [sparkplug]
-broker = "mqtt://127.0.0.1:$relay_port"
+broker = "mqtt://127.0.0.1:$MQTT_PORT"
 group_id = "plant"
 edge_node_id = "cabinet1"
 state_file = "sparkplug.state"
@@ -94,12 +95,11 @@ store_and_forward = "1m"
 TOML
 }
 plant_config "$http_port_a" yes >"$WORK_DIR/plant.toml"
-check config-accepted 0 "" "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
+check config-accepted-store-in-history 0 "store and forward: kept in the history file too" "$loopwire" gateway --config "$WORK_DIR/plant.toml" --check
 
 ########## 1. bdSeq 0, 1, 2 over two restarts (state_file)
 
 start_run() {  # LOG
-  start_relay
   start_background "$1" timeout 200 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
   gateway=$LAST_PID
 }
@@ -111,7 +111,6 @@ stop_run() {  # NAME
   wait "$gateway" || status=$?
   same "$1-exit-status" "$status" 0
   await "$1-ndeath" 20 --type NDEATH --edge cabinet1 --after-line "$before"
-  wait_for 10 "the relay to end with the node's connection" stopped "$relay"
 }
 bdseqs=()
 for run in 1 2 3; do
@@ -161,18 +160,17 @@ await kiln-added-dbirth 30 --type DBIRTH --edge cabinet1 --device kiln --after-l
 same kiln-added-only-its-dbirth "$(count_since "$before" --type NBIRTH,NDEATH,DBIRTH,DDEATH)" 1
 same session-bdseq-unchanged "$(sp count "$recording" --type NBIRTH --edge cabinet1 --after-line "$session_start")" 0
 
-########## 3. Store and forward across a 30 s outage
+########## 3. Store and forward across a 30 s outage of the broker
 
 await furnace-live-before-outage 20 --type DDATA --edge cabinet1 --device furnace --after-line "$(lines_now)"
-before=$(lines_now)
+outage_start=$(lines_now)
 cut_ms=$(now_ms)
-kill -TERM "$relay"
-await will-ndeath-at-outage 20 --type NDEATH --edge cabinet1 --after-line "$before"
-outage_start=${found:-$before}
-wait_for 10 "the relay to stop" stopped "$relay"
+outage_began=$SECONDS
+stop_broker outage
 # The outage itself: a fixed 30 s, for the values to change meanwhile (nothing to wait for).
 sleep 30
-start_relay
+restart_broker broker2.log
+echo "    outage: $((SECONDS - outage_began)) s"
 must_await nbirth-after-outage 60 --type NBIRTH --edge cabinet1 --after-line "$outage_start"
 rebirth=$found
 same bdseq-after-outage "$(value_at "$rebirth" bdSeq)" 3
@@ -191,8 +189,6 @@ same historical-received-is-what-the-node-forwarded "$(sed -nE 's/^historical=([
 same historical-duplicates "$(sed -nE 's/.* duplicates=([0-9]+) .*/\1/p' <<<"$figures")" 0
 same historical-out-of-order "$(sed -nE 's/.* out_of_order=([0-9]+) .*/\1/p' <<<"$figures")" 0
 
-stop_run run3
-
 # The same values from another record of them: the furnace's output as the gateway's [history]
 # recorded it (every change the polls found, in SQLite) between the last value the observer saw
 # before the outage and the DBIRTH after it, each there once as a historical value.
@@ -200,6 +196,50 @@ sp series "$recording" --edge cabinet1 --device furnace --metric main_output_val
 compared=$($python "$here/sparkplug_outage_values.py" "$WORK_DIR/plant.db" furnace main_output_value "$outage_start" \
   <"$WORK_DIR/series.txt") && count_pass || count_failure "every-outage-value-once-as-historical: $compared"
 echo "    history against observer: $compared"
+
+########## 4. The gateway stopped during the outage, started again once the broker is back
+
+await furnace-live-before-restart 20 --type DDATA --edge cabinet1 --device furnace --after-line "$(lines_now)"
+outage_start=$(lines_now)
+cut_ms=$(now_ms)
+outage_began=$SECONDS
+stop_broker restart-case
+# 10 s of values the node keeps, in memory and in the history file; then the gateway stops.
+sleep 10
+kill -TERM "$gateway"
+wait_for 30 "gateway 3 to stop on SIGTERM with the broker away" stopped "$gateway"
+status=0
+wait "$gateway" || status=$?
+same run3-exit-status-broker-away "$status" 0
+stopped_ms=$(now_ms)
+restart_broker broker3.log
+echo "    outage: $((SECONDS - outage_began)) s, the gateway stopped after 10 s of it"
+start_background gateway4.log timeout 100 "$loopwire" gateway --config "$WORK_DIR/plant.toml"
+gateway=$LAST_PID
+must_await nbirth-after-restart 60 --type NBIRTH --edge cabinet1 --after-line "$outage_start"
+back_ms=$(value_at "$found" bdSeq --what text | sed -nE 's/.* ts=([0-9]+).*/\1/p')
+await furnace-dbirth-after-restart 30 --type DBIRTH --edge cabinet1 --device furnace --after-line "$found"
+wait_for 30 "the next run to say what it forwarded" grep -qsE "store and forward: [0-9]+ values of the outage" \
+  "$WORK_DIR/gateway4.log"
+grep -qsE "store and forward: [0-9]+ values the last run kept" "$WORK_DIR/gateway4.log" && count_pass ||
+  count_failure "the next run read what the last kept" "$WORK_DIR/gateway4.log"
+told=$(sed -nE 's/.*store and forward: ([0-9]+) values of the outage forwarded.*/\1/p' "$WORK_DIR/gateway4.log" | tail -n 1)
+echo "    node: $(grep -oE "store and forward: .*" "$WORK_DIR/gateway4.log" | tr '\n' ';')"
+figures=$(sp historical "$recording" --edge cabinet1 --after-line "$outage_start" --from-ms $((cut_ms - 1000)) \
+  --to-ms "$stopped_ms" --at-least 20) && count_pass || count_failure "restart store-and-forward figures: $figures"
+echo "    observer: $figures"
+same restart-historical-received-is-what-the-node-forwarded "$(sed -nE 's/^historical=([0-9]+) .*/\1/p' <<<"$figures")" "$told"
+same restart-historical-duplicates "$(sed -nE 's/.* duplicates=([0-9]+) .*/\1/p' <<<"$figures")" 0
+same restart-historical-out-of-order "$(sed -nE 's/.* out_of_order=([0-9]+) .*/\1/p' <<<"$figures")" 0
+# Against the history: the changes from the last live value to the gateway's stop (what the next
+# run recorded before its births was never kept: it was sent as the births' own values).
+sp series "$recording" --edge cabinet1 --device furnace --metric main_output_value >"$WORK_DIR/series.txt"
+compared=$($python "$here/sparkplug_outage_values.py" "$WORK_DIR/plant.db" furnace main_output_value "$outage_start" \
+  "$stopped_ms" <"$WORK_DIR/series.txt") && count_pass ||
+  count_failure "restart-every-outage-value-once-as-historical: $compared"
+echo "    history against observer: $compared"
+await furnace-live-after-restart 30 --type DDATA --edge cabinet1 --device furnace --after-line "$(lines_now)"
+stop_run run4
 
 ########## The whole recording against the rules
 

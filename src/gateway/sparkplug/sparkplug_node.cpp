@@ -92,6 +92,7 @@ struct StoredData {
     std::string device;
     std::vector<std::pair<std::size_t, MetricSample>> metrics;
     std::uint64_t made_at = 0;  // ms since the epoch
+    bool from_last_run = false;  // read from the history file: waits for its device's birth
 };
 
 // Whether two definitions of a device's metrics are the same to a host application: the same
@@ -156,13 +157,12 @@ struct SparkplugNode::State {
     std::vector<std::string> deaths_due;
     bool node_birth_due = false;
 
-    // Store and forward ([sparkplug] store_and_forward). Kept in memory, not read back from
-    // [history]: the history is optional, holds each parameter's changes and heartbeats rather
-    // than the node's messages (nulls with their Quality, Last Error, what a turn coalesced), and
-    // reading it means queries through its reader's thread mapped back to metrics. The queue
-    // holds exactly the DDATA the node would have sent, bounded by age and by count; the
-    // loop only appends and drops, never waits.
+    // Store and forward ([sparkplug] store_and_forward). The queue holds exactly the DDATA the
+    // node would have sent, bounded by age and by count; the loop only appends and drops, never
+    // waits. With [history] each DDATA is also queued for the history file's writer (`pending`,
+    // sparkplug_pending.hpp says why a table of its own), so that a restart keeps it.
     std::deque<StoredData> stored;
+    SparkplugPending pending;
     std::size_t stored_metrics = 0;
     std::atomic<std::size_t> stored_now{0};  // stored_metrics, for other threads (stored())
     std::uint64_t dropped_old = 0;    // this outage's values older than store_and_forward
@@ -377,6 +377,14 @@ struct SparkplugNode::State {
                 data_device(device, *picture);
             }
         }
+        // The last run's values wait for their device's birth (its polls may answer after the
+        // NBIRTH): forwarded once it is born, before its next data.
+        if (!everything && std::any_of(stored.begin(), stored.end(), [this](const StoredData& data) {
+                const auto found = index.find(data.device);
+                return found != index.end() && devices[found->second].born;
+            })) {
+            forward_stored();
+        }
     }
 
     // --- store and forward ------------------------------------------------------------------------
@@ -411,14 +419,66 @@ struct SparkplugNode::State {
                 data.metrics.emplace_back(m, picture->samples[m]);
                 device.sent[m] = picture->samples[m];
             }
-            if (!data.metrics.empty()) keep(std::move(data));
+            if (data.metrics.empty()) continue;
+            if (pending.add) pending.add(pending_of(data));
+            keep(std::move(data));
         }
+    }
+
+    // What the history file keeps of a stored DDATA: its metrics by name.
+    std::vector<PendingMetric> pending_of(const StoredData& data) const {
+        std::vector<PendingMetric> rows;
+        const auto found = index.find(data.device);
+        if (found == index.end()) return rows;
+        const NodeDevice& device = devices[found->second];
+        for (const auto& [m, sample] : data.metrics)
+            rows.push_back({data.made_at, data.device, device.metrics[m].name, sample});
+        return rows;
+    }
+
+    // What the last run kept in the history file and did not forward: stored again, each DDATA as
+    // it was made (its rows share the time and the device; one metric twice is two DDATA, made
+    // in the same millisecond), metrics by name (one this
+    // configuration does not have is left out: no host would know it).
+    void take_pending(const std::vector<PendingMetric>& loaded) {
+        std::size_t kept = 0;
+        for (const PendingMetric& row : loaded) {
+            const auto found = index.find(row.device);
+            if (found == index.end()) continue;
+            const auto& metrics = devices[found->second].metrics;
+            const auto metric =
+                std::find_if(metrics.begin(), metrics.end(),
+                             [&row](const MetricDefinition& definition) { return definition.name == row.metric; });
+            if (metric == metrics.end()) continue;
+            const std::size_t m = static_cast<std::size_t>(metric - metrics.begin());
+            const auto in_it = [m](const StoredData& data) {
+                return std::any_of(data.metrics.begin(), data.metrics.end(),
+                                   [m](const auto& kept_metric) { return kept_metric.first == m; });
+            };
+            if (stored.empty() || stored.back().made_at != row.made_at || stored.back().device != row.device ||
+                in_it(stored.back())) {
+                stored.push_back({row.device, {}, row.made_at, true});
+            }
+            stored.back().metrics.emplace_back(m, row.sample);
+            ++stored_metrics;
+            ++kept;
+        }
+        stored_now.store(stored_metrics);
+        trim_to_most();
+        if (kept > 0)
+            say(fmt::format("store and forward: {} values the last run kept, to forward after the births", kept));
     }
 
     void keep(StoredData data) {
         stored_metrics += data.metrics.size();
         stored.push_back(std::move(data));
         drop_old();
+        trim_to_most();
+    }
+
+    // At most max_stored values (the oldest dropped, counted); the history file follows.
+    void trim_to_most() {
+        const std::size_t before = stored.size();
         while (stored_metrics > timing.max_stored && stored.size() > 1) {
             dropped_count += stored.front().metrics.size();
             stored_metrics -= stored.front().metrics.size();
@@ -429,17 +489,25 @@ struct SparkplugNode::State {
             }
         }
         stored_now.store(stored_metrics);
+        if (stored.size() < before) forget_before_front();
+    }
+
+    // The history file lets go of what memory dropped: rows made before the oldest kept.
+    void forget_before_front() {
+        if (pending.forget_before && !stored.empty()) pending.forget_before(stored.front().made_at);
     }
 
     void drop_old() {
         const std::uint64_t kept_for = static_cast<std::uint64_t>(config.store_and_forward->count());
         const std::uint64_t now = now_ms();
+        const std::size_t before = stored.size();
         while (!stored.empty() && stored.front().made_at + kept_for < now) {
             dropped_old += stored.front().metrics.size();
             stored_metrics -= stored.front().metrics.size();
             stored.pop_front();
         }
         stored_now.store(stored_metrics);
+        if (stored.size() < before) forget_before_front();
     }
 
     // After the births: what was stored, in the order it was made, each metric with
@@ -453,8 +521,13 @@ struct SparkplugNode::State {
         std::uint64_t messages = 0;
         std::uint64_t in_births = 0;
         std::uint64_t unborn = 0;
-        for (const StoredData& data : stored) {
+        std::deque<StoredData> waiting;  // the last run's, of devices not born yet
+        for (StoredData& data : stored) {
             const auto found = index.find(data.device);
+            if (found != index.end() && !devices[found->second].born && data.from_last_run) {
+                waiting.push_back(std::move(data));
+                continue;
+            }
             if (found == index.end() || !devices[found->second].born) {
                 unborn += data.metrics.size();
                 continue;
@@ -486,11 +559,18 @@ struct SparkplugNode::State {
             warn(fmt::format("store and forward dropped {} values of the outage ({} too old, {} over its most)",
                             dropped_old + dropped_count, dropped_old, dropped_count));
         }
-        stored.clear();
+        stored = std::move(waiting);
         stored_metrics = 0;
-        stored_now.store(0);
+        for (const auto& data : stored) stored_metrics += data.metrics.size();
+        stored_now.store(stored_metrics);
         dropped_old = dropped_count = 0;
         told_store_full = false;
+        // The history file keeps what is still to forward, and nothing else: a run stopped from
+        // here on forwards no value twice.
+        if (pending.clear) {
+            pending.clear();
+            for (const auto& data : stored) pending.add(pending_of(data));
+        }
     }
 
     // --- the devices of a configuration ----------------------------------------------------------
@@ -965,7 +1045,7 @@ struct SparkplugNode::State {
 
 SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice> devices, const DeviceWriter& writer,
                              ValueCache& cache, SparkplugLines lines, GatewayLog log, SparkplugTiming timing,
-                             boost::asio::io_context* loop)
+                             boost::asio::io_context* loop, SparkplugPending pending)
     : state_(std::make_unique<State>()) {
     mqtt::init_library_once();
     State& s = *state_;
@@ -978,6 +1058,9 @@ SparkplugNode::SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice
     // Aliases from the configuration: the node's metrics, then each device's in order.
     s.node_metrics = s.node_metrics_for(s.lines ? s.lines() : std::vector<SparkplugLineFigures>{});
     s.adopt(devices);
+    if (s.config.store_and_forward) s.take_pending(pending.loaded);
+    pending.loaded.clear();
+    s.pending = std::move(pending);
     s.cache = &cache;
     // A clean session (Sparkplug 3.0: edge nodes connect with Clean Session set): commands sent
     // while the node was away are not for it, its births make the host application's picture.
@@ -1033,8 +1116,11 @@ bool SparkplugNode::release() {
 }
 
 void SparkplugNode::take_over(std::vector<SparkplugDevice> devices, const DeviceWriter& writer, ValueCache& cache,
-                              SparkplugLines lines, GatewayLog log, boost::asio::io_context* loop) {
+                              SparkplugLines lines, GatewayLog log, boost::asio::io_context* loop,
+                              SparkplugPending pending) {
     State& s = *state_;
+    pending.loaded.clear();
+    s.pending = std::move(pending);
     s.writer = &writer;
     s.lines = std::move(lines);
     s.log = std::move(log);

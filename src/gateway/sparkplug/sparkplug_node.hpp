@@ -21,7 +21,9 @@
 //                                      STATE older than the last taken is ignored
 // With store_and_forward, the DDATA the node would have sent while it was not born (the broker
 // away, the primary host offline) is kept, bounded by age and count, and sent after the next
-// births in its order, each metric with is_historical and its own timestamp.
+// births in its order, each metric with is_historical and its own timestamp. With a history file
+// it is kept there too (sparkplug_pending.hpp): what a stopped gateway had not forwarded is
+// forwarded by the next run, after each device's birth.
 // A reload that leaves [sparkplug] as it is keeps the session (release, take_over).
 // An NCMD or DCMD published with the retain flag is refused unread (MQTT 5, "retain as
 // published": live or as the broker's retained copy at each subscription), so that an old
@@ -46,6 +48,7 @@
 #include "gateway/device_writer.hpp"
 #include "gateway/forwarding_unit.hpp"
 #include "gateway/gateway_config.hpp"
+#include "gateway/sparkplug/sparkplug_pending.hpp"
 #include "gateway/value_cache.hpp"
 
 namespace boost::asio {
@@ -86,7 +89,7 @@ public:
     // engine, gateway/mqtt_loop_driver.hpp), or on a thread of its own when none is given.
     SparkplugNode(SparkplugConfig config, std::vector<SparkplugDevice> devices, const DeviceWriter& writer,
                   ValueCache& cache, SparkplugLines lines, GatewayLog log, SparkplugTiming timing = {},
-                  boost::asio::io_context* loop = nullptr);
+                  boost::asio::io_context* loop = nullptr, SparkplugPending pending = {});
     // Publishes NDEATH and disconnects cleanly, on the caller's thread (never the loop's) once
     // the loop has let the client go.
     ~SparkplugNode();
@@ -108,8 +111,10 @@ public:
     // (DBIRTH) once its polls tell of it, one gone dies (DDEATH), the others carry on without a
     // word; lines added or gone change the node's metrics, and the node is born again (NBIRTH,
     // the same bdSeq, as on a Rebirth command).
-    void take_over(std::vector<SparkplugDevice> devices, const DeviceWriter& writer, ValueCache& cache, SparkplugLines lines,
-                   GatewayLog log, boost::asio::io_context* loop);
+    // `pending`: the next gateway's history file, if it has one (its `loaded` is not read: the
+    // store carries on in memory).
+    void take_over(std::vector<SparkplugDevice> devices, const DeviceWriter& writer, ValueCache& cache,
+                   SparkplugLines lines, GatewayLog log, boost::asio::io_context* loop, SparkplugPending pending = {});
 
 private:
     struct State;
