@@ -463,6 +463,7 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     };
     sources.front = [&parts] { return parts.front ? parts.front->statistics() : FrontReport{}; };
     sources.http_not_allowed = [&parts] { return parts.http ? parts.http->not_allowed() : std::uint64_t{0}; };
+    sources.log = parts.log;
     parts.http_api = std::make_unique<HttpApi>(config, std::move(sources));
     HttpServerSettings settings;
     settings.host = http.host;

@@ -4,6 +4,9 @@
 //   GET  /api/devices                 the devices, with their line, unit and status
 //   GET  /api/devices/NAME            one device: its parameters with values, units and ranges
 //   POST /api/devices/NAME/write      {"PARAMETER": "text", ...} with the token; as `write` checks
+//   POST /api/login                   {"user", "password"} (JSON or a form): a session cookie,
+//                                     and the CSRF token its writes send as X-CSRF-Token
+//   POST /api/logout, GET /api/session  end it; who is logged in (401: nobody)
 //   GET  /api/events                  server-sent events: the full picture, then each change
 //   GET  /api/history?device=...      downsampled series from the history store, JSON or CSV;
 //                                     &gateway=NAME: another gateway's, from the shared historian
@@ -11,6 +14,8 @@
 //   GET  /metrics                     Prometheus text: the lines' and devices' figures
 //   GET  /, /assets/*                 the dashboard (gateway/dashboard_assets.hpp)
 // Errors are {"error": "..."} with a status that fits.
+// Who may do what ([http] users_file, token_file, open_reads): docs/security.md and
+// gateway/http_users.hpp.
 #include <functional>
 #include <memory>
 #include <string>
@@ -33,6 +38,7 @@ struct HttpApiSources {
     std::function<FrontReport()> front;               // the Modbus TCP front's; none: not shown
     std::function<std::uint64_t()> http_not_allowed;  // clients the HTTP server closed at accept
     const HistorySource* history = nullptr;           // none: /api/history answers 404
+    std::function<void(const std::string&)> log;      // failed logins, at warning; none: not logged
 };
 
 class HttpApi final : public HttpHandler {
