@@ -8,6 +8,7 @@
 #include <memory>
 
 #include <fmt/format.h>
+#include <sys/stat.h>
 #include <termios.h>
 #include <unistd.h>
 

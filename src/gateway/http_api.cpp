@@ -148,8 +148,9 @@ HttpResponse write_response(const Result<WrittenValues>& written) {
 // Whether `client` (as the server writes it: "127.0.0.1", "::1") is on a loopback address.
 bool loopback_client(std::string_view client) { return client.starts_with("127.") || client == "::1"; }
 
-// What logins share with the checks that run off the network thread (PasswordChecks): they
-// may answer after the API that started them has gone, so they hold it.
+// What logins share with the checks that run off the network thread (PasswordChecks): a check
+// lets go of it after it has answered, which may be after the API has gone. The checks' thread
+// itself is the API's (HttpApi::State::checks), joined when the API goes, never by a check.
 struct Logins {
     Logins(std::chrono::milliseconds timeout, std::function<void(const std::string&)> warn)
         : sessions(timeout), log(std::move(warn)) {}
@@ -160,7 +161,6 @@ struct Logins {
     // as a wrong password and the time does not tell which names exist. Made on the checks'
     // thread when first needed.
     std::string unknown_user_hash;
-    PasswordChecks checks;  // last: joined first, while the rest is still there
 };
 
 // Who sent a request: a session's user (cookie), a machine's (bearer token), the token_file's
@@ -195,6 +195,7 @@ struct HttpApi::State {
     HttpConfig::OpenReads open_reads = HttpConfig::OpenReads::loopback;
     bool tls = false;
     std::shared_ptr<Logins> logins;  // with users
+    std::unique_ptr<PasswordChecks> checks;  // with users
     std::vector<std::string> hosts;  // the Host names answered, in lower case
     struct Asset {
         const StaticAsset* asset;
@@ -369,7 +370,10 @@ HttpApi::HttpApi(const GatewayConfig& config, HttpApiSources sources) : state_(s
     state_->users = http.users;
     state_->open_reads = http.open_reads;
     state_->tls = !http.certificate.empty();
-    if (!http.users.empty()) state_->logins = std::make_shared<Logins>(http.session_timeout, state_->sources.log);
+    if (!http.users.empty()) {
+        state_->logins = std::make_shared<Logins>(http.session_timeout, state_->sources.log);
+        state_->checks = std::make_unique<PasswordChecks>();
+    }
     state_->gateway_name = config.name;
     state_->hosts = {"localhost", "127.0.0.1", "[::1]"};
     const std::string listen = lower_case(http.host.find(':') != std::string::npos ? "[" + http.host + "]" : http.host);
@@ -798,8 +802,9 @@ HttpOutcome HttpApi::State::login(const HttpRequest& request) const {
             role = user.role;
         }
     }
-    auto check = [logins = logins, form = std::move(*form), hash, role, client = request.client, tls = tls](HttpResponder respond) {
-        const bool posted = logins->checks.post([logins, form, hash, role, client, tls, respond] {
+    auto check = [logins = logins, checks = checks.get(), form = std::move(*form), hash, role, client = request.client,
+                  tls = tls](HttpResponder respond) {
+        const bool posted = checks->post([logins, form, hash, role, client, tls, respond] {
             bool right = false;
             if (hash.empty()) {
                 if (logins->unknown_user_hash.empty()) {
