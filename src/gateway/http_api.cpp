@@ -288,18 +288,13 @@ struct HttpApi::State {
         return refusal;
     }
 
-    // None when `caller` may write at all (a role that writes; over a session, with its CSRF
-    // token); else the refusal.
+    // None when `caller` may write at all (known; over a session, with its CSRF token); else the
+    // refusal. What the role may write is check_roles', once the names are known (and audited).
     std::optional<HttpResponse> check_writer(const HttpRequest& request, const Caller& caller) const {
         if (!caller.known) return login_needed();
         if (caller.session && !same_secret(request.csrf_token, caller.session->csrf)) {
             return error(403, "a write over a login session needs the header X-CSRF-Token with the session's token (the "
                               "\"csrf\" of POST /api/login's or GET /api/session's answer)");
-        }
-        if (caller.role == Role::viewer) {
-            return error(403, fmt::format("user \"{}\" is a viewer, who reads but does not write; an operator writes set "
-                                          "points and modes, an admin every parameter",
-                                          caller.user));
         }
         return std::nullopt;
     }
@@ -310,12 +305,18 @@ struct HttpApi::State {
     std::optional<std::string> check_roles(const ConfiguredDevice& device, const std::vector<WriteAssignment>& assignments,
                                            const Caller& caller) const {
         if (users.empty()) return std::nullopt;
+        if (caller.role == Role::viewer) {
+            return fmt::format("user \"{}\" is a viewer, who reads but does not write; an operator writes set points and "
+                               "modes, an admin every parameter",
+                               caller.user);
+        }
         const device::Profile& profile = *device.address.profile;
         for (const auto& assignment : assignments) {
             auto resolved = device::resolve_parameters(profile, {assignment.parameter});
             if (!resolved || resolved->size() != 1) continue;
             const device::Parameter& parameter = *resolved->front();
             if (role_may_write(caller.role, profile, parameter)) continue;
+
             return fmt::format("user \"{}\" is an {} and may not write \"{}\": {} writes it", caller.user,
                                role_name(caller.role), parameter.name, role_name(role_to_write(profile, parameter)) == "admin"
                                                                            ? "only an admin (it is the device's configuration, "

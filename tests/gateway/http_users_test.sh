@@ -100,16 +100,16 @@ write_sp() {  # VALUE CURL_ARGS...: the status of writing the oven's set point
 
 expect_status reads-need-a-login 401 "$url/api/devices"
 expect_status no-session 401 "$url/api/session"
-expect_status wrong-password 401 -H 'Content-Type: application/json' -d '{"user": "op", "password": "nope"}' "$url/api/login"
+expect_status wrong-password 401 -H 'Content-Type: application/json' -d '{"user":"op", "password": "nope"}' "$url/api/login"
 expect_status unknown-user 401 -d 'user=nobody&password=nope' "$url/api/login"
 curl -s -D login.headers -o login.json --max-time 20 -c op.jar -d 'user=op&password=op-secret-1' "$url/api/login"
 check login-cookie 0 "HttpOnly; SameSite=Strict" cat login.headers
-check login-answer 0 '"role": "operator"' cat login.json
+check login-answer 0 '"role":"operator"' cat login.json
 csrf=$(sed -n 's/.*"csrf": *"\([^"]*\)".*/\1/p' login.json)
 expect_equal "${#csrf}" 43 "the CSRF token's length"
 expect_status session-reads 200 -b op.jar "$url/api/devices"
 expect_status session-says-who 200 -b op.jar "$url/api/session"
-check session-user 0 '"user": "op"' cat body.json
+check session-user 0 '"user":"op"' cat body.json
 expect_equal "$(write_sp 150 -b op.jar)" 403 "a write over the cookie without X-CSRF-Token"
 check csrf-reason 0 "X-CSRF-Token" cat body.json
 expect_equal "$(write_sp 150 -b op.jar -H 'X-CSRF-Token: wrong')" 403 "a write with a wrong X-CSRF-Token"
@@ -129,9 +129,9 @@ expect_equal "$(write_sp 154 -H "Authorization: Bearer wrong-token-123")" 401 "a
 expect_equal "$(write_sp 155 -H "Authorization: Bearer gateway-token-1234")" 200 "the token_file's token, as an admin"
 
 # The audit names who wrote.
-wait_for 20 "the audit's rows" sh -c "curl -s -b op.jar '$url/api/audit' | grep -q '\"user\": \"robot\"'"
-check audit-operator 0 '"user": "op"' curl -s --max-time 20 -b op.jar "$url/api/audit"
-check audit-viewer-refused 0 '"user": "viewer1"' curl -s --max-time 20 -b op.jar "$url/api/audit"
+wait_for 20 "the audit's rows" sh -c "curl -s -b op.jar '$url/api/audit' | grep -q '\"user\":\"robot\"'"
+check audit-operator 0 '"user":"op"' curl -s --max-time 20 -b op.jar "$url/api/audit"
+check audit-viewer-refused 0 '"user":"viewer1"' curl -s --max-time 20 -b op.jar "$url/api/audit"
 
 # Logout ends the session.
 expect_status logout-needs-csrf 403 -X POST -b op.jar "$url/api/logout"
