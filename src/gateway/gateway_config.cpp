@@ -1416,14 +1416,7 @@ Result<void> http_users(const Context& ctx, const toml::table& table, HttpConfig
     if (timeout && *timeout) config.session_timeout = **timeout;
     auto users_file = optional_value<std::string>(ctx, table, "http", "users_file", "a string such as \"/etc/loopwire/users\"");
     if (!users_file) return users_file.error();
-    if (!*users_file) {
-        if (open_reads && *open_reads) {
-            return ctx.fail(source_of(table, "open_reads"), "http.open_reads",
-                            "needs http.users_file (without users, reads are open on a loopback listen address and "
-                            "need the token elsewhere)");
-        }
-        return {};
-    }
+    if (!*users_file) return {};  // open_reads has no effect without users: it is left alone
     const auto where = source_of(table, "users_file");
     if ((*users_file)->empty()) return ctx.fail(where, "http.users_file", "expected a file name");
     const std::string file = beside_config(ctx, **users_file).string();

@@ -152,10 +152,11 @@ bool loopback_client(std::string_view client) { return client.starts_with("127."
 // lets go of it after it has answered, which may be after the API has gone. The checks' thread
 // itself is the API's (HttpApi::State::checks), joined when the API goes, never by a check.
 struct Logins {
-    Logins(std::chrono::milliseconds timeout, std::function<void(const std::string&)> warn)
-        : sessions(timeout), log(std::move(warn)) {}
-    SessionStore sessions;
-    LoginLimiter limiter{LoginLimiter::Settings{}};
+    Logins(std::shared_ptr<HttpLogins> kept, std::function<void(const std::string&)> warn)
+        : state(std::move(kept)), sessions(state->sessions), limiter(state->limiter), log(std::move(warn)) {}
+    std::shared_ptr<HttpLogins> state;
+    SessionStore& sessions;
+    LoginLimiter& limiter;
     std::function<void(const std::string&)> log;
     // A hash checked for a user name that has no password, so that a wrong name takes as long
     // as a wrong password and the time does not tell which names exist. Made on the checks'
@@ -372,7 +373,10 @@ HttpApi::HttpApi(const GatewayConfig& config, HttpApiSources sources) : state_(s
     state_->open_reads = http.open_reads;
     state_->tls = !http.certificate.empty();
     if (!http.users.empty()) {
-        state_->logins = std::make_shared<Logins>(http.session_timeout, state_->sources.log);
+        auto kept = state_->sources.logins ? state_->sources.logins : std::make_shared<HttpLogins>();
+        kept->sessions.set_idle_timeout(http.session_timeout);
+        kept->sessions.keep_only(http.users);
+        state_->logins = std::make_shared<Logins>(std::move(kept), state_->sources.log);
         state_->checks = std::make_unique<PasswordChecks>();
     }
     state_->gateway_name = config.name;

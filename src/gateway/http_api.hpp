@@ -26,6 +26,7 @@
 #include "gateway/gateway_config.hpp"
 #include "gateway/history_source.hpp"
 #include "gateway/http_server.hpp"
+#include "gateway/http_sessions.hpp"
 #include "gateway/value_cache.hpp"
 
 namespace loopwire::gateway {
@@ -39,6 +40,8 @@ struct HttpApiSources {
     std::function<std::uint64_t()> http_not_allowed;  // clients the HTTP server closed at accept
     const HistorySource* history = nullptr;           // none: /api/history answers 404
     std::function<void(const std::string&)> log;      // failed logins, at warning; none: not logged
+    // Sessions and failed logins kept across reloads (gateway/http_sessions.hpp); none: the API's own.
+    std::shared_ptr<HttpLogins> logins;
 };
 
 class HttpApi final : public HttpHandler {

@@ -46,6 +46,11 @@ SessionStore::SessionStore(std::chrono::milliseconds idle_timeout, SteadyClock c
 
 std::chrono::steady_clock::time_point SessionStore::now() const { return now_from(clock_); }
 
+void SessionStore::set_idle_timeout(std::chrono::milliseconds idle_timeout) {
+    std::lock_guard lock(mutex_);
+    idle_timeout_ = idle_timeout;
+}
+
 Session SessionStore::open(const std::string& user, Role role) {
     Session session{random_secret(), random_secret(), user, role, now()};
     std::lock_guard lock(mutex_);

@@ -39,6 +39,9 @@ public:
     // unused goes first), so logins cannot grow the gateway without end.
     SessionStore(std::chrono::milliseconds idle_timeout, SteadyClock clock = {}, std::size_t max_sessions = 10000);
 
+    // A reload's [http] session_timeout, for the sessions open and those to come.
+    void set_idle_timeout(std::chrono::milliseconds idle_timeout);
+
     Session open(const std::string& user, Role role);
     // The session `id` names, marked used now; none when unknown or expired (then removed).
     std::optional<Session> find(std::string_view id);
@@ -109,6 +112,14 @@ private:
     std::deque<std::function<void()>> jobs_;
     bool stopping_ = false;
     std::thread thread_;
+};
+
+// The logins a gateway keeps across reloads (GatewayOptions::http_logins): a SIGHUP that renews a
+// certificate or adds a user logs nobody out; the sessions of users removed or given another
+// role end (SessionStore::keep_only), and an address's failed logins still count.
+struct HttpLogins {
+    SessionStore sessions{std::chrono::hours(8)};
+    LoginLimiter limiter{LoginLimiter::Settings{}};
 };
 
 // 32 random bytes, base64url without padding.

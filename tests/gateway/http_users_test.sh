@@ -10,8 +10,8 @@
 # - a machine's bearer token and the token_file's token write without a cookie; a wrong one is 401;
 # - five wrong passwords from one address, then the next is 429 with Retry-After, logged at
 #   warning; logout ends the session;
-# - a reload (SIGHUP) reads the users file again: a user added logs in; open_reads = "loopback"
-#   reads without a login from 127.0.0.1.
+# - a reload (SIGHUP) reads the users file again: a user added logs in, a session open before
+#   stays open; open_reads = "loopback" reads without a login from 127.0.0.1.
 set -u
 loopwire=$(realpath "${1:?usage: http_users_test.sh path/to/loopwire}")
 source "$(dirname "$0")/../support/test_lib.sh"
@@ -153,6 +153,7 @@ echo 'new-secret' | "$loopwire" passwd users newcomer --role admin 2>/dev/null |
 write_config plant.toml users loopback
 kill -HUP "$gateway_pid"
 wait_for 30 "the reload to take the new user" sh -c "[ \"\$(curl -s -o /dev/null -w '%{http_code}' -d 'user=newcomer&password=new-secret' '$url/api/login')\" = 200 ]"
+expect_status session-survives-reload 200 -b viewer.jar "$url/api/session"
 expect_status open-reads-loopback 200 "$url/api/devices"
 expect_equal "$(write_sp 156)" 401 "a write without a login, reads open or not"
 

@@ -4,7 +4,10 @@
 // session cookie but not the CSRF token (what another site's form would send) is refused;
 // logging out ends the session.
 const { test, expect } = require("@playwright/test");
+const path = require("node:path");
 const { startGateway } = require("./gateway_fixture.js");
+
+const artifacts = process.env.LOOPWIRE_ARTIFACTS || "test-results";
 
 let gateway;
 
@@ -43,6 +46,8 @@ function forcedWrite(page, body, withCsrf) {
 
 test("an operator logs in, writes a set point, and the audit names them", async ({ page, request }) => {
   await page.goto(`${gateway.base}/#/devices/oven`);
+  await expect(page.locator("#login-dialog")).toBeVisible({ timeout: 10_000 });
+  await page.screenshot({ path: path.join(artifacts, "login-desktop.png"), fullPage: false });
   await logIn(page, "olga", "olga-password-1");
   await expect(page.locator("#user-role")).toHaveText("operator");
   const row = page.locator('tr.param-row[data-param="set_point"]');
