@@ -3,6 +3,7 @@
 // a person's password (asked twice without echo on a terminal; one line from stdin otherwise,
 // for scripts), or with --token a machine's bearer token, made here and printed once. The file
 // is rewritten whole (a crash leaves the old one or the new one), readable by its owner alone.
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -78,6 +79,7 @@ int run_passwd(const PasswdOptions& options) {
                                                                      options.role)));
     }
     std::string existing;
+    bool known = false;  // the user has a line already
     if (::access(options.file.c_str(), F_OK) == 0) {
         auto text = read_regular_file(options.file, 1024 * 1024);
         if (!text) return report_error(make_error(ErrorKind::usage, fmt::format("passwd: {}", text.error().message)));
@@ -87,6 +89,7 @@ int run_passwd(const PasswdOptions& options) {
             return report_error(make_error(ErrorKind::usage, fmt::format("passwd: {} (mend or remove that line first)",
                                                                          users.error().message)));
         }
+        known = std::any_of(users->begin(), users->end(), [&](const auto& user) { return user.name == options.name; });
         existing = std::move(*text);
     }
     gateway::HttpUser user{options.name, *role, {}};
@@ -116,7 +119,7 @@ int run_passwd(const PasswdOptions& options) {
         fmt::print(stderr, "The token of {} ({}) is above; it is shown only now. Send it as \"Authorization: Bearer TOKEN\".\n",
                    options.name, options.role);
     } else {
-        fmt::print(stderr, "{} {} ({}) in {}\n", existing.empty() ? "Added" : "Set", options.name, options.role, options.file);
+        fmt::print(stderr, "{} {} ({}) in {}\n", known ? "Changed" : "Added", options.name, options.role, options.file);
     }
     return exit_ok;
 }

@@ -39,9 +39,9 @@ struct HttpApiSources {
     std::function<FrontReport()> front;               // the Modbus TCP front's; none: not shown
     std::function<std::uint64_t()> http_not_allowed;  // clients the HTTP server closed at accept
     const HistorySource* history = nullptr;           // none: /api/history answers 404
-    std::function<void(const std::string&)> log;      // failed logins, at warning; none: not logged
+    std::function<void(const std::string&)> log = {};  // failed logins, at warning; none: not logged
     // Sessions and failed logins kept across reloads (gateway/http_sessions.hpp); none: the API's own.
-    std::shared_ptr<HttpLogins> logins;
+    std::shared_ptr<HttpLogins> logins = {};
 };
 
 class HttpApi final : public HttpHandler {
