@@ -86,7 +86,9 @@ void announce(const gateway::GatewayLog& log_line, const gateway::GatewayConfig&
         log_line(fmt::format("HTTP API and dashboard on {}://{}{}{}:{}/ (writes {})",
                              config.http->certificate.empty() ? "http" : "https", ipv6 ? "[" : "", config.http->host,
                              ipv6 ? "]" : "", running.http_port(),
-                             config.http->token.empty() ? "refused: no http.token_file" : "with the token"));
+                             !config.http->users.empty() ? "by the users of http.users_file"
+                             : config.http->token.empty() ? "refused: no http.token_file"
+                                                          : "with the token"));
     }
     if (config.opcua) {
         const bool ipv6 = config.opcua->host.find(':') != std::string::npos;

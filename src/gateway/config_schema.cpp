@@ -213,6 +213,14 @@ constexpr std::array keys{
     ConfigKey{"http", "token_file", "file", "none: writes are refused", "a regular file readable by the gateway's user alone",
               "A file whose first line is the bearer token writes need; relative to the configuration file's folder.",
               "\"/etc/loopwire/token\"", true},
+    ConfigKey{"http", "users_file", "file", "none: the token alone", "a regular file not readable by every user",
+              "Users who log in to the API and dashboard, one NAME:ROLE:HASH line each (loopwire passwd writes them); "
+              "roles viewer, operator, admin. A reload (SIGHUP) reads it again.", "\"/etc/loopwire/users\"", true},
+    ConfigKey{"http", "open_reads", "string", "\"loopback\"", "loopback, none or all; without users_file it has no effect",
+              "Who reads without logging in when there is a users_file: clients on loopback, nobody, or everyone.",
+              "\"loopback\""},
+    ConfigKey{"http", "session_timeout", "duration", "\"8h\"", "1min..24h",
+              "A login's session not used this long ends.", "\"8h\""},
     ConfigKey{"http", "certificate", "file", "none: plain HTTP", "a regular file, PEM; needs private_key",
               "The server's certificate (its chain after it): the API and dashboard are served over HTTPS alone (TLS 1.2 "
               "and 1.3). A reload (SIGHUP) reads it again.", "\"/etc/loopwire/https.crt\"", true},
@@ -301,6 +309,7 @@ constexpr std::array ranges{
     ConfigRange{"http", "read_timeout", 100, 600'000},
     ConfigRange{"http", "header_timeout", 100, 600'000},
     ConfigRange{"http", "send_timeout", 100, 600'000},
+    ConfigRange{"http", "session_timeout", 60'000, 86'400'000},
 };
 
 // A table's last level: "devices" of "lines.devices".

@@ -272,6 +272,7 @@ struct Gateway::Parts {
     GatewayLog log;
     std::function<void(const std::stop_token&)> wait_for_stop;  // GatewayOptions::wait_for_stop
     std::function<bool()> http_listener_kept;                    // GatewayOptions::http_listener_kept
+    std::shared_ptr<HttpLogins> http_logins;                     // GatewayOptions::http_logins
     // First, so it goes last: the polls, the writer and the statistics run on its loop and take
     // themselves down from it before they go.
     std::unique_ptr<Engine> engine;
@@ -330,6 +331,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
     parts->audit = std::make_shared<WriteAudit>(options.log);
     parts->wait_for_stop = options.wait_for_stop;
     parts->http_listener_kept = options.http_listener_kept;
+    parts->http_logins = options.http_logins;
     session::UnitMap& units = parts->units;
     auto clock = steady_clock();
     for (const auto& line : config.lines) {
@@ -487,6 +489,8 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     sources.front = [&parts] { return parts.front ? parts.front->statistics() : FrontReport{}; };
     if (parts.opcua) sources.opcua = [&parts] { return parts.opcua->figures(); };
     sources.http_not_allowed = [&parts] { return parts.http ? parts.http->not_allowed() : std::uint64_t{0}; };
+    sources.log = parts.log;
+    sources.logins = parts.http_logins;
     parts.http_api = std::make_unique<HttpApi>(config, std::move(sources));
     HttpServerSettings settings;
     settings.host = http.host;

@@ -25,6 +25,7 @@ namespace loopwire::gateway {
 
 class LineKeeper;
 class HttpListener;
+struct HttpLogins;
 class SparkplugNode;
 
 // The Sparkplug node kept across a reload that leaves [sparkplug] as it is (Gateway::hand_over_to),
@@ -70,6 +71,9 @@ struct GatewayOptions {
     // its [sparkplug] is the same. None: the node is made and ended with the gateway. Must
     // outlive the gateway.
     KeptSparkplug* sparkplug = nullptr;
+    // With [http] users_file: the sessions and failed logins kept across reloads; none: the HTTP
+    // API keeps its own, and a reload logs everyone out.
+    std::shared_ptr<HttpLogins> http_logins;
     // How serve() waits for its stop: on a condition variable when empty. The gateway command
     // passes its signal handling here (app/stop_signal.hpp, StopSignal::Waits::caller), so the
     // serving thread takes SIGTERM and SIGHUP while it waits and no thread is kept for them.

@@ -1393,6 +1393,61 @@ Result<void> http_token(const Context& ctx, const toml::table& table, HttpConfig
     return {};
 }
 
+// `users_file`: a regular file, not readable by every user (its hashes are what a guesser
+// would work on offline), of NAME:ROLE:HASH lines (gateway/http_users.hpp); its errors name
+// the file and line. With users, `open_reads` and `session_timeout` apply.
+Result<void> http_users(const Context& ctx, const toml::table& table, HttpConfig& config) {
+    auto open_reads = ctx.kept(optional_value<std::string>(ctx, table, "http", "open_reads", "\"loopback\", \"none\" or \"all\""));
+    if (open_reads && *open_reads) {
+        const std::string& given = **open_reads;
+        if (given == "loopback") {
+            config.open_reads = HttpConfig::OpenReads::loopback;
+        } else if (given == "none") {
+            config.open_reads = HttpConfig::OpenReads::none;
+        } else if (given == "all") {
+            config.open_reads = HttpConfig::OpenReads::all;
+        } else {
+            ctx.note(ctx.fail(source_of(table, "open_reads"), "http.open_reads",
+                              fmt::format("{} is not who reads without logging in (expected \"loopback\", \"none\" or "
+                                          "\"all\")", quoted_excerpt(given))));
+        }
+    }
+    auto timeout = ctx.kept(bounded_duration(ctx, table, "http", "http", "session_timeout", "e.g. \"8h\""));
+    if (timeout && *timeout) config.session_timeout = **timeout;
+    auto users_file = optional_value<std::string>(ctx, table, "http", "users_file", "a string such as \"/etc/loopwire/users\"");
+    if (!users_file) return users_file.error();
+    if (!*users_file) return {};  // open_reads has no effect without users: it is left alone
+    const auto where = source_of(table, "users_file");
+    if ((*users_file)->empty()) return ctx.fail(where, "http.users_file", "expected a file name");
+    const std::string file = beside_config(ctx, **users_file).string();
+    constexpr std::string_view expected = "a file of NAME:ROLE:HASH lines (`loopwire passwd FILE NAME --role ROLE` writes them)";
+    struct stat status {};
+    if (::stat(file.c_str(), &status) != 0) {
+        return ctx.fail(where, "http.users_file",
+                        fmt::format("cannot read \"{}\": {} (create it with `loopwire passwd {} NAME --role admin`)", file,
+                                    std::error_code(errno, std::generic_category()).message(), file));
+    }
+    if (auto what = not_a_regular_file(file)) {
+        return not_regular(ctx, where, "http.users_file", fmt::format("\"{}\" {}", file, *what), expected);
+    }
+    if ((status.st_mode & S_IROTH) != 0) {
+        return ctx.fail(where, "http.users_file",
+                        fmt::format("\"{}\" is readable by every user (mode {:04o}); its hashes guard the API: "
+                                    "`chmod 600 {}`", file, status.st_mode & 07777, file));
+    }
+    auto text = read_regular_file(file, 1024 * 1024);
+    if (!text) return not_regular(ctx, where, "http.users_file", text.error().message, expected);
+    auto users = parse_users(*text, file);
+    if (!users) return ctx.fail(where, "http.users_file", users.error().message);
+    if (users->empty()) {
+        return ctx.fail(where, "http.users_file",
+                        fmt::format("\"{}\" has no user (add one with `loopwire passwd {} NAME --role admin`)", file, file));
+    }
+    config.users_file = file;
+    config.users = std::move(*users);
+    return {};
+}
+
 // `listen`: false when it is wrong (and said so).
 bool http_listen(const Context& ctx, const toml::table& table, HttpConfig& config) {
     auto listen = ctx.kept(optional_value<std::string>(ctx, table, "http", "listen", "a string such as \"127.0.0.1:8080\""));
@@ -1422,14 +1477,15 @@ std::optional<HttpConfig> parse_http(const Context& ctx, const toml::table& root
     HttpConfig config;
     const bool listen_known = http_listen(ctx, *table, config);
     const bool token_known = ctx.kept(http_token(ctx, *table, config));
+    const bool users_known = ctx.kept(http_users(ctx, *table, config));
     parse_http_limits(ctx, *table, config);
     ctx.kept(parse_http_tls(ctx, *table, config));
     config.hosts = http_hosts(ctx, *table);
     config.allow = address_list(ctx, *table, "http", "allow");
-    if (listen_known && token_known && !config.loopback() && config.token.empty()) {
+    if (listen_known && token_known && users_known && !config.loopback() && config.token.empty() && config.users.empty()) {
         ctx.note(ctx.fail(source_of(*table, "listen"), "http.listen",
                           fmt::format("\"{}\" is not a loopback address, so every request needs the token: set "
-                                      "http.token_file too (or listen on 127.0.0.1)", config.host)));
+                                      "http.token_file or http.users_file too (or listen on 127.0.0.1)", config.host)));
     }
     return config;
 }

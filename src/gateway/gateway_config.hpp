@@ -13,6 +13,7 @@
 
 #include "client/device_client.hpp"
 #include "common/result.hpp"
+#include "gateway/http_users.hpp"
 #include "profile/profile_registry.hpp"
 #include "transport/address_allow_list.hpp"
 #include "transport/link_url.hpp"
@@ -203,6 +204,14 @@ struct HttpConfig {
     std::uint16_t port = 8080;       // 0: any free port (tests)
     std::string token_file;          // empty: writes refused
     std::string token;               // the file's first line, read when the configuration is
+    // Users who log in (gateway/http_users.hpp), read from `users_file` when the configuration
+    // is; none: the token alone guards the API.
+    std::string users_file;
+    std::vector<HttpUser> users;
+    // With users: who reads without a session or token (loopback: clients on a loopback address).
+    enum class OpenReads { loopback, none, all };
+    OpenReads open_reads = OpenReads::loopback;
+    std::chrono::milliseconds session_timeout = std::chrono::hours(8);  // idle
     // A client that has not sent a whole request this long after it began is closed.
     std::chrono::milliseconds read_timeout{10000};
     // A client that has not sent a request's header this long after it connected, or after the

@@ -211,6 +211,15 @@ void describe_history(std::ostringstream& out, const std::optional<HistoryConfig
 void describe_http(std::ostringstream& out, const std::optional<HttpConfig>& config) {
     if (!config) return;
     const bool ipv6 = config->host.find(':') != std::string::npos;
+    if (!config->users.empty()) {
+        // The users' rights (gateway/http_users.hpp): said once here, as --check prints the plan.
+        out << fmt::format("HTTP API and dashboard: http://{}{}{}:{}/, {} users in {}, reads without a login {}\n",
+                           ipv6 ? "[" : "", config->host, ipv6 ? "]" : "", config->port, config->users.size(), config->users_file,
+                           config->open_reads == HttpConfig::OpenReads::all    ? "for everyone"
+                           : config->open_reads == HttpConfig::OpenReads::none ? "for nobody"
+                                                                               : "from loopback");
+        return;
+    }
     out << fmt::format("HTTP API and dashboard: http://{}{}{}:{}/, reads {}, writes {}\n", ipv6 ? "[" : "", config->host,
                        ipv6 ? "]" : "", config->port, config->loopback() ? "open on loopback" : "need the token",
                        config->token.empty() ? "refused (no http.token_file)"

@@ -17,6 +17,8 @@
 #include "common/fnv1a.hpp"
 #include "common/peer_text.hpp"
 #include "gateway/dashboard_assets.hpp"
+#include "gateway/forwarding_unit.hpp"
+#include "gateway/http_sessions.hpp"
 #include "gateway/http_text.hpp"
 #include "gateway/metrics.hpp"
 #include "profile/value_format.hpp"
@@ -143,6 +145,38 @@ HttpResponse write_response(const Result<WrittenValues>& written) {
     return json_response(200, Json{{"written", values}});
 }
 
+// Whether `client` (as the server writes it: "127.0.0.1", "::1") is on a loopback address.
+bool loopback_client(std::string_view client) { return client.starts_with("127.") || client == "::1"; }
+
+// What logins share with the checks that run off the network thread (PasswordChecks): a check
+// lets go of it after it has answered, which may be after the API has gone. The checks' thread
+// itself is the API's (HttpApi::State::checks), joined when the API goes, never by a check.
+struct Logins {
+    Logins(std::shared_ptr<HttpLogins> kept, std::function<void(const std::string&)> warn)
+        : state(std::move(kept)), sessions(state->sessions), limiter(state->limiter), log(std::move(warn)) {}
+    std::shared_ptr<HttpLogins> state;
+    SessionStore& sessions;
+    LoginLimiter& limiter;
+    std::function<void(const std::string&)> log;
+    // A hash checked for a user name that has no password, so that a wrong name takes as long
+    // as a wrong password and the time does not tell which names exist. Made on the checks'
+    // thread when first needed.
+    std::string unknown_user_hash;
+};
+
+// Who sent a request: a session's user (cookie), a machine's (bearer token), the token_file's
+// holder ("token", an admin), or nobody.
+struct Caller {
+    bool known = false;
+    std::string user;
+    Role role = Role::viewer;
+    std::optional<Session> session;
+};
+
+std::string session_cookie_header(const std::string& id, bool tls) {
+    return fmt::format("{}={}; Path=/; HttpOnly; SameSite=Strict{}", session_cookie, id, tls ? "; Secure" : "");
+}
+
 struct ConfiguredDevice {
     std::string name;
     std::string line;
@@ -158,6 +192,11 @@ struct HttpApi::State {
     HttpApiSources sources;
     std::string token;        // empty: writes refused
     bool reads_need_token = false;
+    std::vector<HttpUser> users;  // none: the token alone (and reads as reads_need_token says)
+    HttpConfig::OpenReads open_reads = HttpConfig::OpenReads::loopback;
+    bool tls = false;
+    std::shared_ptr<Logins> logins;  // with users
+    std::unique_ptr<PasswordChecks> checks;  // with users
     std::vector<std::string> hosts;  // the Host names answered, in lower case
     struct Asset {
         const StaticAsset* asset;
@@ -198,6 +237,100 @@ struct HttpApi::State {
         return std::nullopt;
     }
 
+    // Who sent the request, or the refusal of credentials that are wrong (an unknown bearer
+    // token). A session that has expired is nobody: reads may still be open.
+    std::optional<HttpResponse> identify(const HttpRequest& request, Caller& caller) const {
+        if (!request.authorization.empty()) {
+            constexpr std::string_view bearer = "Bearer ";
+            const std::string& given = request.authorization;
+            const bool is_bearer = given.size() > bearer.size() &&
+                                   std::equal(bearer.begin(), bearer.end(), given.begin(),
+                                              [](char a, char b) { return std::tolower(a) == std::tolower(b); });
+            const std::string_view presented = is_bearer ? std::string_view(given).substr(bearer.size()) : std::string_view();
+            if (is_bearer && !token.empty() && same_token(presented, token)) {
+                caller = {true, "token", Role::admin, std::nullopt};
+                return std::nullopt;
+            }
+            if (is_bearer && !users.empty()) {
+                const std::string hash = machine_token_hash(presented);
+                for (const auto& user : users) {
+                    if (user.machine() && same_secret(hash, user.hash)) {
+                        caller = {true, user.name, user.role, std::nullopt};
+                        return std::nullopt;
+                    }
+                }
+            }
+            HttpResponse refusal = error(401, "wrong token: send \"Authorization: Bearer TOKEN\" with a token `loopwire passwd "
+                                              "--token` made, or the first line of the file [http] token_file names");
+            refusal.headers.emplace_back("WWW-Authenticate", "Bearer error=\"invalid_token\"");
+            return refusal;
+        }
+        if (logins) {
+            if (auto id = cookie_value(request.cookie, session_cookie)) {
+                if (auto session = logins->sessions.find(*id)) caller = {true, session->user, session->role, std::move(session)};
+            }
+        }
+        return std::nullopt;
+    }
+
+    bool reads_open_to(const HttpRequest& request) const {
+        switch (open_reads) {
+            case HttpConfig::OpenReads::all: return true;
+            case HttpConfig::OpenReads::none: return false;
+            case HttpConfig::OpenReads::loopback: return loopback_client(request.client);
+        }
+        return false;
+    }
+
+    static HttpResponse login_needed() {
+        HttpResponse refusal = error(401, "log in first (POST /api/login with user and password), or send \"Authorization: "
+                                          "Bearer TOKEN\"");
+        refusal.headers.emplace_back("WWW-Authenticate", "Bearer");
+        return refusal;
+    }
+
+    // None when `caller` may write at all (known; over a session, with its CSRF token); else the
+    // refusal. What the role may write is check_roles', once the names are known (and audited).
+    std::optional<HttpResponse> check_writer(const HttpRequest& request, const Caller& caller) const {
+        if (!caller.known) return login_needed();
+        if (caller.session && !same_secret(request.csrf_token, caller.session->csrf)) {
+            return error(403, "a write over a login session needs the header X-CSRF-Token with the session's token (the "
+                              "\"csrf\" of POST /api/login's or GET /api/session's answer)");
+        }
+        return std::nullopt;
+    }
+
+    // Why `caller` may not write one of `assignments` (its role is below the one the parameter
+    // needs, gateway/http_users.hpp); none when it may, or when there are no users. A name the
+    // profile does not resolve to one parameter is left for the writer to refuse.
+    std::optional<std::string> check_roles(const ConfiguredDevice& device, const std::vector<WriteAssignment>& assignments,
+                                           const Caller& caller) const {
+        if (users.empty()) return std::nullopt;
+        if (caller.role == Role::viewer) {
+            return fmt::format("user \"{}\" is a viewer, who reads but does not write; an operator writes set points and "
+                               "modes, an admin every parameter",
+                               caller.user);
+        }
+        const device::Profile& profile = *device.address.profile;
+        for (const auto& assignment : assignments) {
+            auto resolved = device::resolve_parameters(profile, {assignment.parameter});
+            if (!resolved || resolved->size() != 1) continue;
+            const device::Parameter& parameter = *resolved->front();
+            if (role_may_write(caller.role, profile, parameter)) continue;
+
+            return fmt::format("user \"{}\" is an {} and may not write \"{}\": {} writes it", caller.user,
+                               role_name(caller.role), parameter.name, role_name(role_to_write(profile, parameter)) == "admin"
+                                                                           ? "only an admin (it is the device's configuration, "
+                                                                             "not a set point or mode)"
+                                                                           : "an operator or admin");
+        }
+        return std::nullopt;
+    }
+
+    HttpOutcome login(const HttpRequest& request) const;
+    HttpOutcome logout(const HttpRequest& request, const Caller& caller) const;
+    HttpResponse session_answer(const HttpRequest& request, const Caller& caller) const;
+
     // None when the Host header names this gateway; else the refusal. A browser sends the name
     // from its address bar: a page of another site whose name an attacker points at this
     // address (DNS rebinding) sends that other name, and is not answered.
@@ -217,7 +350,7 @@ struct HttpApi::State {
     HttpOutcome route(const HttpRequest& request);
     HttpResponse devices_list() const;
     HttpResponse device_detail(const ConfiguredDevice& device) const;
-    HttpOutcome write(const ConfiguredDevice& device, const HttpRequest& request) const;
+    HttpOutcome write(const ConfiguredDevice& device, const HttpRequest& request, const Caller& caller) const;
     HttpOutcome events(const HttpRequest& request) const;
     HttpOutcome history(const HttpRequest& request) const;
     HttpOutcome history_gateways() const;
@@ -236,6 +369,16 @@ HttpApi::HttpApi(const GatewayConfig& config, HttpApiSources sources) : state_(s
     const HttpConfig http = config.http.value_or(HttpConfig{});
     state_->token = http.token;
     state_->reads_need_token = !http.loopback();
+    state_->users = http.users;
+    state_->open_reads = http.open_reads;
+    state_->tls = !http.certificate.empty();
+    if (!http.users.empty()) {
+        auto kept = state_->sources.logins ? state_->sources.logins : std::make_shared<HttpLogins>();
+        kept->sessions.set_idle_timeout(http.session_timeout);
+        kept->sessions.keep_only(http.users);
+        state_->logins = std::make_shared<Logins>(std::move(kept), state_->sources.log);
+        state_->checks = std::make_unique<PasswordChecks>();
+    }
     state_->gateway_name = config.name;
     state_->hosts = {"localhost", "127.0.0.1", "[::1]"};
     const std::string listen = lower_case(http.host.find(':') != std::string::npos ? "[" + http.host + "]" : http.host);
@@ -257,9 +400,21 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
     // The server answers HEAD as GET without the body (http_server.hpp).
     static const std::string readable = "GET, HEAD";
     const bool api = path.rfind("/api/", 0) == 0 || path == "/metrics";
-    if (api && reads_need_token) {
-        // Not on loopback: everyone on the network could read otherwise.
-        if (auto refusal = check_token(request)) return {*refusal, {}, {}};
+    Caller caller;
+    if (users.empty()) {
+        if (api && reads_need_token) {
+            // Not on loopback: everyone on the network could read otherwise.
+            if (auto refusal = check_token(request)) return {*refusal, {}, {}};
+        }
+    } else if (api) {
+        if (auto refusal = identify(request, caller)) return {*refusal, {}, {}};
+        if (path == "/api/login") return request.method == "POST" ? login(request) : HttpOutcome{not_allowed("POST"), {}, {}};
+        if (path == "/api/logout") return request.method == "POST" ? logout(request, caller) : HttpOutcome{not_allowed("POST"), {}, {}};
+        if (path == "/api/session") return {get ? session_answer(request, caller) : not_allowed(readable), {}, {}};
+        if (!caller.known && !reads_open_to(request)) return {login_needed(), {}, {}};
+    }
+    if (path == "/api/login" || path == "/api/logout" || path == "/api/session") {
+        return {error(404, "there are no logins: the configuration names no [http] users_file"), {}, {}};
     }
     if (path == "/api/devices") return {get ? devices_list() : not_allowed(readable), {}, {}};
     if (path == "/api/events") return get ? events(request) : HttpOutcome{not_allowed(readable), {}, {}};
@@ -280,7 +435,7 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
         }
         const ConfiguredDevice* device = find(*name);
         if (!device) return {error(404, fmt::format("no device \"{}\" on this gateway (GET /api/devices lists them)", *name)), {}, {}};
-        if (is_write) return request.method == "POST" ? write(*device, request) : HttpOutcome{not_allowed("POST"), {}, {}};
+        if (is_write) return request.method == "POST" ? write(*device, request, caller) : HttpOutcome{not_allowed("POST"), {}, {}};
         return {get ? device_detail(*device) : not_allowed(readable), {}, {}};
     }
     if (!api && (path == "/" || assets.count(path) != 0)) return {get ? asset(request) : not_allowed(readable), {}, {}};
@@ -396,14 +551,18 @@ Result<std::string> written_text(const nlohmann::json& value) {
 
 }  // namespace
 
-HttpOutcome HttpApi::State::write(const ConfiguredDevice& device, const HttpRequest& request) const {
-    if (token.empty()) {
+HttpOutcome HttpApi::State::write(const ConfiguredDevice& device, const HttpRequest& request, const Caller& caller) const {
+    if (!users.empty()) {
+        if (auto refusal = check_writer(request, caller)) return {*refusal, {}, {}};
+    } else if (token.empty()) {
         return {error(403, "writes over HTTP are off: give the gateway a token with [http] token_file = \"FILE\" (a file "
                            "readable by the gateway alone whose first line is the token), then send it as "
                            "\"Authorization: Bearer TOKEN\""),
                 {}, {}};
     }
-    if (auto refusal = check_token(request)) return {*refusal, {}, {}};
+    if (users.empty()) {
+        if (auto refusal = check_token(request)) return {*refusal, {}, {}};
+    }
     const auto body = nlohmann::json::parse(request.body, nullptr, false);
     if (body.is_discarded()) {
         return {error(400, "the body is not JSON; send an object of parameter names and values, e.g. "
@@ -415,7 +574,7 @@ HttpOutcome HttpApi::State::write(const ConfiguredDevice& device, const HttpRequ
                            "{\"mode\": \"manual\"}"),
                 {}, {}};
     }
-    const WriteOrigin origin{"http", request.client, {}};
+    const WriteOrigin origin{"http", request.client, users.empty() ? std::string() : caller.user};
     std::vector<WriteAssignment> assignments;
     for (const auto& [name, value] : body.items()) {
         auto text = written_text(value);
@@ -426,6 +585,10 @@ HttpOutcome HttpApi::State::write(const ConfiguredDevice& device, const HttpRequ
             return {error(400, why), {}, {}};
         }
         assignments.push_back({name, std::move(*text)});
+    }
+    if (auto refusal = check_roles(device, assignments, caller)) {
+        sources.writer->audit_refusal(device.name, assignments, origin, *refusal);
+        return {error(403, *refusal), {}, {}};
     }
     // The writer's policy, answered as what it is: the device cannot take writes now (it does not
     // answer, or its line is down), so nothing was sent and the same write may go later.
@@ -617,6 +780,97 @@ HttpOutcome HttpApi::State::history_gateways() const {
                     respond(std::move(response));
                 });
             }, {}};
+}
+
+}  // namespace loopwire::gateway
+namespace loopwire::gateway {
+
+// The login's check runs on the checks' thread (Argon2id is slow on purpose); a client whose
+// failures are over the limit is refused at once, with the wait, never held in the handler.
+HttpOutcome HttpApi::State::login(const HttpRequest& request) const {
+    if (auto wait = logins->limiter.wait_for(request.client)) {
+        HttpResponse refusal = error(429, fmt::format("too many failed logins from {}: try again in {} s", request.client,
+                                                      wait->count()));
+        refusal.headers.emplace_back("Retry-After", std::to_string(wait->count()));
+        return {std::move(refusal), {}, {}};
+    }
+    auto form = parse_login_body(request.body, request.content_type);
+    if (!form) {
+        return {error(400, "expected the user and password: JSON {\"user\": \"NAME\", \"password\": \"...\"} or a form "
+                           "user=NAME&password=..."),
+                {}, {}};
+    }
+    std::string hash;
+    Role role = Role::viewer;
+    for (const auto& user : users) {
+        if (user.name == form->user && !user.machine()) {
+            hash = user.hash;
+            role = user.role;
+        }
+    }
+    auto check = [logins = logins, checks = checks.get(), form = std::move(*form), hash, role, client = request.client,
+                  tls = tls](HttpResponder respond) {
+        const bool posted = checks->post([logins, form, hash, role, client, tls, respond] {
+            bool right = false;
+            if (hash.empty()) {
+                if (logins->unknown_user_hash.empty()) {
+                    auto made = hash_password("unknown user");
+                    if (made) logins->unknown_user_hash = std::move(*made);
+                }
+                verify_password(form.password, logins->unknown_user_hash);
+            } else {
+                right = verify_password(form.password, hash);
+            }
+            if (!right) {
+                const auto wait = logins->limiter.failed(client);
+                if (logins->log) {
+                    logins->log(fmt::format("{}http: failed login as {} from {}{}", gateway_warning_prefix,
+                                            quoted_excerpt(form.user), client,
+                                            wait ? fmt::format(" (its logins wait {} s)", wait->count()) : std::string()));
+                }
+                HttpResponse refusal = error(401, "wrong user name or password");
+                if (wait) refusal.headers.emplace_back("Retry-After", std::to_string(wait->count()));
+                return respond(std::move(refusal));
+            }
+            logins->limiter.succeeded(client);
+            const Session session = logins->sessions.open(form.user, role);
+            HttpResponse answer = json_response(200, Json{{"user", session.user}, {"role", role_name(role)}, {"csrf", session.csrf}});
+            answer.headers.emplace_back("Set-Cookie", session_cookie_header(session.id, tls));
+            respond(std::move(answer));
+        });
+        if (!posted) {
+            HttpResponse busy = error(503, "too many logins are being checked; try again in a second");
+            busy.headers.emplace_back("Retry-After", "1");
+            respond(std::move(busy));
+        }
+    };
+    return {{}, std::move(check), {}};
+}
+
+HttpOutcome HttpApi::State::logout(const HttpRequest& request, const Caller& caller) const {
+    if (caller.session) {
+        if (!same_secret(request.csrf_token, caller.session->csrf)) {
+            return {error(403, "logging out needs the header X-CSRF-Token with the session's token"), {}, {}};
+        }
+        logins->sessions.close(caller.session->id);
+    }
+    HttpResponse answer = json_response(200, Json{{"logged_out", caller.session.has_value()}});
+    answer.headers.emplace_back("Set-Cookie", fmt::format("{}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0{}", session_cookie,
+                                                          tls ? "; Secure" : ""));
+    return {std::move(answer), {}, {}};
+}
+
+// Who is logged in, for the dashboard: 401 when nobody (then `open_reads` says whether it may
+// show the values without a login).
+HttpResponse HttpApi::State::session_answer(const HttpRequest& request, const Caller& caller) const {
+    if (!caller.known) {
+        HttpResponse refusal = json_response(401, Json{{"error", "not logged in (POST /api/login)"},
+                                                       {"open_reads", reads_open_to(request)}});
+        return refusal;
+    }
+    Json body{{"user", caller.user}, {"role", role_name(caller.role)}};
+    if (caller.session) body["csrf"] = caller.session->csrf;
+    return json_response(200, body);
 }
 
 }  // namespace loopwire::gateway

@@ -4,6 +4,9 @@
 //   GET  /api/devices                 the devices, with their line, unit and status
 //   GET  /api/devices/NAME            one device: its parameters with values, units and ranges
 //   POST /api/devices/NAME/write      {"PARAMETER": "text", ...} with the token; as `write` checks
+//   POST /api/login                   {"user", "password"} (JSON or a form): a session cookie,
+//                                     and the CSRF token its writes send as X-CSRF-Token
+//   POST /api/logout, GET /api/session  end it; who is logged in (401: nobody)
 //   GET  /api/events                  server-sent events: the full picture, then each change
 //   GET  /api/history?device=...      downsampled series from the history store, JSON or CSV;
 //                                     &gateway=NAME: another gateway's, from the shared historian
@@ -11,6 +14,8 @@
 //   GET  /metrics                     Prometheus text: the lines' and devices' figures
 //   GET  /, /assets/*                 the dashboard (gateway/dashboard_assets.hpp)
 // Errors are {"error": "..."} with a status that fits.
+// Who may do what ([http] users_file, token_file, open_reads): docs/security.md and
+// gateway/http_users.hpp.
 #include <functional>
 #include <memory>
 #include <string>
@@ -22,6 +27,7 @@
 #include "gateway/history_source.hpp"
 #include "gateway/http_server.hpp"
 #include "gateway/opcua/opcua_figures.hpp"
+#include "gateway/http_sessions.hpp"
 #include "gateway/value_cache.hpp"
 
 namespace loopwire::gateway {
@@ -35,6 +41,9 @@ struct HttpApiSources {
     std::function<std::uint64_t()> http_not_allowed;  // clients the HTTP server closed at accept
     const HistorySource* history = nullptr;           // none: /api/history answers 404
     std::function<OpcuaFigures()> opcua = {};         // the OPC UA front's; none: not shown
+    std::function<void(const std::string&)> log = {};  // failed logins, at warning; none: not logged
+    // Sessions and failed logins kept across reloads (gateway/http_sessions.hpp); none: the API's own.
+    std::shared_ptr<HttpLogins> logins = {};
 };
 
 class HttpApi final : public HttpHandler {

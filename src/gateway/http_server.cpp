@@ -140,6 +140,9 @@ HttpRequest to_request(const http::request<http::string_body>& message) {
     if (question != std::string_view::npos) request.query = std::string(target.substr(question + 1));
     request.authorization = to_string(message[http::field::authorization]);
     request.if_none_match = to_string(message[http::field::if_none_match]);
+    request.cookie = to_string(message[http::field::cookie]);
+    request.content_type = to_string(message[http::field::content_type]);
+    request.csrf_token = to_string(message["X-CSRF-Token"]);
     request.body = message.body();
     return request;
 }

@@ -52,6 +52,9 @@ struct HttpRequest {
     std::string query;          // what follows '?', as sent
     std::string authorization;  // the Authorization header
     std::string if_none_match;  // the If-None-Match header
+    std::string cookie;         // the Cookie header
+    std::string content_type;   // the Content-Type header
+    std::string csrf_token;     // the X-CSRF-Token header
     std::string body;
     std::string client;         // the client's address ("127.0.0.1"), for the audit of writes
 };

@@ -7,6 +7,7 @@
 
 #include "gateway/config_change.hpp"
 #include "gateway/http_server.hpp"
+#include "gateway/http_sessions.hpp"
 #include "gateway/line_keeper.hpp"
 #include "gateway/modbus_tcp_front.hpp"
 #include "gateway/sparkplug/sparkplug_node.hpp"
@@ -67,6 +68,8 @@ struct Service {
     std::unique_ptr<ModbusTcpFront> front;  // kept across reloads that leave [modbus_tcp] alone
     std::optional<HttpListener> http_listener;  // kept across reloads that leave [http] listen alone
     KeptSparkplug sparkplug;  // between two rounds whose [sparkplug] is the same; its session ends with the service
+    // The HTTP API's sessions and failed logins: a reload logs nobody out.
+    std::shared_ptr<HttpLogins> http_logins = std::make_shared<HttpLogins>();
 
     // Serves `config` until `stop` or a reload is requested; the error when it cannot be opened.
     Result<void> round(const GatewayConfig& config) {
@@ -79,6 +82,7 @@ struct Service {
         round_options.lines = &lines;
         round_options.http_listener = http_listener ? &*http_listener : nullptr;
         round_options.sparkplug = &sparkplug;
+        round_options.http_logins = http_logins;
         round_options.http_listener_kept = [this] {
             const auto next = reloads.next();
             return next && !stop.stop_requested() && next->http && http_listener &&

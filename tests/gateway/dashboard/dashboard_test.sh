@@ -25,7 +25,7 @@ cd "$top"
 export LOOPWIRE="$loopwire" LOOPWIRE_ARTIFACTS="$artifacts" LOOPWIRE_CHROMIUM="$chromium"
 # No telemetry, no browser download, no update check: nothing leaves the machine.
 export PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD=1 PLAYWRIGHT_BROWSERS_PATH=0 CI=1
-timeout 90 node "$top/node_modules/@playwright/test/cli.js" test --config "$here/playwright.config.js"
+timeout 170 node "$top/node_modules/@playwright/test/cli.js" test --config "$here/playwright.config.js"
 status=$?
 [ "$status" -eq 0 ] && echo "screenshots: $(ls "$artifacts"/*.png 2>/dev/null | tr '\n' ' ')"
 exit "$status"

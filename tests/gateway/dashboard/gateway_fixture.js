@@ -3,7 +3,7 @@
 // by `loopwire simulate` (a TC10 the tests can cut off by killing its simulator, and bring back),
 // its history recorded in an SQLite file, its HTTP front on a port the kernel chooses, and a
 // token file for writes.
-const { spawn } = require("node:child_process");
+const { spawn, spawnSync } = require("node:child_process");
 const net = require("node:net");
 const fs = require("node:fs");
 const os = require("node:os");
@@ -11,7 +11,7 @@ const path = require("node:path");
 
 const TOKEN = "dashboard-test-token";
 
-function plantToml(tokenFile, httpPort, benchPty, historyFile) {
+function plantToml(tokenFile, httpPort, benchPty, historyFile, usersFile) {
   return `
 [[lines]]
 name = "plant"
@@ -57,6 +57,7 @@ listen = "127.0.0.1:0"
 [http]
 listen = "127.0.0.1:${httpPort}"
 token_file = "${tokenFile}"
+${usersFile ? `users_file = "${usersFile}"\nopen_reads = "none"` : ""}
 `;
 }
 
@@ -79,7 +80,7 @@ async function waitForApi(base, output, timeout) {
   for (;;) {
     if (output.exited) throw new Error(`the gateway exited before its HTTP API answered:\n${output.text}`);
     try {
-      const response = await fetch(`${base}/api/devices`);
+      const response = await fetch(`${base}/api/devices`, { headers: { Authorization: `Bearer ${TOKEN}` } });
       if (response.ok) return;
     } catch { /* not listening yet */ }
     if (Date.now() > deadline) throw new Error(`waited ${timeout} ms for the gateway's HTTP API at ${base}; it said:\n${output.text}`);
@@ -124,7 +125,18 @@ async function startSimulator(loopwire, pty, state, env) {
   return simulator;
 }
 
-async function startGateway() {
+// A users file made as a person makes one, with `loopwire passwd` (the password on stdin):
+// USERS is [[name, role, password], ...].
+function writeUsers(loopwire, file, users) {
+  for (const [name, role, password] of users) {
+    const made = spawnSync(loopwire, ["passwd", file, name, "--role", role], { input: `${password}\n`, encoding: "utf8" });
+    if (made.status !== 0) throw new Error(`loopwire passwd ${name}: ${made.stderr}`);
+  }
+}
+
+// With `users` ([[name, role, password], ...]) the gateway has a users file and nothing is read
+// without a login (open_reads = "none").
+async function startGateway({ users } = {}) {
   const loopwire = process.env.LOOPWIRE;
   if (!loopwire) throw new Error("LOOPWIRE must name the loopwire program (dashboard_test.sh sets it)");
   const dir = fs.mkdtempSync(path.join(os.tmpdir(), "loopwire-dashboard-"));
@@ -134,7 +146,12 @@ async function startGateway() {
   const httpPort = await freePort();
   const benchPty = path.join(dir, "ttyBench");
   const benchState = path.join(dir, "bench.state");
-  fs.writeFileSync(config, plantToml(tokenFile, httpPort, benchPty, path.join(dir, "history.db")));
+  let usersFile = "";
+  if (users) {
+    usersFile = path.join(dir, "users");
+    writeUsers(loopwire, usersFile, users);
+  }
+  fs.writeFileSync(config, plantToml(tokenFile, httpPort, benchPty, path.join(dir, "history.db"), usersFile));
   const env = { ...process.env, XDG_CONFIG_HOME: path.join(dir, "config") };
   let simulator = await startSimulator(loopwire, benchPty, benchState, env);
   const gateway = started(loopwire, ["gateway", "--config", config], env);

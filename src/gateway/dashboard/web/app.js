@@ -1,6 +1,6 @@
 // The dashboard's shell: the theme toggle, the token dialog, the live indicator, and a hash
 // router between the overview (#/) and a device page (#/devices/NAME).
-import { storedToken, storeToken } from "./api.js";
+import { storedToken, storeToken, loadSession, login, logout, onUnauthorized } from "./api.js";
 import { connectEvents, onConnection } from "./store.js";
 import { showOverview } from "./overview.js";
 import { showDevice } from "./device.js";
@@ -32,6 +32,59 @@ function setupToken() {
   button.addEventListener("click", openTokenDialog);
   document.getElementById("token-form").addEventListener("submit", () => { storeToken(input.value.trim()); mark(); });
   document.getElementById("token-clear").addEventListener("click", () => { storeToken(""); input.value = ""; mark(); dialog.close(); });
+}
+
+// The login: the user and a logout in the header; the dialog when the API answers 401 and the
+// gateway has users. After a login or logout the view is drawn again (write controls follow the
+// role).
+function showUser(session) {
+  const user = document.getElementById("user");
+  const loginButton = document.getElementById("login-button");
+  const dialog = document.getElementById("login-dialog");
+  user.hidden = !(session && session.user);
+  loginButton.hidden = !(dialog.dataset.users === "true" && !(session && session.user));
+  if (session && session.user) {
+    document.getElementById("user-name").textContent = session.user;
+    document.getElementById("user-role").textContent = session.role;
+  }
+}
+
+async function setupSession() {
+  const dialog = document.getElementById("login-dialog");
+  const error = document.getElementById("login-error");
+  const openLogin = () => {
+    if (dialog.dataset.users !== "true" || dialog.open) return;
+    error.textContent = "";
+    dialog.showModal();
+    document.getElementById("login-user").focus();
+  };
+  document.getElementById("login-form").addEventListener("submit", async (event) => {
+    event.preventDefault();
+    try {
+      const session = await login(document.getElementById("login-user").value, document.getElementById("login-password").value);
+      document.getElementById("login-password").value = "";
+      dialog.close();
+      showUser(session);
+      connectEvents();
+      route();
+    } catch (failure) {
+      error.textContent = failure.message;
+    }
+  });
+  document.getElementById("logout-button").addEventListener("click", async () => {
+    await logout();
+    showUser(null);
+    route();
+    const state = await loadSession().catch(() => null);
+    if (state && state.none && !state.openReads) openLogin();
+  });
+  document.getElementById("login-button").addEventListener("click", openLogin);
+  onUnauthorized(openLogin);
+  let state = null;
+  try { state = await loadSession(); } catch { /* the gateway did not answer: the views say so */ }
+  dialog.dataset.users = state ? "true" : "false";
+  showUser(state);
+  if (state && state.none && !state.openReads) openLogin();
 }
 
 function setupLive() {
@@ -73,6 +126,9 @@ function route() {
 setupTheme();
 setupToken();
 setupLive();
-connectEvents();
 window.addEventListener("hashchange", route);
-route();
+// The session first: a view drawn before it would show write controls a viewer does not have.
+setupSession().finally(() => {
+  connectEvents();
+  route();
+});

@@ -2,7 +2,7 @@
 // groups them, live, with a write form on each writable one; above them its recent changes (the
 // audit of writes to it, changes.js).
 import { loadDevice, deviceNamed, onChange, loadDevices } from "./store.js";
-import { writeParameter, listHistoryGateways } from "./api.js";
+import { writeParameter, listHistoryGateways, canWrite, currentSession } from "./api.js";
 import { escapeHtml, readingHtml, ageText, alarmReasons, deviceStatusClass, deviceStatusWord, statusChipClass, valueText } from "./format.js";
 import { keyParameters } from "./keys.js";
 import { Trend } from "./trend.js";
@@ -69,7 +69,7 @@ function rowHtml(entry, charted) {
   const chart = isNumeric(entry)
     ? `<button type="button" class="chart-toggle" data-action="chart" aria-pressed="${charted}" title="Show ${name} on the trend">${CHART_ICON}<span class="visually-hidden">Trend ${name}</span></button>`
     : "";
-  const write = isWritable(entry) ? `<button type="button" class="button small" data-action="edit" aria-expanded="false">Change</button>` : "";
+  const write = isWritable(entry) && canWrite() ? `<button type="button" class="button small" data-action="edit" aria-expanded="false">Change</button>` : "";
   return `<tr class="param-row" data-param="${name}">
       <td class="name-cell"><div class="param-name">${escapeHtml(entry.name.replaceAll("_", " "))}${mnemonic}${range ? `<span class="range">${escapeHtml(range)}</span>` : ""}</div></td>
       <td class="value-cell"><span class="param-value"></span></td>
@@ -327,7 +327,10 @@ export function showDevice(view, name) {
     } catch (error) {
       if (error.status !== 401) changes.written();  // a refusal is audited too
       result.className = "write-result error";
-      if (error.status === 401) {
+      if (error.status === 401 && currentSession() === null && document.getElementById("login-dialog").dataset.users === "true") {
+        result.textContent = `Refused: ${error.message}. Log in and write again.`;
+        document.getElementById("login-dialog").showModal();
+      } else if (error.status === 401) {
         result.textContent = `Refused: ${error.message}. Set the gateway's access token (key button, top right) and write again.`;
         openTokenDialog();
       } else {

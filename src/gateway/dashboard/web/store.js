@@ -181,7 +181,7 @@ function handleEvent(data) {
 // One stream for the whole page; the browser reconnects by itself after a drop, and the
 // gateway sends the full picture again on each connection.
 export function connectEvents() {
-  if (source) return;
+  if (source && source.readyState !== EventSource.CLOSED) return;  // one refused before a login is opened again
   source = new EventSource("/api/events");
   source.onopen = () => setConnection("live");
   source.onerror = () => setConnection(source.readyState === EventSource.CLOSED ? "lost" : "connecting");
