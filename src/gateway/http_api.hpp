@@ -26,8 +26,8 @@
 #include "gateway/gateway_config.hpp"
 #include "gateway/history_source.hpp"
 #include "gateway/http_server.hpp"
-#include "gateway/opcua/opcua_figures.hpp"
 #include "gateway/http_sessions.hpp"
+#include "gateway/opcua/opcua_figures.hpp"
 #include "gateway/value_cache.hpp"
 
 namespace loopwire::gateway {
