@@ -32,6 +32,13 @@ constexpr std::array tables{
                 "Record every change of a polled value, and a heartbeat of each, in an SQLite file the HTTP API "
                 "charts from, and optionally forward it to a PostgreSQL historian. Absent: no history."},
     ConfigTable{"http", "[http]", "The HTTP API and the live dashboard. Absent: no HTTP."},
+    ConfigTable{"alarms", "[alarms]",
+                "Alarms in the states of ISA-18.2 (normal, active-unacknowledged, active-acknowledged, "
+                "returned-unacknowledged, shelved, out-of-service). Every device has its communication alarms "
+                "(DEVICE.silent, DEVICE.line_down, DEVICE.wrong_device) without any table; with [history] their "
+                "journal is kept in its file and the states survive a restart."},
+    ConfigTable{"alarms.limits", "[[alarms.limits]]",
+                "One table per limit alarm on a polled number of a device; none: only the communication alarms."},
 };
 
 constexpr std::array keys{
@@ -239,6 +246,33 @@ constexpr std::array keys{
     ConfigKey{"http", "allow", "list of strings", "[]: every address", "IPv4 or IPv6 addresses and CIDR networks",
               "The client addresses served; a client from any other is closed at once and counted.",
               "[\"10.1.0.0/16\", \"127.0.0.1\"]", true},
+
+    ConfigKey{"alarms.limits", "device", "string", "", "a device of [[lines.devices]]", "The device whose value is watched.",
+              "\"oven\""},
+    ConfigKey{"alarms.limits", "parameter", "string", "", "a polled parameter of the device that is a number",
+              "The value compared with the limit (PV), by name, alias or mnemonic.", "\"measured_value\""},
+    ConfigKey{"alarms.limits", "kind", "string", "", "high, high_high, low, low_low or deviation",
+              "Active while the value is above (high, high_high) or below (low, low_low) `limit`, or while "
+              "|PV - SP| is beyond `limit` (deviation, with `setpoint`).",
+              "\"high\""},
+    ConfigKey{"alarms.limits", "limit", "number", "", "",
+              "The limit, in the parameter's unit; for deviation the largest |PV - SP| allowed.", "250"},
+    ConfigKey{"alarms.limits", "setpoint", "string", "none", "deviation only; a polled number of the device",
+              "The parameter PV is compared with (SP).", "\"set_point\"", true},
+    ConfigKey{"alarms.limits", "deadband", "number", "0", "0 or more",
+              "How far back past the limit the value must go for the alarm to clear: a value wavering around the "
+              "limit raises one alarm, not one per poll.",
+              "2.0"},
+    ConfigKey{"alarms.limits", "on_delay", "duration", "0", "up to 24h",
+              "How long the value must stay beyond the limit before the alarm is raised.", "\"5s\""},
+    ConfigKey{"alarms.limits", "off_delay", "duration", "0", "up to 24h",
+              "How long the value must stay back before the alarm clears.", "\"0s\""},
+    ConfigKey{"alarms.limits", "severity", "string", "\"medium\"", "low, medium, high or critical",
+              "The alarm's priority, in the API, the journal and the metrics.", "\"high\""},
+    ConfigKey{"alarms.limits", "message", "string", "made from parameter, kind and limit", "",
+              "What the alarm says to the operator.", "\"oven too hot\""},
+    ConfigKey{"alarms.limits", "name", "string", "PARAMETER_KIND", "letters, digits, '-' and '_'; unique on the device",
+              "The alarm's name: the API names it DEVICE.NAME.", "\"too_hot\"", true},
 };
 
 constexpr double unbounded = std::numeric_limits<double>::infinity();

@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "gateway/alarms/alarm_engine.hpp"
 #include "client/device_client.hpp"
 #include "common/result.hpp"
 #include "profile/profile_registry.hpp"
@@ -244,6 +245,7 @@ struct GatewayConfig {
     std::optional<SparkplugConfig> sparkplug;  // absent [sparkplug] table: no Sparkplug B
     std::optional<HistoryConfig> history;  // absent [history] table: no history
     std::optional<HttpConfig> http;  // absent [http] table: no HTTP API
+    std::vector<alarms::LimitAlarm> alarm_limits;  // [[alarms.limits]]
 
     bool operator==(const GatewayConfig&) const = default;
 };

@@ -8,6 +8,7 @@
 //   GET  /api/history?device=...      downsampled series from the history store, JSON or CSV;
 //                                     &gateway=NAME: another gateway's, from the shared historian
 //   GET  /api/audit?from=&to=&device= the audit of writes from every front, newest first
+//   GET  /api/alarms, /api/alarms/history, POST /api/alarms/NAME/ack, ... (alarms/alarm_http.hpp)
 //   GET  /metrics                     Prometheus text: the lines' and devices' figures
 //   GET  /, /assets/*                 the dashboard (gateway/dashboard_assets.hpp)
 // Errors are {"error": "..."} with a status that fits.
@@ -16,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "gateway/alarms/alarm_service.hpp"
 #include "gateway/device_writer.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/gateway_config.hpp"
@@ -33,6 +35,7 @@ struct HttpApiSources {
     std::function<FrontReport()> front;               // the Modbus TCP front's; none: not shown
     std::function<std::uint64_t()> http_not_allowed;  // clients the HTTP server closed at accept
     const HistorySource* history = nullptr;           // none: /api/history answers 404
+    alarms::AlarmService* alarms = nullptr;           // /api/alarms (gateway/alarms/alarm_http.hpp)
 };
 
 class HttpApi final : public HttpHandler {
