@@ -153,6 +153,7 @@ Result<void> AlarmJournal::write_pending() {
     if (failing_ && log_) log_("alarm journal: writing again");
     failing_ = false;
     written_ += rows.size();
+    ++commits_;
     return {};
 }
 
@@ -173,6 +174,11 @@ void AlarmJournal::run(std::stop_token stop, std::chrono::milliseconds interval)
         std::unique_lock lock(mutex_);
         woken_.wait_for(lock, stop, interval, [] { return false; });
     }
+}
+
+std::uint64_t AlarmJournal::commits() const {
+    std::lock_guard lock(mutex_);
+    return commits_;
 }
 
 std::uint64_t AlarmJournal::rows_written() const {

@@ -45,6 +45,7 @@ public:
     void start(std::chrono::milliseconds commit_interval = std::chrono::milliseconds(250));
 
     std::uint64_t rows_written() const;
+    std::uint64_t commits() const;  // transactions committed (a burst of rows is one)
 
 private:
     AlarmJournal() = default;
@@ -60,6 +61,7 @@ private:
     std::condition_variable_any woken_;
     Transitions queue_;
     std::uint64_t written_ = 0;
+    std::uint64_t commits_ = 0;
     bool failing_ = false;
     std::jthread thread_;  // last
 };
