@@ -177,6 +177,8 @@ struct History {
         forwarder.reset();
     }
     std::unique_ptr<HistoryForwarder> forwarder;  // none unless [history] forward_to
+    // Written by the store's writer after each of its commits (also_write): goes after the store.
+    std::unique_ptr<alarms::AlarmJournal> alarm_journal;
     std::unique_ptr<HistoryStore> store;
     std::unique_ptr<HistoryReader> reader;
     std::shared_ptr<WriteAudit> audit;  // given the store while both are there
@@ -230,6 +232,11 @@ Result<std::unique_ptr<History>> open_history(const HistoryConfig& config, const
     auto reader = HistoryReader::open(std::move(reading), *history->store, history->forwarder.get());
     if (!reader) return reader.error();
     history->reader = std::move(*reader);
+    // The alarm journal's table in the same file, committed by the store's writer.
+    auto journal = alarms::AlarmJournal::open(config.database, config.keep, log);
+    if (!journal) return journal.error();
+    history->alarm_journal = std::move(*journal);
+    history->store->also_write([journal = history->alarm_journal.get()] { (void)journal->write_pending(); });
     history->store->start();
     return history;
 }
@@ -462,16 +469,10 @@ Result<void> Gateway::open_alarms(const GatewayConfig& config, Parts& parts, Gat
     for (const auto& line : config.lines) {
         for (const auto& device : line.devices) devices.push_back(device.name);
     }
-    std::unique_ptr<alarms::AlarmJournal> journal;
-    std::filesystem::path database;
-    if (config.history) {
-        auto opened = alarms::AlarmJournal::open(config.history->database, config.history->keep, log);
-        if (!opened) return opened.error();
-        journal = std::move(*opened);
-        database = config.history->database;
-    }
-    parts.alarms = std::make_unique<alarms::AlarmService>(*parts.engine, parts.cache, config.alarm_limits, devices,
-                                                          std::move(journal), std::move(database), std::move(log));
+    alarms::AlarmJournal* journal = parts.history ? parts.history->alarm_journal.get() : nullptr;
+    std::filesystem::path database = config.history ? config.history->database : std::filesystem::path();
+    parts.alarms = std::make_unique<alarms::AlarmService>(*parts.engine, parts.cache, config.alarm_limits, devices, journal,
+                                                          std::move(database), std::move(log));
     return {};
 }
 

@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "common/thread_name.hpp"
 #include "gateway/history_schema.hpp"
 #include "gateway/http_text.hpp"
 
@@ -50,18 +49,20 @@ Result<std::unique_ptr<AlarmJournal>> AlarmJournal::open(const std::filesystem::
     journal->insert_ = std::move(*insert);
     journal->keep_ = keep;
     journal->log_ = std::move(log);
+    // Read here, before any writer may use the connection.
+    auto restored = journal->read_last_states();
+    if (restored) {
+        journal->restored_ = std::move(*restored);
+    } else if (journal->log_) {
+        journal->log_(fmt::format("alarms: the states of the last run could not be read ({}); every alarm starts normal",
+                                  restored.error().message));
+    }
     return journal;
 }
 
-AlarmJournal::~AlarmJournal() {
-    if (thread_.joinable()) {
-        thread_.request_stop();
-        thread_.join();
-    }
-    (void)write_pending();
-}
+AlarmJournal::~AlarmJournal() { (void)write_pending(); }
 
-Result<std::map<std::string, RestoredState>> AlarmJournal::last_states() {
+Result<std::map<std::string, RestoredState>> AlarmJournal::read_last_states() {
     std::map<std::string, RestoredState> states;
     auto rows = db_.prepare(
         "SELECT alarm, t, state, value, shelved_until FROM alarm_journal WHERE id IN "
@@ -88,7 +89,6 @@ void AlarmJournal::append(const Transitions& transitions) {
         std::lock_guard lock(mutex_);
         queue_.insert(queue_.end(), transitions.begin(), transitions.end());
     }
-    woken_.notify_all();
 }
 
 Result<void> AlarmJournal::commit(const Transitions& rows) {
@@ -155,25 +155,6 @@ Result<void> AlarmJournal::write_pending() {
     written_ += rows.size();
     ++commits_;
     return {};
-}
-
-void AlarmJournal::start(std::chrono::milliseconds commit_interval) {
-    thread_ = std::jthread([this, commit_interval](std::stop_token stop) { run(std::move(stop), commit_interval); });
-    name_thread(thread_.native_handle(), "lw-alarms");
-}
-
-void AlarmJournal::run(std::stop_token stop, std::chrono::milliseconds interval) {
-    while (!stop.stop_requested()) {
-        {
-            std::unique_lock lock(mutex_);
-            woken_.wait(lock, stop, [this] { return !queue_.empty(); });
-        }
-        if (stop.stop_requested()) break;
-        (void)write_pending();
-        // Rows that come meanwhile wait for the next commit: one transaction for a burst.
-        std::unique_lock lock(mutex_);
-        woken_.wait_for(lock, stop, interval, [] { return false; });
-    }
 }
 
 std::uint64_t AlarmJournal::commits() const {

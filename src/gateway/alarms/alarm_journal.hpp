@@ -4,13 +4,12 @@
 // as the samples. Read back by GET /api/alarms/history and `loopwire alarms`, and at start, when
 // each alarm takes up the state its last row says.
 //
-// Threads: append() only queues (the engine's loop never waits for SQLite); a writer thread
-// (start()) commits what is queued every `commit_interval`, all of it in one transaction
-// however many rows (a thousand alarms raised by one outage are one commit). Without the
-// thread the owner calls write_pending() (tests, benches). The file's other writer, the history
-// store, has its own connection; SQLite's lock puts the two commits one after the other.
+// Threads: append() only queues (the engine's loop never waits for SQLite); write_pending()
+// commits what is queued, all of it in one transaction however many rows (a thousand alarms
+// raised by one outage are one commit). The gateway has the history store's writer thread call
+// it after each of its own commits (HistoryStore::also_write): no thread of its own, and on its
+// own connection, so the two commits of the file are one after the other.
 #include <chrono>
-#include <condition_variable>
 #include <filesystem>
 #include <functional>
 #include <map>
@@ -18,7 +17,6 @@
 #include <mutex>
 #include <optional>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "common/result.hpp"
@@ -33,37 +31,35 @@ public:
     static Result<std::unique_ptr<AlarmJournal>> open(const std::filesystem::path& database,
                                                       std::chrono::seconds keep = std::chrono::hours(24 * 90),
                                                       std::function<void(const std::string&)> log = {});
-    ~AlarmJournal();  // stops the writer, writes what is queued
+    ~AlarmJournal();  // writes what is queued
     AlarmJournal(const AlarmJournal&) = delete;
     AlarmJournal& operator=(const AlarmJournal&) = delete;
 
-    // Each alarm's state as its last row says (for AlarmEngine::restore).
-    Result<std::map<std::string, RestoredState>> last_states();
+    // Each alarm's state as its last row said when the journal opened (for AlarmEngine::restore).
+    const std::map<std::string, RestoredState>& last_states() const { return restored_; }
 
     void append(const Transitions& transitions);
-    Result<void> write_pending();  // without the writer thread
-    void start(std::chrono::milliseconds commit_interval = std::chrono::milliseconds(250));
+    Result<void> write_pending();  // never beside itself: the history writer's thread, or the owner's
 
     std::uint64_t rows_written() const;
     std::uint64_t commits() const;  // transactions committed (a burst of rows is one)
 
 private:
     AlarmJournal() = default;
-    void run(std::stop_token stop, std::chrono::milliseconds interval);
     Result<void> commit(const Transitions& rows);
+    Result<std::map<std::string, RestoredState>> read_last_states();
 
     std::chrono::seconds keep_{};
     std::function<void(const std::string&)> log_;
     sqlite::Connection db_;
     sqlite::Statement insert_;
+    std::map<std::string, RestoredState> restored_;
     std::chrono::system_clock::time_point next_expiry_{};
     mutable std::mutex mutex_;
-    std::condition_variable_any woken_;
     Transitions queue_;
     std::uint64_t written_ = 0;
     std::uint64_t commits_ = 0;
     bool failing_ = false;
-    std::jthread thread_;  // last
 };
 
 // One journal row as read back.

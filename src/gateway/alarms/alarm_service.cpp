@@ -27,20 +27,11 @@ std::string log_line(const AlarmTransition& transition) {
 }  // namespace
 
 AlarmService::AlarmService(EventLoop& loop, ValueCache& cache, std::vector<LimitAlarm> limits,
-                           const std::vector<std::string>& devices, std::unique_ptr<AlarmJournal> journal,
+                           const std::vector<std::string>& devices, AlarmJournal* journal,
                            std::filesystem::path database, Log log)
     : loop_(loop), log_(std::move(log)), database_(std::move(database)), engine_(std::move(limits), devices),
-      journal_(std::move(journal)) {
-    if (journal_) {
-        auto restored = journal_->last_states();
-        if (restored) {
-            engine_.restore(*restored);
-        } else if (log_) {
-            log_(fmt::format("alarms: the states of the last run could not be read ({}); every alarm starts normal",
-                             restored.error().message));
-        }
-        journal_->start();
-    }
+      journal_(journal) {
+    if (journal_) engine_.restore(journal_->last_states());
     subscription_ = cache.subscribe([this](const ValueChange& change) {
         std::lock_guard lock(mutex_);
         if (change.about_device()) {

@@ -24,9 +24,10 @@ enum class AlarmAction { acknowledge, shelve, unshelve, remove_from_service, ret
 class AlarmService final {
 public:
     using Log = std::function<void(const std::string&)>;
-    // `journal`: none without [history] (the states then start normal at every start).
+    // `journal`: none without [history] (the states then start normal at every start); else it
+    // outlives the service, and is written by its owner (AlarmJournal: the history's writer).
     AlarmService(EventLoop& loop, ValueCache& cache, std::vector<LimitAlarm> limits, const std::vector<std::string>& devices,
-                 std::unique_ptr<AlarmJournal> journal, std::filesystem::path database, Log log);
+                 AlarmJournal* journal, std::filesystem::path database, Log log);
     ~AlarmService();  // taken down from the loop first
     AlarmService(const AlarmService&) = delete;
     AlarmService& operator=(const AlarmService&) = delete;
@@ -49,7 +50,7 @@ private:
     std::filesystem::path database_;
     mutable std::mutex mutex_;
     AlarmEngine engine_;
-    std::unique_ptr<AlarmJournal> journal_;
+    AlarmJournal* journal_ = nullptr;
     std::function<void(const AlarmTransition&)> listener_;
     std::optional<LoopTimer> timer_;  // the loop's only
     ValueSubscription subscription_;  // last: ends before the rest goes
