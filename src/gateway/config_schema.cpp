@@ -255,18 +255,18 @@ constexpr std::array keys{
               "Active while the value is above (high, high_high) or below (low, low_low) `limit`, or while "
               "|PV - SP| is beyond `limit` (deviation, with `setpoint`).",
               "\"high\""},
-    ConfigKey{"alarms.limits", "limit", "number", "", "",
+    ConfigKey{"alarms.limits", "limit", "number in the parameter's unit", "", "",
               "The limit, in the parameter's unit; for deviation the largest |PV - SP| allowed.", "250"},
-    ConfigKey{"alarms.limits", "setpoint", "string", "none", "deviation only; a polled number of the device",
+    ConfigKey{"alarms.limits", "setpoint", "string", "none", "a polled number of the device; read by deviation alone",
               "The parameter PV is compared with (SP).", "\"set_point\"", true},
-    ConfigKey{"alarms.limits", "deadband", "number", "0", "0 or more",
+    ConfigKey{"alarms.limits", "deadband", "number in the parameter's unit", "0", "0 or more",
               "How far back past the limit the value must go for the alarm to clear: a value wavering around the "
               "limit raises one alarm, not one per poll.",
               "2.0"},
-    ConfigKey{"alarms.limits", "on_delay", "duration", "0", "up to 24h",
+    ConfigKey{"alarms.limits", "on_delay", "duration", "none", "1ms..24h",
               "How long the value must stay beyond the limit before the alarm is raised.", "\"5s\""},
-    ConfigKey{"alarms.limits", "off_delay", "duration", "0", "up to 24h",
-              "How long the value must stay back before the alarm clears.", "\"0s\""},
+    ConfigKey{"alarms.limits", "off_delay", "duration", "none", "1ms..24h",
+              "How long the value must stay back before the alarm clears.", "\"2s\""},
     ConfigKey{"alarms.limits", "severity", "string", "\"medium\"", "low, medium, high or critical",
               "The alarm's priority, in the API, the journal and the metrics.", "\"high\""},
     ConfigKey{"alarms.limits", "message", "string", "made from parameter, kind and limit", "",
@@ -305,6 +305,8 @@ constexpr std::array ranges{
     ConfigRange{"modbus_tcp", "idle_timeout", 1'000, 86'400'000},
     // Closer together, the figures would bury everything else in the log.
     ConfigRange{"log", "statistics", 1'000, unbounded},
+    ConfigRange{"alarms.limits", "on_delay", 1, 86'400'000},
+    ConfigRange{"alarms.limits", "off_delay", 1, 86'400'000},
     ConfigRange{"mqtt", "republish", 100, unbounded},
     ConfigRange{"history", "heartbeat", 1'000, unbounded},
     // The values are kept in memory (at most 100000 of them): a day covers an outage someone

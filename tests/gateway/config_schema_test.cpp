@@ -38,6 +38,8 @@ std::string configuration_with(std::string_view table, const std::string& extra)
         {"sparkplug", "[sparkplug]\nbroker = \"mqtt://127.0.0.1:1883\"\ngroup_id = \"plant1\"\n"},
         {"history", "[history]\ndatabase = \"plant.db\"\n"},
         {"http", "[http]\n"},
+        {"alarms", "[alarms]\n"},
+        {"alarms.limits", "[[alarms.limits]]\ndevice = \"oven\"\nparameter = \"measured_value\"\nkind = \"high\"\nlimit = 250\n"},
     };
     std::string text;
     for (const auto& [name, block] : blocks) text += block + (name == table ? extra : "") + "\n";

@@ -62,11 +62,15 @@ std::chrono::milliseconds delay_of(const Where& where, const toml::table& table,
         where.fail(region_of(table, key), key, message.substr(std::min(message.find_first_not_of(' '), message.size())));
         return {};
     }
-    if (*parsed > std::chrono::hours(24)) {
-        where.fail(region_of(table, key), key, "at most 24h");
+    const ConfigRange& range = config_range("alarms.limits", key);
+    const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(*parsed);
+    if (static_cast<double>(ms.count()) < range.least || static_cast<double>(ms.count()) > range.most) {
+        where.fail(region_of(table, key), key,
+                   fmt::format("{} is out of range (expected {}); leave the key out for no delay", quoted_excerpt(*text),
+                               config_key("alarms.limits", key).bounds));
         return {};
     }
-    return std::chrono::duration_cast<std::chrono::milliseconds>(*parsed);
+    return ms;
 }
 
 bool valid_name(std::string_view name) {
@@ -142,10 +146,7 @@ std::optional<LimitAlarm> parse_limit(const Where& where, const toml::table& tab
         where.fail(table.source(), "", "a deviation alarm needs `setpoint`, the parameter PV is compared with (e.g. setpoint = \"set_point\")");
         fine = false;
     }
-    if (setpoint && kind && alarm.kind != LimitKind::deviation) {
-        where.fail(region_of(table, "setpoint"), "setpoint", "only a deviation alarm has a setpoint");
-        fine = false;
-    }
+    // A setpoint left on an alarm whose kind was changed from deviation is not read (the schema says so).
     if (device && parameter) {
         if (auto name = numeric_parameter(where, table, "parameter", *device, *parameter)) alarm.parameter = *name; else fine = false;
     }
