@@ -24,6 +24,7 @@ void add_gateway_command(CLI::App& app, int& exit_code, const ProfileOptions& pr
 void add_history_command(CLI::App& app, int& exit_code);
 void add_audit_command(CLI::App& app, int& exit_code);
 void add_passwd_command(CLI::App& app, int& exit_code);  // users of the HTTP API
+void add_alarms_command(CLI::App& app, int& exit_code);
 void add_help_command(CLI::App& app, int& exit_code);  // help [COMMAND]: add it last, it lists the others
 // When `first`, the first argument, is a word that names no command ("reed"): the error, with the
 // nearest command when one is close ("did you mean 'read'?"), else the list. Nothing otherwise.

@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
     add_history_command(app, exit_code);
     add_audit_command(app, exit_code);
     add_passwd_command(app, exit_code);
+    add_alarms_command(app, exit_code);
     add_help_command(app, exit_code);
     // As every other error the program reports (command_line.hpp, report_error).
     app.failure_message([](const CLI::App*, const CLI::Error& error) {

@@ -35,6 +35,13 @@ constexpr std::array tables{
     ConfigTable{"opcua", "[opcua]",
                 "The OPC UA front: every polled parameter a variable ns=1;s=DEVICE.PARAMETER under "
                 "Objects/GATEWAY/LINE/DEVICE. Absent: no OPC UA."},
+    ConfigTable{"alarms", "[alarms]",
+                "Alarms in the states of ISA-18.2 (normal, active-unacknowledged, active-acknowledged, "
+                "returned-unacknowledged, shelved, out-of-service). Every device has its communication alarms "
+                "(DEVICE.silent, DEVICE.line_down, DEVICE.wrong_device) without any table; with [history] their "
+                "journal is kept in its file and the states survive a restart."},
+    ConfigTable{"alarms.limits", "[[alarms.limits]]",
+                "One table per limit alarm on a polled number of a device; none: only the communication alarms."},
 };
 
 constexpr std::array keys{
@@ -266,6 +273,32 @@ constexpr std::array keys{
     ConfigKey{"opcua", "max_subscriptions", "integer", "1000", "1..100000", "Subscriptions over every session.", "1000"},
     ConfigKey{"opcua", "max_monitored_items", "integer", "100000", "1..1000000",
               "Monitored items over every subscription.", "100000"},
+    ConfigKey{"alarms.limits", "device", "string", "", "a device of [[lines.devices]]", "The device whose value is watched.",
+              "\"oven\""},
+    ConfigKey{"alarms.limits", "parameter", "string", "", "a polled parameter of the device that is a number",
+              "The value compared with the limit (PV), by name, alias or mnemonic.", "\"measured_value\""},
+    ConfigKey{"alarms.limits", "kind", "string", "", "high, high_high, low, low_low or deviation",
+              "Active while the value is above (high, high_high) or below (low, low_low) `limit`, or while "
+              "|PV - SP| is beyond `limit` (deviation, with `setpoint`).",
+              "\"high\""},
+    ConfigKey{"alarms.limits", "limit", "number in the parameter's unit", "", "",
+              "The limit, in the parameter's unit; for deviation the largest |PV - SP| allowed.", "250"},
+    ConfigKey{"alarms.limits", "setpoint", "string", "none", "a polled number of the device; read by deviation alone",
+              "The parameter PV is compared with (SP).", "\"set_point\"", true},
+    ConfigKey{"alarms.limits", "deadband", "number in the parameter's unit", "0", "0 or more",
+              "How far back past the limit the value must go for the alarm to clear: a value wavering around the "
+              "limit raises one alarm, not one per poll.",
+              "2.0"},
+    ConfigKey{"alarms.limits", "on_delay", "duration", "none", "1ms..24h",
+              "How long the value must stay beyond the limit before the alarm is raised.", "\"5s\""},
+    ConfigKey{"alarms.limits", "off_delay", "duration", "none", "1ms..24h",
+              "How long the value must stay back before the alarm clears.", "\"2s\""},
+    ConfigKey{"alarms.limits", "severity", "string", "\"medium\"", "low, medium, high or critical",
+              "The alarm's priority, in the API, the journal and the metrics.", "\"high\""},
+    ConfigKey{"alarms.limits", "message", "string", "made from parameter, kind and limit", "",
+              "What the alarm says to the operator.", "\"oven too hot\""},
+    ConfigKey{"alarms.limits", "name", "string", "PARAMETER_KIND", "letters, digits, '-' and '_'; unique on the device",
+              "The alarm's name: the API names it DEVICE.NAME.", "\"too_hot\"", true},
 };
 
 constexpr double unbounded = std::numeric_limits<double>::infinity();
@@ -301,6 +334,8 @@ constexpr std::array ranges{
     ConfigRange{"modbus_tcp", "idle_timeout", 1'000, 86'400'000},
     // Closer together, the figures would bury everything else in the log.
     ConfigRange{"log", "statistics", 1'000, unbounded},
+    ConfigRange{"alarms.limits", "on_delay", 1, 86'400'000},
+    ConfigRange{"alarms.limits", "off_delay", 1, 86'400'000},
     ConfigRange{"mqtt", "republish", 100, unbounded},
     ConfigRange{"history", "heartbeat", 1'000, unbounded},
     // The values are kept in memory (at most 100000 of them): a day covers an outage someone

@@ -15,6 +15,7 @@
 
 #include "devices/registry.hpp"
 #include "gateway/engine.hpp"
+#include "gateway/alarms/alarm_service.hpp"
 #include "gateway/history_forwarder.hpp"
 #include "gateway/history_reader.hpp"
 #include "gateway/history_store.hpp"
@@ -177,6 +178,8 @@ struct History {
         forwarder.reset();
     }
     std::unique_ptr<HistoryForwarder> forwarder;  // none unless [history] forward_to
+    // Written by the store's writer after each of its commits (also_write): goes after the store.
+    std::unique_ptr<alarms::AlarmJournal> alarm_journal;
     std::unique_ptr<HistoryStore> store;
     std::unique_ptr<HistoryReader> reader;
     std::shared_ptr<WriteAudit> audit;  // given the store while both are there
@@ -230,6 +233,11 @@ Result<std::unique_ptr<History>> open_history(const HistoryConfig& config, const
     auto reader = HistoryReader::open(std::move(reading), *history->store, history->forwarder.get());
     if (!reader) return reader.error();
     history->reader = std::move(*reader);
+    // The alarm journal's table in the same file, committed by the store's writer.
+    auto journal = alarms::AlarmJournal::open(config.database, config.keep, log);
+    if (!journal) return journal.error();
+    history->alarm_journal = std::move(*journal);
+    history->store->also_write([journal = history->alarm_journal.get()] { (void)journal->write_pending(); });
     history->store->start();
     return history;
 }
@@ -294,6 +302,9 @@ struct Gateway::Parts {
     // Before the polls, so destroyed after them: the last changes they find are written.
     std::unique_ptr<History> history;
     ValueSubscription history_subscription;
+    // Fed by the cache, journaled in the history file, ticked on the engine's loop; gone before
+    // the history and the cache, after the polls.
+    std::unique_ptr<alarms::AlarmService> alarms;
     std::unique_ptr<PollGroups> polls;
     // Closed before the polls go (~Parts), which it posts to.
     std::shared_ptr<FrontWriteNotices> front_writes = std::make_shared<FrontWriteNotices>();
@@ -374,6 +385,7 @@ Result<std::unique_ptr<Gateway>> Gateway::open(const GatewayConfig& config, Gate
         parts->history_subscription =
             parts->cache.subscribe([store = parts->history->store.get()](const ValueChange& change) { store->record(change); });
     }
+    if (auto opened = open_alarms(config, *parts, options.log); !opened) return opened.error();
     parts->polls = std::make_unique<PollGroups>(*parts->engine, config, schedulers, parts->cache, options.log, options.samples);
     parts->front_writes->open(*parts->engine, *parts->polls);
     if (config.modbus_tcp.enabled && options.front) {
@@ -475,12 +487,27 @@ void Gateway::open_sparkplug(const SparkplugConfig& sparkplug, const GatewayConf
                                         std::move(log), SparkplugTiming{}, &parts.engine->loop(), std::move(pending));
 }
 
+// Every device's communication alarms and the configured limit alarms, their journal in the
+// history file when there is one.
+Result<void> Gateway::open_alarms(const GatewayConfig& config, Parts& parts, GatewayLog log) {
+    std::vector<std::string> devices;
+    for (const auto& line : config.lines) {
+        for (const auto& device : line.devices) devices.push_back(device.name);
+    }
+    alarms::AlarmJournal* journal = parts.history ? parts.history->alarm_journal.get() : nullptr;
+    std::filesystem::path database = config.history ? config.history->database : std::filesystem::path();
+    parts.alarms = std::make_unique<alarms::AlarmService>(*parts.engine, parts.cache, config.alarm_limits, devices, journal,
+                                                          std::move(database), std::move(log));
+    return {};
+}
+
 Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& config, HttpListener* listener,
                                Parts& parts) {
     HttpApiSources sources;
     sources.cache = &parts.cache;
     sources.writer = parts.writer.get();
     sources.history = parts.history ? parts.history->reader.get() : nullptr;
+    sources.alarms = parts.alarms.get();
     sources.lines = [&parts] {
         std::vector<LineReport> reports;
         for (const auto& line : parts.lines) reports.push_back(report_of(line));

@@ -160,6 +160,7 @@ public:
 private:
     struct Parts;
     explicit Gateway(std::unique_ptr<Parts> parts);
+    static Result<void> open_alarms(const GatewayConfig& config, Parts& parts, GatewayLog log);
     static Result<void> open_http(const HttpConfig& http, const GatewayConfig& config, HttpListener* listener,
                                   Parts& parts);
     void keep_lines_for(const GatewayConfig& next);

@@ -22,6 +22,7 @@
 #include "common/peer_text.hpp"
 #include "common/regular_file.hpp"
 #include "common/text_parsing.hpp"
+#include "gateway/alarms/alarm_config.hpp"
 #include "gateway/config_schema.hpp"
 #include "gateway/http_server.hpp"
 #include "gateway/postgres_database.hpp"
@@ -1643,6 +1644,7 @@ Result<GatewayConfig> parse_gateway_config(std::string_view text, const std::str
     }
     config.http = parse_http(ctx, *root);
     config.opcua = parse_opcua(ctx, *root, config.name);
+    config.alarm_limits = alarms::parse_alarm_limits(*root, source, config.lines, mistakes);
     if (!mistakes.empty()) return all_mistakes(source, std::move(mistakes));
     if (config.mqtt && config.http) config.mqtt->configuration_url = dashboard_url(*config.http);
     return config;

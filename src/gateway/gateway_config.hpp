@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "gateway/alarms/alarm_engine.hpp"
 #include "client/device_client.hpp"
 #include "common/result.hpp"
 #include "gateway/http_users.hpp"
@@ -271,6 +272,7 @@ struct GatewayConfig {
     std::optional<HistoryConfig> history;  // absent [history] table: no history
     std::optional<HttpConfig> http;  // absent [http] table: no HTTP API
     std::optional<OpcuaConfig> opcua;  // absent [opcua] table: no OPC UA
+    std::vector<alarms::LimitAlarm> alarm_limits;  // [[alarms.limits]]
 
     bool operator==(const GatewayConfig&) const = default;
 };

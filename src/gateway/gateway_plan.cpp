@@ -233,6 +233,13 @@ void describe_opcua(std::ostringstream& out, const std::optional<OpcuaConfig>& c
                        config->writes ? "confirmed by the device" : "refused (Bad_NotWritable)");
 }
 
+// Said only with [[alarms.limits]]: every device's communication alarms need no word.
+void describe_alarms(std::ostringstream& out, const GatewayConfig& config) {
+    if (config.alarm_limits.empty()) return;
+    out << fmt::format("alarms: {} limit alarm(s), and each device's silent, line_down and wrong_device; journal {}\n",
+                       config.alarm_limits.size(), config.history ? "in the history file" : "none (no [history])");
+}
+
 }  // namespace
 
 // What one poll asks for: the configured names, or the profile's default watch list.
@@ -358,6 +365,7 @@ std::string describe_plan(const GatewayConfig& config) {
     describe_history(out, config.history);
     describe_http(out, config.http);
     describe_opcua(out, config.opcua);
+    describe_alarms(out, config);
     return out.str();
 }
 

@@ -134,6 +134,7 @@ HistoryStore::~HistoryStore() {
     if (writer_) {
         if (auto written = write_pending(); !written) log(written.error().message);
     }
+    if (also_write_) also_write_();
 }
 
 SystemTime HistoryStore::wall_now() const { return options_.wall_clock(); }
@@ -195,6 +196,7 @@ void HistoryStore::run(std::stop_token stop) {
         }
         if (stop.stop_requested()) break;
         (void)write_pending();  // failures are logged there and retried on the next round
+        if (also_write_) also_write_();
         next_commit = steady::now() + options_.commit_interval;
     }
 }

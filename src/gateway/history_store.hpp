@@ -88,6 +88,10 @@ public:
     // Who hears of the rows each commit notes in the outbox (the forwarder): given before start(),
     // or, without a writer thread, between the owner's writes.
     void on_outbox(OutboxNoted noted) { outbox_noted_ = std::move(noted); }
+    // Run by the writer thread after each of its commits, and once more as the store closes: the
+    // writer of another table of the file (the alarm journal) that then needs no thread of its
+    // own. Given before start(); it must outlive the store.
+    void also_write(std::function<void()> step) { also_write_ = std::move(step); }
     // Starts the writer thread (named lw-history); once at most.
     void start();
 
@@ -147,6 +151,7 @@ private:
     HistoryOptions options_;
     std::unique_ptr<Writer> writer_;  // the writer's connection and state
     OutboxNoted outbox_noted_;
+    std::function<void()> also_write_;
     // The queue of changes to the writer thread (and its wake-up to stop); the one lock the poll
     // threads share with the writer, held only to swap the queue, never across SQLite.
     mutable std::mutex queue_mutex_;

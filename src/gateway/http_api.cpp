@@ -1,5 +1,7 @@
 #include "gateway/http_api.hpp"
 
+#include "gateway/alarms/alarm_http.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -347,6 +349,16 @@ struct HttpApi::State {
                                       shown, fmt::join(hosts, ", ")));
     }
 
+    // Who may act on an alarm (acknowledge, shelve, ...): whoever may write, with the same token.
+    alarms::AlarmActor alarm_actor(const HttpRequest& request) const {
+        if (token.empty()) {
+            return {error(403, "alarm actions over HTTP are off: give the gateway a token with [http] token_file = \"FILE\" "
+                               "and send it as \"Authorization: Bearer TOKEN\""),
+                    {}};
+        }
+        return {check_token(request), {}};
+    }
+
     HttpOutcome route(const HttpRequest& request);
     HttpResponse devices_list() const;
     HttpResponse device_detail(const ConfiguredDevice& device) const;
@@ -420,6 +432,10 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
     if (path == "/api/events") return get ? events(request) : HttpOutcome{not_allowed(readable), {}, {}};
     if (path == "/api/history") return get ? history(request) : HttpOutcome{not_allowed(readable), {}, {}};
     if (path == "/api/audit") return get ? audit(request) : HttpOutcome{not_allowed(readable), {}, {}};
+    if (auto answered = alarms::alarm_route(request, sources.alarms, sources.history,
+                                            [this](const HttpRequest& asking) { return alarm_actor(asking); })) {
+        return std::move(*answered);
+    }
     if (path == "/api/history/gateways") return get ? history_gateways() : HttpOutcome{not_allowed(readable), {}, {}};
     if (path == "/metrics") return {get ? metrics() : not_allowed(readable), {}, {}};
     constexpr std::string_view prefix = "/api/devices/";
@@ -640,6 +656,7 @@ HttpResponse HttpApi::State::metrics() const {
     const std::optional<OpcuaFigures> opcua = sources.opcua ? std::optional(sources.opcua()) : std::nullopt;
     response.body = prometheus_text(gateway_name, sources.lines(), names, sources.cache->snapshot(), sources.history,
                                     front ? &*front : nullptr, &http, opcua ? &*opcua : nullptr);
+    if (sources.alarms) response.body += alarms::alarm_metrics(sources.alarms->views());
     response.headers.emplace_back("Cache-Control", "no-store");
     return response;
 }

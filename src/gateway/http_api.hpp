@@ -11,6 +11,7 @@
 //   GET  /api/history?device=...      downsampled series from the history store, JSON or CSV;
 //                                     &gateway=NAME: another gateway's, from the shared historian
 //   GET  /api/audit?from=&to=&device= the audit of writes from every front, newest first
+//   GET  /api/alarms, /api/alarms/history, POST /api/alarms/NAME/ack, ... (alarms/alarm_http.hpp)
 //   GET  /metrics                     Prometheus text: the lines' and devices' figures
 //   GET  /, /assets/*                 the dashboard (gateway/dashboard_assets.hpp)
 // Errors are {"error": "..."} with a status that fits.
@@ -21,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "gateway/alarms/alarm_service.hpp"
 #include "gateway/device_writer.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/gateway_config.hpp"
@@ -44,6 +46,7 @@ struct HttpApiSources {
     std::function<void(const std::string&)> log = {};  // failed logins, at warning; none: not logged
     // Sessions and failed logins kept across reloads (gateway/http_sessions.hpp); none: the API's own.
     std::shared_ptr<HttpLogins> logins = {};
+    alarms::AlarmService* alarms = nullptr;           // /api/alarms (gateway/alarms/alarm_http.hpp)
 };
 
 class HttpApi final : public HttpHandler {

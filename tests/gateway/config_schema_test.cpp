@@ -39,6 +39,8 @@ std::string configuration_with(std::string_view table, const std::string& extra)
         {"history", "[history]\ndatabase = \"plant.db\"\n"},
         {"http", "[http]\n"},
         {"opcua", "[opcua]\n"},
+        {"alarms", "[alarms]\n"},
+        {"alarms.limits", "[[alarms.limits]]\ndevice = \"oven\"\nparameter = \"measured_value\"\nkind = \"high\"\nlimit = 250\n"},
     };
     std::string text;
     for (const auto& [name, block] : blocks) text += block + (name == table ? extra : "") + "\n";

@@ -264,7 +264,8 @@ TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
                     "rs485_delay_after, guard, speed, seed, devices)");
 
     const std::string top = error_of(one_device("device = \"tc10@3\"\n") + "[modbus]\nlisten = \"127.0.0.1:1502\"\n");
-    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt, sparkplug, history, http, opcua)");
+    EXPECT_EQ(top, "plant.toml:8: modbus: unknown key (allowed here: gateway, lines, modbus_tcp, log, mqtt, sparkplug, history, http, "
+                   "opcua, alarms)");
 
     const std::string tcp = error_of(one_device("device = \"tc10@3\"\n") + "[modbus_tcp]\nwrite = false\n");
     EXPECT_EQ(tcp, "plant.toml:9: modbus_tcp.write: unknown key (allowed here: enabled, listen, writes, max_age, "
