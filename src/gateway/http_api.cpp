@@ -350,7 +350,22 @@ struct HttpApi::State {
     }
 
     // Who may act on an alarm (acknowledge, shelve, ...): whoever may write, with the same token.
-    alarms::AlarmActor alarm_actor(const HttpRequest& request) const {
+    // Who acts on an alarm. With users: an operator acknowledges; shelving and taking out of
+    // service (hiding an alarm for a while) are an admin's, as ISA-18.2 gives them to whoever
+    // is responsible for the alarm system, not to whoever is on shift. Over a session, with its
+    // CSRF token as for every write.
+    alarms::AlarmActor alarm_actor(const HttpRequest& request, const Caller& caller, alarms::AlarmAction action) const {
+        if (!users.empty()) {
+            if (auto refusal = check_writer(request, caller)) return {std::move(refusal), {}};
+            const bool acknowledge = action == alarms::AlarmAction::acknowledge;
+            if (caller.role == Role::viewer || (!acknowledge && caller.role != Role::admin)) {
+                return {error(403, fmt::format("{} (role {}) may not {}: {}", caller.user, role_name(caller.role),
+                                               acknowledge ? "acknowledge alarms" : "shelve alarms or take them out of service",
+                                               acknowledge ? "operators and admins may" : "admins may")),
+                        {}};
+            }
+            return {std::nullopt, caller.user};
+        }
         if (token.empty()) {
             return {error(403, "alarm actions over HTTP are off: give the gateway a token with [http] token_file = \"FILE\" "
                                "and send it as \"Authorization: Bearer TOKEN\""),
@@ -433,7 +448,9 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
     if (path == "/api/history") return get ? history(request) : HttpOutcome{not_allowed(readable), {}, {}};
     if (path == "/api/audit") return get ? audit(request) : HttpOutcome{not_allowed(readable), {}, {}};
     if (auto answered = alarms::alarm_route(request, sources.alarms, sources.history,
-                                            [this](const HttpRequest& asking) { return alarm_actor(asking); })) {
+                                            [this, &caller](const HttpRequest& asking, alarms::AlarmAction action) {
+                                                return alarm_actor(asking, caller, action);
+                                            })) {
         return std::move(*answered);
     }
     if (path == "/api/history/gateways") return get ? history_gateways() : HttpOutcome{not_allowed(readable), {}, {}};
@@ -455,7 +472,7 @@ HttpOutcome HttpApi::State::route(const HttpRequest& request) {
         return {get ? device_detail(*device) : not_allowed(readable), {}, {}};
     }
     if (!api && (path == "/" || assets.count(path) != 0)) return {get ? asset(request) : not_allowed(readable), {}, {}};
-    return {error(404, fmt::format("no such resource: {} (the API is under /api/: devices, events, history, audit; and /metrics)", path)),
+    return {error(404, fmt::format("no such resource: {} (the API is under /api/: devices, events, history, audit, alarms; and /metrics)", path)),
             {}, {}};
 }
 

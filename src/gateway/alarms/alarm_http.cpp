@@ -99,7 +99,7 @@ std::string text_field(const Json& body, const char* key) {
 
 HttpOutcome act(const HttpRequest& request, AlarmService& alarms, const std::string& id, AlarmAction action,
                 const AlarmAuthorizer& authorize) {
-    AlarmActor actor = authorize(request);
+    AlarmActor actor = authorize(request, action);
     if (actor.refusal) return now(std::move(*actor.refusal));
     Json body = Json::object();
     if (!request.body.empty()) {

@@ -21,7 +21,7 @@ struct AlarmActor {
     std::optional<HttpResponse> refusal;  // set: the request may not act
     std::string user;                     // who acts, when the front knows; else the body's "user"
 };
-using AlarmAuthorizer = std::function<AlarmActor(const HttpRequest&)>;
+using AlarmAuthorizer = std::function<AlarmActor(const HttpRequest&, AlarmAction)>;
 
 // None: not an alarm route.
 std::optional<HttpOutcome> alarm_route(const HttpRequest& request, AlarmService* alarms, const HistorySource* history,
