@@ -105,26 +105,25 @@ constexpr std::array keys{
               "With [[lines.devices.points]] instead of `device`: the device's Modbus address.", "1", true},
 
     ConfigKey{"lines.devices.points", "name", "string", "", "lower-case letters, digits and '_'; unique in the device",
-              "The point's name in the API, MQTT topics and history.", "\"energy_total\"", true},
+              "The point's name in the API, MQTT topics and history.", "\"energy_total\""},
     ConfigKey{"lines.devices.points", "table", "string", "the reference's", "holding, input, coil or discrete",
-              "The Modbus table the point is in; may be left out when `address` is a reference.", "\"holding\"", true},
+              "The Modbus table the point is in; may be left out when `address` is a reference.", "\"holding\""},
     ConfigKey{"lines.devices.points", "address", "integer or string", "", "0..65535, or a 4xxxx/3xxxx/0xxxx/1xxxx reference",
               "The wire address counted from 0, or a reference as manuals print them, counted from 1 (\"40001\" is "
-              "holding register 0).", "12", true},
+              "holding register 0).", "12"},
     ConfigKey{"lines.devices.points", "type", "string", "bool for a coil or discrete input", "int16, uint16 or bits",
-              "How the register holds the value: signed, unsigned, or 16 named bits (bit0..bit15).", "\"uint16\"", true},
+              "How the register holds the value: signed, unsigned, or 16 named bits (bit0..bit15).", "\"uint16\""},
     ConfigKey{"lines.devices.points", "decimals", "integer", "0", "0..4",
-              "The value is the register divided by 10^decimals.", "1", true},
-    ConfigKey{"lines.devices.points", "scale", "number", "1", "1, 0.1, 0.01, 0.001 or 0.0001",
-              "The same as decimals, written as a factor (0.1 is decimals = 1).", "0.1", true},
-    ConfigKey{"lines.devices.points", "unit", "string", "none", "", "The value's unit.", "\"kWh\"", true},
-    ConfigKey{"lines.devices.points", "min", "number", "none", "at most max", "The least value a write may set.", "0", true},
-    ConfigKey{"lines.devices.points", "max", "number", "none", "at least min", "The largest value a write may set.", "100",
-              true},
+              "The value is the register divided by 10^decimals.", "1"},
+    ConfigKey{"lines.devices.points", "scale", "factor", "1", "1, 0.1, 0.01, 0.001 or 0.0001",
+              "The same as decimals, written as a factor (0.1 is decimals = 1).", "0.1"},
+    ConfigKey{"lines.devices.points", "unit", "string", "none", "", "The value's unit.", "\"kWh\""},
+    ConfigKey{"lines.devices.points", "min", "number in the point's unit", "none", "at most max", "The least value a write may set.", "0"},
+    ConfigKey{"lines.devices.points", "max", "number in the point's unit", "none", "at least min", "The largest value a write may set.", "100"},
     ConfigKey{"lines.devices.points", "writable", "boolean", "false", "holding and coil points only",
-              "Whether the fronts may write the point.", "false", true},
+              "Whether the fronts may write the point.", "false"},
     ConfigKey{"lines.devices.points", "poll", "boolean", "polled", "false only",
-              "false: the point is not polled (still written and read on demand).", "false", true},
+              "false: the point is not polled (still written and read on demand).", "false"},
 
     ConfigKey{"modbus_tcp", "enabled", "boolean", "true", "", "Whether the Modbus TCP front is served.", "true"},
     ConfigKey{"modbus_tcp", "listen", "string", "\"127.0.0.1:1502\"", "HOST:PORT or [IPV6]:PORT; port 0 takes any free one",
@@ -285,6 +284,7 @@ constexpr std::array ranges{
     ConfigRange{"lines", "seed", 0, 4294967295.0},
     ConfigRange{"lines.devices", "tcp_unit", 1, 247},  // Modbus unit ids end at 247
     ConfigRange{"lines.devices", "unit", 1, 247},
+    ConfigRange{"lines.devices.points", "decimals", 0, 4},
     ConfigRange{"modbus_tcp", "max_connections", 1, 10000},
     ConfigRange{"mqtt", "max_payload", 16, 65536},
     ConfigRange{"http", "max_connections", 1, 10000},
@@ -336,13 +336,13 @@ void print_comment(std::ostringstream& out, std::string_view text) {
     }
 }
 
-void print_key(std::ostringstream& out, const ConfigKey& key) {
+void print_key(std::ostringstream& out, const ConfigKey& key, bool commented) {
     print_comment(out, key.meaning);
     std::string facts = fmt::format("{}", key.type);
     if (!key.bounds.empty()) facts += fmt::format(", {}", key.bounds);
     facts += key.required() ? "; required" : fmt::format("; default {}", key.default_value);
     print_comment(out, "(" + facts + ")");
-    out << fmt::format("{}{} = {}\n", key.example_commented ? "# " : "", key.key, key.example);
+    out << fmt::format("{}{} = {}\n", commented || key.example_commented ? "# " : "", key.key, key.example);
 }
 
 }  // namespace
@@ -388,7 +388,7 @@ std::string commented_example_config() {
         out << fmt::format("\n{}{}\n", table.example_commented ? "# " : "", table.header);
         print_comment(out, table.meaning);
         for (const ConfigKey& key : keys) {
-            if (key.table == table.name) print_key(out, key);
+            if (key.table == table.name) print_key(out, key, table.example_commented);
         }
     }
     return out.str();

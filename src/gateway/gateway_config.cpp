@@ -415,6 +415,13 @@ std::optional<DeviceConfig> parse_device(const Context& ctx, const toml::table& 
         device.identify = **identify;
     }
     auto tcp_unit = ctx.kept(optional_integer(ctx, table, path, "lines.devices", "tcp_unit"));
+    if (!table.contains("points") && table.contains("unit")) {
+        // Read for its mistakes too, so that a wrong unit is not hidden behind the one of `device`.
+        ctx.kept(optional_integer(ctx, table, path, "lines.devices", "unit"));
+        ctx.note(ctx.fail(source_of(table, "unit"), key_path(path, "unit"),
+                          "`unit` goes with [[lines.devices.points]]; with a profile, the unit is given by device = "
+                          "\"PROFILE@UNIT\": remove it"));
+    }
     auto address = table.contains("points") ? points_device_address(ctx, table, path, device)
                                             : ctx.kept(device_address(ctx, table, path));
     if (!address) return std::nullopt;
