@@ -17,6 +17,7 @@
 
 #include <fmt/format.h>
 
+#include "gateway/device_points.hpp"
 #include "gateway/gateway_config.hpp"
 #include "support/profile_test_support.hpp"
 
@@ -1575,6 +1576,48 @@ TEST(DevicePoints, AProfileAndPointsTogetherAreRefused) {
     EXPECT_THAT(error_of(points_device("device = \"tc10@1\"\n[[lines.devices.points]]\nname = \"a\"\naddress = 1\n"
                                       "table = \"holding\"\ntype = \"uint16\"\n")),
                 HasSubstr("not both"));
+}
+
+}  // namespace
+}  // namespace loopwire::gateway
+
+namespace loopwire::gateway {
+namespace {
+
+// `loopwire profile from-points` writes a profile that loads to the model the gateway gave the device.
+TEST(DevicePoints, TheWrittenProfileLoadsToTheSameModel) {
+    const std::string text = points_device(R"(
+[[lines.devices.points]]
+name = "voltage"
+address = "30001"
+type = "uint16"
+decimals = 1
+unit = "V"
+[[lines.devices.points]]
+name = "status"
+address = "40012"
+type = "bits"
+)");
+    const fs::path file = fs::temp_directory_path() / fmt::format("points-{}.toml", ::getpid());
+    std::ofstream(file) << text;
+    auto written = points_profile_text(file, "meter1");
+    fs::remove(file);
+    ASSERT_TRUE(written.ok()) << written.error().message;
+    auto loaded = device::load_profile_text(*written, "meter1.json");
+    ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+    auto config = parse(text);
+    ASSERT_TRUE(config.ok()) << config.error().message;
+    const device::Profile& served = *config->lines.at(0).devices.at(0).address.profile;
+    EXPECT_EQ(loaded->id, served.id);
+    ASSERT_EQ(loaded->parameters.size(), served.parameters.size());
+    for (std::size_t i = 0; i < served.parameters.size(); ++i) {
+        EXPECT_EQ(loaded->parameters[i].name, served.parameters[i].name);
+        EXPECT_EQ(loaded->parameters[i].table, served.parameters[i].table);
+        EXPECT_EQ(loaded->parameters[i].address, served.parameters[i].address);
+        EXPECT_EQ(loaded->parameters[i].type, served.parameters[i].type);
+        EXPECT_EQ(loaded->parameters[i].unit, served.parameters[i].unit);
+        EXPECT_EQ(loaded->parameters[i].decimals, served.parameters[i].decimals);
+    }
 }
 
 }  // namespace
