@@ -16,6 +16,7 @@ void add_simulate_command(CLI::App& app, int& exit_code, const ProfileOptions& p
 void add_decode_command(CLI::App& app, int& exit_code);
 void add_demo_command(CLI::App& app, int& exit_code);
 void add_profile_commands(CLI::App& app, int& exit_code, const ProfileOptions& profiles);  // devices, describe
+void add_profile_group_command(CLI::App& app, int& exit_code);  // profile from-points
 void add_scan_command(CLI::App& app, int& exit_code);
 void add_restore_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);
 void add_monitor_command(CLI::App& app, int& exit_code, const ProfileOptions& profiles);

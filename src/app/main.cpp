@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
     add_decode_command(app, exit_code);
     add_demo_command(app, exit_code);
     add_profile_commands(app, exit_code, profiles);
+    add_profile_group_command(app, exit_code);
     add_scan_command(app, exit_code);
     add_restore_command(app, exit_code, profiles);
     add_monitor_command(app, exit_code, profiles);

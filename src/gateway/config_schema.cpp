@@ -19,6 +19,11 @@ constexpr std::array tables{
                 "or a simulated line. At least one."},
     ConfigTable{"lines.devices", "[[lines.devices]]",
                 "One table per device on the line above it; its values are polled and served on every front."},
+    ConfigTable{"lines.devices.points", "[[lines.devices.points]]",
+                "A device loopwire has no profile for (a power meter, a drive) is described by its points instead of "
+                "`device`: one table per value, and `unit = N` in the device's table. They are served as a profile's "
+                "parameters are; `loopwire profile from-points FILE DEVICE` prints them as a profile file.",
+                true},
     ConfigTable{"modbus_tcp", "[modbus_tcp]",
                 "The Modbus TCP front: clients reach every device through it by its unit id. Absent: on, at "
                 "127.0.0.1:1502, with these defaults."},
@@ -90,7 +95,8 @@ constexpr std::array keys{
               "The device's name in MQTT topics, URLs, metrics and logs.", "\"oven\""},
     ConfigKey{"lines.devices", "device", "string", "", "PROFILE@UNIT, the unit given; unit unique on the line",
               "The device's profile and unit address, as `loopwire read --device` takes it (`loopwire devices` lists "
-              "the profiles and the protocols each speaks, one of which must be the line's).",
+              "the profiles and the protocols each speaks, one of which must be the line's). A device without a profile "
+              "gives `unit` and [[lines.devices.points]] instead.",
               "\"tc10@3\""},
     ConfigKey{"lines.devices", "poll", "duration", "\"1s\"", "at least 1ms", "How often its parameters are polled.",
               "\"1s\""},
@@ -104,6 +110,30 @@ constexpr std::array keys{
               "true", true},
     ConfigKey{"lines.devices", "tcp_unit", "integer", "the device's unit", "1..247; unique in the file",
               "The unit id Modbus TCP clients reach the device by (needed for units above 247).", "3", true},
+
+    ConfigKey{"lines.devices", "unit", "integer", "none: `device` gives it", "1..247; unique on the line",
+              "With [[lines.devices.points]] instead of `device`: the device's Modbus address.", "1", true},
+
+    ConfigKey{"lines.devices.points", "name", "string", "", "lower-case letters, digits and '_'; unique in the device",
+              "The point's name in the API, MQTT topics and history.", "\"energy_total\""},
+    ConfigKey{"lines.devices.points", "table", "string", "the reference's", "holding, input, coil or discrete",
+              "The Modbus table the point is in; may be left out when `address` is a reference.", "\"holding\""},
+    ConfigKey{"lines.devices.points", "address", "integer or string", "", "0..65535, or a 4xxxx/3xxxx/0xxxx/1xxxx reference",
+              "The wire address counted from 0, or a reference as manuals print them, counted from 1 (\"40001\" is "
+              "holding register 0).", "12"},
+    ConfigKey{"lines.devices.points", "type", "string", "bool for a coil or discrete input", "int16, uint16 or bits",
+              "How the register holds the value: signed, unsigned, or 16 named bits (bit0..bit15).", "\"uint16\""},
+    ConfigKey{"lines.devices.points", "decimals", "integer", "0", "0..4",
+              "The value is the register divided by 10^decimals.", "1"},
+    ConfigKey{"lines.devices.points", "scale", "factor", "1", "1, 0.1, 0.01, 0.001 or 0.0001",
+              "The same as decimals, written as a factor (0.1 is decimals = 1).", "0.1"},
+    ConfigKey{"lines.devices.points", "unit", "string", "none", "", "The value's unit.", "\"kWh\""},
+    ConfigKey{"lines.devices.points", "min", "number in the point's unit", "none", "at most max", "The least value a write may set.", "0"},
+    ConfigKey{"lines.devices.points", "max", "number in the point's unit", "none", "at least min", "The largest value a write may set.", "100"},
+    ConfigKey{"lines.devices.points", "writable", "boolean", "false", "holding and coil points only",
+              "Whether the fronts may write the point.", "false"},
+    ConfigKey{"lines.devices.points", "poll", "boolean", "polled", "false only",
+              "false: the point is not polled (still written and read on demand).", "false"},
 
     ConfigKey{"modbus_tcp", "enabled", "boolean", "true", "", "Whether the Modbus TCP front is served.", "true"},
     ConfigKey{"modbus_tcp", "listen", "string", "\"127.0.0.1:1502\"", "HOST:PORT or [IPV6]:PORT; port 0 takes any free one",
@@ -313,6 +343,8 @@ constexpr std::array ranges{
     ConfigRange{"lines", "speed", 0.001, 100000},
     ConfigRange{"lines", "seed", 0, 4294967295.0},
     ConfigRange{"lines.devices", "tcp_unit", 1, 247},  // Modbus unit ids end at 247
+    ConfigRange{"lines.devices", "unit", 1, 247},
+    ConfigRange{"lines.devices.points", "decimals", 0, 4},
     ConfigRange{"modbus_tcp", "max_connections", 1, 10000},
     ConfigRange{"mqtt", "max_payload", 16, 65536},
     ConfigRange{"http", "max_connections", 1, 10000},
@@ -370,13 +402,13 @@ void print_comment(std::ostringstream& out, std::string_view text) {
     }
 }
 
-void print_key(std::ostringstream& out, const ConfigKey& key) {
+void print_key(std::ostringstream& out, const ConfigKey& key, bool commented) {
     print_comment(out, key.meaning);
     std::string facts = fmt::format("{}", key.type);
     if (!key.bounds.empty()) facts += fmt::format(", {}", key.bounds);
     facts += key.required() ? "; required" : fmt::format("; default {}", key.default_value);
     print_comment(out, "(" + facts + ")");
-    out << fmt::format("{}{} = {}\n", key.example_commented ? "# " : "", key.key, key.example);
+    out << fmt::format("{}{} = {}\n", commented || key.example_commented ? "# " : "", key.key, key.example);
 }
 
 }  // namespace
@@ -418,10 +450,11 @@ std::string commented_example_config() {
            "# name your own lines and devices, then check the file:\n"
            "#   loopwire gateway --config gateway.toml --check\n";
     for (const ConfigTable& table : tables) {
-        out << fmt::format("\n{}\n", table.header);
+        // A table that cannot stand beside the example's other keys is shown commented out.
+        out << fmt::format("\n{}{}\n", table.example_commented ? "# " : "", table.header);
         print_comment(out, table.meaning);
         for (const ConfigKey& key : keys) {
-            if (key.table == table.name) print_key(out, key);
+            if (key.table == table.name) print_key(out, key, table.example_commented);
         }
     }
     return out.str();

@@ -14,6 +14,7 @@ struct ConfigTable {
     std::string_view name;     // "mqtt", "lines.devices": the key path without indexes
     std::string_view header;   // "[mqtt]", "[[lines.devices]]"
     std::string_view meaning;  // what the table is for, and what its absence means
+    bool example_commented = false;  // `--print-config` writes it commented out, with all its keys
 };
 
 struct ConfigKey {

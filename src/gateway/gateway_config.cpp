@@ -24,6 +24,7 @@
 #include "common/text_parsing.hpp"
 #include "gateway/alarms/alarm_config.hpp"
 #include "gateway/config_schema.hpp"
+#include "gateway/device_points.hpp"
 #include "gateway/http_server.hpp"
 #include "gateway/postgres_database.hpp"
 #include "profile/request_planner.hpp"
@@ -373,6 +374,30 @@ Result<device::DeviceAddress> device_address(const Context& ctx, const toml::tab
     return std::move(*address);
 }
 
+// `unit = N` and [[lines.devices.points]] instead of `device`: the points become the device's
+// profile (device_points.hpp), and the points polled its parameters. Every mistake is noted.
+std::optional<device::DeviceAddress> points_device_address(const Context& ctx, const toml::table& table,
+                                                           const std::string& path, DeviceConfig& device) {
+    if (table.contains("device")) {
+        ctx.note(ctx.fail(source_of(table, "device"), key_path(path, "device"),
+                          "a device is described by a profile (device = \"PROFILE@UNIT\") or by its points (unit = N "
+                          "and [[lines.devices.points]]), not both: remove one"));
+        return std::nullopt;
+    }
+    auto unit = ctx.kept(optional_integer(ctx, table, path, "lines.devices", "unit"));
+    if (unit && !*unit) ctx.note(ctx.fail(table.source(), path, "missing `unit` (the device's Modbus address, e.g. unit = 1)"));
+    auto points = points_profile(table, ctx.source, path, device.name, ctx.mistakes);
+    if (!unit || !*unit || !points) return std::nullopt;
+    auto profile = device::load_profile_text(points->document.dump(), "the profile of its points");
+    if (!profile) {
+        ctx.note(ctx.fail(table.source(), path, profile.error().message));
+        return std::nullopt;
+    }
+    device.parameters = std::move(points->polled);
+    return device::DeviceAddress{std::make_shared<const device::Profile>(std::move(*profile)),
+                                 static_cast<std::uint8_t>(**unit), 0};
+}
+
 // The device, its mistakes noted; none when its profile and unit are unknown, which the checks
 // of its parameters and against the line and the other devices need.
 std::optional<DeviceConfig> parse_device(const Context& ctx, const toml::table& table, const std::string& path,
@@ -391,10 +416,20 @@ std::optional<DeviceConfig> parse_device(const Context& ctx, const toml::table& 
         device.identify = **identify;
     }
     auto tcp_unit = ctx.kept(optional_integer(ctx, table, path, "lines.devices", "tcp_unit"));
-    auto address = ctx.kept(device_address(ctx, table, path));
+    if (!table.contains("points") && table.contains("unit")) {
+        // Read for its mistakes too, so that a wrong unit is not hidden behind the one of `device`.
+        ctx.kept(optional_integer(ctx, table, path, "lines.devices", "unit"));
+        ctx.note(ctx.fail(source_of(table, "unit"), key_path(path, "unit"),
+                          "`unit` goes with [[lines.devices.points]]; with a profile, the unit is given by device = "
+                          "\"PROFILE@UNIT\": remove it"));
+    }
+    auto address = table.contains("points") ? points_device_address(ctx, table, path, device)
+                                            : ctx.kept(device_address(ctx, table, path));
     if (!address) return std::nullopt;
     device.address = std::move(*address);
-    device.parameters = parameter_names(ctx, table, path, *device.address.profile, device.name);
+    if (table.contains("parameters") || !table.contains("points")) {
+        device.parameters = parameter_names(ctx, table, path, *device.address.profile, device.name);
+    }
     // A wrong tcp_unit leaves seen.tcp_unit 0, out of the clash check: its own mistake is said.
     if (!tcp_unit) return device;
     // The manuals allow units past 247 (AC20: 1-255, TC10: up to 254), Modbus TCP clients reach

@@ -131,7 +131,8 @@ bool alias_word(const std::string& alias) {
 
 void check_top_level_references(const Json& document, ReferenceCheck& references,
                                  std::vector<DocumentProblem>& problems) {
-    const Json& identification = document.at("identification");
+    // A device described by its points alone has nothing it can be recognised by.
+    const Json identification = document.value("identification", Json::object({{"match", Json::array()}}));
     const Json& match = identification.at("match");
     for (std::size_t k = 0; k < match.size(); ++k) {
         const std::string pointer = fmt::format("/identification/match/{}", k);

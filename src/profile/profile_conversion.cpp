@@ -183,7 +183,7 @@ Profile profile_from_document(const Json& document) {
     profile.manual_document = document.at("manual").at("document").get<std::string>();
     read_line(document, profile);
     read_addressing(document.at("addressing"), profile);
-    read_identification(document.at("identification"), profile);
+    if (document.contains("identification")) read_identification(document.at("identification"), profile);
     read_mode_requirements(document, profile);
     read_aliases(document, profile);
     const auto word_specials = specials_from(document.value("word_specials", Json::array()));

@@ -17,6 +17,7 @@
 
 #include <fmt/format.h>
 
+#include "gateway/device_points.hpp"
 #include "gateway/gateway_config.hpp"
 #include "support/profile_test_support.hpp"
 
@@ -256,7 +257,7 @@ TEST(GatewayConfig, ASyntaxErrorGivesLineColumnAndTheParsersWords) {
 
 TEST(GatewayConfig, AnUnknownKeyIsNamedWithTheAllowedOnes) {
     const std::string device = error_of(one_device("device = \"tc10@3\"\npol = \"1s\"\n"));
-    EXPECT_EQ(device, "plant.toml:8: lines[0].devices[0].pol: unknown key (allowed here: name, device, poll, parameters, identify, tcp_unit)");
+    EXPECT_EQ(device, "plant.toml:8: lines[0].devices[0].pol: unknown key (allowed here: name, device, poll, parameters, identify, tcp_unit, unit, points)");
 
     const std::string line = error_of("[[lines]]\nname = \"l1\"\nlink = \"rtu:virtual\"\ntimout = \"1s\"\n");
     EXPECT_EQ(line, "plant.toml:4: lines[0].timout: unknown key (allowed here: name, link, timeout, retries, late_reply_window, "
@@ -1467,6 +1468,159 @@ TEST(GatewayConfig, HistoryPasswordFileIsReadAndMustBePrivate) {
                 AllOf(HasSubstr("history.password_file: "), HasSubstr("is readable by every user; make it private")));
     EXPECT_THAT(error_of(forwarded("password_file = \"" + secret.path() + "\"\n")),
                 HasSubstr("history.password_file: only used with `forward_to`"));
+}
+
+}  // namespace
+}  // namespace loopwire::gateway
+
+namespace loopwire::gateway {
+namespace {
+
+std::string points_device(const std::string& points) {
+    return "[[lines]]\nname = \"meters\"\nlink = \"tcp://127.0.0.1:5020\"\n\n"
+           "[[lines.devices]]\nname = \"meter1\"\nunit = 7\n" + points;
+}
+
+TEST(DevicePoints, PointsBecomeTheDevicesProfile) {
+    auto config = parse(points_device(R"(
+[[lines.devices.points]]
+name = "voltage"
+address = "30001"
+type = "uint16"
+scale = 0.1
+unit = "V"
+[[lines.devices.points]]
+name = "limit"
+address = "40011"
+type = "int16"
+min = -5
+max = 100
+writable = true
+[[lines.devices.points]]
+name = "relay"
+table = "coil"
+address = 3
+writable = true
+poll = false
+)"));
+    ASSERT_TRUE(config.ok()) << config.error().message;
+    const DeviceConfig& device = config->lines.at(0).devices.at(0);
+    EXPECT_EQ(device.address.unit, 7);
+    EXPECT_EQ(device.parameters, (std::vector<std::string>{"voltage", "limit"}));
+    const device::Parameter* voltage = device.address.profile->find("voltage");
+    ASSERT_NE(voltage, nullptr);
+    EXPECT_EQ(voltage->table, device::Table::input_registers);
+    EXPECT_EQ(voltage->address, 0);
+    EXPECT_EQ(std::get<int>(voltage->decimals), 1);
+    EXPECT_EQ(voltage->unit, "V");
+    const device::Parameter* limit = device.address.profile->find("limit");
+    ASSERT_NE(limit, nullptr);
+    EXPECT_EQ(limit->table, device::Table::holding_registers);
+    EXPECT_EQ(limit->address, 10);
+    EXPECT_TRUE(limit->writable);
+    const device::Parameter* relay = device.address.profile->find("relay");
+    ASSERT_NE(relay, nullptr);
+    EXPECT_EQ(relay->table, device::Table::coils);
+    EXPECT_EQ(relay->type, device::ValueType::boolean);
+}
+
+TEST(DevicePoints, EveryMistakeIsSaidWithItsLine) {
+    const std::string message = error_of(points_device(R"(
+[[lines.devices.points]]
+name = "a"
+address = "40001"
+type = "float32"
+[[lines.devices.points]]
+name = "b"
+address = 0
+table = "holding"
+type = "int16"
+min = 5
+max = 1
+[[lines.devices.points]]
+name = "c"
+address = "30001"
+type = "uint16"
+writable = true
+[[lines.devices.points]]
+name = "d"
+address = "30001"
+table = "holding"
+type = "uint16"
+[[lines.devices.points]]
+name = "e"
+address = 2
+table = "holding"
+type = "int128"
+)"));
+    EXPECT_THAT(message, HasSubstr("plant.toml:12: lines[0].devices[0].points[0].type: float32 spans more than one register"));
+    EXPECT_THAT(message, HasSubstr("plant.toml:18: lines[0].devices[0].points[1].min: min 5 is above max 1"));
+    EXPECT_THAT(message, HasSubstr("points[2].writable: the input table is read-only"));
+    EXPECT_THAT(message, HasSubstr("points[3].table: the reference is in table input, not holding"));
+    EXPECT_THAT(message, HasSubstr("points[4].type: unknown type \"int128\""));
+}
+
+TEST(DevicePoints, TwoPointsOnOneRegisterAreRefused) {
+    const std::string message = error_of(points_device(R"(
+[[lines.devices.points]]
+name = "a"
+address = "40002"
+type = "uint16"
+[[lines.devices.points]]
+name = "b"
+address = 1
+table = "holding"
+type = "int16"
+)"));
+    EXPECT_THAT(message, HasSubstr("points[1].address: holding 1 is already point a"));
+}
+
+TEST(DevicePoints, AProfileAndPointsTogetherAreRefused) {
+    EXPECT_THAT(error_of(points_device("device = \"tc10@1\"\n[[lines.devices.points]]\nname = \"a\"\naddress = 1\n"
+                                      "table = \"holding\"\ntype = \"uint16\"\n")),
+                HasSubstr("not both"));
+}
+
+}  // namespace
+}  // namespace loopwire::gateway
+
+namespace loopwire::gateway {
+namespace {
+
+// `loopwire profile from-points` writes a profile that loads to the model the gateway gave the device.
+TEST(DevicePoints, TheWrittenProfileLoadsToTheSameModel) {
+    const std::string text = points_device(R"(
+[[lines.devices.points]]
+name = "voltage"
+address = "30001"
+type = "uint16"
+decimals = 1
+unit = "V"
+[[lines.devices.points]]
+name = "status"
+address = "40012"
+type = "bits"
+)");
+    const fs::path file = fs::temp_directory_path() / fmt::format("points-{}.toml", ::getpid());
+    std::ofstream(file) << text;
+    auto written = points_profile_text(file, "meter1");
+    fs::remove(file);
+    ASSERT_TRUE(written.ok()) << written.error().message;
+    auto loaded = device::load_profile_text(*written, "meter1.json");
+    ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+    auto config = parse(text);
+    ASSERT_TRUE(config.ok()) << config.error().message;
+    const device::Profile& served = *config->lines.at(0).devices.at(0).address.profile;
+    EXPECT_EQ(loaded->id, served.id);
+    ASSERT_EQ(loaded->parameters.size(), served.parameters.size());
+    for (std::size_t i = 0; i < served.parameters.size(); ++i) {
+        EXPECT_EQ(loaded->parameters[i].name, served.parameters[i].name);
+        EXPECT_EQ(loaded->parameters[i].table, served.parameters[i].table);
+        EXPECT_EQ(loaded->parameters[i].address, served.parameters[i].address);
+        EXPECT_EQ(loaded->parameters[i].type, served.parameters[i].type);
+        EXPECT_EQ(loaded->parameters[i].unit, served.parameters[i].unit);
+        EXPECT_EQ(loaded->parameters[i].decimals, served.parameters[i].decimals);
+    }
 }
 
 }  // namespace
