@@ -42,13 +42,15 @@ std::string configuration_with(std::string_view table, const std::string& extra)
         {"alarms", "[alarms]\n"},
         {"alarms.limits", "[[alarms.limits]]\ndevice = \"oven\"\nparameter = \"measured_value\"\nkind = \"high\"\nlimit = 250\n"},
     };
-    // A device of points: its table's keys go to its one point; its `unit` to the device.
+    // A device of points: its table's keys go to its one point; its `unit` to the device (one more,
+    // of points).
     const std::string point = "[[lines.devices.points]]\nname = \"p\"\naddress = 1\ntable = \"holding\"\ntype = \"uint16\"\n";
     const bool device_unit = table == "lines.devices" && extra.starts_with("unit ");
     std::string text;
     for (const auto& [name, block] : blocks) {
         if (name == "lines.devices" && device_unit) {
-            text += "[[lines.devices]]\nname = \"oven\"\n" + extra + point + "\n";
+            // Beside the oven, which the alarm limit's block watches.
+            text += block + "\n[[lines.devices]]\nname = \"pump\"\n" + extra + point + "\n";
             continue;
         }
         text += block + (name == table ? extra : "") + "\n";
