@@ -1,14 +1,13 @@
 // loopwire alarms --database FILE [--from -24h] [--to now] [--limit N] [--format table|csv|json]
 // The alarm journal a gateway keeps in its [history] file: every transition of every alarm,
 // newest first, as GET /api/alarms/history answers it.
-#include <cctype>
-#include <filesystem>
 
 #include <fmt/format.h>
 
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "app/history_file.hpp"
 #include "gateway/alarms/alarm_journal.hpp"
 #include "gateway/history_schema.hpp"
 #include "gateway/http_text.hpp"
@@ -26,16 +25,7 @@ struct AlarmsCommandOptions {
 
 // The times as the API's query, so that they are read (and checked) as /api/alarms/history reads them.
 std::string as_query(const AlarmsCommandOptions& options) {
-    const auto encoded = [](const std::string& text) {
-        std::string out;
-        for (const char c : text) {
-            const auto byte = static_cast<unsigned char>(c);
-            out += std::isalnum(byte) || c == '-' || c == '.' || c == '_' || c == ':' ? std::string(1, c)
-                                                                                     : fmt::format("%{:02X}", byte);
-        }
-        return out;
-    };
-    return fmt::format("from={}&to={}&limit={}", encoded(options.from), encoded(options.to), options.limit);
+    return fmt::format("from={}&to={}&limit={}", gateway::percent_encode(options.from), gateway::percent_encode(options.to), options.limit);
 }
 
 void print_table(const std::vector<gateway::alarms::JournalRow>& rows) {
@@ -53,12 +43,7 @@ void print_table(const std::vector<gateway::alarms::JournalRow>& rows) {
 int run_alarms(const AlarmsCommandOptions& options) {
     auto query = gateway::audit_query(as_query(options), std::chrono::system_clock::now());
     if (!query) return report_error(query.error());
-    std::error_code error;
-    if (!std::filesystem::is_regular_file(options.database, error)) {
-        return report_error(make_error(ErrorKind::usage, fmt::format("alarms: {} is not a history file (a gateway's [history] "
-                                                                     "database)", options.database)));
-    }
-    auto db = gateway::history::open_for_reading(options.database);
+    auto db = open_history_file("alarms", options.database);
     if (!db) return report_error(db.error());
     auto rows = gateway::alarms::read_journal(*db, query->from, query->to, query->limit);
     if (!rows) return report_error(rows.error());

@@ -3,14 +3,13 @@
 // The audit of writes a gateway keeps in its [history] file: every write from every front
 // (HTTP, MQTT, Sparkplug, Modbus TCP) and every reload of its configuration, newest first, as
 // GET /api/audit answers it.
-#include <cctype>
-#include <filesystem>
 
 #include <fmt/format.h>
 
 #include "app/command_line.hpp"
 #include "app/commands.hpp"
 #include "app/exit_codes.hpp"
+#include "app/history_file.hpp"
 #include "gateway/history_query.hpp"
 #include "gateway/history_schema.hpp"
 #include "gateway/http_text.hpp"
@@ -30,17 +29,8 @@ struct AuditCommandOptions {
 // The options as /api/audit's query, percent-encoded, so that the API's parser checks and reads
 // them: the same times and bounds.
 std::string as_query(const AuditCommandOptions& options) {
-    const auto encoded = [](const std::string& text) {
-        std::string out;
-        for (const char c : text) {
-            const auto byte = static_cast<unsigned char>(c);
-            out += std::isalnum(byte) || c == '-' || c == '.' || c == '_' || c == ':' ? std::string(1, c)
-                                                                                     : fmt::format("%{:02X}", byte);
-        }
-        return out;
-    };
-    std::string query = fmt::format("from={}&to={}&limit={}", encoded(options.from), encoded(options.to), options.limit);
-    if (!options.device.empty()) query += "&device=" + encoded(options.device);
+    std::string query = fmt::format("from={}&to={}&limit={}", gateway::percent_encode(options.from), gateway::percent_encode(options.to), options.limit);
+    if (!options.device.empty()) query += "&device=" + gateway::percent_encode(options.device);
     return query;
 }
 
@@ -59,12 +49,7 @@ void print_table(const std::vector<gateway::AuditRecord>& records) {
 int run_audit(const AuditCommandOptions& options) {
     auto query = gateway::audit_query(as_query(options), std::chrono::system_clock::now());
     if (!query) return report_error(query.error());
-    std::error_code error;
-    if (!std::filesystem::is_regular_file(options.database, error)) {
-        return report_error(make_error(ErrorKind::usage, fmt::format("audit: {} is not a history file (a gateway's [history] "
-                                                                     "database)", options.database)));
-    }
-    auto db = gateway::history::open_for_reading(options.database);
+    auto db = open_history_file("audit", options.database);
     if (!db) return report_error(db.error());
     auto records = gateway::history::run_audit_query(*db, *query);
     if (!records) return report_error(records.error());

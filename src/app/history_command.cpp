@@ -3,7 +3,6 @@
 // The recorded history of one device, cut into buckets as GET /api/history cuts it: from the
 // shared PostgreSQL historian (any gateway that forwards to it, --gateway required), or from a
 // gateway's own SQLite file.
-#include <cctype>
 #include <filesystem>
 
 #include <fmt/format.h>
@@ -34,21 +33,9 @@ struct HistoryCommandOptions {
 // The options as /api/history's query, percent-encoded, so that the API's parser checks and
 // reads them: the same times ("-1h", ISO 8601 with its zone, "now") and the same bounds.
 std::string as_query(const HistoryCommandOptions& options) {
-    const auto encoded = [](const std::string& text) {
-        std::string out;
-        for (const char c : text) {
-            const auto byte = static_cast<unsigned char>(c);
-            if (std::isalnum(byte) || c == '-' || c == '.' || c == '_' || c == ',' || c == ':') {
-                out += c;
-            } else {
-                out += fmt::format("%{:02X}", byte);
-            }
-        }
-        return out;
-    };
-    std::string query = fmt::format("device={}&from={}&to={}&points={}", encoded(options.device), encoded(options.from),
-                                    encoded(options.to), options.points);
-    if (!options.parameters.empty()) query += "&parameters=" + encoded(options.parameters);
+    std::string query = fmt::format("device={}&from={}&to={}&points={}", gateway::percent_encode(options.device), gateway::percent_encode(options.from),
+                                    gateway::percent_encode(options.to), options.points);
+    if (!options.parameters.empty()) query += "&parameters=" + gateway::percent_encode(options.parameters);
     return query;
 }
 

@@ -1,6 +1,7 @@
 #include "gateway/http_text.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 
 #include <fmt/format.h>
@@ -92,6 +93,16 @@ std::optional<system_clock::time_point> parse_iso_time(std::string_view text) {
     if (at != text.size()) return std::nullopt;
     const auto local = sys_days{date} + hours(*h) + minutes(*mi) + seconds(*s) + fraction;
     return time_point_cast<system_clock::duration>(local - offset);
+}
+
+std::string percent_encode(std::string_view text) {
+    std::string out;
+    for (const char c : text) {
+        const auto byte = static_cast<unsigned char>(c);
+        const bool plain = std::isalnum(byte) || c == '-' || c == '.' || c == '_' || c == ':' || c == ',';
+        out += plain ? std::string(1, c) : fmt::format("%{:02X}", byte);
+    }
+    return out;
 }
 
 std::optional<std::string> percent_decode(std::string_view text, bool plus_is_space) {

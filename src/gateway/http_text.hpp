@@ -27,6 +27,8 @@ std::optional<std::chrono::system_clock::time_point> parse_iso_time(std::string_
 
 // %XX and '+' (a space, in a query) decoded; none when a % is not followed by two hex digits.
 std::optional<std::string> percent_decode(std::string_view text, bool plus_is_space = false);
+// Every byte but letters, digits and "-._:," as %XX: a value for a query string.
+std::string percent_encode(std::string_view text);
 
 // "a=1&b=two": each name's (last) value, decoded; names or values that do not decode are left out.
 std::map<std::string, std::string> parse_query(std::string_view query);
