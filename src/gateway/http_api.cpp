@@ -21,6 +21,7 @@
 #include "gateway/dashboard_assets.hpp"
 #include "gateway/forwarding_unit.hpp"
 #include "gateway/http_sessions.hpp"
+#include "gateway/http_json.hpp"
 #include "gateway/http_text.hpp"
 #include "gateway/metrics.hpp"
 #include "profile/value_format.hpp"
@@ -30,23 +31,9 @@ namespace {
 
 using Json = nlohmann::ordered_json;
 
-HttpResponse json_response(unsigned status, const Json& body) {
-    HttpResponse response;
-    response.status = status;
-    // Replaced, not thrown on: a device's text is the device's, and a client's (a name in a
-    // path, a value in a body) the client's; either may not be valid UTF-8.
-    response.body = json_text(body);
-    response.headers.emplace_back("Cache-Control", "no-store");
-    return response;
-}
+HttpResponse error(unsigned status, const std::string& message) { return json_error(status, message); }
 
-HttpResponse error(unsigned status, const std::string& message) { return json_response(status, Json{{"error", message}}); }
-
-HttpResponse not_allowed(const std::string& allowed) {
-    HttpResponse response = error(405, fmt::format("method not allowed here (allowed: {})", allowed));
-    response.headers.emplace_back("Allow", allowed);
-    return response;
-}
+HttpResponse not_allowed(const std::string& allowed) { return method_not_allowed(allowed); }
 
 // A limit as the view has it, else the name of the parameter that sets it (not read yet), else null.
 Json limit_json(const std::optional<double>& limit, const std::optional<device::Bound>& bound) {

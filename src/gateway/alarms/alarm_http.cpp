@@ -6,6 +6,7 @@
 #include "common/peer_text.hpp"
 #include "common/text_parsing.hpp"
 #include "gateway/history_schema.hpp"
+#include "gateway/http_json.hpp"
 #include "gateway/http_text.hpp"
 
 namespace loopwire::gateway::alarms {
@@ -14,23 +15,11 @@ namespace {
 using Json = nlohmann::ordered_json;
 constexpr std::string_view prefix = "/api/alarms";
 
-HttpResponse json_response(unsigned status, const Json& body) {
-    HttpResponse response;
-    response.status = status;
-    response.body = json_text(body);
-    response.headers.emplace_back("Cache-Control", "no-store");
-    return response;
-}
-
-HttpResponse error(unsigned status, const std::string& message) { return json_response(status, Json{{"error", message}}); }
+HttpResponse error(unsigned status, const std::string& message) { return json_error(status, message); }
 
 HttpOutcome now(HttpResponse response) { return {std::move(response), {}, {}}; }
 
-HttpOutcome not_allowed(const std::string& allowed) {
-    HttpResponse response = error(405, fmt::format("method not allowed here (allowed: {})", allowed));
-    response.headers.emplace_back("Allow", allowed);
-    return now(std::move(response));
-}
+HttpOutcome not_allowed(const std::string& allowed) { return now(method_not_allowed(allowed)); }
 
 Json optional_number(const std::optional<double>& value) { return value ? Json(*value) : Json(nullptr); }
 
