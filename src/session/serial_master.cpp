@@ -44,6 +44,14 @@ public:
         next_ = (next_ + 1) % samples_.size();
     }
     Duration expected() const { return *std::max_element(samples_.begin(), samples_.end()); }
+    // The shortest of those measured; zero until one is.
+    Duration earliest() const {
+        Duration least = Duration::zero();
+        for (const Duration sample : samples_) {
+            if (sample != Duration::zero() && (least == Duration::zero() || sample < least)) least = sample;
+        }
+        return least;
+    }
 
 private:
     std::array<Duration, 8> samples_{};
@@ -469,6 +477,7 @@ private:
         const LatencyKey key{unit, pdu[0]};
         const Duration usual = latencies_[key].expected();
         Awaited awaited{unit, pdu, transaction, answers, context, sent_at, usual, retry, {}, {}, true, false};
+        awaited.earliest = latencies_[key].earliest();
         auto accepted = co_await await_reply(awaited, deadline);
         last_try_refused_a_copy_ = awaited.refused_a_copy;
         line_quiet_since_ = clock_->now();
@@ -494,6 +503,7 @@ private:
         bool clean;  // nothing but the accepted frame arrived
         bool refused_a_copy;  // a frame that answered in shape was refused as a possible copy
         bool confirmed = false;  // the accepted frame has bytes an earlier try refused (not_a_copy)
+        Duration earliest{};     // the soonest this unit's reply has come; 0: unknown
     };
 
     // Reads until a frame answers the request or the deadline passes.
@@ -674,9 +684,14 @@ private:
         std::optional<std::string> ambiguity;
         const Instant accepted_at = clock_->now();
         // Bytes taken as confirmed may yet be a second copy (frequent bytes, a reply many
-        // clients read, are copied often): the real reply, if one comes, is awaited past its
-        // usual time by the host's jitter, and makes them ambiguous.
-        const Instant hold_until = awaited.confirmed ? usual_start + reply_jitter : usual_start;
+        // clients read, are copied often), and so may bytes complete sooner than this unit has
+        // ever answered (a late copy of another request's reply of the same shape, landing before
+        // the real one): the real reply, if one comes, is awaited past its usual time by the host's
+        // jitter, and makes them ambiguous. A host that wakes the line's reader late, or a relay
+        // that paces late, can put the real reply past the usual time alone.
+        const bool sooner_than_ever =
+            awaited.earliest != Duration::zero() && accepted_at - awaited.sent_at + inter_frame_gap_ < awaited.earliest;
+        const Instant hold_until = awaited.confirmed || sooner_than_ever ? usual_start + reply_jitter : usual_start;
         Instant quiet_until = std::max(accepted_at, hold_until) + inter_frame_gap_;
         // A line that keeps talking after the reply cannot settle the question: give up at the
         // deadline (or a little after the silence, if the reply came that late).
