@@ -11,13 +11,14 @@ namespace {
 // The namespace of UNECE unit codes (OPC UA Part 8, EUInformation).
 constexpr const char* unece_namespace = "http://www.opcfoundation.org/UA/units/un/cefact";
 
-UA_LocalizedText text_of(const std::string& text) {
-    return UA_LOCALIZEDTEXT(const_cast<char*>(""), const_cast<char*>(text.c_str()));
-}
+// Views of the text, not copies (open62541 copies them into the node): the text must outlive the
+// call that adds the node. A literal is taken as it is, never through a temporary std::string,
+// whose characters would be gone before the node is added.
+UA_LocalizedText text_of(const char* text) { return UA_LOCALIZEDTEXT(const_cast<char*>(""), const_cast<char*>(text)); }
+UA_LocalizedText text_of(const std::string& text) { return text_of(text.c_str()); }
 
-UA_QualifiedName name_of(UA_UInt16 ns, const std::string& name) {
-    return UA_QUALIFIEDNAME(ns, const_cast<char*>(name.c_str()));
-}
+UA_QualifiedName name_of(UA_UInt16 ns, const char* name) { return UA_QUALIFIEDNAME(ns, const_cast<char*>(name)); }
+UA_QualifiedName name_of(UA_UInt16 ns, const std::string& name) { return name_of(ns, name.c_str()); }
 
 UA_Range range_of(const device::ValueLimits& limits) {
     // A bound not known (set by a parameter not read yet) is NaN: no number is made up for it.
