@@ -323,6 +323,9 @@ struct Gateway::Parts {
     KeptSparkplug* kept_sparkplug = nullptr;           // GatewayOptions::sparkplug
     std::unique_ptr<OpcuaServer> opcua;  // [opcua]; before the writer and the cache, which it uses, go
     std::unique_ptr<HttpApi> http_api;
+    // `http` for the API's /metrics, which the engine's thread answers: the server serves (and may
+    // be asked) before open_http has stored it in `http`. Null until then.
+    std::atomic<const HttpServer*> http_serving{nullptr};
     std::unique_ptr<HttpServer> http;  // last: stopped (its connections closed) before the API goes
 };
 
@@ -515,7 +518,10 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     };
     sources.front = [&parts] { return parts.front ? parts.front->statistics() : FrontReport{}; };
     if (parts.opcua) sources.opcua = [&parts] { return parts.opcua->figures(); };
-    sources.http_not_allowed = [&parts] { return parts.http ? parts.http->not_allowed() : std::uint64_t{0}; };
+    sources.http_not_allowed = [&parts] {
+        const HttpServer* serving = parts.http_serving.load();
+        return serving ? serving->not_allowed() : std::uint64_t{0};
+    };
     sources.log = parts.log;
     sources.logins = parts.http_logins;
     parts.http_api = std::make_unique<HttpApi>(config, std::move(sources));
@@ -538,6 +544,7 @@ Result<void> Gateway::open_http(const HttpConfig& http, const GatewayConfig& con
     auto server = HttpServer::open(settings, *parts.http_api, &parts.engine->loop(), kept ? listener : nullptr);
     if (!server) return server.error();
     parts.http = std::move(*server);
+    parts.http_serving.store(parts.http.get());
     return {};
 }
 
