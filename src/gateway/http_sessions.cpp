@@ -25,15 +25,6 @@ std::string_view trimmed(std::string_view text) {
 
 }  // namespace
 
-std::string random_secret() {
-    start_sodium();
-    std::array<unsigned char, 32> bytes{};
-    ::randombytes_buf(bytes.data(), bytes.size());
-    std::array<char, sodium_base64_ENCODED_LEN(32, sodium_base64_VARIANT_URLSAFE_NO_PADDING)> text{};
-    ::sodium_bin2base64(text.data(), text.size(), bytes.data(), bytes.size(), sodium_base64_VARIANT_URLSAFE_NO_PADDING);
-    return std::string(text.data());
-}
-
 bool same_secret(std::string_view given, std::string_view expected) {
     if (given.size() != expected.size() || expected.empty()) return false;
     return ::sodium_memcmp(given.data(), expected.data(), expected.size()) == 0;

@@ -122,9 +122,6 @@ struct HttpLogins {
     LoginLimiter limiter{LoginLimiter::Settings{}};
 };
 
-// 32 random bytes, base64url without padding.
-std::string random_secret();
-
 // Compares in time independent of where they differ (tokens, CSRF tokens).
 bool same_secret(std::string_view given, std::string_view expected);
 

@@ -142,7 +142,9 @@ bool verify_password(std::string_view password, const std::string& hash) {
     return ::crypto_pwhash_str_verify(hash.c_str(), password.data(), password.size()) == 0;
 }
 
-std::string new_machine_token() {
+std::string new_machine_token() { return random_secret(); }
+
+std::string random_secret() {
     start_sodium();
     std::array<unsigned char, 32> bytes{};
     ::randombytes_buf(bytes.data(), bytes.size());

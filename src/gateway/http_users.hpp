@@ -55,7 +55,9 @@ Result<std::string> hash_password(std::string_view password);
 // Whether `password` is the one `hash` was made from; as slow as hash_password.
 bool verify_password(std::string_view password, const std::string& hash);
 
-// A new machine token: 32 random bytes, base64url without padding (43 characters).
+// 32 random bytes, base64url without padding (43 characters): session ids, CSRF tokens.
+std::string random_secret();
+// A new machine token: a random_secret().
 std::string new_machine_token();
 // The users-file hash of a machine token: "token-sha256:" and the SHA-256 in hex.
 std::string machine_token_hash(std::string_view token);
