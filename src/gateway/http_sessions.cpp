@@ -1,7 +1,6 @@
 #include "gateway/http_sessions.hpp"
 
 #include <algorithm>
-#include <array>
 #include <cstdint>
 
 #include <nlohmann/json.hpp>
